@@ -1,0 +1,5 @@
+import sys
+
+from gpfverify.cli import main
+
+sys.exit(main())

@@ -1,0 +1,203 @@
+"""Executor-agnostic Monte Carlo runner.
+
+* Run i is seeded by ``SeedSequence(seed).spawn(runs)[i]``, so results do not depend on how runs
+  are spread over workers.
+* Every finished run is written atomically to ``DIR/runs/run-NNNNNN.json`` (temporary file +
+  ``os.replace``); a crash or Ctrl-C loses only the runs in flight, and ``resume=True`` continues.
+* A run that raises is saved with its error and seed; the summary counts it and leaves it out.
+* ``results.json`` is always computed from the saved runs (JSON round-trips floats exactly), so an
+  interrupted-and-resumed run ends with the same numbers as an uninterrupted one. Timing fields
+  (``time_per_*``) are measurements and naturally differ between executions.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import importlib
+import json
+import os
+import sys
+import time
+import traceback
+from concurrent.futures import Executor, Future, ProcessPoolExecutor, as_completed
+from pathlib import Path
+from types import ModuleType
+
+import numpy as np
+
+from gpfverify.errors import InputError
+
+_THREAD_VARS = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS",
+                "VECLIB_MAXIMUM_THREADS", "NUMEXPR_NUM_THREADS")
+
+
+class SerialExecutor(Executor):
+    """Runs each task at submission, in this process (workers = 1)."""
+
+    def submit(self, fn, /, *args, **kwargs) -> Future:
+        future: Future = Future()
+        try:
+            future.set_result(fn(*args, **kwargs))
+        except BaseException as exc:  # noqa: BLE001 - handed to the caller through the future
+            if isinstance(exc, KeyboardInterrupt):
+                raise
+            future.set_exception(exc)
+        return future
+
+
+@contextlib.contextmanager
+def make_executor(workers: int = 1, scheduler: str | None = None):
+    """Serial for one worker; a local process pool with BLAS pinned to one thread per worker;
+    or, with ``scheduler``, the executor of a ``dask.distributed`` client at that address."""
+    if scheduler:
+        try:
+            from distributed import Client
+        except ImportError:
+            raise InputError("--scheduler needs dask.distributed: pip install 'gpfverify[cluster]'") from None
+        client = Client(scheduler)
+        try:
+            yield client.get_executor()
+        finally:
+            client.close()
+        return
+    if workers <= 1:
+        yield SerialExecutor()
+        return
+    saved = {k: os.environ.get(k) for k in _THREAD_VARS}
+    os.environ.update({k: "1" for k in _THREAD_VARS})  # inherited by the spawned workers
+    import multiprocessing as mp
+
+    pool = ProcessPoolExecutor(max_workers=workers, mp_context=mp.get_context("spawn"))
+    try:
+        yield pool
+    finally:
+        pool.shutdown(wait=True, cancel_futures=True)
+        for k, v in saved.items():
+            if v is None:
+                os.environ.pop(k, None)
+            else:
+                os.environ[k] = v
+
+
+def _execute(module_name: str, params: dict, seed: np.random.SeedSequence, index: int) -> dict:
+    """One run, never raising: the record saved under ``runs/``."""
+    module = importlib.import_module(module_name)
+    start = time.perf_counter()
+    record = {"index": index, "seed_entropy": str(seed.entropy), "spawn_key": list(seed.spawn_key)}
+    try:
+        record["result"] = module.run_one(params, seed)
+        record["status"] = "ok"
+    except Exception as exc:  # noqa: BLE001 - recorded, counted, reported
+        record["status"] = "error"
+        record["error"] = f"{type(exc).__name__}: {exc}"
+        record["traceback"] = traceback.format_exc(limit=8)
+    record["seconds"] = time.perf_counter() - start
+    return record
+
+
+def _atomic_write_json(path: Path, obj) -> None:
+    tmp = path.with_name(path.name + f".tmp{os.getpid()}")
+    tmp.write_text(json.dumps(obj, allow_nan=True), encoding="utf-8")
+    os.replace(tmp, path)
+
+
+def _run_path(out_dir: Path, index: int) -> Path:
+    return out_dir / "runs" / f"run-{index:06d}.json"
+
+
+def _check_manifest(out_dir: Path, manifest: dict, resume: bool) -> None:
+    path = out_dir / "manifest.json"
+    existing_runs = list((out_dir / "runs").glob("run-*.json")) if (out_dir / "runs").exists() else []
+    if path.exists() and (resume or not existing_runs):
+        old = json.loads(path.read_text(encoding="utf-8"))
+        if resume and {k: old.get(k) for k in ("experiment", "seed", "params")} != \
+                {k: manifest[k] for k in ("experiment", "seed", "params")}:
+            raise InputError(f"{out_dir} holds runs of different settings; use a new --out")
+    elif existing_runs and not resume:
+        raise InputError(f"{out_dir} already holds {len(existing_runs)} saved runs; "
+                         "pass --resume to continue them or choose a new --out")
+    _atomic_write_json(path, manifest)
+
+
+def _progress(enabled: bool):
+    if not enabled:
+        return contextlib.nullcontext(None)
+    from rich.progress import (BarColumn, MofNCompleteColumn, Progress, TextColumn,
+                               TimeElapsedColumn, TimeRemainingColumn)
+
+    return Progress(TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(),
+                    TextColumn("{task.fields[rate]}"), TimeElapsedColumn(), TimeRemainingColumn(),
+                    transient=False)
+
+
+def run_experiment(module: ModuleType | str, params: dict, runs: int, seed: int, out_dir: Path,
+                   resume: bool = False, executor: Executor | None = None,
+                   show_progress: bool | None = None) -> dict:
+    """Run (or finish) ``runs`` Monte Carlo runs of an experiment and write ``results.json``."""
+    module = importlib.import_module(module) if isinstance(module, str) else module
+    name = module.NAME
+    if runs < 1:
+        raise InputError(f"--runs must be at least 1, got {runs}")
+    out_dir = Path(out_dir)
+    (out_dir / "runs").mkdir(parents=True, exist_ok=True)
+    manifest = {"experiment": name, "seed": seed, "runs": runs, "params": params}
+    _check_manifest(out_dir, json.loads(json.dumps(manifest)), resume)
+    seeds = np.random.SeedSequence(seed).spawn(runs)
+    pending = [i for i in range(runs) if not _is_ok(_run_path(out_dir, i))]
+    show = sys.stderr.isatty() if show_progress is None else show_progress
+    with contextlib.ExitStack() as stack:
+        if executor is None:
+            executor = stack.enter_context(make_executor(1))
+        progress = stack.enter_context(_progress(show))
+        task = progress.add_task(name, total=runs, completed=runs - len(pending), rate="") if progress else None
+        started = time.perf_counter()
+        futures = {executor.submit(_execute, module.__name__, params, seeds[i], i): i for i in pending}
+        try:
+            for n_done, future in enumerate(as_completed(futures), 1):
+                record = future.result()
+                _atomic_write_json(_run_path(out_dir, record["index"]), record)
+                if progress:
+                    rate = n_done / max(time.perf_counter() - started, 1e-9)
+                    progress.update(task, advance=1, rate=f"{rate:.2f} runs/s")
+        except KeyboardInterrupt:
+            for f in futures:
+                f.cancel()
+            saved = sum(_is_ok(_run_path(out_dir, i)) for i in range(runs))
+            print(f"interrupted: {saved} of {runs} runs saved in {out_dir / 'runs'}; "
+                  "run again with --resume to continue", file=sys.stderr)
+            raise
+    return write_results(module, out_dir, manifest)
+
+
+def _is_ok(path: Path) -> bool:
+    if not path.exists():
+        return False
+    try:
+        return json.loads(path.read_text(encoding="utf-8")).get("status") == "ok"
+    except (json.JSONDecodeError, OSError):
+        return False
+
+
+def load_runs(out_dir: Path, runs: int) -> list[dict]:
+    records = []
+    for i in range(runs):
+        path = _run_path(out_dir, i)
+        if path.exists():
+            records.append(json.loads(path.read_text(encoding="utf-8")))
+    return records
+
+
+def write_results(module: ModuleType, out_dir: Path, manifest: dict) -> dict:
+    """``results.json`` from the saved runs, in run order."""
+    records = load_runs(out_dir, manifest["runs"])
+    ok = [r for r in records if r["status"] == "ok"]
+    failed = [{"index": r["index"], "error": r["error"], "spawn_key": r["spawn_key"]}
+              for r in records if r["status"] != "ok"]
+    if not ok:
+        first = failed[0]["error"] if failed else "no run finished"
+        raise InputError(f"every run of {manifest['experiment']} failed; first error: {first}")
+    body = module.summarize(manifest["params"], [r["result"] for r in ok])
+    results = {"experiment": manifest["experiment"], "runs": manifest["runs"], "seed": manifest["seed"],
+               "params": manifest["params"], "runs_ok": len(ok), "failed_runs": failed, **body}
+    _atomic_write_json(out_dir / "results.json", results)
+    return results

@@ -1,0 +1,61 @@
+"""Independent routes to the moments of a GP at a Gaussian input, used as oracles.
+
+Both use only ``GaussianProcess.predict`` (deterministic inputs), never the closed forms:
+
+* E[f_a] = E_x[m_a(x)],  Cov[f_a, f_b] = Cov_x[m_a(x), m_b(x)] + δ_ab E_x[σ_a²(x)],
+  Cov[x, f_a] = Cov_x[x, m_a(x)]   (law of total (co)variance; independent outputs)
+
+evaluated by tensor Gauss–Hermite quadrature or by Monte Carlo sampling of x.
+"""
+
+from __future__ import annotations
+
+import itertools
+
+import numpy as np
+
+from gpfverify.gp.moments import MomentMatch
+
+
+def _square_root(sigma: np.ndarray) -> np.ndarray:
+    """A factor F with F Fᵀ = Σ that also works for singular Σ (eigen-decomposition)."""
+    vals, vecs = np.linalg.eigh(0.5 * (sigma + sigma.T))
+    return vecs * np.sqrt(np.clip(vals, 0.0, None))
+
+
+def _moments_from_points(gp, x: np.ndarray, w: np.ndarray) -> MomentMatch:
+    mean_x = w @ x
+    m, v = gp.predict(x)
+    mean = w @ m
+    dm = m - mean
+    cov = (dm * w[:, None]).T @ dm + np.diag(w @ v)
+    cross = ((x - mean_x) * w[:, None]).T @ dm
+    return MomentMatch(mean=mean, cov=0.5 * (cov + cov.T), cross_cov=cross)
+
+
+def quadrature_moments(gp, mu: np.ndarray, sigma: np.ndarray, order: int = 40) -> MomentMatch:
+    """Tensor-product Gauss–Hermite quadrature with ``order`` nodes per dimension."""
+    nodes, weights = np.polynomial.hermite_e.hermegauss(order)  # weight exp(−x²/2)
+    weights = weights / weights.sum()
+    d = mu.size
+    grid = np.array(list(itertools.product(nodes, repeat=d)))
+    w = np.prod(np.array(list(itertools.product(weights, repeat=d))), axis=1)
+    x = mu + grid @ _square_root(sigma).T
+    return _moments_from_points(gp, x, w)
+
+
+def monte_carlo_moments(gp, mu: np.ndarray, sigma: np.ndarray, samples: int,
+                        rng: np.random.Generator) -> tuple[MomentMatch, MomentMatch]:
+    """Monte Carlo estimate of the moments and the standard error of each entry (delta method
+    free: the standard errors are those of the sample means of the per-sample summands)."""
+    x = mu + rng.standard_normal((samples, mu.size)) @ _square_root(sigma).T
+    w = np.full(samples, 1.0 / samples)
+    est = _moments_from_points(gp, x, w)
+    m, v = gp.predict(x)
+    dm = m - est.mean
+    dx = x - w @ x
+    cov_terms = dm[:, :, None] * dm[:, None, :] + np.eye(m.shape[1]) * v[:, None, :]
+    se = MomentMatch(mean=m.std(axis=0) / np.sqrt(samples),
+                     cov=cov_terms.std(axis=0) / np.sqrt(samples),
+                     cross_cov=(dx[:, :, None] * dm[:, None, :]).std(axis=0) / np.sqrt(samples))
+    return est, se

@@ -1,0 +1,226 @@
+"""Independent SE-ARD Gaussian-process regression per output (seed 000 §2.2, eq. 3–6).
+
+For output a with training data (X, y_a), K_a = k_a(X, X) + σ_εa² I and β_a = K_a⁻¹ y_a:
+
+* predictive mean   m_a(x*) = k_a(x*, X) β_a                          (eq. 5)
+* predictive var    σ_a²(x*) = k_a(x*, x*) − k_a(x*, X) K_a⁻¹ k_a(X, x*)  (eq. 6, latent f)
+* log evidence      −½ y_aᵀ β_a − ½ log|K_a| − n/2 log 2π
+
+The prior mean is zero (as in Deisenroth et al. 2009 and scikit-learn with ``normalize_y=False``).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.linalg as sla
+import scipy.optimize as sopt
+
+from gpfverify.errors import InputError
+from gpfverify.gp.kernels import scaled_sq_dist, se_ard
+from gpfverify.linalg import Cholesky, cholesky
+from gpfverify.rng import generator
+from gpfverify.validate import as_array, as_covariance, as_positive, as_vector
+
+_LOG_2PI = float(np.log(2.0 * np.pi))
+
+
+@dataclass(frozen=True)
+class FitBounds:
+    """Box bounds of evidence maximisation, relative to the data (all in natural units).
+
+    lengthscale ∈ [min_lengthscale, max_lengthscale] × (range of x_d): beyond 100 ranges an input
+    is irrelevant anyway, and the bound keeps ℓ → ∞ from wandering off. signal variance ∈
+    [1e-4, 1e4] × mean(y²). noise variance ≥ min_noise × mean(y²) (floor 1e-10), keeping the
+    degenerate interpolating optimum σ_ε → 0 out of reach; ≤ 10 × mean(y²).
+    """
+
+    min_lengthscale: float = 1e-3
+    max_lengthscale: float = 1e2
+    min_signal: float = 1e-4
+    max_signal: float = 1e4
+    min_noise: float = 1e-8
+    max_noise: float = 10.0
+
+    def log_box(self, x: np.ndarray, y: np.ndarray) -> list[tuple[float, float]]:
+        """Bounds on (log ℓ_1..log ℓ_D, log α², log σ_ε²) for one output."""
+        span = np.ptp(x, axis=0)
+        span = np.where(span > 0, span, 1.0)
+        power = max(float(np.mean(y * y)), 1e-12)
+        box = [(np.log(self.min_lengthscale * s), np.log(self.max_lengthscale * s)) for s in span]
+        box.append((np.log(self.min_signal * power), np.log(self.max_signal * power)))
+        box.append((np.log(max(self.min_noise * power, 1e-10)), np.log(self.max_noise * power)))
+        return box
+
+
+def _neg_log_evidence(theta: np.ndarray, x: np.ndarray, y: np.ndarray,
+                      sq_diff: np.ndarray) -> tuple[float, np.ndarray]:
+    """Negative log marginal likelihood of one output and its gradient in log parameters.
+
+    ∂(−log p)/∂θ = −½ tr((ββᵀ − K⁻¹) ∂K/∂θ) with ∂K/∂log ℓ_d = K_f ∘ Δ_d²/ℓ_d²,
+    ∂K/∂log α² = K_f, ∂K/∂log σ_ε² = σ_ε² I. ``sq_diff`` is (n, n, D) of (x_i,d − x_j,d)².
+    """
+    d = x.shape[1]
+    ell2 = np.exp(2.0 * theta[:d])
+    signal, noise = np.exp(theta[d]), np.exp(theta[d + 1])
+    kf = signal * np.exp(-0.5 * sq_diff @ (1.0 / ell2))
+    k = kf + noise * np.eye(len(y))
+    try:
+        chol = cholesky(k, "K", allow_jitter=False)
+    except Exception:
+        return 1e25, np.zeros_like(theta)
+    beta = chol.solve(y)
+    nll = 0.5 * float(y @ beta) + 0.5 * chol.logdet() + 0.5 * len(y) * _LOG_2PI
+    w = np.outer(beta, beta) - chol.inverse()  # n×n, fine for the sizes we fit
+    wk = w * kf
+    grad = np.empty_like(theta)
+    grad[:d] = -0.5 * np.einsum("ij,ijd->d", wk, sq_diff) / ell2
+    grad[d] = -0.5 * float(np.sum(wk))
+    grad[d + 1] = -0.5 * noise * float(np.trace(w))
+    return nll, grad
+
+
+def _initial_guess(x: np.ndarray, y: np.ndarray) -> np.ndarray:
+    """Data-driven start: ℓ_d = std(x_d) (or 1), α² = mean(y²), σ_ε² = 1 % of α²."""
+    std = np.std(x, axis=0)
+    std = np.where(std > 0, std, 1.0)
+    power = max(float(np.mean(y * y)), 1e-12)
+    return np.concatenate([np.log(std), [np.log(power), np.log(0.01 * power)]])
+
+
+def fit_one_output(x: np.ndarray, y: np.ndarray, restarts: int, rng: np.random.Generator,
+                   bounds: FitBounds) -> np.ndarray:
+    """Best log-parameters (log ℓ, log α², log σ_ε²) over ``restarts`` L-BFGS-B runs: the first
+    from the data-driven guess, the others from it perturbed by N(0, 1) in log space (clipped)."""
+    box = bounds.log_box(x, y)
+    lo, hi = np.array([b[0] for b in box]), np.array([b[1] for b in box])
+    sq_diff = (x[:, None, :] - x[None, :, :]) ** 2
+    start = np.clip(_initial_guess(x, y), lo, hi)
+    best_theta, best_val = start, np.inf
+    for r in range(max(1, restarts)):
+        theta0 = start if r == 0 else np.clip(start + rng.standard_normal(start.size), lo, hi)
+        res = sopt.minimize(_neg_log_evidence, theta0, args=(x, y, sq_diff), jac=True,
+                            method="L-BFGS-B", bounds=box)
+        if res.fun < best_val:
+            best_theta, best_val = res.x, float(res.fun)
+    return best_theta
+
+
+def _per_output(value, name: str, shape: tuple[int, ...]) -> np.ndarray:
+    """A strictly positive hyperparameter array of ``shape``; with one output (E = 1) the leading
+    axis may be omitted (``lengthscales`` (D,), a scalar variance)."""
+    arr = np.asarray(value, dtype=float) if not isinstance(value, np.ndarray) else value
+    if shape[0] == 1 and arr.shape == shape[1:]:
+        arr = arr.reshape(shape)
+    return as_positive(arr, name, shape=shape)
+
+
+class GaussianProcess:
+    """Independent SE-ARD GPs, one per output column of ``Y``, with fixed hyperparameters.
+
+    Parameters
+    ----------
+    X : (n, D) training inputs.
+    Y : (n, E) or (n,) training targets.
+    lengthscales : (E, D) ℓ_a per output and input dimension.
+    signal_var : (E,) α_a².
+    noise_var : (E,) σ_εa².
+
+    The Cholesky factors and K_a⁻¹ are computed once here; prediction never factorises again.
+    """
+
+    def __init__(self, X, Y, lengthscales, signal_var, noise_var):
+        self.X = as_array(X, "X", ndim=2)
+        n, d = self.X.shape
+        if n == 0 or d == 0:
+            raise InputError(f"X must have at least one row and one column, got shape {self.X.shape}")
+        y = as_array(Y, "Y")
+        if y.ndim == 1:
+            y = y[:, None]
+        if y.ndim != 2 or y.shape[0] != n:
+            raise InputError(f"Y must have shape ({n},) or ({n}, E), got {np.shape(Y)}")
+        self.Y = y
+        e = y.shape[1]
+        self.lengthscales = _per_output(lengthscales, "lengthscales", (e, d))
+        self.signal_var = _per_output(signal_var, "signal_var", (e,))
+        self.noise_var = _per_output(noise_var, "noise_var", (e,))
+        kernels = se_ard(self.X, self.X, self.lengthscales, self.signal_var)
+        kernels += self.noise_var[:, None, None] * np.eye(n)
+        self._chol: list[Cholesky] = [cholesky(kernels[a], f"K[{a}]") for a in range(e)]
+        #: β_a = K_a⁻¹ y_a, shape (E, n)
+        self.beta = np.stack([c.solve(y[:, a]) for a, c in enumerate(self._chol)])
+        #: K_a⁻¹ cached once for the trace terms of moment matching, shape (E, n, n)
+        self.K_inv = np.stack([c.inverse() for c in self._chol])
+
+    # -- construction by evidence maximisation ---------------------------------------------------
+    @classmethod
+    def fit(cls, X, Y, restarts: int = 3, seed=0, bounds: FitBounds | None = None) -> "GaussianProcess":
+        """Maximise the log evidence of each output independently (log-parameterised L-BFGS-B with
+        analytic gradients, ``restarts`` starts, deterministic for a given ``seed``)."""
+        x = as_array(X, "X", ndim=2)
+        y = as_array(Y, "Y")
+        y2 = y[:, None] if y.ndim == 1 else y
+        if y2.ndim != 2 or y2.shape[0] != x.shape[0]:
+            raise InputError(f"Y must have shape ({x.shape[0]},) or ({x.shape[0]}, E), got {y.shape}")
+        if x.shape[0] < 2:
+            raise InputError("fit needs at least two training points")
+        bounds = bounds or FitBounds()
+        rng = generator(seed)
+        d = x.shape[1]
+        thetas = np.stack([fit_one_output(x, y2[:, a], restarts, rng, bounds)
+                           for a in range(y2.shape[1])])
+        return cls(x, y2, np.exp(thetas[:, :d]), np.exp(thetas[:, d]), np.exp(thetas[:, d + 1]))
+
+    # -- basic facts ------------------------------------------------------------------------------
+    @property
+    def input_dim(self) -> int:
+        return self.X.shape[1]
+
+    @property
+    def output_dim(self) -> int:
+        return self.Y.shape[1]
+
+    @property
+    def jitter(self) -> np.ndarray:
+        """Jitter added to each K_a to factorise it (zeros when none was needed)."""
+        return np.array([c.jitter for c in self._chol])
+
+    def log_marginal_likelihood(self) -> float:
+        """Σ_a log p(y_a | X) at the current hyperparameters."""
+        n = self.X.shape[0]
+        total = 0.0
+        for a, c in enumerate(self._chol):
+            total += -0.5 * float(self.Y[:, a] @ self.beta[a]) - 0.5 * c.logdet() - 0.5 * n * _LOG_2PI
+        return total
+
+    # -- prediction -------------------------------------------------------------------------------
+    def predict(self, Xs) -> tuple[np.ndarray, np.ndarray]:
+        """Latent predictive mean and variance at deterministic inputs (eq. 5–6): each (m, E)."""
+        xs = as_array(Xs, "Xs")
+        if xs.ndim == 1:
+            xs = xs[None, :]
+        if xs.ndim != 2 or xs.shape[1] != self.input_dim:
+            raise InputError(f"Xs must have shape (m, {self.input_dim}), got {np.shape(Xs)}")
+        ks = se_ard(xs, self.X, self.lengthscales, self.signal_var)  # (E, m, n)
+        mean = np.einsum("emn,en->me", ks, self.beta)
+        var = np.empty_like(mean)
+        for a, c in enumerate(self._chol):
+            v = sla.solve_triangular(c.factor, ks[a].T, lower=True, check_finite=False)
+            var[:, a] = self.signal_var[a] - np.sum(v * v, axis=0)
+        return mean, np.maximum(var, 0.0)
+
+    def predict_mean(self, Xs: np.ndarray) -> np.ndarray:
+        """Predictive mean only, without argument checks: the hot path of sigma-point filters.
+        ``Xs`` is (m, D); returns (m, E)."""
+        sq = scaled_sq_dist(Xs, self.X, self.lengthscales)
+        return np.einsum("emn,en->me", self.signal_var[:, None, None] * np.exp(-0.5 * sq), self.beta)
+
+    def predict_uncertain(self, mu, Sigma):
+        """Exact moments of f(x) for x ~ N(mu, Sigma) (eq. 8–11, 20); see
+        :func:`gpfverify.gp.moments.moment_match`."""
+        from gpfverify.gp.moments import moment_match
+
+        m = as_vector(mu, "mu", self.input_dim)
+        s = as_covariance(Sigma, "Sigma", self.input_dim)
+        return moment_match(self, m, s)

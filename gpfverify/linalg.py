@@ -1,0 +1,100 @@
+"""Stable linear algebra shared by every module: symmetrisation, Cholesky with reported jitter,
+solves instead of inverses, numerical rank. Ground floor: imports only errors and tolerances."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.linalg as sla
+
+from gpfverify.errors import NumericalError
+from gpfverify.tolerances import JITTER_STEPS, numpy_rank_tol
+
+
+def symmetrize(a: np.ndarray) -> np.ndarray:
+    """(A + Aᵀ)/2 over the last two axes."""
+    return 0.5 * (a + np.swapaxes(a, -1, -2))
+
+
+@dataclass(frozen=True)
+class Cholesky:
+    """Lower Cholesky factor of ``A + jitter * I``; ``jitter`` is 0 unless one was needed."""
+
+    factor: np.ndarray
+    jitter: float
+
+    def solve(self, b: np.ndarray) -> np.ndarray:
+        """(A + jitter I)⁻¹ b by two triangular solves."""
+        return sla.cho_solve((self.factor, True), b, check_finite=False)
+
+    def logdet(self) -> float:
+        return 2.0 * float(np.sum(np.log(np.diag(self.factor))))
+
+    def inverse(self) -> np.ndarray:
+        """Explicit inverse, for caching outside a hot path (e.g. a GP's training matrix)."""
+        n = self.factor.shape[0]
+        return symmetrize(self.solve(np.eye(n)))
+
+
+def cholesky(a: np.ndarray, name: str = "matrix", allow_jitter: bool = True) -> Cholesky:
+    """Cholesky factor of a symmetric matrix, adding the smallest jitter from
+    :data:`~gpfverify.tolerances.JITTER_STEPS` (relative to the mean diagonal) that makes it work.
+
+    Raises :class:`NumericalError` naming ``name`` when none does.
+    """
+    a = symmetrize(np.asarray(a, dtype=float))
+    n = a.shape[0]
+    scale = float(np.mean(np.abs(np.diag(a)))) if n else 1.0
+    scale = scale if scale > 0 else 1.0
+    steps = JITTER_STEPS if allow_jitter else (0.0,)
+    for rel in steps:
+        jitter = rel * scale
+        try:
+            factor = np.linalg.cholesky(a + jitter * np.eye(n) if jitter else a)
+        except np.linalg.LinAlgError:
+            continue
+        if np.all(np.isfinite(factor)):
+            return Cholesky(factor, jitter)
+    raise NumericalError(f"{name} is not positive definite (Cholesky failed even with jitter "
+                         f"{steps[-1]:g} x mean diagonal)")
+
+
+def solve_spd(a: np.ndarray, b: np.ndarray, name: str = "matrix") -> np.ndarray:
+    """a⁻¹ b for symmetric positive definite ``a`` (no jitter: a failure is an error)."""
+    return cholesky(a, name, allow_jitter=False).solve(b)
+
+
+def right_solve_spd(b: np.ndarray, a: np.ndarray, name: str = "matrix") -> np.ndarray:
+    """b a⁻¹ for symmetric positive definite ``a``, as (a⁻¹ bᵀ)ᵀ."""
+    return solve_spd(a, np.asarray(b).T, name).T
+
+
+@dataclass(frozen=True)
+class RankReport:
+    """Numerical rank of a matrix with the evidence behind it."""
+
+    rank: int
+    singular_values: np.ndarray
+    tol: float
+    shape: tuple[int, int]
+
+    @property
+    def full_column_rank(self) -> bool:
+        return self.rank == self.shape[1]
+
+    @property
+    def condition_number(self) -> float:
+        s = self.singular_values
+        if s.size == 0 or s[-1] == 0.0:
+            return float("inf")
+        return float(s[0] / s[-1])
+
+
+def numerical_rank(a: np.ndarray, tol: float | None = None) -> RankReport:
+    """Rank = number of singular values > ``tol``; default tol is numpy's ``matrix_rank`` rule
+    ``S.max() * max(M, N) * eps``."""
+    a = np.asarray(a, dtype=float)
+    s = np.linalg.svd(a, compute_uv=False) if a.size else np.zeros(0)
+    used = numpy_rank_tol(s, a.shape) if tol is None else float(tol)
+    return RankReport(int(np.sum(s > used)), s, used, (a.shape[0], a.shape[1]))

@@ -1,0 +1,54 @@
+"""The verification report: one page per section, Markdown + PNG, plus one HTML page.
+
+Sections are modules listed in :data:`SECTIONS`; each defines ``build(ctx) -> Section``.
+"""
+
+from __future__ import annotations
+
+import importlib
+from dataclasses import dataclass
+from pathlib import Path
+
+from gpfverify.report.document import Section
+from gpfverify.report.render import write_report
+
+#: section slug -> module; order is the order of the report.
+SECTIONS: dict[str, str] = {
+    "moments": "gpfverify.report.sections.moments",
+}
+
+
+@dataclass(frozen=True)
+class ReportContext:
+    """What a section needs: where to write, how big a run to make, a seed."""
+
+    out_dir: Path
+    profile: str  # "quick" (minutes, few runs) or "full" (the papers' run counts)
+    seed: int = 1
+    workers: int = 1
+
+    @property
+    def quick(self) -> bool:
+        return self.profile == "quick"
+
+    def section_dir(self, slug: str) -> Path:
+        path = self.out_dir / slug
+        path.mkdir(parents=True, exist_ok=True)
+        return path
+
+
+def build_report(ctx: ReportContext, only: list[str] | None = None, progress=print) -> Path:
+    unknown = sorted(set(only or []) - set(SECTIONS))
+    if unknown:
+        from gpfverify.errors import InputError
+
+        raise InputError(f"unknown section(s) {unknown}; choose from {list(SECTIONS)}")
+    sections: list[Section] = []
+    for slug, module in SECTIONS.items():
+        if only and slug not in only:
+            continue
+        progress(f"[report] {slug} ...")
+        sections.append(importlib.import_module(module).build(ctx))
+    preamble = (f"Profile `{ctx.profile}`, seed {ctx.seed}. Every number on these pages was computed "
+                "by the run that wrote them; claims that did not hold are marked NOT held.")
+    return write_report(sections, ctx.out_dir, "gpfverify verification report", preamble)

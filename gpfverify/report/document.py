@@ -1,0 +1,71 @@
+"""A tiny document model for report pages, rendered to Markdown and to self-contained HTML.
+
+Sections are built from data (``results.json`` and verification numbers), never from prose
+templates with numbers pasted in.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+
+
+@dataclass(frozen=True)
+class Paragraph:
+    text: str
+
+
+@dataclass(frozen=True)
+class Table:
+    headers: list[str]
+    rows: list[list]
+    caption: str = ""
+
+
+@dataclass(frozen=True)
+class Figure:
+    path: Path  # a PNG inside the report folder
+    caption: str
+
+
+@dataclass(frozen=True)
+class Code:
+    text: str
+
+
+@dataclass(frozen=True)
+class Claim:
+    """One claim of a paper checked against our numbers: ``held`` is True, False, or None when
+    the run was too small to decide."""
+
+    claim: str
+    held: bool | None
+    evidence: str
+
+
+def claims_table(claims: list[Claim], caption: str = "Claims checked") -> Table:
+    verdict = {True: "held", False: "NOT held", None: "undecided"}
+    return Table(["claim", "verdict", "evidence"],
+                 [[c.claim, verdict[c.held], c.evidence] for c in claims], caption)
+
+
+@dataclass
+class Section:
+    """One report page: ``slug`` names its folder and file."""
+
+    slug: str
+    title: str
+    blocks: list = field(default_factory=list)
+
+    def add(self, *blocks) -> "Section":
+        self.blocks.extend(blocks)
+        return self
+
+
+def fmt(value, digits: int = 4) -> str:
+    """Numbers as short strings for tables: floats in ``digits`` significant figures."""
+    if isinstance(value, bool) or value is None:
+        return str(value)
+    if isinstance(value, float):
+        return f"{value:.{digits}g}"
+    return str(value)

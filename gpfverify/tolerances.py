@@ -1,0 +1,52 @@
+"""The one place tolerances come from.
+
+Three tiers, after GPflow's expectation tests (see STYLE.md):
+
+* exact algebra (two formulas for the same number): relative error of order ``eps * cond``;
+  :func:`algebra_rtol` scales a floor of 1e-9 by the problem's condition number;
+* deterministic quadrature against a closed form: :data:`QUADRATURE_RTOL`;
+* convex solvers (interior point, default accuracy): :data:`SOLVER_TOL`;
+* Monte Carlo against an expectation: :func:`monte_carlo_atol`, k standard errors computed
+  from the sample itself.
+
+No test or routine should carry a bare numerical tolerance of its own.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+EPS: float = float(np.finfo(float).eps)
+
+#: Floor of the relative tolerance for two exact-algebra routes to the same number.
+ALGEBRA_RTOL: float = 1e-9
+#: Safety factor on eps * cond: a few solves and products each lose about eps * cond.
+ALGEBRA_SAFETY: float = 1e3
+#: Relative tolerance of high-order Gauss-Hermite quadrature against a closed form.
+QUADRATURE_RTOL: float = 1e-6
+#: Absolute/relative accuracy expected of interior-point solutions (Clarabel defaults ~1e-8).
+SOLVER_TOL: float = 1e-5
+#: How many standard errors a Monte Carlo estimate may stray (two-sided p ~ 6e-7 per check).
+MONTE_CARLO_SIGMAS: float = 5.0
+#: Relative jitter steps tried, in order, when a Cholesky factorisation fails.
+JITTER_STEPS: tuple[float, ...] = (0.0, 1e-12, 1e-10, 1e-8, 1e-6)
+
+
+def algebra_rtol(condition_number: float = 1.0) -> float:
+    """Relative tolerance for exact algebra on a problem with the given condition number:
+    ``max(ALGEBRA_RTOL, ALGEBRA_SAFETY * eps * cond)``."""
+    cond = float(condition_number)
+    if not np.isfinite(cond):
+        return float("inf")
+    return max(ALGEBRA_RTOL, ALGEBRA_SAFETY * EPS * max(cond, 1.0))
+
+
+def monte_carlo_atol(sample_std, n_samples: int, sigmas: float = MONTE_CARLO_SIGMAS):
+    """Absolute tolerance ``sigmas * std / sqrt(n)`` for a Monte Carlo mean, elementwise."""
+    return sigmas * np.asarray(sample_std, dtype=float) / np.sqrt(n_samples)
+
+
+def numpy_rank_tol(singular_values, shape) -> float:
+    """numpy's ``matrix_rank`` default: ``S.max() * max(M, N) * eps``."""
+    s = np.asarray(singular_values, dtype=float)
+    return float(s.max(initial=0.0) * max(shape) * EPS)
