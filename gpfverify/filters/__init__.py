@@ -1,0 +1,1 @@
+"""Filters as pure step functions on typed records."""

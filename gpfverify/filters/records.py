@@ -1,0 +1,47 @@
+"""Typed records shared by every Gaussian filter and by fusion.
+
+A filter step is a pure function ``step(belief, model, y) -> StepRecord``; the record carries the
+whole prediction/update so that fusion and audits can use it (seed 000 eq. 15–19, 30–31).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+
+@dataclass(frozen=True)
+class Gaussian:
+    """N(mean, cov): mean (D,), cov (D, D)."""
+
+    mean: np.ndarray
+    cov: np.ndarray
+
+
+@dataclass(frozen=True)
+class StepRecord:
+    """One predict–update cycle of a Gaussian filter.
+
+    mu_p (D,), C_p (D, D): predicted state; mu_y (L,), C_y (L, L): predicted measurement
+    (noise included); C_xy (D, L): state–measurement cross covariance; mu_e (D,), C_e (D, D):
+    posterior, μ_e = μ_p + C_xy C_y⁻¹ (y − μ_y), C_e = C_p − C_xy C_y⁻¹ C_xyᵀ.
+    ``jitter`` is the largest diagonal jitter any factorisation in the step needed (0 if none).
+    """
+
+    mu_p: np.ndarray
+    C_p: np.ndarray
+    mu_y: np.ndarray
+    C_y: np.ndarray
+    C_xy: np.ndarray
+    mu_e: np.ndarray
+    C_e: np.ndarray
+    jitter: float = 0.0
+
+    @property
+    def posterior(self) -> Gaussian:
+        return Gaussian(self.mu_e, self.C_e)
+
+    @property
+    def prediction(self) -> Gaussian:
+        return Gaussian(self.mu_p, self.C_p)

@@ -1,0 +1,61 @@
+"""Scaled unscented transform (Julier & Uhlmann; Wan & van der Merwe), batched.
+
+λ = α²(D + κ) − D; points χ_0 = μ, χ_{±i} = μ ± (√((D + λ) C))_i (columns of the lower Cholesky
+factor); weights w_m0 = λ/(D + λ), w_c0 = w_m0 + 1 − α² + β, w_i = 1/(2(D + λ)).
+Seed 000 eq. 21–23 with the default α = 1, β = 0, κ = 2.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from gpfverify.errors import InputError, NumericalError
+
+
+@dataclass(frozen=True)
+class SigmaParams:
+    alpha: float = 1.0
+    beta: float = 0.0
+    kappa: float = 2.0
+
+    def lam(self, dim: int) -> float:
+        return self.alpha**2 * (dim + self.kappa) - dim
+
+    def weights(self, dim: int) -> tuple[np.ndarray, np.ndarray]:
+        """(w_m, w_c), each (2D + 1,)."""
+        lam = self.lam(dim)
+        if dim + lam <= 0:
+            raise InputError(f"sigma-point parameters give D + λ = {dim + lam:.3g} ≤ 0 "
+                             f"(alpha={self.alpha}, kappa={self.kappa}, D={dim})")
+        wm = np.full(2 * dim + 1, 0.5 / (dim + lam))
+        wc = wm.copy()
+        wm[0] = lam / (dim + lam)
+        wc[0] = wm[0] + 1.0 - self.alpha**2 + self.beta
+        return wm, wc
+
+
+def sigma_points(mean: np.ndarray, cov: np.ndarray, params: SigmaParams = SigmaParams()) -> np.ndarray:
+    """Sigma points (..., 2D + 1, D) for means (..., D) and covariances (..., D, D)."""
+    dim = mean.shape[-1]
+    scale = dim + params.lam(dim)
+    try:
+        root = np.linalg.cholesky(scale * cov)  # (..., D, D), columns are the directions
+    except np.linalg.LinAlgError:
+        raise NumericalError("covariance is not positive definite: cannot draw sigma points") from None
+    offsets = np.swapaxes(root, -1, -2)  # (..., D, D): row i = column i of the factor
+    return np.concatenate([mean[..., None, :], mean[..., None, :] + offsets,
+                           mean[..., None, :] - offsets], axis=-2)
+
+
+def weighted_moments(points_x: np.ndarray, points_y: np.ndarray, wm: np.ndarray, wc: np.ndarray):
+    """Mean of y, covariance of y and cross covariance of (x, y) from transformed sigma points:
+    points_x (..., S, D), points_y (..., S, L). Returns (..., L), (..., L, L), (..., D, L)."""
+    mean_x = np.einsum("s,...sd->...d", wm, points_x)
+    mean_y = np.einsum("s,...sl->...l", wm, points_y)
+    dx = points_x - mean_x[..., None, :]
+    dy = points_y - mean_y[..., None, :]
+    cov_y = np.einsum("s,...sl,...sk->...lk", wc, dy, dy)
+    cross = np.einsum("s,...sd,...sl->...dl", wc, dx, dy)
+    return mean_y, 0.5 * (cov_y + np.swapaxes(cov_y, -1, -2)), cross
