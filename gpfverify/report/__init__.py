@@ -52,3 +52,23 @@ def build_report(ctx: ReportContext, only: list[str] | None = None, progress=pri
     preamble = (f"Profile `{ctx.profile}`, seed {ctx.seed}. Every number on these pages was computed "
                 "by the run that wrote them; claims that did not hold are marked NOT held.")
     return write_report(sections, ctx.out_dir, "gpfverify verification report", preamble)
+
+
+def run_for_report(ctx: ReportContext, slug: str, module, params: dict, runs: int) -> dict:
+    """Run an experiment for a report section into ``<out>/<slug>/run``, reusing the runs saved
+    there when they were made with the same settings, and return its results."""
+    import json
+    import shutil
+
+    from gpfverify.experiments.runner import make_executor, run_experiment
+
+    run_dir = ctx.section_dir(slug) / "run"
+    manifest = run_dir / "manifest.json"
+    if manifest.exists():
+        old = json.loads(manifest.read_text(encoding="utf-8"))
+        same = (old.get("seed"), old.get("runs"), old.get("params")) == \
+            (ctx.seed, runs, json.loads(json.dumps(params)))
+        if not same:
+            shutil.rmtree(run_dir)
+    with make_executor(ctx.workers) as executor:
+        return run_experiment(module, params, runs, ctx.seed, run_dir, resume=True, executor=executor)
