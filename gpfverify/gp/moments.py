@@ -76,15 +76,19 @@ def _second_moments(gp_a, gp_b, ia: np.ndarray, ib: np.ndarray, mu: np.ndarray,
     za = nu_a[None, :, :] * inv_l2_a[:, None, :]  # Λ_a⁻¹ν_i, (P, n_a, D)
     zb = nu_b[None, :, :] * inv_l2_b[:, None, :]
     za_a = za @ a_mat
-    # log k_a(x_i, μ) + ½ z_aᵀ A z_a per i, the same per j, plus the cross term z_aᵀ A z_b
+    # log Q_ij = row_i + col_j + z_aᵢᵀ A z_bⱼ with
+    #   row_i = log α_a² − ½ ν_iᵀΛ_a⁻¹ν_i + ½ z_aᵢᵀ A z_aᵢ − ½ log|R|,  col_j likewise for b,
+    # built by one matmul of augmented factors [z_a A, row, 1] · [z_b, 1, col]ᵀ (one pass over n²)
     row = (np.log(gp_a.signal_var[ia])[:, None] - 0.5 * np.einsum("pnd,nd->pn", za, nu_a)
-           + 0.5 * np.sum(za_a * za, axis=-1))
+           + 0.5 * np.sum(za_a * za, axis=-1) - 0.5 * r_logdet[:, None])
     col = (np.log(gp_b.signal_var[ib])[:, None] - 0.5 * np.einsum("pnd,nd->pn", zb, nu_b)
            + 0.5 * np.einsum("pnd,pdk,pnk->pn", zb, a_mat, zb))
-    log_q = row[:, :, None] + col[:, None, :] + za_a @ np.swapaxes(zb, 1, 2)
-    log_q -= 0.5 * r_logdet[:, None, None]
-    big_q = np.exp(log_q)
-    return np.einsum("pi,pij,pj->p", gp_a.beta[ia], big_q, gp_b.beta[ib]), big_q
+    left = np.concatenate([za_a, row[:, :, None], np.ones_like(row)[:, :, None]], axis=-1)
+    right = np.concatenate([zb, np.ones_like(col)[:, :, None], col[:, :, None]], axis=-1)
+    big_q = left @ np.swapaxes(right, 1, 2)
+    np.exp(big_q, out=big_q)
+    q_beta_b = (big_q @ gp_b.beta[ib][:, :, None])[:, :, 0]
+    return np.sum(gp_a.beta[ia] * q_beta_b, axis=-1), big_q
 
 
 def moment_match_stack(gps, mu: np.ndarray, sigma: np.ndarray) -> MomentMatch:
@@ -106,8 +110,10 @@ def moment_match_stack(gps, mu: np.ndarray, sigma: np.ndarray) -> MomentMatch:
             if g == h:
                 # model uncertainty α_a² − tr(K_a⁻¹Q^{aa}); both symmetric, so the trace is Σ of ∘
                 diag = ia == ib
-                second[diag] += gp_a.signal_var[ia[diag]] - np.einsum(
-                    "pij,pij->p", gp_a.K_inv[ia[diag]], big_q[diag])
+                n = gp_a.X.shape[0]
+                trace = (gp_a.K_inv[ia[diag]].reshape(-1, 1, n * n)
+                         @ big_q[diag].reshape(-1, n * n, 1))[:, 0, 0]
+                second[diag] += gp_a.signal_var[ia[diag]] - trace
             rows, cols = offsets[g] + ia, offsets[h] + ib
             cov[rows, cols] = second - mean[rows] * mean[cols]
             cov[cols, rows] = cov[rows, cols]
