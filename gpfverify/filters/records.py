@@ -45,3 +45,14 @@ class StepRecord:
     @property
     def prediction(self) -> Gaussian:
         return Gaussian(self.mu_p, self.C_p)
+
+
+@dataclass(frozen=True)
+class MeasurementMoments:
+    """Predicted measurement of a Gaussian filter, before the measurement is seen: mu_y (L,),
+    C_y (L, L) noise included, C_xy (D, L) = Cov[x_k, y_k | y_1:k−1] (seed 000 eq. 17).
+    Leading batch axes are allowed on every field."""
+
+    mu_y: np.ndarray
+    C_y: np.ndarray
+    C_xy: np.ndarray

@@ -1,0 +1,70 @@
+"""The Gaussian measurement update shared by every Gaussian filter (seed 000 eq. 15–16, 30–31).
+
+Given the predicted state N(μ_p, C_p) and the predicted measurement moments (μ_y, C_y, C_xy):
+
+    μ_e = μ_p + C_xy C_y⁻¹ (y − μ_y),        C_e = C_p − C_xy C_y⁻¹ C_xyᵀ.
+
+With the Cholesky factor C_y = L Lᵀ and W = L⁻¹ C_xyᵀ (a triangular solve, never an inverse),
+C_xy C_y⁻¹ C_xyᵀ = Wᵀ W and C_xy C_y⁻¹ (y − μ_y) = Wᵀ L⁻¹ (y − μ_y); C_e is symmetrised.
+Every array may carry the same leading batch axes (one update per particle, per test point, …).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from gpfverify.errors import InputError, NumericalError
+from gpfverify.filters.records import Gaussian, MeasurementMoments, StepRecord
+from gpfverify.linalg import symmetrize
+from gpfverify.validate import as_array
+
+
+def cholesky_batched(a: np.ndarray, name: str) -> np.ndarray:
+    """Lower Cholesky factors of a stack of symmetric matrices (..., n, n), without jitter.
+
+    Raises :class:`NumericalError` naming ``name`` (and the first failing batch index and its
+    smallest eigenvalue) when a matrix is not finite or not positive definite.
+    """
+    if not np.all(np.isfinite(a)):
+        raise NumericalError(f"{name} contains NaN or inf")
+    sym = symmetrize(a)
+    try:
+        return np.linalg.cholesky(sym)
+    except np.linalg.LinAlgError:
+        pass
+    flat = sym.reshape((-1,) + sym.shape[-2:])
+    lowest = np.linalg.eigvalsh(flat)[:, 0]
+    first = int(np.argmin(lowest))
+    where = f" at batch index {np.unravel_index(first, sym.shape[:-2])}" if sym.ndim > 2 else ""
+    raise NumericalError(f"{name} is not positive definite{where} (min eigenvalue {lowest[first]:.3g})")
+
+
+def gaussian_update(prediction: Gaussian, moments: MeasurementMoments, y) -> StepRecord:
+    """Condition the joint Gaussian of (x_k, y_k) on the measurement ``y`` (eq. 15–16).
+
+    Shapes: prediction.mean (..., D), prediction.cov (..., D, D), moments.mu_y (..., L),
+    moments.C_y (..., L, L), moments.C_xy (..., D, L), y (..., L) (broadcast against mu_y).
+    Raises :class:`NumericalError` naming C_y when it is not positive definite.
+    """
+    mu_y = np.asarray(moments.mu_y, dtype=float)
+    y = as_array(y, "y")
+    if y.shape[-1:] != mu_y.shape[-1:]:
+        raise InputError(f"y must have {mu_y.shape[-1]} entries in its last axis, got shape {y.shape}")
+    chol = cholesky_batched(np.asarray(moments.C_y, dtype=float), "C_y")
+    w = np.linalg.solve(chol, np.swapaxes(moments.C_xy, -1, -2))  # L⁻¹ C_xyᵀ, (..., L, D)
+    white = np.linalg.solve(chol, (y - mu_y)[..., None])[..., 0]  # L⁻¹ (y − μ_y), (..., L)
+    mu_e = prediction.mean + np.einsum("...ld,...l->...d", w, white)
+    C_e = symmetrize(prediction.cov - np.swapaxes(w, -1, -2) @ w)
+    return StepRecord(mu_p=prediction.mean, C_p=prediction.cov, mu_y=mu_y, C_y=moments.C_y,
+                      C_xy=moments.C_xy, mu_e=mu_e, C_e=C_e)
+
+
+def check_belief(belief: Gaussian, dim: int, name: str = "belief") -> Gaussian:
+    """``belief`` as float arrays with mean (..., dim) and cov (..., dim, dim), finite;
+    :class:`InputError` naming ``name`` otherwise."""
+    mean = as_array(belief.mean, f"{name}.mean")
+    cov = as_array(belief.cov, f"{name}.cov")
+    if mean.shape[-1:] != (dim,) or cov.shape != mean.shape + (dim,):
+        raise InputError(f"{name} must have mean (..., {dim}) and cov (..., {dim}, {dim}), "
+                         f"got {mean.shape} and {cov.shape}")
+    return Gaussian(mean, cov)
