@@ -6,6 +6,14 @@ particle filters.
 
 ``f`` and ``h`` are vectorised over a leading axis: (N, D) -> (N, D) and (N, D) -> (N, L).
 Jacobians (for the EKF) take one state (D,) and return (D, D) / (L, D).
+
+Particle filters may need more than the Gaussian summary: the optional fields
+``transition_sampler(x_prev (N, D), k, rng) -> (N, D)`` and
+``transition_logpdf(x_new (N, D), x_prev (N, D), k) -> (N,)`` describe non-Gaussian process noise
+(then ``f`` and ``Q`` are the noise-mean-shifted transition and the noise covariance, the Gaussian
+approximation a Gaussian filter uses); ``measurement_residual(y, y_pred) -> y − y_pred`` (batched
+over leading axes) handles measurements on a circle (bearings). ``None`` means the Gaussian /
+plain-difference default; :mod:`gpfverify.filters.likelihoods` applies the defaults.
 """
 
 from __future__ import annotations
@@ -27,6 +35,9 @@ class NonlinearModel:
     R: np.ndarray
     f_jacobian: Jacobian | None = None
     h_jacobian: Jacobian | None = None
+    transition_sampler: Callable[[np.ndarray, int, np.random.Generator], np.ndarray] | None = None
+    transition_logpdf: Callable[[np.ndarray, np.ndarray, int], np.ndarray] | None = None
+    measurement_residual: Callable[[np.ndarray, np.ndarray], np.ndarray] | None = None
 
     @property
     def state_dim(self) -> int:

@@ -1,0 +1,1 @@
+"""The papers' state-space models and data generators."""
