@@ -1,0 +1,36 @@
+"""Report rendering and the moments page, end to end."""
+
+import re
+
+from gpfverify.report import ReportContext, build_report
+from gpfverify.report.document import Claim, Paragraph, Section, Table, claims_table
+from gpfverify.report.render import to_html, to_markdown
+
+
+def test_markdown_and_html_escape_and_render_every_block(tmp_path):
+    section = Section("demo", "Demo <page>").add(
+        Paragraph("a < b & c"),
+        Table(["x | y", "z"], [[1.23456789, "p|q"]], "cap"),
+        claims_table([Claim("claim A", True, "1 < 2"), Claim("claim B", False, "3 > 4"),
+                      Claim("claim C", None, "too few runs")]),
+    )
+    md = to_markdown(section, tmp_path)
+    assert "| x \\| y | z |" in md and "1.235" in md and "p\\|q" in md
+    assert "NOT held" in md and "undecided" in md
+    page = to_html([section], "t")
+    assert "a &lt; b &amp; c" in page and "Demo &lt;page&gt;" in page
+
+
+def test_moments_page_is_built_with_numbers_and_an_embedded_figure(tmp_path):
+    html_path = build_report(ReportContext(tmp_path, "quick", seed=3), only=["moments"], progress=lambda _: None)
+    page = (tmp_path / "moments" / "README.md").read_text()
+    assert (tmp_path / "moments" / "moment_matching.png").stat().st_size > 10_000
+    rows = [line for line in page.splitlines() if line.startswith("| D=")]
+    assert len(rows) == 3
+    for row in rows:
+        cells = [c.strip() for c in row.strip("|").split("|")]
+        quad_errors = [float(c) for c in cells[1:4]]
+        mc_z = float(cells[4])
+        assert max(quad_errors) < 1e-6  # closed form agrees with quadrature
+        assert mc_z < 5.0  # and with Monte Carlo within 5 standard errors
+    assert re.search(r"data:image/png;base64,[A-Za-z0-9+/]{1000}", html_path.read_text())

@@ -1,0 +1,77 @@
+"""Monte Carlo runner: worker-count independence, resume, recorded failures, dask executor."""
+
+import json
+import sys
+from pathlib import Path
+
+import pytest
+
+from gpfverify.errors import InputError
+from gpfverify.experiments.runner import make_executor, run_experiment
+
+HERE = Path(__file__).parent
+
+
+@pytest.fixture()
+def toy(monkeypatch):
+    monkeypatch.syspath_prepend(str(HERE))
+    monkeypatch.setenv("PYTHONPATH", str(HERE))  # for spawned workers
+    sys.modules.pop("toy_experiment", None)
+    import toy_experiment
+
+    return toy_experiment
+
+
+PARAMS = {"scale": 2.0, "fail_run": -1}
+
+
+def _numbers(results):
+    return {k: v for k, v in results.items() if not k.startswith("time_")}
+
+
+def test_same_results_for_any_worker_count(toy, tmp_path):
+    serial = run_experiment(toy, PARAMS, 6, 11, tmp_path / "a")
+    with make_executor(workers=2) as pool:
+        parallel = run_experiment(toy, PARAMS, 6, 11, tmp_path / "b", executor=pool)
+    assert _numbers(serial) == _numbers(parallel)
+    assert serial["runs_ok"] == 6 and serial["failed_runs"] == []
+    other_seed = run_experiment(toy, PARAMS, 6, 12, tmp_path / "c")
+    assert other_seed["mean"] != serial["mean"]
+
+
+def test_resume_after_lost_runs_ends_with_the_same_results(toy, tmp_path):
+    full = run_experiment(toy, PARAMS, 5, 3, tmp_path / "full")
+    out = tmp_path / "partial"
+    run_experiment(toy, PARAMS, 5, 3, out)
+    for i in (1, 4):  # as if the process died before these runs were saved
+        (out / "runs" / f"run-{i:06d}.json").unlink()
+    (out / "results.json").unlink()
+    resumed = run_experiment(toy, PARAMS, 5, 3, out, resume=True)
+    assert _numbers(resumed) == _numbers(full)
+    assert json.loads((out / "results.json").read_text()) == resumed
+
+
+def test_existing_runs_need_resume_and_matching_settings(toy, tmp_path):
+    run_experiment(toy, PARAMS, 2, 1, tmp_path)
+    with pytest.raises(InputError, match="--resume"):
+        run_experiment(toy, PARAMS, 2, 1, tmp_path)
+    with pytest.raises(InputError, match="different settings"):
+        run_experiment(toy, PARAMS | {"scale": 3.0}, 2, 1, tmp_path, resume=True)
+
+
+def test_a_failing_run_is_recorded_with_its_seed_and_counted(toy, tmp_path):
+    results = run_experiment(toy, PARAMS | {"fail_run": 2}, 4, 5, tmp_path)
+    assert results["runs_ok"] == 3
+    assert results["failed_runs"] == [{"index": 2, "error": "RuntimeError: planned failure", "spawn_key": [2]}]
+    record = json.loads((tmp_path / "runs" / "run-000002.json").read_text())
+    assert record["status"] == "error" and "planned failure" in record["traceback"]
+
+
+def test_dask_executor_gives_the_same_results(toy, tmp_path):
+    distributed = pytest.importorskip("distributed")
+    serial = run_experiment(toy, PARAMS, 4, 9, tmp_path / "serial")
+    with distributed.LocalCluster(n_workers=1, threads_per_worker=2, processes=False,
+                                  dashboard_address=None) as cluster:
+        with make_executor(scheduler=cluster.scheduler_address) as executor:
+            remote = run_experiment(toy, PARAMS, 4, 9, tmp_path / "dask", executor=executor)
+    assert _numbers(remote) == _numbers(serial)
