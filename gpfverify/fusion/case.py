@@ -1,0 +1,218 @@
+"""One fusion step as a typed record, and its JSON form (CONTRACT.md, "Fusion-case files").
+
+A fusion case holds what the fusion centre knows at time k (seed 000 §3):
+
+* the centre's own prediction from the previous fused posterior (``central``): μ_p (D,),
+  C_p (D, D) and the stacked measurement moments μ_y (L,), C_y (L, L), C_xy (D, L), with
+  ``sizes`` = (l_1, …, l_N), L = Σ l_m, blocks in sensor order;
+* what each sensor m sends (``locals[m]``): μ_p^m, μ_y^m, C_y^m, C_xy^m, μ_e^m (eq. 32–34) and,
+  for the covariance-based baselines, C_e^m;
+* optionally the stacked raw measurement y (needed for CMF and for the actual gap) and an absolute
+  singular-value tolerance ``rank_tol`` for the rank decisions.
+
+Every check raises :class:`~gpfverify.errors.CaseFileError` naming the offending entry.
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from gpfverify.errors import CaseFileError, InputError
+from gpfverify.validate import as_covariance, as_matrix, as_vector
+
+
+@dataclass(frozen=True)
+class CentralPrediction:
+    """The fusion centre's prediction: mu_p (D,), C_p (D, D), mu_y (L,), C_y (L, L) positive
+    definite, C_xy (D, L); ``sizes`` the measurement dimension of each sensor (Σ = L)."""
+
+    mu_p: np.ndarray
+    C_p: np.ndarray
+    mu_y: np.ndarray
+    C_y: np.ndarray
+    C_xy: np.ndarray
+    sizes: tuple[int, ...]
+
+    @property
+    def blocks(self) -> list[slice]:
+        """Slice of sensor m's rows/columns in the stacked measurement."""
+        ends = np.cumsum((0,) + self.sizes)
+        return [slice(int(a), int(b)) for a, b in zip(ends[:-1], ends[1:])]
+
+
+@dataclass(frozen=True)
+class LocalReport:
+    """What sensor m sends: mu_p (D,), mu_y (l,), C_y (l, l) positive definite, C_xy (D, l),
+    mu_e (D,) and optionally C_e (D, D)."""
+
+    mu_p: np.ndarray
+    mu_y: np.ndarray
+    C_y: np.ndarray
+    C_xy: np.ndarray
+    mu_e: np.ndarray
+    C_e: np.ndarray | None = None
+
+
+@dataclass(frozen=True)
+class FusionCase:
+    """One fusion step: central prediction, the sensors' reports, optional y (L,) and rank_tol."""
+
+    central: CentralPrediction
+    locals: tuple[LocalReport, ...]
+    y: np.ndarray | None = None
+    rank_tol: float | None = None
+
+    @property
+    def state_dim(self) -> int:
+        return self.central.mu_p.shape[0]
+
+    def local_measurement(self, m: int) -> np.ndarray:
+        """y^m, sensor m's block of the stacked measurement (requires ``y``)."""
+        if self.y is None:
+            raise InputError("the case has no measurement y")
+        return self.y[self.central.blocks[m]]
+
+
+def _checked(build, what: str):
+    try:
+        return build()
+    except CaseFileError:
+        raise
+    except InputError as exc:
+        raise CaseFileError(str(exc)) from None
+    except (TypeError, KeyError, AttributeError) as exc:
+        raise CaseFileError(f"{what} is malformed ({type(exc).__name__}: {exc})") from None
+
+
+def _field(obj, key: str, where: str):
+    if not isinstance(obj, dict):
+        raise CaseFileError(f"{where} must be a JSON object")
+    if key not in obj:
+        raise CaseFileError(f"{where} lacks the key '{key}'")
+    return obj[key]
+
+
+def _sizes(value) -> tuple[int, ...]:
+    if not isinstance(value, list) or not value:
+        raise CaseFileError("central.sizes must be a non-empty list of positive integers")
+    if not all(isinstance(s, int) and not isinstance(s, bool) and s > 0 for s in value):
+        raise CaseFileError(f"central.sizes must be positive integers, got {value}")
+    return tuple(value)
+
+
+def central_from_dict(data) -> CentralPrediction:
+    where = "central"
+    sizes = _sizes(_field(data, "sizes", where))
+    mu_p = _checked(lambda: as_vector(_field(data, "mu_p", where), "central.mu_p"), "central.mu_p")
+    d, total = mu_p.shape[0], sum(sizes)
+    if d == 0:
+        raise CaseFileError("central.mu_p must not be empty")
+    return CentralPrediction(
+        mu_p=mu_p,
+        C_p=_checked(lambda: as_covariance(_field(data, "C_p", where), "central.C_p", d), "central.C_p"),
+        mu_y=_checked(lambda: as_vector(_field(data, "mu_y", where), "central.mu_y", total),
+                      "central.mu_y"),
+        C_y=_checked(lambda: as_covariance(_field(data, "C_y", where), "central.C_y", total,
+                                           definite=True), "central.C_y"),
+        C_xy=_checked(lambda: as_matrix(_field(data, "C_xy", where), "central.C_xy", d, total),
+                      "central.C_xy"),
+        sizes=sizes,
+    )
+
+
+def local_from_dict(data, m: int, d: int, size: int) -> LocalReport:
+    where = f"locals[{m}]"
+
+    def get(key, check):
+        return _checked(lambda: check(_field(data, key, where), f"{where}.{key}"), f"{where}.{key}")
+
+    c_e = None
+    if isinstance(data, dict) and data.get("C_e") is not None:
+        c_e = get("C_e", lambda v, n: as_covariance(v, n, d))
+    return LocalReport(
+        mu_p=get("mu_p", lambda v, n: as_vector(v, n, d)),
+        mu_y=get("mu_y", lambda v, n: as_vector(v, n, size)),
+        C_y=get("C_y", lambda v, n: as_covariance(v, n, size, definite=True)),
+        C_xy=get("C_xy", lambda v, n: as_matrix(v, n, d, size)),
+        mu_e=get("mu_e", lambda v, n: as_vector(v, n, d)),
+        C_e=c_e,
+    )
+
+
+def case_from_dict(data) -> FusionCase:
+    """Validate a decoded case file; raises :class:`CaseFileError` naming what is wrong."""
+    if not isinstance(data, dict):
+        raise CaseFileError("a fusion case must be a JSON object")
+    central = central_from_dict(_field(data, "central", "the case"))
+    reports = _field(data, "locals", "the case")
+    if not isinstance(reports, list):
+        raise CaseFileError("locals must be a list of objects")
+    if len(reports) != len(central.sizes):
+        raise CaseFileError(f"locals has {len(reports)} entries but central.sizes lists "
+                            f"{len(central.sizes)} sensors")
+    d = central.mu_p.shape[0]
+    local = tuple(local_from_dict(r, m, d, s) for m, (r, s) in enumerate(zip(reports, central.sizes)))
+    y = None
+    if data.get("y") is not None:
+        y = _checked(lambda: as_vector(data["y"], "y", sum(central.sizes)), "y")
+    rank_tol = data.get("rank_tol")
+    if rank_tol is not None:
+        if isinstance(rank_tol, bool) or not isinstance(rank_tol, (int, float)) \
+                or not np.isfinite(rank_tol) or rank_tol < 0:
+            raise CaseFileError(f"rank_tol must be a finite number >= 0, got {rank_tol!r}")
+        rank_tol = float(rank_tol)
+    return FusionCase(central, local, y, rank_tol)
+
+
+def load_case(path) -> FusionCase:
+    """Read and validate a fusion-case JSON file."""
+    path = Path(path)
+    try:
+        text = path.read_text()
+    except OSError as exc:
+        raise CaseFileError(f"cannot read {path}: {exc.strerror or exc}") from None
+    try:
+        data = json.loads(text)
+    except json.JSONDecodeError as exc:
+        raise CaseFileError(f"{path} is not valid JSON: {exc.msg} at line {exc.lineno}") from None
+    return case_from_dict(data)
+
+
+def case_to_dict(case: FusionCase) -> dict:
+    """The JSON-able form read back by :func:`case_from_dict`."""
+    c = case.central
+    out = {"central": {"mu_p": c.mu_p.tolist(), "C_p": c.C_p.tolist(), "mu_y": c.mu_y.tolist(),
+                       "C_y": c.C_y.tolist(), "C_xy": c.C_xy.tolist(), "sizes": list(c.sizes)},
+           "locals": []}
+    for r in case.locals:
+        entry = {"mu_p": r.mu_p.tolist(), "mu_y": r.mu_y.tolist(), "C_y": r.C_y.tolist(),
+                 "C_xy": r.C_xy.tolist(), "mu_e": r.mu_e.tolist()}
+        if r.C_e is not None:
+            entry["C_e"] = r.C_e.tolist()
+        out["locals"].append(entry)
+    if case.y is not None:
+        out["y"] = case.y.tolist()
+    if case.rank_tol is not None:
+        out["rank_tol"] = case.rank_tol
+    return out
+
+
+def case_from_records(central, local_records, sizes, y=None, rank_tol=None) -> FusionCase:
+    """A case from filter records: ``central`` has the centre's mu_p, C_p, mu_y, C_y, C_xy
+    (e.g. the CMF :class:`~gpfverify.filters.records.StepRecord`); ``local_records`` are the
+    sensors' step records (their mu_e and C_e are what they send)."""
+    return case_from_dict({
+        "central": {"mu_p": np.asarray(central.mu_p).tolist(), "C_p": np.asarray(central.C_p).tolist(),
+                    "mu_y": np.asarray(central.mu_y).tolist(), "C_y": np.asarray(central.C_y).tolist(),
+                    "C_xy": np.asarray(central.C_xy).tolist(), "sizes": [int(s) for s in sizes]},
+        "locals": [{"mu_p": np.asarray(r.mu_p).tolist(), "mu_y": np.asarray(r.mu_y).tolist(),
+                    "C_y": np.asarray(r.C_y).tolist(), "C_xy": np.asarray(r.C_xy).tolist(),
+                    "mu_e": np.asarray(r.mu_e).tolist(), "C_e": np.asarray(r.C_e).tolist()}
+                   for r in local_records],
+        "y": None if y is None else np.asarray(y, dtype=float).tolist(),
+        "rank_tol": rank_tol,
+    })

@@ -1,0 +1,69 @@
+"""Distributed measurement fusion (DMF, seed 000 Proposition 1, eq. 35) on plain arrays.
+
+The centre runs its own prediction (μ_p, C_p, μ_y, C_y, C_xy) and receives from each sensor
+μ_p^m, μ_y^m, C_y^m, C_xy^m, μ_e^m. With G = C_xy C_y⁻¹ in column blocks G_m,
+
+    μ_e = μ_p + Σ_m G_m (μ_y^m − μ_y(m)) + Σ_m G_m C_y^m (C_xy^m)⁺ (μ_e^m − μ_p^m)   (eq. 35)
+              [+ Σ_m G_m C_y^m N_m r_m   with the repair messages r_m, see exactness.py]
+    C_e = C_p − G C_xyᵀ                                                                (as CMF)
+
+Computed as μ_p + G v with v stacked from the per-sensor terms (one product with G).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Sequence
+
+import numpy as np
+
+from gpfverify.errors import InputError
+from gpfverify.fusion.case import FusionCase
+from gpfverify.fusion.centralized import fused_covariance, fusion_gain
+from gpfverify.fusion.exactness import SensorExactness, analyse_sensors
+
+
+@dataclass(frozen=True)
+class DMFResult:
+    """DMF posterior ``mean`` (D,), ``cov`` (D, D), the central ``gain`` G (D, L), the per-sensor
+    exactness evidence and whether repair messages were used."""
+
+    mean: np.ndarray
+    cov: np.ndarray
+    gain: np.ndarray
+    sensors: tuple[SensorExactness, ...]
+    repaired: bool
+
+    @property
+    def condition_holds(self) -> bool:
+        """Proposition 1's sufficient condition: every C_xy^m has full column rank."""
+        return all(s.full_column_rank for s in self.sensors)
+
+    @property
+    def exact(self) -> bool:
+        """The necessary-and-sufficient condition G_m C_y^m (I − P_m) = 0 for every sensor."""
+        return all(s.exact for s in self.sensors)
+
+
+def dmf_update(case: FusionCase, repair_messages: Sequence[np.ndarray] | None = None,
+               rank_tol: float | None = None) -> DMFResult:
+    """Eq. 35 on ``case`` (``rank_tol`` overrides ``case.rank_tol``); with ``repair_messages``
+    (one r_m per sensor, from :func:`~gpfverify.fusion.exactness.repair_message`) the repaired rule
+    that equals CMF whatever the ranks."""
+    central = case.central
+    gain = fusion_gain(central)
+    sensors = analyse_sensors(case, gain, rank_tol)
+    if repair_messages is not None and len(repair_messages) != len(case.locals):
+        raise InputError(f"repair_messages needs {len(case.locals)} entries, got {len(repair_messages)}")
+    parts = []
+    for s, block, local in zip(sensors, central.blocks, case.locals):
+        recovered = s.split.pinv @ (local.mu_e - local.mu_p)
+        if repair_messages is not None:
+            r_m = np.asarray(repair_messages[s.index], dtype=float)
+            if r_m.shape != (s.repair_dim,):
+                raise InputError(f"repair message {s.index} must have {s.repair_dim} entries, "
+                                 f"got shape {r_m.shape}")
+            recovered = recovered + s.split.kernel_basis @ r_m
+        parts.append(local.mu_y - central.mu_y[block] + local.C_y @ recovered)
+    mean = central.mu_p + gain @ np.concatenate(parts)
+    return DMFResult(mean, fused_covariance(central, gain), gain, sensors, repair_messages is not None)

@@ -1,0 +1,140 @@
+"""DMF (eq. 35) against CMF on random joint Gaussians: equal to rounding under full column rank,
+the observed gap equals the closed-form gap otherwise, the repaired DMF equals CMF, and the
+exactness verdict matches what happens for many measurements.
+
+Oracle: CMF computed from the central joint Gaussian (an independent route to the same mean);
+the tolerance propagates eps · condition through every factor of eq. 35.
+"""
+
+import numpy as np
+import pytest
+
+from gpfverify.fusion.centralized import cmf_update, fusion_gain
+from gpfverify.fusion.distributed import dmf_update
+from gpfverify.fusion.exactness import (kernel_split, local_consistency_residual, predicted_gap,
+                                        repair_message)
+from gpfverify.fusion.synthetic import random_case
+from gpfverify.tolerances import algebra_rtol
+
+FULL_RANK = [(1, (1, 1)), (2, (1, 2)), (2, (2, 2)), (3, (1, 2, 3)), (4, (4, 2)), (6, (6, 6, 6, 6)),
+             (6, (2, 2, 2, 2, 2, 2, 2, 2)), (9, (3, 9))]
+DEFICIENT = [(1, (2, 1), None), (2, (3, 2), None), (3, (3, 3), (2, 3)), (3, (5, 1), None),
+             (4, (4, 4, 2), (1, 4, 2)), (2, (6, 6), None), (6, (8, 3), (5, 3))]
+
+
+def _cond(a):
+    """Condition number on the numerical range (singular values above numpy's rank rule)."""
+    rank = kernel_split(a).rank
+    s = rank.singular_values[rank.singular_values > rank.tol]
+    return s[0] / s[-1] if s.size else 1.0
+
+
+def _atol(case):
+    """eps·cond error bound of eq. 35 against the CMF mean, with the sizes of its terms."""
+    c = case.central
+    gain = fusion_gain(c)
+    cond, terms = _cond(c.C_y), 0.0
+    for m, (block, local) in enumerate(zip(c.blocks, case.locals)):
+        split = kernel_split(local.C_xy)
+        cond = max(cond, _cond(local.C_xy) * _cond(local.C_y))
+        terms += (np.linalg.norm(local.C_y, 2) * np.linalg.norm(split.pinv, 2)
+                  * np.linalg.norm(local.mu_e - local.mu_p) + np.linalg.norm(local.mu_y - c.mu_y[block])
+                  + np.linalg.norm(case.local_measurement(m) - local.mu_y))
+    return algebra_rtol(cond) * (np.linalg.norm(c.mu_p) + np.linalg.norm(gain, 2) * terms)
+
+
+@pytest.mark.parametrize("seed", range(3))
+@pytest.mark.parametrize("d, sizes", FULL_RANK)
+def test_dmf_equals_cmf_under_full_column_rank(d, sizes, seed):
+    case = random_case(np.random.default_rng([seed, d, *sizes]), d, sizes)
+    dmf, cmf = dmf_update(case), cmf_update(case.central, case.y)
+    assert dmf.condition_holds and dmf.exact
+    assert all(s.repair_dim == 0 for s in dmf.sensors)
+    np.testing.assert_allclose(dmf.mean, cmf.mean, rtol=0, atol=_atol(case))
+    np.testing.assert_array_equal(dmf.cov, cmf.cov)
+
+
+@pytest.mark.parametrize("seed", range(3))
+@pytest.mark.parametrize("d, sizes, ranks", DEFICIENT)
+def test_observed_gap_equals_closed_form_and_repair_restores_cmf(d, sizes, ranks, seed):
+    case = random_case(np.random.default_rng([seed, d, *sizes, 7]), d, sizes, ranks)
+    dmf, cmf = dmf_update(case), cmf_update(case.central, case.y)
+    atol = _atol(case)
+    assert not dmf.condition_holds
+    want_ranks = ranks or [min(d, s) for s in sizes]
+    assert [s.split.rank.rank for s in dmf.sensors] == list(want_ranks)
+    assert [s.repair_dim for s in dmf.sensors] == [s - r for s, r in zip(sizes, want_ranks)]
+    gap = dmf.mean - cmf.mean
+    assert np.linalg.norm(gap) > 1e3 * atol  # the random case really has a gap
+    np.testing.assert_allclose(gap, predicted_gap(case, dmf.sensors), rtol=0, atol=atol)
+    messages = [repair_message(local, case.local_measurement(m)) for m, local in enumerate(case.locals)]
+    assert [r.shape[0] for r in messages] == [s.repair_dim for s in dmf.sensors]
+    repaired = dmf_update(case, messages)
+    assert repaired.repaired
+    np.testing.assert_allclose(repaired.mean, cmf.mean, rtol=0, atol=atol)
+
+
+@pytest.mark.parametrize("d, sizes, decoupled", [(2, (3, 2), (2,)), (3, (4, 1), (0,)),
+                                                 (2, (2, 3), (1, 4)), (1, (2, 2), (1, 3))])
+def test_exact_although_rank_condition_fails(d, sizes, decoupled):
+    """A measurement component uncorrelated with everything: C_xy^m loses column rank, but the
+    kernel lies in ker G_m C_y^m, so DMF = CMF for every measurement."""
+    rng = np.random.default_rng([d, *sizes, *decoupled])
+    case = random_case(rng, d, sizes, decoupled=decoupled)
+    dmf = dmf_update(case)
+    assert not dmf.condition_holds and dmf.exact
+    for _ in range(5):  # many measurements: redraw y, keeping locals consistent with it
+        case = random_case(rng, d, sizes, decoupled=decoupled)
+        np.testing.assert_allclose(dmf_update(case).mean, cmf_update(case.central, case.y).mean,
+                                   rtol=0, atol=_atol(case))
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_inexact_verdict_means_some_measurement_shows_a_gap(seed):
+    rng = np.random.default_rng(seed)
+    case = random_case(rng, 2, (3, 2))
+    sensors = dmf_update(case).sensors
+    assert not sensors[0].exact and sensors[1].exact
+    gaps = [np.linalg.norm(predicted_gap(random_case(np.random.default_rng([seed, k]), 2, (3, 2)),
+                                         sensors)) for k in range(3)]
+    assert min(gaps) > sensors[0].tol
+
+
+@pytest.mark.parametrize("d, l", [(1, 2), (2, 3), (3, 7)])
+def test_full_column_rank_needs_l_at_most_d(d, l):
+    rng = np.random.default_rng([d, l])
+    case = random_case(rng, d, (l,))
+    (sensor,) = dmf_update(case).sensors
+    assert sensor.split.rank.rank <= d < l and not sensor.full_column_rank
+
+
+@pytest.mark.parametrize("rows, cols, rank", [(3, 2, 2), (3, 5, 3), (4, 4, 2), (2, 6, 1)])
+def test_kernel_split_against_numpy(rows, cols, rank):
+    from gpfverify.fusion.synthetic import random_rank_matrix
+
+    a = random_rank_matrix(np.random.default_rng(rows * cols), rows, cols, rank)
+    split = kernel_split(a)
+    assert split.rank.rank == np.linalg.matrix_rank(a) == rank
+    n = split.kernel_basis
+    tol = algebra_rtol(_cond(a))
+    np.testing.assert_allclose(split.pinv, np.linalg.pinv(a, rcond=split.rank.tol / split.rank.singular_values[0]),
+                               rtol=0, atol=tol * np.linalg.norm(np.linalg.pinv(a), 2))
+    np.testing.assert_allclose(n.T @ n, np.eye(cols - rank), atol=tol)
+    np.testing.assert_allclose(a @ n, 0.0, atol=tol * np.linalg.norm(a, 2))
+    np.testing.assert_allclose(split.pinv @ a + n @ n.T, np.eye(cols), atol=tol)
+
+
+def test_logged_locals_are_consistent_with_y():
+    case = random_case(np.random.default_rng(5), 3, (2, 4))
+    for m, local in enumerate(case.locals):
+        scale = np.linalg.norm(local.mu_e - local.mu_p)
+        assert np.linalg.norm(local_consistency_residual(case, m)) <= algebra_rtol(_cond(local.C_y)) * scale
+
+
+def test_explicit_rank_tolerance_changes_the_decision():
+    """A singular value just above numpy's rule counts as rank; a larger tolerance drops it."""
+    case = random_case(np.random.default_rng(11), 3, (2, 2))
+    s_min = np.linalg.svd(case.locals[0].C_xy, compute_uv=False)[-1]
+    assert dmf_update(case).sensors[0].full_column_rank
+    loose = dmf_update(case, rank_tol=1.01 * s_min).sensors[0]
+    assert not loose.full_column_rank and loose.split.rank.tol == 1.01 * s_min
