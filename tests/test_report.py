@@ -29,8 +29,9 @@ def test_moments_page_is_built_with_numbers_and_an_embedded_figure(tmp_path):
     assert len(rows) == 3
     for row in rows:
         cells = [c.strip() for c in row.strip("|").split("|")]
-        quad_errors = [float(c) for c in cells[1:4]]
-        mc_z = float(cells[4])
-        assert max(quad_errors) < 1e-6  # closed form agrees with quadrature
+        quad_change, quad_errors = float(cells[2]), [float(c) for c in cells[3:6]]
+        mc_z = float(cells[6])
+        assert quad_change <= 1e-10  # the oracle converged ...
+        assert max(quad_errors) < 1e-6  # ... and the closed form agrees with it
         assert mc_z < 5.0  # and with Monte Carlo within 5 standard errors
     assert re.search(r"data:image/png;base64,[A-Za-z0-9+/]{1000}", html_path.read_text())

@@ -59,3 +59,26 @@ def monte_carlo_moments(gp, mu: np.ndarray, sigma: np.ndarray, samples: int,
                      cov=cov_terms.std(axis=0) / np.sqrt(samples),
                      cross_cov=(dx[:, :, None] * dm[:, None, :]).std(axis=0) / np.sqrt(samples))
     return est, se
+
+
+def converged_quadrature_moments(gp, mu: np.ndarray, sigma: np.ndarray, rtol: float = 1e-10,
+                                 max_nodes: int = 300_000) -> tuple[MomentMatch, float, int]:
+    """Gauss–Hermite moments with the order raised (×1.5 from 10) until two successive rules agree
+    to ``rtol`` relative, or the tensor grid would exceed ``max_nodes``.
+
+    Returns (moments, relative change between the last two rules, last order): the change is the
+    rule's own error estimate, so a caller can tell a converged oracle from an unconverged one."""
+    order = 10
+    previous = quadrature_moments(gp, mu, sigma, order)
+    change = np.inf
+    while True:
+        nxt = int(np.ceil(order * 1.5))
+        if nxt ** mu.size > max_nodes:
+            return previous, change, order
+        current = quadrature_moments(gp, mu, sigma, nxt)
+        scale = max(np.abs(current.cov).max(), np.finfo(float).tiny)
+        change = max(np.abs(getattr(current, k) - getattr(previous, k)).max()
+                     for k in ("mean", "cov", "cross_cov")) / scale
+        previous, order = current, nxt
+        if change <= rtol:
+            return current, change, order
