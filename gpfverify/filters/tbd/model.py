@@ -1,0 +1,191 @@
+"""Track-before-detect model of Rutten, Ristic & Gordon (FUSION 2005), as used by seed 004 §1.
+
+State s = [x, ẋ, y, ẏ, I] (position, velocity, intensity), near-constant velocity (seed 004 eq. 1–4):
+
+    s_k = F s_{k−1} + v_k,  F = blkdiag(F_cv, F_cv, 1),  F_cv = [[1, T], [0, 1]],
+    Q = blkdiag(q1 [[T³/3, T²/2], [T²/2, T]], q1 [[T³/3, T²/2], [T²/2, T]], q2 T).
+
+Existence E_k ∈ {0, 1} is a Markov chain with birth P_b = P{E_k=1 | E_{k−1}=0} and death
+P_d = P{E_k=0 | E_{k−1}=1} (eq. 5–7).
+
+Image (eq. 8–9): an n × n grid of cells of size Δ × Δ with centres (iΔ, jΔ), i, j = 0 … n−1;
+
+    z^{(i,j)} = h^{(i,j)}(s) + w^{(i,j)},  w ~ N(0, σ²) independent,
+    h^{(i,j)}(s) = Δ² I / (2πΣ²) · exp(−((iΔ − x)² + (jΔ − y)²) / (2Σ²))   for (i, j) ∈ C(s),
+
+and h = 0 outside the patch C(s) of (2p+1)² cells centred on the cell nearest to (x, y) (Rutten's
+truncated point spread; cells outside the image are not measured). The likelihood ratio of the
+image against "no target" is therefore a product over the patch only:
+
+    L(z | s) = Π_{(i,j) ∈ C(s)} exp(h (2z − h) / (2σ²)).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from functools import cached_property
+
+import numpy as np
+
+from gpfverify.errors import InputError
+from gpfverify.validate import as_array, as_matrix
+
+STATE_DIM = 5
+#: indices of x, y and intensity in the state [x, ẋ, y, ẏ, I]
+POS = (0, 2)
+INTENSITY = 4
+
+
+@dataclass(frozen=True)
+class TbdModel:
+    """All model constants of the TBD problem (units: cells, frames).
+
+    grid_size n, cell_size Δ, blur Σ, noise_std σ, q1, q2, T, p_birth P_b, p_death P_d,
+    patch_radius p (likelihood patch (2p+1)²). The birth density p_b is uniform: position over the
+    image, each velocity component on [−velocity_max, velocity_max], intensity on
+    ``intensity_range``.
+    """
+
+    grid_size: int = 20
+    cell_size: float = 1.0
+    blur: float = 0.7
+    noise_std: float = 1.0
+    q1: float = 0.001
+    q2: float = 0.01
+    period: float = 1.0
+    p_birth: float = 0.05
+    p_death: float = 0.05
+    patch_radius: int = 2
+    velocity_max: float = 1.0
+    intensity_range: tuple[float, float] = (10.0, 30.0)
+
+    def __post_init__(self):
+        if int(self.grid_size) != self.grid_size or self.grid_size < 1:
+            raise InputError(f"grid_size must be a positive integer, got {self.grid_size}")
+        if int(self.patch_radius) != self.patch_radius or self.patch_radius < 0:
+            raise InputError(f"patch_radius must be a non-negative integer, got {self.patch_radius}")
+        for name in ("cell_size", "blur", "noise_std", "period", "velocity_max"):
+            value = getattr(self, name)
+            if not np.isfinite(value) or value <= 0:
+                raise InputError(f"{name} must be positive and finite, got {value}")
+        for name in ("q1", "q2"):
+            value = getattr(self, name)
+            if not np.isfinite(value) or value < 0:
+                raise InputError(f"{name} must be non-negative and finite, got {value}")
+        for name in ("p_birth", "p_death"):
+            value = getattr(self, name)
+            if not 0.0 < value < 1.0:
+                raise InputError(f"{name} must lie in (0, 1), got {value}")
+        lo, hi = self.intensity_range
+        if not 0 <= lo < hi:
+            raise InputError(f"intensity_range must be (low, high) with 0 <= low < high, got {self.intensity_range}")
+
+    # ---- dynamics ---------------------------------------------------------------------------
+    @cached_property
+    def transition_matrix(self) -> np.ndarray:
+        """F (eq. 3)."""
+        T = self.period
+        cv = np.array([[1.0, T], [0.0, 1.0]])
+        F = np.zeros((STATE_DIM, STATE_DIM))
+        F[0:2, 0:2] = cv
+        F[2:4, 2:4] = cv
+        F[4, 4] = 1.0
+        return F
+
+    @cached_property
+    def process_cov(self) -> np.ndarray:
+        """Q (eq. 4)."""
+        T = self.period
+        block = self.q1 * np.array([[T**3 / 3, T**2 / 2], [T**2 / 2, T]])
+        Q = np.zeros((STATE_DIM, STATE_DIM))
+        Q[0:2, 0:2] = block
+        Q[2:4, 2:4] = block
+        Q[4, 4] = self.q2 * T
+        return Q
+
+    @cached_property
+    def process_factor(self) -> np.ndarray:
+        """Lower factor of Q (Q has full rank when q1, q2 > 0; zero rows otherwise)."""
+        eigval, eigvec = np.linalg.eigh(self.process_cov)
+        return eigvec * np.sqrt(np.clip(eigval, 0.0, None))
+
+    def propagate(self, states: np.ndarray, rng: np.random.Generator) -> np.ndarray:
+        """Draws of s_k ~ N(F s_{k−1}, Q) for every row of ``states`` (N, 5)."""
+        noise = rng.standard_normal(states.shape) @ self.process_factor.T
+        return states @ self.transition_matrix.T + noise
+
+    # ---- sensor -----------------------------------------------------------------------------
+    @property
+    def cell_count(self) -> int:
+        return self.grid_size * self.grid_size
+
+    @property
+    def image_extent(self) -> tuple[float, float]:
+        """(low, high) of the imaged interval on each axis: [−Δ/2, (n − ½)Δ]."""
+        return -0.5 * self.cell_size, (self.grid_size - 0.5) * self.cell_size
+
+    def amplitude(self, intensity) -> np.ndarray:
+        """Peak of the point spread, Δ² I / (2πΣ²) (eq. 9)."""
+        return self.cell_size**2 * np.asarray(intensity, dtype=float) / (2.0 * np.pi * self.blur**2)
+
+    def nearest_cell(self, coordinate: np.ndarray) -> np.ndarray:
+        """Index of the cell whose centre is nearest (integers, possibly outside 0 … n−1)."""
+        return np.rint(np.asarray(coordinate) / self.cell_size).astype(np.int64)
+
+    def axis_spread(self, coordinate: np.ndarray, cells: np.ndarray) -> np.ndarray:
+        """Separable factor exp(−(cΔ − x)² / (2Σ²)) of the point spread for each (particle, cell),
+        zero where the cell is off the image or outside the particle's patch.
+
+        coordinate (N,), cells (N, W) or (W,) -> (N, W).
+        """
+        coordinate = np.asarray(coordinate, dtype=float)[:, None]
+        cells = np.broadcast_to(cells, (coordinate.shape[0], np.shape(cells)[-1]))
+        inside = (cells >= 0) & (cells < self.grid_size)
+        in_patch = np.abs(cells - self.nearest_cell(coordinate)) <= self.patch_radius
+        spread = np.exp(-0.5 * ((cells * self.cell_size - coordinate) / self.blur) ** 2)
+        return np.where(inside & in_patch, spread, 0.0)
+
+    def patch_cells(self, coordinate: np.ndarray) -> np.ndarray:
+        """Cell indices of each particle's patch along one axis, (N, 2p+1) (may leave the image)."""
+        offsets = np.arange(-self.patch_radius, self.patch_radius + 1)
+        return self.nearest_cell(coordinate)[:, None] + offsets
+
+    def expected_image(self, state: np.ndarray) -> np.ndarray:
+        """h(s) over the whole image, (n, n) indexed [i_x, i_y], for one state (5,)."""
+        cells = np.arange(self.grid_size)
+        gx = self.axis_spread(state[POS[0]:POS[0] + 1], cells)[0]
+        gy = self.axis_spread(state[POS[1]:POS[1] + 1], cells)[0]
+        return float(self.amplitude(state[INTENSITY])) * np.outer(gx, gy)
+
+    def measurement_on_cells(self, states: np.ndarray, cells_x: np.ndarray, cells_y: np.ndarray) -> np.ndarray:
+        """h^{(i,j)}(s) for every particle on a fixed list of cells, (N, len(cells)).
+
+        Used by the second-stage update, whose measurement is a fixed patch of the image.
+        """
+        gx = self.axis_spread(states[:, POS[0]], cells_x)
+        gy = self.axis_spread(states[:, POS[1]], cells_y)
+        return self.amplitude(states[:, INTENSITY])[:, None] * gx * gy
+
+    def log_likelihood_ratio(self, states: np.ndarray, image: np.ndarray) -> np.ndarray:
+        """log L(z | s) for every particle, summed over its own (2p+1)² patch, (N,).
+
+        log L = Σ_{(i,j) ∈ C(s)} (h z − h²/2) / σ², with h = a g_x(i) g_y(j) separable, so the
+        quadratic term is a² (Σ_i g_x²)(Σ_j g_y²) / 2 and the linear one a g_xᵀ Z_patch g_y.
+        """
+        ix = self.patch_cells(states[:, POS[0]])
+        iy = self.patch_cells(states[:, POS[1]])
+        gx = self.axis_spread(states[:, POS[0]], ix)
+        gy = self.axis_spread(states[:, POS[1]], iy)
+        last = self.grid_size - 1
+        patch = image[np.clip(ix, 0, last)[:, :, None], np.clip(iy, 0, last)[:, None, :]]
+        amp = self.amplitude(states[:, INTENSITY])
+        linear = amp * np.einsum("ni,nij,nj->n", gx, patch, gy)
+        quadratic = 0.5 * amp**2 * np.sum(gx**2, axis=1) * np.sum(gy**2, axis=1)
+        return (linear - quadratic) / self.noise_std**2
+
+    def check_image(self, image) -> np.ndarray:
+        n = self.grid_size
+        return as_array(image, "image", shape=(n, n))
+
+    def check_states(self, states, name: str = "states") -> np.ndarray:
+        return as_matrix(states, name, None, STATE_DIM)

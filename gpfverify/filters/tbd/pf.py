@@ -1,0 +1,166 @@
+"""Rutten's PF-TBD step (Rutten, Ristic & Gordon, FUSION 2005; steps ①–⑥ of seed 004 §2).
+
+Given the continuing particles {s_{k−1}^i}, i = 1 … N_c (equal weights, conditional on E_{k−1} = 1)
+and the existence probability P_{k−1}:
+
+① birth particles s_b^i ~ q_b(· | z_k), i = 1 … N_b (data-driven, see :func:`birth_proposal`),
+   unnormalised weights  w̃_b^i = P_b (1 − P_{k−1}) / N_b · L(z_k | s_b^i) · p_b(s_b^i) / q_b(s_b^i);
+② continuing particles s_c^i ~ N(F s_{k−1}^i, Q),
+   unnormalised weights  w̃_c^i = (1 − P_d) P_{k−1} / N_c · L(z_k | s_c^i);
+③ existence (seed 004 eq. 10), with M_b = Σ w̃_b, M_c = Σ w̃_c:
+   P_k = (M_b + M_c) / (M_b + M_c + P_d P_{k−1} + (1 − P_b)(1 − P_{k−1}));
+④ merge the two sets, w^i = w̃^i / (M_b + M_c);
+⑤ estimate ŝ_k = Σ w^i s^i (conditional on existence);
+⑥ resample N_c particles from the merged set (systematic resampling).
+
+Everything is computed in the log domain (the likelihood ratios of a bright target overflow).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.special import expit, logsumexp
+
+from gpfverify.errors import InputError
+from gpfverify.filters.tbd.model import TbdModel
+
+
+@dataclass(frozen=True)
+class TbdConfig:
+    """Filter settings (not the model).
+
+    n_particles N = N_b + N_c with N_b = N_c = N/2 (seed 004 §3: "N_c = N_b").
+    Birth proposal: a cell is *bright* when z > birth_threshold · σ; cells are drawn with
+    probability (1 − birth_uniform_share) / n_bright on bright cells plus birth_uniform_share / n²
+    everywhere (full support, so the importance weights p_b / q_b are exact).
+    Two-stage (TPFTBD): ``zeta`` is the transfer parameter ζ ∈ [0, 1] (ζ = 1: no particle is
+    replaced); the second-stage measurement is the (2r+1)² patch, r = second_stage_radius, centred
+    on the cell nearest to the PF estimate.
+    """
+
+    n_particles: int = 2000
+    birth_threshold: float = 1.0
+    birth_uniform_share: float = 0.1
+    two_stage: bool = False
+    zeta: float = 0.6
+    second_stage_radius: int = 2
+
+    def __post_init__(self):
+        if int(self.n_particles) != self.n_particles or self.n_particles < 2 or self.n_particles % 2:
+            raise InputError(f"n_particles must be an even integer >= 2, got {self.n_particles}")
+        if not 0.0 < self.birth_uniform_share <= 1.0:
+            raise InputError(f"birth_uniform_share must lie in (0, 1], got {self.birth_uniform_share}")
+        if not np.isfinite(self.birth_threshold):
+            raise InputError(f"birth_threshold must be finite, got {self.birth_threshold}")
+        if not 0.0 <= self.zeta <= 1.0:
+            raise InputError(f"zeta must lie in [0, 1], got {self.zeta}")
+        if int(self.second_stage_radius) != self.second_stage_radius or self.second_stage_radius < 0:
+            raise InputError(f"second_stage_radius must be a non-negative integer, got {self.second_stage_radius}")
+
+    @property
+    def n_birth(self) -> int:
+        return self.n_particles // 2
+
+    @property
+    def n_continuing(self) -> int:
+        return self.n_particles - self.n_birth
+
+
+@dataclass(frozen=True)
+class TbdBelief:
+    """Continuing particles (N_c, 5), equally weighted, and the existence probability P_k."""
+
+    particles: np.ndarray
+    existence: float
+
+
+@dataclass(frozen=True)
+class TbdStep:
+    """One PF-TBD step: the merged weighted set (N_b + N_c, 5) with normalised ``log_weights``
+    (Σ exp = 1), the existence probability, the estimate (5,) and the next belief (resampled
+    particles)."""
+
+    merged: np.ndarray
+    log_weights: np.ndarray
+    existence: float
+    estimate: np.ndarray
+    belief: TbdBelief
+
+
+def sample_birth_prior(model: TbdModel, n: int, rng: np.random.Generator) -> np.ndarray:
+    """n draws from the birth density p_b (uniform position, velocity and intensity), (n, 5)."""
+    lo, hi = model.image_extent
+    vmax = model.velocity_max
+    i_lo, i_hi = model.intensity_range
+    u = rng.random((n, 5))
+    return np.column_stack([lo + (hi - lo) * u[:, 0], vmax * (2 * u[:, 1] - 1),
+                            lo + (hi - lo) * u[:, 2], vmax * (2 * u[:, 3] - 1),
+                            i_lo + (i_hi - i_lo) * u[:, 4]])
+
+
+def initial_belief(model: TbdModel, config: TbdConfig, rng: np.random.Generator) -> TbdBelief:
+    """P_0 = 0 (no target before the first frame); the continuing set is a placeholder drawn from
+    p_b — with P_0 = 0 its weights are zero."""
+    return TbdBelief(sample_birth_prior(model, config.n_continuing, rng), 0.0)
+
+
+def birth_proposal(model: TbdModel, config: TbdConfig, image: np.ndarray, rng: np.random.Generator):
+    """Birth particles from the bright cells of ``image`` and log p_b(s)/q_b(s) for each.
+
+    q_b: cell c with probability π_c = (1 − ε) 1[z_c > γσ] / n_bright + ε / n² (ε = birth_uniform_share,
+    π_c = 1/n² when no cell is bright), position uniform inside the cell, velocity and intensity
+    from p_b. Since p_b puts 1/n² on each cell, p_b/q_b = (1/n²) / π_c.
+    """
+    n_cells = model.cell_count
+    bright = (image > config.birth_threshold * model.noise_std).ravel()
+    n_bright = int(bright.sum())
+    eps = config.birth_uniform_share if n_bright else 1.0
+    cell_prob = np.full(n_cells, eps / n_cells)
+    if n_bright:
+        cell_prob[bright] += (1.0 - eps) / n_bright
+    states = sample_birth_prior(model, config.n_birth, rng)
+    cells = np.minimum(np.searchsorted(np.cumsum(cell_prob), rng.random(config.n_birth) * cell_prob.sum(),
+                                       side="right"), n_cells - 1)
+    ix, iy = np.divmod(cells, model.grid_size)
+    within = rng.random((config.n_birth, 2)) - 0.5
+    states[:, 0] = (ix + within[:, 0]) * model.cell_size
+    states[:, 2] = (iy + within[:, 1]) * model.cell_size
+    log_ratio = -math.log(n_cells) - np.log(cell_prob[cells])
+    return states, log_ratio
+
+
+def resample_to_size(weights: np.ndarray, n: int, rng: np.random.Generator) -> np.ndarray:
+    """Indices of n systematic-resampling draws from normalised ``weights`` of M particles.
+
+    Rutten's filter resamples the N_b + N_c merged particles down to N_c, which
+    :func:`gpfverify.filters.resampling.systematic_resample` (n = M) does not cover.
+    """
+    positions = (rng.random() + np.arange(n)) / n
+    return np.minimum(np.searchsorted(np.cumsum(weights), positions, side="right"), weights.size - 1)
+
+
+def _log(p: float) -> float:
+    return math.log(p) if p > 0.0 else -math.inf
+
+
+def pf_tbd_step(belief: TbdBelief, model: TbdModel, config: TbdConfig, image: np.ndarray,
+                rng: np.random.Generator) -> TbdStep:
+    """Steps ①–⑥ above for one frame ``image`` (n, n)."""
+    prev = belief.existence
+    births, log_ratio = birth_proposal(model, config, image, rng)
+    continuing = model.propagate(belief.particles, rng)
+    merged = np.concatenate([births, continuing])
+    log_w = model.log_likelihood_ratio(merged, image)
+    log_w[:config.n_birth] += log_ratio + _log(model.p_birth * (1.0 - prev) / config.n_birth)
+    log_w[config.n_birth:] += _log((1.0 - model.p_death) * prev / belief.particles.shape[0])
+    log_mass = float(logsumexp(log_w))
+    log_absent = math.log(model.p_death * prev + (1.0 - model.p_birth) * (1.0 - prev))
+    existence = float(expit(log_mass - log_absent))
+    log_w -= log_mass
+    weights = np.exp(log_w)
+    estimate = weights @ merged
+    resampled = merged[resample_to_size(weights, config.n_continuing, rng)]
+    return TbdStep(merged, log_w, existence, estimate, TbdBelief(resampled, existence))

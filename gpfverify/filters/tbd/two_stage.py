@@ -1,0 +1,106 @@
+"""TPFTBD: PF-TBD followed by a Kalman-type second measurement update (seed 004 §2, steps ⑦–⑪).
+
+After the PF step (:func:`~gpfverify.filters.tbd.pf.pf_tbd_step`), from the merged weighted set
+{s^i, w^i} of step ④ (eq. 11–17):
+
+    ŝ = Σ w^i s^i,                          ẑ = Σ w^i h_C(s^i),
+    P = Σ w^i (s^i − ŝ)(s^i − ŝ)ᵀ,          P_xz = Σ w^i (s^i − ŝ)(h_C(s^i) − ẑ)ᵀ,
+    S = Σ w^i (h_C(s^i) − ẑ)(h_C(s^i) − ẑ)ᵀ + σ² I,
+
+where h_C is the point-spread measurement on the fixed patch C of the image centred on the cell
+nearest to the PF estimate (``TbdConfig.second_stage_radius``); then (eq. 18–20)
+
+    K = P_xz S⁻¹,   ŝ⁺ = ŝ + K (z_C − ẑ),   P⁺ = P − K S Kᵀ.
+
+Finally (eq. 21) each resampled particle i is replaced by a draw from N(ŝ⁺, P⁺) when its uniform
+draw e_i ~ U[0, 1) exceeds ζ; ζ = 1 leaves the PF unchanged.
+
+P⁺ is the Schur complement of a weighted sample covariance plus σ²I, hence positive semidefinite
+by construction (it is symmetrised against rounding).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from gpfverify.filters.records import StepRecord
+from gpfverify.filters.resampling import weighted_moments
+from gpfverify.filters.tbd.model import POS, TbdModel
+from gpfverify.filters.tbd.pf import TbdBelief, TbdConfig, TbdStep, pf_tbd_step
+from gpfverify.linalg import cholesky, right_solve_spd, symmetrize
+
+
+@dataclass(frozen=True)
+class SecondStage:
+    """The Kalman-type update (``record``: μ_p = ŝ, C_p = P, μ_y = ẑ, C_y = S, C_xy = P_xz,
+    μ_e = ŝ⁺, C_e = P⁺), the image cells it used, and which particles were replaced."""
+
+    record: StepRecord
+    cells_x: np.ndarray
+    cells_y: np.ndarray
+    replaced: np.ndarray
+
+
+def second_stage_cells(model: TbdModel, config: TbdConfig, estimate: np.ndarray):
+    """The (2r+1)² patch around the cell nearest to the estimate, clipped to the image:
+    flattened (cells_x, cells_y)."""
+    r = config.second_stage_radius
+    offsets = np.arange(-r, r + 1)
+    axes = []
+    for coordinate in (estimate[POS[0]], estimate[POS[1]]):
+        cells = model.nearest_cell(coordinate) + offsets
+        axes.append(cells[(cells >= 0) & (cells < model.grid_size)])
+    cx, cy = np.meshgrid(axes[0], axes[1], indexing="ij")
+    return cx.ravel(), cy.ravel()
+
+
+def second_stage_update(merged: np.ndarray, log_weights: np.ndarray, model: TbdModel, config: TbdConfig,
+                        image: np.ndarray, estimate: np.ndarray) -> tuple[StepRecord, np.ndarray, np.ndarray]:
+    """Eq. 11–20 on the patch around ``estimate``; returns (record, cells_x, cells_y).
+
+    The weighted moments of the joint sample [s^i, h_C(s^i)] give ŝ, ẑ, P, P_xz and Cov(h_C).
+    """
+    cells_x, cells_y = second_stage_cells(model, config, estimate)
+    z = image[cells_x, cells_y]
+    H = model.measurement_on_cells(merged, cells_x, cells_y)
+    joint_mean, joint_cov = weighted_moments(np.hstack([merged, H]), log_weights)
+    d = merged.shape[1]
+    s_hat, z_hat = joint_mean[:d], joint_mean[d:]
+    P, P_xz = joint_cov[:d, :d], joint_cov[:d, d:]
+    S = joint_cov[d:, d:] + model.noise_std**2 * np.eye(z.size)
+    K = right_solve_spd(P_xz, S, "second-stage innovation covariance S")
+    mean = s_hat + K @ (z - z_hat)
+    cov = symmetrize(P - K @ P_xz.T)
+    return StepRecord(s_hat, P, z_hat, S, P_xz, mean, cov), cells_x, cells_y
+
+
+def transfer_particles(particles: np.ndarray, posterior_mean: np.ndarray, posterior_cov: np.ndarray,
+                       zeta: float, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
+    """Eq. 21: particle i becomes a draw from N(mean, cov) when e_i > ζ, e_i ~ U[0, 1).
+    Returns (new particles, boolean mask of the replaced ones)."""
+    replaced = rng.random(particles.shape[0]) > zeta
+    out = particles.copy()
+    n = int(replaced.sum())
+    if n:
+        factor = cholesky(posterior_cov, "second-stage posterior covariance").factor
+        out[replaced] = posterior_mean + rng.standard_normal((n, particles.shape[1])) @ factor.T
+    return out, replaced
+
+
+def tpf_tbd_step(belief: TbdBelief, model: TbdModel, config: TbdConfig, image: np.ndarray,
+                 rng: np.random.Generator, second_rng: np.random.Generator) -> tuple[TbdStep, SecondStage]:
+    """PF-TBD with ``rng``, then the second stage and the transfer with ``second_rng``.
+
+    The estimate is the expected mean of the transferred particle set,
+    ζ · ŝ_PF + (1 − ζ) · ŝ⁺ (with ζ = 1 it is the PF estimate).
+    """
+    step = pf_tbd_step(belief, model, config, image, rng)
+    record, cells_x, cells_y = second_stage_update(step.merged, step.log_weights, model, config, image,
+                                                   step.estimate)
+    particles, replaced = transfer_particles(step.belief.particles, record.mu_e, record.C_e,
+                                             config.zeta, second_rng)
+    estimate = config.zeta * step.estimate + (1.0 - config.zeta) * record.mu_e
+    step = replace(step, estimate=estimate, belief=TbdBelief(particles, step.existence))
+    return step, SecondStage(record, cells_x, cells_y, replaced)

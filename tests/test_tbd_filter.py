@@ -1,0 +1,244 @@
+"""PF-TBD and TPFTBD (seed 004): likelihood ratio, existence recursion, second stage, ζ = 1,
+lock-on and no-target behaviour."""
+
+import copy
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from gpfverify.errors import InputError
+from gpfverify.filters.tbd import (TbdBelief, TbdConfig, TbdModel, filter_sequence, pf_tbd_step,
+                                   second_stage_update, tpf_tbd_step)
+from gpfverify.filters.tbd.pf import birth_proposal, resample_to_size
+from gpfverify.filters.tbd.two_stage import transfer_particles
+from gpfverify.scenarios.tbd import TbdScenario, noise_std_for_snr, scenario_model, simulate
+from gpfverify.tolerances import algebra_rtol, monte_carlo_atol
+
+SCENARIO = TbdScenario()
+HIGH_SNR_DB = 15.0
+
+
+def _full_image_log_lr(model: TbdModel, state, image) -> float:
+    """Reference: loop over every pixel of the image with the truncated point spread of eq. 9."""
+    n, d, p = model.grid_size, model.cell_size, model.patch_radius
+    cx, cy = round(state[0] / d), round(state[2] / d)
+    amp = d * d * state[4] / (2 * np.pi * model.blur**2)
+    total = 0.0
+    for i in range(n):
+        for j in range(n):
+            if abs(i - cx) > p or abs(j - cy) > p:
+                continue
+            h = amp * np.exp(-((i * d - state[0]) ** 2 + (j * d - state[2]) ** 2) / (2 * model.blur**2))
+            total += h * (2 * image[i, j] - h) / (2 * model.noise_std**2)
+    return total
+
+
+def test_patch_likelihood_ratio_equals_full_image_ratio():
+    rng = np.random.default_rng(0)
+    model = scenario_model(6.0, SCENARIO)
+    image = model.noise_std * rng.standard_normal((model.grid_size, model.grid_size))
+    image += model.expected_image(np.array([9.3, 0.0, 4.6, 0.0, 20.0]))
+    lo, hi = model.image_extent
+    states = np.column_stack([rng.uniform(lo - 3, hi + 3, 60), rng.normal(size=60),
+                              rng.uniform(lo - 3, hi + 3, 60), rng.normal(size=60), rng.uniform(5, 30, 60)])
+    states[:3, [0, 2]] = [[9.3, 4.6], [0.1, 19.2], [-2.4, 7.0]]  # on the target, in a corner, off the image
+    fast = model.log_likelihood_ratio(states, image)
+    slow = np.array([_full_image_log_lr(model, s, image) for s in states])
+    np.testing.assert_allclose(fast, slow, rtol=algebra_rtol(), atol=algebra_rtol() * np.abs(slow).max())
+    assert np.any(slow == 0.0) and np.any(slow != 0.0)  # both the off-image and the on-image cases occur
+
+
+def test_expected_image_is_the_truncated_point_spread():
+    """A target on a cell centre: the image is zero outside the (2p+1)² patch, peaks at the
+    target's cell, and its sum is I/(2πΣ²) (Σ_{|i|≤p} exp(−i²/(2Σ²)))²."""
+    model = TbdModel(blur=0.7, patch_radius=3)
+    h = model.expected_image(np.array([9.0, 0.0, 10.0, 0.0, 20.0]))
+    one_axis = sum(np.exp(-0.5 * (i / 0.7) ** 2) for i in range(-3, 4))
+    np.testing.assert_allclose(h.sum(), 20.0 * one_axis**2 / (2 * np.pi * 0.49), rtol=algebra_rtol())
+    assert h.argmax() == 9 * model.grid_size + 10
+    assert np.count_nonzero(h) == 7 * 7 and np.all(h[:6] == 0) and np.all(h[:, 14:] == 0)
+
+
+def test_existence_follows_the_markov_chain_when_the_image_carries_no_information():
+    """σ → ∞ and a blank image: L = 1 for every particle and q_b = p_b, so
+    P_k = P_b (1 − P_{k−1}) + (1 − P_d) P_{k−1} exactly (the chain's prediction, eq. 7)."""
+    model = TbdModel(noise_std=1e12)
+    config = TbdConfig(200)
+    image = np.zeros((model.grid_size, model.grid_size))
+    rng = np.random.default_rng(1)
+    belief = TbdBelief(np.tile([10.0, 0.1, 10.0, 0.1, 20.0], (config.n_continuing, 1)), 0.3)
+    for _ in range(5):
+        step = pf_tbd_step(belief, model, config, image, rng)
+        expected = model.p_birth * (1 - belief.existence) + (1 - model.p_death) * belief.existence
+        np.testing.assert_allclose(step.existence, expected, rtol=algebra_rtol())
+        belief = step.belief
+
+
+def test_existence_carries_the_birth_importance_weights():
+    """L = 1 again (σ → ∞) but a few bright cells make q_b ≠ p_b: then
+    M_b = P_b (1 − P)/N_b Σ_i p_b/q_b(s_b^i) and P_k = (M_b + M_c)/(M_b + M_c + P_d P + (1 − P_b)(1 − P)),
+    with the proposal's own ratios replayed from a copy of the generator."""
+    model = TbdModel(noise_std=1e12)
+    config = TbdConfig(200, birth_threshold=1e-12)  # bright: z > 1
+    image = np.zeros((model.grid_size, model.grid_size))
+    image[4:7, 9:12] = 5.0
+    rng = np.random.default_rng(17)
+    prev = 0.3
+    belief = TbdBelief(np.tile([10.0, 0.1, 10.0, 0.1, 20.0], (config.n_continuing, 1)), prev)
+    _, log_ratio = birth_proposal(model, config, image, copy.deepcopy(rng))
+    m_b = model.p_birth * (1 - prev) * np.exp(log_ratio).mean()
+    m_c = (1 - model.p_death) * prev
+    expected = (m_b + m_c) / (m_b + m_c + model.p_death * prev + (1 - model.p_birth) * (1 - prev))
+    step = pf_tbd_step(belief, model, config, image, rng)
+    np.testing.assert_allclose(step.existence, expected, rtol=algebra_rtol())
+    assert abs(np.exp(log_ratio).mean() - 1.0) > algebra_rtol()  # the ratios matter here
+
+
+def test_birth_importance_ratio_is_exact():
+    """E_q[p_b/q_b] = 1 for the data-driven proposal: Monte Carlo over many draws."""
+    rng = np.random.default_rng(2)
+    model = scenario_model(3.0, SCENARIO)
+    image = simulate(model, SCENARIO, rng).images[10]
+    config = TbdConfig(40_000)
+    _, log_ratio = birth_proposal(model, config, image, rng)
+    ratio = np.exp(log_ratio)
+    assert abs(ratio.mean() - 1.0) <= monte_carlo_atol(ratio.std(), ratio.size)
+    assert ratio.min() < 1.0 < ratio.max()  # the proposal really favours the bright cells
+
+
+def test_resample_to_size_keeps_expected_counts():
+    rng = np.random.default_rng(3)
+    w = rng.random(30)
+    w /= w.sum()
+    idx = resample_to_size(w, 10, rng)
+    counts = np.bincount(idx, minlength=30)
+    assert counts.sum() == 10
+    assert np.all(np.abs(counts - 10 * w) < 1.0)  # systematic: ⌊n w⌋ or ⌈n w⌉ copies
+
+
+def _weighted_cloud(rng, model, n=400):
+    mean = np.array([8.2, 0.3, 11.6, -0.2, 20.0])
+    spread = np.array([0.6, 0.2, 0.6, 0.2, 2.0])
+    merged = mean + spread * rng.standard_normal((n, 5))
+    log_w = rng.normal(size=n)
+    return merged, log_w - np.log(np.exp(log_w).sum())
+
+
+def test_second_stage_equals_conditioning_of_the_joint_gaussian():
+    """Independent route: moments of the stacked [s; h] sample with σ²I added, conditioned on
+    z through the inverse of the joint covariance (precision blocks) instead of K = P_xz S⁻¹."""
+    rng = np.random.default_rng(4)
+    model = scenario_model(6.0, SCENARIO)
+    merged, log_w = _weighted_cloud(rng, model)
+    image = model.noise_std * rng.standard_normal((20, 20)) + model.expected_image(np.array([8.0, 0, 12.0, 0, 20.0]))
+    config = TbdConfig(400, two_stage=True, second_stage_radius=2)
+    record, cx, cy = second_stage_update(merged, log_w, model, config, image, np.exp(log_w) @ merged)
+    assert cx.size == 25 and set(cx) == {6, 7, 8, 9, 10} and set(cy) == {10, 11, 12, 13, 14}
+    w = np.exp(log_w)
+    H = np.array([[model.expected_image(s)[i, j] for i, j in zip(cx, cy)] for s in merged])
+    joint = np.hstack([merged, H])
+    mean = w @ joint
+    dev = joint - mean
+    cov = (dev * w[:, None]).T @ dev
+    cov[5:, 5:] += model.noise_std**2 * np.eye(25)
+    precision = np.linalg.inv(cov)
+    post_cov = np.linalg.inv(precision[:5, :5])
+    post_mean = mean[:5] - post_cov @ precision[:5, 5:] @ (image[cx, cy] - mean[5:])
+    rtol = algebra_rtol(np.linalg.cond(cov))
+    np.testing.assert_allclose(record.mu_p, mean[:5], rtol=rtol)
+    np.testing.assert_allclose(record.mu_e, post_mean, rtol=rtol, atol=rtol * np.abs(post_mean).max())
+    np.testing.assert_allclose(record.C_e, post_cov, rtol=rtol, atol=rtol * np.abs(post_cov).max())
+    assert np.linalg.eigvalsh(record.C_e).min() >= -rtol * np.abs(post_cov).max()
+
+
+def test_transfer_with_zeta_zero_draws_every_particle_from_the_posterior():
+    rng = np.random.default_rng(5)
+    mean = np.array([3.0, 0.1, 4.0, -0.1, 18.0])
+    a = rng.normal(size=(5, 5))
+    cov = a @ a.T / 5 + 0.1 * np.eye(5)
+    particles = np.zeros((20_000, 5))
+    out, replaced = transfer_particles(particles, mean, cov, 0.0, rng)
+    assert replaced.all()
+    assert np.all(np.abs(out.mean(0) - mean) <= monte_carlo_atol(np.sqrt(np.diag(cov)), out.shape[0]))
+    kept, none = transfer_particles(particles, mean, cov, 1.0, rng)
+    assert not none.any() and np.array_equal(kept, particles)
+
+
+def test_zeta_one_tpftbd_equals_pftbd_for_the_same_stream():
+    model = scenario_model(6.0, SCENARIO)
+    seq = simulate(model, SCENARIO, np.random.default_rng(6))
+    pf = filter_sequence(seq.images, model, TbdConfig(300), np.random.default_rng(7))
+    tpf = filter_sequence(seq.images, model, TbdConfig(300, two_stage=True, zeta=1.0),
+                          np.random.default_rng(7), np.random.default_rng(8))
+    assert np.array_equal(pf.existence, tpf.existence)
+    assert np.array_equal(pf.estimates, tpf.estimates)
+    moved = filter_sequence(seq.images, model, TbdConfig(300, two_stage=True, zeta=0.6),
+                            np.random.default_rng(7), np.random.default_rng(8))
+    assert not np.array_equal(pf.existence, moved.existence)  # ζ < 1 really changes the filter
+
+
+def test_tpftbd_step_replaces_about_one_minus_zeta_of_the_particles():
+    model = scenario_model(9.0, SCENARIO)
+    config = TbdConfig(4000, two_stage=True, zeta=0.6)
+    rng = np.random.default_rng(9)
+    image = model.noise_std * rng.standard_normal((20, 20)) + model.expected_image(np.array([8.0, 0, 12.0, 0, 20.0]))
+    belief = TbdBelief(np.tile([8.0, 0.0, 12.0, 0.0, 20.0], (config.n_continuing, 1)), 0.9)
+    step, second = tpf_tbd_step(belief, model, config, image, rng, np.random.default_rng(10))
+    share = second.replaced.mean()
+    assert abs(share - 0.4) <= monte_carlo_atol(np.sqrt(0.4 * 0.6), second.replaced.size)
+    np.testing.assert_allclose(step.estimate, 0.6 * (np.exp(step.log_weights) @ step.merged) + 0.4 * second.record.mu_e,
+                               rtol=algebra_rtol())
+
+
+@pytest.mark.parametrize("two_stage", [False, True])
+def test_high_snr_target_is_locked_on(two_stage):
+    """Target present in every frame at 15 dB: after a few frames the existence probability
+    exceeds 1 − P_d (the evidence beats the prior death rate) and the position error is below a cell."""
+    scenario = TbdScenario(frames=16, first_frame=1, last_frame=16)
+    model = scenario_model(HIGH_SNR_DB, scenario)
+    seq = simulate(model, scenario, np.random.default_rng(11))
+    track = filter_sequence(seq.images, model, TbdConfig(1000, two_stage=two_stage),
+                            np.random.default_rng(12), np.random.default_rng(13))
+    settled = slice(5, None)
+    assert np.all(track.existence[settled] > 1 - model.p_death)
+    error = np.hypot(*(track.estimates[settled][:, [0, 2]] - seq.truth[settled][:, [0, 2]]).T)
+    assert np.sqrt(np.mean(error**2)) < model.cell_size
+
+
+@pytest.mark.parametrize("two_stage", [False, True])
+def test_no_target_existence_stays_low(two_stage):
+    """Noise only: the existence probability stays below the chain's stationary value
+    P_b / (P_b + P_d) in every frame — the data pull it down."""
+    model = scenario_model(HIGH_SNR_DB, SCENARIO)
+    seq = simulate(model, SCENARIO, np.random.default_rng(14), target=False)
+    track = filter_sequence(seq.images, model, TbdConfig(1000, two_stage=two_stage),
+                            np.random.default_rng(15), np.random.default_rng(16))
+    assert np.all(track.existence < model.p_birth / (model.p_birth + model.p_death))
+
+
+def test_snr_conventions():
+    model = TbdModel()
+    peak = float(model.amplitude(20.0))
+    assert np.isclose(20 * np.log10(peak / noise_std_for_snr(6.0, 20.0, model, "peak")), 6.0,
+                      rtol=algebra_rtol())
+    assert np.isclose(20 * np.log10(20.0 / noise_std_for_snr(6.0, 20.0, model, "intensity")), 6.0,
+                      rtol=algebra_rtol())
+    with pytest.raises(InputError, match="convention"):
+        noise_std_for_snr(6.0, 20.0, model, "rutten")
+
+
+def test_bad_input_raises_input_error():
+    model = TbdModel()
+    with pytest.raises(InputError, match="n_particles"):
+        TbdConfig(1001)
+    with pytest.raises(InputError, match="zeta"):
+        TbdConfig(1000, zeta=1.5)
+    with pytest.raises(InputError, match="p_birth"):
+        replace(model, p_birth=0.0)
+    with pytest.raises(InputError, match="images"):
+        filter_sequence(np.zeros((3, 10, 10)), model, TbdConfig(10), 0)
+    with pytest.raises(InputError, match="second_rng"):
+        filter_sequence(np.zeros((3, 20, 20)), model, TbdConfig(10, two_stage=True), 0)
+    with pytest.raises(InputError, match="first_frame"):
+        TbdScenario(first_frame=25, last_frame=22)
