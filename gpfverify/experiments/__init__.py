@@ -11,4 +11,6 @@
 """
 
 #: experiment name (as on the command line) -> module
-EXPERIMENTS: dict[str, str] = {}
+EXPERIMENTS: dict[str, str] = {
+    "gpadf-scalar": "gpfverify.experiments.gpadf_scalar",
+}

@@ -15,6 +15,7 @@ from gpfverify.report.render import write_report
 #: section slug -> module; order is the order of the report.
 SECTIONS: dict[str, str] = {
     "moments": "gpfverify.report.sections.moments",
+    "gpadf-scalar": "gpfverify.report.sections.gpadf_scalar",
 }
 
 

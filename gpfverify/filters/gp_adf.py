@@ -1,0 +1,66 @@
+"""GP assumed density filter (GP-ADF; Deisenroth, Huber, Hanebeck, ICML 2009; seed 000 Lemma 1,
+eq. 15–19).
+
+The transition function x_k = h(x_{k−1}) + w and the measurement function y = g(x) + v are GPs
+trained on data. GP-ADF propagates the belief with the *exact* moments of the GP prediction at a
+Gaussian input (:meth:`GaussianProcess.predict_uncertain`, eq. 8–11 and 20):
+
+* prediction (eq. 18–19): μ_p = E[h(x_{k−1})], C_p = Cov[h(x_{k−1})] + Σ_w, with x_{k−1} ~
+  N(μ_e, C_e) and Σ_w = diag(σ_ε²) of the transition GP (its learned noise);
+* measurement: μ_y = E[g(x_k)], C_y = Cov[g(x_k)] + Σ_v (the measurement GP's learned noise),
+  C_xy = Cov[x_k, g(x_k)] (eq. 20), with x_k ~ N(μ_p, C_p);
+* update (eq. 15–16): :func:`~gpfverify.filters.update.gaussian_update`.
+
+The GP arguments are duck-typed: anything with ``input_dim``, ``output_dim``, ``noise_var`` and
+``predict_uncertain(mu, Sigma) -> MomentMatch`` (a GaussianProcess or a GaussianProcessStack,
+whose joint moments carry the cross-sensor blocks of centralized fusion). Beliefs may carry
+leading batch axes; each belief in a batch is moment-matched separately.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from gpfverify.errors import InputError
+from gpfverify.filters.records import Gaussian, MeasurementMoments, StepRecord
+from gpfverify.filters.update import check_belief, gaussian_update
+from gpfverify.linalg import symmetrize
+
+
+def check_transition_gp(gp) -> None:
+    """A transition GP maps the state to itself: :class:`InputError` unless output_dim = input_dim."""
+    if gp.output_dim != gp.input_dim:
+        raise InputError(f"a transition GP maps the state to itself: input_dim {gp.input_dim} "
+                         f"!= output_dim {gp.output_dim}")
+
+
+def moment_match_batched(gp, belief: Gaussian) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Exact moments of the GP at every belief of a batch: mean (..., E), latent cov (..., E, E),
+    cross_cov (..., D, E)."""
+    belief = check_belief(belief, gp.input_dim)
+    batch = belief.mean.shape[:-1]
+    d, e = gp.input_dim, gp.output_dim
+    mean, cov, cross = np.empty(batch + (e,)), np.empty(batch + (e, e)), np.empty(batch + (d, e))
+    for index in np.ndindex(batch):
+        mm = gp.predict_uncertain(belief.mean[index], belief.cov[index])
+        mean[index], cov[index], cross[index] = mm.mean, mm.cov, mm.cross_cov
+    return mean, cov, cross
+
+
+def gp_adf_predict(belief: Gaussian, transition_gp) -> Gaussian:
+    """N(μ_p, C_p), eq. 18–19: moment matching at the belief plus the learned transition noise."""
+    check_transition_gp(transition_gp)
+    mean, cov, _ = moment_match_batched(transition_gp, belief)
+    return Gaussian(mean, symmetrize(cov + np.diag(transition_gp.noise_var)))
+
+
+def gp_adf_measurement(prediction: Gaussian, measurement_gp) -> MeasurementMoments:
+    """(μ_y, C_y, C_xy) at N(μ_p, C_p): exact moments plus the learned measurement noise."""
+    mu_y, cov, cross = moment_match_batched(measurement_gp, prediction)
+    return MeasurementMoments(mu_y, symmetrize(cov + np.diag(measurement_gp.noise_var)), cross)
+
+
+def gp_adf_step(belief: Gaussian, transition_gp, measurement_gp, y) -> StepRecord:
+    """One GP-ADF predict–update cycle (Lemma 1)."""
+    prediction = gp_adf_predict(belief, transition_gp)
+    return gaussian_update(prediction, gp_adf_measurement(prediction, measurement_gp), y)
