@@ -28,6 +28,9 @@ QUADRATURE_RTOL: float = 1e-6
 SOLVER_TOL: float = 1e-5
 #: How many standard errors a Monte Carlo estimate may stray (two-sided p ~ 6e-7 per check).
 MONTE_CARLO_SIGMAS: float = 5.0
+#: How far an observed order of convergence, log2(err(h) / err(h/2)), may be from the
+#: theoretical order of a discretisation in its asymptotic range.
+CONVERGENCE_ORDER_ATOL: float = 0.1
 #: Relative jitter steps tried, in order, when a Cholesky factorisation fails.
 JITTER_STEPS: tuple[float, ...] = (0.0, 1e-12, 1e-10, 1e-8, 1e-6)
 

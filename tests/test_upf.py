@@ -1,0 +1,83 @@
+"""The unscented particle filter against independent references: the Kalman filter on a linear
+model, the bootstrap weights when the proposal is the prior (exact cancellation), and 1-D
+quadrature of the one-step posterior under gamma process noise."""
+
+from dataclasses import replace
+
+import numpy as np
+from scipy.integrate import quad
+
+from gpfverify.filters.kalman import kf_step
+from gpfverify.filters.likelihoods import measurement_loglik
+from gpfverify.filters.models import linear_model
+from gpfverify.filters.records import Gaussian
+from gpfverify.filters.resampling import normalize_log_weights
+from gpfverify.filters.upf import ParticleCloud, upf_step
+from gpfverify.linalg import cholesky
+from gpfverify.scenarios.growth import gamma_benchmark_model
+from gpfverify.scenarios.simulate import simulate
+from gpfverify.tolerances import QUADRATURE_RTOL, algebra_rtol, monte_carlo_atol
+
+
+def test_upf_agrees_with_the_kalman_filter_within_monte_carlo_error():
+    F = np.array([[1.0, 1.0], [0.0, 0.9]])
+    H = np.array([[1.0, 0.0]])
+    Q, R = np.diag([0.3, 0.2]), np.array([[0.5]])
+    model = linear_model(F, H, Q, R)
+    prior = Gaussian(np.array([0.5, -0.5]), np.eye(2))
+    _, ys = simulate(model, prior.mean, 4, np.random.default_rng(3))
+    kalman = prior
+    for y in ys:
+        kalman = kf_step(kalman, F, H, Q, R, y).posterior
+    runs, count = 24, 1000
+    errs = []
+    for seed in range(runs):
+        rng = np.random.default_rng(200 + seed)
+        cloud = ParticleCloud.from_gaussian(prior.mean, prior.cov, count, rng)
+        for k, y in enumerate(ys, 1):
+            cloud, info = upf_step(cloud, model, y, k, rng)
+        errs.append(np.concatenate([info.mean - kalman.mean, (info.cov - kalman.cov).ravel()]))
+    errs = np.array(errs)
+    np.testing.assert_array_less(np.abs(errs.mean(0)), monte_carlo_atol(errs.std(0, ddof=1), runs))
+
+
+def test_prior_proposal_gives_the_bootstrap_weights():
+    """q = p(x_k | x_{k−1}) cancels the transition density: w ∝ p(y | x) exactly."""
+    gaussian = replace(gamma_benchmark_model(R=0.1), transition_logpdf=None, transition_sampler=None)
+    rng = np.random.default_rng(4)
+    q_factor = cholesky(gaussian.Q).factor
+
+    def prior_proposal(particles, sqrt_covs, model_, y, k):
+        return model_.f(particles, k), np.broadcast_to(q_factor, sqrt_covs.shape)
+
+    cloud = ParticleCloud.from_gaussian(np.ones(1), np.eye(1), 50, rng)
+    y = np.array([1.3])
+    out, _ = upf_step(cloud, gaussian, y, 1, rng, proposal=prior_proposal, resample_threshold=0.0)
+    expected = normalize_log_weights(cloud.log_weights + measurement_loglik(gaussian, y, out.particles, 1))
+    np.testing.assert_allclose(out.log_weights, expected, rtol=algebra_rtol(), atol=algebra_rtol())
+
+
+def test_upf_weights_gamma_process_noise_exactly():
+    """One UPF step from a single previous state x₀ under Γ(3, 2) noise: the self-normalised
+    estimate of E[x₁ | y₁] agrees with 1-D quadrature of p(x₁ | x₀) p(y₁ | x₁)."""
+    model = gamma_benchmark_model(R=0.5)
+    x0, y, k = np.array([1.0]), np.array([1.2]), 1
+    drift = model.f(x0[None, :], k)[0, 0] - 1.5  # f includes the noise mean 3/2
+
+    def unnormalised(x):
+        w = x - drift
+        if w <= 0:
+            return 0.0
+        return w**2 * np.exp(-2.0 * w) * np.exp(-0.5 * (y[0] - 0.2 * x * x) ** 2 / 0.5)
+
+    lo, hi = drift, drift + 30.0
+    z = quad(unnormalised, lo, hi, epsabs=0, epsrel=QUADRATURE_RTOL, limit=200)[0]
+    exact = quad(lambda x: x * unnormalised(x), lo, hi, epsabs=0, epsrel=QUADRATURE_RTOL, limit=200)[0] / z
+    count = 200_000
+    rng = np.random.default_rng(5)
+    cloud = ParticleCloud(np.repeat(x0[None, :], count, 0), np.zeros(count), np.full((count, 1, 1), 0.3))
+    out, info = upf_step(cloud, model, y, k, rng, resample_threshold=0.0)
+    w = np.exp(out.log_weights)
+    # delta-method standard error of a self-normalised importance-sampling mean
+    se = np.sqrt(np.sum(w**2 * (out.particles[:, 0] - info.mean[0]) ** 2))
+    assert abs(info.mean[0] - exact) < monte_carlo_atol(se, 1)
