@@ -32,9 +32,13 @@ class Cholesky:
         return 2.0 * float(np.sum(np.log(np.diag(self.factor))))
 
     def inverse(self) -> np.ndarray:
-        """Explicit inverse, for caching outside a hot path (e.g. a GP's training matrix)."""
-        n = self.factor.shape[0]
-        return symmetrize(self.solve(np.eye(n)))
+        """Explicit inverse from the factor (LAPACK potri), for caching outside a hot path
+        (e.g. a GP's training matrix) or where the whole inverse is needed (evidence gradients)."""
+        inv, info = sla.lapack.dpotri(self.factor, lower=True)
+        if info != 0:
+            raise NumericalError(f"inverse from Cholesky factor failed (potri info={info})")
+        lower = np.tril(inv)
+        return lower + np.tril(inv, -1).T
 
 
 def cholesky(a: np.ndarray, name: str = "matrix", allow_jitter: bool = True) -> Cholesky:

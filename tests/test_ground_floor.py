@@ -1,0 +1,70 @@
+"""errors / validate / linalg / tolerances: the ground floor every module stands on."""
+
+import numpy as np
+import pytest
+
+from gpfverify.errors import InputError, NumericalError
+from gpfverify.linalg import cholesky, numerical_rank, right_solve_spd, solve_spd
+from gpfverify.tolerances import algebra_rtol, monte_carlo_atol
+from gpfverify.validate import as_covariance, as_matrix, as_vector
+
+
+def _spd(seed, n, cond=10.0):
+    q, _ = np.linalg.qr(np.random.default_rng(seed).normal(size=(n, n)))
+    return q @ np.diag(np.geomspace(1.0, 1.0 / cond, n)) @ q.T
+
+
+def test_cholesky_solve_and_inverse_agree_with_numpy():
+    a = _spd(0, 12, cond=1e4)
+    chol = cholesky(a)
+    b = np.random.default_rng(1).normal(size=(12, 3))
+    tol = algebra_rtol(1e4)
+    assert chol.jitter == 0.0
+    np.testing.assert_allclose(chol.solve(b), np.linalg.solve(a, b), rtol=tol, atol=tol)
+    np.testing.assert_allclose(chol.inverse(), np.linalg.inv(a), rtol=tol, atol=tol * 1e4)
+    assert chol.logdet() == pytest.approx(np.linalg.slogdet(a)[1], rel=tol)
+    np.testing.assert_allclose(solve_spd(a, b), np.linalg.solve(a, b), rtol=tol, atol=tol)
+    np.testing.assert_allclose(right_solve_spd(b.T, a), np.linalg.solve(a, b).T, rtol=tol, atol=tol)
+
+
+def test_cholesky_reports_jitter_and_fails_clearly():
+    v = np.array([1.0, 2.0, 3.0])
+    singular = np.outer(v, v)  # rank one: needs jitter
+    chol = cholesky(singular, "S")
+    assert chol.jitter > 0
+    with pytest.raises(NumericalError, match="S is not positive definite"):
+        cholesky(singular, "S", allow_jitter=False)
+    with pytest.raises(NumericalError, match="B is not positive definite"):
+        cholesky(-np.eye(3), "B")
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_numerical_rank_uses_numpys_rule_by_default(seed):
+    rng = np.random.default_rng(seed)
+    a = rng.normal(size=(5, 3)) @ rng.normal(size=(3, 4))  # rank 3
+    report = numerical_rank(a)
+    assert report.rank == np.linalg.matrix_rank(a) == 3
+    assert not report.full_column_rank and report.shape == (5, 4)
+    assert numerical_rank(a, tol=report.singular_values[0] * 2).rank == 0
+    assert numerical_rank(rng.normal(size=(4, 2))).full_column_rank
+
+
+def test_validate_names_the_argument():
+    with pytest.raises(InputError, match="mu must have shape"):
+        as_vector(np.zeros(3), "mu", 2)
+    with pytest.raises(InputError, match="M contains NaN"):
+        as_matrix([[1.0, np.nan]], "M")
+    with pytest.raises(InputError, match="P is not symmetric"):
+        as_covariance([[1.0, 0.5], [0.0, 1.0]], "P")
+    with pytest.raises(InputError, match="P is not positive semidefinite"):
+        as_covariance([[1.0, 2.0], [2.0, 1.0]], "P")
+    with pytest.raises(InputError, match="P is not positive definite"):
+        as_covariance([[1.0, 1.0], [1.0, 1.0]], "P", definite=True)
+    np.testing.assert_array_equal(as_covariance([[1.0, 1.0], [1.0, 1.0]], "P"), np.ones((2, 2)))
+
+
+def test_tolerances_scale_with_conditioning_and_sample_size():
+    assert algebra_rtol(1.0) == 1e-9
+    assert algebra_rtol(1e12) > algebra_rtol(1e3)
+    assert algebra_rtol(float("inf")) == float("inf")
+    assert monte_carlo_atol(2.0, 400) == pytest.approx(5 * 2.0 / 20)
