@@ -49,6 +49,14 @@ def monte_carlo_atol(sample_std, n_samples: int, sigmas: float = MONTE_CARLO_SIG
     return sigmas * np.asarray(sample_std, dtype=float) / np.sqrt(n_samples)
 
 
+def learned_model_rtol(n_train: int, sigmas: float = MONTE_CARLO_SIGMAS) -> float:
+    """Relative tolerance for a filter on models *learned* from ``n_train`` noisy samples against
+    the exact filter on the true model: ``sigmas * sqrt(2 / n_train)``, ``sigmas`` standard errors
+    of a Gaussian variance estimated from ``n_train`` samples (the learned noise variances set the
+    filter's covariances)."""
+    return sigmas * float(np.sqrt(2.0 / n_train))
+
+
 def numpy_rank_tol(singular_values, shape) -> float:
     """numpy's ``matrix_rank`` default: ``S.max() * max(M, N) * eps``."""
     s = np.asarray(singular_values, dtype=float)
