@@ -1,0 +1,142 @@
+"""Covariance intersection (CI, Julier & Uhlmann 1997) and inverse covariance intersection
+(ICI, Noack et al. 2017) with trace- or determinant-optimal weights.
+
+CI: P⁻¹ = Σ_m ω_m P_m⁻¹, x = P Σ_m ω_m P_m⁻¹ x_m, ω on the simplex, minimising tr P or det P.
+P is consistent (P ⪰ true error covariance) for every cross-correlation between the local errors.
+
+* Two estimates (closed form up to a scalar root, :mod:`gpfverify.fusion.pairwise`): with
+  Vᵀ P_1 V = I, Vᵀ P_2 V = diag(μ), the information is V diag(q) Vᵀ with q_i = ω + (1 − ω)/μ_i,
+  so tr P = Σ c_i/q_i and log det P = const − Σ log q_i are convex in ω; the optimum is an endpoint
+  exactly when the derivative keeps its sign on [0, 1], else the derivative's root.
+* N estimates: a parameterised cvxpy problem (DPP, built once per (N, D, criterion), Clarabel),
+  trace: min tr X s.t. [[X, I], [I, Σ ω_m I_m]] ⪰ 0; det: max log det Σ ω_m I_m. The weights are
+  clipped to the simplex and compared with every vertex (single estimate), so an optimum at an
+  endpoint is returned exactly.
+
+ICI (two estimates): P⁻¹ = P_1⁻¹ + P_2⁻¹ − (ωP_1 + (1 − ω)P_2)⁻¹, x = P(K x_1 + L x_2) with
+K = P_1⁻¹ − ω(ωP_1 + (1 − ω)P_2)⁻¹, L = P_2⁻¹ − (1 − ω)(ωP_1 + (1 − ω)P_2)⁻¹. In the joint basis
+q_i = 1 + 1/μ_i − 1/t_i with t_i = ω + (1 − ω)μ_i (1/q_i and −log q_i are convex in ω). For N
+estimates ICI is applied sequentially in the given order (the rule is defined for pairs).
+"""
+
+from __future__ import annotations
+
+from functools import lru_cache
+from typing import Sequence
+
+import cvxpy as cp
+import numpy as np
+
+from gpfverify.errors import InputError, SolverError
+from gpfverify.fusion.estimates import (FusedEstimate, Information, checked_estimates,
+                                        information_form, weighted_information_fusion)
+from gpfverify.fusion.pairwise import (criterion_derivative, joint_diagonalise,
+                                       minimise_convex_on_unit_interval)
+from gpfverify.linalg import cholesky
+
+CRITERIA = ("trace", "det")
+
+
+def _check_criterion(criterion: str) -> None:
+    if criterion not in CRITERIA:
+        raise InputError(f"criterion must be one of {CRITERIA}, got {criterion!r}")
+
+
+def _two_sensor_ci(first, second, criterion: str) -> FusedEstimate:
+    jd = joint_diagonalise(first, second)
+    mu = jd.ratios
+
+    def q(w):
+        return w + (1.0 - w) / mu
+
+    omega = minimise_convex_on_unit_interval(
+        criterion_derivative(criterion, jd.column_norms, q, lambda w: 1.0 - 1.0 / mu))
+    return jd.fuse(q(omega), np.full_like(mu, omega), (1.0 - omega) / mu, [omega, 1.0 - omega])
+
+
+def criterion_value(cov: np.ndarray, criterion: str) -> float:
+    """tr P or log det P."""
+    return float(np.trace(cov)) if criterion == "trace" else cholesky(cov, "fused cov").logdet()
+
+
+@lru_cache(maxsize=32)
+def _ci_problem(n: int, d: int, criterion: str):
+    """The DPP problem over ω for N information matrices of size D (built once, re-solved)."""
+    mats = [cp.Parameter((d, d), symmetric=True) for _ in range(n)]
+    omega = cp.Variable(n, nonneg=True)
+    total = sum(omega[m] * mats[m] for m in range(n))
+    if criterion == "trace":
+        x = cp.Variable((d, d), symmetric=True)
+        eye = np.eye(d)
+        problem = cp.Problem(cp.Minimize(cp.trace(x)),
+                             [cp.bmat([[x, eye], [eye, total]]) >> 0, cp.sum(omega) == 1])
+    else:
+        problem = cp.Problem(cp.Maximize(cp.log_det(total)), [cp.sum(omega) == 1])
+    return problem, mats, omega
+
+
+def _ci_weights_cvxpy(info: Information, criterion: str) -> np.ndarray:
+    n, d = info.matrices.shape[:2]
+    problem, mats, omega = _ci_problem(n, d, criterion)
+    scale = np.mean(np.trace(info.matrices, axis1=1, axis2=2)) / d  # ω is scale invariant
+    for param, mat in zip(mats, info.matrices):
+        param.value = 0.5 * (mat + mat.T) / scale
+    try:
+        problem.solve(solver=cp.CLARABEL)
+    except cp.SolverError as exc:
+        raise SolverError(f"CI weight problem failed: {exc}") from None
+    if problem.status not in ("optimal", "optimal_inaccurate") or omega.value is None:
+        raise SolverError(f"CI weight problem ended with status {problem.status}")
+    w = np.clip(omega.value, 0.0, None)
+    return w / w.sum()
+
+
+def covariance_intersection(estimates: Sequence, criterion: str = "trace",
+                            solver: str = "auto") -> FusedEstimate:
+    """CI of N local estimates with trace- or det-optimal weights (see module docstring).
+
+    ``solver``: "auto" (closed form for two, cvxpy for more), "closed-form" (two only) or "cvxpy".
+    """
+    _check_criterion(criterion)
+    checked = checked_estimates(estimates)
+    if solver not in ("auto", "closed-form", "cvxpy"):
+        raise InputError(f"solver must be auto, closed-form or cvxpy, got {solver!r}")
+    if len(checked) == 1:
+        return FusedEstimate(checked[0].mean, checked[0].cov, np.ones(1))
+    if solver == "closed-form" and len(checked) != 2:
+        raise InputError("the closed-form CI weights need exactly two estimates")
+    if solver != "cvxpy" and len(checked) == 2:
+        return _two_sensor_ci(checked[0], checked[1], criterion)
+    info = information_form(checked)
+    candidates = [_ci_weights_cvxpy(info, criterion)] + list(np.eye(len(checked)))
+    fused = [weighted_information_fusion(info, w) for w in candidates]
+    return min(fused, key=lambda f: criterion_value(f.cov, criterion))
+
+
+def _two_sensor_ici(first, second, criterion: str) -> FusedEstimate:
+    jd = joint_diagonalise(first, second)
+    mu = jd.ratios
+
+    def t(w):
+        return w + (1.0 - w) * mu
+
+    def q(w):
+        return 1.0 + 1.0 / mu - 1.0 / t(w)
+
+    omega = minimise_convex_on_unit_interval(
+        criterion_derivative(criterion, jd.column_norms, q, lambda w: (1.0 - mu) / t(w) ** 2))
+    tw = t(omega)
+    return jd.fuse(q(omega), 1.0 - omega / tw, 1.0 / mu - (1.0 - omega) / tw, [omega, 1.0 - omega])
+
+
+def inverse_covariance_intersection(estimates: Sequence, criterion: str = "trace") -> FusedEstimate:
+    """ICI of N local estimates, pairwise in order; ``weights`` holds each pair's ω (N − 1,)."""
+    _check_criterion(criterion)
+    checked = checked_estimates(estimates)
+    fused, omegas = checked[0], []
+    for nxt in checked[1:]:
+        step = _two_sensor_ici(fused, nxt, criterion)
+        omegas.append(step.weights[0])
+        fused = step
+    weights = np.array(omegas) if omegas else None
+    return FusedEstimate(fused.mean, fused.cov, weights)
