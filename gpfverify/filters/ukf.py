@@ -33,8 +33,8 @@ def unscented_transform(belief: Gaussian, fn: Callable[[np.ndarray], np.ndarray]
                         params: SigmaParams) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(mean, cov, cross_cov) of fn(x), x ~ belief, by the scaled unscented transform (no noise)."""
     dim = belief.mean.shape[-1]
+    wm, wc = params.weights(dim)  # first: raises InputError for invalid parameters (D + λ ≤ 0)
     points = sigma_points(belief.mean, belief.cov, params)
-    wm, wc = params.weights(dim)
     return weighted_moments(points, map_points(fn, points), wm, wc)
 
 

@@ -35,7 +35,8 @@ def cholesky_batched(a: np.ndarray, name: str) -> np.ndarray:
     flat = sym.reshape((-1,) + sym.shape[-2:])
     lowest = np.linalg.eigvalsh(flat)[:, 0]
     first = int(np.argmin(lowest))
-    where = f" at batch index {np.unravel_index(first, sym.shape[:-2])}" if sym.ndim > 2 else ""
+    index = tuple(int(i) for i in np.unravel_index(first, sym.shape[:-2]))
+    where = f" at batch index {index}" if sym.ndim > 2 else ""
     raise NumericalError(f"{name} is not positive definite{where} (min eigenvalue {lowest[first]:.3g})")
 
 

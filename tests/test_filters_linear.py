@@ -1,0 +1,264 @@
+"""KF, EKF, UKF and the shared Gaussian update against independent routes:
+
+* the KF against conditioning the joint Gaussian of a whole linear trajectory (one dense solve);
+* UKF and EKF against the KF on random linear-Gaussian models (any valid α, β, κ);
+* the UKF on a nonlinear model against a separately written scalar UKF;
+* batched calls against per-element calls; step-record identities; errors on bad input.
+"""
+
+import numpy as np
+import pytest
+from hypothesis import assume, given
+from hypothesis import strategies as st
+
+from gpfverify.errors import InputError, NumericalError
+from gpfverify.filters.driver import run_filter
+from gpfverify.filters.ekf import ekf_step
+from gpfverify.filters.kalman import kf_step
+from gpfverify.filters.models import NonlinearModel, linear_model
+from gpfverify.filters.records import Gaussian, MeasurementMoments
+from gpfverify.filters.sigma_points import SigmaParams
+from gpfverify.filters.ukf import ukf_step
+from gpfverify.filters.update import gaussian_update
+from gpfverify.scenarios.scalar_benchmark import ScalarSetting
+from gpfverify.tolerances import algebra_rtol
+
+FIELDS = ("mu_p", "C_p", "mu_y", "C_y", "C_xy", "mu_e", "C_e")
+
+
+def _spd(rng, n, floor=0.2):
+    a = rng.normal(size=(n, n))
+    return a @ a.T / n + floor * np.eye(n)
+
+
+def _linear_problem(seed, d, l, batch=()):
+    rng = np.random.default_rng(seed)
+    F, H = rng.normal(size=(d, d)) / np.sqrt(d), rng.normal(size=(l, d))
+    Q, R = _spd(rng, d), _spd(rng, l)
+    mean = rng.normal(size=batch + (d,))
+    cov = np.stack([_spd(rng, d) for _ in range(int(np.prod(batch)))]).reshape(batch + (d, d))
+    return F, H, Q, R, Gaussian(mean, cov), rng.normal(size=batch + (l,))
+
+
+def _rtol(*records):
+    """Exact-algebra tolerance from the conditioning of the matrices a step solves with."""
+    return algebra_rtol(max(np.linalg.cond(r.C_y).max() * np.linalg.cond(r.C_p).max() for r in records))
+
+
+def _assert_records_equal(a, b, rtol):
+    for name in FIELDS:
+        x, y = getattr(a, name), getattr(b, name)
+        scale = max(np.abs(y).max(), 1.0)
+        np.testing.assert_allclose(x, y, rtol=rtol, atol=rtol * scale, err_msg=name)
+
+
+# --- the KF against the joint Gaussian of the whole trajectory ----------------------------------
+
+def _joint_conditioning(F, H, Q, R, prior, ys):
+    """Posterior of x_T given y_1..y_T by conditioning the joint Gaussian of (x_T, y_1..y_T)
+    written as linear maps of the independent (x_0, w_1..w_T, v_1..v_T)."""
+    d, l, T = F.shape[0], H.shape[0], len(ys)
+    n_z = d + T * d + T * l
+    cov_z = np.zeros((n_z, n_z))
+    cov_z[:d, :d] = prior.cov
+    for t in range(T):
+        cov_z[d + t * d:d + (t + 1) * d, d + t * d:d + (t + 1) * d] = Q
+        o = d + T * d + t * l
+        cov_z[o:o + l, o:o + l] = R
+    mean_z = np.zeros(n_z)
+    mean_z[:d] = prior.mean
+    state_map = np.zeros((d, n_z))
+    state_map[:, :d] = np.eye(d)
+    rows = []
+    for t in range(T):
+        state_map = F @ state_map
+        state_map[:, d + t * d:d + (t + 1) * d] += np.eye(d)
+        obs = H @ state_map
+        obs[:, d + T * d + t * l:d + T * d + (t + 1) * l] += np.eye(l)
+        rows.append(obs)
+    obs_map = np.vstack(rows)
+    s_yy = obs_map @ cov_z @ obs_map.T
+    s_xy = state_map @ cov_z @ obs_map.T
+    gain = np.linalg.solve(s_yy, s_xy.T).T
+    mean = state_map @ mean_z + gain @ (np.concatenate(ys) - obs_map @ mean_z)
+    return mean, state_map @ cov_z @ state_map.T - gain @ s_xy.T
+
+
+@pytest.mark.parametrize("seed, d, l", [(0, 1, 1), (1, 2, 1), (2, 3, 2), (3, 2, 3)])
+def test_kf_equals_conditioning_of_the_joint_trajectory(seed, d, l):
+    F, H, Q, R, prior, _ = _linear_problem(seed, d, l)
+    ys = np.random.default_rng(seed + 100).normal(size=(5, l))
+    run = run_filter(kf_step, prior, ys, F=F, H=H, Q=Q, R=R)
+    for t in range(1, len(ys) + 1):
+        mean, cov = _joint_conditioning(F, H, Q, R, prior, ys[:t])
+        rtol = algebra_rtol(np.linalg.cond(run.C_y[t - 1]) * np.linalg.cond(cov))
+        np.testing.assert_allclose(run.mu_e[t - 1], mean, rtol=rtol, atol=rtol * np.abs(mean).max())
+        np.testing.assert_allclose(run.C_e[t - 1], cov, rtol=rtol, atol=rtol * np.abs(cov).max())
+
+
+def test_kf_posterior_matches_information_form():
+    """C_e⁻¹ = C_p⁻¹ + Hᵀ R⁻¹ H and C_e⁻¹ μ_e = C_p⁻¹ μ_p + Hᵀ R⁻¹ y (a second formula)."""
+    F, H, Q, R, prior, y = _linear_problem(7, 3, 2)
+    r = kf_step(prior, F, H, Q, R, y)
+    info = np.linalg.inv(r.C_p) + H.T @ np.linalg.solve(R, H)
+    info_mean = np.linalg.solve(r.C_p, r.mu_p) + H.T @ np.linalg.solve(R, y)
+    rtol = _rtol(r)
+    np.testing.assert_allclose(np.linalg.inv(info), r.C_e, rtol=rtol, atol=rtol)
+    np.testing.assert_allclose(np.linalg.solve(info, info_mean), r.mu_e, rtol=rtol, atol=rtol)
+
+
+# --- UKF and EKF reduce to the KF on linear models -----------------------------------------------
+
+@given(seed=st.integers(0, 2**31 - 1), d=st.integers(1, 4), l=st.integers(1, 3),
+       alpha=st.floats(0.05, 2.0), beta=st.floats(-1.0, 3.0), kappa=st.floats(-3.0, 5.0))
+def test_ukf_equals_kf_on_linear_models_for_any_valid_parameters(seed, d, l, alpha, beta, kappa):
+    params = SigmaParams(alpha, beta, kappa)
+    assume(d + params.lam(d) > 0)  # valid: D + λ = α²(D + κ) > 0 (invalid ones: next test)
+    F, H, Q, R, prior, y = _linear_problem(seed, d, l)
+    kf = kf_step(prior, F, H, Q, R, y)
+    ukf = ukf_step(prior, linear_model(F, H, Q, R), y, 1, params)
+    # a small sigma-point spread √(D + λ) amplifies rounding (cancellation in χ − μ)
+    _assert_records_equal(ukf, kf, _rtol(kf) / min(1.0, d + params.lam(d)))
+
+
+@pytest.mark.parametrize("seed, d, l", [(11, 1, 1), (12, 3, 2), (13, 2, 4)])
+def test_ekf_equals_kf_on_linear_models(seed, d, l):
+    F, H, Q, R, prior, y = _linear_problem(seed, d, l)
+    kf = kf_step(prior, F, H, Q, R, y)
+    _assert_records_equal(ekf_step(prior, linear_model(F, H, Q, R), y, 1), kf, _rtol(kf))
+
+
+def test_invalid_sigma_parameters_raise():
+    F, H, Q, R, prior, y = _linear_problem(0, 2, 1)
+    with pytest.raises(InputError, match="D \\+ λ"):
+        ukf_step(prior, linear_model(F, H, Q, R), y, 1, SigmaParams(alpha=1.0, kappa=-2.5))
+
+
+# --- batches --------------------------------------------------------------------------------------
+
+@pytest.mark.parametrize("name", ["kf", "ekf", "ukf"])
+def test_batched_step_equals_per_element_steps(name):
+    F, H, Q, R, prior, y = _linear_problem(21, 3, 2, batch=(4, 5))
+    model = linear_model(F, H, Q, R)
+    step = {"kf": lambda b, yy: kf_step(b, F, H, Q, R, yy),
+            "ekf": lambda b, yy: ekf_step(b, model, yy, 1),
+            "ukf": lambda b, yy: ukf_step(b, model, yy, 1, SigmaParams(0.5, 2.0, 1.0))}[name]
+    batched = step(prior, y)
+    for index in np.ndindex(4, 5):
+        single = step(Gaussian(prior.mean[index], prior.cov[index]), y[index])
+        for field in FIELDS:
+            np.testing.assert_allclose(getattr(batched, field)[index], getattr(single, field),
+                                       rtol=_rtol(single), atol=_rtol(single), err_msg=field)
+
+
+# --- the UKF on a nonlinear model against a separately written scalar UKF ----------------------
+
+def _scalar_ukf_reference(m0, p0, y, f, h, q, r, alpha, beta, kappa):
+    """Textbook scalar UKF with explicit loops (Wan & van der Merwe 2000, D = 1)."""
+    lam = alpha**2 * (1 + kappa) - 1
+    weights_m = [lam / (1 + lam), 0.5 / (1 + lam), 0.5 / (1 + lam)]
+    weights_c = [weights_m[0] + 1 - alpha**2 + beta, weights_m[1], weights_m[2]]
+
+    def points(m, p):
+        spread = np.sqrt((1 + lam) * p)
+        return [m, m + spread, m - spread]
+
+    fx = [f(x) for x in points(m0, p0)]
+    mp = sum(w * v for w, v in zip(weights_m, fx))
+    pp = sum(w * (v - mp) ** 2 for w, v in zip(weights_c, fx)) + q
+    xs = points(mp, pp)
+    hy = [h(x) for x in xs]
+    my = sum(w * v for w, v in zip(weights_m, hy))
+    pyy = sum(w * (v - my) ** 2 for w, v in zip(weights_c, hy)) + r
+    pxy = sum(w * (x - mp) * (v - my) for w, x, v in zip(weights_c, xs, hy))
+    return mp + pxy / pyy * (y - my), pp - pxy**2 / pyy
+
+
+@pytest.mark.parametrize("alpha, beta, kappa", [(1.0, 0.0, 2.0), (0.5, 2.0, 0.0)])
+def test_ukf_matches_a_separately_written_scalar_ukf(alpha, beta, kappa):
+    setting = ScalarSetting()
+    model = setting.model()
+    rng = np.random.default_rng(5)
+    means, ys = rng.uniform(-10, 10, size=50), rng.uniform(-5, 5, size=50)
+    record = ukf_step(Gaussian(means[:, None], np.full((50, 1, 1), 0.25)), model, ys[:, None], 1,
+                      SigmaParams(alpha, beta, kappa))
+    f = lambda x: float(model.f(np.array([[x]]), 1)[0, 0])  # noqa: E731
+    h = lambda x: float(model.h(np.array([[x]]), 1)[0, 0])  # noqa: E731
+    for i in range(50):
+        mean, var = _scalar_ukf_reference(means[i], 0.25, ys[i], f, h, model.Q[0, 0], model.R[0, 0],
+                                          alpha, beta, kappa)
+        rtol = algebra_rtol(record.C_p[i, 0, 0] / record.C_e[i, 0, 0])
+        assert record.mu_e[i, 0] == pytest.approx(mean, rel=rtol, abs=rtol)
+        assert record.C_e[i, 0, 0] == pytest.approx(var, rel=rtol)
+
+
+# --- the update: identities and errors -----------------------------------------------------------
+
+def test_update_record_is_consistent():
+    rng = np.random.default_rng(3)
+    d, l = 3, 2
+    joint = _spd(rng, d + l)
+    prior = Gaussian(rng.normal(size=d), joint[:d, :d])
+    moments = MeasurementMoments(rng.normal(size=l), joint[d:, d:], joint[:d, d:])
+    y = rng.normal(size=l)
+    r = gaussian_update(prior, moments, y)
+    gain = np.linalg.solve(moments.C_y, moments.C_xy.T).T
+    rtol = algebra_rtol(np.linalg.cond(joint))
+    np.testing.assert_allclose(r.C_e, prior.cov - gain @ moments.C_xy.T, rtol=rtol, atol=rtol)
+    np.testing.assert_allclose(r.mu_e, prior.mean + gain @ (y - moments.mu_y), rtol=rtol, atol=rtol)
+    assert np.array_equal(r.C_e, r.C_e.T)
+    # the posterior covariance is the Schur complement: PSD and no larger than the prior
+    assert np.linalg.eigvalsh(r.C_e).min() > 0
+    assert np.linalg.eigvalsh(prior.cov - r.C_e).min() >= -rtol * np.abs(prior.cov).max()
+
+
+@pytest.mark.parametrize("c_y, pattern", [(np.diag([1.0, -1e-3]), "C_y is not positive definite"),
+                                          (np.zeros((2, 2)), "C_y is not positive definite"),
+                                          (np.diag([1.0, np.nan]), "C_y contains NaN")])
+def test_update_raises_on_bad_innovation_covariance(c_y, pattern):
+    prior = Gaussian(np.zeros(2), np.eye(2))
+    with pytest.raises(NumericalError, match=pattern):
+        gaussian_update(prior, MeasurementMoments(np.zeros(2), c_y, 0.1 * np.eye(2)), np.ones(2))
+
+
+def test_update_names_the_failing_batch_element():
+    c_y = np.stack([np.eye(2), np.diag([1.0, -0.5]), np.eye(2)])
+    prior = Gaussian(np.zeros((3, 2)), np.broadcast_to(np.eye(2), (3, 2, 2)))
+    with pytest.raises(NumericalError, match=r"batch index \(1,\)"):
+        gaussian_update(prior, MeasurementMoments(np.zeros((3, 2)), c_y, np.zeros((3, 2, 2))), np.ones((3, 2)))
+
+
+def test_bad_shapes_raise_input_errors():
+    F, H, Q, R, prior, y = _linear_problem(0, 2, 1)
+    with pytest.raises(InputError, match="y must have 1 entries"):
+        kf_step(prior, F, H, Q, R, np.ones(3))
+    with pytest.raises(InputError, match="belief"):
+        kf_step(Gaussian(np.zeros(3), np.eye(3)), F, H, Q, R, y)
+    with pytest.raises(InputError, match="belief.mean contains NaN"):
+        ukf_step(Gaussian(np.array([np.nan, 0.0]), np.eye(2)), linear_model(F, H, Q, R), y)
+    with pytest.raises(InputError, match="Q is not positive semidefinite"):
+        kf_step(prior, F, H, -Q, R, y)
+    no_jacobian = NonlinearModel(f=lambda x, k: x, h=lambda x, k: x[:, :1], Q=Q, R=R)
+    with pytest.raises(InputError, match="f_jacobian"):
+        ekf_step(prior, no_jacobian, y)
+
+
+# --- the driver ----------------------------------------------------------------------------------
+
+def test_driver_stacks_records_and_passes_the_time_index():
+    F, H, Q, R, prior, _ = _linear_problem(9, 2, 1)
+    seen = []
+    base = linear_model(F, H, Q, R)
+    model = NonlinearModel(f=lambda x, k: seen.append(k) or base.f(x, k), h=base.h, Q=Q, R=R)
+    ys = np.random.default_rng(0).normal(size=(4, 1))
+    run = run_filter(ukf_step, prior, ys, first_k=3, model=model)
+    assert sorted(set(seen)) == [3, 4, 5, 6]
+    assert run.mu_e.shape == (4, 2) and run.C_e.shape == (4, 2, 2) and run.C_xy.shape == (4, 2, 1)
+    assert len(run) == 4
+    belief = prior
+    for t in range(4):  # the same as stepping by hand, each posterior feeding the next step
+        record = ukf_step(belief, model, ys[t], 3 + t)
+        _assert_records_equal(run.record(t), record, 0.0)
+        belief = record.posterior
+    with pytest.raises(InputError, match="ys"):
+        run_filter(ukf_step, prior, np.zeros(0), model=model)
