@@ -1,0 +1,112 @@
+"""RCC-CI: primal against the explicitly solved dual, the bound against optimal CI, the centre in
+the intersection, closed-form cases (symmetric configurations, the smallest intersecting size),
+equivariance, and the empty-intersection error/fallback."""
+
+import numpy as np
+import pytest
+
+from gpfverify.errors import InputError, SolverError
+from gpfverify.filters.records import Gaussian
+from gpfverify.fusion import rcc_ci as rcc
+from gpfverify.fusion.ci import covariance_intersection, criterion_value
+from gpfverify.fusion.synthetic import random_spd
+from gpfverify.tolerances import SOLVER_TOL
+
+#: x* maximises a strongly concave objective: its accuracy is the square root of the objective's.
+ARGMAX_TOL = np.sqrt(SOLVER_TOL)
+
+
+def _estimates(seed, n, d, spread=0.5):
+    rng = np.random.default_rng(seed)
+    return [Gaussian(spread * rng.normal(size=d), random_spd(rng, d)) for _ in range(n)]
+
+
+def _size(ests):
+    return max(np.sqrt(np.linalg.eigvalsh(e.cov)[-1]) for e in ests)
+
+
+def _mahalanobis2(x, e):
+    r = x - e.mean
+    return float(r @ np.linalg.solve(e.cov, r))
+
+
+CASES = [(0, 2, 2), (1, 2, 3), (2, 3, 2), (3, 4, 3), (4, 3, 6)]
+
+
+@pytest.mark.parametrize("seed, n, d", CASES)
+def test_primal_and_dual_agree(seed, n, d):
+    ests = _estimates(seed, n, d)
+    res = rcc.rcc_ci(ests)
+    dual = rcc.rcc_ci_dual(ests)
+    assert res.c == rcc.default_size(d)
+    assert dual.value == pytest.approx(res.primal_value, rel=SOLVER_TOL, abs=SOLVER_TOL * _size(ests) ** 2)
+    scale = _size(ests) * np.sqrt(res.c)
+    assert res.discrepancy <= ARGMAX_TOL * scale
+    np.testing.assert_allclose(dual.mean, res.mean, atol=ARGMAX_TOL * scale)
+    np.testing.assert_allclose(dual.alpha / dual.alpha.sum(), res.weights, atol=ARGMAX_TOL)
+
+
+@pytest.mark.parametrize("seed, n, d", CASES)
+def test_bound_is_never_tighter_than_optimal_ci(seed, n, d):
+    ests = _estimates(seed, n, d)
+    res = rcc.rcc_ci(ests)
+    assert np.all(res.weights >= 0) and res.weights.sum() == pytest.approx(1.0)
+    for criterion in ("trace", "det"):
+        best = criterion_value(covariance_intersection(ests, criterion).cov, criterion)
+        assert criterion_value(res.cov, criterion) >= best - SOLVER_TOL * abs(best)
+
+
+@pytest.mark.parametrize("seed, n, d", CASES)
+@pytest.mark.parametrize("c", [None, 30.0])
+def test_centre_lies_in_the_intersection(seed, n, d, c):
+    ests = _estimates(seed, n, d, spread=1.0)
+    res = rcc.rcc_ci(ests, c=c)
+    for e in ests:
+        assert _mahalanobis2(res.primal_mean, e) <= res.c * (1 + SOLVER_TOL)
+        assert _mahalanobis2(res.mean, e) <= res.c * (1 + ARGMAX_TOL)
+
+
+def test_symmetric_pair_fuses_to_the_midpoint():
+    p = random_spd(np.random.default_rng(1), 2)
+    ests = [Gaussian(np.array([1.0, -0.5]), p), Gaussian(np.array([-1.0, 0.5]), p)]
+    res = rcc.rcc_ci(ests, c=40.0)
+    np.testing.assert_allclose(res.weights, [0.5, 0.5], atol=ARGMAX_TOL)
+    np.testing.assert_allclose(res.mean, [0.0, 0.0], atol=ARGMAX_TOL)
+    np.testing.assert_allclose(res.cov, p, rtol=ARGMAX_TOL)
+
+
+def test_equivariant_under_translation_and_scaling():
+    ests = _estimates(7, 3, 2)
+    base = rcc.rcc_ci(ests)
+    shift, s = np.array([300.0, -40.0]), 20.0
+    moved = rcc.rcc_ci([Gaussian(s * e.mean + shift, s**2 * e.cov) for e in ests])
+    np.testing.assert_allclose(moved.mean, s * base.mean + shift, atol=ARGMAX_TOL * s * _size(ests) * 10)
+    np.testing.assert_allclose(moved.weights, base.weights, atol=ARGMAX_TOL)
+
+
+def test_empty_intersection_is_a_clear_error_or_a_documented_enlargement():
+    far = [Gaussian(np.zeros(2), np.eye(2)), Gaussian(np.array([10.0, 0.0]), np.eye(2))]
+    # two unit balls 10 apart meet first at the midpoint, squared distance 5² = 25
+    assert rcc.smallest_intersecting_size(far) == pytest.approx(25.0, rel=SOLVER_TOL)
+    with pytest.raises(SolverError, match=r"do not intersect at size c = 9\.21.*c >= 25"):
+        rcc.rcc_ci(far)
+    res = rcc.rcc_ci(far, on_empty="enlarge")
+    assert res.enlarged and res.c == pytest.approx(rcc.EMPTY_GROWTH * 25.0, rel=SOLVER_TOL)
+    np.testing.assert_allclose(res.mean, [5.0, 0.0], atol=ARGMAX_TOL * 10)
+
+
+def test_problem_is_built_once_and_re_solved():
+    rcc.rcc_ci(_estimates(0, 2, 5))
+    before = rcc._primal_problem.cache_info()
+    for seed in range(3):
+        rcc.rcc_ci(_estimates(seed, 2, 5))
+    after = rcc._primal_problem.cache_info()
+    assert after.hits == before.hits + 3 and after.misses == before.misses
+
+
+def test_bad_arguments():
+    ests = _estimates(0, 2, 2)
+    with pytest.raises(InputError, match="c must be strictly positive"):
+        rcc.rcc_ci(ests, c=-1.0)
+    with pytest.raises(InputError, match="on_empty"):
+        rcc.rcc_ci(ests, on_empty="ignore")
