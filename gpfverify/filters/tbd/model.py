@@ -157,14 +157,13 @@ class TbdModel:
         gy = self.axis_spread(state[POS[1]:POS[1] + 1], cells)[0]
         return float(self.amplitude(state[INTENSITY])) * np.outer(gx, gy)
 
-    def measurement_on_cells(self, states: np.ndarray, cells_x: np.ndarray, cells_y: np.ndarray) -> np.ndarray:
-        """h^{(i,j)}(s) for every particle on a fixed list of cells, (N, len(cells)).
-
-        Used by the second-stage update, whose measurement is a fixed patch of the image.
-        """
-        gx = self.axis_spread(states[:, POS[0]], cells_x)
-        gy = self.axis_spread(states[:, POS[1]], cells_y)
-        return self.amplitude(states[:, INTENSITY])[:, None] * gx * gy
+    def measurement_on_patch(self, states: np.ndarray, axis_x: np.ndarray, axis_y: np.ndarray) -> np.ndarray:
+        """h^{(i,j)}(s) for every particle on the fixed patch axis_x × axis_y (cells, row-major),
+        (N, len(axis_x) · len(axis_y)). Used by the second-stage update."""
+        gx = self.axis_spread(states[:, POS[0]], axis_x)
+        gy = self.axis_spread(states[:, POS[1]], axis_y)
+        h = self.amplitude(states[:, INTENSITY])[:, None, None] * gx[:, :, None] * gy[:, None, :]
+        return h.reshape(states.shape[0], -1)
 
     def log_likelihood_ratio(self, states: np.ndarray, image: np.ndarray) -> np.ndarray:
         """log L(z | s) for every particle, summed over its own (2p+1)² patch, (N,).

@@ -43,28 +43,28 @@ class SecondStage:
     replaced: np.ndarray
 
 
-def second_stage_cells(model: TbdModel, config: TbdConfig, estimate: np.ndarray):
-    """The (2r+1)² patch around the cell nearest to the estimate, clipped to the image:
-    flattened (cells_x, cells_y)."""
-    r = config.second_stage_radius
-    offsets = np.arange(-r, r + 1)
+def second_stage_axes(model: TbdModel, config: TbdConfig, estimate: np.ndarray):
+    """Cells of the (2r+1)² patch around the cell nearest to the estimate, clipped to the image,
+    along x and along y."""
+    offsets = np.arange(-config.second_stage_radius, config.second_stage_radius + 1)
     axes = []
     for coordinate in (estimate[POS[0]], estimate[POS[1]]):
         cells = model.nearest_cell(coordinate) + offsets
         axes.append(cells[(cells >= 0) & (cells < model.grid_size)])
-    cx, cy = np.meshgrid(axes[0], axes[1], indexing="ij")
-    return cx.ravel(), cy.ravel()
+    return axes[0], axes[1]
 
 
 def second_stage_update(merged: np.ndarray, log_weights: np.ndarray, model: TbdModel, config: TbdConfig,
                         image: np.ndarray, estimate: np.ndarray) -> tuple[StepRecord, np.ndarray, np.ndarray]:
-    """Eq. 11–20 on the patch around ``estimate``; returns (record, cells_x, cells_y).
+    """Eq. 11–20 on the patch around ``estimate``; returns (record, cells_x, cells_y), the patch's
+    cells flattened row-major (the order of μ_y).
 
     The weighted moments of the joint sample [s^i, h_C(s^i)] give ŝ, ẑ, P, P_xz and Cov(h_C).
     """
-    cells_x, cells_y = second_stage_cells(model, config, estimate)
+    axis_x, axis_y = second_stage_axes(model, config, estimate)
+    cells_x, cells_y = (c.ravel() for c in np.meshgrid(axis_x, axis_y, indexing="ij"))
     z = image[cells_x, cells_y]
-    H = model.measurement_on_cells(merged, cells_x, cells_y)
+    H = model.measurement_on_patch(merged, axis_x, axis_y)
     joint_mean, joint_cov = weighted_moments(np.hstack([merged, H]), log_weights)
     d = merged.shape[1]
     s_hat, z_hat = joint_mean[:d], joint_mean[d:]
