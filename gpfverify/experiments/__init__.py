@@ -13,4 +13,5 @@
 #: experiment name (as on the command line) -> module
 EXPERIMENTS: dict[str, str] = {
     "gpadf-scalar": "gpfverify.experiments.gpadf_scalar",
+    "tbd": "gpfverify.experiments.tbd",
 }

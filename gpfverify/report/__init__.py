@@ -16,6 +16,7 @@ from gpfverify.report.render import write_report
 SECTIONS: dict[str, str] = {
     "moments": "gpfverify.report.sections.moments",
     "gpadf-scalar": "gpfverify.report.sections.gpadf_scalar",
+    "tbd": "gpfverify.report.sections.tbd",
 }
 
 
