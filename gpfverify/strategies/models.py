@@ -1,0 +1,103 @@
+"""Gaussian processes with fixed hyperparameters, Gaussian inputs, linear-Gaussian models and
+sigma-point parameters — the inputs of the GP and filter properties.
+
+Hyperparameters are drawn from boxes that keep every matrix well conditioned by construction:
+lengthscales in [0.5, 3] (inputs lie in [−3, 3]), signal variance α² in [0.1, 4], noise variance
+σ² in [1e-3, 0.5], so cond(K_a) ≤ 1 + n α²/σ² ≤ 1 + 4000 n whatever the inputs (duplicates
+included).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from hypothesis import strategies as st
+
+from gpfverify.filters.records import Gaussian
+from gpfverify.filters.sigma_points import SigmaParams
+from gpfverify.gp import GaussianProcess
+from gpfverify.linalg import symmetrize
+from gpfverify.strategies.matrices import (as_strategy, float_arrays, log_uniform, orthonormal_matrices,
+                                           spd_matrices, unit_floats)
+
+INPUT_BOUND = 3.0
+LENGTHSCALE_BOX = (0.5, 3.0)
+SIGNAL_BOX = (0.1, 4.0)
+NOISE_BOX = (1e-3, 0.5)
+
+
+@st.composite
+def log_uniform_arrays(draw, shape, low: float, high: float) -> np.ndarray:
+    return low * (high / low) ** draw(float_arrays(shape, 0.0, 1.0))
+
+
+@st.composite
+def gaussian_processes(draw, input_dim=st.integers(1, 2), output_dim=st.integers(1, 3),
+                       train_size=st.integers(1, 12)) -> GaussianProcess:
+    """A :class:`~gpfverify.gp.GaussianProcess` with inputs in [−3, 3]^D, targets in [−3, 3] and
+    hyperparameters in the module's boxes (dims and training size: ints or strategies)."""
+    d, e, n = draw(as_strategy(input_dim)), draw(as_strategy(output_dim)), draw(as_strategy(train_size))
+    x = draw(float_arrays((n, d), -INPUT_BOUND, INPUT_BOUND))
+    y = draw(float_arrays((n, e), -INPUT_BOUND, INPUT_BOUND))
+    return GaussianProcess(x, y, lengthscales=draw(log_uniform_arrays((e, d), *LENGTHSCALE_BOX)),
+                           signal_var=draw(log_uniform_arrays((e,), *SIGNAL_BOX)),
+                           noise_var=draw(log_uniform_arrays((e,), *NOISE_BOX)))
+
+
+@st.composite
+def psd_matrices(draw, dim: int, low: float, high: float, allow_singular: bool = True) -> np.ndarray:
+    """Symmetric PSD (dim, dim) with eigenvalues in {0} ∪ [low, high] (0 only if
+    ``allow_singular``): Q diag(λ) Qᵀ with Q orthonormal."""
+    q = draw(orthonormal_matrices(dim))
+    values = draw(log_uniform_arrays((dim,), low, high))
+    if allow_singular:
+        values = values * ~np.array(draw(st.lists(st.booleans(), min_size=dim, max_size=dim)), dtype=bool)
+    return symmetrize((q * values) @ q.T)
+
+
+@st.composite
+def gaussian_inputs(draw, dim: int, max_variance: float = 1.0, allow_singular: bool = True) -> Gaussian:
+    """N(μ, Σ) with μ ∈ [−3, 3]^dim and Σ PSD with eigenvalues in {0} ∪ [1e-4, max_variance]."""
+    return Gaussian(draw(float_arrays((dim,), -INPUT_BOUND, INPUT_BOUND)),
+                    draw(psd_matrices(dim, 1e-4, max_variance, allow_singular)))
+
+
+@dataclass(frozen=True)
+class LinearGaussianModel:
+    """x_k = F x_{k−1} + w, w ~ N(0, Q); y_k = H x_k + v, v ~ N(0, R); a prior and one y."""
+
+    F: np.ndarray
+    H: np.ndarray
+    Q: np.ndarray
+    R: np.ndarray
+    prior: Gaussian
+    y: np.ndarray
+
+
+@st.composite
+def linear_gaussian_models(draw, state_dim=st.integers(1, 4), measurement_dim=st.integers(1, 3),
+                           max_condition: float = 1e3) -> LinearGaussianModel:
+    """Linear-Gaussian models with F, H entries in [−1.5, 1.5], SPD Q, R and prior covariance of
+    condition ≤ ``max_condition`` (scales log-uniform in [0.01, 1]), a prior mean and a measurement
+    in [−5, 5]."""
+    d, l = draw(as_strategy(state_dim)), draw(as_strategy(measurement_dim))
+    return LinearGaussianModel(
+        F=draw(float_arrays((d, d), -1.5, 1.5)), H=draw(float_arrays((l, d), -1.5, 1.5)),
+        Q=draw(spd_matrices(d, max_condition, log_uniform(0.01, 1.0))),
+        R=draw(spd_matrices(l, max_condition, log_uniform(0.01, 1.0))),
+        prior=Gaussian(draw(float_arrays((d,), -5.0, 5.0)),
+                       draw(spd_matrices(d, max_condition, log_uniform(0.01, 1.0)))),
+        y=draw(float_arrays((l,), -5.0, 5.0)))
+
+
+@st.composite
+def sigma_params(draw, dim: int, min_alpha: float = 1e-3, max_alpha: float = 2.0,
+                 max_beta: float = 3.0, min_spread: float = 0.5, max_kappa: float = 10.0) -> SigmaParams:
+    """Scaled-unscented parameters valid for dimension ``dim``: α log-uniform in [min_alpha,
+    max_alpha], β ∈ [0, max_beta], κ with D + κ ∈ [min_spread, D + max_kappa], so that
+    D + λ = α²(D + κ) > 0 (every weight finite)."""
+    alpha = draw(log_uniform(min_alpha, max_alpha))
+    beta = draw(unit_floats(0.0, max_beta))
+    kappa = draw(unit_floats(min_spread - dim, max_kappa))
+    return SigmaParams(alpha=alpha, beta=beta, kappa=kappa)
