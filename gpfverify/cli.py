@@ -18,6 +18,8 @@ from gpfverify.errors import GpfverifyError
 COMMANDS: dict[str, tuple[str, str]] = {
     "report": ("gpfverify.commands.report", "build the verification report (quick profile by default)"),
     "reproduce": ("gpfverify.commands.reproduce", "run one of the papers' experiments"),
+    "audit": ("gpfverify.commands.audit", "rank-condition audit of a fusion-case file"),
+    "fuse": ("gpfverify.commands.fuse", "fuse a fusion-case file with one method (cmf, dmf, cc, ci, rcc-ci, ...)"),
 }
 
 

@@ -1,0 +1,257 @@
+"""Rank-condition audit of a fusion step (SPEC §3, use 3): which sensor's cross term C_xy^m lost
+column rank, whether DMF is exact anyway, how large the gap is, and what repairs it.
+
+For every sensor: the singular values of C_xy^m, the absolute rank tolerance used (explicit, or
+numpy's matrix_rank rule σ_max · max(D, l_m) · eps), rank and condition number, the
+necessary-and-sufficient exactness verdict ‖G_m C_y^m N_m‖₂ ≤ tol (see
+:mod:`gpfverify.fusion.exactness`), and the repair dimension l_m − r_m with its basis N_m.
+
+With y: CMF, the observed gap DMF − CMF, the closed-form gap, each sensor's repair message
+r_m = N_mᵀ(C_y^m)⁻¹(y^m − μ_y^m), the repaired DMF, and how far each logged local posterior is from
+the local update with that y (when it is not, the observed and predicted gaps may differ).
+Without y the gap cannot be evaluated: μ_e^m − μ_p^m = C_xy^m w_m fixes w_m = (C_y^m)⁻¹(y^m − μ_y^m)
+only on range(C_xy^mᵀ); the kernel component N_mᵀw_m is lost, and the gap is −Σ_m G_m C_y^m N_m N_mᵀw_m
+(so ``gap_gain_norm`` is the largest gap per unit of lost component).
+
+:func:`audit_run` applies the same audit to every step of a filter run.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Iterable, Sequence
+
+import numpy as np
+
+from gpfverify.fusion.case import FusionCase, case_from_records
+from gpfverify.fusion.centralized import cmf_update
+from gpfverify.fusion.distributed import dmf_update
+from gpfverify.fusion.exactness import local_consistency_residual, predicted_gap, whitened_innovation
+from gpfverify.tolerances import algebra_rtol
+
+RANK_RULE_DEFAULT = "numpy matrix_rank rule: sigma_max * max(D, l_m) * eps"
+
+NOTE_NO_Y = ("y not given: the gap cannot be evaluated. mu_e^m - mu_p^m = C_xy^m w_m determines the "
+             "whitened local innovation w_m = (C_y^m)^-1 (y^m - mu_y^m) only on range(C_xy^m^T); its "
+             "kernel component (repair_dim numbers per sensor) is lost, and the gap is "
+             "-sum_m G_m C_y^m N_m N_m^T w_m (gap_gain_norm = largest gap per unit of that component).")
+
+
+@dataclass(frozen=True)
+class SensorAudit:
+    """Evidence for one sensor (fields as in the ``audit --json`` output)."""
+
+    index: int
+    rows: int
+    cols: int
+    rank: int
+    singular_values: np.ndarray
+    tol: float
+    condition_number: float
+    gap_gain_norm: float
+    exactness_tol: float
+    exact: bool
+    repair_basis: np.ndarray
+    repair_message: np.ndarray | None = None
+    local_consistency_residual: float | None = None
+    consistency_tol: float | None = None
+
+    @property
+    def full_column_rank(self) -> bool:
+        return self.rank == self.cols
+
+    @property
+    def repair_dim(self) -> int:
+        return self.cols - self.rank
+
+
+@dataclass(frozen=True)
+class CaseAudit:
+    """Audit of one fusion case; the y-dependent fields are None without y."""
+
+    sensors: tuple[SensorAudit, ...]
+    rank_rule: str
+    dmf_mean: np.ndarray
+    cmf_mean: np.ndarray | None = None
+    gap: np.ndarray | None = None
+    predicted_gap: np.ndarray | None = None
+    repaired_dmf_mean: np.ndarray | None = None
+
+    @property
+    def condition_holds(self) -> bool:
+        return all(s.full_column_rank for s in self.sensors)
+
+    @property
+    def exact(self) -> bool:
+        return all(s.exact for s in self.sensors)
+
+    @property
+    def notes(self) -> list[str]:
+        notes = []
+        if self.cmf_mean is None:
+            notes.append(NOTE_NO_Y)
+        if self.exact and not self.condition_holds:
+            notes.append("the rank condition of Proposition 1 fails but DMF is exact: every lost "
+                         "kernel direction lies in ker G_m C_y^m")
+        bad = [s.index for s in self.sensors if s.local_consistency_residual is not None
+               and s.local_consistency_residual > s.consistency_tol]
+        if bad:
+            notes.append(f"the logged local posterior of sensor(s) {bad} is not the local update with "
+                         f"the logged y: the observed gap need not equal the predicted gap")
+        return notes
+
+
+def _consistency_tol(case: FusionCase, m: int) -> float:
+    """Rounding level of μ_e^m − μ_p^m − C_xy^m w_m for a consistent record."""
+    local = case.locals[m]
+    eig = np.linalg.eigvalsh(local.C_y)
+    scale = np.linalg.norm(local.mu_e - local.mu_p) + np.linalg.norm(local.mu_e) + np.linalg.norm(local.mu_p)
+    return algebra_rtol(eig[-1] / eig[0]) * scale
+
+
+def audit_case(case: FusionCase, rank_tol: float | None = None) -> CaseAudit:
+    """The rank-condition audit of one case (``rank_tol`` overrides ``case.rank_tol``)."""
+    tol = case.rank_tol if rank_tol is None else rank_tol
+    dmf = dmf_update(case, rank_tol=tol)
+    has_y = case.y is not None
+    sensors = []
+    for s in dmf.sensors:
+        rank = s.split.rank
+        message = residual = None
+        if has_y:
+            y_m = case.local_measurement(s.index)
+            message = s.split.kernel_basis.T @ whitened_innovation(case.locals[s.index], y_m)
+            residual = float(np.linalg.norm(local_consistency_residual(case, s.index)))
+        sensors.append(SensorAudit(
+            index=s.index, rows=rank.shape[0], cols=rank.shape[1], rank=rank.rank,
+            singular_values=rank.singular_values, tol=rank.tol, condition_number=rank.condition_number,
+            gap_gain_norm=s.residual, exactness_tol=s.tol, exact=s.exact,
+            repair_basis=s.split.kernel_basis, repair_message=message,
+            local_consistency_residual=residual,
+            consistency_tol=_consistency_tol(case, s.index) if has_y else None))
+    rule = RANK_RULE_DEFAULT if tol is None else f"explicit absolute tolerance {tol:g}"
+    if not has_y:
+        return CaseAudit(tuple(sensors), rule, dmf.mean)
+    cmf = cmf_update(case.central, case.y, dmf.gain)
+    repaired = dmf_update(case, [s.repair_message for s in sensors], rank_tol=tol)
+    return CaseAudit(tuple(sensors), rule, dmf.mean, cmf.mean, dmf.mean - cmf.mean,
+                     predicted_gap(case, dmf.sensors), repaired.mean)
+
+
+def _finite_or_none(x: float):
+    return float(x) if np.isfinite(x) else None
+
+
+def audit_to_dict(audit: CaseAudit) -> dict:
+    """The ``audit --json`` object (CONTRACT.md fields plus documented extras)."""
+    out = {
+        "sensors": [{
+            "index": s.index, "rows": s.rows, "cols": s.cols, "rank": s.rank,
+            "full_column_rank": s.full_column_rank, "singular_values": s.singular_values.tolist(),
+            "tol": s.tol, "exact": s.exact, "repair_dim": s.repair_dim,
+            "condition_number": _finite_or_none(s.condition_number),
+            "gap_gain_norm": s.gap_gain_norm, "exactness_tol": s.exactness_tol,
+            "repair_basis": s.repair_basis.tolist(),
+            **({} if s.repair_message is None else {
+                "repair_message": s.repair_message.tolist(),
+                "local_consistency_residual": s.local_consistency_residual}),
+        } for s in audit.sensors],
+        "rank_rule": audit.rank_rule,
+        "condition_holds": audit.condition_holds,
+        "exact": audit.exact,
+        "dmf_mean": audit.dmf_mean.tolist(),
+    }
+    if audit.cmf_mean is not None:
+        out.update({"cmf_mean": audit.cmf_mean.tolist(), "gap": audit.gap.tolist(),
+                    "predicted_gap": audit.predicted_gap.tolist(),
+                    "gap_norm": float(np.linalg.norm(audit.gap)),
+                    "gap_residual": float(np.linalg.norm(audit.gap - audit.predicted_gap)),
+                    "repaired_dmf_mean": audit.repaired_dmf_mean.tolist()})
+    out["notes"] = audit.notes
+    return out
+
+
+def _vec(v) -> str:
+    return "[" + ", ".join(f"{x:.6g}" for x in v) + "]"
+
+
+def format_audit(audit: CaseAudit) -> str:
+    """Human-readable audit report."""
+    lines = [f"rank tolerance: {audit.rank_rule}", ""]
+    header = f"{'sensor':>6} {'D x l':>7} {'rank':>4} {'full col':>8} {'cond':>10} {'exact':>5} " \
+             f"{'gap gain':>10} {'repair':>6}  singular values (tol)"
+    lines.append(header)
+    for s in audit.sensors:
+        cond = "inf" if not np.isfinite(s.condition_number) else f"{s.condition_number:.3g}"
+        lines.append(f"{s.index:>6} {f'{s.rows}x{s.cols}':>7} {s.rank:>4} {str(s.full_column_rank):>8} "
+                     f"{cond:>10} {str(s.exact):>5} {s.gap_gain_norm:>10.3g} {s.repair_dim:>6}  "
+                     f"{_vec(s.singular_values)} ({s.tol:.3g})")
+    lines += ["", f"Proposition 1 condition (every C_xy^m full column rank): {audit.condition_holds}",
+              f"DMF exact for every measurement (ker C_xy^m in ker G_m C_y^m): {audit.exact}",
+              f"DMF mean: {_vec(audit.dmf_mean)}"]
+    if audit.cmf_mean is not None:
+        lines += [f"CMF mean: {_vec(audit.cmf_mean)}",
+                  f"gap DMF - CMF: {_vec(audit.gap)} (norm {np.linalg.norm(audit.gap):.3g})",
+                  f"predicted gap: {_vec(audit.predicted_gap)} "
+                  f"(|observed - predicted| = {np.linalg.norm(audit.gap - audit.predicted_gap):.3g})",
+                  f"repaired DMF mean: {_vec(audit.repaired_dmf_mean)}"]
+        for s in audit.sensors:
+            if s.repair_dim:
+                lines.append(f"sensor {s.index} repair message ({s.repair_dim} numbers): {_vec(s.repair_message)}")
+    lines += [f"note: {n}" for n in audit.notes]
+    return "\n".join(lines)
+
+
+@dataclass(frozen=True)
+class RunAudit:
+    """Audit of every step (T) and sensor (N) of a run: per-step :class:`CaseAudit` plus arrays
+    rank, full_column_rank, exact, condition_number, repair_dim (T, N) and gap_norm,
+    predicted_gap_norm (T,) (NaN where a step has no y)."""
+
+    steps: tuple[CaseAudit, ...]
+
+    def _per_sensor(self, attr: str, dtype=float) -> np.ndarray:
+        return np.array([[getattr(s, attr) for s in step.sensors] for step in self.steps], dtype=dtype)
+
+    @property
+    def rank(self) -> np.ndarray:
+        return self._per_sensor("rank", int)
+
+    @property
+    def full_column_rank(self) -> np.ndarray:
+        return self._per_sensor("full_column_rank", bool)
+
+    @property
+    def exact(self) -> np.ndarray:
+        return self._per_sensor("exact", bool)
+
+    @property
+    def condition_number(self) -> np.ndarray:
+        return self._per_sensor("condition_number")
+
+    @property
+    def repair_dim(self) -> np.ndarray:
+        return self._per_sensor("repair_dim", int)
+
+    @property
+    def gap_norm(self) -> np.ndarray:
+        return np.array([np.nan if s.gap is None else np.linalg.norm(s.gap) for s in self.steps])
+
+    @property
+    def predicted_gap_norm(self) -> np.ndarray:
+        return np.array([np.nan if s.predicted_gap is None else np.linalg.norm(s.predicted_gap)
+                         for s in self.steps])
+
+
+def audit_run(cases: Iterable[FusionCase], rank_tol: float | None = None) -> RunAudit:
+    """The audit of every step of a run."""
+    return RunAudit(tuple(audit_case(c, rank_tol) for c in cases))
+
+
+def cases_from_run(central_records: Sequence, local_records: Sequence[Sequence], sizes: Sequence[int],
+                   ys: Sequence | None = None) -> list[FusionCase]:
+    """Fusion cases from a run's records: ``central_records[k]`` holds the centre's prediction at step
+    k (e.g. the CMF :class:`~gpfverify.filters.records.StepRecord`), ``local_records[k][m]`` sensor
+    m's step record, ``ys[k]`` the stacked measurement."""
+    return [case_from_records(central, locals_k, sizes, None if ys is None else ys[k])
+            for k, (central, locals_k) in enumerate(zip(central_records, local_records))]
