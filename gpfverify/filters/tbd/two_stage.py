@@ -26,7 +26,6 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from gpfverify.filters.records import StepRecord
-from gpfverify.filters.resampling import weighted_moments
 from gpfverify.filters.tbd.model import POS, TbdModel
 from gpfverify.filters.tbd.pf import TbdBelief, TbdConfig, TbdStep, pf_tbd_step
 from gpfverify.linalg import cholesky, right_solve_spd, symmetrize
@@ -60,12 +59,19 @@ def second_stage_update(merged: np.ndarray, log_weights: np.ndarray, model: TbdM
     cells flattened row-major (the order of μ_y).
 
     The weighted moments of the joint sample [s^i, h_C(s^i)] give ŝ, ẑ, P, P_xz and Cov(h_C).
+    They are summed with ``einsum`` rather than a BLAS product: with thousands of particles BLAS
+    goes multi-threaded for this small (5 + 25)² result and, on a loaded machine, the thread
+    hand-off costs several times the arithmetic (see benchmarks/bench_tbd.py).
     """
     axis_x, axis_y = second_stage_axes(model, config, estimate)
     cells_x, cells_y = (c.ravel() for c in np.meshgrid(axis_x, axis_y, indexing="ij"))
     z = image[cells_x, cells_y]
     H = model.measurement_on_patch(merged, axis_x, axis_y)
-    joint_mean, joint_cov = weighted_moments(np.hstack([merged, H]), log_weights)
+    weights = np.exp(log_weights)
+    joint = np.hstack([merged, H])
+    joint_mean = np.einsum("n,ni->i", weights, joint)
+    dev = joint - joint_mean
+    joint_cov = symmetrize(np.einsum("ni,nj->ij", dev * weights[:, None], dev))
     d = merged.shape[1]
     s_hat, z_hat = joint_mean[:d], joint_mean[d:]
     P, P_xz = joint_cov[:d, :d], joint_cov[:d, d:]
