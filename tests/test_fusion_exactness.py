@@ -11,8 +11,9 @@ import pytest
 
 from gpfverify.fusion.centralized import cmf_update, fusion_gain
 from gpfverify.fusion.distributed import dmf_update
-from gpfverify.fusion.exactness import (kernel_split, local_consistency_residual, predicted_gap,
-                                        repair_message)
+from gpfverify.fusion.exactness import (analyse_sensors, equivalence_tolerance, kernel_split,
+                                        local_consistency_residual, predicted_gap,
+                                        range_condition_number, repair_message)
 from gpfverify.fusion.synthetic import random_case
 from gpfverify.tolerances import algebra_rtol
 
@@ -24,23 +25,13 @@ DEFICIENT = [(1, (2, 1), None), (2, (3, 2), None), (3, (3, 3), (2, 3)), (3, (5, 
 
 def _cond(a):
     """Condition number on the numerical range (singular values above numpy's rank rule)."""
-    rank = kernel_split(a).rank
-    s = rank.singular_values[rank.singular_values > rank.tol]
-    return s[0] / s[-1] if s.size else 1.0
+    return range_condition_number(kernel_split(a))
 
 
 def _atol(case):
     """eps·cond error bound of eq. 35 against the CMF mean, with the sizes of its terms."""
-    c = case.central
-    gain = fusion_gain(c)
-    cond, terms = _cond(c.C_y), 0.0
-    for m, (block, local) in enumerate(zip(c.blocks, case.locals)):
-        split = kernel_split(local.C_xy)
-        cond = max(cond, _cond(local.C_xy) * _cond(local.C_y))
-        terms += (np.linalg.norm(local.C_y, 2) * np.linalg.norm(split.pinv, 2)
-                  * np.linalg.norm(local.mu_e - local.mu_p) + np.linalg.norm(local.mu_y - c.mu_y[block])
-                  + np.linalg.norm(case.local_measurement(m) - local.mu_y))
-    return algebra_rtol(cond) * (np.linalg.norm(c.mu_p) + np.linalg.norm(gain, 2) * terms)
+    gain = fusion_gain(case.central)
+    return equivalence_tolerance(case, gain, analyse_sensors(case, gain))
 
 
 @pytest.mark.parametrize("seed", range(3))

@@ -128,3 +128,25 @@ def local_consistency_residual(case: FusionCase, m: int) -> np.ndarray:
     logged y (eq. 32); when it is not, the observed gap need not equal the predicted one."""
     local = case.locals[m]
     return local.mu_e - local.mu_p - local.C_xy @ whitened_innovation(local, case.local_measurement(m))
+
+
+def range_condition_number(split: KernelSplit) -> float:
+    """σ_max / σ_r over the singular values kept by the rank decision (1 for a zero matrix)."""
+    s = split.rank.singular_values[: split.rank.rank]
+    return float(s[0] / s[-1]) if s.size else 1.0
+
+
+def equivalence_tolerance(case: FusionCase, gain: np.ndarray, sensors: tuple[SensorExactness, ...]) -> float:
+    """Rounding bound on ‖μ_DMF − μ_CMF‖ when DMF is exact: algebra_rtol(κ) times the sizes of the
+    terms of eq. 35 and 36, κ the largest of cond C_y and cond(C_xy^m on its range)·cond C_y^m.
+    Needs ``case.y``."""
+    c = case.central
+    eig = np.linalg.eigvalsh(c.C_y)
+    cond, terms = eig[-1] / eig[0], 0.0
+    for s, block, local in zip(sensors, c.blocks, case.locals):
+        eig_m = np.linalg.eigvalsh(local.C_y)
+        cond = max(cond, range_condition_number(s.split) * eig_m[-1] / eig_m[0])
+        terms += (np.linalg.norm(local.C_y, 2) * np.linalg.norm(s.split.pinv, 2)
+                  * np.linalg.norm(local.mu_e - local.mu_p) + np.linalg.norm(local.mu_y - c.mu_y[block])
+                  + np.linalg.norm(case.local_measurement(s.index) - local.mu_y))
+    return algebra_rtol(cond) * (np.linalg.norm(c.mu_p) + np.linalg.norm(gain, 2) * terms)
