@@ -11,11 +11,13 @@ from __future__ import annotations
 
 import argparse
 import math
-import time
+import platform
+from pathlib import Path
 
 import numpy as np
 from scipy.special import expit, logsumexp
 
+from _timing import markdown_table, median_seconds
 from gpfverify.filters.tbd import TbdBelief, TbdConfig, initial_belief, pf_tbd_step, tpf_tbd_step
 from gpfverify.filters.tbd.pf import birth_proposal, resample_to_size
 from gpfverify.filters.tbd.two_stage import second_stage_axes, transfer_particles
@@ -107,37 +109,36 @@ def run_vectorised(images, model, config, seed, second_seed):
     return out
 
 
-def median_time(fn, repeats: int) -> float:
-    times = []
-    for _ in range(repeats):
-        start = time.perf_counter()
-        fn()
-        times.append(time.perf_counter() - start)
-    return float(np.median(times))
-
-
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--particles", type=int, default=2000)
     parser.add_argument("--repeats", type=int, default=5)
     parser.add_argument("--reference-frames", type=int, default=3,
                         help="frames the slow reference filters (default 3)")
+    parser.add_argument("--out", type=Path, default=None, help="also write the table to this file")
     args = parser.parse_args()
     scenario = TbdScenario()
     model = scenario_model(6.0, scenario)
     images = simulate(model, scenario, np.random.default_rng(0)).images
     ref_images = images[6:6 + args.reference_frames]
-    print(f"N = {args.particles}, {model.grid_size}x{model.grid_size} image, 6 dB; median of {args.repeats}")
-    print(f"{'method':<10} {'vectorised fps':>15} {'loop fps':>10} {'speed-up':>9} {'max |ΔP_k|':>11} {'max |Δŝ|':>9}")
+    rows = []
     for name, config in (("PF-TBD", TbdConfig(args.particles)),
-                         ("TPFTBD", TbdConfig(args.particles, two_stage=True, zeta=0.6))):
-        fast = median_time(lambda: run_vectorised(images, model, config, 1, 2), args.repeats) / len(images)
-        slow = median_time(lambda: run_loop(ref_images, model, config, 1, 2), 1) / len(ref_images)
+                         ("TPFTBD (ζ = 0.6)", TbdConfig(args.particles, two_stage=True, zeta=0.6))):
+        fast = median_seconds(lambda: run_vectorised(images, model, config, 1, 2), args.repeats, 1) / len(images)
+        slow = median_seconds(lambda: run_loop(ref_images, model, config, 1, 2), 1, 0) / len(ref_images)
         a = run_vectorised(ref_images, model, config, 1, 2)
         b = run_loop(ref_images, model, config, 1, 2)
         d_exist = max(abs(x[0] - y[0]) for x, y in zip(a, b))
         d_est = max(float(np.abs(x[1] - y[1]).max()) for x, y in zip(a, b))
-        print(f"{name:<10} {1 / fast:>15.1f} {1 / slow:>10.2f} {slow / fast:>8.0f}x {d_exist:>11.2e} {d_est:>9.2e}")
+        rows.append([name, f"{1 / fast:.1f}", f"{1 / slow:.2f}", f"{slow / fast:.0f}x",
+                     f"{d_exist:.1e}", f"{d_est:.1e}"])
+    table = (f"N = {args.particles}, {model.grid_size}x{model.grid_size} image, 6 dB, {platform.machine()} "
+             f"({platform.python_implementation()} {platform.python_version()}); median of {args.repeats}\n\n"
+             + markdown_table(["method", "vectorised frames/s", "loop frames/s", "speed-up",
+                               "max abs ΔP_k vs loop", "max abs Δŝ vs loop"], rows))
+    print(table)
+    if args.out:
+        args.out.write_text(table + "\n", encoding="utf-8")
 
 
 if __name__ == "__main__":
