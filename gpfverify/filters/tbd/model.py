@@ -28,7 +28,6 @@ from functools import cached_property
 import numpy as np
 
 from gpfverify.errors import InputError
-from gpfverify.validate import as_array, as_matrix
 
 STATE_DIM = 5
 #: indices of x, y and intensity in the state [x, ẋ, y, ẏ, I]
@@ -181,10 +180,3 @@ class TbdModel:
         linear = amp * np.einsum("ni,nij,nj->n", gx, patch, gy)
         quadratic = 0.5 * amp**2 * np.sum(gx**2, axis=1) * np.sum(gy**2, axis=1)
         return (linear - quadratic) / self.noise_std**2
-
-    def check_image(self, image) -> np.ndarray:
-        n = self.grid_size
-        return as_array(image, "image", shape=(n, n))
-
-    def check_states(self, states, name: str = "states") -> np.ndarray:
-        return as_matrix(states, name, None, STATE_DIM)
