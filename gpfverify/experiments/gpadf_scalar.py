@@ -23,6 +23,7 @@ import time
 
 import numpy as np
 
+from gpfverify.errors import InputError
 from gpfverify.filters.ekf import ekf_step
 from gpfverify.filters.gp_adf import gp_adf_step
 from gpfverify.filters.gp_ukf import gp_ukf_step
@@ -32,6 +33,7 @@ from gpfverify.filters.ukf import ukf_step
 from gpfverify.gp import GaussianProcess
 from gpfverify.rng import generator
 from gpfverify.scenarios.scalar_benchmark import ScalarSetting, draw_cases, draw_training_data
+from gpfverify.validate import as_positive
 
 NAME = "gpadf-scalar"
 DEFAULT_RUNS = 20
@@ -60,6 +62,12 @@ def add_arguments(parser) -> None:
 
 
 def params_from_args(args) -> dict:
+    """Every parameter, checked (:class:`InputError` naming the option)."""
+    for name, least in (("train_points", 2), ("test_points", 2), ("restarts", 1)):
+        if getattr(args, name) < least:
+            raise InputError(f"--{name.replace('_', '-')} must be at least {least}, got {getattr(args, name)}")
+    for name in ("prior_std", "system_noise_std", "measurement_noise_std", "domain"):
+        as_positive(getattr(args, name), f"--{name.replace('_', '-')}")
     return {"train_points": args.train_points, "test_points": args.test_points,
             "prior_std": args.prior_std, "system_noise_std": args.system_noise_std,
             "measurement_noise_std": args.measurement_noise_std, "domain": args.domain,
