@@ -50,7 +50,7 @@ def information_form(estimates: Sequence[Gaussian]) -> Information:
     mats, vecs = [], []
     for m, e in enumerate(estimates):
         chol = cholesky(e.cov, f"estimates[{m}].cov", allow_jitter=False)
-        mats.append(chol.inverse())
+        mats.append(symmetrize(chol.solve(np.eye(e.mean.shape[0]))))
         vecs.append(chol.solve(e.mean))
     return Information(np.array(mats), np.array(vecs))
 
