@@ -67,23 +67,19 @@ class SensorAudit:
 
 @dataclass(frozen=True)
 class CaseAudit:
-    """Audit of one fusion case; the y-dependent fields are None without y."""
+    """Audit of one fusion case: ``condition_holds`` (Proposition 1: every C_xy^m full column
+    rank), ``exact`` (the necessary-and-sufficient condition for every sensor); the y-dependent
+    fields are None without y."""
 
     sensors: tuple[SensorAudit, ...]
     rank_rule: str
+    condition_holds: bool
+    exact: bool
     dmf_mean: np.ndarray
     cmf_mean: np.ndarray | None = None
     gap: np.ndarray | None = None
     predicted_gap: np.ndarray | None = None
     repaired_dmf_mean: np.ndarray | None = None
-
-    @property
-    def condition_holds(self) -> bool:
-        return all(s.full_column_rank for s in self.sensors)
-
-    @property
-    def exact(self) -> bool:
-        return all(s.exact for s in self.sensors)
 
     @property
     def notes(self) -> list[str]:
@@ -131,10 +127,11 @@ def audit_case(case: FusionCase, rank_tol: float | None = None) -> CaseAudit:
             consistency_tol=_consistency_tol(case, s.index) if has_y else None))
     rule = RANK_RULE_DEFAULT if tol is None else f"explicit absolute tolerance {tol:g}"
     if not has_y:
-        return CaseAudit(tuple(sensors), rule, dmf.mean)
+        return CaseAudit(tuple(sensors), rule, dmf.condition_holds, dmf.exact, dmf.mean)
     cmf = cmf_update(case.central, case.y, dmf.gain)
     repaired = dmf_update(case, [s.repair_message for s in sensors], rank_tol=tol)
-    return CaseAudit(tuple(sensors), rule, dmf.mean, cmf.mean, dmf.mean - cmf.mean,
+    return CaseAudit(tuple(sensors), rule, dmf.condition_holds, dmf.exact, dmf.mean, cmf.mean,
+                     dmf.mean - cmf.mean,
                      predicted_gap(case, dmf.sensors), repaired.mean)
 
 
