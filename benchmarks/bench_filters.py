@@ -9,12 +9,11 @@ gpadf-scalar benchmark. Each pair is checked to agree before timing.
 from __future__ import annotations
 
 import argparse
-import platform
 from pathlib import Path
 
 import numpy as np
 
-from _timing import markdown_table, median_seconds
+from _timing import median_seconds, publish
 from gpfverify.experiments.gpadf_scalar import fit_models
 from gpfverify.filters.gp_adf import gp_adf_step
 from gpfverify.filters.gp_ukf import gp_ukf_step
@@ -126,11 +125,7 @@ def main() -> None:
     rows.append([f"GP-ADF step, {n} scalar test cases (one moment match per case)", f"{t_adf * 1e3:.1f}",
                  "", "", ""])
 
-    table = markdown_table(["case", "gpfverify ms (median)", "reference ms", "speed-up", "max |diff|"], rows)
-    header = f"Machine: {platform.processor() or platform.machine()}, {platform.python_version()}, numpy {np.__version__}"
-    print(header + "\n\n" + table)
-    if args.out:
-        args.out.write_text(header + "\n\n" + table + "\n", encoding="utf-8")
+    publish(["case", "gpfverify ms (median)", "reference ms", "speed-up", "max |diff|"], rows, args.out)
 
 
 if __name__ == "__main__":

@@ -13,19 +13,10 @@ from gpfverify.filters.records import Gaussian, StepRecord
 
 
 @dataclass(frozen=True)
-class FilterRun:
+class FilterRun(StepRecord):
     """Every :class:`StepRecord` field stacked over time: mu_p (T, ..., D), C_p (T, ..., D, D),
     mu_y (T, ..., L), C_y (T, ..., L, L), C_xy (T, ..., D, L), mu_e (T, ..., D),
-    C_e (T, ..., D, D), jitter (T,)."""
-
-    mu_p: np.ndarray
-    C_p: np.ndarray
-    mu_y: np.ndarray
-    C_y: np.ndarray
-    C_xy: np.ndarray
-    mu_e: np.ndarray
-    C_e: np.ndarray
-    jitter: np.ndarray
+    C_e (T, ..., D, D), jitter (T,). ``posterior`` and ``prediction`` are the stacked beliefs."""
 
     def __len__(self) -> int:
         return self.mu_e.shape[0]
