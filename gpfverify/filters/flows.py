@@ -86,19 +86,26 @@ def particle_moments(particles: np.ndarray) -> FlowEstimate:
     return FlowEstimate(mean, symmetrize(dev.T @ dev / particles.shape[0]))
 
 
+def _measurement_cov(model: NonlinearModel) -> np.ndarray:
+    """R, checked positive definite once per update; the λ-loop then uses small dense solves
+    (the scipy wrappers cost more than the L × L solve itself)."""
+    cholesky(model.R, "R", allow_jitter=False)
+    return model.R
+
+
 def ie_pff_update(particles: np.ndarray, model: NonlinearModel, z: np.ndarray, k: int,
                   step_sizes: np.ndarray) -> np.ndarray:
     """Flow predicted particles (N, D) to the posterior of measurement z (L,) (seed 003 eq. 27, 36)."""
     steps = _check_steps(step_sizes)
     z = np.asarray(z, dtype=float)
-    r_chol = cholesky(model.R, "R")
+    R = _measurement_cov(model)
     x = np.array(particles, dtype=float)
     n = x.shape[0]
     for dlam in steps:
         hx = unwrapped_measurement(model, z, x, k)  # (N, L)
         h_mean = hx.mean(axis=0)
         cross = (x - x.mean(axis=0)).T @ (hx - h_mean) / n  # (D, L) empirical Cov(X, h(X))
-        gain = r_chol.solve(cross.T).T  # K = Cov(X, h) R⁻¹
+        gain = np.linalg.solve(R, cross.T).T  # K = Cov(X, h) R⁻¹
         x = x + dlam * (z - 0.5 * (hx + h_mean)) @ gain.T
     return x
 
@@ -125,7 +132,7 @@ def edh_update(particles: np.ndarray, P: np.ndarray, model: NonlinearModel, z: n
         raise InputError("EDH needs model.h_jacobian")
     steps = _check_steps(step_sizes)
     z = np.asarray(z, dtype=float)
-    r_chol = cholesky(model.R, "R")
+    R = _measurement_cov(model)
     x = np.array(particles, dtype=float)
     x0_mean = x.mean(axis=0)
     eye = np.eye(x.shape[1])
@@ -136,8 +143,8 @@ def edh_update(particles: np.ndarray, P: np.ndarray, model: NonlinearModel, z: n
         H = np.atleast_2d(model.h_jacobian(mean, k))
         e = unwrapped_measurement(model, z, mean[None, :], k)[0] - H @ mean
         PHt = P @ H.T
-        A = -0.5 * right_solve_spd(PHt, lam * H @ PHt + model.R, "λHPHᵀ + R") @ H
-        b = (eye + 2 * lam * A) @ ((eye + lam * A) @ (PHt @ r_chol.solve(z - e)) + A @ x0_mean)
+        A = -0.5 * PHt @ np.linalg.solve(lam * H @ PHt + R, H)
+        b = (eye + 2 * lam * A) @ ((eye + lam * A) @ (PHt @ np.linalg.solve(R, z - e)) + A @ x0_mean)
         x = x + dlam * (x @ A.T + b)
         lam_start += dlam
     return x
