@@ -12,6 +12,8 @@
 
 #: experiment name (as on the command line) -> module
 EXPERIMENTS: dict[str, str] = {
+    "pff1d": "gpfverify.experiments.pff1d",
+    "bearing": "gpfverify.experiments.bearing",
     "gpadf-scalar": "gpfverify.experiments.gpadf_scalar",
     "tbd": "gpfverify.experiments.tbd",
 }
