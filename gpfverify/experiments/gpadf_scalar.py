@@ -65,7 +65,8 @@ def params_from_args(args) -> dict:
     """Every parameter, checked (:class:`InputError` naming the option)."""
     for name, least in (("train_points", 2), ("test_points", 2), ("restarts", 1)):
         if getattr(args, name) < least:
-            raise InputError(f"--{name.replace('_', '-')} must be at least {least}, got {getattr(args, name)}")
+            option = "--" + name.replace("_", "-")
+            raise InputError(f"{option} must be at least {least}, got {getattr(args, name)}")
     for name in ("prior_std", "system_noise_std", "measurement_noise_std", "domain"):
         as_positive(getattr(args, name), f"--{name.replace('_', '-')}")
     return {"train_points": args.train_points, "test_points": args.test_points,
@@ -147,13 +148,14 @@ def summarize(params: dict, results: list[dict]) -> dict:
         pooled = {k: np.concatenate([r["scores"][method][k] for r in results]) for k in SCORES}
         nll, nll_se = _mean_se(pooled["nll"])
         maha, maha_se = _mean_se(pooled["maha"])
-        nees, nees_se = _mean_se(pooled["maha"] ** 2)
+        nees_terms = pooled["maha"] ** 2
+        nees, nees_se = _mean_se(nees_terms)
         mse, mse_se = _mean_se(pooled["sq_err"])
         rmse = float(np.sqrt(mse))
         run_means = {k: [float(np.mean(r["scores"][method][k])) for r in results] for k in SCORES}
         table[method] = {"nll": nll, "nll_se": nll_se, "maha": maha, "maha_se": maha_se,
                          "rmse": rmse, "rmse_se": mse_se / (2.0 * rmse) if rmse > 0 else float("nan"),
-                         "nees": nees, "nees_se": nees_se, "nees_std": float(np.std(pooled["maha"] ** 2, ddof=1)),
+                         "nees": nees, "nees_se": nees_se, "nees_std": float(np.std(nees_terms, ddof=1)),
                          "outside_2sigma": float(np.mean(pooled["maha"] > 2.0)),
                          "cases": int(pooled["nll"].size),
                          "nll_se_runs": _mean_se(np.array(run_means["nll"]))[1],

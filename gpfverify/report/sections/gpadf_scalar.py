@@ -61,7 +61,8 @@ def claims(results: dict) -> list[Claim]:
     consistent = nees_consistent(adf) and abs(exceedance_excess(adf)) <= 1.0
     out.append(Claim("GP-ADF is consistent: mean NEES compatible with 1 and ±2σ exceedance compatible "
                      "with 4.55 % (each within 5 standard errors)", consistent,
-                     f"NEES {_pm(adf['nees'], adf['nees_se'])}; outside ±2σ "
+                     f"NEES {_pm(adf['nees'], adf['nees_se'])} ((NEES − 1)/s.e. = "
+                     f"{(adf['nees'] - 1.0) / adf['nees_se']:+.1f}; below 0: conservative); outside ±2σ "
                      f"{100 * adf['outside_2sigma']:.2f} % (tolerance ±"
                      f"{100 * exceedance_tolerance(adf['cases']):.2f} points) over {adf['cases']} cases"))
     for m in others:
@@ -119,7 +120,8 @@ def render(results: dict, ctx_or_dir) -> Section:
         f"{fmt(results['fit_time_per_run'], 3)} s per run."))
     section.add(Figure(_figure(results["example"], out_dir / "posteriors.png"),
                        "First run: posterior mean ± 2σ of each filter (colour) and the true x₁ (black) "
-                       "against the prior mean μ₀; the vertical axis is clipped to ±30 (a few UKF/EKF means lie beyond)."))
+                       "against the prior mean μ₀; the vertical axis is clipped to ±30 (a few UKF/EKF "
+                       "means lie beyond)."))
     return section
 
 
