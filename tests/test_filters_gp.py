@@ -13,11 +13,14 @@ import pytest
 
 from gpfverify.errors import InputError
 from gpfverify.filters.driver import run_filter
+from gpfverify.filters.ekf import ekf_step
 from gpfverify.filters.gp_adf import gp_adf_predict, gp_adf_step
 from gpfverify.filters.gp_ukf import gp_ukf_step
 from gpfverify.filters.kalman import kf_step
+from gpfverify.filters.models import NonlinearModel
 from gpfverify.filters.records import Gaussian
 from gpfverify.filters.sigma_points import SigmaParams
+from gpfverify.filters.ukf import ukf_step
 from gpfverify.gp import GaussianProcess, GaussianProcessStack
 from gpfverify.gp.reference import quadrature_moments
 from gpfverify.tolerances import MONTE_CARLO_SIGMAS, QUADRATURE_RTOL, algebra_rtol, learned_model_rtol
@@ -197,3 +200,39 @@ def test_gp_filters_match_the_kf_with_the_learned_noise(linear_gps, step):
     rho = max(float(np.max(transition.predict(learned.mu_e[:-1])[1] / transition.noise_var)),
               float(np.max(measurement.predict(learned.mu_p)[1] / measurement.noise_var)))
     _assert_tracks(learned, exact, ys, MONTE_CARLO_SIGMAS * rho, MONTE_CARLO_SIGMAS * np.sqrt(rho))
+
+
+# --- one record check for every Gaussian filter ------------------------------------------------------
+
+def _every_filter(seed):
+    """The measurement and each filter's record, from one belief: UKF and EKF on the known model
+    f, h = the GP means, GP-UKF and GP-ADF on the GPs themselves."""
+    transition, measurement, belief, y = _problem(seed, 2, 2)
+    model = NonlinearModel(f=lambda x, k: transition.predict_mean(x),
+                           h=lambda x, k: measurement.predict_mean(x),
+                           Q=np.diag(transition.noise_var), R=np.diag(measurement.noise_var),
+                           f_jacobian=lambda x, k: _numeric_jacobian(transition.predict_mean, x),
+                           h_jacobian=lambda x, k: _numeric_jacobian(measurement.predict_mean, x))
+    return y, {"UKF": ukf_step(belief, model, y, 1), "EKF": ekf_step(belief, model, y, 1),
+               "GP-UKF": gp_ukf_step(belief, transition, measurement, y),
+               "GP-ADF": gp_adf_step(belief, transition, measurement, y)}
+
+
+def _numeric_jacobian(fn, x, h=1e-6):
+    columns = [(fn((x + h * e)[None])[0] - fn((x - h * e)[None])[0]) / (2 * h) for e in np.eye(x.size)]
+    return np.stack(columns, axis=1)
+
+
+@pytest.mark.parametrize("seed", [0, 1])
+def test_every_filter_record_is_a_consistent_gaussian_conditioning(seed):
+    """For each filter: the joint [[C_p, C_xy], [C_xyᵀ, C_y]] is symmetric positive definite, and
+    μ_e, C_e are its conditioning on y (dense solve as the second route)."""
+    y, records = _every_filter(seed)
+    for name, r in records.items():
+        joint = np.block([[r.C_p, r.C_xy], [r.C_xy.T, r.C_y]])
+        assert np.array_equal(joint, joint.T), name
+        assert np.linalg.eigvalsh(joint).min() > 0, name
+        gain = np.linalg.solve(r.C_y, r.C_xy.T).T
+        rtol = algebra_rtol(np.linalg.cond(joint))
+        np.testing.assert_allclose(r.mu_e, r.mu_p + gain @ (y - r.mu_y), rtol=rtol, atol=rtol, err_msg=name)
+        np.testing.assert_allclose(r.C_e, r.C_p - gain @ r.C_xy.T, rtol=rtol, atol=rtol, err_msg=name)

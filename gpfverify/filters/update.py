@@ -45,7 +45,8 @@ def gaussian_update(prediction: Gaussian, moments: MeasurementMoments, y) -> Ste
 
     Shapes: prediction.mean (..., D), prediction.cov (..., D, D), moments.mu_y (..., L),
     moments.C_y (..., L, L), moments.C_xy (..., D, L), y (..., L) (broadcast against mu_y).
-    Raises :class:`NumericalError` naming C_y when it is not positive definite.
+    No jitter is added (the record's ``jitter`` stays 0): a C_y that is not positive definite
+    raises :class:`NumericalError` naming C_y instead of producing NaN or a silently changed gain.
     """
     mu_y = np.asarray(moments.mu_y, dtype=float)
     y = as_array(y, "y")
