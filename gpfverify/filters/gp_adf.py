@@ -34,10 +34,10 @@ def check_transition_gp(gp) -> None:
                          f"!= output_dim {gp.output_dim}")
 
 
-def moment_match_batched(gp, belief: Gaussian) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def moment_match_batched(gp, belief: Gaussian, name: str = "belief") -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Exact moments of the GP at every belief of a batch: mean (..., E), latent cov (..., E, E),
-    cross_cov (..., D, E)."""
-    belief = check_belief(belief, gp.input_dim)
+    cross_cov (..., D, E). ``name`` labels the belief in input errors."""
+    belief = check_belief(belief, gp.input_dim, name)
     batch = belief.mean.shape[:-1]
     d, e = gp.input_dim, gp.output_dim
     mean, cov, cross = np.empty(batch + (e,)), np.empty(batch + (e, e)), np.empty(batch + (d, e))
@@ -56,7 +56,7 @@ def gp_adf_predict(belief: Gaussian, transition_gp) -> Gaussian:
 
 def gp_adf_measurement(prediction: Gaussian, measurement_gp) -> MeasurementMoments:
     """(μ_y, C_y, C_xy) at N(μ_p, C_p): exact moments plus the learned measurement noise."""
-    mu_y, cov, cross = moment_match_batched(measurement_gp, prediction)
+    mu_y, cov, cross = moment_match_batched(measurement_gp, prediction, "prediction")
     return MeasurementMoments(mu_y, symmetrize(cov + np.diag(measurement_gp.noise_var)), cross)
 
 
