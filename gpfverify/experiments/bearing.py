@@ -76,7 +76,9 @@ def run_one(params: dict, seed_seq: np.random.SeedSequence) -> dict:
 
 
 def summarize(params: dict, results: list[dict]) -> dict:
-    rmse, times, diverged, mean_rmse = {}, {}, {}, {}
+    """Position RMSE per step over the runs that did not diverge, its time average, the per-run
+    RMS position error (None where the filter diverged) and the mean filter time per run."""
+    rmse, times, diverged, mean_rmse, run_rmse = {}, {}, {}, {}, {}
     for name in METHODS:
         sq = [r[name]["sq_pos_err"] for r in results if r[name]["sq_pos_err"] is not None]
         curve = np.sqrt(np.mean(sq, axis=0)) if sq else np.full(params["duration"], np.nan)
@@ -84,4 +86,7 @@ def summarize(params: dict, results: list[dict]) -> dict:
         mean_rmse[name] = float(np.mean(curve))
         times[name] = float(np.mean([r[name]["seconds"] for r in results]))
         diverged[name] = len(results) - len(sq)
-    return {"rmse": rmse, "time_per_run": times, "mean_rmse": mean_rmse, "diverged": diverged}
+        run_rmse[name] = [None if r[name]["sq_pos_err"] is None else float(np.sqrt(np.mean(r[name]["sq_pos_err"])))
+                          for r in results]
+    return {"rmse": rmse, "time_per_run": times, "mean_rmse": mean_rmse, "diverged": diverged,
+            "run_rmse": run_rmse}

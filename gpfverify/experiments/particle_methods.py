@@ -1,6 +1,6 @@
 """Run the particle filters of seed 003's experiments over a measurement sequence: bootstrap PF,
 UPF, EDH and IE-PFF, each from N(prior mean, prior cov), returning the per-step estimates and the
-wall-clock time. A filter that breaks down (non-finite particles, every weight zero, a covariance
+CPU time. A filter that breaks down (non-finite particles, every weight zero, a covariance
 that is not positive definite) is reported as diverged instead of ending the run."""
 
 from __future__ import annotations
@@ -20,7 +20,8 @@ from gpfverify.filters.upf import ParticleCloud, upf_step
 
 @dataclass(frozen=True)
 class MethodRun:
-    """Estimates (T, D) (None when the filter diverged) and the seconds the filter took."""
+    """Estimates (T, D) (None when the filter diverged) and the CPU seconds the filter took
+    (process time: robust to other load on a shared machine)."""
 
     estimates: np.ndarray | None
     seconds: float
@@ -85,7 +86,7 @@ METHODS = {"PF": _pf, "UPF": _upf, "EDH": _edh, "IE-PFF": _ie_pff}
 def run_method(method: str, model: NonlinearModel, prior_mean, prior_cov, ys: np.ndarray, count: int,
                rng: np.random.Generator, steps: np.ndarray | None = None) -> MethodRun:
     """Filter ``ys`` (T, L) with ``count`` particles; ``steps`` are the λ-steps of the flows."""
-    start = time.perf_counter()
+    start = time.process_time()
     try:
         with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
             estimates = np.array(METHODS[method](model, np.asarray(prior_mean, float), prior_cov, ys,
@@ -94,4 +95,4 @@ def run_method(method: str, model: NonlinearModel, prior_mean, prior_cov, ys: np
             estimates = None
     except (GpfverifyError, np.linalg.LinAlgError):
         estimates = None
-    return MethodRun(estimates, time.perf_counter() - start)
+    return MethodRun(estimates, time.process_time() - start)

@@ -94,24 +94,28 @@ def _key(rec: dict) -> tuple:
 
 
 def _aggregate(results: list[dict], steps: int) -> dict:
-    """key -> {"rmse": [T] over the runs that did not diverge, "diverged": int, "seconds": mean}."""
+    """key -> {"rmse": [T] over the runs that did not diverge, "diverged": int, "seconds": mean,
+    "run_rmse": per run √(mean_t err²), None where the filter diverged}."""
     groups: dict[tuple, dict] = {}
     for res in results:
         for rec in res["records"]:
-            g = groups.setdefault(_key(rec), {"sq": [], "diverged": 0, "seconds": []})
+            g = groups.setdefault(_key(rec), {"sq": [], "seconds": [], "run_rmse": []})
             g["seconds"].append(rec["seconds"])
             if rec["sq_err"] is None:
-                g["diverged"] += 1
+                g["run_rmse"].append(None)
             else:
                 g["sq"].append(rec["sq_err"])
+                g["run_rmse"].append(float(np.sqrt(np.mean(rec["sq_err"]))))
     out = {}
     for key, g in groups.items():
         rmse = np.sqrt(np.mean(g["sq"], axis=0)) if g["sq"] else np.full(steps, np.nan)
-        out[key] = {"rmse": rmse.tolist(), "diverged": g["diverged"], "seconds": float(np.mean(g["seconds"]))}
+        out[key] = {"rmse": rmse.tolist(), "diverged": g["run_rmse"].count(None),
+                    "seconds": float(np.mean(g["seconds"])), "run_rmse": g["run_rmse"]}
     return out
 
 
-def _label(method: str, dlam, spacing) -> str:
+def variant_label(method: str, dlam, spacing) -> str:
+    """"PF", or "IE-PFF Δλ=0.01 uniform" for a flow."""
     return method if dlam is None else f"{method} Δλ={dlam:g} {spacing}"
 
 
@@ -125,13 +129,14 @@ def summarize(params: dict, results: list[dict]) -> dict:
         rm = np.asarray(g["rmse"])
         table.append({"Q": q, "R": r, "method": method, "dlambda": dlam, "spacing": spacing,
                       "mean_rmse": float(np.mean(rm)), "diverged": g["diverged"], "runs": runs,
-                      "time_per_run": g["seconds"]})
+                      "time_per_run": g["seconds"], "rmse": g["rmse"], "run_rmse": g["run_rmse"]})
     gamma = {}
     for (case, q, r, method, dlam, spacing), g in agg.items():
         if case == "gamma":
-            gamma.setdefault(f"{r:g}", {})[_label(method, dlam, spacing)] = {
-                "rmse": g["rmse"], "mean_rmse": float(np.mean(g["rmse"])), "diverged": g["diverged"],
-                "time_per_run": g["seconds"]}
+            gamma.setdefault(f"{r:g}", {})[variant_label(method, dlam, spacing)] = {
+                "method": method, "dlambda": dlam, "spacing": spacing, "rmse": g["rmse"],
+                "mean_rmse": float(np.mean(g["rmse"])), "diverged": g["diverged"],
+                "time_per_run": g["seconds"], "run_rmse": g["run_rmse"]}
     main_r, main_spacing = params["gamma_main_r"], params["spacings"][0]
     main = {}
     for (case, q, r, method, dlam, spacing), g in agg.items():
