@@ -17,6 +17,7 @@ SECTIONS: dict[str, str] = {
     "moments": "gpfverify.report.sections.moments",
     "gpadf-scalar": "gpfverify.report.sections.gpadf_scalar",
     "tbd": "gpfverify.report.sections.tbd",
+    "particle-flow": "gpfverify.report.sections.particle_flow",
 }
 
 
