@@ -6,6 +6,10 @@ defined in :mod:`gpfverify.strategies.profiles` (so ``gpfverify props`` uses the
 Select with ``--hypothesis-profile NAME`` or the HYPOTHESIS_PROFILE environment variable.
 """
 
-from gpfverify.strategies.profiles import load_profile
+from gpfverify.runtime import default_single_blas_thread
+
+default_single_blas_thread()  # before numpy loads its BLAS (see gpfverify.runtime)
+
+from gpfverify.strategies.profiles import load_profile  # noqa: E402
 
 load_profile()

@@ -13,6 +13,7 @@ import sys
 
 from gpfverify import __version__
 from gpfverify.errors import GpfverifyError
+from gpfverify.runtime import default_single_blas_thread
 
 #: command name -> (module, one-line help)
 COMMANDS: dict[str, tuple[str, str]] = {
@@ -41,6 +42,7 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: list[str] | None = None) -> int:
+    default_single_blas_thread()  # before any command imports numpy (see gpfverify.runtime)
     argv = list(sys.argv[1:] if argv is None else argv)
     parser = build_parser()
     known, rest = parser.parse_known_args(argv[:1] if argv and argv[0] in COMMANDS else argv)

@@ -26,9 +26,8 @@ from types import ModuleType
 import numpy as np
 
 from gpfverify.errors import InputError
+from gpfverify.runtime import BLAS_THREAD_VARS
 
-_THREAD_VARS = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS",
-                "VECLIB_MAXIMUM_THREADS", "NUMEXPR_NUM_THREADS")
 
 
 class SerialExecutor(Executor):
@@ -63,8 +62,8 @@ def make_executor(workers: int = 1, scheduler: str | None = None):
     if workers <= 1:
         yield SerialExecutor()
         return
-    saved = {k: os.environ.get(k) for k in _THREAD_VARS}
-    os.environ.update({k: "1" for k in _THREAD_VARS})  # inherited by the spawned workers
+    saved = {k: os.environ.get(k) for k in BLAS_THREAD_VARS}
+    os.environ.update({k: "1" for k in BLAS_THREAD_VARS})  # inherited by the spawned workers
     import multiprocessing as mp
 
     pool = ProcessPoolExecutor(max_workers=workers, mp_context=mp.get_context("spawn"))
