@@ -15,5 +15,7 @@ EXPERIMENTS: dict[str, str] = {
     "pff1d": "gpfverify.experiments.pff1d",
     "bearing": "gpfverify.experiments.bearing",
     "gpadf-scalar": "gpfverify.experiments.gpadf_scalar",
+    "ct2d": "gpfverify.experiments.ct2d",
+    "ungm1d": "gpfverify.experiments.ungm1d",
     "tbd": "gpfverify.experiments.tbd",
 }
