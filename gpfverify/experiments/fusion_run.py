@@ -145,6 +145,15 @@ def _audit_entry(step: int, family: str, case) -> dict:
                          "gap_gain_norm": s.gap_gain_norm, "exact": s.exact} for s in audit.sensors]}
 
 
+def gap_condition(case) -> float:
+    """The largest condition number eq. 35 goes through: the central C_y, each C_y^m and each
+    C_xy^m (its pseudo-inverse); rounding in the one-step gap scales with it."""
+    conds = [np.linalg.cond(case.central.C_y)]
+    for local in case.locals:
+        conds += [np.linalg.cond(local.C_y), np.linalg.cond(local.C_xy)]
+    return float(max(conds))
+
+
 def run_family(family: str, models: TrainedModels, data: FusionData, local_starts: Sequence[Gaussian],
                fused_start: Gaussian, sigma: SigmaParams, rcc_size: float | None,
                rank_tol: float | None) -> dict:
@@ -165,6 +174,7 @@ def run_family(family: str, models: TrainedModels, data: FusionData, local_start
            "full_rank": {f"Sensor{m + 1}-{family}": [] for m in range(len(locals_))},
            "rank_tol": {f"Sensor{m + 1}-{family}": [] for m in range(len(locals_))},
            "recursive_gap": [], "one_step_gap": [], "one_step_gap_rel": [], "condition_holds": [],
+           "gap_scale": [], "gap_condition": [],
            "audit": [], "rcc_enlarged": 0}
     for k in range(steps):
         records: list[StepRecord] = [
@@ -205,6 +215,8 @@ def run_family(family: str, models: TrainedModels, data: FusionData, local_start
         correction = float(np.linalg.norm(same.mean - dmf.case.central.mu_p))
         out["one_step_gap_rel"].append(float(np.linalg.norm(gap)) / correction if correction > 0 else 0.0)
         out["condition_holds"].append(bool(dmf.result.condition_holds))
+        out["gap_scale"].append(float(np.linalg.norm(dmf.case.central.mu_p)) + correction)
+        out["gap_condition"].append(gap_condition(dmf.case))
         if not dmf.result.condition_holds:
             out["audit"].append(_audit_entry(k, family, dmf.case))
     out["seconds"] = {n: s.tolist() for n, s in clock.seconds.items()}
