@@ -17,7 +17,7 @@ from __future__ import annotations
 import numpy as np
 
 from gpfverify.errors import InputError
-from gpfverify.experiments.fusion_run import run_setting, summarize_setting, train_models
+from gpfverify.experiments.fusion_run import hyperparameters, run_setting, summarize_setting, train_models
 from gpfverify.filters.records import Gaussian
 from gpfverify.filters.sigma_points import SigmaParams
 from gpfverify.rng import generator
@@ -112,6 +112,7 @@ def run_one(params: dict, seed_sequence) -> dict:
     sigma = SigmaParams(params["alpha"], params["beta"], params["sigma_kappa"])
     record = run_setting(data, models, local_starts, fused_start, sigma, params["rcc_size"], params["rank_tol"])
     record["training_seconds"] = training
+    record["hyperparameters"] = hyperparameters(models)
     return record
 
 

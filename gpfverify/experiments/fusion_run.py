@@ -50,6 +50,7 @@ from gpfverify.fusion.rcc_ci import rcc_ci
 from gpfverify.gp import GaussianProcess
 from gpfverify.linalg import solve_spd
 from gpfverify.scenarios.fusion_models import FusionData
+from gpfverify.tolerances import algebra_rtol
 
 FAMILIES: tuple[str, ...] = ("GP-ADF", "GP-UKF")
 RULES: tuple[str, ...] = ("Sensor1", "Sensor2", "CMF", "DMF", "RCC-CI", "CW")
@@ -310,21 +311,28 @@ def summarize_setting(results: list[dict]) -> dict:
         "time_per_step": {m: float(np.mean(seconds[m])) for m in METHODS},
         "time_per_run": {m: float(np.mean(np.sum(seconds[m], axis=1))) for m in METHODS},
         "online_time_per_step": {m: float(np.mean(online[m])) for m in online},
+        "time_per_step_series": {m: np.mean(seconds[m], axis=0).tolist() for m in METHODS},
+        "run_mean_sq_err": {m: np.mean(sq_err[m], axis=1).tolist() for m in METHODS},
+        "run_mean_mahalanobis": {m: np.mean(maha[m], axis=1).tolist() for m in METHODS},
     }
-    gaps, one_step, one_rel, holds = {}, {}, {}, {}
+    gaps, one_step, one_rel, holds, within = {}, {}, {}, {}, {}
     for family in FAMILIES:
         fam = [r["families"][family] for r in results]
         gaps[family] = np.array([f["recursive_gap"] for f in fam])
         one_step[family] = np.array([f["one_step_gap"] for f in fam])
         one_rel[family] = np.array([f["one_step_gap_rel"] for f in fam])
         holds[family] = np.array([f["condition_holds"] for f in fam], dtype=bool)
+        within[family] = np.array([[g <= algebra_rtol(c) * sc for g, c, sc in
+                                    zip(f["one_step_gap"], f["gap_condition"], f["gap_scale"])] for f in fam])
     out["max_equivalence_gap"] = {f: float(np.max(gaps[f])) for f in FAMILIES}
     out["equivalence_gap_per_step"] = {f: np.max(gaps[f], axis=0).tolist() for f in FAMILIES}
     out["one_step_gap"] = {f: {
         "max_when_full_rank": float(np.max(one_step[f][holds[f]], initial=0.0)),
         "max_relative_when_full_rank": float(np.max(one_rel[f][holds[f]], initial=0.0)),
         "max_when_rank_fails": float(np.max(one_step[f][~holds[f]], initial=0.0)),
-        "steps_full_rank": int(np.sum(holds[f])), "steps_rank_fails": int(np.sum(~holds[f]))}
+        "steps_full_rank": int(np.sum(holds[f])), "steps_rank_fails": int(np.sum(~holds[f])),
+        "full_rank_steps_within_rounding": int(np.sum(within[f] & holds[f])),
+        "rounding_rule": "gap <= algebra_rtol(max cond of C_y, C_y^m, C_xy^m) * (|mu_p| + |mu_CMF - mu_p|)"}
         for f in FAMILIES}
     out["rounding_sensitivity"] = {f: {
         "probe": ROUNDING_PROBE,

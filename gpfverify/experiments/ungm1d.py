@@ -18,7 +18,8 @@ import time
 import numpy as np
 
 from gpfverify.errors import InputError
-from gpfverify.experiments.fusion_run import METHODS, run_setting, summarize_setting, train_models
+from gpfverify.experiments.fusion_run import (METHODS, hyperparameters, run_setting, summarize_setting,
+                                              train_models)
 from gpfverify.filters.records import Gaussian
 from gpfverify.filters.sigma_points import SigmaParams
 from gpfverify.rng import generator
@@ -92,6 +93,7 @@ def run_one(params: dict, seed_sequence) -> dict:
         training = time.perf_counter() - started
         record = run_setting(data, models, [prior, prior], prior, sigma, params["rcc_size"], params["rank_tol"])
         record["training_seconds"] = training
+        record["hyperparameters"] = hyperparameters(models)
         settings[repr(noise_var)] = record
     return {"settings": settings}
 
