@@ -129,3 +129,19 @@ def test_explicit_rank_tolerance_changes_the_decision():
     assert dmf_update(case).sensors[0].full_column_rank
     loose = dmf_update(case, rank_tol=1.01 * s_min).sensors[0]
     assert not loose.full_column_rank and loose.split.rank.tol == 1.01 * s_min
+
+
+@pytest.mark.parametrize("condition", [1e2, 1e5, 1e8, 1e11])
+def test_reconstruction_error_stays_within_the_conditioning_bound(condition):
+    """Full column rank but ill-conditioned C_xy^m: the pseudo-inverse reconstruction in eq. 35
+    loses about eps·cond(C_xy^m)·cond(C_y^m); the observed DMF − CMF stays inside that bound."""
+    rng = np.random.default_rng(int(np.log10(condition)))
+    errors, bounds = [], []
+    for _ in range(5):
+        case = random_case(rng, 4, (3, 2), cross_condition=condition)
+        dmf = dmf_update(case)
+        assert dmf.condition_holds
+        assert range_condition_number(dmf.sensors[0].split) == pytest.approx(condition, rel=algebra_rtol(condition))
+        errors.append(np.linalg.norm(dmf.mean - cmf_update(case.central, case.y).mean))
+        bounds.append(_atol(case))
+    assert all(e <= b for e, b in zip(errors, bounds)), (errors, bounds)

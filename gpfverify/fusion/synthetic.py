@@ -24,9 +24,15 @@ def random_spd(rng: np.random.Generator, n: int, floor: float = 0.1) -> np.ndarr
     return symmetrize(a @ a.T / n + floor * np.eye(n))
 
 
-def random_rank_matrix(rng: np.random.Generator, rows: int, cols: int, rank: int) -> np.ndarray:
-    """A (rows, cols) matrix of exactly the given rank (product of Gaussian factors)."""
-    return rng.normal(size=(rows, rank)) @ rng.normal(size=(rank, cols))
+def random_rank_matrix(rng: np.random.Generator, rows: int, cols: int, rank: int,
+                       condition: float | None = None) -> np.ndarray:
+    """A (rows, cols) matrix of exactly the given rank: a product of Gaussian factors, or, with
+    ``condition``, random orthonormal factors around singular values geomspace(1, 1/condition)."""
+    if condition is None:
+        return rng.normal(size=(rows, rank)) @ rng.normal(size=(rank, cols))
+    u, _ = np.linalg.qr(rng.normal(size=(rows, rank)))
+    v, _ = np.linalg.qr(rng.normal(size=(cols, rank)))
+    return (u * np.geomspace(1.0, 1.0 / condition, rank)) @ v.T
 
 
 def _decouple(cov: np.ndarray, indices) -> np.ndarray:
@@ -39,11 +45,13 @@ def _decouple(cov: np.ndarray, indices) -> np.ndarray:
     return out
 
 
-def random_local(rng, state_dim: int, size: int, rank: int, decoupled=()) -> tuple[LocalReport, np.ndarray]:
-    """One sensor's report and its raw measurement y^m (see module docstring)."""
+def random_local(rng, state_dim: int, size: int, rank: int, decoupled=(),
+                 condition: float | None = None) -> tuple[LocalReport, np.ndarray]:
+    """One sensor's report and its raw measurement y^m (see module docstring); ``condition`` sets
+    the spread of H_m's singular values (with C_p^m = I, that of C_xy^m on its range)."""
     mu_p = rng.normal(size=state_dim)
-    c_p = random_spd(rng, state_dim)
-    h = random_rank_matrix(rng, size, state_dim, rank)
+    c_p = np.eye(state_dim) if condition is not None else random_spd(rng, state_dim)
+    h = random_rank_matrix(rng, size, state_dim, rank, condition)
     h[list(decoupled)] = 0.0
     r = _decouple(random_spd(rng, size), decoupled)
     c_xy = c_p @ h.T
@@ -58,8 +66,9 @@ def random_local(rng, state_dim: int, size: int, rank: int, decoupled=()) -> tup
 
 def random_case(rng: np.random.Generator, state_dim: int, sizes: Sequence[int],
                 ranks: Sequence[int] | None = None, decoupled: Sequence[int] = (),
-                with_y: bool = True) -> FusionCase:
-    """A consistent random :class:`FusionCase` (see module docstring)."""
+                with_y: bool = True, cross_condition: float | None = None) -> FusionCase:
+    """A consistent random :class:`FusionCase` (see module docstring); ``cross_condition`` makes
+    every C_xy^m have that condition number on its range."""
     sizes = tuple(int(s) for s in sizes)
     ranks = [min(state_dim, s) for s in sizes] if ranks is None else list(ranks)
     total = sum(sizes)
@@ -71,7 +80,7 @@ def random_case(rng: np.random.Generator, state_dim: int, sizes: Sequence[int],
     locals_, ys, start = [], [], 0
     for size, rank in zip(sizes, ranks):
         mine = [j - start for j in decoupled if start <= j < start + size]
-        local, y = random_local(rng, state_dim, size, rank, mine)
+        local, y = random_local(rng, state_dim, size, rank, mine, cross_condition)
         locals_.append(local)
         ys.append(y)
         start += size
