@@ -36,6 +36,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+import scipy.linalg as sla
 
 from gpfverify.fusion.case import FusionCase, LocalReport
 from gpfverify.linalg import RankReport, solve_spd
@@ -143,14 +144,15 @@ def equivalence_tolerance(case: FusionCase, gain: np.ndarray, sensors: tuple[Sen
     terms of eq. 35 and 36 (‖μ_p‖ and ‖G‖ times the per-sensor vectors ‖C_y^m (C_xy^m)⁺(μ_e^m − μ_p^m)‖,
     ‖μ_y^m − μ_y(m)‖, ‖y^m − μ_y^m‖), κ the largest of cond C_y and
     cond(C_xy^m on its range)·cond C_y^m: a least-squares solve with a consistent right-hand side
-    has forward error ~ eps·cond times the size of its solution. Needs ``case.y``."""
+    has forward error ~ eps·cond times the size of its solution. Vector sizes use BLAS nrm2
+    (scipy.linalg.norm), which does not underflow for tiny entries. Needs ``case.y``."""
     c = case.central
     eig = np.linalg.eigvalsh(c.C_y)
     cond, terms = eig[-1] / eig[0], 0.0
     for s, block, local in zip(sensors, c.blocks, case.locals):
         eig_m = np.linalg.eigvalsh(local.C_y)
         cond = max(cond, range_condition_number(s.split) * eig_m[-1] / eig_m[0])
-        terms += (np.linalg.norm(local.C_y, 2) * np.linalg.norm(s.split.pinv @ (local.mu_e - local.mu_p))
-                  + np.linalg.norm(local.mu_y - c.mu_y[block])
-                  + np.linalg.norm(case.local_measurement(s.index) - local.mu_y))
-    return algebra_rtol(cond) * (np.linalg.norm(c.mu_p) + np.linalg.norm(gain, 2) * terms)
+        terms += (np.linalg.norm(local.C_y, 2) * sla.norm(s.split.pinv @ (local.mu_e - local.mu_p))
+                  + sla.norm(local.mu_y - c.mu_y[block])
+                  + sla.norm(case.local_measurement(s.index) - local.mu_y))
+    return algebra_rtol(cond) * (sla.norm(c.mu_p) + np.linalg.norm(gain, 2) * terms)
