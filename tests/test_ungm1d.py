@@ -4,6 +4,7 @@ on full-rank steps, the squared Mahalanobis metric and the model equations."""
 import json
 
 import numpy as np
+import pytest
 
 from gpfverify.cli import main
 from gpfverify.experiments import ungm1d
@@ -13,11 +14,17 @@ from gpfverify.scenarios.fusion_models import sine_sensor, ungm_transition
 from gpfverify.tolerances import algebra_rtol
 
 
-def test_results_follow_the_contract_and_hold_the_sweep(tmp_path):
+@pytest.fixture(scope="module")
+def cli_results(tmp_path_factory):
+    out = tmp_path_factory.mktemp("ungm1d")
     code = main(["reproduce", "ungm1d", "--train", "15", "--test-steps", "3", "--sweep", "2",
-                 "--runs", "2", "--seed", "1", "--out", str(tmp_path)])
+                 "--runs", "2", "--seed", "1", "--out", str(out)])
     assert code == 0
-    r = json.loads((tmp_path / "results.json").read_text())
+    return json.loads((out / "results.json").read_text())
+
+
+def test_results_follow_the_contract_and_hold_the_sweep(cli_results):
+    r = cli_results
     assert (r["experiment"], r["runs_ok"]) == ("ungm1d", 2)
     assert set(r["mahalanobis"]) == set(METHODS) and len(METHODS) == 12
     assert all(len(v) == 3 and all(x >= 0 for x in v) for v in r["mahalanobis"].values())
@@ -61,3 +68,14 @@ def test_model_equations():
     np.testing.assert_allclose(ungm_transition(x)[:, 0], [0.0, 0.5 + 12.5, -1.0 - 10.0], rtol=algebra_rtol(1.0))
     np.testing.assert_allclose(sine_sensor(np.pi / 4)(x)[:, 0], 5 * np.sin(2 * x[:, 0] + np.pi / 4),
                                rtol=algebra_rtol(1.0))
+
+
+def test_page_renders_both_noise_levels_and_the_sweep(cli_results, tmp_path):
+    from gpfverify.report.render import to_markdown
+    from gpfverify.report.sections import fusion_ungm1d
+
+    page = to_markdown(fusion_ungm1d.render(cli_results, tmp_path), tmp_path)
+    assert "Claims of the paper checked — σ² = 1.0" in page and "σ² = 2.0" in page
+    assert "Claim across σ²" in page
+    for name in ("mahalanobis-s1.0.png", "mahalanobis-s2.0.png", "sweep.png"):
+        assert (tmp_path / name).stat().st_size > 5_000

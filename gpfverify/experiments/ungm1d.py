@@ -112,5 +112,6 @@ def summarize(params: dict, results: list[dict]) -> dict:
                           "one_step_gap": v["one_step_gap"], "full_rank_ratio": v["full_rank_ratio"],
                           "time_per_step": v["time_per_step"]}
                       for k, v in per_setting.items()},
+            "per_noise": per_setting,
             "average_mahalanobis_by_noise": {k: {m: float(np.mean(v["average_mahalanobis"][m])) for m in METHODS}
                                              for k, v in per_setting.items()}}

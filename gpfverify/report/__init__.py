@@ -16,6 +16,8 @@ from gpfverify.report.render import write_report
 SECTIONS: dict[str, str] = {
     "moments": "gpfverify.report.sections.moments",
     "gpadf-scalar": "gpfverify.report.sections.gpadf_scalar",
+    "ungm1d": "gpfverify.report.sections.fusion_ungm1d",
+    "ct2d": "gpfverify.report.sections.fusion_ct2d",
     "tbd": "gpfverify.report.sections.tbd",
     "particle-flow": "gpfverify.report.sections.particle_flow",
 }
