@@ -27,7 +27,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def _text(result: dict) -> str:
     lines = [f"method: {result['method']}", "mean: " + " ".join(f"{x:.6g}" for x in result["mean"]), "cov:"]
     lines += ["  " + " ".join(f"{x:12.6g}" for x in row) for row in result["cov"]]
-    for key in ("weights", "c", "criterion", "enlarged", "primal_dual_discrepancy"):
+    for key in ("weights", "c", "criterion", "enlarged", "primal_dual_discrepancy", "condition_holds", "exact"):
         if key in result:
             lines.append(f"{key}: {result[key]}")
     return "\n".join(lines)
