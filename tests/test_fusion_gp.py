@@ -94,3 +94,32 @@ def test_mismatched_inputs_are_input_errors():
         dmf_step(central_belief, local[::-1], transition, sensors)
     with pytest.raises(InputError, match="method"):
         cmf_step(central_belief, transition, sensors, np.zeros(3), method="gp-ekf")
+
+
+def test_audit_of_a_short_run_matches_the_dmf_steps():
+    """audit_run over cases_from_run (CMF records as the centre's prediction, local records) gives
+    per step and sensor the same ranks and gaps as dmf_step's own diagnostics."""
+    from gpfverify.audit import audit_run, cases_from_run
+
+    transition, sensors = _model(1, 5)
+    rng = np.random.default_rng(9)
+    central, local_beliefs = _beliefs(1, rng)
+    cmf_records, local_runs, ys, dmf_gaps = [], [], [], []
+    for _ in range(3):
+        y_parts = [rng.normal(size=2) for _ in sensors]
+        local = [gp_adf_step(b, transition, gp, y) for b, gp, y in zip(local_beliefs, sensors, y_parts)]
+        y = np.concatenate(y_parts)
+        cmf = cmf_step(central, transition, sensors, y)
+        dmf = dmf_step(central, local, transition, sensors, y=y)
+        cmf_records.append(cmf)
+        local_runs.append(local)
+        ys.append(y)
+        dmf_gaps.append(np.linalg.norm(dmf.record.mu_e - cmf.mu_e))
+        central, local_beliefs = cmf.posterior, [r.posterior for r in local]
+    cases = cases_from_run(cmf_records, local_runs, [2, 2], ys)
+    run = audit_run(cases)
+    assert run.rank.shape == (3, 2) and not run.full_column_rank.any()
+    np.testing.assert_array_equal(run.repair_dim, np.ones((3, 2), dtype=int))
+    tol = [equivalence_tolerance(c, dmf_update(c).gain, dmf_update(c).sensors) for c in cases]
+    np.testing.assert_allclose(run.gap_norm, dmf_gaps, rtol=0, atol=max(tol))
+    np.testing.assert_allclose(run.gap_norm, run.predicted_gap_norm, rtol=0, atol=max(tol))
