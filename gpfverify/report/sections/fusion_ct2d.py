@@ -124,6 +124,13 @@ def render(results: dict, ctx_or_dir, command: str | None = None) -> Section:
         "change of the CMF posterior mean when the prior mean is nudged by 1e-14 relative) — the moment matching "
         "subtracts tr(K⁻¹Q) from α² with ill-conditioned K. That drift is numerical, not a failure of Proposition 1; "
         "the rank-failure rows show the gap where the condition fails, and that it equals the closed-form gap."))
+    section.add(Paragraph(
+        "Rank tolerance: the full-rank ratio uses the rank rule of numpy and MATLAB, σ_min > σ_max · max(D, l) · eps "
+        "(absolute per matrix; MATLAB's rank() is the paper's likely default). The right panels of the full-rank "
+        "figures recompute the ratio with a relative tolerance σ_min > tol · σ_max. Caution: the two columns of "
+        "C_xy^m carry different units (range: m², bearing: m·rad; a bearing column is about 1/range ≈ 1/280 of the "
+        "range column), so σ_min/σ_max is small by units and geometry, not by near-degeneracy; where the curve drops "
+        "the tolerance exceeds that unit-driven ratio. A unit-free test would use C_xy^m (C_y^m)^{-1/2}."))
     if any(r["rank_failure_audit"]["entries"] for r in results.values()):
         section.add(audit_table(results))
     for key, r in results.items():

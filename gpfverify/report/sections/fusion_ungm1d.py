@@ -45,8 +45,9 @@ def setting_claims(r: dict, noise: str) -> list[Claim]:
     return out
 
 
-def render(results: dict, ctx_or_dir) -> Section:
-    """The page from the ``results.json`` of ``ungm1d``."""
+def render(results: dict, ctx_or_dir, command: str | None = None) -> Section:
+    """The page from the ``results.json`` of ``ungm1d``; ``command`` (if given) is quoted as the one
+    that made it."""
     folder = out_dir(ctx_or_dir, SLUG)
     p = results["params"]
     section = Section(SLUG, "Fusion paper: 1-D two-sensor example (Figs. 2–4)")
@@ -59,6 +60,8 @@ def render(results: dict, ctx_or_dir) -> Section:
         f"{p['mahalanobis']}, averaged over runs per step. GP hyperparameters by evidence maximisation "
         f"({p['restarts']} start(s), at most {p['fit_points']} samples). {results['runs_ok']} of {results['runs']} "
         f"runs ok (seed {results['seed']})."))
+    if command:
+        section.add(Paragraph(f"Made by: `{command}`"))
     sweep = results["sweep"]
     by_noise = {k: _setting(results, k) for k in sweep}
     for noise, r in by_noise.items():

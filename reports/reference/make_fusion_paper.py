@@ -1,0 +1,64 @@
+"""Render the committed reference pages of the fusion paper's experiments from saved runs.
+
+    python reports/reference/make_fusion_paper.py RUNS_DIR
+
+RUNS_DIR holds one ``gpfverify reproduce`` output folder per setting (named as in COMMANDS). Each
+``results.json`` is recomputed from the saved runs with the current summaries, copied (with its
+manifest) to ``reports/reference/<experiment>/...``, and the pages are written to
+``reports/reference/ct2d/README.md``, ``reports/reference/ungm1d/README.md`` and one
+self-contained ``reports/reference/fusion-paper.html``. The per-run files are not committed.
+"""
+
+from __future__ import annotations
+
+import json
+import shutil
+import sys
+from pathlib import Path
+
+from gpfverify.experiments import ct2d, ungm1d
+from gpfverify.experiments.runner import write_results
+from gpfverify.report.render import to_html, to_markdown
+from gpfverify.report.sections import fusion_ct2d, fusion_ungm1d
+
+HERE = Path(__file__).resolve().parent
+#: folder name -> the exact command that made it (run from the repository root, OUT = RUNS_DIR)
+COMMANDS = {
+    "ct2d-k300-w0.0698": "gpfverify reproduce ct2d --kappa 300 --omega 0.0698 --runs 200 --seed 1 --workers 2 --out OUT/ct2d-k300-w0.0698",
+    "ct2d-k30-w0.0698": "gpfverify reproduce ct2d --kappa 30 --omega 0.0698 --runs 200 --seed 1 --workers 2 --out OUT/ct2d-k30-w0.0698",
+    "ct2d-k60-w0.0698": "gpfverify reproduce ct2d --kappa 60 --omega 0.0698 --runs 200 --seed 1 --workers 2 --out OUT/ct2d-k60-w0.0698",
+    "ct2d-k300-w0.5": "gpfverify reproduce ct2d --kappa 300 --omega 0.5 --runs 200 --seed 1 --workers 2 --out OUT/ct2d-k300-w0.5",
+    "ungm1d": "gpfverify reproduce ungm1d --sweep 2 --runs 200 --seed 1 --workers 2 --out OUT/ungm1d",
+}
+
+
+def recompute(run_dir: Path, module, target: Path) -> dict:
+    manifest = json.loads((run_dir / "manifest.json").read_text(encoding="utf-8"))
+    results = write_results(module, run_dir, manifest)
+    target.mkdir(parents=True, exist_ok=True)
+    shutil.copy(run_dir / "results.json", target / "results.json")
+    shutil.copy(run_dir / "manifest.json", target / "manifest.json")
+    return results
+
+
+def main(runs_dir: Path) -> None:
+    sections = []
+    ct = {}
+    for name, command in COMMANDS.items():
+        if name.startswith("ct2d") and (runs_dir / name / "manifest.json").exists():
+            results = recompute(runs_dir / name, ct2d, HERE / "ct2d" / name.removeprefix("ct2d-"))
+            ct[fusion_ct2d.label(results["params"])] = results
+    made_by = "; ".join(c for n, c in COMMANDS.items() if n.startswith("ct2d"))
+    sections.append(fusion_ct2d.render(ct, HERE / "ct2d", command=made_by + "; then "
+                                       "python reports/reference/make_fusion_paper.py OUT"))
+    if (runs_dir / "ungm1d" / "manifest.json").exists():
+        results = recompute(runs_dir / "ungm1d", ungm1d, HERE / "ungm1d")
+        sections.append(fusion_ungm1d.render(results, HERE / "ungm1d", command=COMMANDS["ungm1d"] + "; then "
+                                             "python reports/reference/make_fusion_paper.py OUT"))
+    for section in sections:
+        (HERE / section.slug / "README.md").write_text(to_markdown(section, HERE / section.slug), encoding="utf-8")
+    (HERE / "fusion-paper.html").write_text(to_html(sections, "Fusion paper: reference run"), encoding="utf-8")
+
+
+if __name__ == "__main__":
+    main(Path(sys.argv[1]))
