@@ -34,11 +34,11 @@ class Cholesky:
     def inverse(self) -> np.ndarray:
         """Explicit inverse from the factor (LAPACK potri), for caching outside a hot path
         (e.g. a GP's training matrix) or where the whole inverse is needed (evidence gradients)."""
-        inv, info = sla.lapack.dpotri(self.factor, lower=True)
+        # Lᵀ of a C-ordered L is Fortran-contiguous: hand it to LAPACK as the upper factor (no copy)
+        inv, info = sla.lapack.dpotri(self.factor.T, lower=False)
         if info != 0:
             raise NumericalError(f"inverse from Cholesky factor failed (potri info={info})")
-        lower = np.tril(inv)
-        return lower + np.tril(inv, -1).T
+        return np.triu(inv) + np.triu(inv, 1).T
 
 
 def cholesky(a: np.ndarray, name: str = "matrix", allow_jitter: bool = True) -> Cholesky:
