@@ -26,7 +26,7 @@ def _correlated_sigma(rng, d, scale=0.3):
 
 
 @pytest.mark.parametrize("d", [1, 2, 3])
-@pytest.mark.parametrize("e", [1, 2, 4])
+@pytest.mark.parametrize("e", [1, 2, 3, 4])
 def test_matches_gauss_hermite_quadrature(d, e):
     gp, rng = _gp(10 * d + e, d, e)
     mu, sigma = rng.uniform(-1, 1, size=d), _correlated_sigma(rng, d)
