@@ -46,7 +46,7 @@ def write_case(case: FusionCase, name: str, directory: Path) -> Path:
     """Write ``case`` as ``directory/name.json`` (CONTRACT.md format); returns the path."""
     directory.mkdir(parents=True, exist_ok=True)
     path = directory / f"{name}.json"
-    path.write_text(json.dumps(case_to_dict(case), indent=1) + "\n")
+    path.write_text(json.dumps(case_to_dict(case)) + "\n")
     return path
 
 

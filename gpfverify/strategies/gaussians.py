@@ -243,7 +243,8 @@ def joint_gaussians(draw, state_dim=st.integers(1, 4), sensors=st.integers(1, 3)
       ``max_size`` (default D + 2) as upper bound;
     * ``cross_scale`` σ — largest singular value of each cross term (default log-uniform in
       [0.1, 10]); ``cross_condition`` κ — ratio of its extreme singular values for ``full`` and
-      ``deficient``; ``sigma_min`` — smallest singular value of a ``nearly`` term, relative to σ;
+      ``deficient``; ``sigma_min`` — smallest singular value of a ``nearly`` term, relative to σ (float or
+      strategy, drawn once per joint Gaussian);
     * ``correlated_noise`` — whether R couples the sensors (bool or strategy);
     * ``max_condition`` — bound on the condition numbers of C_x and R.
 
@@ -253,6 +254,7 @@ def joint_gaussians(draw, state_dim=st.integers(1, 4), sensors=st.integers(1, 3)
     d = draw(as_strategy(state_dim))
     layout = draw(sensor_layouts(d, sensors, kinds, d + 2 if max_size is None else max_size, sizes))
     scale = draw(log_uniform(0.1, 10.0) if cross_scale is None else as_strategy(cross_scale))
-    designs = [draw(sensor_designs(kind, size, d, scale, cross_condition, sigma_min))
+    smallest = float(draw(as_strategy(sigma_min)))
+    designs = [draw(sensor_designs(kind, size, d, scale, cross_condition, smallest))
                for kind, size in layout]
     return draw(joint_gaussians_of(d, designs, draw(as_strategy(correlated_noise)), max_condition))
