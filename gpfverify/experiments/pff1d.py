@@ -37,7 +37,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="UNGM process-noise variances Q of the Table-1 grid")
     parser.add_argument("--table-r", type=float, nargs="+", default=[0.1, 1.0],
                         help="UNGM measurement-noise variances R of the Table-1 grid")
-    parser.add_argument("--dlambda", type=float, nargs="+", default=[0.1, 0.01],
+    parser.add_argument("--dlambda", type=float, nargs="+", default=[0.1, 0.01, 0.001],
                         help="pseudo-time steps Δλ of the flows (Table-1 grid)")
     parser.add_argument("--spacings", nargs="+", choices=["uniform", "exponential"],
                         default=["uniform", "exponential"], help="λ-step schedules of the flows")
