@@ -18,4 +18,5 @@ EXPERIMENTS: dict[str, str] = {
     "ct2d": "gpfverify.experiments.ct2d",
     "ungm1d": "gpfverify.experiments.ungm1d",
     "tbd": "gpfverify.experiments.tbd",
+    "sins-gps": "gpfverify.experiments.sins_gps",
 }

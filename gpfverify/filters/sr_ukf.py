@@ -110,20 +110,20 @@ def cholupdate(factor: np.ndarray, vector: np.ndarray, sign: float = 1.0) -> tup
     lower = np.array(factor, dtype=float, copy=True)
     x = np.array(vector, dtype=float, copy=True)
     dim = lower.shape[-1]
-    failed = np.zeros(lower.shape[:-2], dtype=bool)
-    for k in range(dim):
-        diag = lower[..., k, k]
-        r2 = diag * diag + sign * x[..., k] ** 2
-        bad = ~(r2 > 0) | (diag <= 0)
-        failed |= bad
-        safe_diag = np.where(bad, 1.0, diag)
-        r = np.sqrt(np.where(bad, 1.0, r2))
-        c = r / safe_diag
-        s = x[..., k] / safe_diag
-        lower[..., k, k] = r
-        column = (lower[..., k + 1:, k] + sign * s[..., None] * x[..., k + 1:]) / c[..., None]
-        lower[..., k + 1:, k] = column
-        x[..., k + 1:] = c[..., None] * x[..., k + 1:] - s[..., None] * column
+    with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
+        for k in range(dim):
+            diag = lower[..., k, k]
+            xk = x[..., k]
+            r = np.sqrt(diag * diag + sign * xk * xk)  # NaN when the pivot r² < 0
+            c = (r / diag)[..., None]
+            s = (xk / diag)[..., None]
+            lower[..., k, k] = r
+            column = (lower[..., k + 1:, k] + sign * s * x[..., k + 1:]) / c
+            lower[..., k + 1:, k] = column
+            x[..., k + 1:] = c * x[..., k + 1:] - s * column
+    # a non-positive pivot leaves a zero/NaN diagonal or inf/NaN entries below it
+    diagonal = np.diagonal(lower, axis1=-2, axis2=-1)
+    failed = ~(np.all(diagonal > 0, axis=-1) & np.all(np.isfinite(lower), axis=(-2, -1)))
     return lower, failed
 
 

@@ -54,8 +54,16 @@ class ResidualGP:
         return residual_features(states, inputs, self.state_inputs, self.input_count)
 
     def mean(self, states: np.ndarray, inputs: np.ndarray | None = None) -> np.ndarray:
-        """Residual mean GP(ξ) on the learned outputs, (m, E) (unchecked hot path)."""
-        return self.gp.predict_mean(self.features(states, inputs))
+        """Residual mean GP(ξ) on the learned outputs, (m, E) (unchecked hot path).
+
+        The GP is evaluated once per *distinct* feature row: sigma points of a lower-triangular
+        factor differ from the centre only in the states at and below their column, so most of a
+        particle's 2D + 1 points share the features of a residual that reads few states."""
+        xi = self.features(states, inputs)
+        unique, inverse = np.unique(xi, axis=0, return_inverse=True)
+        if unique.shape[0] == xi.shape[0]:
+            return self.gp.predict_mean(xi)
+        return self.gp.predict_mean(unique)[inverse.reshape(-1)]
 
     def noise_var(self, states: np.ndarray, inputs: np.ndarray | None = None) -> np.ndarray:
         """Predictive variance Σ(ξ) = latent variance + learned noise variance, (m, E)."""
