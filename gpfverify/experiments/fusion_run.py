@@ -67,6 +67,19 @@ AUDIT_ENTRIES_KEPT = 200
 _FAMILY_KEY = {"GP-ADF": "gp-adf", "GP-UKF": "gp-ukf"}
 
 
+def params_with(add_arguments, params_from_args, **overrides) -> dict:
+    """An experiment's command-line defaults as a params dict, with ``overrides`` applied to the
+    parsed options (option names with underscores) before ``params_from_args``."""
+    import argparse
+
+    parser = argparse.ArgumentParser()
+    add_arguments(parser)
+    args = parser.parse_args([])
+    for key, value in overrides.items():
+        setattr(args, key, value)
+    return params_from_args(args)
+
+
 @dataclass(frozen=True)
 class TrainedModels:
     """The transition GP and the sensors' measurement GPs of one run."""

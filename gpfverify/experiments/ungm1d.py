@@ -18,8 +18,8 @@ import time
 import numpy as np
 
 from gpfverify.errors import InputError
-from gpfverify.experiments.fusion_run import (METHODS, hyperparameters, run_setting, summarize_setting,
-                                              train_models)
+from gpfverify.experiments.fusion_run import (METHODS, hyperparameters, params_with, run_setting,
+                                              summarize_setting, train_models)
 from gpfverify.filters.records import Gaussian
 from gpfverify.filters.sigma_points import SigmaParams
 from gpfverify.rng import generator
@@ -69,14 +69,7 @@ def params_from_args(args) -> dict:
 
 def default_params(**overrides) -> dict:
     """The command line's defaults as a params dict, with ``overrides`` applied to the options."""
-    import argparse
-
-    parser = argparse.ArgumentParser()
-    add_arguments(parser)
-    args = parser.parse_args([])
-    for key, value in overrides.items():
-        setattr(args, key, value)
-    return params_from_args(args)
+    return params_with(add_arguments, params_from_args, **overrides)
 
 
 def run_one(params: dict, seed_sequence) -> dict:
