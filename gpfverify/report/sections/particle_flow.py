@@ -141,13 +141,16 @@ def _gamma_label(method: str, params: dict, spacing: str) -> str:
 
 # ----------------------------------------------------------------------------- page
 
-def render(results: dict, ctx_or_dir) -> Section:
+def render(results: dict, ctx_or_dir, command: str | None = None) -> Section:
     """The page from ``{"pff1d": results.json body, "bearing": results.json body}``; figures go to
-    the section folder of a report context, or to the given directory."""
+    the section folder of a report context, or to the given directory; ``command`` (how the
+    results were made) is stated on the page when given."""
     out_dir = ctx_or_dir.section_dir(SLUG) if hasattr(ctx_or_dir, "section_dir") else Path(ctx_or_dir)
     pff, brg = results["pff1d"], results["bearing"]
     p, b = pff["params"], brg["params"]
     section = Section(SLUG, "Innovation-error particle flow vs PF, UPF and EDH (seed 003)")
+    if command:
+        section.add(Paragraph(f"Made by: {command}"))
     section.add(Paragraph(
         "IE-PFF: per step the predicted particles flow in pseudo-time λ ∈ [0, 1] along "
         "dX/dλ = K (z − (h(X) + ĥ)/2) with the Galerkin gain of the coordinate basis, K = Cov(X, h(X)) R⁻¹ "
