@@ -200,3 +200,11 @@ def write_results(module: ModuleType, out_dir: Path, manifest: dict) -> dict:
                "params": manifest["params"], "runs_ok": len(ok), "failed_runs": failed, **body}
     _atomic_write_json(out_dir / "results.json", results)
     return results
+
+
+def rewrite_results(out_dir: Path, module: ModuleType | str) -> dict:
+    """``results.json`` recomputed from the runs saved in ``out_dir`` with its manifest (e.g. after
+    an experiment's summary gained fields); returns it."""
+    module = importlib.import_module(module) if isinstance(module, str) else module
+    manifest = json.loads((Path(out_dir) / "manifest.json").read_text(encoding="utf-8"))
+    return write_results(module, Path(out_dir), manifest)
