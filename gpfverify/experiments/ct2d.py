@@ -17,8 +17,8 @@ from __future__ import annotations
 import numpy as np
 
 from gpfverify.errors import InputError
-from gpfverify.experiments.fusion_run import (hyperparameters, params_with, run_setting, summarize_setting,
-                                              train_models)
+from gpfverify.experiments.fusion_run import (add_method_arguments, hyperparameters, method_params,
+                                              params_with, run_setting, summarize_setting, train_models)
 from gpfverify.filters.records import Gaussian
 from gpfverify.filters.sigma_points import SigmaParams
 from gpfverify.rng import generator
@@ -43,26 +43,13 @@ def add_arguments(parser) -> None:
     parser.add_argument("--perturbation-mean", type=float, default=None,
                         help="mean b of the N(b, 1) start perturbation (default 10 for κ ≥ 300, else 20)")
     parser.add_argument("--perturbation-std", type=float, default=1.0, help="its std (default 1)")
-    parser.add_argument("--restarts", type=int, default=1, help="evidence-maximisation restarts (default 1)")
-    parser.add_argument("--fit-points", type=int, default=100,
-                        help="at most this many training samples for hyperparameter fitting (default 100)")
-    parser.add_argument("--rcc-size", type=float, default=None,
-                        help="RCC-CI ellipsoid size c (default the chi-square 99%% quantile)")
-    parser.add_argument("--rank-tol", type=float, default=None,
-                        help="absolute singular-value tolerance for rank(C_xy^m) in eq. 35 "
-                             "(default numpy/MATLAB rule sigma_max * max(D, l) * eps)")
-    parser.add_argument("--alpha", type=float, default=1.0, help="sigma-point alpha (default 1)")
-    parser.add_argument("--beta", type=float, default=0.0, help="sigma-point beta (default 0)")
-    parser.add_argument("--sigma-kappa", type=float, default=2.0, help="sigma-point kappa (default 2)")
-
+    add_method_arguments(parser, fit_points=100)
 
 def params_from_args(args) -> dict:
     if args.kappa < 3:
         raise InputError(f"--kappa must be at least 3, got {args.kappa}")
     if args.test_steps < 1:
         raise InputError(f"--test-steps must be at least 1, got {args.test_steps}")
-    if args.fit_points < 3:
-        raise InputError(f"--fit-points must be at least 3, got {args.fit_points}")
     b = default_perturbation_mean(args.kappa) if args.perturbation_mean is None else args.perturbation_mean
     s = args.perturbation_std
     return {"kappa": args.kappa, "omega": args.omega, "test_steps": args.test_steps,
@@ -71,11 +58,7 @@ def params_from_args(args) -> dict:
             "training_start": "x ~ N(0, I)",
             "start_observation": "first test observation, polar->Cartesian on the origin's side",
             "perturbation_mean": b, "perturbation_std": s, "initial_cov_scale": b * b + s * s,
-            "fused_start": "mean of the sensors' starts, same covariance",
-            "restarts": args.restarts, "fit_points": args.fit_points, "rcc_size": args.rcc_size,
-            "rcc_on_empty": "enlarge to 2 x smallest intersecting size",
-            "rank_tol": args.rank_tol, "alpha": args.alpha, "beta": args.beta,
-            "sigma_kappa": args.sigma_kappa}
+            "fused_start": "mean of the sensors' starts, same covariance", **method_params(args)}
 
 
 def default_params(**overrides) -> dict:

@@ -18,8 +18,8 @@ import time
 import numpy as np
 
 from gpfverify.errors import InputError
-from gpfverify.experiments.fusion_run import (METHODS, hyperparameters, params_with, run_setting,
-                                              summarize_setting, train_models)
+from gpfverify.experiments.fusion_run import (METHODS, add_method_arguments, hyperparameters, method_params,
+                                              params_with, run_setting, summarize_setting, train_models)
 from gpfverify.filters.records import Gaussian
 from gpfverify.filters.sigma_points import SigmaParams
 from gpfverify.rng import generator
@@ -41,15 +41,7 @@ def add_arguments(parser) -> None:
                         help="variance of the filters' prior N(0, ·) at step 200 (interpretation; default 1)")
     parser.add_argument("--train", type=int, default=200, help="training samples (default 200)")
     parser.add_argument("--test-steps", type=int, default=50, help="test steps (default 50)")
-    parser.add_argument("--restarts", type=int, default=1, help="evidence-maximisation restarts (default 1)")
-    parser.add_argument("--fit-points", type=int, default=200,
-                        help="at most this many samples for hyperparameter fitting (default 200)")
-    parser.add_argument("--rcc-size", type=float, default=None,
-                        help="RCC-CI ellipsoid size c (default the chi-square 99%% quantile)")
-    parser.add_argument("--alpha", type=float, default=1.0, help="sigma-point alpha (default 1)")
-    parser.add_argument("--beta", type=float, default=0.0, help="sigma-point beta (default 0)")
-    parser.add_argument("--sigma-kappa", type=float, default=2.0, help="sigma-point kappa (default 2)")
-
+    add_method_arguments(parser, fit_points=200)
 
 def params_from_args(args) -> dict:
     values = sorted({float(args.system_noise_var), *map(float, args.sweep)})
@@ -60,11 +52,8 @@ def params_from_args(args) -> dict:
     return {"system_noise_var": float(args.system_noise_var), "noise_vars": values,
             "measurement_noise_var": args.measurement_noise_var, "sensor_phases": [0.0, float(np.pi / 4)],
             "prior_mean": 0.0, "prior_var": args.prior_var, "trajectory_start": "x_1 ~ N(0, 1)",
-            "train": args.train, "test_steps": args.test_steps, "restarts": args.restarts,
-            "fit_points": args.fit_points, "rcc_size": args.rcc_size,
-            "rcc_on_empty": "enlarge to 2 x smallest intersecting size",
-            "rank_tol": None, "mahalanobis": "squared form (x - x_hat)^T C^-1 (x - x_hat), eq. 44",
-            "alpha": args.alpha, "beta": args.beta, "sigma_kappa": args.sigma_kappa}
+            "train": args.train, "test_steps": args.test_steps,
+            "mahalanobis": "squared form (x - x_hat)^T C^-1 (x - x_hat), eq. 44", **method_params(args)}
 
 
 def default_params(**overrides) -> dict:

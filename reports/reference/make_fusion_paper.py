@@ -11,13 +11,12 @@ self-contained ``reports/reference/fusion-paper.html``. The per-run files are no
 
 from __future__ import annotations
 
-import json
 import shutil
 import sys
 from pathlib import Path
 
 from gpfverify.experiments import ct2d, ungm1d
-from gpfverify.experiments.runner import write_results
+from gpfverify.experiments.runner import rewrite_results
 from gpfverify.report.render import to_html, to_markdown
 from gpfverify.report.sections import fusion_ct2d, fusion_ungm1d
 
@@ -33,8 +32,7 @@ COMMANDS = {
 
 
 def recompute(run_dir: Path, module, target: Path) -> dict:
-    manifest = json.loads((run_dir / "manifest.json").read_text(encoding="utf-8"))
-    results = write_results(module, run_dir, manifest)
+    results = rewrite_results(run_dir, module)
     target.mkdir(parents=True, exist_ok=True)
     shutil.copy(run_dir / "results.json", target / "results.json")
     shutil.copy(run_dir / "manifest.json", target / "manifest.json")
