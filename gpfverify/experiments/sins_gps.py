@@ -183,6 +183,7 @@ def summarize(params: dict, results: list[dict]) -> dict:
     body: dict = {f"{q}_error": {} for q in QUANTITIES}
     bands: dict = {m: {} for m in METHODS}
     overall: dict = {m: {} for m in METHODS}
+    per_run: dict = {m: {} for m in METHODS}
     segments: dict = {m: {} for m in METHODS}
     for method in METHODS:
         for q in QUANTITIES:
@@ -191,6 +192,7 @@ def summarize(params: dict, results: list[dict]) -> dict:
             body[f"{q}_error"][method] = np.sqrt(sq.mean(axis=0)).tolist()
             bands[method][q] = {"mean": err.mean(axis=0).tolist(), "sd": err.std(axis=0).tolist()}
             overall[method][q] = _rms(sq)
+            per_run[method][q] = np.sqrt(sq.mean(axis=1)).tolist()
             segments[method][q] = {"manoeuvre": _rms(sq[:, manoeuvre]), "cruise": _rms(sq[:, ~manoeuvre])}
     reduction = {q: 1.0 - overall["GPSR-UPF"][q] / overall["UPF"][q] for q in QUANTITIES}
     reference: dict = {"error": {q: {} for q in QUANTITIES}, "rms": {m: {} for m in REFERENCES}}
@@ -203,7 +205,7 @@ def summarize(params: dict, results: list[dict]) -> dict:
                               for q in QUANTITIES}
     segment_reduction = {seg: {q: _reduction(segments["GPSR-UPF"][q][seg], segments["UPF"][q][seg])
                                for q in QUANTITIES} for seg in ("manoeuvre", "cruise")}
-    return {**body, "reduction": reduction, "rms": overall, "segment_rms": segments,
+    return {**body, "reduction": reduction, "rms": overall, "per_run_rms": per_run, "segment_rms": segments,
             "segment_reduction": segment_reduction, "error_bands": bands, "reference": reference,
             "time_per_run": {m: float(np.mean([r[m]["seconds"] for r in results])) for m in METHODS + REFERENCES},
             "time_per_step": {m: float(np.mean([r[m]["seconds"] for r in results])) / config.steps

@@ -20,6 +20,7 @@ SECTIONS: dict[str, str] = {
     "ct2d": "gpfverify.report.sections.fusion_ct2d",
     "tbd": "gpfverify.report.sections.tbd",
     "particle-flow": "gpfverify.report.sections.particle_flow",
+    "sins-gps": "gpfverify.report.sections.sins_gps",
 }
 
 
