@@ -35,11 +35,13 @@ def setting_claims(r: dict, noise: str) -> list[Claim]:
     per_run = r["run_mean_mahalanobis"]
     out = []
     for family in FAMILIES:
-        out += [equivalence_claim(r, family), fusion_beats_sensors(per_run, family, ""),
+        out += [equivalence_claim(r, family, "average_mahalanobis"), fusion_beats_sensors(per_run, family, ""),
                 fusion_beats_baselines(per_run, family, "")]
         out.append(comparison_claim(f"{family}: Sensor 2 performs better than Sensor 1", per_run,
                                     [(f"Sensor2-{family}", f"Sensor1-{family}")], ""))
-    better, worse = ("ADF", "UKF") if float(noise) < 1.5 else ("UKF", "ADF")
+    if float(noise) not in FIGURE_NOISES:
+        return out
+    better, worse = ("ADF", "UKF") if float(noise) == FIGURE_NOISES[0] else ("UKF", "ADF")
     out.append(comparison_claim(f"σ² = {noise}: fusion with GP-{better} beats fusion with GP-{worse}", per_run,
                                 [(f"CMF-GP-{better}", f"CMF-GP-{worse}")], ""))
     return out
