@@ -7,6 +7,7 @@ from functools import partial
 import numpy as np
 import pytest
 
+from gpfverify.errors import InputError
 from gpfverify.filters.gpsr_upf import GPResidualModel, batched_gaussian_logpdf, gpsr_upf_step, sr_ukf_proposal
 from gpfverify.filters.kalman import kf_step
 from gpfverify.filters.likelihoods import gaussian_logpdf
@@ -187,3 +188,27 @@ def test_gpsr_upf_factors_stay_valid_over_the_flight(scenario):
         assert np.all(diag > 0) and np.all(np.isfinite(cloud.sqrt_covs))
         assert np.allclose(np.triu(cloud.sqrt_covs, 1), 0.0)
         assert np.all(np.isfinite(info.mean))
+
+
+def test_measurement_residual_in_the_gpsr_model():
+    """h = ĥ + GP_h(u_k) and R_k with the learned block from the GP's predictive variance at u_k;
+    a measurement GP reading the state is refused (the UPF weights need one R per step)."""
+    rng = np.random.default_rng(8)
+    x = rng.normal(size=(80, 2))
+    u = rng.uniform(0, 2 * np.pi, size=(80, 1))
+    z = x + np.concatenate([np.cos(u), np.zeros_like(u)], axis=1) + 0.05 * rng.standard_normal((80, 2))
+    residual = fit_residual(x, z, x, outputs=(0,), inputs=u, restarts=1, seed=0)
+    approx = linear_model(np.eye(2), np.eye(2), 0.1 * np.eye(2), np.diag([0.3, 0.2]))
+    inputs = np.linspace(0, 6, 10)[:, None]
+    model = GPResidualModel(approx, measurement=residual, measurement_inputs=inputs)
+    states = rng.normal(size=(4, 2))
+    expected_h = states.copy()
+    expected_h[:, 0] += residual.mean(states[:1], inputs[3])[0, 0]
+    np.testing.assert_allclose(model.h(states, 3), expected_h)
+    R = model.measurement_cov(3)
+    assert R[0, 0] == pytest.approx(residual.noise_var(states[:1], inputs[3])[0, 0])
+    assert R[0, 1] == 0.0 and R[1, 1] == approx.R[1, 1]
+    np.testing.assert_array_equal(model.at_step(3).R, R)
+    state_reader = fit_residual(x, z, x, outputs=(0,), state_inputs=(0,), restarts=1, seed=0)
+    with pytest.raises(InputError, match="exogenous"):
+        GPResidualModel(approx, measurement=state_reader)
