@@ -47,6 +47,13 @@ def _compare(better: float, worse: float, se: float) -> bool | None:
     return False if worse - better > SIGNIFICANCE_SE * se else None
 
 
+def _all(verdicts: list[bool | None]) -> bool | None:
+    """NOT held if any part is NOT held, undecided if any is undecided, else held."""
+    if any(v is False for v in verdicts):
+        return False
+    return None if any(v is None for v in verdicts) else True
+
+
 def claims(results: dict) -> list[Claim]:
     p = results["params"]
     pf, same, half = _labels(results)
@@ -93,10 +100,14 @@ def claims(results: dict) -> list[Claim]:
                              f"{sweep['snr_db']:g} dB)", _compare(spd[six], spd[best], float(np.hypot(sse[six], sse[best]))),
                              listing))
         if 0.4 in by_zeta and pf in spd:
-            others = [l for z, l in by_zeta.items() if z != 0.4]
-            held = spd[by_zeta[0.4]] < spd[pf] and all(spd[l] > spd[pf] for l in others)
-            out.append(Claim(f"Only ζ = 0.4 is worse than PF-TBD N = {p['pf_particles']}; the other ζ beat it",
-                             held, f"PF-TBD: P_d {spd[pf]:.3f} ± {sse[pf]:.3f}; " + listing))
+            def vs_pf(label, beats):
+                comb = float(np.hypot(sse[label], sse[pf]))
+                return _compare(spd[label], spd[pf], comb) if beats else _compare(spd[pf], spd[label], comb)
+
+            held = _all([vs_pf(label, z != 0.4) for z, label in by_zeta.items()])
+            out.append(Claim(f"Only ζ = 0.4 is worse than PF-TBD N = {p['pf_particles']}; the other ζ "
+                             "(including ζ = 1) beat it", held,
+                             f"PF-TBD: P_d {spd[pf]:.3f} ± {sse[pf]:.3f}; " + listing))
     return out
 
 
@@ -134,6 +145,23 @@ def render(results: dict, ctx_or_dir) -> Section:
         section.add(Figure(_sweep_figure(sweep, out_dir / "tbd_fig5_6.png"),
                            f"Paper's figures 5–6: ROC and position RMSE for ζ ∈ {sweep['zeta']} "
                            f"(N = {sweep['n_particles']}) against PF-TBD at {sweep['snr_db']:g} dB."))
+        rows = [[label, fmt(sweep["pd_at_pfa"][label], 3), fmt(sweep["pd_at_pfa_se"][label], 2),
+                 fmt(sweep["rmse_mean"][label], 3)] for label in sweep["methods"]]
+        section.add(Table(["method", f"P_d at P_fa = {p['pfa']}", "s.e.", "position RMSE (cells)"], rows,
+                          f"ζ sweep at {sweep['snr_db']:g} dB"))
+        section.add(Paragraph(
+            "ζ = 1 replaces no particle, so TPFTBD with ζ = 1 is PF-TBD with the same N (our tests check "
+            "equality for the same random stream). The paper nevertheless reports ζ = 1 at N = 1000 beating "
+            "PF-TBD at N = 2000, which suggests its reported estimate includes the second-stage mean even "
+            "when no particle is transferred; we report the expected mean of the transferred particles "
+            "(see the interpretations), which for ζ = 1 is the PF estimate."))
+    section.add(Paragraph(
+        "Verdicts: a comparison 'A at least as good as B' is held when A ≥ B, NOT held when A falls short "
+        f"by more than {SIGNIFICANCE_SE:g} combined standard errors (over runs), undecided in between. "
+        "The SNR gain is the mean horizontal distance between the P_d-vs-SNR curves (linear interpolation "
+        "between the simulated SNRs). Times are CPU seconds of this implementation, in which the PF step "
+        "is vectorised over particles and patch pixels, so the second stage's weighted moments over all "
+        "merged particles weigh relatively more than in the paper's implementation."))
     section.add(claims_table(claims(results), "Claims of seed 004 checked"))
     return section
 
