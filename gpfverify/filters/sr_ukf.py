@@ -167,7 +167,10 @@ def unscented_sqrt_transform(points: np.ndarray, mapped: np.ndarray, noise_root:
                              params: SigmaParams, what: str):
     """Mean, lower factor of the covariance (noise added) and cross covariance of mapped sigma
     points: points (..., 2D+1, D), mapped (..., 2D+1, L), noise_root (L, L) or (..., L, L).
-    Returns (mean (..., L), sqrt_cov (..., L, L), cross (..., D, L), jitter)."""
+    Returns (mean (..., L), sqrt_cov (..., L, L), cross (..., D, L), jitter).
+
+    The scaled unscented weights w_c,1..2D are all equal (1/(2(D + λ)) > 0), so one √w_c,1 scales
+    every deviation column of the QR; only w_c,0 may be negative."""
     dim = points.shape[-1]
     wm, wc = params.weights(dim)
     mean_x = np.einsum("s,...sd->...d", wm, points)
