@@ -124,7 +124,8 @@ def render(results: dict, ctx_or_dir) -> Section:
         f"target in frames {s['first_frame']}–{s['last_frame']} starting at {s['initial_state']}. "
         f"{results['runs_ok']} runs (root seed {results['seed']}), each with a target-present and a "
         f"target-absent sequence at every SNR in {p['snr_db']} dB; PF-TBD N = {p['pf_particles']}, TPFTBD "
-        f"N = {p['tpf_particles']} with ζ = {p['zeta']}. The paper used 3000 runs and N = 2000/2000/1000."))
+        f"N = {p['tpf_particles']} with ζ = {p['zeta']}. The paper used 3000 runs and N = 2000/2000/1000."
+        + _reduced_note(results)))
     section.add(Table(["interpretation", "choice"], [[k, v] for k, v in p["interpretations"].items()],
                       "Interpretations (seed 004's parameter table and equations were lost in extraction)"))
     section.add(Figure(_main_figure(results, out_dir / "tbd_fig1_4.png"),
@@ -164,6 +165,21 @@ def render(results: dict, ctx_or_dir) -> Section:
         "merged particles weigh relatively more than in the paper's implementation."))
     section.add(claims_table(claims(results), "Claims of seed 004 checked"))
     return section
+
+
+def _reduced_note(results: dict) -> str:
+    """A warning when the run used fewer runs, particles or SNRs than the paper."""
+    paper, p = tbd.default_params(), results["params"]
+    reduced = [k for k in ("pf_particles", "tpf_particles", "zeta_sweep_particles", "snr_db") if p[k] != paper[k]]
+    if not reduced and results["runs"] >= tbd.DEFAULT_RUNS:
+        return ""
+    fewer_particles = p["pf_particles"] < paper["pf_particles"]
+    return (" REDUCED SETTINGS (e.g. the report's quick profile): fewer runs"
+            + (f" and other {', '.join(reduced)}" if reduced else "")
+            + " than the paper, so the numbers are noisier"
+            + (" and the second stage's fixed per-frame cost weighs more in the time ratios"
+               if fewer_particles else "")
+            + "; `gpfverify report --full` uses the paper's settings.")
 
 
 def _plot_curves(ax, curves: dict, frames: int, ylabel: str):
