@@ -21,6 +21,7 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "reproduce": ("gpfverify.commands.reproduce", "run one of the papers' experiments"),
     "audit": ("gpfverify.commands.audit", "rank-condition audit of a fusion-case file"),
     "fuse": ("gpfverify.commands.fuse", "fuse a fusion-case file with one method (cmf, dmf, cc, ci, rcc-ci, ...)"),
+    "prove": ("gpfverify.commands.prove", "run the symbolic proofs and casadi cross-checks, write certificates"),
 }
 
 

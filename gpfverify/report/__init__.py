@@ -21,6 +21,7 @@ SECTIONS: dict[str, str] = {
     "tbd": "gpfverify.report.sections.tbd",
     "particle-flow": "gpfverify.report.sections.particle_flow",
     "sins-gps": "gpfverify.report.sections.sins_gps",
+    "proofs": "gpfverify.report.sections.proofs",
 }
 
 

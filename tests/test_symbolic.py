@@ -1,0 +1,123 @@
+"""Unit tests of the symbolic machinery: each checker must accept true identities and reject
+false ones (negative controls), and the symbolic fusion formulas must agree with an independent
+numpy evaluation of eq. 15/32/35 at a point."""
+
+import json
+
+import numpy as np
+import pytest
+import sympy as sp
+
+from gpfverify.cli import main
+from gpfverify.errors import InputError
+from gpfverify.symbolic import rewrites
+from gpfverify.symbolic.certificate import Certificate
+from gpfverify.symbolic.claims import CLAIMS, run_claim
+from gpfverify.symbolic.fusion_claims import build_sensor, cofactor_kernel_vector, random_point
+from gpfverify.symbolic.fusion_forms import cmf_term, dmf_term, predicted_gap_term
+from gpfverify.symbolic.gp_claims import integrate_completed_square, mean_integral_closed, same_positive, u, nu_i, ell_a, alpha_a
+from gpfverify.symbolic.polynomial import Fraction, generic_symmetric, identity, inverse, lift, polynomial_ring
+from gpfverify.symbolic.ukf_claims import unscented_moments
+from gpfverify.tolerances import algebra_rtol
+
+
+def _value(fraction: Fraction) -> np.ndarray:
+    matrix = fraction.num.to_Matrix() / fraction.num.domain.to_sympy(fraction.den)
+    return np.array(matrix.tolist(), dtype=float)
+
+
+def test_inverse_times_matrix_is_identity_and_a_wrong_identity_is_not_zero():
+    c_sym = generic_symmetric("c", 3)
+    ring = polynomial_ring(c_sym)
+    c = Fraction.of(lift(c_sym, ring))
+    assert (inverse(c) @ c - identity(3, ring)).is_zero()
+    assert not (c @ c - identity(3, ring)).is_zero()
+
+
+@pytest.mark.parametrize("rank", [None, 1])
+def test_symbolic_fusion_terms_match_numpy_formulas_at_a_point(rank):
+    """Eq. 32/35/15 evaluated by numpy (np.linalg.pinv, solves) at the same integer point."""
+    rng = np.random.default_rng(3)
+    d, l = 3, 2
+    sensor = build_sensor(d, l, rank)
+    for _ in range(20):
+        point = random_point(sensor.symbols, rng)
+        at = {k: sp.Matrix(m.subs(point)) for k, m in zip(("G", "Cy", "y", "my", "mc", "mp"), sensor.symbols[:6])}
+        a = (np.array(sensor.symbols[6].subs(point).tolist(), float) if rank is None else
+             np.array((sensor.symbols[6] * sensor.symbols[7].T).subs(point).tolist(), float))
+        num = {k: np.array(v.tolist(), dtype=float) for k, v in at.items()}
+        if abs(np.linalg.det(num["Cy"])) > 0.5 and (rank is not None or np.linalg.matrix_rank(a) == l):
+            break
+    built = build_sensor(d, l, rank, point=point).lifted
+    g, c_y, y, mu_y, mu_c, mu_p = (num[k] for k in ("G", "Cy", "y", "my", "mc", "mp"))
+    mu_e = mu_p + a @ np.linalg.solve(c_y, y - mu_y)
+    dmf = g @ (mu_y - mu_c) + g @ c_y @ np.linalg.pinv(a) @ (mu_e - mu_p)
+    cmf = g @ (y - mu_c)
+    projector = np.linalg.pinv(a) @ a
+    gap = g @ c_y @ (projector - np.eye(l)) @ np.linalg.solve(c_y, y - mu_y)
+    scale = np.linalg.cond(c_y) * np.linalg.cond(a)
+    magnitude = max(np.abs(dmf).max(), np.abs(cmf).max())  # the gap is a difference of these
+    for symbolic, numeric in ((dmf_term(built), dmf), (cmf_term(built), cmf), (predicted_gap_term(built), gap)):
+        np.testing.assert_allclose(_value(symbolic), numeric, rtol=algebra_rtol(scale),
+                                   atol=algebra_rtol(scale) * magnitude)
+    if rank is not None:
+        assert np.abs(gap).max() > 0  # the point really is a rank-deficient case with a gap
+
+
+def test_rewrite_checker_rejects_false_steps_and_broken_chains():
+    wrong = rewrites.Rewrite(rewrites.GAP_TERM, sp.ZeroMatrix(rewrites.n_states, 1), "no hypothesis")
+    assert not rewrites.step_holds(wrong)
+    steps = rewrites.full_rank_chain()
+    broken = [steps[0], steps[2]]  # skips the middle link
+    assert rewrites.check_chain(steps).holds
+    assert not rewrites.check_chain(broken).holds
+    # the projector onto the column space is not the identity, even with the full-rank formula
+    a = rewrites.A
+    other = rewrites.Rewrite(a * (a.T * a).I * a.T, sp.Identity(rewrites.n_states), "not a valid step")
+    assert not rewrites.step_holds(other)
+
+
+def test_cofactor_vector_spans_the_kernel_of_a_numeric_wide_matrix():
+    a = sp.Matrix([[1, 2, 3], [4, 5, 7]])
+    v = cofactor_kernel_vector(a)
+    assert a * v == sp.zeros(2, 1) and any(v)
+
+
+def test_moment_integral_check_rejects_a_wrong_closed_form():
+    log_ka = -(u - nu_i) ** 2 / (2 * ell_a**2)
+    integral = integrate_completed_square(alpha_a**2, log_ka)
+    assert same_positive(integral, mean_integral_closed())
+    assert not same_positive(integral, mean_integral_closed() * sp.sqrt(1 + 1 / ell_a**2))
+
+
+def test_unscented_transform_is_not_exact_for_a_quadratic_map():
+    mean, factor = sp.Matrix([sp.Symbol("m")]), sp.Matrix([[sp.Symbol("L", positive=True)]])
+    s = sp.Symbol("s", positive=True)
+    y_bar, _, _ = unscented_moments(mean, factor, lambda x: x.applyfunc(lambda e: e**2), s, sp.Symbol("g"))
+    exact_mean = mean[0] ** 2 + factor[0] ** 2
+    assert sp.simplify(y_bar[0] - exact_mean) == 0  # second moments are matched ...
+    y_bar4, _, _ = unscented_moments(mean, factor, lambda x: x.applyfunc(lambda e: e**4), s, sp.Symbol("g"))
+    exact_fourth = mean[0] ** 4 + 6 * mean[0] ** 2 * factor[0] ** 2 + 3 * factor[0] ** 4
+    assert sp.simplify(y_bar4[0] - exact_fourth) != 0  # ... fourth moments are not (unless s = 3)
+
+
+def test_certificate_rejects_unknown_status_and_registry_rejects_unknown_claims():
+    with pytest.raises(ValueError):
+        Certificate("x", "s", "m", "maybe", "d")
+    with pytest.raises(InputError):
+        run_claim("no-such-claim")
+    with pytest.raises(InputError):
+        run_claim("full-rank-needs-l-le-D", "huge")
+
+
+def test_prove_command_writes_contract_certificates(tmp_path, capsys):
+    assert main(["prove", "--out", str(tmp_path), "--size", "small", "--only", "full-rank-needs-l-le-D"]) == 0
+    records = json.loads((tmp_path / "certificates.json").read_text())
+    assert [r["claim"] for r in records] == ["full-rank-needs-l-le-D"]
+    assert set(records[0]) >= {"claim", "method", "status", "detail"} and records[0]["status"] == "proved"
+    assert "full-rank-needs-l-le-D" in (tmp_path / "README.md").read_text()
+
+
+def test_contract_claims_are_registered():
+    assert {"prop1-full-column-rank", "dmf-gap-formula", "dmf-exact-iff-kernel-inclusion",
+            "full-rank-needs-l-le-D", "gp-moment-integrals", "ukf-equals-kf-linear"} <= set(CLAIMS)
