@@ -75,3 +75,19 @@ def test_dask_executor_gives_the_same_results(toy, tmp_path):
         with make_executor(scheduler=cluster.scheduler_address) as executor:
             remote = run_experiment(toy, PARAMS, 4, 9, tmp_path / "dask", executor=executor)
     assert _numbers(remote) == _numbers(serial)
+
+
+def test_serial_run_saves_each_run_as_it_finishes_and_ctrl_c_loses_only_the_current_one(toy, tmp_path, capsys):
+    full = run_experiment(toy, PARAMS, 6, 8, tmp_path / "full")
+    out = tmp_path / "interrupted"
+    with pytest.raises(KeyboardInterrupt):
+        run_experiment(toy, PARAMS | {"interrupt_run": 3}, 6, 8, out)
+    saved = sorted(p.name for p in (out / "runs").glob("run-*.json"))
+    assert saved == [f"run-{i:06d}.json" for i in range(3)]
+    assert "3 of 6 runs saved" in capsys.readouterr().err
+    # the manifest's params differ only by the interruption switch: resume with the plain settings
+    manifest = json.loads((out / "manifest.json").read_text())
+    manifest["params"] = PARAMS
+    (out / "manifest.json").write_text(json.dumps(manifest))
+    resumed = run_experiment(toy, PARAMS, 6, 8, out, resume=True)
+    assert _numbers(resumed) == _numbers(full)

@@ -9,15 +9,18 @@ DEFAULT_RUNS = 4
 def add_arguments(parser):
     parser.add_argument("--scale", type=float, default=1.0)
     parser.add_argument("--fail-run", type=int, default=-1)
+    parser.add_argument("--interrupt-run", type=int, default=-1)
 
 
 def params_from_args(args):
-    return {"scale": args.scale, "fail_run": args.fail_run}
+    return {"scale": args.scale, "fail_run": args.fail_run, "interrupt_run": args.interrupt_run}
 
 
 def run_one(params, seed):
     if seed.spawn_key[-1] == params["fail_run"]:
         raise RuntimeError("planned failure")
+    if seed.spawn_key[-1] == params.get("interrupt_run", -1):
+        raise KeyboardInterrupt  # as if the user pressed Ctrl-C during this run
     rng = np.random.default_rng(seed)
     return {"x": (params["scale"] * rng.standard_normal(3)).tolist()}
 

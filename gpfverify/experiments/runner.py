@@ -14,12 +14,13 @@ from __future__ import annotations
 
 import contextlib
 import importlib
+import itertools
 import json
 import os
 import sys
 import time
 import traceback
-from concurrent.futures import Executor, Future, ProcessPoolExecutor, as_completed
+from concurrent.futures import FIRST_COMPLETED, Executor, Future, ProcessPoolExecutor, wait
 from pathlib import Path
 from types import ModuleType
 
@@ -76,6 +77,15 @@ def make_executor(workers: int = 1, scheduler: str | None = None):
                 os.environ.pop(k, None)
             else:
                 os.environ[k] = v
+
+
+def _in_flight_limit(executor: Executor) -> int:
+    """How many runs to keep submitted at once: two per local worker process (so none idles), one
+    for the serial executor, and many for a cluster executor whose size is not known here."""
+    if isinstance(executor, SerialExecutor):
+        return 1
+    workers = getattr(executor, "_max_workers", None)
+    return 2 * workers if workers else 1024
 
 
 def _execute(module_name: str, params: dict, seed: np.random.SeedSequence, index: int) -> dict:
@@ -150,16 +160,27 @@ def run_experiment(module: ModuleType | str, params: dict, runs: int, seed: int,
         progress = stack.enter_context(_progress(show))
         task = progress.add_task(name, total=runs, completed=runs - len(pending), rate="") if progress else None
         started = time.perf_counter()
-        futures = {executor.submit(_execute, module.__name__, params, seeds[i], i): i for i in pending}
+        queue = iter(pending)
+        in_flight: set[Future] = set()
+        limit = _in_flight_limit(executor)
+        n_done = 0
         try:
-            for n_done, future in enumerate(as_completed(futures), 1):
-                record = future.result()
-                _atomic_write_json(_run_path(out_dir, record["index"]), record)
-                if progress:
-                    rate = n_done / max(time.perf_counter() - started, 1e-9)
-                    progress.update(task, advance=1, rate=f"{rate:.2f} runs/s")
+            while True:
+                # submit lazily so each run is saved as soon as it finishes, whatever the executor
+                for i in itertools.islice(queue, max(0, limit - len(in_flight))):
+                    in_flight.add(executor.submit(_execute, module.__name__, params, seeds[i], i))
+                if not in_flight:
+                    break
+                done, in_flight = wait(in_flight, return_when=FIRST_COMPLETED)
+                for future in done:
+                    record = future.result()
+                    _atomic_write_json(_run_path(out_dir, record["index"]), record)
+                    n_done += 1
+                    if progress:
+                        rate = n_done / max(time.perf_counter() - started, 1e-9)
+                        progress.update(task, advance=1, rate=f"{rate:.2f} runs/s")
         except KeyboardInterrupt:
-            for f in futures:
+            for f in in_flight:
                 f.cancel()
             saved = sum(_is_ok(_run_path(out_dir, i)) for i in range(runs))
             print(f"interrupted: {saved} of {runs} runs saved in {out_dir / 'runs'}; "
