@@ -69,6 +69,9 @@ def paired_comparison(better: list, worse: list) -> tuple[bool | None, str]:
     return None, text
 
 
+_VERDICT = {True: "held", False: "NOT held", None: "undecided"}
+
+
 def _all_held(verdicts: list[bool | None]) -> bool | None:
     if any(v is False for v in verdicts):
         return False
@@ -130,7 +133,8 @@ def claims(pff: dict, brg: dict) -> list[Claim]:
     faster = times["IE-PFF-N50"] < times["PF-N200"]
     out.append(Claim("Bearing-only tracking: IE-PFF with N = 50 is more accurate than PF with N = 200 "
                      "at lower run time", _all_held([v_acc, faster]),
-                     f"position {t_acc} m; time per run {times['IE-PFF-N50']:.3f} s vs {times['PF-N200']:.3f} s"))
+                     f"accuracy {_VERDICT[v_acc]}: position {t_acc} m; run time {_VERDICT[faster]}: "
+                     f"{times['IE-PFF-N50']:.3f} s vs {times['PF-N200']:.3f} s CPU per run"))
     return out
 
 
