@@ -170,3 +170,13 @@ def test_ie_pff_step_predicts_before_the_flow():
     particles = rng.normal(size=(40, 2))
     x, est = ie_pff_step(particles, model, np.array([3.0]), 1, rng, uniform_steps(4))
     np.testing.assert_allclose(est.mean, particles.mean(axis=0) @ F.T, atol=1e-5)
+
+
+def test_flows_reject_bad_input():
+    model = linear_model(np.eye(2), np.eye(2)[:1], np.eye(2), np.eye(1))
+    with pytest.raises(InputError, match="z"):
+        ie_pff_update(np.zeros((5, 2)), model, np.zeros(3), 0, uniform_steps(2))
+    with pytest.raises(InputError, match="particles"):
+        edh_update(np.zeros((5, 3)), np.eye(2), model, np.zeros(1), 0, uniform_steps(2))
+    with pytest.raises(InputError, match="particles"):
+        ie_pff_update(np.zeros((1, 2)), model, np.zeros(1), 0, uniform_steps(2))

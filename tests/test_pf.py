@@ -96,3 +96,15 @@ def test_bootstrap_pf_agrees_with_the_kalman_filter_within_monte_carlo_error():
         np.testing.assert_array_less(np.abs(err.mean(0)), monte_carlo_atol(err.std(0, ddof=1), runs))
     # and the Monte Carlo error itself is of order posterior std / sqrt(N)
     assert np.all(np.array(mean_err).std(0) < 10 * np.sqrt(np.diag(kalman.cov) / count))
+
+
+def test_bad_input_raises_input_error():
+    model = linear_model(np.eye(2), np.eye(2)[:1], np.eye(2), np.eye(1))
+    rng = np.random.default_rng(0)
+    belief = ParticleSet.equally_weighted(np.zeros((5, 2)))
+    with pytest.raises(InputError, match="y"):
+        pf_step(belief, model, np.zeros(2), 1, rng)
+    with pytest.raises(InputError, match="particles"):
+        pf_step(ParticleSet.equally_weighted(np.zeros((5, 3))), model, np.zeros(1), 1, rng)
+    with pytest.raises(InputError, match="y"):
+        pf_step(belief, model, np.array([np.nan]), 1, rng)

@@ -5,8 +5,10 @@ quadrature of the one-step posterior under gamma process noise."""
 from dataclasses import replace
 
 import numpy as np
+import pytest
 from scipy.integrate import quad
 
+from gpfverify.errors import InputError
 from gpfverify.filters.kalman import kf_step
 from gpfverify.filters.likelihoods import measurement_loglik
 from gpfverify.filters.models import linear_model
@@ -81,3 +83,11 @@ def test_upf_weights_gamma_process_noise_exactly():
     # delta-method standard error of a self-normalised importance-sampling mean
     se = np.sqrt(np.sum(w**2 * (out.particles[:, 0] - info.mean[0]) ** 2))
     assert abs(info.mean[0] - exact) < monte_carlo_atol(se, 1)
+
+
+def test_upf_rejects_bad_input():
+    model = linear_model(np.eye(2), np.eye(2)[:1], np.eye(2), np.eye(1))
+    rng = np.random.default_rng(0)
+    cloud = ParticleCloud.from_gaussian(np.zeros(2), np.eye(2), 5, rng)
+    with pytest.raises(InputError, match="y"):
+        upf_step(cloud, model, np.zeros(2), 1, rng)

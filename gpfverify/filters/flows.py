@@ -38,6 +38,7 @@ from gpfverify.errors import InputError
 from gpfverify.filters.likelihoods import sample_transition, unwrapped_measurement
 from gpfverify.filters.models import NonlinearModel
 from gpfverify.linalg import cholesky, right_solve_spd, symmetrize
+from gpfverify.validate import as_matrix, as_vector
 
 
 def uniform_steps(count: int) -> np.ndarray:
@@ -86,6 +87,14 @@ def particle_moments(particles: np.ndarray) -> FlowEstimate:
     return FlowEstimate(mean, symmetrize(dev.T @ dev / particles.shape[0]))
 
 
+def _check_inputs(particles, z, model: NonlinearModel) -> tuple[np.ndarray, np.ndarray]:
+    """particles (N, D) with N ≥ 2 and z (L,), finite; InputError naming the argument otherwise."""
+    x = np.array(as_matrix(particles, "particles", None, model.state_dim))
+    if x.shape[0] < 2:
+        raise InputError(f"particles: a flow needs at least 2 particles, got {x.shape[0]}")
+    return x, as_vector(z, "z", model.measurement_dim)
+
+
 def _measurement_cov(model: NonlinearModel) -> np.ndarray:
     """R, checked positive definite once per update; the λ-loop then uses small dense solves
     (the scipy wrappers cost more than the L × L solve itself)."""
@@ -97,9 +106,8 @@ def ie_pff_update(particles: np.ndarray, model: NonlinearModel, z: np.ndarray, k
                   step_sizes: np.ndarray) -> np.ndarray:
     """Flow predicted particles (N, D) to the posterior of measurement z (L,) (seed 003 eq. 27, 36)."""
     steps = _check_steps(step_sizes)
-    z = np.asarray(z, dtype=float)
+    x, z = _check_inputs(particles, z, model)
     R = _measurement_cov(model)
-    x = np.array(particles, dtype=float)
     n = x.shape[0]
     for dlam in steps:
         hx = unwrapped_measurement(model, z, x, k)  # (N, L)
@@ -131,9 +139,8 @@ def edh_update(particles: np.ndarray, P: np.ndarray, model: NonlinearModel, z: n
     if model.h_jacobian is None:
         raise InputError("EDH needs model.h_jacobian")
     steps = _check_steps(step_sizes)
-    z = np.asarray(z, dtype=float)
+    x, z = _check_inputs(particles, z, model)
     R = _measurement_cov(model)
-    x = np.array(particles, dtype=float)
     x0_mean = x.mean(axis=0)
     eye = np.eye(x.shape[1])
     lam_start = 0.0

@@ -17,12 +17,14 @@ import numpy as np
 from gpfverify.filters.likelihoods import measurement_loglik, sample_transition
 from gpfverify.filters.models import NonlinearModel
 from gpfverify.filters.resampling import ParticleSet, ParticleStepInfo, reweight_and_resample
+from gpfverify.validate import as_matrix, as_vector
 
 
 def pf_step(belief: ParticleSet, model: NonlinearModel, y: np.ndarray, k: int,
             rng: np.random.Generator, resample_threshold: float = 1.0) -> tuple[ParticleSet, ParticleStepInfo]:
     """One bootstrap-PF step from the particles at k−1 with measurement y (L,) at time k."""
-    x = sample_transition(model, belief.particles, k, rng)
-    log_w = belief.log_weights + measurement_loglik(model, np.asarray(y, float), x, k)
+    y = as_vector(y, "y", model.measurement_dim)
+    x = sample_transition(model, as_matrix(belief.particles, "belief.particles", None, model.state_dim), k, rng)
+    log_w = belief.log_weights + measurement_loglik(model, y, x, k)
     x, log_w, _, info = reweight_and_resample(x, log_w, rng, resample_threshold)
     return ParticleSet(x, log_w), info

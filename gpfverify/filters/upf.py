@@ -32,6 +32,7 @@ from gpfverify.filters.sigma_points import SigmaParams
 from gpfverify.filters.ukf import ukf_step
 from gpfverify.filters.update import cholesky_batched
 from gpfverify.linalg import cholesky
+from gpfverify.validate import as_matrix, as_vector
 
 Proposal = Callable[[np.ndarray, np.ndarray, NonlinearModel, np.ndarray, int],
                     tuple[np.ndarray, np.ndarray]]
@@ -80,7 +81,8 @@ def upf_step(cloud: ParticleCloud, model: NonlinearModel, y: np.ndarray, k: int,
              resample_threshold: float = 0.5) -> tuple[ParticleCloud, ParticleStepInfo]:
     """One UPF step with measurement y (L,) at time k; the info carries the weighted posterior
     estimate taken before resampling."""
-    y = np.asarray(y, dtype=float)
+    y = as_vector(y, "y", model.measurement_dim)
+    as_matrix(cloud.particles, "cloud.particles", None, model.state_dim)
     means, factors = proposal(cloud.particles, cloud.sqrt_covs, model, y, k)
     white = rng.standard_normal(means.shape)
     x = means + np.einsum("nij,nj->ni", factors, white)
