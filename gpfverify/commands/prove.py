@@ -16,16 +16,21 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--size", choices=("small", "large"), default="large",
                         help="problem sizes: small (seconds, as in the test suite) or large (minutes; default)")
     parser.add_argument("--only", nargs="+", metavar="CLAIM", choices=list(CLAIMS),
-                        help=f"run only these sympy claims: {', '.join(CLAIMS)}")
+                        help=f"run only these sympy claims (no casadi cross-checks): {', '.join(CLAIMS)}")
+    parser.add_argument("--no-casadi", action="store_true", help="skip the casadi cross-checks")
+    parser.add_argument("--seed", type=int, default=1, help="root seed of the cross-checks' random inputs")
 
 
 def run(args: argparse.Namespace) -> int:
     from gpfverify.report.render import to_markdown
     from gpfverify.report.sections.proofs import render
     from gpfverify.symbolic.claims import run_claims
+    from gpfverify.symbolic.crosscheck import run_crosschecks
 
     progress = lambda text: print(text, file=sys.stderr)  # noqa: E731
     certificates = run_claims(args.size, args.only, progress)
+    if not args.no_casadi and not args.only:
+        certificates += run_crosschecks(args.size, seed=args.seed, progress=progress)
     records = [c.to_json() for c in certificates]
     args.out.mkdir(parents=True, exist_ok=True)
     (args.out / "certificates.json").write_text(json.dumps(records, indent=2), encoding="utf-8")

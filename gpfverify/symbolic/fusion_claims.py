@@ -15,7 +15,6 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 import sympy as sp
-from sympy import QQ
 
 from gpfverify.symbolic import rewrites
 from gpfverify.symbolic.certificate import Certificate, verdict

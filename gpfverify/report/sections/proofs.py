@@ -34,8 +34,9 @@ def render(certificates: list[dict], out_dir: Path | None = None) -> Section:
 
 def build(ctx) -> Section:
     from gpfverify.symbolic.claims import run_claims
+    from gpfverify.symbolic.crosscheck import run_crosschecks
 
     size = "small" if ctx.quick else "large"
-    certificates = [c.to_json() for c in run_claims(size)]
+    certificates = [c.to_json() for c in run_claims(size) + run_crosschecks(size, seed=ctx.seed)]
     (ctx.section_dir(SLUG) / "certificates.json").write_text(json.dumps(certificates, indent=2), encoding="utf-8")
     return render(certificates, ctx.section_dir(SLUG))
