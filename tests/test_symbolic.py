@@ -121,3 +121,11 @@ def test_prove_command_writes_contract_certificates(tmp_path, capsys):
 def test_contract_claims_are_registered():
     assert {"prop1-full-column-rank", "dmf-gap-formula", "dmf-exact-iff-kernel-inclusion",
             "full-rank-needs-l-le-D", "gp-moment-integrals", "ukf-equals-kf-linear"} <= set(CLAIMS)
+
+
+def test_prove_command_rejects_a_file_as_output_folder(tmp_path, capsys):
+    target = tmp_path / "file.txt"
+    target.write_text("x")
+    assert main(["prove", "--out", str(target), "--size", "small", "--only", "full-rank-needs-l-le-D"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "not a folder" in err[0]

@@ -22,11 +22,14 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    from gpfverify.errors import InputError
     from gpfverify.report.render import to_markdown
     from gpfverify.report.sections.proofs import render
     from gpfverify.symbolic.claims import run_claims
     from gpfverify.symbolic.crosscheck import run_crosschecks
 
+    if args.out.exists() and not args.out.is_dir():
+        raise InputError(f"--out {args.out} exists and is not a folder")
     progress = lambda text: print(text, file=sys.stderr)  # noqa: E731
     certificates = run_claims(args.size, args.only, progress)
     if not args.no_casadi and not args.only:
