@@ -10,7 +10,7 @@ from gpfverify.experiments import ct2d
 from gpfverify.experiments.fusion_run import FAMILIES
 from gpfverify.report.document import Claim, Figure, Paragraph, Section, Table, claims_table, fmt
 from gpfverify.report.sections.fusion_paper import (FUSION_METHODS, audit_table, equivalence_claim,
-                                                    equivalence_table, fusion_beats_baselines,
+                                                    equivalence_table, failed_runs_note, fusion_beats_baselines,
                                                     fusion_beats_sensors, method_table, out_dir,
                                                     plot_full_rank, plot_per_step)
 
@@ -111,7 +111,8 @@ def render(results: dict, ctx_or_dir, command: str | None = None) -> Section:
     section.add(Paragraph(
         "Runs: " + "; ".join(f"{k}: {r['runs_ok']} of {r['runs']} ok (seed {r['seed']}), GP training "
                              f"{fmt(r['training_time_per_run'], 3)} s per run, RCC-CI enlarged on "
-                             f"{sum(r['rcc_ci_enlarged_steps'].values())} steps" for k, r in results.items())))
+                             f"{sum(r['rcc_ci_enlarged_steps'].values())} steps" for k, r in results.items())
+        + failed_runs_note(results)))
     verdicts = claims(results)
     for key, mine in verdicts:
         section.add(claims_table(mine, f"Claims of the paper checked — {key}"))

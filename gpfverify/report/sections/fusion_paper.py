@@ -21,6 +21,13 @@ def out_dir(ctx_or_dir, slug: str) -> Path:
     return ctx_or_dir.section_dir(slug) if hasattr(ctx_or_dir, "section_dir") else Path(ctx_or_dir)
 
 
+def failed_runs_note(results_by_label: dict) -> str:
+    """'' when every run succeeded, else which runs failed and why (they are left out of every number)."""
+    failed = [f"{label} run {f['index']} ({f['error']})" for label, r in results_by_label.items()
+              for f in r.get("failed_runs", [])]
+    return "" if not failed else ". Failed runs, left out of every number: " + "; ".join(failed)
+
+
 def paired(per_run: dict, better: str, worse: str) -> tuple[bool | None, float, float]:
     """Is ``better``'s per-run mean error below ``worse``'s? Paired difference d = better − worse
     over runs: held if mean(d) < −atol, NOT held if mean(d) > atol, else undecided, with

@@ -11,7 +11,7 @@ from gpfverify.experiments.fusion_run import FAMILIES, METHODS, RULES
 from gpfverify.report.document import Claim, Figure, Paragraph, Section, Table, claims_table, fmt
 from gpfverify.report.figures import new_figure, save
 from gpfverify.report.sections.fusion_paper import (audit_table, comparison_claim, equivalence_claim,
-                                                    equivalence_table, fusion_beats_baselines,
+                                                    equivalence_table, failed_runs_note, fusion_beats_baselines,
                                                     fusion_beats_sensors, method_table, out_dir,
                                                     plot_per_step)
 
@@ -61,7 +61,7 @@ def render(results: dict, ctx_or_dir, command: str | None = None) -> Section:
         f"{p['trajectory_start']}; σ² values {p['noise_vars']} (Fig. 4's values were lost). Metric: "
         f"{p['mahalanobis']}, averaged over runs per step. GP hyperparameters by evidence maximisation "
         f"({p['restarts']} start(s), at most {p['fit_points']} samples). {results['runs_ok']} of {results['runs']} "
-        f"runs ok (seed {results['seed']})."))
+        f"runs ok (seed {results['seed']})" + failed_runs_note({"": results}) + "."))
     if command:
         section.add(Paragraph(f"Made by: `{command}`"))
     sweep = results["sweep"]
