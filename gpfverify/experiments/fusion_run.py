@@ -60,7 +60,7 @@ METHODS: tuple[str, ...] = tuple(f"{rule}-{family}" for family in FAMILIES for r
 LOCAL_FILTERS: tuple[str, ...] = tuple(f"Sensor{m}-{family}" for family in FAMILIES for m in (1, 2))
 #: relative singular-value tolerances (σ_min > rtol · σ_max) at which the full-rank ratio is also
 #: reported, to show how a "ratio of full column rank" figure depends on the tolerance chosen
-RELATIVE_RANK_TOLS: tuple[float, ...] = (1e-12, 1e-10, 1e-8, 1e-6, 1e-4, 1e-2)
+RELATIVE_RANK_TOLS: tuple[float, ...] = (1e-12, 1e-10, 1e-8, 1e-6, 1e-4, 3e-4, 1e-3, 3e-3, 1e-2)
 RANK_RULE = "numpy/MATLAB rank rule: sigma_max * max(D, l_m) * eps (absolute, per matrix)"
 #: audit entries kept verbatim in results.json (all are counted)
 AUDIT_ENTRIES_KEPT = 200
