@@ -105,7 +105,9 @@ def render(results: dict, ctx_or_dir, command: str | None = None) -> Section:
         f"Sigma points α = {p['alpha']}, β = {p['beta']}, κ = {p['sigma_kappa']}. RCC-CI ellipsoid size "
         f"c = χ²₂(0.99) ({p['rcc_on_empty']} when the local ellipsoids do not intersect). DMF runs its own recursion "
         "(the centre predicts from the previous DMF posterior). Times: each method's own work per step (a sensor's "
-        "filter step; CMF/DMF: the centre's prediction, stacked moments and update; CW/RCC-CI: the fusion rule)."))
+        "filter step; CMF/DMF: the centre's prediction, stacked moments and update; CW/RCC-CI: the fusion rule), "
+        "wall-clock on the machine that made the run — on a shared, loaded machine the absolute values are "
+        "inflated, the comparison between methods stands."))
     if command:
         section.add(Paragraph(f"Made by: `{command}`"))
     section.add(Paragraph(
