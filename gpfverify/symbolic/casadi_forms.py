@@ -201,9 +201,12 @@ def cmf_function(state_dim: int, total: int) -> ca.Function:
 REPORTED = ("mu_p", "mu_y", "C_y", "C_xy", "mu_e")
 
 
-def dmf_function(state_dim: int, sizes: tuple[int, ...]) -> ca.Function:
+def dmf_function(state_dim: int, sizes: tuple[int, ...], given_pinv: tuple[int, ...] = ()) -> ca.Function:
     """Inputs: central μ_p, μ_y (L), C_y (L×L), C_xy (D×L), then per sensor m the reported
-    μ_p^m, μ_y^m, C_y^m, C_xy^m, μ_e^m. Output: μ_DMF (eq. 35) with (C_xy^m)⁺ = R⁻¹Qᵀ, C_xy^m = QR."""
+    μ_p^m, μ_y^m, C_y^m, C_xy^m, μ_e^m, and, for each sensor listed in ``given_pinv``, its
+    pseudo-inverse (l_m×D) as one more input (a rank-deficient C_xy^m: the pseudo-inverse at a
+    fixed numerical rank, computed outside, is a constant of the graph). Output: μ_DMF (eq. 35),
+    with (C_xy^m)⁺ = R⁻¹Qᵀ from C_xy^m = QR for the other sensors."""
     d, total = state_dim, sum(sizes)
     mu_p, mu_y = ca.SX.sym("mu_p", d), ca.SX.sym("mu_y", total)
     c_y, c_xy = ca.SX.sym("C_y", total, total), ca.SX.sym("C_xy", d, total)
@@ -214,11 +217,16 @@ def dmf_function(state_dim: int, sizes: tuple[int, ...]) -> ca.Function:
                  "C_y": ca.SX.sym(f"C_y{m}", l, l), "C_xy": ca.SX.sym(f"C_xy{m}", d, l),
                  "mu_e": ca.SX.sym(f"mu_e{m}", d)}
         g_m = gain[:, start:start + l]
-        q, r = ca.qr(local["C_xy"])  # thin QR: q (D, l), r (l, l) upper triangular
-        a_pinv = ca.solve(r, ca.transpose(q))
-        mean = (mean + g_m @ (local["mu_y"] - mu_y[start:start + l])
-                + g_m @ local["C_y"] @ a_pinv @ (local["mu_e"] - local["mu_p"]))
         inputs += [local[k] for k in REPORTED]
         names += [f"{k}{m}" for k in REPORTED]
+        if m in given_pinv:
+            a_pinv = ca.SX.sym(f"C_xy_pinv{m}", l, d)
+            inputs.append(a_pinv)
+            names.append(f"C_xy_pinv{m}")
+        else:
+            q, r = ca.qr(local["C_xy"])  # thin QR: q (D, l), r (l, l) upper triangular
+            a_pinv = ca.solve(r, ca.transpose(q))
+        mean = (mean + g_m @ (local["mu_y"] - mu_y[start:start + l])
+                + g_m @ local["C_y"] @ a_pinv @ (local["mu_e"] - local["mu_p"]))
         start += l
     return ca.Function("dmf", inputs, [mean], names, ["mu_e"])
