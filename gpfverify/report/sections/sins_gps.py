@@ -140,8 +140,9 @@ def render(results: dict, ctx_or_dir) -> Section:
             "the measurement information (position RMS: UPF "
             f"{fmt(results['rms']['UPF']['position'], 3)} m, single SR-UKF on the same model "
             f"{fmt(results['reference']['rms']['SR-UKF']['position'], 3)} m). This is a property of the UPF "
-            "on this model, not of the GP; the single-filter columns isolate the effect of the learned "
-            "residual."))
+            "on this model, not of the GP: the verdicts on the paper's claims above compare two degenerate "
+            "filters (see the per-run spread of the reductions), and the single-filter columns isolate the "
+            "effect of the learned residual."))
     gp = results["gp_residual"]
     section.add(Paragraph(
         f"GP residual: along the test trajectories the true velocity residual has RMS "
