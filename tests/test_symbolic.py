@@ -129,3 +129,15 @@ def test_prove_command_rejects_a_file_as_output_folder(tmp_path, capsys):
     assert main(["prove", "--out", str(target), "--size", "small", "--only", "full-rank-needs-l-le-D"]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "not a folder" in err[0]
+
+
+def test_proofs_page_lists_every_certificate_with_its_status():
+    from gpfverify.report.document import Table
+    from gpfverify.report.sections.proofs import render
+
+    records = [Certificate("a", "s", "m", "proved", "d").to_json(),
+               Certificate("b", "s", "m", "refuted", "d").to_json()]
+    section = render(records)
+    table = next(b for b in section.blocks if isinstance(b, Table))
+    assert [row[:2] for row in table.rows] == [["a", "proved"], ["b", "refuted"]]
+    assert "1 proved, 1 refuted, 0 checked" in section.blocks[0].text

@@ -28,7 +28,7 @@ def render(certificates: list[dict], out_dir: Path | None = None) -> Section:
               "Certificates"),
     )
     for c in certificates:
-        section.add(Paragraph(f"**{c['claim']}** — {c.get('statement', '')} — *{c['status']}*. {c['detail']}"))
+        section.add(Paragraph(f"{c['claim']} ({c['status']}): {c.get('statement', '')}. {c['detail']}"))
     return section
 
 
