@@ -14,6 +14,11 @@ only on range(C_xy^mᵀ); the kernel component N_mᵀw_m is lost, and the gap is
 (so ``gap_gain_norm`` is the largest gap per unit of lost component).
 
 :func:`audit_run` applies the same audit to every step of a filter run.
+
+With y, each sensor's own share of the gap, −G_m C_y^m N_m r_m, says which sensor's report drives
+it. With ``sensitivity=True`` each sensor also gets the Jacobian norms of the fused mean with
+respect to what it reports (casadi AD, :func:`gpfverify.symbolic.sensitivity.dmf_sensitivity`) and
+the bound ‖G_m C_y^m‖₂ / σ_r(C_xy^m) on the μ_e^m Jacobian, which grows as C_xy^m nears rank loss.
 """
 
 from __future__ import annotations
@@ -55,6 +60,8 @@ class SensorAudit:
     repair_message: np.ndarray | None = None
     local_consistency_residual: float | None = None
     consistency_tol: float | None = None
+    gap_contribution: np.ndarray | None = None
+    sensitivity: object | None = None  # gpfverify.symbolic.sensitivity.SensorSensitivity
 
     @property
     def full_column_rank(self) -> bool:
@@ -105,26 +112,35 @@ def _consistency_tol(case: FusionCase, m: int) -> float:
     return algebra_rtol(eig[-1] / eig[0]) * scale
 
 
-def audit_case(case: FusionCase, rank_tol: float | None = None) -> CaseAudit:
-    """The rank-condition audit of one case (``rank_tol`` overrides ``case.rank_tol``)."""
+def audit_case(case: FusionCase, rank_tol: float | None = None, sensitivity: bool = False) -> CaseAudit:
+    """The rank-condition audit of one case (``rank_tol`` overrides ``case.rank_tol``);
+    ``sensitivity`` adds the per-sensor Jacobian norms (imports casadi)."""
     tol = case.rank_tol if rank_tol is None else rank_tol
     dmf = dmf_update(case, rank_tol=tol)
     has_y = case.y is not None
+    jacobians = [None] * len(dmf.sensors)
+    if sensitivity:
+        from gpfverify.symbolic.sensitivity import dmf_sensitivity
+
+        jacobians = list(dmf_sensitivity(case, tol))
     sensors = []
     for s in dmf.sensors:
         rank = s.split.rank
-        message = residual = None
+        message = residual = contribution = None
         if has_y:
             y_m = case.local_measurement(s.index)
             message = s.split.kernel_basis.T @ whitened_innovation(case.locals[s.index], y_m)
             residual = float(np.linalg.norm(local_consistency_residual(case, s.index)))
+            block = case.central.blocks[s.index]
+            contribution = -dmf.gain[:, block] @ case.locals[s.index].C_y @ s.split.kernel_basis @ message
         sensors.append(SensorAudit(
             index=s.index, rows=rank.shape[0], cols=rank.shape[1], rank=rank.rank,
             singular_values=rank.singular_values, tol=rank.tol, condition_number=rank.condition_number,
             gap_gain_norm=s.residual, exactness_tol=s.tol, exact=s.exact,
             repair_basis=s.split.kernel_basis, repair_message=message,
             local_consistency_residual=residual,
-            consistency_tol=_consistency_tol(case, s.index) if has_y else None))
+            consistency_tol=_consistency_tol(case, s.index) if has_y else None,
+            gap_contribution=contribution, sensitivity=jacobians[s.index]))
     rule = RANK_RULE_DEFAULT if tol is None else f"explicit absolute tolerance {tol:g}"
     if not has_y:
         return CaseAudit(tuple(sensors), rule, dmf.condition_holds, dmf.exact, dmf.mean)
@@ -151,7 +167,11 @@ def audit_to_dict(audit: CaseAudit) -> dict:
             "repair_basis": s.repair_basis.tolist(),
             **({} if s.repair_message is None else {
                 "repair_message": s.repair_message.tolist(),
-                "local_consistency_residual": s.local_consistency_residual}),
+                "local_consistency_residual": s.local_consistency_residual,
+                "gap_contribution": s.gap_contribution.tolist()}),
+            **({} if s.sensitivity is None else {"sensitivity": {
+                "jacobian_norms": s.sensitivity.jacobian_norms, "sigma_r": s.sensitivity.sigma_r,
+                "mu_e_bound": _finite_or_none(s.sensitivity.mu_e_bound)}}),
         } for s in audit.sensors],
         "rank_rule": audit.rank_rule,
         "condition_holds": audit.condition_holds,
@@ -194,7 +214,15 @@ def format_audit(audit: CaseAudit) -> str:
                   f"repaired DMF mean: {_vec(audit.repaired_dmf_mean)}"]
         for s in audit.sensors:
             if s.repair_dim:
-                lines.append(f"sensor {s.index} repair message ({s.repair_dim} numbers): {_vec(s.repair_message)}")
+                lines.append(f"sensor {s.index} repair message ({s.repair_dim} numbers): {_vec(s.repair_message)}; "
+                             f"its share of the gap: {_vec(s.gap_contribution)}")
+    for s in audit.sensors:
+        if s.sensitivity is not None:
+            norms = ", ".join(f"{k} {'n/a' if v is None else f'{v:.3g}'}"
+                              for k, v in s.sensitivity.jacobian_norms.items())
+            lines.append(f"sensor {s.index} sensitivity |d mu_DMF / d report|: {norms}; bound on the mu_e "
+                         f"term |G_m C_y^m| / sigma_r = {s.sensitivity.mu_e_bound:.3g} "
+                         f"(sigma_r = {s.sensitivity.sigma_r:.3g})")
     lines += [f"note: {n}" for n in audit.notes]
     return "\n".join(lines)
 

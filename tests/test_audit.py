@@ -173,3 +173,40 @@ def test_audit_run_arrays():
     assert np.all(np.isfinite(run.gap_norm[:4])) and np.isnan(run.gap_norm[4])
     cond = max(np.linalg.cond(c.central.C_y) * max(np.linalg.cond(r.C_y) for r in c.locals) for c in cases)
     np.testing.assert_allclose(run.gap_norm[:4], run.predicted_gap_norm[:4], rtol=algebra_rtol(cond))
+
+
+def test_sensor_gap_shares_add_up_to_the_gap_and_name_the_driving_sensor():
+    case = random_case(np.random.default_rng(11), 2, (3, 2))
+    audit = audit_case(case)
+    shares = [s.gap_contribution for s in audit.sensors]
+    tol = algebra_rtol(np.linalg.cond(case.central.C_y)) * (np.linalg.norm(audit.gap) + 1.0)
+    np.testing.assert_allclose(sum(shares), audit.predicted_gap, atol=tol)
+    # sensor 1 has full column rank (2 outputs, 2 states): it contributes nothing
+    assert audit.sensors[1].repair_dim == 0 and np.linalg.norm(shares[1]) == 0.0
+    assert np.linalg.norm(shares[0]) > 0
+    assert "gap_contribution" in audit_to_dict(audit)["sensors"][0]
+
+
+@pytest.mark.parametrize("condition", [1e1, 1e4, 1e7])
+def test_sensitivity_equals_the_closed_form_and_respects_the_sigma_bound(condition):
+    case = random_case(np.random.default_rng(12), 3, (2, 3), cross_condition=condition)
+    audit = audit_case(case, sensitivity=True)
+    gain = np.linalg.solve(case.central.C_y, case.central.C_xy.T).T
+    for s, block, local in zip(audit.sensors, case.central.blocks, case.locals):
+        assert s.full_column_rank
+        closed = np.linalg.norm(gain[:, block] @ local.C_y @ np.linalg.pinv(local.C_xy), 2)
+        norm = s.sensitivity.jacobian_norms["mu_e"]
+        assert norm == pytest.approx(closed, rel=algebra_rtol(condition))
+        assert norm <= s.sensitivity.mu_e_bound * (1 + algebra_rtol(condition))
+        assert s.sensitivity.sigma_r == pytest.approx(s.singular_values[-1], rel=1e-12)
+
+
+def test_audit_sensitivity_flag(tmp_path, capsys):
+    path = _write(tmp_path, random_case(np.random.default_rng(13), 2, (2, 2)))
+    code, out, _ = _run(["audit", path, "--json", "--sensitivity"], capsys)
+    sensors = json.loads(out)["sensors"]
+    assert code == 0 and all({"jacobian_norms", "sigma_r", "mu_e_bound"} <= set(s["sensitivity"]) for s in sensors)
+    code, out, _ = _run(["audit", path, "--sensitivity"], capsys)
+    assert code == 0 and "sensitivity |d mu_DMF / d report|" in out
+    code, out, _ = _run(["audit", path, "--json"], capsys)
+    assert "sensitivity" not in json.loads(out)["sensors"][0]

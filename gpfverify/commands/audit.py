@@ -15,6 +15,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--rank-tol", type=float, default=None, metavar="TOL",
                         help="absolute singular-value tolerance for the rank of each C_xy^m; overrides "
                              f"the case's 'rank_tol'; default: {RANK_RULE_DEFAULT}")
+    parser.add_argument("--sensitivity", action="store_true",
+                        help="add each sensor's Jacobian norms of the fused mean (casadi AD) and the "
+                             "|G_m C_y^m| / sigma_r bound")
 
 
 def run(args: argparse.Namespace) -> int:
@@ -22,6 +25,6 @@ def run(args: argparse.Namespace) -> int:
 
     if args.rank_tol is not None and not args.rank_tol >= 0:
         raise InputError(f"--rank-tol must be >= 0, got {args.rank_tol}")
-    audit = audit_case(load_case(args.case), args.rank_tol)
+    audit = audit_case(load_case(args.case), args.rank_tol, sensitivity=args.sensitivity)
     print(json.dumps(audit_to_dict(audit)) if args.json else format_audit(audit))
     return 0
