@@ -23,7 +23,7 @@ from gpfverify.report.sections import particle_flow
 HERE = Path(__file__).resolve().parent / particle_flow.SLUG
 #: folder name -> the exact command that made it (run from the repository root, OUT = RUNS_DIR)
 COMMANDS = {
-    "pff1d": "gpfverify reproduce pff1d --runs 10 --seed 1 --spacings uniform --workers 2 --out OUT/pff1d",
+    "pff1d": "gpfverify reproduce pff1d --runs 30 --seed 1 --spacings uniform --workers 2 --out OUT/pff1d",
     "bearing": "gpfverify reproduce bearing --runs 200 --seed 1 --workers 2 --out OUT/bearing",
 }
 MODULES = {"pff1d": pff1d, "bearing": bearing}
