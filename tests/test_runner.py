@@ -91,3 +91,21 @@ def test_serial_run_saves_each_run_as_it_finishes_and_ctrl_c_loses_only_the_curr
     (out / "manifest.json").write_text(json.dumps(manifest))
     resumed = run_experiment(toy, PARAMS, 6, 8, out, resume=True)
     assert _numbers(resumed) == _numbers(full)
+
+
+def test_interrupting_a_pool_terminates_its_workers():
+    import time
+
+    with pytest.raises(KeyboardInterrupt):
+        with make_executor(workers=2) as pool:
+            pool.submit(time.sleep, 60)
+            time.sleep(0.5)
+            processes = list(pool._processes.values())
+            assert processes and all(p.is_alive() for p in processes)
+            raised_at = time.monotonic()
+            raise KeyboardInterrupt
+    # leaving did not wait for the 60-s task to finish (a graceful shutdown would)
+    assert time.monotonic() - raised_at < 30
+    for p in processes:
+        p.join(timeout=10)
+    assert not any(p.is_alive() for p in processes)

@@ -70,8 +70,16 @@ def make_executor(workers: int = 1, scheduler: str | None = None):
     pool = ProcessPoolExecutor(max_workers=workers, mp_context=mp.get_context("spawn"))
     try:
         yield pool
+    except BaseException:
+        # interrupted or failed: stop the workers now rather than let them finish (or outlive us);
+        # runs already saved stay saved. (ProcessPoolExecutor has no public terminate before 3.14.)
+        for process in list(getattr(pool, "_processes", {}).values()):
+            process.terminate()
+        pool.shutdown(wait=False, cancel_futures=True)
+        raise
+    else:
+        pool.shutdown(wait=True)
     finally:
-        pool.shutdown(wait=True, cancel_futures=True)
         for k, v in saved.items():
             if v is None:
                 os.environ.pop(k, None)
