@@ -369,6 +369,13 @@ def summarize_setting(results: list[dict]) -> dict:
         one_rel[family] = np.array([f["one_step_gap_rel"] for f in fam])
         holds[family] = np.array([f["condition_holds"] for f in fam], dtype=bool)
         within[family] = np.array([one_step_equivalence(f)[1] for f in fam])
+    smallest_sv_outside = {}
+    for family in FAMILIES:
+        fam = [r["families"][family] for r in results]
+        # (runs, T): the smaller σ_min of the two sensors' C_xy^m
+        sv_min = np.min([[np.array(sv)[:, -1] for sv in f["singular_values"].values()] for f in fam], axis=1)
+        outside = holds[family] & ~within[family]
+        smallest_sv_outside[family] = float(np.max(sv_min[outside])) if outside.any() else None
     out["max_equivalence_gap"] = {f: float(np.max(gaps[f])) for f in FAMILIES}
     out["equivalence_gap_per_step"] = {f: np.max(gaps[f], axis=0).tolist() for f in FAMILIES}
     out["one_step_gap"] = {f: {
@@ -377,6 +384,7 @@ def summarize_setting(results: list[dict]) -> dict:
         "max_when_rank_fails": float(np.max(one_step[f][~holds[f]], initial=0.0)),
         "steps_full_rank": int(np.sum(holds[f])), "steps_rank_fails": int(np.sum(~holds[f])),
         "full_rank_steps_within_rounding": int(np.sum(within[f] & holds[f])),
+        "max_smallest_singular_value_outside_rounding": smallest_sv_outside[f],
         "rounding_rule": "gap <= algebra_rtol(max cond of C_y, C_y^m, C_xy^m) * (|mu_p| + |mu_CMF - mu_p|)"}
         for f in FAMILIES}
     out["rounding_sensitivity"] = {f: {
