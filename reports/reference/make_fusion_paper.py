@@ -27,8 +27,11 @@ COMMANDS = {
     "ct2d-k30-w0.0698": "gpfverify reproduce ct2d --kappa 30 --omega 0.0698 --runs 200 --seed 1 --workers 2 --out OUT/ct2d-k30-w0.0698",
     "ct2d-k60-w0.0698": "gpfverify reproduce ct2d --kappa 60 --omega 0.0698 --runs 200 --seed 1 --workers 2 --out OUT/ct2d-k60-w0.0698",
     "ct2d-k300-w0.5": "gpfverify reproduce ct2d --kappa 300 --omega 0.5 --runs 200 --seed 1 --workers 2 --out OUT/ct2d-k300-w0.5",
+    "ungm1d-sweep": "gpfverify reproduce ungm1d --runs 200 --seed 1 --workers 2 --out OUT/ungm1d-sweep",
     "ungm1d": "gpfverify reproduce ungm1d --sweep 2 --runs 200 --seed 1 --workers 2 --out OUT/ungm1d",
 }
+#: the ungm1d folder rendered: the first of these present in RUNS_DIR (the full σ² sweep, else σ² = 1, 2)
+UNGM1D_FOLDERS = ("ungm1d-sweep", "ungm1d")
 
 
 def recompute(run_dir: Path, module, target: Path) -> dict:
@@ -49,9 +52,10 @@ def main(runs_dir: Path) -> None:
     made_by = "; ".join(c for n, c in COMMANDS.items() if n.startswith("ct2d"))
     sections.append(fusion_ct2d.render(ct, HERE / "ct2d", command=made_by + "; then "
                                        "python reports/reference/make_fusion_paper.py OUT"))
-    if (runs_dir / "ungm1d" / "manifest.json").exists():
-        results = recompute(runs_dir / "ungm1d", ungm1d, HERE / "ungm1d")
-        sections.append(fusion_ungm1d.render(results, HERE / "ungm1d", command=COMMANDS["ungm1d"] + "; then "
+    present = [name for name in UNGM1D_FOLDERS if (runs_dir / name / "manifest.json").exists()]
+    if present:
+        results = recompute(runs_dir / present[0], ungm1d, HERE / "ungm1d")
+        sections.append(fusion_ungm1d.render(results, HERE / "ungm1d", command=COMMANDS[present[0]] + "; then "
                                              "python reports/reference/make_fusion_paper.py OUT"))
     for section in sections:
         (HERE / section.slug / "README.md").write_text(to_markdown(section, HERE / section.slug), encoding="utf-8")
