@@ -62,6 +62,10 @@ def render(results: dict, ctx_or_dir, command: str | None = None) -> Section:
         f"{p['mahalanobis']}, averaged over runs per step. GP hyperparameters by evidence maximisation "
         f"({p['restarts']} start(s), at most {p['fit_points']} samples). {results['runs_ok']} of {results['runs']} "
         f"runs ok (seed {results['seed']})" + failed_runs_note({"": results}) + "."))
+    section.add(Paragraph(
+        "Reading the metric: for a calibrated Gaussian posterior the squared Mahalanobis distance has mean D = 1; "
+        "values far above 1 mean an over-confident filter (error large against its own covariance). The paper "
+        "reads lower as better, and the claims below follow the paper's reading."))
     if command:
         section.add(Paragraph(f"Made by: `{command}`"))
     sweep = results["sweep"]
