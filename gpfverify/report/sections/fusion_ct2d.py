@@ -8,7 +8,7 @@ import numpy as np
 
 from gpfverify.experiments import ct2d
 from gpfverify.experiments.fusion_run import FAMILIES
-from gpfverify.report.document import Claim, Figure, Paragraph, Section, Table, claims_table, fmt
+from gpfverify.report.document import Claim, Figure, Paragraph, Section, claims_table, fmt
 from gpfverify.report.sections.fusion_paper import (FUSION_METHODS, audit_table, equivalence_claim,
                                                     equivalence_table, failed_runs_note, fusion_beats_baselines,
                                                     fusion_beats_sensors, method_table, out_dir,
@@ -51,7 +51,8 @@ def _time_claims(r: dict) -> list[Claim]:
                          f"vs CMF update {fmt(1e3 * online[f'CMF-{family}'], 3)} ms"))
         rcc = t[f"RCC-CI-{family}"]
         others = {m: t[m] for m in FUSION_METHODS if m.endswith(family) and not m.startswith("RCC")}
-        out.append(Claim(f"{family}: RCC-CI costs the most time of the fusion methods", all(rcc > v for v in others.values()),
+        out.append(Claim(f"{family}: RCC-CI costs the most time of the fusion methods",
+                         all(rcc > v for v in others.values()),
                          f"RCC-CI {fmt(1e3 * rcc, 3)} ms per step; " +
                          ", ".join(f"{m} {fmt(1e3 * v, 3)} ms" for m, v in others.items())))
     return out
@@ -140,7 +141,8 @@ def render(results: dict, ctx_or_dir, command: str | None = None) -> Section:
         tag = f"k{r['params']['kappa']}-w{r['params']['omega']:.4f}"
         section.add(method_table(r, "rmse", "RMSE, m"))
         section.add(Figure(plot_per_step(r["rmse"], "RMSE (m)", f"RMSE per step, {key}", folder / f"rmse-{tag}.png",
-                                         log=True), f"RMSE per step (eq. 45) of the twelve methods, {key} (Figs. 6, 7, 12, 13)"))
+                                         log=True),
+                           f"RMSE per step (eq. 45) of the twelve methods, {key} (Figs. 6, 7, 12, 13)"))
         section.add(Figure(plot_full_rank(r, key, folder / f"full-rank-{tag}.png"),
                            f"Ratio of full column rank of C_xy^m per step, {key} (Figs. 5, 10, 11), and its mean "
                            "over steps against a relative singular-value tolerance"))

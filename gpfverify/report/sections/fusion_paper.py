@@ -81,7 +81,8 @@ def equivalence_claim(results: dict, family: str, metric: str = "rmse") -> Claim
     return Claim(f"{family}: DMF = CMF when the rank condition holds (eq. 35 from the same central "
                  "prediction)", held,
                  f"{ok} of {n} full-rank steps within rounding ({g['rounding_rule']}); max gap "
-                 f"{fmt(g['max_when_full_rank'], 3)} (relative to the update {fmt(g['max_relative_when_full_rank'], 3)}); "
+                 f"{fmt(g['max_when_full_rank'], 3)} (relative to the update "
+                 f"{fmt(g['max_relative_when_full_rank'], 3)}); "
                  f"recursive filters: max ‖μ_DMF − μ_CMF‖ = {fmt(results['max_equivalence_gap'][family], 3)}, "
                  f"rounding amplification of one step {fmt(results['rounding_sensitivity'][family]['median'], 3)} "
                  f"(median) for a {results['rounding_sensitivity'][family]['probe']:g} relative nudge; "

@@ -4,8 +4,6 @@ DMF/CMF equivalence."""
 
 from __future__ import annotations
 
-import numpy as np
-
 from gpfverify.experiments import ungm1d
 from gpfverify.experiments.fusion_run import FAMILIES, METHODS, RULES
 from gpfverify.report.document import Claim, Figure, Paragraph, Section, Table, claims_table, fmt
