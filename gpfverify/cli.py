@@ -20,6 +20,7 @@ from gpfverify.runtime import default_single_blas_thread
 COMMANDS: dict[str, tuple[str, str]] = {
     "report": ("gpfverify.commands.report", "build the verification report (quick profile by default)"),
     "reproduce": ("gpfverify.commands.reproduce", "run one of the papers' experiments"),
+    "props": ("gpfverify.commands.props", "run the property-based test suite and write a summary"),
     "audit": ("gpfverify.commands.audit", "rank-condition audit of a fusion-case file"),
     "fuse": ("gpfverify.commands.fuse", "fuse a fusion-case file with one method (cmf, dmf, cc, ci, rcc-ci, ...)"),
     "prove": ("gpfverify.commands.prove", "run the symbolic proofs and casadi cross-checks, write certificates"),

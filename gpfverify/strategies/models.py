@@ -36,8 +36,10 @@ def log_uniform_arrays(draw, shape, low: float, high: float) -> np.ndarray:
 def gaussian_processes(draw, input_dim=st.integers(1, 2), output_dim=st.integers(1, 3),
                        train_size=st.integers(1, 12)) -> GaussianProcess:
     """A :class:`~gpfverify.gp.GaussianProcess` with inputs in [−3, 3]^D, targets in [−3, 3] and
-    hyperparameters in the module's boxes (dims and training size: ints or strategies)."""
+    hyperparameters in the module's boxes (dims and training size: ints or strategies;
+    ``output_dim=None`` gives E = D, a transition model)."""
     d, e, n = draw(as_strategy(input_dim)), draw(as_strategy(output_dim)), draw(as_strategy(train_size))
+    e = d if e is None else e
     x = draw(float_arrays((n, d), -INPUT_BOUND, INPUT_BOUND))
     y = draw(float_arrays((n, e), -INPUT_BOUND, INPUT_BOUND))
     return GaussianProcess(x, y, lengthscales=draw(log_uniform_arrays((e, d), *LENGTHSCALE_BOX)),

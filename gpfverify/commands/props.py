@@ -1,0 +1,149 @@
+"""``gpfverify props``: run the property suite and write ``DIR/summary.json``.
+
+The properties live in the repository's ``property_tests/`` folder (next to ``tests/`` and
+``proofs/``, consuming the package like them), so the command needs the source tree: it finds the
+folder next to the installed package (an editable install, which ``make test``/``make report``
+make) or takes ``--suite DIR``. The strategies they use ship in the package
+(:mod:`gpfverify.strategies`) for users' own properties.
+
+pytest runs in-process with the chosen hypothesis profile (``ci``: derandomised, the one
+``make test`` uses; ``dev``; ``thorough``: many examples, minutes). Fusion properties save each
+shrunk counterexample as a case file in ``DIR/counterexamples/`` (``gpfverify audit`` reads them).
+``summary.json``:
+
+    {"profile", "suite", "passed": bool, "seconds",
+     "properties": [{"name", "outcome", "examples", "seconds", "counterexample_files",
+                     "failure"}],
+     "totals": {"properties", "passed", "failed", "examples"}}
+
+``examples`` is the number of examples hypothesis ran for the property (all phases), ``failure``
+the first lines of the failure report with the shrunk example. Exit status 0 when every property
+holds, 1 when one fails, 2 on a usage error.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import sys
+import time
+from pathlib import Path
+
+from gpfverify.errors import InputError
+
+PROFILES = ("ci", "dev", "thorough")
+FAILURE_LINES = 40
+#: how :func:`gpfverify.strategies.counterexamples.saving_case_on_failure` notes a saved file
+NOTE_PREFIX = "counterexample case file:"
+
+
+def default_suite() -> Path:
+    import gpfverify
+
+    return Path(gpfverify.__file__).resolve().parent.parent / "property_tests"
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--profile", choices=PROFILES, default="ci",
+                        help="hypothesis profile: ci (derandomised, as in make test), dev, "
+                             "thorough (many examples, minutes); default ci")
+    parser.add_argument("--out", type=Path, required=True, help="output folder for summary.json")
+    parser.add_argument("--suite", type=Path, default=None,
+                        help="folder of property modules (default: property_tests/ of the source "
+                             "tree the package is installed from)")
+    parser.add_argument("-k", dest="keyword", default=None, metavar="EXPR",
+                        help="only properties whose name matches this pytest -k expression")
+
+
+class Collector:
+    """pytest plugin recording each property's outcome, example count, time and failure text."""
+
+    def __init__(self, counterexample_dir: Path):
+        self.counterexample_dir = counterexample_dir
+        self.records: dict[str, dict] = {}
+
+    def _record(self, nodeid: str) -> dict:
+        return self.records.setdefault(nodeid, {"name": nodeid, "outcome": "passed", "examples": None,
+                                                "seconds": 0.0, "counterexample_files": [],
+                                                "failure": None})
+
+    def pytest_runtest_call(self, item):
+        """Count the examples hypothesis runs (its statistics callback, if any, still gets them)."""
+        from hypothesis.statistics import collector
+
+        record = self._record(item.nodeid)
+        outer = collector.value
+
+        def note(stats):
+            phases = [v for k, v in stats.items() if k.endswith("-phase") and isinstance(v, dict)]
+            record["examples"] = sum(len(p.get("test-cases", ())) for p in phases)
+            if outer is not None:
+                outer(stats)
+
+        with collector.with_value(note):
+            yield
+
+    pytest_runtest_call.hookwrapper = True  # type: ignore[attr-defined]
+    pytest_runtest_call.trylast = True  # type: ignore[attr-defined]
+
+    def pytest_runtest_logreport(self, report):
+        record = self._record(report.nodeid)
+        record["seconds"] += report.duration
+        if report.skipped and report.when in ("setup", "call"):
+            record["outcome"] = "xfailed" if hasattr(report, "wasxfail") else "skipped"
+        elif report.failed:
+            record["outcome"] = "failed"
+            text = report.longreprtext
+            lines = text.splitlines()
+            first_error = next((i for i, line in enumerate(lines) if line.startswith("E ")), 0)
+            lines = lines[first_error:]
+            record["failure"] = "\n".join(lines[:FAILURE_LINES])
+            record["counterexample_files"] = sorted({
+                line.split(NOTE_PREFIX, 1)[1].strip() for line in text.splitlines() if NOTE_PREFIX in line})
+        elif report.passed and hasattr(report, "wasxfail"):
+            record["outcome"] = "failed"
+            record["failure"] = f"unexpectedly passed (strict xfail: {report.wasxfail})"
+
+
+def run(args: argparse.Namespace) -> int:
+    try:
+        import hypothesis  # noqa: F401
+        import pytest
+    except ImportError as exc:
+        raise InputError(f"props needs the test extra (pip install 'gpfverify[test]'): {exc}") from None
+    suite = (args.suite or default_suite()).resolve()
+    if not suite.is_dir() or not any(suite.glob("test_*.py")):
+        raise InputError(f"no property suite at {suite}: gpfverify props needs the source tree "
+                         "(property_tests/) or --suite DIR")
+    out = args.out
+    counterexamples = (out / "counterexamples").resolve()
+    out.mkdir(parents=True, exist_ok=True)
+    collector = Collector(counterexamples)
+    os.environ["GPFVERIFY_COUNTEREXAMPLES"] = str(counterexamples)
+    options = [str(suite), "-q", "-p", "no:cacheprovider", f"--hypothesis-profile={args.profile}",
+               f"--rootdir={suite.parent}", "-W", "ignore::UserWarning"]
+    if args.keyword:
+        options += ["-k", args.keyword]
+    start = time.perf_counter()
+    code = pytest.main(options, plugins=[collector])
+    seconds = time.perf_counter() - start
+    if code not in (pytest.ExitCode.OK, pytest.ExitCode.TESTS_FAILED):
+        raise InputError(f"the property suite could not run (pytest exit status {int(code)})")
+    files = sorted(counterexamples.glob("*.json")) if counterexamples.is_dir() else []
+    properties = sorted(collector.records.values(), key=lambda r: r["name"])
+    summary = {
+        "profile": args.profile, "suite": str(suite), "passed": code == pytest.ExitCode.OK,
+        "seconds": round(seconds, 3), "properties": properties,
+        "counterexample_files": [str(f) for f in files],
+        "totals": {"properties": len(properties),
+                   "passed": sum(r["outcome"] == "passed" for r in properties),
+                   "failed": sum(r["outcome"] == "failed" for r in properties),
+                   "examples": sum(r["examples"] or 0 for r in properties)},
+    }
+    (out / "summary.json").write_text(json.dumps(summary, indent=2) + "\n")
+    totals = summary["totals"]
+    print(f"props ({args.profile}): {totals['passed']} of {totals['properties']} properties hold, "
+          f"{totals['examples']} examples, {seconds:.1f} s -> {out / 'summary.json'}",
+          file=sys.stdout if summary["passed"] else sys.stderr)
+    return 0 if summary["passed"] else 1
