@@ -112,7 +112,7 @@ def render(results: dict, ctx_or_dir, command: str | None = None) -> Section:
     if command:
         section.add(Paragraph(f"Made by: `{command}`"))
     section.add(Paragraph(
-        "Runs: " + "; ".join(f"{k}: {r['runs_ok']} of {r['runs']} ok (seed {r['seed']}), GP training "
+        f"Runs (the paper used {ct2d.DEFAULT_RUNS} per setting): " + "; ".join(f"{k}: {r['runs_ok']} of {r['runs']} ok (seed {r['seed']}), GP training "
                              f"{fmt(r['training_time_per_run'], 3)} s per run, RCC-CI enlarged on "
                              f"{sum(r['rcc_ci_enlarged_steps'].values())} steps" for k, r in results.items())
         + failed_runs_note(results)))

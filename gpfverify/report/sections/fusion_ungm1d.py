@@ -59,7 +59,7 @@ def render(results: dict, ctx_or_dir, command: str | None = None) -> Section:
         f"{p['trajectory_start']}; σ² values {p['noise_vars']} (Fig. 4's values were lost). Metric: "
         f"{p['mahalanobis']}, averaged over runs per step. GP hyperparameters by evidence maximisation "
         f"({p['restarts']} start(s), at most {p['fit_points']} samples). {results['runs_ok']} of {results['runs']} "
-        f"runs ok (seed {results['seed']})" + failed_runs_note({"": results}) + "."))
+        f"runs ok (seed {results['seed']}; the paper used {ungm1d.DEFAULT_RUNS})" + failed_runs_note({"": results}) + "."))
     section.add(Paragraph(
         "Reading the metric: for a calibrated Gaussian posterior the squared Mahalanobis distance has mean D = 1; "
         "values far above 1 mean an over-confident filter (error large against its own covariance). The paper "
