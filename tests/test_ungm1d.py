@@ -73,3 +73,13 @@ def test_page_renders_both_noise_levels_and_the_sweep(cli_results, tmp_path):
     assert "Claim across σ²" in page
     for name in ("mahalanobis-s1.0.png", "mahalanobis-s2.0.png", "sweep.png"):
         assert (tmp_path / name).stat().st_size > 5_000
+
+
+def test_same_seed_object_twice_gives_the_same_numbers():
+    params = ungm1d.default_params(train=15, test_steps=3, sweep=[2.0])
+    seed = np.random.SeedSequence(1).spawn(2)[1]
+    first, again = ungm1d.run_one(params, seed), ungm1d.run_one(params, seed)
+    for noise in ("1.0", "2.0"):
+        for family in FAMILIES:
+            assert first["settings"][noise]["families"][family]["maha"] == \
+                again["settings"][noise]["families"][family]["maha"]

@@ -65,7 +65,9 @@ def run_one(params: dict, seed_sequence) -> dict:
     sigma = SigmaParams(params["alpha"], params["beta"], params["sigma_kappa"])
     prior = Gaussian(np.array([params["prior_mean"]]), np.array([[params["prior_var"]]]))
     settings = {}
-    for noise_var, child in zip(params["noise_vars"], seed_sequence.spawn(len(params["noise_vars"]))):
+    for i, noise_var in enumerate(params["noise_vars"]):
+        # the i-th child of the run's seed, built explicitly: spawn() would depend on earlier spawns
+        child = np.random.SeedSequence(seed_sequence.entropy, spawn_key=tuple(seed_sequence.spawn_key) + (i,))
         rng = generator(child)
         scenario = ungm_scenario(noise_var, params["measurement_noise_var"], 1.0, params["train"],
                                  params["test_steps"], tuple(params["sensor_phases"]))
