@@ -16,7 +16,8 @@ shrunk counterexample as a case file in ``DIR/counterexamples/`` (``gpfverify au
                      "failure"}],
      "totals": {"properties", "passed", "failed", "examples"}}
 
-``examples`` is the number of examples hypothesis ran for the property (all phases), ``failure``
+``examples`` is the number of examples hypothesis ran for the property (all phases; null when it
+failed on an explicit ``@example`` before generating any, or is not a hypothesis test), ``failure``
 the first lines of the failure report with the shrunk example. Exit status 0 when every property
 holds, 1 when one fails, 2 on a usage error.
 """

@@ -173,12 +173,10 @@ def measurement_noise(draw, sizes: Sequence[int], correlated: bool, decoupled: S
         for size in sizes:
             noise[start:start + size, start:start + size] = draw(spd_matrices(size, max_condition, scale))
             start += size
-    for j in decoupled:
-        keep = noise[j, j]
-        noise[j, :] = 0.0
-        noise[:, j] = 0.0
-        noise[j, j] = keep
-    return noise
+    isolated = np.zeros(total, dtype=bool)
+    isolated[list(decoupled)] = True
+    off_diagonal = (isolated[:, None] | isolated[None, :]) & ~np.eye(total, dtype=bool)
+    return np.where(off_diagonal, 0.0, noise)
 
 
 @st.composite

@@ -59,10 +59,12 @@ def psd_matrices(draw, dim: int, low: float, high: float, allow_singular: bool =
 
 
 @st.composite
-def gaussian_inputs(draw, dim: int, max_variance: float = 1.0, allow_singular: bool = True) -> Gaussian:
-    """N(μ, Σ) with μ ∈ [−3, 3]^dim and Σ PSD with eigenvalues in {0} ∪ [1e-4, max_variance]."""
+def gaussian_inputs(draw, dim: int, max_variance: float = 1.0, allow_singular: bool = True,
+                    min_variance: float = 1e-4) -> Gaussian:
+    """N(μ, Σ) with μ ∈ [−3, 3]^dim and Σ PSD with eigenvalues in {0} ∪ [min_variance,
+    max_variance] (log-uniform; 0 only if ``allow_singular``)."""
     return Gaussian(draw(float_arrays((dim,), -INPUT_BOUND, INPUT_BOUND)),
-                    draw(psd_matrices(dim, 1e-4, max_variance, allow_singular)))
+                    draw(psd_matrices(dim, min_variance, max_variance, allow_singular)))
 
 
 @dataclass(frozen=True)
