@@ -57,54 +57,54 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="only properties whose name matches this pytest -k expression")
 
 
-class Collector:
-    """pytest plugin recording each property's outcome, example count, time and failure text."""
+def make_collector(pytest):
+    """A pytest plugin recording each property's outcome, example count, time and failure text
+    (``pytest`` is passed in: it is only importable with the test extra)."""
 
-    def __init__(self, counterexample_dir: Path):
-        self.counterexample_dir = counterexample_dir
-        self.records: dict[str, dict] = {}
+    class Collector:
+        def __init__(self):
+            self.records: dict[str, dict] = {}
 
-    def _record(self, nodeid: str) -> dict:
-        return self.records.setdefault(nodeid, {"name": nodeid, "outcome": "passed", "examples": None,
-                                                "seconds": 0.0, "counterexample_files": [],
-                                                "failure": None})
+        def _record(self, nodeid: str) -> dict:
+            return self.records.setdefault(nodeid, {"name": nodeid, "outcome": "passed",
+                                                    "examples": None, "seconds": 0.0,
+                                                    "counterexample_files": [], "failure": None})
 
-    def pytest_runtest_call(self, item):
-        """Count the examples hypothesis runs (its statistics callback, if any, still gets them)."""
-        from hypothesis.statistics import collector
+        @pytest.hookimpl(hookwrapper=True, trylast=True)
+        def pytest_runtest_call(self, item):
+            """Count the examples hypothesis runs (its own statistics callback still gets them)."""
+            from hypothesis.statistics import collector
 
-        record = self._record(item.nodeid)
-        outer = collector.value
+            record = self._record(item.nodeid)
+            outer = collector.value
 
-        def note(stats):
-            phases = [v for k, v in stats.items() if k.endswith("-phase") and isinstance(v, dict)]
-            record["examples"] = sum(len(p.get("test-cases", ())) for p in phases)
-            if outer is not None:
-                outer(stats)
+            def note(stats):
+                phases = [v for k, v in stats.items() if k.endswith("-phase") and isinstance(v, dict)]
+                record["examples"] = sum(len(p.get("test-cases", ())) for p in phases)
+                if outer is not None:
+                    outer(stats)
 
-        with collector.with_value(note):
-            yield
+            with collector.with_value(note):
+                yield
 
-    pytest_runtest_call.hookwrapper = True  # type: ignore[attr-defined]
-    pytest_runtest_call.trylast = True  # type: ignore[attr-defined]
+        def pytest_runtest_logreport(self, report):
+            record = self._record(report.nodeid)
+            record["seconds"] += report.duration
+            if report.skipped and report.when in ("setup", "call"):
+                record["outcome"] = "xfailed" if hasattr(report, "wasxfail") else "skipped"
+            elif report.failed:
+                record["outcome"] = "failed"
+                text = report.longreprtext
+                lines = text.splitlines()
+                first_error = next((i for i, line in enumerate(lines) if line.startswith("E ")), 0)
+                record["failure"] = "\n".join(lines[first_error:][:FAILURE_LINES])
+                record["counterexample_files"] = sorted({
+                    line.split(NOTE_PREFIX, 1)[1].strip() for line in lines if NOTE_PREFIX in line})
+            elif report.passed and hasattr(report, "wasxfail"):
+                record["outcome"] = "failed"
+                record["failure"] = f"unexpectedly passed (strict xfail: {report.wasxfail})"
 
-    def pytest_runtest_logreport(self, report):
-        record = self._record(report.nodeid)
-        record["seconds"] += report.duration
-        if report.skipped and report.when in ("setup", "call"):
-            record["outcome"] = "xfailed" if hasattr(report, "wasxfail") else "skipped"
-        elif report.failed:
-            record["outcome"] = "failed"
-            text = report.longreprtext
-            lines = text.splitlines()
-            first_error = next((i for i, line in enumerate(lines) if line.startswith("E ")), 0)
-            lines = lines[first_error:]
-            record["failure"] = "\n".join(lines[:FAILURE_LINES])
-            record["counterexample_files"] = sorted({
-                line.split(NOTE_PREFIX, 1)[1].strip() for line in text.splitlines() if NOTE_PREFIX in line})
-        elif report.passed and hasattr(report, "wasxfail"):
-            record["outcome"] = "failed"
-            record["failure"] = f"unexpectedly passed (strict xfail: {report.wasxfail})"
+    return Collector()
 
 
 def run(args: argparse.Namespace) -> int:
@@ -120,7 +120,7 @@ def run(args: argparse.Namespace) -> int:
     out = args.out
     counterexamples = (out / "counterexamples").resolve()
     out.mkdir(parents=True, exist_ok=True)
-    collector = Collector(counterexamples)
+    collector = make_collector(pytest)
     os.environ["GPFVERIFY_COUNTEREXAMPLES"] = str(counterexamples)
     options = [str(suite), "-q", "-p", "no:cacheprovider", f"--hypothesis-profile={args.profile}",
                f"--rootdir={suite.parent}", "-W", "ignore::UserWarning"]
