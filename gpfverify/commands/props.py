@@ -113,6 +113,9 @@ def run(args: argparse.Namespace) -> int:
         import pytest
     except ImportError as exc:
         raise InputError(f"props needs the test extra (pip install 'gpfverify[test]'): {exc}") from None
+    from gpfverify.strategies.profiles import register_profiles
+
+    register_profiles()  # also for a --suite outside the repository (no root conftest.py)
     suite = (args.suite or default_suite()).resolve()
     if not suite.is_dir() or not any(suite.glob("test_*.py")):
         raise InputError(f"no property suite at {suite}: gpfverify props needs the source tree "
