@@ -218,3 +218,23 @@ def test_bad_inputs_are_input_errors():
         convex_combination([ests[0], Gaussian(np.zeros(3), ests[1].cov)])
     with pytest.raises(InputError, match="at least"):
         convex_combination([])
+
+
+def test_det_ci_for_three_sensors_survives_a_solver_failure_at_a_vertex_optimum():
+    """Found by the property suite: Clarabel fails on this case, whose det-optimal weights are the
+    vertex (1, 0, 0); the result must be that vertex, certified by the KKT condition."""
+    from gpfverify.filters.records import Gaussian
+    from gpfverify.fusion.ci import kkt_violation
+    from gpfverify.fusion.estimates import information_form
+
+    estimates = [Gaussian(np.zeros(3), np.eye(3)), Gaussian(np.zeros(3), np.diag([1.0, 1.24093776, 1.0])),
+                 Gaussian(np.zeros(3), np.diag([177.827941, 1.0, 1.0]))]
+    fused = covariance_intersection(estimates, "det")
+    np.testing.assert_array_equal(fused.weights, [1.0, 0.0, 0.0])
+    info = information_form(estimates)
+    assert kkt_violation(info, fused.weights, "det") <= 0.0
+    # a non-optimal vertex is rejected: at (0, 1, 0), g = tr(S⁻¹ I_0) = 3.24 > D = 3
+    from gpfverify.tolerances import KKT_REJECT_TOL
+
+    assert kkt_violation(info, np.array([0.0, 1.0, 0.0]), "det") == pytest.approx(3.24093776 / 3 - 1)
+    assert kkt_violation(info, np.array([0.0, 1.0, 0.0]), "det") > KKT_REJECT_TOL

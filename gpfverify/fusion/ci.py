@@ -11,7 +11,15 @@ P is consistent (P ⪰ true error covariance) for every cross-correlation betwee
 * N estimates: a parameterised cvxpy problem (DPP, built once per (N, D, criterion), Clarabel),
   trace: min tr X s.t. [[X, I], [I, Σ ω_m I_m]] ⪰ 0; det: max log det Σ ω_m I_m. The weights are
   clipped to the simplex and compared with every vertex (single estimate), so an optimum at an
-  endpoint is returned exactly.
+  endpoint is returned exactly. Both criteria are convex in ω, so the returned weights are
+  certified by the KKT condition on the simplex, with S = Σ ω_m I_m and g_m = ∂(−criterion)/∂ω_m:
+
+      det:   g_m = tr(S⁻¹ I_m)       ≤ Σ_k ω_k g_k = D
+      trace: g_m = tr(S⁻¹ I_m S⁻¹)   ≤ Σ_k ω_k g_k = tr(S⁻¹)
+
+  (equality where ω_m > 0). If Clarabel fails, SCS is tried; a failed or uncertified solver result
+  falls back to the best certified candidate, and :class:`SolverError` is raised only when none is
+  certified (relative violation above ``tolerances.KKT_REJECT_TOL``).
 
 ICI (two estimates): P⁻¹ = P_1⁻¹ + P_2⁻¹ − (ωP_1 + (1 − ω)P_2)⁻¹, x = P(K x_1 + L x_2) with
 K = P_1⁻¹ − ω(ωP_1 + (1 − ω)P_2)⁻¹, L = P_2⁻¹ − (1 − ω)(ωP_1 + (1 − ω)P_2)⁻¹. In the joint basis
@@ -32,7 +40,8 @@ from gpfverify.fusion.estimates import (FusedEstimate, Information, checked_esti
                                         information_form, weighted_information_fusion)
 from gpfverify.fusion.pairwise import (criterion_derivative, joint_diagonalise,
                                        minimise_convex_on_unit_interval)
-from gpfverify.linalg import cholesky
+from gpfverify.linalg import cholesky, symmetrize
+from gpfverify.tolerances import KKT_REJECT_TOL
 
 CRITERIA = ("trace", "det")
 
@@ -75,20 +84,34 @@ def _ci_problem(n: int, d: int, criterion: str):
     return problem, mats, omega
 
 
-def _ci_weights_cvxpy(info: Information, criterion: str) -> np.ndarray:
+def _ci_weights_cvxpy(info: Information, criterion: str) -> list[np.ndarray]:
+    """Solver weights: Clarabel's, or SCS's when Clarabel fails; [] when both fail."""
     n, d = info.matrices.shape[:2]
     problem, mats, omega = _ci_problem(n, d, criterion)
     scale = np.mean(np.trace(info.matrices, axis1=1, axis2=2)) / d  # ω is scale invariant
     for param, mat in zip(mats, info.matrices):
         param.value = 0.5 * (mat + mat.T) / scale
-    try:
-        problem.solve(solver=cp.CLARABEL)
-    except cp.SolverError as exc:
-        raise SolverError(f"CI weight problem failed: {exc}") from None
-    if problem.status not in ("optimal", "optimal_inaccurate") or omega.value is None:
-        raise SolverError(f"CI weight problem ended with status {problem.status}")
-    w = np.clip(omega.value, 0.0, None)
-    return w / w.sum()
+    for solver in (cp.CLARABEL, cp.SCS):
+        try:
+            problem.solve(solver=solver)
+        except cp.SolverError:
+            continue
+        if problem.status in ("optimal", "optimal_inaccurate") and omega.value is not None:
+            w = np.clip(omega.value, 0.0, None)
+            return [w / w.sum()]
+    return []
+
+
+def kkt_violation(info: Information, weights: np.ndarray, criterion: str) -> float:
+    """Relative violation max_m g_m / (Σ_k ω_k g_k) − 1 of the optimality condition on the simplex
+    (module docstring); ≤ 0 up to rounding at the optimum."""
+    total = symmetrize(np.tensordot(weights, info.matrices, axes=1))
+    inv = cholesky(total, "weighted information", allow_jitter=False).inverse()
+    if criterion == "det":
+        grads = np.einsum("ij,mji->m", inv, info.matrices)
+    else:
+        grads = np.einsum("ij,mjk,ki->m", inv, info.matrices, inv)
+    return float(grads.max() / (weights @ grads) - 1.0)
 
 
 def covariance_intersection(estimates: Sequence, criterion: str = "trace",
@@ -108,9 +131,14 @@ def covariance_intersection(estimates: Sequence, criterion: str = "trace",
     if solver != "cvxpy" and len(checked) == 2:
         return _two_sensor_ci(checked[0], checked[1], criterion)
     info = information_form(checked)
-    candidates = [_ci_weights_cvxpy(info, criterion)] + list(np.eye(len(checked)))
+    candidates = _ci_weights_cvxpy(info, criterion) + list(np.eye(len(checked)))
     fused = [weighted_information_fusion(info, w) for w in candidates]
-    return min(fused, key=lambda f: criterion_value(f.cov, criterion))
+    best = min(fused, key=lambda f: criterion_value(f.cov, criterion))
+    violation = kkt_violation(info, best.weights, criterion)
+    if violation > KKT_REJECT_TOL:
+        raise SolverError(f"CI weights not optimal: the best candidate violates the {criterion} "
+                          f"optimality condition by {violation:.3g} (relative)")
+    return best
 
 
 def _two_sensor_ici(first, second, criterion: str) -> FusedEstimate:
