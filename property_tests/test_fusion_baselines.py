@@ -46,9 +46,10 @@ def _uncorrelated(covs) -> CorrelatedEstimates:
                                block_diag(*covs), 0.0)
 
 
-#: Shrunk counterexample: covariance_intersection(..., "det") raises SolverError ("Solver
-#: 'CLARABEL' failed") on three well-conditioned estimates whose optimum is the vertex ω = e_1
-#: (P_1 = I ⪯ P_2, P_3). Found by test_baselines_do_not_depend_on_sensor_order.
+#: Regression example: covariance_intersection(..., "det") raised SolverError ("Solver 'CLARABEL'
+#: failed") on three well-conditioned estimates whose optimum is the vertex ω = e_1
+#: (P_1 = I ⪯ P_2, P_3), until the N-sensor CI fell back to SCS and certified its result.
+#: Found by test_baselines_do_not_depend_on_sensor_order.
 CI_DET_SOLVER_FAILURE = _uncorrelated([
     np.eye(3), np.diag([1.0, 1.2409377607517196, 1.0]),
     [[177.82794100389222, -3.948573490484103e-14, 0.0],
