@@ -89,3 +89,50 @@ def test_covariance_is_symmetric_psd(seed):
     mm = gp.predict_uncertain(rng.uniform(-3, 3, size=2), _correlated_sigma(rng, 2, 2.0))
     np.testing.assert_array_equal(mm.cov, mm.cov.T)
     assert np.linalg.eigvalsh(mm.cov).min() >= -algebra_rtol() * np.abs(mm.cov).max()
+
+
+def test_near_linear_regime_with_large_outputs_matches_quadrature():
+    """A GP fitted to a rotation of states far from the origin (the constant-turn experiment):
+    lengthscales of thousands, signal variance of millions, outputs ~100. Q's entries are ~α⁴ =
+    2e13 while the covariance is ~3; the formula evaluated without centring gave an eigenvalue of
+    −2 here (quadrature: all positive)."""
+    rng = np.random.default_rng(126)
+    x = rng.uniform(-50, 150, size=(300, 2))
+    turn = np.array([[np.cos(0.5), -np.sin(0.5)], [np.sin(0.5), np.cos(0.5)]])
+    y = x @ turn.T + np.sqrt(5.0) * rng.standard_normal((300, 2))
+    gp = GaussianProcess(x, y, lengthscales=[[3728.0, 5590.0], [3643.0, 2912.0]],
+                         signal_var=[4.5e6, 2.4e6], noise_var=[4.3, 5.2])
+    mu, sigma = np.array([23.2, 108.5]), np.array([[2.0, 1.9], [1.9, 4.2]])
+    mm = gp.predict_uncertain(mu, sigma)
+    ref = quadrature_moments(gp, mu, sigma, order=40)
+    scale = np.abs(ref.cov).max()
+    np.testing.assert_allclose(mm.cov, ref.cov, rtol=QUADRATURE_RTOL, atol=QUADRATURE_RTOL * scale)
+    np.testing.assert_allclose(mm.mean, ref.mean, rtol=QUADRATURE_RTOL)
+    assert np.linalg.eigvalsh(mm.cov).min() > 0
+
+
+def test_input_far_wider_than_the_lengthscales_matches_monte_carlo(monkeypatch):
+    """Σ ≫ ℓ² with training points far in the input's tail (ν²/2Σ > 700): exp(d_ii) overflows
+    where q_a q_b underflows; the log-space branch must be taken and agree with Monte Carlo."""
+    import gpfverify.gp.moments as moments
+
+    rng = np.random.default_rng(9)
+    x = np.concatenate([rng.uniform(-10, 10, size=(30, 1)), rng.uniform(250, 400, size=(30, 1))])
+    gp = GaussianProcess(x, np.sin(3 * x[:, 0]), lengthscales=[[0.5]], signal_var=[1.0], noise_var=[0.01])
+    mu, sigma = np.array([0.5]), np.array([[30.0]])
+    largest = []
+    original = moments._centred_second_moments
+
+    def spy(*args):
+        block, centred = original(*args)
+        largest.append(bool(np.all(centred.left == 1.0)))  # explicit (log-space) branch
+        return block, centred
+
+    monkeypatch.setattr(moments, "_centred_second_moments", spy)
+    mm = gp.predict_uncertain(mu, sigma)
+    assert largest == [True]
+    est, se = monte_carlo_moments(gp, mu, sigma, 200_000, np.random.default_rng(2))
+    for name in ("mean", "cov", "cross_cov"):
+        diff = np.abs(getattr(mm, name) - getattr(est, name))
+        assert np.all(diff <= monte_carlo_atol(getattr(se, name) * np.sqrt(200_000), 200_000) + 1e-12), name
+    assert mm.cov[0, 0] > 0

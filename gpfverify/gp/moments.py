@@ -13,6 +13,13 @@ Outputs a and b may belong to different GPs with different training inputs (x_i 
 how a stack of sensors' measurement GPs gets its cross-sensor blocks through the shared uncertain
 input (seed 000 §3).
 
+Evaluated in centred form, Cov = β_aᵀ(Q^{ab} − q_a q_bᵀ)β_b + δ_ab[(α_a² − ‖L_a⁻¹q_a‖²)
+− tr(K_a⁻¹(Q^{aa} − q_a q_aᵀ))] (L_a the Cholesky factor of K_a): algebraically the same, but it
+never forms E[f_a f_b] and M_a M_b separately. With long lengthscales and a large signal variance
+(a GP fitted to a nearly linear map) the entries of Q are of order α⁴ while the covariance is of
+order one; summing β-weighted α⁴ terms and subtracting M² then loses every digit (measured: an
+eigenvalue of −2 where quadrature gives +1.4), while the centred entries are α⁴·O(Σ/ℓ²) smaller.
+
 Σ may be singular: no formula inverts it. With Ξ = Λ_a⁻¹ + Λ_b⁻¹ and S = Ξ^½ΣΞ^½,
 |R| = |S + I| and R⁻¹Σ = Ξ^{-½}(I − (S + I)⁻¹)Ξ^{-½}, both from the PD matrix S + I. Likewise
 (Σ + Λ_a)⁻¹ = Λ_a^{-½}(B + I)⁻¹Λ_a^{-½} with B = Λ_a^{-½}ΣΛ_a^{-½}. All exponents are summed in log
@@ -24,6 +31,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+import scipy.linalg as sla
 
 from gpfverify.linalg import symmetrize
 
@@ -38,65 +46,120 @@ class MomentMatch:
     cross_cov: np.ndarray
 
 
-def _shifted_inverse(scaled: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """For symmetric PSD ``scaled`` (…, D, D): ((scaled + I)⁻¹, log|scaled + I|), batched."""
+#: Largest exponent d_ij for which expm1(d) is formed directly (exp(709.8) overflows).
+_EXPM1_SAFE = 700.0
+
+
+def _shifted(scaled: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """For symmetric PSD ``scaled`` = S (…, D, D): ((S + I)⁻¹, (S + I)⁻¹S, log|S + I|), batched.
+
+    (S + I)⁻¹S is solved for directly and log|S + I| = Σ log1p(eig S): when S is tiny (input
+    variance far below the lengthscales) neither is formed as a difference of numbers near 1."""
     d = scaled.shape[-1]
     shifted = scaled + np.eye(d)
-    chol = np.linalg.cholesky(shifted)
-    logdet = 2.0 * np.sum(np.log(np.diagonal(chol, axis1=-2, axis2=-1)), axis=-1)
-    inv = np.linalg.solve(shifted, np.broadcast_to(np.eye(d), shifted.shape))
-    return symmetrize(inv), logdet
+    inv = symmetrize(np.linalg.solve(shifted, np.broadcast_to(np.eye(d), shifted.shape)))
+    ratio = symmetrize(np.linalg.solve(shifted, scaled))
+    logdet = np.sum(np.log1p(np.clip(np.linalg.eigvalsh(scaled), 0.0, None)), axis=-1)
+    return inv, ratio, logdet
 
 
-def _first_moments(gp, mu: np.ndarray, sigma: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Mean (E,) and cross-covariance (D, E) of one GP's outputs (eq. 8–9, 20)."""
+@dataclass(frozen=True)
+class _FirstMoments:
+    """One GP's mean (E,), cross-covariance (D, E), log q (E, n) and the per-point exponent
+    t_ai = ν_iᵀ(Λ_a⁻¹ − (Σ + Λ_a)⁻¹)ν_i (E, n) with log|B_a + I| (E,), reused by the second moments."""
+
+    mean: np.ndarray
+    cross_cov: np.ndarray
+    log_q: np.ndarray
+    t: np.ndarray
+    b_logdet: np.ndarray
+
+
+def _first_moments(gp, mu: np.ndarray, sigma: np.ndarray) -> _FirstMoments:
+    """Eq. 8–9 and 20 for every output of one GP."""
     nu = gp.X - mu
     inv_ell = 1.0 / gp.lengthscales  # (E, D)
-    b_inv, b_logdet = _shifted_inverse(sigma * inv_ell[:, :, None] * inv_ell[:, None, :])
+    b_inv, b_ratio, b_logdet = _shifted(sigma * inv_ell[:, :, None] * inv_ell[:, None, :])
     nu_scaled = nu[None, :, :] * inv_ell[:, None, :]  # Λ^{-½}ν, (E, n, D)
     maha = np.einsum("eid,edk,eik->ei", nu_scaled, b_inv, nu_scaled)  # νᵀ(Σ+Λ)⁻¹ν
-    q = np.exp(np.log(gp.signal_var)[:, None] - 0.5 * b_logdet[:, None] - 0.5 * maha)  # (E, n)
+    t = np.einsum("eid,edk,eik->ei", nu_scaled, b_ratio, nu_scaled)  # νᵀ(Λ⁻¹ − (Σ+Λ)⁻¹)ν
+    log_q = np.log(gp.signal_var)[:, None] - 0.5 * b_logdet[:, None] - 0.5 * maha  # (E, n)
+    q = np.exp(log_q)
     mean = np.einsum("en,en->e", gp.beta, q)
     weighted_nu = (gp.beta * q) @ nu  # Σ_i β_ai q_ai ν_i, (E, D)
     solved = inv_ell * np.einsum("edk,ek->ed", b_inv, inv_ell * weighted_nu)  # (Σ+Λ_a)⁻¹ w
-    return mean, sigma @ solved.T
+    return _FirstMoments(mean, sigma @ solved.T, log_q, t, b_logdet)
 
 
-def _second_moments(gp_a, gp_b, ia: np.ndarray, ib: np.ndarray, mu: np.ndarray,
-                    sigma: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """β_aᵀ Q^{ab} β_b for the output pairs (ia[p] of gp_a, ib[p] of gp_b), and Q itself
-    (P, n_a, n_b) for the trace terms (eq. 10–11)."""
+@dataclass(frozen=True)
+class _Centred:
+    """Q − q_a q_bᵀ = diag(left) ratio diag(right), (P, n_a, n_b) with (P, n) scalings."""
+
+    ratio: np.ndarray
+    left: np.ndarray
+    right: np.ndarray
+
+
+def _centred_second_moments(gp_a, gp_b, ia: np.ndarray, ib: np.ndarray, first_a: _FirstMoments,
+                            first_b: _FirstMoments, mu: np.ndarray, sigma: np.ndarray
+                            ) -> tuple[np.ndarray, _Centred]:
+    """Cov[m_a, m_b] = β_aᵀ (Q^{ab} − q_a q_bᵀ) β_b for the output pairs (ia[p] of gp_a, ib[p] of
+    gp_b), and the centred matrices Q − q_a q_bᵀ (P, n_a, n_b) for the trace terms (eq. 10–11).
+
+    Q_ij = q_ai q_bj exp(d_ij) with the small exponent
+    d_ij = −½t_ai − ½t_bj + ½ z_ijᵀR⁻¹Σz_ij − ½log|R| + ½log|B_a + I| + ½log|B_b + I|,
+    so Q − q_a q_bᵀ = q_ai q_bj expm1(d_ij) without cancellation."""
     nu_a, nu_b = gp_a.X - mu, gp_b.X - mu
     inv_l2_a = 1.0 / gp_a.lengthscales[ia] ** 2  # (P, D)
     inv_l2_b = 1.0 / gp_b.lengthscales[ib] ** 2
     xi_half = np.sqrt(inv_l2_a + inv_l2_b)  # Ξ^½ diagonal, (P, D)
     outer = xi_half[:, :, None] * xi_half[:, None, :]
-    s_inv, r_logdet = _shifted_inverse(sigma * outer)
-    a_mat = (np.eye(sigma.shape[0]) - s_inv) / outer  # R⁻¹Σ, (P, D, D)
+    _, s_ratio, r_logdet = _shifted(sigma * outer)
+    a_mat = s_ratio / outer  # R⁻¹Σ = Ξ^{-½}(S + I)⁻¹SΞ^{-½}, (P, D, D)
     za = nu_a[None, :, :] * inv_l2_a[:, None, :]  # Λ_a⁻¹ν_i, (P, n_a, D)
     zb = nu_b[None, :, :] * inv_l2_b[:, None, :]
     za_a = za @ a_mat
-    # log Q_ij = row_i + col_j + z_aᵢᵀ A z_bⱼ with
-    #   row_i = log α_a² − ½ ν_iᵀΛ_a⁻¹ν_i + ½ z_aᵢᵀ A z_aᵢ − ½ log|R|,  col_j likewise for b,
-    # built by one matmul of augmented factors [z_a A, row, 1] · [z_b, 1, col]ᵀ (one pass over n²)
-    row = (np.log(gp_a.signal_var[ia])[:, None] - 0.5 * np.einsum("pnd,nd->pn", za, nu_a)
-           + 0.5 * np.sum(za_a * za, axis=-1) - 0.5 * r_logdet[:, None])
-    col = (np.log(gp_b.signal_var[ib])[:, None] - 0.5 * np.einsum("pnd,nd->pn", zb, nu_b)
-           + 0.5 * np.einsum("pnd,pdk,pnk->pn", zb, a_mat, zb))
+    const = 0.5 * (first_a.b_logdet[ia] + first_b.b_logdet[ib] - r_logdet)
+    row = -0.5 * first_a.t[ia] + 0.5 * np.sum(za_a * za, axis=-1) + const[:, None]
+    col = -0.5 * first_b.t[ib] + 0.5 * np.einsum("pnd,pdk,pnk->pn", zb, a_mat, zb)
+    # d_ij by one matmul of augmented factors [z_a A, row, 1] · [z_b, 1, col]ᵀ (one pass over n²)
     left = np.concatenate([za_a, row[:, :, None], np.ones_like(row)[:, :, None]], axis=-1)
     right = np.concatenate([zb, np.ones_like(col)[:, :, None], col[:, :, None]], axis=-1)
-    big_q = left @ np.swapaxes(right, 1, 2)
-    np.exp(big_q, out=big_q)
-    q_beta_b = (big_q @ gp_b.beta[ib][:, :, None])[:, :, 0]
-    return np.sum(gp_a.beta[ia] * q_beta_b, axis=-1), big_q
+    exponent = left @ np.swapaxes(right, 1, 2)
+    q_a, q_b = np.exp(first_a.log_q[ia]), np.exp(first_b.log_q[ib])
+    if exponent.max() <= _EXPM1_SAFE:
+        # Q − q_a q_bᵀ = diag(q_a) E diag(q_b), E = expm1(d): q folded into the weights
+        ratio = np.expm1(exponent, out=exponent)
+        weighted_b = ((gp_b.beta[ib] * q_b)[:, None, :] @ np.swapaxes(ratio, 1, 2))[:, 0, :]
+        return np.sum(gp_a.beta[ia] * q_a * weighted_b, axis=-1), _Centred(ratio, q_a, q_b)
+    # exp(d) would overflow where q_a q_b underflows (input far wider than the lengthscales):
+    # form the entries explicitly, in log space where needed
+    log_base = first_a.log_q[ia][:, :, None] + first_b.log_q[ib][:, None, :]
+    centred = np.where(exponent > _EXPM1_SAFE, np.exp(np.minimum(log_base + exponent, _EXPM1_SAFE)),
+                       np.exp(log_base) * np.expm1(np.minimum(exponent, _EXPM1_SAFE)))
+    weighted_b = (gp_b.beta[ib][:, None, :] @ np.swapaxes(centred, 1, 2))[:, 0, :]
+    return np.sum(gp_a.beta[ia] * weighted_b, axis=-1), _Centred(centred, np.ones_like(q_a), np.ones_like(q_b))
+
+
+def _model_uncertainty(gp, log_q: np.ndarray, centred: _Centred) -> np.ndarray:
+    """E_x[σ_a²(x)] = α_a² − tr(K_a⁻¹Q^{aa}) = (α_a² − ‖L_a⁻¹q_a‖²) − tr(K_a⁻¹(Q^{aa} − q_a q_aᵀ))
+    for every output a (``centred`` holds the diagonal pairs); both matrices are symmetric, so the
+    trace is the sum of the elementwise product, with the scalings moved onto K_a⁻¹."""
+    n = gp.X.shape[0]
+    q = np.exp(log_q)
+    whitened = np.stack([sla.solve_triangular(c.factor, q[a], lower=True, check_finite=False)
+                         for a, c in enumerate(gp._chol)])
+    scaled_inv = gp.K_inv * centred.left[:, :, None] * centred.right[:, None, :]
+    trace = (scaled_inv.reshape(-1, 1, n * n) @ centred.ratio.reshape(-1, n * n, 1))[:, 0, 0]
+    return gp.signal_var - np.sum(whitened**2, axis=1) - trace
 
 
 def moment_match_stack(gps, mu: np.ndarray, sigma: np.ndarray) -> MomentMatch:
     """Joint moments of the stacked outputs of several GPs (each with its own training set) at
     one Gaussian input; arguments are assumed checked."""
     firsts = [_first_moments(gp, mu, sigma) for gp in gps]
-    mean = np.concatenate([m for m, _ in firsts])
-    cross_cov = np.concatenate([c for _, c in firsts], axis=1)
+    mean = np.concatenate([f.mean for f in firsts])
+    cross_cov = np.concatenate([f.cross_cov for f in firsts], axis=1)
     offsets = np.cumsum([0] + [gp.output_dim for gp in gps])
     cov = np.empty((offsets[-1], offsets[-1]))
     for g, gp_a in enumerate(gps):
@@ -106,17 +169,14 @@ def moment_match_stack(gps, mu: np.ndarray, sigma: np.ndarray) -> MomentMatch:
                 ia, ib = np.triu_indices(gp_a.output_dim)
             else:
                 ia, ib = (idx.ravel() for idx in np.indices((gp_a.output_dim, gp_b.output_dim)))
-            second, big_q = _second_moments(gp_a, gp_b, ia, ib, mu, sigma)
+            block, centred = _centred_second_moments(gp_a, gp_b, ia, ib, firsts[g], firsts[h], mu, sigma)
             if g == h:
-                # model uncertainty α_a² − tr(K_a⁻¹Q^{aa}); both symmetric, so the trace is Σ of ∘
                 diag = ia == ib
-                n = gp_a.X.shape[0]
-                trace = (gp_a.K_inv[ia[diag]].reshape(-1, 1, n * n)
-                         @ big_q[diag].reshape(-1, n * n, 1))[:, 0, 0]
-                second[diag] += gp_a.signal_var[ia[diag]] - trace
+                block[diag] += _model_uncertainty(gp_a, firsts[g].log_q, _Centred(
+                    centred.ratio[diag], centred.left[diag], centred.right[diag]))
             rows, cols = offsets[g] + ia, offsets[h] + ib
-            cov[rows, cols] = second - mean[rows] * mean[cols]
-            cov[cols, rows] = cov[rows, cols]
+            cov[rows, cols] = block
+            cov[cols, rows] = block
     return MomentMatch(mean=mean, cov=cov, cross_cov=cross_cov)
 
 
