@@ -135,6 +135,21 @@ def _solve(problem, solver: str, what: str) -> str:
     return problem.status
 
 
+def _solve_parametrised(build, size: tuple[int, int], set_values, solver: str, what: str):
+    """Solve the cached parametrised problem ``build(*size)``; if the solver raises, solve a freshly
+    built copy (a re-solve of a cached problem has been seen to fail in Clarabel where a fresh one
+    succeeds), then the same with SCS. Returns (status, problem, variables) of the solve used."""
+    attempts = [(build, solver), (build.__wrapped__, solver), (build.__wrapped__, cp.SCS)]
+    for k, (make, use) in enumerate(attempts):
+        problem, params, *variables = make(*size)
+        set_values(params)
+        try:
+            return _solve(problem, use, what), problem, variables
+        except SolverError:
+            if k == len(attempts) - 1:
+                raise
+
+
 def smallest_intersecting_size(estimates: Sequence) -> float:
     """c_min = min_x max_m (x − x_m)ᵀP_m⁻¹(x − x_m): the ellipsoids meet iff c ≥ c_min."""
     checked = checked_estimates(estimates)
@@ -159,13 +174,17 @@ def rcc_ci(estimates: Sequence, c: float | None = None, on_empty: str = "error",
     dim = checked[0].mean.shape[0]
     c = default_size(dim) if c is None else float(as_positive(c, "c", shape=()))
     info = information_form(checked)
-    problem, (A, b, d), x, ellipsoids = _primal_problem(len(checked), dim)
     enlarged = False
     while True:
         norm = _normalise(checked, info, c)
-        for m in range(len(checked)):
-            A[m].value, b[m].value, d[m].value = norm.A[m], norm.b[m], float(norm.d[m])
-        status = _solve(problem, solver, "RCC-CI primal")
+
+        def set_values(params, norm=norm):
+            A, b, d = params
+            for m in range(len(checked)):
+                A[m].value, b[m].value, d[m].value = norm.A[m], norm.b[m], float(norm.d[m])
+
+        status, problem, (x, ellipsoids) = _solve_parametrised(
+            _primal_problem, (len(checked), dim), set_values, solver, "RCC-CI primal")
         if status in SOLVED:
             break
         if "infeasible" not in status:
@@ -202,11 +221,14 @@ def rcc_ci_dual(estimates: Sequence, c: float | None = None, solver: str = cp.CL
     c = default_size(dim) if c is None else float(as_positive(c, "c", shape=()))
     info = information_form(checked)
     norm = _normalise(checked, info, c)
-    problem, (A, b, d), alpha = _dual_problem(len(checked), dim)
-    for m in range(len(checked)):
-        A[m].value, b[m].value = norm.A[m], norm.b[m]
-    d.value = norm.d
-    status = _solve(problem, solver, "RCC-CI dual")
+    def set_values(params):
+        A, b, d = params
+        for m in range(len(checked)):
+            A[m].value, b[m].value = norm.A[m], norm.b[m]
+        d.value = norm.d
+
+    status, problem, (alpha,) = _solve_parametrised(_dual_problem, (len(checked), dim), set_values,
+                                                    solver, "RCC-CI dual")
     if status not in SOLVED:
         raise SolverError(f"RCC-CI dual ended with status {status}")
     a = np.clip(alpha.value, 0.0, None)
