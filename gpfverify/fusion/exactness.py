@@ -140,19 +140,25 @@ def range_condition_number(split: KernelSplit) -> float:
 def equivalence_tolerance(case: FusionCase, gain: np.ndarray, sensors: tuple[SensorExactness, ...]) -> float:
     """Rounding bound on ‖μ_DMF − μ_CMF‖ when DMF is exact *at the rank tolerance used* (every
     sensor's verdict ``exact``; a singular value at or below the tolerance is dropped, and its
-    effect is then the closed-form gap, not rounding): algebra_rtol(κ) times the sizes of the
-    terms of eq. 35 and 36 (‖μ_p‖ and ‖G‖ times the per-sensor vectors ‖C_y^m (C_xy^m)⁺(μ_e^m − μ_p^m)‖,
-    ‖μ_y^m − μ_y(m)‖, ‖y^m − μ_y^m‖), κ the largest of cond C_y and
-    cond(C_xy^m on its range)·cond C_y^m: a least-squares solve with a consistent right-hand side
-    has forward error ~ eps·cond times the size of its solution. Vector sizes use BLAS nrm2
-    (scipy.linalg.norm), which does not underflow for tiny entries. Needs ``case.y``."""
+    effect is then the closed-form gap, not rounding):
+
+        algebra_rtol(κ) · (‖μ_p‖ + ‖G‖₂ Σ_m [‖C_y^m‖₂ ‖(C_xy^m)⁺‖₂ (‖μ_e^m‖ + ‖μ_p^m‖)
+                                               + ‖μ_y^m‖ + ‖μ_y(m)‖ + ‖y^m‖]),
+        κ = max(cond C_y, max_m cond(C_xy^m on its range) · cond C_y^m).
+
+    Each term is the size of an operand eq. 35 or 36 works with, which loses ≈ eps·κ of itself.
+    The recovered innovation (C_xy^m)⁺(μ_e^m − μ_p^m) carries the rounding of μ_e^m and μ_p^m —
+    of their sizes, not of their difference: when C_xy^m is small the local update C_xy^m w_m can
+    fall below eps·‖μ_e^m‖ and be lost in the report itself, and (C_xy^m)⁺ amplifies that loss by
+    1/σ_r. Norms are BLAS nrm2 (scipy.linalg.norm), which does not underflow for tiny entries.
+    Needs ``case.y``."""
     c = case.central
     eig = np.linalg.eigvalsh(c.C_y)
     cond, terms = eig[-1] / eig[0], 0.0
     for s, block, local in zip(sensors, c.blocks, case.locals):
         eig_m = np.linalg.eigvalsh(local.C_y)
         cond = max(cond, range_condition_number(s.split) * eig_m[-1] / eig_m[0])
-        terms += (np.linalg.norm(local.C_y, 2) * sla.norm(s.split.pinv @ (local.mu_e - local.mu_p))
-                  + sla.norm(local.mu_y - c.mu_y[block])
-                  + sla.norm(case.local_measurement(s.index) - local.mu_y))
-    return algebra_rtol(cond) * (sla.norm(c.mu_p) + np.linalg.norm(gain, 2) * terms)
+        terms += (sla.norm(local.C_y, 2) * sla.norm(s.split.pinv, 2) * (sla.norm(local.mu_e) + sla.norm(local.mu_p))
+                  + sla.norm(local.mu_y) + sla.norm(c.mu_y[block])
+                  + sla.norm(case.local_measurement(s.index)))
+    return algebra_rtol(cond) * (sla.norm(c.mu_p) + sla.norm(gain, 2) * terms)
