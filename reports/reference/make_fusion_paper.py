@@ -11,13 +11,13 @@ self-contained ``reports/reference/fusion-paper.html``. The per-run files are no
 
 from __future__ import annotations
 
-import shutil
 import sys
 from pathlib import Path
 
+from reference_pages import recompute_into, write_page
+
 from gpfverify.experiments import ct2d, ungm1d
-from gpfverify.experiments.runner import rewrite_results
-from gpfverify.report.render import to_html, to_markdown
+from gpfverify.report.render import to_html
 from gpfverify.report.sections import fusion_ct2d, fusion_ungm1d
 
 HERE = Path(__file__).resolve().parent
@@ -34,31 +34,23 @@ COMMANDS = {
 UNGM1D_FOLDERS = ("ungm1d-sweep", "ungm1d")
 
 
-def recompute(run_dir: Path, module, target: Path) -> dict:
-    results = rewrite_results(run_dir, module)
-    target.mkdir(parents=True, exist_ok=True)
-    shutil.copy(run_dir / "results.json", target / "results.json")
-    shutil.copy(run_dir / "manifest.json", target / "manifest.json")
-    return results
-
-
 def main(runs_dir: Path) -> None:
     sections = []
     ct = {}
     for name, command in COMMANDS.items():
         if name.startswith("ct2d") and (runs_dir / name / "manifest.json").exists():
-            results = recompute(runs_dir / name, ct2d, HERE / "ct2d" / name.removeprefix("ct2d-"))
+            results = recompute_into(runs_dir / name, ct2d, HERE / "ct2d" / name.removeprefix("ct2d-"))
             ct[fusion_ct2d.label(results["params"])] = results
     made_by = "; ".join(c for n, c in COMMANDS.items() if n.startswith("ct2d"))
     sections.append(fusion_ct2d.render(ct, HERE / "ct2d", command=made_by + "; then "
                                        "python reports/reference/make_fusion_paper.py OUT"))
     present = [name for name in UNGM1D_FOLDERS if (runs_dir / name / "manifest.json").exists()]
     if present:
-        results = recompute(runs_dir / present[0], ungm1d, HERE / "ungm1d")
+        results = recompute_into(runs_dir / present[0], ungm1d, HERE / "ungm1d")
         sections.append(fusion_ungm1d.render(results, HERE / "ungm1d", command=COMMANDS[present[0]] + "; then "
                                              "python reports/reference/make_fusion_paper.py OUT"))
     for section in sections:
-        (HERE / section.slug / "README.md").write_text(to_markdown(section, HERE / section.slug), encoding="utf-8")
+        write_page(section, HERE / section.slug)
     (HERE / "fusion-paper.html").write_text(to_html(sections, "Fusion paper: reference run"), encoding="utf-8")
 
 

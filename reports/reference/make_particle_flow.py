@@ -10,14 +10,12 @@ manifest) to ``reports/reference/particle-flow/<experiment>/``, and the page is 
 
 from __future__ import annotations
 
-import json
-import shutil
 import sys
 from pathlib import Path
 
+from reference_pages import recompute_into, write_page
+
 from gpfverify.experiments import bearing, pff1d
-from gpfverify.experiments.runner import write_results
-from gpfverify.report.render import to_markdown
 from gpfverify.report.sections import particle_flow
 
 HERE = Path(__file__).resolve().parent / particle_flow.SLUG
@@ -29,20 +27,11 @@ COMMANDS = {
 MODULES = {"pff1d": pff1d, "bearing": bearing}
 
 
-def recompute(run_dir: Path, module, target: Path) -> dict:
-    manifest = json.loads((run_dir / "manifest.json").read_text(encoding="utf-8"))
-    results = write_results(module, run_dir, manifest)
-    target.mkdir(parents=True, exist_ok=True)
-    shutil.copy(run_dir / "results.json", target / "results.json")
-    shutil.copy(run_dir / "manifest.json", target / "manifest.json")
-    return results
-
-
 def main(runs_dir: Path) -> None:
-    results = {name: recompute(runs_dir / name, MODULES[name], HERE / name) for name in COMMANDS}
+    results = {name: recompute_into(runs_dir / name, MODULES[name], HERE / name) for name in COMMANDS}
     command = "; ".join(COMMANDS.values()) + "; then python reports/reference/make_particle_flow.py OUT"
     section = particle_flow.render(results, HERE, command=command)
-    (HERE / "README.md").write_text(to_markdown(section, HERE), encoding="utf-8")
+    write_page(section, HERE)
 
 
 if __name__ == "__main__":

@@ -1,0 +1,30 @@
+"""Steps shared by the scripts that render the committed reference pages from saved runs.
+
+The per-run files stay where the runs were made; ``results.json`` is recomputed from them with the
+current summaries and copied, with its manifest, next to the page that shows it.
+"""
+
+from __future__ import annotations
+
+import shutil
+from pathlib import Path
+
+from gpfverify.experiments.runner import rewrite_results
+from gpfverify.report.document import Section
+from gpfverify.report.render import to_markdown
+
+
+def recompute_into(run_dir: Path, module, target: Path) -> dict:
+    """``results.json`` recomputed from the runs in ``run_dir``, copied with its manifest to
+    ``target``; returns it."""
+    results = rewrite_results(run_dir, module)
+    target.mkdir(parents=True, exist_ok=True)
+    for name in ("results.json", "manifest.json"):
+        shutil.copy(run_dir / name, target / name)
+    return results
+
+
+def write_page(section: Section, page_dir: Path) -> Path:
+    path = page_dir / "README.md"
+    path.write_text(to_markdown(section, page_dir), encoding="utf-8")
+    return path
