@@ -28,7 +28,7 @@ from pathlib import Path
 
 import numpy as np
 
-from _timing import markdown_table
+from _timing import markdown_table, median_cpu_seconds
 from bench_gp import reference_moments
 from gpfverify.experiments import ct2d
 from gpfverify.experiments.fusion_run import train_models
@@ -43,12 +43,6 @@ def timed(fn):
     wall, cpu = time.perf_counter(), time.process_time()
     out = fn()
     return out, time.perf_counter() - wall, time.process_time() - cpu
-
-
-def median_cpu_seconds(fn, repeats: int) -> float:
-    """Median process CPU time of ``fn`` (one warm-up call)."""
-    fn()
-    return float(np.median([timed(fn)[2] for _ in range(repeats)]))
 
 
 def breakdown(record: dict) -> dict[str, float]:

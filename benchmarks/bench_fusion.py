@@ -20,7 +20,7 @@ import cvxpy as cp
 import numpy as np
 from scipy.optimize import minimize, minimize_scalar
 
-from _timing import markdown_table, median_seconds
+from _timing import markdown_table, median_cpu_seconds, median_seconds
 from gpfverify.filters.records import Gaussian
 from gpfverify.fusion.centralized import cmf_update
 from gpfverify.fusion.ci import covariance_intersection, inverse_covariance_intersection
@@ -114,16 +114,6 @@ def ref_rcc(ests, c):
     cp.Problem(cp.Maximize(cp.trace(delta) - cp.sum_squares(x)), cons).solve(solver=cp.CLARABEL)
     return x.value
 
-
-def median_cpu_seconds(fn, repeats: int) -> float:
-    """Median process CPU time of one call: unlike wall time, not inflated by other processes."""
-    fn()
-    times = []
-    for _ in range(repeats):
-        start = time.process_time()
-        fn()
-        times.append(time.process_time() - start)
-    return float(np.median(times))
 
 
 def configuration(n, d, l, seed):
