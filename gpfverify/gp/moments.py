@@ -14,16 +14,18 @@ how a stack of sensors' measurement GPs gets its cross-sensor blocks through the
 input (seed 000 §3).
 
 Evaluated in centred form, Cov = β_aᵀ(Q^{ab} − q_a q_bᵀ)β_b + δ_ab[(α_a² − ‖L_a⁻¹q_a‖²)
-− tr(K_a⁻¹(Q^{aa} − q_a q_aᵀ))] (L_a the Cholesky factor of K_a): algebraically the same, but it
-never forms E[f_a f_b] and M_a M_b separately. With long lengthscales and a large signal variance
-(a GP fitted to a nearly linear map) the entries of Q are of order α⁴ while the covariance is of
-order one; summing β-weighted α⁴ terms and subtracting M² then loses every digit (measured: an
-eigenvalue of −2 where quadrature gives +1.4), while the centred entries are α⁴·O(Σ/ℓ²) smaller.
+− tr(K_a⁻¹(Q^{aa} − q_a q_aᵀ))] (L_a the Cholesky factor of K_a), with Q^{ab}_ij = q_ai q_bj exp(d_ij)
+and the small exponent d_ij formed directly (see :func:`_centred_second_moments`), so that
+Q − q_a q_bᵀ = q_ai q_bj expm1(d_ij). Algebraically the same as eq. 10, but no quantity is a
+difference of nearly equal large numbers. With long lengthscales and a large signal variance (a GP
+fitted to a nearly linear map) the entries of Q are of order α⁴ ≈ 1e13 while the covariance is of
+order one: eq. 10 evaluated as written lost every digit there (an eigenvalue of −2 where
+quadrature gives +1.4).
 
 Σ may be singular: no formula inverts it. With Ξ = Λ_a⁻¹ + Λ_b⁻¹ and S = Ξ^½ΣΞ^½,
-|R| = |S + I| and R⁻¹Σ = Ξ^{-½}(I − (S + I)⁻¹)Ξ^{-½}, both from the PD matrix S + I. Likewise
-(Σ + Λ_a)⁻¹ = Λ_a^{-½}(B + I)⁻¹Λ_a^{-½} with B = Λ_a^{-½}ΣΛ_a^{-½}. All exponents are summed in log
-space before a single ``exp``.
+|R| = |S + I| and R⁻¹Σ = Ξ^{-½}(S + I)⁻¹SΞ^{-½}, both from the PD matrix S + I. Likewise
+(Σ + Λ_a)⁻¹ = Λ_a^{-½}(B + I)⁻¹Λ_a^{-½} with B = Λ_a^{-½}ΣΛ_a^{-½}; log-determinants are Σ log1p of
+eigenvalues.
 """
 
 from __future__ import annotations
@@ -147,8 +149,8 @@ def _model_uncertainty(gp, log_q: np.ndarray, centred: _Centred) -> np.ndarray:
     trace is the sum of the elementwise product, with the scalings moved onto K_a⁻¹."""
     n = gp.X.shape[0]
     q = np.exp(log_q)
-    whitened = np.stack([sla.solve_triangular(c.factor, q[a], lower=True, check_finite=False)
-                         for a, c in enumerate(gp._chol)])
+    whitened = np.stack([sla.solve_triangular(factor, q[a], lower=True, check_finite=False)
+                         for a, factor in enumerate(gp.cholesky_factors)])
     scaled_inv = gp.K_inv * centred.left[:, :, None] * centred.right[:, None, :]
     trace = (scaled_inv.reshape(-1, 1, n * n) @ centred.ratio.reshape(-1, n * n, 1))[:, 0, 0]
     return gp.signal_var - np.sum(whitened**2, axis=1) - trace

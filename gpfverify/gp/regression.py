@@ -182,6 +182,11 @@ class GaussianProcess:
         return self.Y.shape[1]
 
     @property
+    def cholesky_factors(self) -> tuple[np.ndarray, ...]:
+        """Lower Cholesky factor L_a of each K_a (+ jitter), computed once at construction."""
+        return tuple(c.factor for c in self._chol)
+
+    @property
     def jitter(self) -> np.ndarray:
         """Jitter added to each K_a to factorise it (zeros when none was needed)."""
         return np.array([c.jitter for c in self._chol])
