@@ -21,11 +21,13 @@ from gpfverify.report.render import to_html
 from gpfverify.report.sections import fusion_ct2d, fusion_ungm1d
 
 HERE = Path(__file__).resolve().parent
-#: folder name -> the exact command that made it (run from the repository root, OUT = RUNS_DIR)
+#: folder name -> the exact command that made it (run from the repository root, OUT = RUNS_DIR);
+#: the 1000-run folders were made as 200 runs and extended with ``--runs 1000 --resume``, which gives
+#: the same runs (seeds are SeedSequence(seed).spawn(runs), indexed by run)
 COMMANDS = {
-    "ct2d-k300-w0.0698": "gpfverify reproduce ct2d --kappa 300 --omega 0.0698 --runs 200 --seed 1 --workers 2 --out OUT/ct2d-k300-w0.0698",
-    "ct2d-k30-w0.0698": "gpfverify reproduce ct2d --kappa 30 --omega 0.0698 --runs 200 --seed 1 --workers 2 --out OUT/ct2d-k30-w0.0698",
-    "ct2d-k60-w0.0698": "gpfverify reproduce ct2d --kappa 60 --omega 0.0698 --runs 200 --seed 1 --workers 2 --out OUT/ct2d-k60-w0.0698",
+    "ct2d-k300-w0.0698": "gpfverify reproduce ct2d --kappa 300 --omega 0.0698 --runs 1000 --seed 1 --workers 2 --out OUT/ct2d-k300-w0.0698",
+    "ct2d-k30-w0.0698": "gpfverify reproduce ct2d --kappa 30 --omega 0.0698 --runs 1000 --seed 1 --workers 2 --out OUT/ct2d-k30-w0.0698",
+    "ct2d-k60-w0.0698": "gpfverify reproduce ct2d --kappa 60 --omega 0.0698 --runs 1000 --seed 1 --workers 2 --out OUT/ct2d-k60-w0.0698",
     "ct2d-k300-w0.5": "gpfverify reproduce ct2d --kappa 300 --omega 0.5 --runs 200 --seed 1 --workers 2 --out OUT/ct2d-k300-w0.5",
     "ungm1d-sweep": "gpfverify reproduce ungm1d --runs 200 --seed 1 --workers 2 --out OUT/ungm1d-sweep",
     "ungm1d": "gpfverify reproduce ungm1d --sweep 2 --runs 200 --seed 1 --workers 2 --out OUT/ungm1d",
