@@ -64,6 +64,27 @@ def cholesky(a: np.ndarray, name: str = "matrix", allow_jitter: bool = True) -> 
                          f"{steps[-1]:g} x mean diagonal)")
 
 
+def cholesky_batched(a: np.ndarray, name: str) -> np.ndarray:
+    """Lower Cholesky factors of a stack of symmetric matrices (..., n, n), without jitter.
+
+    Raises :class:`NumericalError` naming ``name`` (and the first failing batch index and its
+    smallest eigenvalue) when a matrix is not finite or not positive definite.
+    """
+    if not np.all(np.isfinite(a)):
+        raise NumericalError(f"{name} contains NaN or inf")
+    sym = symmetrize(a)
+    try:
+        return np.linalg.cholesky(sym)
+    except np.linalg.LinAlgError:
+        pass
+    flat = sym.reshape((-1,) + sym.shape[-2:])
+    lowest = np.linalg.eigvalsh(flat)[:, 0]
+    first = int(np.argmin(lowest))
+    index = tuple(int(i) for i in np.unravel_index(first, sym.shape[:-2]))
+    where = f" at batch index {index}" if sym.ndim > 2 else ""
+    raise NumericalError(f"{name} is not positive definite{where} (min eigenvalue {lowest[first]:.3g})")
+
+
 def solve_spd(a: np.ndarray, b: np.ndarray, name: str = "matrix") -> np.ndarray:
     """a⁻¹ b for symmetric positive definite ``a`` (no jitter: a failure is an error)."""
     return cholesky(a, name, allow_jitter=False).solve(b)

@@ -30,7 +30,7 @@ from gpfverify.filters.models import NonlinearModel
 from gpfverify.filters.resampling import ParticleStepInfo
 from gpfverify.filters.sigma_points import SigmaParams
 from gpfverify.filters.sr_ukf import SqrtGaussian, noise_sqrt, sr_ukf_predict, sr_ukf_update
-from gpfverify.filters.update import cholesky_batched
+from gpfverify.linalg import cholesky_batched
 from gpfverify.filters.upf import ParticleCloud, upf_step
 from gpfverify.gp.residual import ResidualGP
 

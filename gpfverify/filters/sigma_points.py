@@ -11,7 +11,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from gpfverify.errors import InputError, NumericalError
+from gpfverify.errors import InputError
+from gpfverify.linalg import cholesky_batched
 
 
 @dataclass(frozen=True)
@@ -40,10 +41,7 @@ def sigma_points(mean: np.ndarray, cov: np.ndarray, params: SigmaParams = SigmaP
     """Sigma points (..., 2D + 1, D) for means (..., D) and covariances (..., D, D)."""
     dim = mean.shape[-1]
     scale = dim + params.lam(dim)
-    try:
-        root = np.linalg.cholesky(scale * cov)  # (..., D, D), columns are the directions
-    except np.linalg.LinAlgError:
-        raise NumericalError("covariance is not positive definite: cannot draw sigma points") from None
+    root = cholesky_batched(scale * cov, "sigma-point covariance")  # (..., D, D), columns are the directions
     offsets = np.swapaxes(root, -1, -2)  # (..., D, D): row i = column i of the factor
     return np.concatenate([mean[..., None, :], mean[..., None, :] + offsets,
                            mean[..., None, :] - offsets], axis=-2)

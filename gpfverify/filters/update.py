@@ -13,31 +13,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from gpfverify.errors import InputError, NumericalError
+from gpfverify.errors import InputError
 from gpfverify.filters.records import Gaussian, MeasurementMoments, StepRecord
-from gpfverify.linalg import symmetrize
+from gpfverify.linalg import cholesky_batched, symmetrize
 from gpfverify.validate import as_array
-
-
-def cholesky_batched(a: np.ndarray, name: str) -> np.ndarray:
-    """Lower Cholesky factors of a stack of symmetric matrices (..., n, n), without jitter.
-
-    Raises :class:`NumericalError` naming ``name`` (and the first failing batch index and its
-    smallest eigenvalue) when a matrix is not finite or not positive definite.
-    """
-    if not np.all(np.isfinite(a)):
-        raise NumericalError(f"{name} contains NaN or inf")
-    sym = symmetrize(a)
-    try:
-        return np.linalg.cholesky(sym)
-    except np.linalg.LinAlgError:
-        pass
-    flat = sym.reshape((-1,) + sym.shape[-2:])
-    lowest = np.linalg.eigvalsh(flat)[:, 0]
-    first = int(np.argmin(lowest))
-    index = tuple(int(i) for i in np.unravel_index(first, sym.shape[:-2]))
-    where = f" at batch index {index}" if sym.ndim > 2 else ""
-    raise NumericalError(f"{name} is not positive definite{where} (min eigenvalue {lowest[first]:.3g})")
 
 
 def gaussian_update(prediction: Gaussian, moments: MeasurementMoments, y) -> StepRecord:

@@ -30,7 +30,7 @@ from gpfverify.filters.records import Gaussian
 from gpfverify.filters.resampling import ParticleStepInfo, reweight_and_resample, weighted_moments
 from gpfverify.filters.sigma_points import SigmaParams
 from gpfverify.filters.ukf import ukf_step
-from gpfverify.filters.update import cholesky_batched
+from gpfverify.linalg import cholesky_batched
 from gpfverify.linalg import cholesky
 from gpfverify.validate import as_matrix, as_vector
 
