@@ -23,9 +23,9 @@ def _square_root(sigma: np.ndarray) -> np.ndarray:
     return vecs * np.sqrt(np.clip(vals, 0.0, None))
 
 
-def _moments_from_points(gp, x: np.ndarray, w: np.ndarray) -> MomentMatch:
+def _moments_from_points(x: np.ndarray, w: np.ndarray, m: np.ndarray, v: np.ndarray) -> MomentMatch:
+    """Weighted moments from points x with predictive means m and variances v."""
     mean_x = w @ x
-    m, v = gp.predict(x)
     mean = w @ m
     dm = m - mean
     cov = (dm * w[:, None]).T @ dm + np.diag(w @ v)
@@ -41,7 +41,7 @@ def quadrature_moments(gp, mu: np.ndarray, sigma: np.ndarray, order: int = 40) -
     grid = np.array(list(itertools.product(nodes, repeat=d)))
     w = np.prod(np.array(list(itertools.product(weights, repeat=d))), axis=1)
     x = mu + grid @ _square_root(sigma).T
-    return _moments_from_points(gp, x, w)
+    return _moments_from_points(x, w, *gp.predict(x))
 
 
 def monte_carlo_moments(gp, mu: np.ndarray, sigma: np.ndarray, samples: int,
@@ -50,8 +50,8 @@ def monte_carlo_moments(gp, mu: np.ndarray, sigma: np.ndarray, samples: int,
     free: the standard errors are those of the sample means of the per-sample summands)."""
     x = mu + rng.standard_normal((samples, mu.size)) @ _square_root(sigma).T
     w = np.full(samples, 1.0 / samples)
-    est = _moments_from_points(gp, x, w)
     m, v = gp.predict(x)
+    est = _moments_from_points(x, w, m, v)
     dm = m - est.mean
     dx = x - w @ x
     cov_terms = dm[:, :, None] * dm[:, None, :] + np.eye(m.shape[1]) * v[:, None, :]
