@@ -1,15 +1,15 @@
-"""A thin iterator over a measurement sequence for any Gaussian step function."""
+"""A thin iterator over a measurement sequence for any step function of the common protocol
+``step(belief, model, y, *, k, **params) -> record`` whose record has ``.posterior``."""
 
 from __future__ import annotations
 
-import inspect
 from dataclasses import dataclass, fields
 from typing import Callable
 
 import numpy as np
 
 from gpfverify.errors import InputError
-from gpfverify.filters.records import Gaussian, StepRecord
+from gpfverify.filters.records import StepRecord
 
 
 @dataclass(frozen=True)
@@ -26,22 +26,20 @@ class FilterRun(StepRecord):
         return StepRecord(**{f.name: getattr(self, f.name)[t] for f in fields(self)})
 
 
-def run_filter(step: Callable[..., StepRecord], belief0: Gaussian, ys, first_k: int = 1,
-               **kw) -> FilterRun:
-    """Run ``step`` over the measurements ``ys`` (T, ..., L) from the prior ``belief0``.
-
-    Step t is called as ``step(belief, y=ys[t], **kw)``, with ``k=first_k + t`` as well when the
-    step function has a parameter named ``k`` (time-varying models); each posterior is the next
-    step's belief.
-    """
+def run_filter(step: Callable, model, belief0, ys, *, first_k: int = 1, **params):
+    """Run ``step`` over the measurements ``ys`` (T, ..., L) from the prior ``belief0``: step t is
+    ``step(belief, model, ys[t], k=first_k + t, **params)`` and its record's ``posterior`` is the
+    next belief. Returns a :class:`FilterRun` when the records are :class:`StepRecord`\\ s (the
+    Gaussian filters), else the list of records."""
     ys = np.asarray(ys, dtype=float)
     if ys.ndim < 2 or ys.shape[0] == 0:
         raise InputError(f"ys must have shape (T, ..., L) with T ≥ 1, got {ys.shape}")
-    takes_time = "k" in inspect.signature(step).parameters
     records, belief = [], belief0
     for t, y in enumerate(ys):
-        record = step(belief, y=y, **({"k": first_k + t} if takes_time else {}), **kw)
+        record = step(belief, model, y, k=first_k + t, **params)
         records.append(record)
         belief = record.posterior
+    if not all(type(r) is StepRecord for r in records):
+        return records
     return FilterRun(**{f.name: np.stack([np.asarray(getattr(r, f.name), dtype=float) for r in records])
                         for f in fields(FilterRun)})

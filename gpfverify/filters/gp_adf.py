@@ -11,27 +11,21 @@ Gaussian input (:meth:`GaussianProcess.predict_uncertain`, eq. 8–11 and 20):
   C_xy = Cov[x_k, g(x_k)] (eq. 20), with x_k ~ N(μ_p, C_p);
 * update (eq. 15–16): :func:`~gpfverify.filters.update.gaussian_update`.
 
-The GP arguments are duck-typed: anything with ``input_dim``, ``output_dim``, ``noise_var`` and
-``predict_uncertain(mu, Sigma) -> MomentMatch`` (a GaussianProcess or a GaussianProcessStack,
-whose joint moments carry the cross-sensor blocks of centralized fusion). Beliefs may carry
-leading batch axes; each belief in a batch is moment-matched separately.
+The model is a :class:`~gpfverify.models.GPModel` (validated when built): its ``transition`` GP
+and its ``measurement`` GP (one sensor's GP, or the stack of several, whose joint moments carry
+the cross-sensor blocks of centralized fusion). Angle outputs: y − μ_y is wrapped in the update.
+Beliefs may carry leading batch axes; each belief in a batch is moment-matched separately.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from gpfverify.errors import InputError
 from gpfverify.filters.records import Gaussian, MeasurementMoments, StepRecord
 from gpfverify.filters.update import check_belief, gaussian_update
 from gpfverify.linalg import symmetrize
-
-
-def check_transition_gp(gp) -> None:
-    """A transition GP maps the state to itself: :class:`InputError` unless output_dim = input_dim."""
-    if gp.output_dim != gp.input_dim:
-        raise InputError(f"a transition GP maps the state to itself: input_dim {gp.input_dim} "
-                         f"!= output_dim {gp.output_dim}")
+from gpfverify.models.learned import GPModel
+from gpfverify.models.system import require_model
 
 
 def moment_match_batched(gp, belief: Gaussian, name: str = "belief") -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -47,20 +41,24 @@ def moment_match_batched(gp, belief: Gaussian, name: str = "belief") -> tuple[np
     return mean, cov, cross
 
 
-def gp_adf_predict(belief: Gaussian, transition_gp) -> Gaussian:
-    """N(μ_p, C_p), eq. 18–19: moment matching at the belief plus the learned transition noise."""
-    check_transition_gp(transition_gp)
-    mean, cov, _ = moment_match_batched(transition_gp, belief)
-    return Gaussian(mean, symmetrize(cov + np.diag(transition_gp.noise_var)))
+def gp_adf_predict(belief: Gaussian, model, *, k: int = 1) -> Gaussian:
+    """N(μ_p, C_p), eq. 18–19: moment matching at the belief plus the learned transition noise
+    (``k`` is accepted for the common protocol; a GP model does not depend on it)."""
+    require_model(model, GPModel, "GP-ADF")
+    mean, cov, _ = moment_match_batched(model.transition, belief)
+    return Gaussian(mean, symmetrize(cov + np.diag(model.transition.noise_var)))
 
 
-def gp_adf_measurement(prediction: Gaussian, measurement_gp) -> MeasurementMoments:
+def gp_adf_measurement(prediction: Gaussian, model, *, k: int = 1) -> MeasurementMoments:
     """(μ_y, C_y, C_xy) at N(μ_p, C_p): exact moments plus the learned measurement noise."""
-    mu_y, cov, cross = moment_match_batched(measurement_gp, prediction, "prediction")
-    return MeasurementMoments(mu_y, symmetrize(cov + np.diag(measurement_gp.noise_var)), cross)
+    require_model(model, GPModel, "GP-ADF")
+    gp = model.measurement
+    mu_y, cov, cross = moment_match_batched(gp, prediction, "prediction")
+    return MeasurementMoments(mu_y, symmetrize(cov + np.diag(gp.noise_var)), cross)
 
 
-def gp_adf_step(belief: Gaussian, transition_gp, measurement_gp, y) -> StepRecord:
-    """One GP-ADF predict–update cycle (Lemma 1)."""
-    prediction = gp_adf_predict(belief, transition_gp)
-    return gaussian_update(prediction, gp_adf_measurement(prediction, measurement_gp), y)
+def gp_adf_step(belief: Gaussian, model, y, *, k: int = 1) -> StepRecord:
+    """One GP-ADF predict–update cycle (Lemma 1) on a :class:`~gpfverify.models.GPModel`."""
+    prediction = gp_adf_predict(belief, model, k=k)
+    return gaussian_update(prediction, gp_adf_measurement(prediction, model, k=k), y, model.circular,
+                           model.circular_state)

@@ -11,21 +11,23 @@ whose models are the *means* of trained GPs and whose noise comes from the GP va
 Interpretation (the text leaves it open): GP^Σ is the predictive variance of a *new noisy target*,
 i.e. the latent variance plus the GP's learned noise variance σ_ε², as diagonal matrices, so that
 Q and R tend to the learned system and measurement noise where the training data are dense.
-Sigma-point parameters default to α = 1, β = 0, κ = 2 (:class:`SigmaParams`). The GP arguments
-are duck-typed (``predict``, ``predict_mean``, ``noise_var``, ``input_dim``, ``output_dim``);
-beliefs may carry leading batch axes.
+Sigma-point parameters default to α = 1, β = 0, κ = 2 (:class:`SigmaParams`). The model is a
+:class:`~gpfverify.models.GPModel`; angle outputs and state components are handled as in the UKF
+(circular sigma-point means, wrapped deviations and innovation). Beliefs may carry leading batch
+axes.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from gpfverify.filters.gp_adf import check_transition_gp
 from gpfverify.filters.records import Gaussian, MeasurementMoments, StepRecord
 from gpfverify.filters.sigma_points import SigmaParams
 from gpfverify.filters.ukf import unscented_transform
 from gpfverify.filters.update import check_belief, gaussian_update
 from gpfverify.linalg import symmetrize
+from gpfverify.models.learned import GPModel
+from gpfverify.models.system import require_model
 
 
 def gp_noise_covariance(gp, means: np.ndarray) -> np.ndarray:
@@ -36,25 +38,29 @@ def gp_noise_covariance(gp, means: np.ndarray) -> np.ndarray:
     return total[..., :, None] * np.eye(gp.output_dim)
 
 
-def gp_ukf_predict(belief: Gaussian, transition_gp, params: SigmaParams = SigmaParams()) -> Gaussian:
+def gp_ukf_predict(belief: Gaussian, model, *, k: int = 1, params: SigmaParams = SigmaParams()) -> Gaussian:
     """N(μ_p, C_p), eq. 21–24."""
-    check_transition_gp(transition_gp)
-    belief = check_belief(belief, transition_gp.input_dim)
-    mean, cov, _ = unscented_transform(belief, transition_gp.predict_mean, params)
-    return Gaussian(mean, symmetrize(cov + gp_noise_covariance(transition_gp, belief.mean)))
+    require_model(model, GPModel, "GP-UKF")
+    gp = model.transition
+    belief = check_belief(belief, gp.input_dim)
+    mean, cov, _ = unscented_transform(belief, gp.predict_mean, params, model.circular_state,
+                                       model.circular_state)
+    return Gaussian(mean, symmetrize(cov + gp_noise_covariance(gp, belief.mean)))
 
 
-def gp_ukf_measurement(prediction: Gaussian, measurement_gp,
+def gp_ukf_measurement(prediction: Gaussian, model, *, k: int = 1,
                        params: SigmaParams = SigmaParams()) -> MeasurementMoments:
     """(μ_y, C_y, C_xy), eq. 25–29, with sigma points redrawn from N(μ_p, C_p)."""
-    prediction = check_belief(prediction, measurement_gp.input_dim, "prediction")
-    mu_y, C_y, C_xy = unscented_transform(prediction, measurement_gp.predict_mean, params)
-    return MeasurementMoments(mu_y, symmetrize(C_y + gp_noise_covariance(measurement_gp, prediction.mean)),
-                              C_xy)
+    require_model(model, GPModel, "GP-UKF")
+    gp = model.measurement
+    prediction = check_belief(prediction, gp.input_dim, "prediction")
+    mu_y, C_y, C_xy = unscented_transform(prediction, gp.predict_mean, params, model.circular_state,
+                                          model.circular)
+    return MeasurementMoments(mu_y, symmetrize(C_y + gp_noise_covariance(gp, prediction.mean)), C_xy)
 
 
-def gp_ukf_step(belief: Gaussian, transition_gp, measurement_gp, y,
-                params: SigmaParams = SigmaParams()) -> StepRecord:
-    """One GP-UKF predict–update cycle."""
-    prediction = gp_ukf_predict(belief, transition_gp, params)
-    return gaussian_update(prediction, gp_ukf_measurement(prediction, measurement_gp, params), y)
+def gp_ukf_step(belief: Gaussian, model, y, *, k: int = 1, params: SigmaParams = SigmaParams()) -> StepRecord:
+    """One GP-UKF predict–update cycle on a :class:`~gpfverify.models.GPModel`."""
+    prediction = gp_ukf_predict(belief, model, k=k, params=params)
+    return gaussian_update(prediction, gp_ukf_measurement(prediction, model, k=k, params=params), y,
+                           model.circular, model.circular_state)

@@ -5,38 +5,38 @@
 Prediction μ_p = F μ_e, C_p = F C_e Fᵀ + Q; measurement moments μ_y = H μ_p,
 C_y = H C_p Hᵀ + R, C_xy = C_p Hᵀ; update by :func:`~gpfverify.filters.update.gaussian_update`
 (seed 000 eq. 15–16 are exactly these formulas with the moments computed exactly). The exact
-oracle of every other Gaussian filter on linear models.
+oracle of every other Gaussian filter on linear models. The model is a
+:class:`~gpfverify.models.StateSpaceModel` whose functions are matrices
+(:func:`~gpfverify.models.linear_model`); Q and R were validated when it was built.
 """
 
 from __future__ import annotations
 
-from gpfverify.errors import InputError
 from gpfverify.filters.records import Gaussian, MeasurementMoments, StepRecord
 from gpfverify.filters.update import check_belief, gaussian_update
 from gpfverify.linalg import symmetrize
-from gpfverify.validate import as_covariance, as_matrix
+from gpfverify.models.system import StateSpaceModel, require_model
 
 
-def kf_predict(belief: Gaussian, F, Q) -> Gaussian:
-    """N(F μ_e, F C_e Fᵀ + Q); F (D, D), Q (D, D)."""
-    F = as_matrix(F, "F")
-    if F.shape[0] != F.shape[1]:
-        raise InputError(f"F must be square, got shape {F.shape}")
-    Q = as_covariance(Q, "Q", F.shape[0])
-    belief = check_belief(belief, F.shape[1])
-    return Gaussian(belief.mean @ F.T, symmetrize(F @ belief.cov @ F.T + Q))
+def kf_predict(belief: Gaussian, model, *, k: int = 1) -> Gaussian:
+    """N(F μ_e, F C_e Fᵀ + Q)."""
+    require_model(model, StateSpaceModel, "the Kalman filter")
+    F, _ = model.linear_matrices()
+    belief = check_belief(belief, model.state_dim)
+    return Gaussian(belief.mean @ F.T, symmetrize(F @ belief.cov @ F.T + model.Q))
 
 
-def kf_measurement(prediction: Gaussian, H, R) -> MeasurementMoments:
-    """(H μ_p, H C_p Hᵀ + R, C_p Hᵀ); H (L, D), R (L, L)."""
-    H = as_matrix(H, "H")
-    R = as_covariance(R, "R", H.shape[0])
-    prediction = check_belief(prediction, H.shape[1], "prediction")
+def kf_measurement(prediction: Gaussian, model, *, k: int = 1) -> MeasurementMoments:
+    """(H μ_p, H C_p Hᵀ + R, C_p Hᵀ)."""
+    require_model(model, StateSpaceModel, "the Kalman filter")
+    _, H = model.linear_matrices()
+    prediction = check_belief(prediction, model.state_dim, "prediction")
     C_xy = prediction.cov @ H.T
-    return MeasurementMoments(prediction.mean @ H.T, symmetrize(H @ C_xy + R), C_xy)
+    return MeasurementMoments(prediction.mean @ H.T, symmetrize(H @ C_xy + model.R), C_xy)
 
 
-def kf_step(belief: Gaussian, F, H, Q, R, y) -> StepRecord:
+def kf_step(belief: Gaussian, model, y, *, k: int = 1) -> StepRecord:
     """One Kalman predict–update cycle."""
-    prediction = kf_predict(belief, F, Q)
-    return gaussian_update(prediction, kf_measurement(prediction, H, R), y)
+    prediction = kf_predict(belief, model, k=k)
+    return gaussian_update(prediction, kf_measurement(prediction, model, k=k), y, model.circular,
+                           model.circular_state)

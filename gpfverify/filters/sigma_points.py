@@ -8,9 +8,11 @@ Seed 000 eq. 21–23 with the default α = 1, β = 0, κ = 2.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Sequence
 
 import numpy as np
 
+from gpfverify.angles import difference, weighted_mean
 from gpfverify.errors import InputError
 from gpfverify.linalg import cholesky_batched
 
@@ -47,13 +49,17 @@ def sigma_points(mean: np.ndarray, cov: np.ndarray, params: SigmaParams = SigmaP
                            mean[..., None, :] - offsets], axis=-2)
 
 
-def weighted_moments(points_x: np.ndarray, points_y: np.ndarray, wm: np.ndarray, wc: np.ndarray):
+def weighted_moments(points_x: np.ndarray, points_y: np.ndarray, wm: np.ndarray, wc: np.ndarray,
+                     circular_x: Sequence[int] = (), circular_y: Sequence[int] = ()):
     """Mean of y, covariance of y and cross covariance of (x, y) from transformed sigma points:
-    points_x (..., S, D), points_y (..., S, L). Returns (..., L), (..., L, L), (..., D, L)."""
-    mean_x = np.einsum("s,...sd->...d", wm, points_x)
-    mean_y = np.einsum("s,...sl->...l", wm, points_y)
-    dx = points_x - mean_x[..., None, :]
-    dy = points_y - mean_y[..., None, :]
+    points_x (..., S, D), points_y (..., S, L). Returns (..., L), (..., L, L), (..., D, L).
+
+    Components listed in ``circular_x`` / ``circular_y`` are angles: their means are taken on the
+    circle and their deviations wrapped to (−π, π] (:func:`gpfverify.angles.weighted_mean`)."""
+    mean_x = weighted_mean(points_x, wm, circular_x)
+    mean_y = weighted_mean(points_y, wm, circular_y)
+    dx = difference(points_x, mean_x[..., None, :], circular_x)
+    dy = difference(points_y, mean_y[..., None, :], circular_y)
     cov_y = np.einsum("s,...sl,...sk->...lk", wc, dy, dy)
     cross = np.einsum("s,...sd,...sl->...dl", wc, dx, dy)
     return mean_y, 0.5 * (cov_y + np.swapaxes(cov_y, -1, -2)), cross

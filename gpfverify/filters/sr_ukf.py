@@ -29,15 +29,17 @@ whose downdate fails in exact arithmetic (the UKF covariance itself is indefinit
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Callable
+from typing import Callable, Sequence
 
 import numpy as np
 
+from gpfverify.angles import difference, weighted_mean, wrap_components
 from gpfverify.errors import InputError
 from gpfverify.filters.records import StepRecord
 from gpfverify.filters.sigma_points import SigmaParams
 from gpfverify.filters.ukf import map_points
 from gpfverify.linalg import cholesky, symmetrize
+from gpfverify.models.system import StateSpaceModel, require_model
 
 #: f(points (M, D), k) -> (M, D'): a transition or measurement function vectorised over points.
 PointMap = Callable[[np.ndarray, int], np.ndarray]
@@ -164,18 +166,21 @@ def _batched_sqrt(root: np.ndarray, batch_shape: tuple, dim: int, name: str) -> 
 
 
 def unscented_sqrt_transform(points: np.ndarray, mapped: np.ndarray, noise_root: np.ndarray,
-                             params: SigmaParams, what: str):
+                             params: SigmaParams, what: str, circular_in: Sequence[int] = (),
+                             circular_out: Sequence[int] = ()):
     """Mean, lower factor of the covariance (noise added) and cross covariance of mapped sigma
     points: points (..., 2D+1, D), mapped (..., 2D+1, L), noise_root (L, L) or (..., L, L).
     Returns (mean (..., L), sqrt_cov (..., L, L), cross (..., D, L), jitter).
 
     The scaled unscented weights w_c,1..2D are all equal (1/(2(D + λ)) > 0), so one √w_c,1 scales
-    every deviation column of the QR; only w_c,0 may be negative."""
+    every deviation column of the QR; only w_c,0 may be negative. Angle components
+    (``circular_in`` of the points, ``circular_out`` of the mapped points) get circular means and
+    wrapped deviations, as in the UKF."""
     dim = points.shape[-1]
     wm, wc = params.weights(dim)
-    mean_x = np.einsum("s,...sd->...d", wm, points)
-    mean = np.einsum("s,...sl->...l", wm, mapped)
-    dev = mapped - mean[..., None, :]
+    mean_x = weighted_mean(points, wm, circular_in)
+    mean = weighted_mean(mapped, wm, circular_out)
+    dev = difference(mapped, mean[..., None, :], circular_out)
     out_dim = mapped.shape[-1]
     noise = _batched_sqrt(noise_root, mapped.shape[:-2], out_dim, "noise square root")
     columns = np.concatenate([np.sqrt(wc[1]) * np.swapaxes(dev[..., 1:, :], -1, -2), noise], axis=-1)
@@ -184,7 +189,7 @@ def unscented_sqrt_transform(points: np.ndarray, mapped: np.ndarray, noise_root:
     if wc[0] != 0.0:
         sqrt_cov, jitter = rank_one_series(sqrt_cov, np.sqrt(abs(wc[0])) * dev[..., 0, :, None],
                                            float(np.sign(wc[0])), what)
-    cross = np.einsum("s,...sd,...sl->...dl", wc, points - mean_x[..., None, :], dev)
+    cross = np.einsum("s,...sd,...sl->...dl", wc, difference(points, mean_x[..., None, :], circular_in), dev)
     return mean, sqrt_cov, cross, jitter
 
 
@@ -211,34 +216,41 @@ def noise_sqrt(cov: np.ndarray) -> np.ndarray:
 # -- the filter -----------------------------------------------------------------------------------
 
 def sr_ukf_predict(belief: SqrtGaussian, f: PointMap, sqrt_Q: np.ndarray, k: int,
-                   params: SigmaParams = SigmaParams()) -> tuple[SqrtGaussian, float]:
+                   params: SigmaParams = SigmaParams(), circular_state: Sequence[int] = ()
+                   ) -> tuple[SqrtGaussian, float]:
     """Time update: (μ⁻, S⁻) from (μ, S); ``sqrt_Q`` (D, D) or per batch entry (..., D, D)."""
     points = sigma_points_sqrt(belief.mean, belief.sqrt_cov, params)
     mean, sqrt_cov, _, jitter = unscented_sqrt_transform(points, map_points(lambda x: f(x, k), points), sqrt_Q,
-                                                         params, "SR-UKF predicted covariance")
+                                                         params, "SR-UKF predicted covariance",
+                                                         circular_state, circular_state)
     return SqrtGaussian(mean, sqrt_cov), jitter
 
 
 def sr_ukf_update(prior: SqrtGaussian, h: PointMap, sqrt_R: np.ndarray, y: np.ndarray, k: int,
-                  params: SigmaParams = SigmaParams()) -> SqrtStepRecord:
-    """Measurement update with sigma points redrawn from the prior (μ⁻, S⁻); ``y`` (L,) or (..., L)."""
+                  params: SigmaParams = SigmaParams(), circular: Sequence[int] = (),
+                  circular_state: Sequence[int] = ()) -> SqrtStepRecord:
+    """Measurement update with sigma points redrawn from the prior (μ⁻, S⁻); ``y`` (L,) or (..., L);
+    the innovation y − ẑ is wrapped on the ``circular`` outputs."""
     points = sigma_points_sqrt(prior.mean, prior.sqrt_cov, params)
     mu_y, s_y, c_xy, jitter_y = unscented_sqrt_transform(points, map_points(lambda x: h(x, k), points), sqrt_R,
-                                                         params, "SR-UKF innovation covariance")
+                                                         params, "SR-UKF innovation covariance",
+                                                         circular_state, circular)
     # K = C_xy S_y⁻ᵀ S_y⁻¹, i.e. Kᵀ = S_y⁻ᵀ (S_y⁻¹ C_xyᵀ): two batched solves
     half = np.linalg.solve(s_y, np.swapaxes(c_xy, -1, -2))
     gain = np.swapaxes(np.linalg.solve(np.swapaxes(s_y, -1, -2), half), -1, -2)
-    innovation = np.asarray(y, dtype=float) - mu_y
-    mu_e = prior.mean + np.einsum("...dl,...l->...d", gain, innovation)
+    innovation = difference(np.asarray(y, dtype=float), mu_y, circular)
+    mu_e = wrap_components(prior.mean + np.einsum("...dl,...l->...d", gain, innovation), circular_state)
     s_e, jitter_e = rank_one_series(prior.sqrt_cov, gain @ s_y, -1.0, "SR-UKF posterior covariance")
     return SqrtStepRecord(prior.mean, prior.sqrt_cov, mu_y, s_y, c_xy, mu_e, s_e, max(jitter_y, jitter_e))
 
 
-def sr_ukf_step(belief: SqrtGaussian, model, y: np.ndarray, k: int,
+def sr_ukf_step(belief: SqrtGaussian, model, y: np.ndarray, *, k: int = 1,
                 params: SigmaParams = SigmaParams()) -> SqrtStepRecord:
-    """One SR-UKF cycle on a :class:`~gpfverify.filters.models.NonlinearModel` (additive noise;
-    √Q, √R from :func:`noise_sqrt`)."""
-    prior, jitter_p = sr_ukf_predict(belief, model.f, noise_sqrt(model.Q), k, params)
-    record = sr_ukf_update(prior, model.h, noise_sqrt(model.R), y, k, params)
+    """One SR-UKF cycle on a :class:`~gpfverify.models.StateSpaceModel` (additive noise;
+    √Q, √R from :func:`noise_sqrt`; angle outputs and state components as in the UKF)."""
+    require_model(model, StateSpaceModel, "the SR-UKF")
+    prior, jitter_p = sr_ukf_predict(belief, model.f, noise_sqrt(model.Q), k, params, model.circular_state)
+    record = sr_ukf_update(prior, model.h, noise_sqrt(model.R), y, k, params, model.circular,
+                           model.circular_state)
     return SqrtStepRecord(record.mu_p, record.S_p, record.mu_y, record.S_y, record.C_xy, record.mu_e,
                           record.S_e, max(record.jitter, jitter_p))

@@ -2,24 +2,30 @@
 
 Given the predicted state N(μ_p, C_p) and the predicted measurement moments (μ_y, C_y, C_xy):
 
-    μ_e = μ_p + C_xy C_y⁻¹ (y − μ_y),        C_e = C_p − C_xy C_y⁻¹ C_xyᵀ.
+    μ_e = μ_p + C_xy C_y⁻¹ (y ⊖ μ_y),        C_e = C_p − C_xy C_y⁻¹ C_xyᵀ,
 
-With the Cholesky factor C_y = L Lᵀ and W = L⁻¹ C_xyᵀ (a triangular solve, never an inverse),
-C_xy C_y⁻¹ C_xyᵀ = Wᵀ W and C_xy C_y⁻¹ (y − μ_y) = Wᵀ L⁻¹ (y − μ_y); C_e is symmetrised.
-Every array may carry the same leading batch axes (one update per particle, per test point, …).
+where ⊖ is the difference with the angle outputs wrapped to (−π, π] (``circular``); angle state
+components (``circular_state``) of μ_e are wrapped too. With the Cholesky factor C_y = L Lᵀ and
+W = L⁻¹ C_xyᵀ (a triangular solve, never an inverse), C_xy C_y⁻¹ C_xyᵀ = Wᵀ W and
+C_xy C_y⁻¹ (y ⊖ μ_y) = Wᵀ L⁻¹ (y ⊖ μ_y); C_e is symmetrised. Every array may carry the same
+leading batch axes (one update per particle, per test point, …).
 """
 
 from __future__ import annotations
 
+from typing import Sequence
+
 import numpy as np
 
+from gpfverify.angles import difference, wrap_components
 from gpfverify.errors import InputError
 from gpfverify.filters.records import Gaussian, MeasurementMoments, StepRecord
 from gpfverify.linalg import cholesky_batched, symmetrize
 from gpfverify.validate import as_array
 
 
-def gaussian_update(prediction: Gaussian, moments: MeasurementMoments, y) -> StepRecord:
+def gaussian_update(prediction: Gaussian, moments: MeasurementMoments, y,
+                    circular: Sequence[int] = (), circular_state: Sequence[int] = ()) -> StepRecord:
     """Condition the joint Gaussian of (x_k, y_k) on the measurement ``y`` (eq. 15–16).
 
     Shapes: prediction.mean (..., D), prediction.cov (..., D, D), moments.mu_y (..., L),
@@ -33,8 +39,10 @@ def gaussian_update(prediction: Gaussian, moments: MeasurementMoments, y) -> Ste
         raise InputError(f"y must have {mu_y.shape[-1]} entries in its last axis, got shape {y.shape}")
     chol = cholesky_batched(np.asarray(moments.C_y, dtype=float), "C_y")
     w = np.linalg.solve(chol, np.swapaxes(moments.C_xy, -1, -2))  # L⁻¹ C_xyᵀ, (..., L, D)
-    white = np.linalg.solve(chol, (y - mu_y)[..., None])[..., 0]  # L⁻¹ (y − μ_y), (..., L)
+    white = np.linalg.solve(chol, difference(y, mu_y, circular)[..., None])[..., 0]  # L⁻¹ (y ⊖ μ_y)
     mu_e = prediction.mean + np.einsum("...ld,...l->...d", w, white)
+    if len(circular_state):
+        mu_e = wrap_components(mu_e, circular_state)
     C_e = symmetrize(prediction.cov - np.swapaxes(w, -1, -2) @ w)
     return StepRecord(mu_p=prediction.mean, C_p=prediction.cov, mu_y=mu_y, C_y=moments.C_y,
                       C_xy=moments.C_xy, mu_e=mu_e, C_e=C_e)

@@ -1,0 +1,139 @@
+"""Systems whose functions are Gaussian processes learned from samples (seed 000 §2.2): the model
+the GP-ADF and GP-UKF families filter with.
+
+    x_k = GP_f(x_{k−1}) + w_k,   y_k^m = GP_{g,m}(x_k) + v_k^m
+
+with the transition GP (D → D), one measurement GP per sensor (D → l_m), and the noise learned by
+each GP (its ``noise_var``). The stacked measurement is the :class:`~gpfverify.gp.GaussianProcessStack`
+of the sensors' GPs (one shared uncertain input, hence cross-sensor blocks in C_y). Angle outputs
+(``sensor_circular``) are learned as given; the filters wrap y − μ_y and the fusion rules wrap
+every difference of them (a GP cannot learn across the ±π cut, so train on data away from it or
+on an unwrapped angle).
+
+:func:`fit_gp_model` learns the GPs from samples (evidence maximisation on at most ``fit_points``
+evenly spaced samples, then conditioning on all of them); :func:`learn_gp_model` draws the samples
+from a :class:`~gpfverify.models.StateSpaceModel` first.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+from functools import cached_property
+from typing import Sequence
+
+import numpy as np
+
+from gpfverify.errors import InputError
+from gpfverify.gp import GaussianProcess, GaussianProcessStack
+from gpfverify.models.system import StateSpaceModel, _indices
+
+
+def _check_gp(gp, what: str, in_dim: int | None = None, out_dim: int | None = None):
+    needed = ("input_dim", "output_dim", "noise_var", "predict", "predict_mean", "predict_uncertain")
+    missing = [a for a in needed if not hasattr(gp, a)]
+    if missing:
+        raise InputError(f"{what} must be a GaussianProcess (it lacks {', '.join(missing)})")
+    if in_dim is not None and gp.input_dim != in_dim:
+        raise InputError(f"{what} takes {gp.input_dim} inputs, expected the state's {in_dim}")
+    if out_dim is not None and gp.output_dim != out_dim:
+        raise InputError(f"{what} gives {gp.output_dim} outputs, expected {out_dim}")
+
+
+@dataclass(frozen=True, eq=False)
+class GPModel:
+    """``transition`` GP (D → D), ``sensors`` measurement GPs (D → l_m), ``sensor_circular`` the
+    angle outputs of each sensor (0-based; empty tuple or omitted: none), ``circular_state`` the
+    angle state components."""
+
+    transition: object
+    sensors: Sequence
+    sensor_circular: Sequence[Sequence[int]] = ()
+    circular_state: tuple[int, ...] = ()
+
+    def __post_init__(self):
+        _check_gp(self.transition, "the transition GP")
+        d = self.transition.input_dim
+        _check_gp(self.transition, "the transition GP", d, d)
+        sensors = tuple(self.sensors) if isinstance(self.sensors, (list, tuple)) else (self.sensors,)
+        if not sensors:
+            raise InputError("a GP model needs at least one sensor GP")
+        for m, gp in enumerate(sensors):
+            _check_gp(gp, f"sensor {m}'s GP", d)
+        circular = tuple(self.sensor_circular) or ((),) * len(sensors)
+        if len(circular) != len(sensors):
+            raise InputError(f"sensor_circular has {len(circular)} entries for {len(sensors)} sensors")
+        object.__setattr__(self, "sensors", sensors)
+        object.__setattr__(self, "sensor_circular", tuple(
+            _indices(c, gp.output_dim, f"sensor {m} circular") for m, (c, gp) in enumerate(zip(circular, sensors))))
+        object.__setattr__(self, "circular_state", _indices(self.circular_state, d, "circular_state"))
+
+    @property
+    def state_dim(self) -> int:
+        return self.transition.input_dim
+
+    @property
+    def sizes(self) -> tuple[int, ...]:
+        return tuple(gp.output_dim for gp in self.sensors)
+
+    @property
+    def measurement_dim(self) -> int:
+        return int(sum(self.sizes))
+
+    @cached_property
+    def circular(self) -> tuple[int, ...]:
+        """Angle outputs of the stacked measurement."""
+        starts = np.cumsum((0,) + self.sizes)
+        return tuple(int(s) + i for s, c in zip(starts, self.sensor_circular) for i in c)
+
+    @cached_property
+    def measurement(self):
+        """The sensors' GP, or their stack when there are several."""
+        return self.sensors[0] if len(self.sensors) == 1 else GaussianProcessStack(self.sensors)
+
+    def sensor_model(self, m: int) -> "GPModel":
+        """Sensor ``m`` alone (its local filter's model)."""
+        return self.with_sensors([m])
+
+    def with_sensors(self, indices: Sequence[int]) -> "GPModel":
+        if not _indices(indices, len(self.sensors), "sensor indices"):
+            raise InputError("a GP model needs at least one sensor")
+        return replace(self, sensors=tuple(self.sensors[i] for i in indices),
+                       sensor_circular=tuple(self.sensor_circular[i] for i in indices))
+
+
+def fit_capped(X: np.ndarray, Y: np.ndarray, restarts: int, fit_points: int | None, seed: int) -> GaussianProcess:
+    """Hyperparameters by evidence maximisation on at most ``fit_points`` evenly spaced samples,
+    then the GP conditioned on all of (X, Y) with them (all samples when ``fit_points`` is None)."""
+    n = X.shape[0]
+    if fit_points is None or n <= fit_points:
+        return GaussianProcess.fit(X, Y, restarts, seed)
+    subset = np.unique(np.linspace(0, n - 1, fit_points).round().astype(int))
+    fitted = GaussianProcess.fit(X[subset], Y[subset], restarts, seed)
+    return GaussianProcess(X, Y, fitted.lengthscales, fitted.signal_var, fitted.noise_var)
+
+
+def fit_gp_model(transition_inputs, transition_targets, measurement_inputs, measurement_targets: Sequence,
+                 rng: np.random.Generator, *, restarts: int = 3, fit_points: int | None = None,
+                 sensor_circular: Sequence[Sequence[int]] = (), circular_state: Sequence[int] = ()) -> GPModel:
+    """Learn a :class:`GPModel`: the transition GP on pairs x_{τ} ↦ x_{τ+1} (n_f, D) → (n_f, D),
+    each sensor's GP on x_τ ↦ y_τ^m (n, D) → (n, l_m). One optimiser seed per GP is drawn from
+    ``rng`` (transition first, then the sensors in order)."""
+    seeds = [int(s) for s in rng.integers(1 << 31, size=1 + len(measurement_targets))]
+    transition = fit_capped(np.asarray(transition_inputs, dtype=float), np.asarray(transition_targets, dtype=float),
+                            restarts, fit_points, seeds[0])
+    sensors = tuple(fit_capped(np.asarray(measurement_inputs, dtype=float), np.asarray(y, dtype=float),
+                               restarts, fit_points, s) for y, s in zip(measurement_targets, seeds[1:]))
+    return GPModel(transition, sensors, tuple(sensor_circular), tuple(circular_state))
+
+
+def learn_gp_model(model: StateSpaceModel, samples: int, rng: np.random.Generator, *, restarts: int = 3,
+                   fit_points: int | None = None) -> GPModel:
+    """Draw one trajectory of ``samples`` states from ``model`` (started from its prior) with its
+    measurements, and :func:`fit_gp_model` on it; angle outputs keep the model's ``circular``."""
+    if samples < 2:
+        raise InputError(f"learning a GP model needs at least 2 samples, got {samples}")
+    states, ys = model.simulate(samples, rng)
+    per_sensor = [ys[:, b] for b in model.blocks]
+    return fit_gp_model(states[:-1], states[1:], states, per_sensor, rng, restarts=restarts,
+                        fit_points=fit_points, sensor_circular=[s.circular for s in model.sensors],
+                        circular_state=model.circular_state)
