@@ -18,6 +18,7 @@ from gpfverify.fusion import cmf_update, dmf_update
 from gpfverify.fusion.exactness import kernel_split
 from gpfverify.fusion.synthetic import random_case, random_spd
 from gpfverify.gp import GaussianProcess
+from gpfverify.models import GPModel
 from gpfverify.rng import generator
 from gpfverify.symbolic.casadi_forms import (STEP_OUTPUTS, GPData, cmf_function, gp_adf_function,
                                              gp_ukf_function, moment_function)
@@ -86,9 +87,10 @@ def _check_steps(claim: str, build, reference, label: str, size: str, seed: int)
     for d, l in STEP_DIMS[size]:
         transition, measurement = random_gp(rng, d, d), random_gp(rng, d, l)
         fn = build(GPData.of(transition), GPData.of(measurement))
+        model = GPModel(transition, [measurement])
         for _ in range(CASES_PER_SHAPE[size]):
             mu, cov, y = rng.normal(scale=0.7, size=d), random_spd(rng, d, 0.05), rng.normal(size=l)
-            record = reference(Gaussian(mu, cov), transition, measurement, y)
+            record = reference(Gaussian(mu, cov), model, y, k=1)
             errors = [relative_error(out, getattr(record, k)) for out, k in zip(fn(mu, cov, y), STEP_OUTPUTS)]
             cond = max(_gram_condition(transition), _gram_condition(measurement)) * np.linalg.cond(record.C_y)
             ok &= max(errors) <= algebra_rtol(cond)
