@@ -3,7 +3,8 @@
 * the KF against conditioning the joint Gaussian of a whole linear trajectory (one dense solve);
 * UKF and EKF against the KF on random linear-Gaussian models (any valid α, β, κ);
 * the UKF on a nonlinear model against a separately written scalar UKF;
-* batched calls against per-element calls; step-record identities; errors on bad input.
+* batched calls against per-element calls; step-record identities; errors on bad input;
+* the EKF without user Jacobians (central differences) against the KF on a linear model.
 """
 
 import numpy as np
@@ -15,11 +16,13 @@ from gpfverify.errors import InputError, NumericalError
 from gpfverify.filters.driver import run_filter
 from gpfverify.filters.ekf import ekf_step
 from gpfverify.filters.kalman import kf_step
-from gpfverify.filters.models import NonlinearModel, linear_model
+from gpfverify.experiments.gpadf_scalar import true_model
 from gpfverify.filters.records import Gaussian, MeasurementMoments
 from gpfverify.filters.sigma_points import SigmaParams
 from gpfverify.filters.ukf import ukf_step
 from gpfverify.filters.update import gaussian_update
+from gpfverify.models import Sensor, StateSpaceModel, linear_model
+from gpfverify.models.functions import FD_STEP
 from gpfverify.scenarios.scalar_benchmark import ScalarSetting
 from gpfverify.tolerances import algebra_rtol
 
@@ -88,7 +91,7 @@ def _joint_conditioning(F, H, Q, R, prior, ys):
 def test_kf_equals_conditioning_of_the_joint_trajectory(seed, d, l):
     F, H, Q, R, prior, _ = _linear_problem(seed, d, l)
     ys = np.random.default_rng(seed + 100).normal(size=(5, l))
-    run = run_filter(kf_step, prior, ys, F=F, H=H, Q=Q, R=R)
+    run = run_filter(kf_step, linear_model(F, H, Q, R), prior, ys)
     for t in range(1, len(ys) + 1):
         mean, cov = _joint_conditioning(F, H, Q, R, prior, ys[:t])
         rtol = algebra_rtol(np.linalg.cond(run.C_y[t - 1]) * np.linalg.cond(cov))
@@ -99,7 +102,7 @@ def test_kf_equals_conditioning_of_the_joint_trajectory(seed, d, l):
 def test_kf_posterior_matches_information_form():
     """C_e⁻¹ = C_p⁻¹ + Hᵀ R⁻¹ H and C_e⁻¹ μ_e = C_p⁻¹ μ_p + Hᵀ R⁻¹ y (a second formula)."""
     F, H, Q, R, prior, y = _linear_problem(7, 3, 2)
-    r = kf_step(prior, F, H, Q, R, y)
+    r = kf_step(prior, linear_model(F, H, Q, R), y, k=1)
     info = np.linalg.inv(r.C_p) + H.T @ np.linalg.solve(R, H)
     info_mean = np.linalg.solve(r.C_p, r.mu_p) + H.T @ np.linalg.solve(R, y)
     rtol = _rtol(r)
@@ -115,8 +118,9 @@ def test_ukf_equals_kf_on_linear_models_for_any_valid_parameters(seed, d, l, alp
     params = SigmaParams(alpha, beta, kappa)
     assume(d + params.lam(d) > 0)  # valid: D + λ = α²(D + κ) > 0 (invalid ones: next test)
     F, H, Q, R, prior, y = _linear_problem(seed, d, l)
-    kf = kf_step(prior, F, H, Q, R, y)
-    ukf = ukf_step(prior, linear_model(F, H, Q, R), y, 1, params)
+    model = linear_model(F, H, Q, R)
+    kf = kf_step(prior, model, y, k=1)
+    ukf = ukf_step(prior, model, y, k=1, params=params)
     # a small sigma-point spread √(D + λ) amplifies rounding (cancellation in χ − μ)
     _assert_records_equal(ukf, kf, _rtol(kf) / min(1.0, d + params.lam(d)))
 
@@ -124,14 +128,15 @@ def test_ukf_equals_kf_on_linear_models_for_any_valid_parameters(seed, d, l, alp
 @pytest.mark.parametrize("seed, d, l", [(11, 1, 1), (12, 3, 2), (13, 2, 4)])
 def test_ekf_equals_kf_on_linear_models(seed, d, l):
     F, H, Q, R, prior, y = _linear_problem(seed, d, l)
-    kf = kf_step(prior, F, H, Q, R, y)
-    _assert_records_equal(ekf_step(prior, linear_model(F, H, Q, R), y, 1), kf, _rtol(kf))
+    model = linear_model(F, H, Q, R)
+    kf = kf_step(prior, model, y, k=1)
+    _assert_records_equal(ekf_step(prior, model, y, k=1), kf, _rtol(kf))
 
 
 def test_invalid_sigma_parameters_raise():
     F, H, Q, R, prior, y = _linear_problem(0, 2, 1)
     with pytest.raises(InputError, match="D \\+ λ"):
-        ukf_step(prior, linear_model(F, H, Q, R), y, 1, SigmaParams(alpha=1.0, kappa=-2.5))
+        ukf_step(prior, linear_model(F, H, Q, R), y, k=1, params=SigmaParams(alpha=1.0, kappa=-2.5))
 
 
 # --- batches --------------------------------------------------------------------------------------
@@ -140,9 +145,9 @@ def test_invalid_sigma_parameters_raise():
 def test_batched_step_equals_per_element_steps(name):
     F, H, Q, R, prior, y = _linear_problem(21, 3, 2, batch=(4, 5))
     model = linear_model(F, H, Q, R)
-    step = {"kf": lambda b, yy: kf_step(b, F, H, Q, R, yy),
-            "ekf": lambda b, yy: ekf_step(b, model, yy, 1),
-            "ukf": lambda b, yy: ukf_step(b, model, yy, 1, SigmaParams(0.5, 2.0, 1.0))}[name]
+    step = {"kf": lambda b, yy: kf_step(b, model, yy, k=1),
+            "ekf": lambda b, yy: ekf_step(b, model, yy, k=1),
+            "ukf": lambda b, yy: ukf_step(b, model, yy, k=1, params=SigmaParams(0.5, 2.0, 1.0))}[name]
     batched = step(prior, y)
     for index in np.ndindex(4, 5):
         single = step(Gaussian(prior.mean[index], prior.cov[index]), y[index])
@@ -176,12 +181,11 @@ def _scalar_ukf_reference(m0, p0, y, f, h, q, r, alpha, beta, kappa):
 
 @pytest.mark.parametrize("alpha, beta, kappa", [(1.0, 0.0, 2.0), (0.5, 2.0, 0.0)])
 def test_ukf_matches_a_separately_written_scalar_ukf(alpha, beta, kappa):
-    setting = ScalarSetting()
-    model = setting.model()
+    model = true_model(ScalarSetting())
     rng = np.random.default_rng(5)
     means, ys = rng.uniform(-10, 10, size=50), rng.uniform(-5, 5, size=50)
-    record = ukf_step(Gaussian(means[:, None], np.full((50, 1, 1), 0.25)), model, ys[:, None], 1,
-                      SigmaParams(alpha, beta, kappa))
+    record = ukf_step(Gaussian(means[:, None], np.full((50, 1, 1), 0.25)), model, ys[:, None], k=1,
+                      params=SigmaParams(alpha, beta, kappa))
     f = lambda x: float(model.f(np.array([[x]]), 1)[0, 0])  # noqa: E731
     h = lambda x: float(model.h(np.array([[x]]), 1)[0, 0])  # noqa: E731
     for i in range(50):
@@ -230,35 +234,56 @@ def test_update_names_the_failing_batch_element():
 
 def test_bad_shapes_raise_input_errors():
     F, H, Q, R, prior, y = _linear_problem(0, 2, 1)
+    model = linear_model(F, H, Q, R)
     with pytest.raises(InputError, match="y must have 1 entries"):
-        kf_step(prior, F, H, Q, R, np.ones(3))
+        kf_step(prior, model, np.ones(3), k=1)
     with pytest.raises(InputError, match="belief"):
-        kf_step(Gaussian(np.zeros(3), np.eye(3)), F, H, Q, R, y)
+        kf_step(Gaussian(np.zeros(3), np.eye(3)), model, y, k=1)
     with pytest.raises(InputError, match="belief.mean contains NaN"):
-        ukf_step(Gaussian(np.array([np.nan, 0.0]), np.eye(2)), linear_model(F, H, Q, R), y)
-    with pytest.raises(InputError, match="Q is not positive semidefinite"):
-        kf_step(prior, F, H, -Q, R, y)
-    no_jacobian = NonlinearModel(f=lambda x, k: x, h=lambda x, k: x[:, :1], Q=Q, R=R)
-    with pytest.raises(InputError, match="f_jacobian"):
-        ekf_step(prior, no_jacobian, y)
+        ukf_step(Gaussian(np.array([np.nan, 0.0]), np.eye(2)), model, y, k=1)
+    with pytest.raises(InputError, match="process_cov is not positive semidefinite"):
+        linear_model(F, H, -Q, R)
+    nonlinear = StateSpaceModel(lambda x: x @ F.T, Q, [Sensor(lambda x: x @ H.T, R)], np.zeros(2), np.eye(2))
+    with pytest.raises(InputError, match="Kalman filter needs a linear model"):
+        kf_step(prior, nonlinear, y, k=1)
+
+
+# --- the EKF without user Jacobians ----------------------------------------------------------------
+
+@pytest.mark.parametrize("seed, d, l", [(31, 1, 1), (32, 3, 2), (33, 2, 4)])
+def test_ekf_with_central_difference_jacobians_equals_kf_on_linear_models(seed, d, l):
+    """Numpy callables without Jacobians: the EKF differentiates by central differences. For a
+    linear function these have no truncation error, only rounding: f(x ± h e_j) carry eps·|f| each
+    and are divided by 2h, h = FD_STEP·max(1, |x_j|), so the Jacobian loses a factor 1/FD_STEP of
+    relative precision (eps/FD_STEP instead of eps) and the solve with C_y amplifies that by
+    cond(C_y): algebra_rtol with the condition number cond(C_y)/FD_STEP."""
+    F, H, Q, R, prior, y = _linear_problem(seed, d, l)
+    kf = kf_step(prior, linear_model(F, H, Q, R), y, k=1)
+    callables = StateSpaceModel(lambda x: x @ F.T, Q, [Sensor(lambda x: x @ H.T, R)], np.zeros(d), np.eye(d))
+    ekf = ekf_step(prior, callables, y, k=1)
+    rtol = algebra_rtol(np.linalg.cond(kf.C_y) / FD_STEP)
+    _assert_records_equal(ekf, kf, rtol)
 
 
 # --- the driver ----------------------------------------------------------------------------------
 
-def test_driver_stacks_records_and_passes_the_time_index():
+def test_driver_stacks_records_and_passes_the_time_index_and_params():
     F, H, Q, R, prior, _ = _linear_problem(9, 2, 1)
     seen = []
-    base = linear_model(F, H, Q, R)
-    model = NonlinearModel(f=lambda x, k: seen.append(k) or base.f(x, k), h=base.h, Q=Q, R=R)
+    model = StateSpaceModel(lambda x, k: seen.append(k) or x @ F.T, Q, [Sensor(H, R)], np.zeros(2), np.eye(2))
+    seen.clear()  # the construction probe called f at k = 1
+    params = SigmaParams(0.5, 2.0, 1.0)
     ys = np.random.default_rng(0).normal(size=(4, 1))
-    run = run_filter(ukf_step, prior, ys, first_k=3, model=model)
+    run = run_filter(ukf_step, model, prior, ys, first_k=3, params=params)
     assert sorted(set(seen)) == [3, 4, 5, 6]
     assert run.mu_e.shape == (4, 2) and run.C_e.shape == (4, 2, 2) and run.C_xy.shape == (4, 2, 1)
     assert len(run) == 4
     belief = prior
     for t in range(4):  # the same as stepping by hand, each posterior feeding the next step
-        record = ukf_step(belief, model, ys[t], 3 + t)
+        record = ukf_step(belief, model, ys[t], k=3 + t, params=params)
         _assert_records_equal(run.record(t), record, 0.0)
         belief = record.posterior
+    default = run_filter(ukf_step, model, prior, ys, first_k=3)  # the params really reached the step
+    assert not np.array_equal(default.C_e, run.C_e)
     with pytest.raises(InputError, match="ys"):
-        run_filter(ukf_step, prior, np.zeros(0), model=model)
+        run_filter(ukf_step, model, prior, np.zeros(0))
