@@ -6,12 +6,12 @@ import pytest
 
 from gpfverify.errors import NumericalError
 from gpfverify.filters.kalman import kf_step
-from gpfverify.filters.models import NonlinearModel, linear_model
 from gpfverify.filters.records import Gaussian
 from gpfverify.filters.sigma_points import SigmaParams
 from gpfverify.filters.sr_ukf import (SqrtGaussian, cholupdate, noise_sqrt, qr_factor, rank_one_series,
                                       sr_ukf_step)
 from gpfverify.filters.ukf import ukf_step
+from gpfverify.models import Sensor, StateSpaceModel, linear_model
 from gpfverify.tolerances import algebra_rtol
 
 
@@ -85,7 +85,7 @@ def _nonlinear_model(rng, dim=3, meas=2):
     def h(x, k):
         return np.tanh(x @ c.T) + 0.1 * x[:, :meas] ** 2
 
-    return NonlinearModel(f, h, 0.1 * _spd(rng, dim), 0.05 * _spd(rng, meas))
+    return StateSpaceModel(f, 0.1 * _spd(rng, dim), [Sensor(h, 0.05 * _spd(rng, meas))], np.zeros(dim), np.eye(dim))
 
 
 @pytest.mark.parametrize("params", [SigmaParams(), SigmaParams(1.0, 2.0, -1.0),
@@ -101,8 +101,8 @@ def test_sr_ukf_equals_ukf_over_many_steps_batched(params):
     sr_belief = SqrtGaussian(mean, np.linalg.cholesky(cov))
     for k in range(12):
         y = rng.normal(size=(batch, 2))
-        ref = ukf_step(ukf_belief, model, y, k, params)
-        sr = sr_ukf_step(sr_belief, model, y, k, params)
+        ref = ukf_step(ukf_belief, model, y, k=k, params=params)
+        sr = sr_ukf_step(sr_belief, model, y, k=k, params=params)
         out = sr.to_record()
         cond = float(np.linalg.cond(ref.C_e).max() * np.linalg.cond(ref.C_y).max())
         for name in ("mu_p", "C_p", "mu_y", "C_y", "C_xy", "mu_e", "C_e"):
@@ -119,10 +119,10 @@ def test_indefinite_ukf_covariance_raises_instead_of_a_wrong_factor():
     params = SigmaParams(1.0, 0.0, -1.0)
     mean, cov = rng.normal(size=(5, 3)), _spd(rng, 3, (5,))
     y = rng.normal(size=(5, 2))
-    ref = ukf_step(Gaussian(mean, cov), model, y, 0, params)
+    ref = ukf_step(Gaussian(mean, cov), model, y, k=0, params=params)
     assert np.linalg.eigvalsh(ref.C_e)[:, 0].min() < 0
     with pytest.raises(NumericalError, match="posterior covariance"):
-        sr_ukf_step(SqrtGaussian(mean, np.linalg.cholesky(cov)), model, y, 0, params)
+        sr_ukf_step(SqrtGaussian(mean, np.linalg.cholesky(cov)), model, y, k=0, params=params)
 
 
 def test_sr_ukf_equals_kf_on_linear_model():
@@ -136,8 +136,8 @@ def test_sr_ukf_equals_kf_on_linear_model():
     sr = SqrtGaussian(mean, np.linalg.cholesky(cov))
     for k in range(20):
         y = rng.normal(size=2)
-        ref = kf_step(kf, F, H, Q, R, y)
-        rec = sr_ukf_step(sr, model, y, k)
+        ref = kf_step(kf, model, y, k=k)
+        rec = sr_ukf_step(sr, model, y, k=k)
         out = rec.to_record()
         _close(out.mu_e, ref.mu_e, np.linalg.cond(ref.C_e) * np.linalg.cond(ref.C_y))
         _close(out.C_e, ref.C_e, np.linalg.cond(ref.C_e) * np.linalg.cond(ref.C_y))
