@@ -5,7 +5,9 @@
 * GP-UKF against a separately written loop over explicit sigma points;
 * both, with GPs trained on a linear-Gaussian system, against the exact KF (learned-model
   tolerance);
-* a stack of GPs with a shared training set against the equivalent multi-output GP.
+* a stack of GPs with a shared training set (several sensors of a GPModel, or one stacked
+  sensor) against the equivalent multi-output GP;
+* a model of the wrong kind or with a transition GP that does not map the state to itself raises.
 """
 
 import numpy as np
@@ -17,12 +19,12 @@ from gpfverify.filters.ekf import ekf_step
 from gpfverify.filters.gp_adf import gp_adf_predict, gp_adf_step
 from gpfverify.filters.gp_ukf import gp_ukf_step
 from gpfverify.filters.kalman import kf_step
-from gpfverify.filters.models import NonlinearModel
 from gpfverify.filters.records import Gaussian
 from gpfverify.filters.sigma_points import SigmaParams
 from gpfverify.filters.ukf import ukf_step
 from gpfverify.gp import GaussianProcess, GaussianProcessStack
 from gpfverify.gp.reference import quadrature_moments
+from gpfverify.models import GPModel, Sensor, StateSpaceModel, linear_model
 from gpfverify.tolerances import MONTE_CARLO_SIGMAS, QUADRATURE_RTOL, algebra_rtol, learned_model_rtol
 
 QUAD_ORDER = {1: 80, 2: 40}
@@ -48,7 +50,7 @@ def _problem(seed, d, l):
 @pytest.mark.parametrize("seed, d, l", [(0, 1, 1), (1, 1, 2), (2, 2, 1), (3, 2, 2)])
 def test_gp_adf_step_matches_quadrature_route(seed, d, l):
     transition, measurement, belief, y = _problem(seed, d, l)
-    record = gp_adf_step(belief, transition, measurement, y)
+    record = gp_adf_step(belief, GPModel(transition, [measurement]), y, k=1)
     pred = quadrature_moments(transition, belief.mean, belief.cov, QUAD_ORDER[d])
     c_p = pred.cov + np.diag(transition.noise_var)
     meas = quadrature_moments(measurement, pred.mean, c_p, QUAD_ORDER[d])
@@ -96,7 +98,7 @@ def _gp_ukf_reference(belief, transition, measurement, y, params):
                                                 (4, 2, 3, SigmaParams(0.6, 2.0, 0.5))])
 def test_gp_ukf_step_matches_explicit_sigma_point_loop(seed, d, l, params):
     transition, measurement, belief, y = _problem(seed, d, l)
-    record = gp_ukf_step(belief, transition, measurement, y, params)
+    record = gp_ukf_step(belief, GPModel(transition, [measurement]), y, k=1, params=params)
     expected = _gp_ukf_reference(belief, transition, measurement, y, params)
     rtol = algebra_rtol(np.linalg.cond(expected["C_y"]) * np.linalg.cond(expected["C_p"]))
     for name, value in expected.items():
@@ -107,13 +109,14 @@ def test_gp_ukf_step_matches_explicit_sigma_point_loop(seed, d, l, params):
 @pytest.mark.parametrize("step", [gp_adf_step, gp_ukf_step])
 def test_batched_gp_steps_equal_per_belief_steps(step):
     transition, measurement, _, _ = _problem(5, 2, 2)
+    model = GPModel(transition, [measurement])
     rng = np.random.default_rng(6)
     means = rng.uniform(-1, 1, size=(3, 2, 2))
     covs = np.broadcast_to(np.array([[0.3, 0.1], [0.1, 0.2]]), (3, 2, 2, 2))
     ys = rng.normal(size=(3, 2, 2))
-    batched = step(Gaussian(means, covs), transition, measurement, ys)
+    batched = step(Gaussian(means, covs), model, ys, k=1)
     for index in np.ndindex(3, 2):
-        single = step(Gaussian(means[index], covs[index]), transition, measurement, ys[index])
+        single = step(Gaussian(means[index], covs[index]), model, ys[index], k=1)
         rtol = algebra_rtol(np.linalg.cond(single.C_y) * np.linalg.cond(single.C_p))
         for name in ("mu_p", "C_p", "mu_y", "C_y", "C_xy", "mu_e", "C_e"):
             np.testing.assert_allclose(getattr(batched, name)[index], getattr(single, name),
@@ -121,13 +124,17 @@ def test_batched_gp_steps_equal_per_belief_steps(step):
 
 
 @pytest.mark.parametrize("step", [gp_adf_step, gp_ukf_step])
-def test_stack_with_shared_training_set_equals_multi_output_gp(step):
-    """A GaussianProcessStack of one-output GPs on the same inputs is the two-output GP."""
+@pytest.mark.parametrize("as_sensors", [True, False], ids=["two-sensors", "one-stacked-sensor"])
+def test_stack_with_shared_training_set_equals_multi_output_gp(step, as_sensors):
+    """One-output GPs on the same inputs, as two sensors of a GPModel (whose measurement is their
+    GaussianProcessStack) or as one sensor that is their stack, are the two-output GP."""
     transition, joint, belief, y = _problem(8, 2, 2)
     parts = [GaussianProcess(joint.X, joint.Y[:, a], joint.lengthscales[a], joint.signal_var[a:a + 1],
                              joint.noise_var[a:a + 1]) for a in range(2)]
-    stacked = step(belief, transition, GaussianProcessStack(parts), y)
-    direct = step(belief, transition, joint, y)
+    model = GPModel(transition, parts if as_sensors else [GaussianProcessStack(parts)])
+    assert isinstance(model.measurement, GaussianProcessStack)
+    stacked = step(belief, model, y, k=1)
+    direct = step(belief, GPModel(transition, [joint]), y, k=1)
     rtol = algebra_rtol(np.linalg.cond(direct.C_y) * np.linalg.cond(direct.C_p))
     for name in ("mu_y", "C_y", "C_xy", "mu_e", "C_e"):
         np.testing.assert_allclose(getattr(stacked, name), getattr(direct, name), rtol=rtol,
@@ -137,9 +144,21 @@ def test_stack_with_shared_training_set_equals_multi_output_gp(step):
 def test_transition_gp_must_map_the_state_to_itself():
     transition, measurement, belief, _ = _problem(0, 2, 1)
     with pytest.raises(InputError, match="transition GP"):
-        gp_adf_predict(belief, measurement)
+        GPModel(measurement, [measurement])
     with pytest.raises(InputError, match="belief"):
-        gp_adf_predict(Gaussian(np.zeros(3), np.eye(3)), transition)
+        gp_adf_predict(Gaussian(np.zeros(3), np.eye(3)), GPModel(transition, [measurement]), k=1)
+
+
+@pytest.mark.parametrize("step", [gp_adf_step, gp_ukf_step])
+def test_gp_filters_refuse_a_state_space_model(step):
+    """The GP families need a GPModel: a StateSpaceModel (even one built from the GPs' means)
+    raises InputError naming the filter, not an AttributeError from inside."""
+    transition, measurement, belief, y = _problem(0, 2, 1)
+    model = StateSpaceModel(transition.predict_mean, np.diag(transition.noise_var),
+                            [Sensor(measurement.predict_mean, np.diag(measurement.noise_var))],
+                            np.zeros(2), np.eye(2))
+    with pytest.raises(InputError, match="needs a GPModel"):
+        step(belief, model, y, k=1)
 
 
 # --- trained on a linear-Gaussian system, both track the exact KF ----------------------------------
@@ -164,7 +183,7 @@ def linear_gps():
 
 
 def _kf_run(ys, q, r):
-    return run_filter(kf_step, Gaussian(np.zeros(1), np.eye(1)), ys, F=[[F]], H=[[H]], Q=[[q]], R=[[r]])
+    return run_filter(kf_step, linear_model([[F]], [[H]], [[q]], [[r]]), Gaussian(np.zeros(1), np.eye(1)), ys)
 
 
 def _assert_tracks(learned, exact, ys, cov_rtol, mean_rtol):
@@ -182,8 +201,7 @@ def test_gp_filters_trained_on_linear_system_track_the_kf(linear_gps, step):
     """Against the KF on the true model: the learned noise variances are estimates from N_TRAIN
     samples, so covariances agree to learned_model_rtol (5 s.e. of a variance estimate)."""
     transition, measurement, ys = linear_gps
-    learned = run_filter(step, Gaussian(np.zeros(1), np.eye(1)), ys,
-                         transition_gp=transition, measurement_gp=measurement)
+    learned = run_filter(step, GPModel(transition, [measurement]), Gaussian(np.zeros(1), np.eye(1)), ys)
     rtol = learned_model_rtol(N_TRAIN)
     _assert_tracks(learned, _kf_run(ys, Q, R), ys, rtol, rtol)
 
@@ -194,8 +212,7 @@ def test_gp_filters_match_the_kf_with_the_learned_noise(linear_gps, step):
     uncertainty, whose share of the covariances is ρ = max latent variance / noise variance along
     the run; covariances agree to 5ρ and means to 5√ρ σ_p (1 + |z|)."""
     transition, measurement, ys = linear_gps
-    learned = run_filter(step, Gaussian(np.zeros(1), np.eye(1)), ys,
-                         transition_gp=transition, measurement_gp=measurement)
+    learned = run_filter(step, GPModel(transition, [measurement]), Gaussian(np.zeros(1), np.eye(1)), ys)
     exact = _kf_run(ys, transition.noise_var[0], measurement.noise_var[0])
     rho = max(float(np.max(transition.predict(learned.mu_e[:-1])[1] / transition.noise_var)),
               float(np.max(measurement.predict(learned.mu_p)[1] / measurement.noise_var)))
@@ -208,19 +225,13 @@ def _every_filter(seed):
     """The measurement and each filter's record, from one belief: UKF and EKF on the known model
     f, h = the GP means, GP-UKF and GP-ADF on the GPs themselves."""
     transition, measurement, belief, y = _problem(seed, 2, 2)
-    model = NonlinearModel(f=lambda x, k: transition.predict_mean(x),
-                           h=lambda x, k: measurement.predict_mean(x),
-                           Q=np.diag(transition.noise_var), R=np.diag(measurement.noise_var),
-                           f_jacobian=lambda x, k: _numeric_jacobian(transition.predict_mean, x),
-                           h_jacobian=lambda x, k: _numeric_jacobian(measurement.predict_mean, x))
-    return y, {"UKF": ukf_step(belief, model, y, 1), "EKF": ekf_step(belief, model, y, 1),
-               "GP-UKF": gp_ukf_step(belief, transition, measurement, y),
-               "GP-ADF": gp_adf_step(belief, transition, measurement, y)}
-
-
-def _numeric_jacobian(fn, x, h=1e-6):
-    columns = [(fn((x + h * e)[None])[0] - fn((x - h * e)[None])[0]) / (2 * h) for e in np.eye(x.size)]
-    return np.stack(columns, axis=1)
+    model = StateSpaceModel(transition.predict_mean, np.diag(transition.noise_var),
+                            [Sensor(measurement.predict_mean, np.diag(measurement.noise_var))],
+                            belief.mean, belief.cov)  # no Jacobians: the EKF uses central differences
+    gp_model = GPModel(transition, [measurement])
+    return y, {"UKF": ukf_step(belief, model, y, k=1), "EKF": ekf_step(belief, model, y, k=1),
+               "GP-UKF": gp_ukf_step(belief, gp_model, y, k=1),
+               "GP-ADF": gp_adf_step(belief, gp_model, y, k=1)}
 
 
 @pytest.mark.parametrize("seed", [0, 1])
