@@ -15,8 +15,12 @@ only on range(C_xy^mᵀ); the kernel component N_mᵀw_m is lost, and the gap is
 
 :func:`audit_run` applies the same audit to every step of a filter run.
 
-With y, each sensor's own share of the gap, −G_m C_y^m N_m r_m, says which sensor's report drives
-it. With ``sensitivity=True`` each sensor also gets the Jacobian norms of the fused mean with
+With y, each sensor's own share of the gap, 2π G_m n_m − G_m C_y^m N_m r_m, says which sensor's
+report drives it. n_m are the *branch offsets* of its angle outputs
+(:func:`~gpfverify.fusion.exactness.branch_offsets`): where the separately wrapped eq. 35 terms
+wrap(μ_y^m − μ_y(m)) + wrap(y^m − μ_y^m) leave (−π, π], DMF's innovation differs from CMF's
+wrap(y^m − μ_y(m)) by 2π; the audit reports them per sensor and in a note, and the predicted gap
+includes them. Angle outputs are wrapped in every residual (the local consistency check too). With ``sensitivity=True`` each sensor also gets the Jacobian norms of the fused mean with
 respect to what it reports (casadi AD, :func:`gpfverify.symbolic.sensitivity.dmf_sensitivity`) and
 the bound ‖G_m C_y^m‖₂ / σ_r(C_xy^m) on the μ_e^m Jacobian, which grows as C_xy^m nears rank loss.
 """
@@ -31,7 +35,8 @@ import numpy as np
 from gpfverify.fusion.case import FusionCase, case_from_records
 from gpfverify.fusion.centralized import cmf_update
 from gpfverify.fusion.distributed import dmf_update
-from gpfverify.fusion.exactness import local_consistency_residual, predicted_gap, whitened_innovation
+from gpfverify.fusion.exactness import (branch_offsets, local_consistency_residual, predicted_gap,
+                                        sensor_gap, whitened_innovation)
 from gpfverify.tolerances import algebra_rtol
 
 RANK_RULE_DEFAULT = "numpy matrix_rank rule: sigma_max * max(D, l_m) * eps"
@@ -62,6 +67,7 @@ class SensorAudit:
     consistency_tol: float | None = None
     gap_contribution: np.ndarray | None = None
     sensitivity: object | None = None  # gpfverify.symbolic.sensitivity.SensorSensitivity
+    branch_offsets: np.ndarray | None = None
 
     @property
     def full_column_rank(self) -> bool:
@@ -101,6 +107,13 @@ class CaseAudit:
         if bad:
             notes.append(f"the logged local posterior of sensor(s) {bad} is not the local update with "
                          f"the logged y: the observed gap need not equal the predicted gap")
+        branched = [f"sensor {s.index} output {j} (n = {n:+d})" for s in self.sensors
+                    if s.branch_offsets is not None for j, n in enumerate(s.branch_offsets) if n]
+        if branched:
+            notes.append("branch offset on angle output(s) " + ", ".join(branched) + ": wrap(mu_y^m - mu_y(m)) "
+                         "+ wrap(y^m - mu_y^m) leaves (-pi, pi], so DMF's innovation there differs from CMF's "
+                         "wrap(y^m - mu_y(m)) by 2 pi n and the gap gains 2 pi n G_m e_j (included in "
+                         "predicted_gap and gap_contribution; repair messages do not remove it)")
         return notes
 
 
@@ -123,6 +136,7 @@ def audit_case(case: FusionCase, rank_tol: float | None = None, sensitivity: boo
         from gpfverify.symbolic.sensitivity import dmf_sensitivity
 
         jacobians = list(dmf_sensitivity(case, tol))
+    offsets = branch_offsets(case) if has_y else [None] * len(dmf.sensors)
     sensors = []
     for s in dmf.sensors:
         rank = s.split.rank
@@ -131,8 +145,7 @@ def audit_case(case: FusionCase, rank_tol: float | None = None, sensitivity: boo
             y_m = case.local_measurement(s.index)
             message = s.split.kernel_basis.T @ whitened_innovation(case.locals[s.index], y_m)
             residual = float(np.linalg.norm(local_consistency_residual(case, s.index)))
-            block = case.central.blocks[s.index]
-            contribution = -dmf.gain[:, block] @ case.locals[s.index].C_y @ s.split.kernel_basis @ message
+            contribution = sensor_gap(case, s, dmf.gain, offsets[s.index])
         sensors.append(SensorAudit(
             index=s.index, rows=rank.shape[0], cols=rank.shape[1], rank=rank.rank,
             singular_values=rank.singular_values, tol=rank.tol, condition_number=rank.condition_number,
@@ -140,7 +153,8 @@ def audit_case(case: FusionCase, rank_tol: float | None = None, sensitivity: boo
             repair_basis=s.split.kernel_basis, repair_message=message,
             local_consistency_residual=residual,
             consistency_tol=_consistency_tol(case, s.index) if has_y else None,
-            gap_contribution=contribution, sensitivity=jacobians[s.index]))
+            gap_contribution=contribution, sensitivity=jacobians[s.index],
+            branch_offsets=offsets[s.index]))
     rule = RANK_RULE_DEFAULT if tol is None else f"explicit absolute tolerance {tol:g}"
     if not has_y:
         return CaseAudit(tuple(sensors), rule, dmf.condition_holds, dmf.exact, dmf.mean)
@@ -148,7 +162,7 @@ def audit_case(case: FusionCase, rank_tol: float | None = None, sensitivity: boo
     repaired = dmf_update(case, [s.repair_message for s in sensors], rank_tol=tol)
     return CaseAudit(tuple(sensors), rule, dmf.condition_holds, dmf.exact, dmf.mean, cmf.mean,
                      dmf.mean - cmf.mean,
-                     predicted_gap(case, dmf.sensors), repaired.mean)
+                     predicted_gap(case, dmf.sensors, dmf.gain), repaired.mean)
 
 
 def _finite_or_none(x: float):
@@ -168,7 +182,8 @@ def audit_to_dict(audit: CaseAudit) -> dict:
             **({} if s.repair_message is None else {
                 "repair_message": s.repair_message.tolist(),
                 "local_consistency_residual": s.local_consistency_residual,
-                "gap_contribution": s.gap_contribution.tolist()}),
+                "gap_contribution": s.gap_contribution.tolist(),
+                "branch_offsets": s.branch_offsets.tolist()}),
             **({} if s.sensitivity is None else {"sensitivity": {
                 "jacobian_norms": s.sensitivity.jacobian_norms, "sigma_r": s.sensitivity.sigma_r,
                 "mu_e_bound": _finite_or_none(s.sensitivity.mu_e_bound)}}),
@@ -274,9 +289,9 @@ def audit_run(cases: Iterable[FusionCase], rank_tol: float | None = None) -> Run
 
 
 def cases_from_run(central_records: Sequence, local_records: Sequence[Sequence], sizes: Sequence[int],
-                   ys: Sequence | None = None) -> list[FusionCase]:
+                   ys: Sequence | None = None, circular: Sequence[int] = ()) -> list[FusionCase]:
     """Fusion cases from a run's records: ``central_records[k]`` holds the centre's prediction at step
     k (e.g. the CMF :class:`~gpfverify.filters.records.StepRecord`), ``local_records[k][m]`` sensor
-    m's step record, ``ys[k]`` the stacked measurement."""
-    return [case_from_records(central, locals_k, sizes, None if ys is None else ys[k])
+    m's step record, ``ys[k]`` the stacked measurement, ``circular`` its angle outputs."""
+    return [case_from_records(central, locals_k, sizes, None if ys is None else ys[k], circular=circular)
             for k, (central, locals_k) in enumerate(zip(central_records, local_records))]

@@ -1,6 +1,7 @@
-"""GP-ADF / GP-UKF versions of CMF and DMF on a small two-sensor GP model: DMF = CMF to rounding
-when every C_xy^m has full column rank; otherwise the observed gap equals the closed-form gap and
-the repaired DMF equals CMF. Oracle: CMF on the GaussianProcessStack (the centralized route)."""
+"""GP-ADF / GP-UKF versions of CMF and DMF (gpfverify.fusion.model_fusion on a GPModel) on a small
+two-sensor GP model: DMF = CMF to rounding when every C_xy^m has full column rank; otherwise the
+observed gap equals the closed-form gap and the repaired DMF equals CMF. Oracle: CMF on the
+GaussianProcessStack (the centralized route)."""
 
 import numpy as np
 import pytest
@@ -11,8 +12,9 @@ from gpfverify.filters.gp_ukf import gp_ukf_step
 from gpfverify.filters.records import Gaussian
 from gpfverify.fusion.exactness import equivalence_tolerance, predicted_gap, repair_message
 from gpfverify.fusion.distributed import dmf_update
-from gpfverify.fusion.gp_fusion import cmf_step, dmf_step
+from gpfverify.fusion.model_fusion import cmf_step, dmf_step
 from gpfverify.gp import GaussianProcess
+from gpfverify.models import GPModel
 
 LOCAL_STEP = {"gp-adf": gp_adf_step, "gp-ukf": gp_ukf_step}
 
@@ -36,7 +38,7 @@ def _model(d, seed):
         transition = _gp(rng, 1, lambda x: 0.5 * x + np.sin(x))
         sensors = [_gp(rng, 1, lambda x: np.hstack([np.sin(x), x])),
                    _gp(rng, 1, lambda x: np.hstack([np.cos(x), x**2 / 4]))]
-    return transition, sensors
+    return GPModel(transition, sensors)
 
 
 def _beliefs(d, rng):
@@ -49,14 +51,14 @@ def _beliefs(d, rng):
 @pytest.mark.parametrize("method", ["gp-adf", "gp-ukf"])
 @pytest.mark.parametrize("seed", [0, 1])
 def test_dmf_equals_cmf_with_full_column_rank(method, seed):
-    transition, sensors = _model(2, seed)
+    model = _model(2, seed)
     rng = np.random.default_rng(seed + 100)
     central_belief, local_beliefs = _beliefs(2, rng)
-    ys = [rng.normal(size=gp.output_dim) for gp in sensors]
-    local = [LOCAL_STEP[method](b, transition, gp, y) for b, gp, y in zip(local_beliefs, sensors, ys)]
+    ys = [rng.normal(size=size) for size in model.sizes]
+    local = [LOCAL_STEP[method](b, model.sensor_model(m), y) for m, (b, y) in enumerate(zip(local_beliefs, ys))]
     y = np.concatenate(ys)
-    cmf = cmf_step(central_belief, transition, sensors, y, method)
-    dmf = dmf_step(central_belief, local, transition, sensors, method, y=y)
+    cmf = cmf_step(central_belief, model, y, family=method)
+    dmf = dmf_step(central_belief, model, y, local_records=local, family=method)
     assert dmf.result.condition_holds and dmf.result.exact
     np.testing.assert_array_equal(dmf.record.C_y, cmf.C_y)
     assert np.abs(dmf.record.C_y[:1, 1:]).max() > 0  # the stack's cross-sensor block is present
@@ -67,14 +69,14 @@ def test_dmf_equals_cmf_with_full_column_rank(method, seed):
 
 @pytest.mark.parametrize("method", ["gp-adf", "gp-ukf"])
 def test_gap_equals_predicted_gap_under_rank_deficiency(method):
-    transition, sensors = _model(1, 3)
+    model = _model(1, 3)
     rng = np.random.default_rng(7)
     central_belief, local_beliefs = _beliefs(1, rng)
-    ys = [rng.normal(size=2) for _ in sensors]
-    local = [LOCAL_STEP[method](b, transition, gp, y) for b, gp, y in zip(local_beliefs, sensors, ys)]
+    ys = [rng.normal(size=2) for _ in model.sizes]
+    local = [LOCAL_STEP[method](b, model.sensor_model(m), y) for m, (b, y) in enumerate(zip(local_beliefs, ys))]
     y = np.concatenate(ys)
-    cmf = cmf_step(central_belief, transition, sensors, y, method)
-    dmf = dmf_step(central_belief, local, transition, sensors, method, y=y)
+    cmf = cmf_step(central_belief, model, y, family=method)
+    dmf = dmf_step(central_belief, model, y, local_records=local, family=method)
     assert not dmf.result.condition_holds and [s.repair_dim for s in dmf.result.sensors] == [1, 1]
     tol = equivalence_tolerance(dmf.case, dmf.result.gain, dmf.result.sensors)
     gap = dmf.record.mu_e - cmf.mu_e
@@ -85,15 +87,18 @@ def test_gap_equals_predicted_gap_under_rank_deficiency(method):
 
 
 def test_mismatched_inputs_are_input_errors():
-    transition, sensors = _model(2, 0)
+    model = _model(2, 0)
     central_belief, local_beliefs = _beliefs(2, np.random.default_rng(0))
-    local = [gp_adf_step(b, transition, gp, np.zeros(gp.output_dim)) for b, gp in zip(local_beliefs, sensors)]
+    local = [gp_adf_step(b, model.sensor_model(m), np.zeros(size))
+             for m, (b, size) in enumerate(zip(local_beliefs, model.sizes))]
     with pytest.raises(InputError, match="local records"):
-        dmf_step(central_belief, local[:1], transition, sensors)
+        dmf_step(central_belief, model, local_records=local[:1], family="gp-adf")
     with pytest.raises(InputError, match="C_xy of shape"):
-        dmf_step(central_belief, local[::-1], transition, sensors)
-    with pytest.raises(InputError, match="method"):
-        cmf_step(central_belief, transition, sensors, np.zeros(3), method="gp-ekf")
+        dmf_step(central_belief, model, local_records=local[::-1], family="gp-adf")
+    with pytest.raises(InputError, match="filter family"):
+        cmf_step(central_belief, model, np.zeros(3), family="gp-ekf")
+    with pytest.raises(InputError, match="needs a StateSpaceModel"):
+        cmf_step(central_belief, model, np.zeros(3), family="ukf")
 
 
 def test_audit_of_a_short_run_matches_the_dmf_steps():
@@ -101,16 +106,16 @@ def test_audit_of_a_short_run_matches_the_dmf_steps():
     per step and sensor the same ranks and gaps as dmf_step's own diagnostics."""
     from gpfverify.audit import audit_run, cases_from_run
 
-    transition, sensors = _model(1, 5)
+    model = _model(1, 5)
     rng = np.random.default_rng(9)
     central, local_beliefs = _beliefs(1, rng)
     cmf_records, local_runs, ys, dmf_gaps = [], [], [], []
     for _ in range(3):
-        y_parts = [rng.normal(size=2) for _ in sensors]
-        local = [gp_adf_step(b, transition, gp, y) for b, gp, y in zip(local_beliefs, sensors, y_parts)]
+        y_parts = [rng.normal(size=2) for _ in model.sizes]
+        local = [gp_adf_step(b, model.sensor_model(m), y) for m, (b, y) in enumerate(zip(local_beliefs, y_parts))]
         y = np.concatenate(y_parts)
-        cmf = cmf_step(central, transition, sensors, y)
-        dmf = dmf_step(central, local, transition, sensors, y=y)
+        cmf = cmf_step(central, model, y, family="gp-adf")
+        dmf = dmf_step(central, model, y, local_records=local, family="gp-adf")
         cmf_records.append(cmf)
         local_runs.append(local)
         ys.append(y)

@@ -8,7 +8,11 @@ A fusion case holds what the fusion centre knows at time k (seed 000 §3):
 * what each sensor m sends (``locals[m]``): μ_p^m, μ_y^m, C_y^m, C_xy^m, μ_e^m (eq. 32–34) and,
   for the covariance-based baselines, C_e^m;
 * optionally the stacked raw measurement y (needed for CMF and for the actual gap) and an absolute
-  singular-value tolerance ``rank_tol`` for the rank decisions.
+  singular-value tolerance ``rank_tol`` for the rank decisions;
+* optionally which outputs are angles in radians: ``locals[m].circular`` (0-based indices into
+  sensor m's outputs) and/or ``central.circular`` (indices into the stacked measurement); when both
+  are given they must agree. Every difference of an angle output (y − μ_y, μ_y^m − μ_y(m), the CMF
+  innovation) is then taken on the circle, wrapped to (−π, π] (:mod:`gpfverify.angles`).
 
 Every check raises :class:`~gpfverify.errors.CaseFileError` naming the offending entry.
 """
@@ -16,7 +20,7 @@ Every check raises :class:`~gpfverify.errors.CaseFileError` naming the offending
 from __future__ import annotations
 
 import json
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -25,10 +29,28 @@ from gpfverify.errors import CaseFileError, InputError
 from gpfverify.validate import as_covariance, as_matrix, as_vector
 
 
+def sensor_blocks(sizes) -> list[slice]:
+    """Slice of every sensor's outputs in the stacked measurement (sensor order)."""
+    ends = np.cumsum((0,) + tuple(sizes))
+    return [slice(int(a), int(b)) for a, b in zip(ends[:-1], ends[1:])]
+
+
+def stack_circular(per_sensor, sizes) -> tuple[int, ...]:
+    """Sensor-local angle indices (one sequence per sensor) as indices into the stacked measurement."""
+    return tuple(int(b.start) + int(i) for b, c in zip(sensor_blocks(sizes), per_sensor) for i in sorted(c))
+
+
+def split_circular(stacked, sizes) -> tuple[tuple[int, ...], ...]:
+    """Stacked angle indices as each sensor's local indices (inverse of :func:`stack_circular`)."""
+    return tuple(tuple(int(i) - b.start for i in sorted(stacked) if b.start <= i < b.stop)
+                 for b in sensor_blocks(sizes))
+
+
 @dataclass(frozen=True)
 class CentralPrediction:
     """The fusion centre's prediction: mu_p (D,), C_p (D, D), mu_y (L,), C_y (L, L) positive
-    definite, C_xy (D, L); ``sizes`` the measurement dimension of each sensor (Σ = L)."""
+    definite, C_xy (D, L); ``sizes`` the measurement dimension of each sensor (Σ = L);
+    ``circular`` the angle outputs of the stacked measurement (sorted 0-based indices)."""
 
     mu_p: np.ndarray
     C_p: np.ndarray
@@ -36,18 +58,19 @@ class CentralPrediction:
     C_y: np.ndarray
     C_xy: np.ndarray
     sizes: tuple[int, ...]
+    circular: tuple[int, ...] = ()
 
     @property
     def blocks(self) -> list[slice]:
         """Slice of sensor m's rows/columns in the stacked measurement."""
-        ends = np.cumsum((0,) + self.sizes)
-        return [slice(int(a), int(b)) for a, b in zip(ends[:-1], ends[1:])]
+        return sensor_blocks(self.sizes)
 
 
 @dataclass(frozen=True)
 class LocalReport:
     """What sensor m sends: mu_p (D,), mu_y (l,), C_y (l, l) positive definite, C_xy (D, l),
-    mu_e (D,) and optionally C_e (D, D)."""
+    mu_e (D,) and optionally C_e (D, D); ``circular`` its angle outputs (sorted 0-based indices
+    into its own l outputs)."""
 
     mu_p: np.ndarray
     mu_y: np.ndarray
@@ -55,16 +78,24 @@ class LocalReport:
     C_xy: np.ndarray
     mu_e: np.ndarray
     C_e: np.ndarray | None = None
+    circular: tuple[int, ...] = ()
 
 
 @dataclass(frozen=True)
 class FusionCase:
-    """One fusion step: central prediction, the sensors' reports, optional y (L,) and rank_tol."""
+    """One fusion step: central prediction, the sensors' reports, optional y (L,) and rank_tol.
+    The central and local angle outputs must agree (InputError otherwise)."""
 
     central: CentralPrediction
     locals: tuple[LocalReport, ...]
     y: np.ndarray | None = None
     rank_tol: float | None = None
+
+    def __post_init__(self):
+        stacked = stack_circular([r.circular for r in self.locals], self.central.sizes)
+        if stacked != tuple(self.central.circular):
+            raise InputError(f"central.circular {list(self.central.circular)} disagrees with the "
+                             f"sensors' circular outputs (stacked: {list(stacked)})")
 
     @property
     def state_dim(self) -> int:
@@ -102,6 +133,40 @@ def _sizes(value) -> tuple[int, ...]:
     if not all(isinstance(s, int) and not isinstance(s, bool) and s > 0 for s in value):
         raise CaseFileError(f"central.sizes must be positive integers, got {value}")
     return tuple(value)
+
+
+def _circular_entry(obj, count: int, where: str) -> tuple[int, ...] | None:
+    """The optional ``circular`` list of ``obj`` (None when absent): distinct integers in
+    [0, count), returned sorted."""
+    value = obj.get("circular") if isinstance(obj, dict) else None
+    if value is None:
+        return None
+    if not isinstance(value, list):
+        raise CaseFileError(f"{where} must be a list of 0-based output indices, got {value!r}")
+    for i in value:
+        if isinstance(i, bool) or not isinstance(i, int):
+            raise CaseFileError(f"{where} must hold integers, got {i!r}")
+        if not 0 <= i < count:
+            raise CaseFileError(f"{where} index {i} is out of range for {count} output(s)")
+    if len(set(value)) != len(value):
+        raise CaseFileError(f"{where} lists an index twice: {value}")
+    return tuple(sorted(value))
+
+
+def _agreed_circular(central, per_sensor, sizes) -> tuple[int, ...]:
+    """The stacked angle outputs from ``central.circular`` and the ``locals[m].circular`` (None
+    where absent); when both kinds are present, an absent local entry means no angles and every
+    sensor's block must agree."""
+    if central is None:
+        return stack_circular([c or () for c in per_sensor], sizes)
+    if all(c is None for c in per_sensor):
+        return central
+    for m, (expected, given) in enumerate(zip(split_circular(central, sizes), per_sensor)):
+        if expected != (given or ()):
+            raise CaseFileError(f"locals[{m}].circular {list(given or ())} disagrees with "
+                                f"central.circular {list(central)} (sensor {m}'s outputs there: "
+                                f"{list(expected)})")
+    return central
 
 
 def central_from_dict(data) -> CentralPrediction:
@@ -156,6 +221,12 @@ def case_from_dict(data) -> FusionCase:
                             f"{len(central.sizes)} sensors")
     d = central.mu_p.shape[0]
     local = tuple(local_from_dict(r, m, d, s) for m, (r, s) in enumerate(zip(reports, central.sizes)))
+    circular = _agreed_circular(
+        _circular_entry(data["central"], sum(central.sizes), "central.circular"),
+        [_circular_entry(r, s, f"locals[{m}].circular") for m, (r, s) in enumerate(zip(reports, central.sizes))],
+        central.sizes)
+    central = replace(central, circular=circular)
+    local = tuple(replace(r, circular=c) for r, c in zip(local, split_circular(circular, central.sizes)))
     y = None
     if data.get("y") is not None:
         y = _checked(lambda: as_vector(data["y"], "y", sum(central.sizes)), "y")
@@ -188,11 +259,15 @@ def case_to_dict(case: FusionCase) -> dict:
     out = {"central": {"mu_p": c.mu_p.tolist(), "C_p": c.C_p.tolist(), "mu_y": c.mu_y.tolist(),
                        "C_y": c.C_y.tolist(), "C_xy": c.C_xy.tolist(), "sizes": list(c.sizes)},
            "locals": []}
+    if c.circular:
+        out["central"]["circular"] = list(c.circular)
     for r in case.locals:
         entry = {"mu_p": r.mu_p.tolist(), "mu_y": r.mu_y.tolist(), "C_y": r.C_y.tolist(),
                  "C_xy": r.C_xy.tolist(), "mu_e": r.mu_e.tolist()}
         if r.C_e is not None:
             entry["C_e"] = r.C_e.tolist()
+        if r.circular:
+            entry["circular"] = list(r.circular)
         out["locals"].append(entry)
     if case.y is not None:
         out["y"] = case.y.tolist()
@@ -201,14 +276,16 @@ def case_to_dict(case: FusionCase) -> dict:
     return out
 
 
-def case_from_records(central, local_records, sizes, y=None, rank_tol=None) -> FusionCase:
+def case_from_records(central, local_records, sizes, y=None, rank_tol=None, circular=()) -> FusionCase:
     """A case from filter records: ``central`` has the centre's mu_p, C_p, mu_y, C_y, C_xy
     (e.g. the CMF :class:`~gpfverify.filters.records.StepRecord`); ``local_records`` are the
-    sensors' step records (their mu_e and C_e are what they send)."""
+    sensors' step records (their mu_e and C_e are what they send); ``circular`` the angle outputs
+    of the stacked measurement (e.g. a model's ``circular``)."""
     return case_from_dict({
         "central": {"mu_p": np.asarray(central.mu_p).tolist(), "C_p": np.asarray(central.C_p).tolist(),
                     "mu_y": np.asarray(central.mu_y).tolist(), "C_y": np.asarray(central.C_y).tolist(),
-                    "C_xy": np.asarray(central.C_xy).tolist(), "sizes": [int(s) for s in sizes]},
+                    "C_xy": np.asarray(central.C_xy).tolist(), "sizes": [int(s) for s in sizes],
+                    "circular": [int(i) for i in circular]},
         "locals": [{"mu_p": np.asarray(r.mu_p).tolist(), "mu_y": np.asarray(r.mu_y).tolist(),
                     "C_y": np.asarray(r.C_y).tolist(), "C_xy": np.asarray(r.C_xy).tolist(),
                     "mu_e": np.asarray(r.mu_e).tolist(), "C_e": np.asarray(r.C_e).tolist()}

@@ -2,7 +2,9 @@
 
 The centre updates its prediction with the stacked measurement y = [y¹; …; y^N]:
 
-    G = C_xy C_y⁻¹,   μ_e = μ_p + G (y − μ_y),   C_e = C_p − G C_xyᵀ,
+    G = C_xy C_y⁻¹,   μ_e = μ_p + G (y ⊖ μ_y),   C_e = C_p − G C_xyᵀ,
+
+where ⊖ is the difference with the angle outputs (``central.circular``) wrapped to (−π, π].
 
 G split into column blocks G_m (one per sensor) is also what the distributed rule (eq. 35) uses.
 """
@@ -11,6 +13,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from gpfverify.angles import difference
 from gpfverify.filters.records import Gaussian
 from gpfverify.fusion.case import CentralPrediction
 from gpfverify.linalg import right_solve_spd, symmetrize
@@ -27,6 +30,7 @@ def fused_covariance(central: CentralPrediction, gain: np.ndarray) -> np.ndarray
 
 
 def cmf_update(central: CentralPrediction, y: np.ndarray, gain: np.ndarray | None = None) -> Gaussian:
-    """The CMF posterior N(μ_p + G (y − μ_y), C_p − G C_xyᵀ) for the stacked measurement ``y``."""
+    """The CMF posterior N(μ_p + G (y ⊖ μ_y), C_p − G C_xyᵀ) for the stacked measurement ``y``."""
     gain = fusion_gain(central) if gain is None else gain
-    return Gaussian(central.mu_p + gain @ (y - central.mu_y), fused_covariance(central, gain))
+    innovation = difference(y, central.mu_y, central.circular)
+    return Gaussian(central.mu_p + gain @ innovation, fused_covariance(central, gain))

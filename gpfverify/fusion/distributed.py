@@ -3,11 +3,14 @@
 The centre runs its own prediction (μ_p, C_p, μ_y, C_y, C_xy) and receives from each sensor
 μ_p^m, μ_y^m, C_y^m, C_xy^m, μ_e^m. With G = C_xy C_y⁻¹ in column blocks G_m,
 
-    μ_e = μ_p + Σ_m G_m (μ_y^m − μ_y(m)) + Σ_m G_m C_y^m (C_xy^m)⁺ (μ_e^m − μ_p^m)   (eq. 35)
+    μ_e = μ_p + Σ_m G_m (μ_y^m ⊖ μ_y(m)) + Σ_m G_m C_y^m (C_xy^m)⁺ (μ_e^m − μ_p^m)   (eq. 35)
               [+ Σ_m G_m C_y^m N_m r_m   with the repair messages r_m, see exactness.py]
     C_e = C_p − G C_xyᵀ                                                                (as CMF)
 
-Computed as μ_p + G v with v stacked from the per-sensor terms (one product with G).
+Computed as μ_p + G v with v stacked from the per-sensor terms (one product with G). ⊖ wraps the
+angle outputs (``locals[m].circular``) to (−π, π]; the local update already wrapped y^m − μ_y^m.
+Wrapping the two terms separately can land on another branch than CMF's wrap(y^m − μ_y(m)): see
+:func:`~gpfverify.fusion.exactness.branch_offsets`.
 """
 
 from __future__ import annotations
@@ -17,6 +20,7 @@ from typing import Sequence
 
 import numpy as np
 
+from gpfverify.angles import difference
 from gpfverify.errors import InputError
 from gpfverify.fusion.case import FusionCase
 from gpfverify.fusion.centralized import fused_covariance, fusion_gain
@@ -64,6 +68,6 @@ def dmf_update(case: FusionCase, repair_messages: Sequence[np.ndarray] | None = 
                 raise InputError(f"repair message {s.index} must have {s.repair_dim} entries, "
                                  f"got shape {r_m.shape}")
             recovered = recovered + s.split.kernel_basis @ r_m
-        parts.append(local.mu_y - central.mu_y[block] + local.C_y @ recovered)
+        parts.append(difference(local.mu_y, central.mu_y[block], local.circular) + local.C_y @ recovered)
     mean = central.mu_p + gain @ np.concatenate(parts)
     return DMFResult(mean, fused_covariance(central, gain), gain, sensors, repair_messages is not None)

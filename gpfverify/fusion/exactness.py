@@ -1,16 +1,35 @@
 r"""When the distributed rule (seed 000 eq. 35) reproduces centralized fusion, and how to repair it.
 
 Notation. Sensor m's local update (eq. 32) is μ_e^m − μ_p^m = C_xy^m w_m with the *whitened local
-innovation* w_m = (C_y^m)⁻¹ (y^m − μ_y^m) ∈ ℝ^{l_m}. With the thin SVD C_xy^m = U S Vᵀ at rank
+innovation* w_m = (C_y^m)⁻¹ (y^m ⊖ μ_y^m) ∈ ℝ^{l_m}, where ⊖ is the difference with sensor m's angle
+outputs (``circular``) wrapped to (−π, π]. With the thin SVD C_xy^m = U S Vᵀ at rank
 r_m, let P_m = (C_xy^m)⁺ C_xy^m = V_r V_rᵀ (projector onto range(C_xy^mᵀ)) and N_m an orthonormal
 basis of ker C_xy^m (l_m − r_m columns, I − P_m = N_m N_mᵀ). G = C_xy C_y⁻¹ (central) is split
 into column blocks G_m.
 
 Gap. Since (C_xy^m)⁺(μ_e^m − μ_p^m) = P_m w_m, the DMF mean (eq. 35) is
-μ_p + Σ_m G_m (μ_y^m − μ_y(m)) + Σ_m G_m C_y^m P_m w_m, while CMF (eq. 36) is
-μ_p + Σ_m G_m (y^m − μ_y(m)) = μ_p + Σ_m G_m (μ_y^m − μ_y(m)) + Σ_m G_m C_y^m w_m. Hence
+μ_p + Σ_m G_m (μ_y^m ⊖ μ_y(m)) + Σ_m G_m C_y^m P_m w_m, while CMF (eq. 36) is
+μ_p + Σ_m G_m (y^m ⊖ μ_y(m)). Without angles y^m − μ_y(m) = (μ_y^m − μ_y(m)) + C_y^m w_m, hence
 
     μ_DMF − μ_CMF = Σ_m G_m C_y^m (P_m − I) w_m = −Σ_m (G_m C_y^m N_m)(N_mᵀ w_m).
+
+Angles: branch offsets. On an angle output j of sensor m write a = wrap(μ_y^m − μ_y(m))_j (DMF's
+first term), b = wrap(y^m − μ_y^m)_j (the local innovation, (C_y^m w_m)_j) and
+c = wrap(y^m − μ_y(m))_j (CMF's innovation). Since a ≡ μ_y^m − μ_y(m) and b ≡ y^m − μ_y^m modulo 2π,
+a + b ≡ y^m − μ_y(m) ≡ c; and a, b ∈ (−π, π] give a + b ∈ (−2π, 2π], so c = wrap(a + b) and
+
+    a + b − c = 2π n_j,   n_j = 0 if a + b ∈ (−π, π],  +1 if a + b > π,  −1 if a + b ≤ −π.
+
+So with full column rank (P_m = I) DMF's block-m innovation a + b equals CMF's c exactly when the
+sum of the two separately wrapped terms stays in (−π, π]; otherwise they differ by 2π n_j on output
+j. In general (any rank) the block-m innovations differ by 2π n_m − C_y^m N_m N_mᵀ w_m, and
+
+    μ_DMF − μ_CMF = Σ_m [2π G_m n_m − (G_m C_y^m N_m)(N_mᵀ w_m)]          (:func:`predicted_gap`),
+
+n_m ∈ {−1, 0, 1}^{l_m} the *branch offsets* (:func:`branch_offsets`; zero on non-angle outputs).
+Both wrapped terms are small when the central and local predictions agree and the measurement is
+near its prediction, so a nonzero offset means |a| + |b| > π: predictions or innovations of
+more than π/2 on an angle. Repair messages do not remove it (they restore only N_mᵀ w_m).
 
 Exactness. As y^m ranges over ℝ^{l_m}, w_m does too, independently per sensor; so DMF = CMF for
 every measurement iff every *gap gain* G_m C_y^m N_m is zero, i.e. ker C_xy^m ⊆ ker G_m C_y^m.
@@ -38,7 +57,9 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.linalg as sla
 
+from gpfverify.angles import TWO_PI, difference, wrap
 from gpfverify.fusion.case import FusionCase, LocalReport
+from gpfverify.fusion.centralized import fusion_gain
 from gpfverify.linalg import RankReport, solve_spd
 from gpfverify.tolerances import algebra_rtol, numpy_rank_tol
 
@@ -106,8 +127,9 @@ def analyse_sensors(case: FusionCase, gain: np.ndarray, rank_tol: float | None =
 
 
 def whitened_innovation(local: LocalReport, y_m: np.ndarray) -> np.ndarray:
-    """w_m = (C_y^m)⁻¹ (y^m − μ_y^m), the vector the local update multiplies by C_xy^m."""
-    return solve_spd(local.C_y, y_m - local.mu_y, "local C_y")
+    """w_m = (C_y^m)⁻¹ (y^m ⊖ μ_y^m), the vector the local update multiplies by C_xy^m (angle
+    outputs wrapped)."""
+    return solve_spd(local.C_y, difference(y_m, local.mu_y, local.circular), "local C_y")
 
 
 def repair_message(local: LocalReport, y_m: np.ndarray, rank_tol: float | None = None) -> np.ndarray:
@@ -115,17 +137,41 @@ def repair_message(local: LocalReport, y_m: np.ndarray, rank_tol: float | None =
     return kernel_split(local.C_xy, rank_tol).kernel_basis.T @ whitened_innovation(local, y_m)
 
 
-def predicted_gap(case: FusionCase, sensors: tuple[SensorExactness, ...]) -> np.ndarray:
-    """Closed-form μ_DMF − μ_CMF = −Σ_m (G_m C_y^m N_m)(N_mᵀ w_m) (needs ``case.y``)."""
+def branch_offsets(case: FusionCase) -> tuple[np.ndarray, ...]:
+    """Per sensor the integers n_m ∈ {−1, 0, 1}^{l_m} with
+    wrap(μ_y^m − μ_y(m)) + wrap(y^m − μ_y^m) − wrap(y^m − μ_y(m)) = 2π n_m on the angle outputs
+    (zero elsewhere; module docstring, "branch offsets"). Needs ``case.y``."""
+    out = []
+    for m, (block, local) in enumerate(zip(case.central.blocks, case.locals)):
+        n = np.zeros(local.mu_y.shape[0], dtype=int)
+        if local.circular:
+            j = list(local.circular)
+            total = wrap(local.mu_y[j] - case.central.mu_y[block][j]) + wrap(case.local_measurement(m)[j] - local.mu_y[j])
+            n[j] = np.rint((total - wrap(total)) / TWO_PI).astype(int)
+        out.append(n)
+    return tuple(out)
+
+
+def sensor_gap(case: FusionCase, sensor: SensorExactness, gain: np.ndarray, offsets: np.ndarray) -> np.ndarray:
+    """Sensor m's share of μ_DMF − μ_CMF: 2π G_m n_m − (G_m C_y^m N_m)(N_mᵀ w_m) (needs ``case.y``)."""
+    w = whitened_innovation(case.locals[sensor.index], case.local_measurement(sensor.index))
+    g_m = gain[:, case.central.blocks[sensor.index]]
+    return TWO_PI * (g_m @ offsets) - sensor.gap_gain @ (sensor.split.kernel_basis.T @ w)
+
+
+def predicted_gap(case: FusionCase, sensors: tuple[SensorExactness, ...], gain: np.ndarray | None = None
+                  ) -> np.ndarray:
+    """Closed-form μ_DMF − μ_CMF = Σ_m [2π G_m n_m − (G_m C_y^m N_m)(N_mᵀ w_m)], the sum of
+    :func:`sensor_gap` (``gain`` G defaults to the case's; needs ``case.y``)."""
+    gain = fusion_gain(case.central) if gain is None else gain
     gap = np.zeros(case.state_dim)
-    for s, local in zip(sensors, case.locals):
-        w = whitened_innovation(local, case.local_measurement(s.index))
-        gap -= s.gap_gain @ (s.split.kernel_basis.T @ w)
+    for s, n in zip(sensors, branch_offsets(case)):
+        gap += sensor_gap(case, s, gain, n)
     return gap
 
 
 def local_consistency_residual(case: FusionCase, m: int) -> np.ndarray:
-    """μ_e^m − μ_p^m − C_xy^m w_m: zero when the logged local posterior is the local update with the
+    """μ_e^m − μ_p^m − C_xy^m w_m (w_m from the wrapped innovation): zero when the logged local posterior is the local update with the
     logged y (eq. 32); when it is not, the observed gap need not equal the predicted one."""
     local = case.locals[m]
     return local.mu_e - local.mu_p - local.C_xy @ whitened_innovation(local, case.local_measurement(m))
