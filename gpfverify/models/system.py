@@ -229,10 +229,16 @@ class StateSpaceModel:
 
     def linear_matrices(self) -> tuple[np.ndarray, np.ndarray]:
         """(F, H) of a linear model; InputError when a function is not linear."""
-        parts = (self.transition,) + tuple(s.measure for s in self.sensors)
-        if not all(isinstance(p, LinearFunction) for p in parts):
+        if self._linear is None:
             raise InputError("the Kalman filter needs a linear model (matrices for the transition "
                              "and every sensor, e.g. gpfverify.models.linear_model)")
+        return self._linear
+
+    @cached_property
+    def _linear(self) -> tuple[np.ndarray, np.ndarray] | None:
+        parts = (self.transition,) + tuple(s.measure for s in self.sensors)
+        if not all(isinstance(p, LinearFunction) for p in parts):
+            return None
         return self.transition.matrix, np.concatenate([s.measure.matrix for s in self.sensors])
 
     # -- derived models ---------------------------------------------------------------------------

@@ -23,33 +23,24 @@ from typing import Callable
 
 import numpy as np
 
+from gpfverify.models import Sensor, StateSpaceModel
+
 Vectorised = Callable[[np.ndarray], np.ndarray]
 
 
 @dataclass(frozen=True)
-class SensorModel:
-    """y = h(x) + v, v ~ N(0, R); ``h`` is vectorised over a leading axis, (N, D) -> (N, l)."""
-
-    h: Vectorised
-    R: np.ndarray
-
-
-@dataclass(frozen=True)
 class FusionScenario:
-    """x_{k+1} = f(x_k) + w, w ~ N(0, Q), observed by ``sensors``; the trajectory starts from
-    N(start_mean, start_cov); ``train`` samples are followed by ``test`` samples."""
+    """The system (a :class:`~gpfverify.models.StateSpaceModel`: x_{k+1} = f(x_k) + w,
+    w ~ N(0, Q), observed by its sensors; its prior is the trajectory's start distribution) and
+    the run's split: ``train`` samples followed by ``test`` samples."""
 
-    f: Vectorised
-    Q: np.ndarray
-    sensors: tuple[SensorModel, ...]
-    start_mean: np.ndarray
-    start_cov: np.ndarray
+    model: StateSpaceModel
     train: int
     test: int
 
     @property
     def state_dim(self) -> int:
-        return self.Q.shape[0]
+        return self.model.state_dim
 
 
 @dataclass(frozen=True)
@@ -73,14 +64,15 @@ class FusionData:
 
 def simulate_data(scenario: FusionScenario, rng: np.random.Generator) -> FusionData:
     """Draw one trajectory of ``train + test`` samples and split it (see the module docstring)."""
+    model = scenario.model
     total, d = scenario.train + scenario.test, scenario.state_dim
     states = np.empty((total, d))
-    states[0] = rng.multivariate_normal(scenario.start_mean, scenario.start_cov)
-    process = rng.multivariate_normal(np.zeros(d), scenario.Q, size=total - 1)
+    states[0] = rng.multivariate_normal(model.prior_mean, model.prior_cov)
+    process = rng.multivariate_normal(np.zeros(d), model.Q, size=total - 1)
     for k in range(1, total):
-        states[k] = scenario.f(states[k - 1:k])[0] + process[k - 1]
-    measurements = [s.h(states) + rng.multivariate_normal(np.zeros(s.R.shape[0]), s.R, size=total)
-                    for s in scenario.sensors]
+        states[k] = model.f(states[k - 1:k])[0] + process[k - 1]
+    measurements = [s.measure(states) + rng.multivariate_normal(np.zeros(s.size), s.noise_cov, size=total)
+                    for s in model.sensors]
     n = scenario.train
     return FusionData(transition_inputs=states[:n - 1], transition_targets=states[1:n],
                       measurement_inputs=states[:n],
@@ -108,9 +100,11 @@ def ungm_scenario(system_noise_var: float, measurement_noise_var: float = 0.01,
                   start_var: float = 1.0, train: int = 200, test: int = 50,
                   phases: tuple[float, ...] = UNGM_PHASES) -> FusionScenario:
     """The 1-D two-sensor example with σ² = ``system_noise_var``."""
-    sensors = tuple(SensorModel(sine_sensor(p), np.array([[measurement_noise_var]])) for p in phases)
-    return FusionScenario(ungm_transition, np.array([[system_noise_var]]), sensors, np.zeros(1),
-                          np.array([[start_var]]), train, test)
+    sensors = tuple(Sensor(sine_sensor(p), [[measurement_noise_var]], name=f"sine, phase {p:.3g}")
+                    for p in phases)
+    model = StateSpaceModel(ungm_transition, [[system_noise_var]], sensors, np.zeros(1), [[start_var]],
+                            name="UNGM 1-D")
+    return FusionScenario(model, train, test)
 
 
 # -- 2-D constant turn (eq. 46–47) -----------------------------------------------------------------
@@ -156,8 +150,8 @@ def sensor_side(position) -> float:
 def ct_scenario(omega: float, train: int, test: int = 50,
                 positions: tuple[tuple[float, float], ...] = CT_SENSOR_POSITIONS) -> FusionScenario:
     """The 2-D constant-turn example: κ = ``train`` training samples from x ~ N(0, I)."""
-    F = turn_matrix(omega)
     R = np.diag([CT_RANGE_VAR, CT_BEARING_VAR])
-    sensors = tuple(SensorModel(range_bearing(np.array(z)), R) for z in positions)
-    return FusionScenario(lambda x: x @ F.T, CT_PROCESS_VAR * np.eye(2), sensors, np.zeros(2),
-                          np.eye(2), train, test)
+    sensors = tuple(Sensor(range_bearing(np.array(z)), R, name=f"range-arctan at {z}") for z in positions)
+    model = StateSpaceModel(turn_matrix(omega), CT_PROCESS_VAR * np.eye(2), sensors, np.zeros(2), np.eye(2),
+                            name="2-D constant turn")
+    return FusionScenario(model, train, test)
