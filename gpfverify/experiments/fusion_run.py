@@ -6,9 +6,9 @@ and each sensor's measurement GP from its training part, then filter the test pa
 methods — for each filter family F ∈ {GP-ADF, GP-UKF}:
 
 * ``Sensor1-F``, ``Sensor2-F``: each sensor's own filter (eq. 15–19 / 21–31);
-* ``CMF-F``: the centralized filter on the stacked measurement (:func:`~gpfverify.fusion.gp_fusion.cmf_step`);
+* ``CMF-F``: the centralized filter on the stacked measurement (:func:`~gpfverify.fusion.model_fusion.cmf_step`);
 * ``DMF-F``: the distributed rule (eq. 35) with its own recursion — the centre predicts from the
-  previous *DMF* posterior and fuses the sensors' reports (:func:`~gpfverify.fusion.gp_fusion.dmf_step`);
+  previous *DMF* posterior and fuses the sensors' reports (:func:`~gpfverify.fusion.model_fusion.dmf_step`);
 * ``CW-F``: convex combination of the local posteriors; ``RCC-CI-F``: relaxed-Chebyshev-centre CI
   of the local posteriors (ellipsoid size c = χ²_D(0.99) unless given; when the ellipsoids do not
   intersect, c is enlarged to twice the smallest intersecting size and the step is counted).
@@ -22,33 +22,31 @@ the one-step gap of eq. 35 against CMF *from the same central prediction*, and t
 (:func:`~gpfverify.audit.audit_case`: gap actual vs closed-form prediction, exact or not) of every
 step on which a rank condition failed.
 
-GP hyperparameters: evidence maximisation (``restarts`` starts) on at most ``fit_points`` training
-samples evenly spaced along the trajectory; the GP then conditions on *all* training samples with
-those hyperparameters. The cap keeps fitting O(fit_points³) per evaluation (measured in
+GP hyperparameters (:func:`~gpfverify.models.fit_gp_model`): evidence maximisation (``restarts``
+starts) on at most ``fit_points`` training samples evenly spaced along the trajectory; the GP then
+conditions on *all* training samples with those hyperparameters. The cap keeps fitting O(fit_points³) per evaluation (measured in
 ``benchmarks/bench_ct2d.py``); with fit_points ≥ the training size it is plain evidence maximisation.
 """
 
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass
 from typing import Sequence
 
 import numpy as np
 
 from gpfverify.audit import audit_case
 from gpfverify.errors import InputError
-from gpfverify.filters.gp_adf import gp_adf_step
-from gpfverify.filters.gp_ukf import gp_ukf_step
+from gpfverify.filters.families import gaussian_family
 from gpfverify.filters.records import Gaussian, StepRecord
 from gpfverify.filters.sigma_points import SigmaParams
 from gpfverify.fusion.centralized import cmf_update
 from gpfverify.fusion.convex import convex_combination
 from gpfverify.fusion.distributed import dmf_update
-from gpfverify.fusion.gp_fusion import cmf_step, dmf_step
+from gpfverify.fusion.model_fusion import cmf_step, dmf_step
 from gpfverify.fusion.rcc_ci import rcc_ci
-from gpfverify.gp import GaussianProcess
 from gpfverify.linalg import solve_spd
+from gpfverify.models import GPModel, fit_gp_model
 from gpfverify.scenarios.fusion_models import FusionData
 from gpfverify.tolerances import algebra_rtol
 
@@ -104,34 +102,13 @@ def params_with(add_arguments, params_from_args, **overrides) -> dict:
     return params_from_args(args)
 
 
-@dataclass(frozen=True)
-class TrainedModels:
-    """The transition GP and the sensors' measurement GPs of one run."""
-
-    transition: GaussianProcess
-    sensors: tuple[GaussianProcess, ...]
+def train_models(data: FusionData, restarts: int, fit_points: int, rng: np.random.Generator) -> GPModel:
+    """The run's GP model learned from its training part (:func:`~gpfverify.models.fit_gp_model`)."""
+    return fit_gp_model(data.transition_inputs, data.transition_targets, data.measurement_inputs,
+                        data.measurement_targets, rng, restarts=restarts, fit_points=fit_points)
 
 
-def fit_capped(X: np.ndarray, Y: np.ndarray, restarts: int, fit_points: int, seed: int) -> GaussianProcess:
-    """Hyperparameters by evidence maximisation on at most ``fit_points`` evenly spaced samples,
-    then the GP conditioned on all of (X, Y) with them."""
-    n = X.shape[0]
-    if n <= fit_points:
-        return GaussianProcess.fit(X, Y, restarts, seed)
-    subset = np.unique(np.linspace(0, n - 1, fit_points).round().astype(int))
-    fitted = GaussianProcess.fit(X[subset], Y[subset], restarts, seed)
-    return GaussianProcess(X, Y, fitted.lengthscales, fitted.signal_var, fitted.noise_var)
-
-
-def train_models(data: FusionData, restarts: int, fit_points: int, rng: np.random.Generator) -> TrainedModels:
-    seeds = [int(s) for s in rng.integers(1 << 31, size=1 + len(data.measurement_targets))]
-    transition = fit_capped(data.transition_inputs, data.transition_targets, restarts, fit_points, seeds[0])
-    sensors = tuple(fit_capped(data.measurement_inputs, y, restarts, fit_points, s)
-                    for y, s in zip(data.measurement_targets, seeds[1:]))
-    return TrainedModels(transition, sensors)
-
-
-def hyperparameters(models: TrainedModels) -> dict:
+def hyperparameters(models: GPModel) -> dict:
     """The fitted hyperparameters, JSON-able."""
     def one(gp):
         return {"lengthscales": gp.lengthscales.tolist(), "signal_var": gp.signal_var.tolist(),
@@ -156,12 +133,6 @@ class _Clock:
         out = fn(*args, **kwargs)
         self.seconds[method][step] += time.perf_counter() - start
         return out
-
-
-def _local_step(family: str, sigma: SigmaParams):
-    if family == "GP-ADF":
-        return lambda belief, transition, sensor, y: gp_adf_step(belief, transition, sensor, y)
-    return lambda belief, transition, sensor, y: gp_ukf_step(belief, transition, sensor, y, sigma)
 
 
 def _rcc_ci(estimates, size):
@@ -192,7 +163,7 @@ def gap_condition(case) -> float:
     return float(max(conds))
 
 
-def run_family(family: str, models: TrainedModels, data: FusionData, local_starts: Sequence[Gaussian],
+def run_family(family: str, models: GPModel, data: FusionData, local_starts: Sequence[Gaussian],
                fused_start: Gaussian, sigma: SigmaParams, rcc_size: float | None,
                rank_tol: float | None) -> dict:
     """Filter the test segment with the six methods of one family; per-step records (see module
@@ -203,8 +174,9 @@ def run_family(family: str, models: TrainedModels, data: FusionData, local_start
     names = [f"{rule}-{family}" for rule in RULES]
     clock = _Clock(steps, names)
     online = {f"{r}-{family}": np.zeros(steps) for r in ("CMF", "DMF")}
-    local_step = _local_step(family, sigma)
     method = _FAMILY_KEY[family]
+    local_step = gaussian_family(method, sigma).step
+    sensor_models = [models.sensor_model(m) for m in range(len(models.sensors))]
     locals_ = list(local_starts)
     cmf_belief, dmf_belief = fused_start, fused_start
     out = {"sq_err": {n: [] for n in names}, "maha": {n: [] for n in names},
@@ -216,13 +188,13 @@ def run_family(family: str, models: TrainedModels, data: FusionData, local_start
            "audit": [], "rcc_enlarged": 0}
     for k in range(steps):
         records: list[StepRecord] = [
-            clock.run(f"Sensor{m + 1}-{family}", k, local_step, belief, models.transition, gp, ys_local[m][k])
-            for m, (belief, gp) in enumerate(zip(locals_, models.sensors))]
+            clock.run(f"Sensor{m + 1}-{family}", k, local_step, belief, sensor_model, ys_local[m][k], k=k + 1)
+            for m, (belief, sensor_model) in enumerate(zip(locals_, sensor_models))]
         locals_ = [r.posterior for r in records]
-        cmf = clock.run(f"CMF-{family}", k, cmf_step, cmf_belief, models.transition, models.sensors, ys[k],
-                        method, sigma)
-        dmf = clock.run(f"DMF-{family}", k, dmf_step, dmf_belief, records, models.transition, models.sensors,
-                        method, sigma, ys[k], rank_tol)
+        cmf = clock.run(f"CMF-{family}", k, cmf_step, cmf_belief, models, ys[k], k=k + 1, family=method,
+                        params=sigma)
+        dmf = clock.run(f"DMF-{family}", k, dmf_step, dmf_belief, models, ys[k], local_records=records, k=k + 1,
+                        family=method, params=sigma, rank_tol=rank_tol)
         cmf_belief, dmf_belief = cmf.posterior, dmf.record.posterior
         cw = clock.run(f"CW-{family}", k, convex_combination, locals_)
         rcc, enlarged = clock.run(f"RCC-CI-{family}", k, _rcc_ci, locals_, rcc_size)
@@ -262,7 +234,7 @@ def run_family(family: str, models: TrainedModels, data: FusionData, local_start
     return out
 
 
-def run_setting(data: FusionData, models: TrainedModels, local_starts: Sequence[Gaussian],
+def run_setting(data: FusionData, models: GPModel, local_starts: Sequence[Gaussian],
                 fused_start: Gaussian, sigma: SigmaParams, rcc_size: float | None,
                 rank_tol: float | None) -> dict:
     """Both families on one run's data: ``{"families": {family: run_family(...)}}``."""
@@ -279,7 +251,7 @@ def run_setting(data: FusionData, models: TrainedModels, local_starts: Sequence[
 ROUNDING_PROBE = 1e-14
 
 
-def rounding_sensitivity(family: str, models: TrainedModels, belief: Gaussian, y: np.ndarray,
+def rounding_sensitivity(family: str, models: GPModel, belief: Gaussian, y: np.ndarray,
                          sigma: SigmaParams) -> float:
     """‖Δμ_e‖ of one CMF step when the prior mean moves by :data:`ROUNDING_PROBE` · (|μ| + σ) per
     coordinate (σ the prior standard deviations): how far
@@ -287,10 +259,9 @@ def rounding_sensitivity(family: str, models: TrainedModels, belief: Gaussian, y
     amplified by one filter step. Large values explain a recursive DMF − CMF drift that the
     one-step gap (zero to rounding) does not."""
     method = _FAMILY_KEY[family]
-    base = cmf_step(belief, models.transition, models.sensors, y, method, sigma)
+    base = cmf_step(belief, models, y, family=method, params=sigma)
     shift = ROUNDING_PROBE * (np.abs(belief.mean) + np.sqrt(np.diag(belief.cov)))
-    nudged = cmf_step(Gaussian(belief.mean + shift, belief.cov), models.transition,
-                      models.sensors, y, method, sigma)
+    nudged = cmf_step(Gaussian(belief.mean + shift, belief.cov), models, y, family=method, params=sigma)
     return float(np.linalg.norm(nudged.mu_e - base.mu_e))
 
 
