@@ -14,9 +14,9 @@ from hypothesis import strategies as st
 
 from gpfverify.filters.gp_adf import gp_adf_step
 from gpfverify.filters.kalman import kf_step
-from gpfverify.filters.models import linear_model
 from gpfverify.filters.records import Gaussian
 from gpfverify.filters.ukf import ukf_step
+from gpfverify.models import GPModel, linear_model
 from gpfverify.strategies import gaussian_inputs, gaussian_processes, linear_gaussian_models, sigma_params
 from gpfverify.tolerances import algebra_rtol
 
@@ -24,8 +24,9 @@ from gpfverify.tolerances import algebra_rtol
 @given(model=linear_gaussian_models(), data=st.data())
 def test_ukf_equals_kf_on_linear_models(model, data):
     params = data.draw(sigma_params(model.F.shape[0]), label="sigma params")
-    kf = kf_step(model.prior, model.F, model.H, model.Q, model.R, model.y)
-    ukf = ukf_step(model.prior, linear_model(model.F, model.H, model.Q, model.R), model.y, params=params)
+    system = linear_model(model.F, model.H, model.Q, model.R)
+    kf = kf_step(model.prior, system, model.y, k=1)
+    ukf = ukf_step(model.prior, system, model.y, k=1, params=params)
     wm, _ = params.weights(model.F.shape[0])
     cond = max(np.linalg.cond(kf.C_p), np.linalg.cond(kf.C_y))
     tol = algebra_rtol(cond * np.abs(wm).sum())
@@ -43,7 +44,7 @@ def test_gp_adf_covariances_stay_psd(transition, data):
     prior = data.draw(gaussian_inputs(d, max_variance=4.0), label="belief")
     y = data.draw(st.lists(st.floats(-3, 3), min_size=measurement.output_dim,
                            max_size=measurement.output_dim), label="y")
-    record = gp_adf_step(prior, transition, measurement, np.array(y))
+    record = gp_adf_step(prior, GPModel(transition, [measurement]), np.array(y), k=1)
     for name in ("C_p", "C_y", "C_e"):
         cov = getattr(record, name)
         np.testing.assert_array_equal(cov, cov.T, err_msg=name)
