@@ -260,3 +260,23 @@ def test_branch_offset_is_predicted_and_named(sign):
     [note] = audit.notes
     assert f"sensor 1 output 1 (n = {sign:+d})" in note and "2 pi" in note
     assert audit_to_dict(audit)["sensors"][1]["branch_offsets"] == [0, sign]
+
+
+def test_the_documented_example_is_a_valid_case(tmp_path, capsys):
+    """docs/fusion-case-format.md: its example loads and audits as the text says."""
+    from pathlib import Path
+
+    text = (Path(__file__).resolve().parents[1] / "docs" / "fusion-case-format.md").read_text()
+    example = text.split("```json\n", 1)[1].split("```", 1)[0]
+    path = tmp_path / "example.json"
+    path.write_text(example)
+    code, out, _ = _cli(["audit", str(path), "--json"], capsys)
+    report = json.loads(out)
+    assert code == 0 and report["condition_holds"] and report["exact"] and report["notes"] == []
+    assert [s["branch_offsets"] for s in report["sensors"]] == [[0], [0, 0]]
+    case = load_case(path)
+    tol = equivalence_tolerance(case, dmf_update(case).gain, dmf_update(case).sensors)
+    np.testing.assert_allclose(report["dmf_mean"], report["cmf_mean"], rtol=0, atol=tol)
+    assert np.round(report["cmf_mean"], 4).tolist() == [0.2312, -0.1022]  # the 4 digits the text prints
+    plain = _without_angles(case)
+    assert np.linalg.norm(cmf_update(plain.central, plain.y).mean - report["cmf_mean"]) > 1e3 * tol

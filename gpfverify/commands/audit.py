@@ -10,7 +10,7 @@ from gpfverify.fusion.case import load_case
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("case", help="fusion-case JSON file (format in CONTRACT.md)")
+    parser.add_argument("case", help="fusion-case JSON file (format in docs/fusion-case-format.md)")
     parser.add_argument("--json", action="store_true", help="print one JSON object instead of text")
     parser.add_argument("--rank-tol", type=float, default=None, metavar="TOL",
                         help="absolute singular-value tolerance for the rank of each C_xy^m; overrides "

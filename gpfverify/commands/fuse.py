@@ -12,7 +12,7 @@ from gpfverify.fusion.methods import METHODS, fuse_case
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("case", help="fusion-case JSON file (format in CONTRACT.md)")
+    parser.add_argument("case", help="fusion-case JSON file (format in docs/fusion-case-format.md)")
     parser.add_argument("--method", required=True, choices=METHODS, help="fusion rule")
     parser.add_argument("--json", action="store_true", help="print one JSON object instead of text")
     parser.add_argument("--criterion", choices=("trace", "det"), default="trace",

@@ -1,4 +1,5 @@
-"""One fusion step as a typed record, and its JSON form (CONTRACT.md, "Fusion-case files").
+"""One fusion step as a typed record, and its JSON form (CONTRACT.md, "Fusion-case files"; for
+users: docs/fusion-case-format.md).
 
 A fusion case holds what the fusion centre knows at time k (seed 000 §3):
 
