@@ -20,7 +20,9 @@ report drives it. n_m are the *branch offsets* of its angle outputs
 (:func:`~gpfverify.fusion.exactness.branch_offsets`): where the separately wrapped eq. 35 terms
 wrap(μ_y^m − μ_y(m)) + wrap(y^m − μ_y^m) leave (−π, π], DMF's innovation differs from CMF's
 wrap(y^m − μ_y(m)) by 2π; the audit reports them per sensor and in a note, and the predicted gap
-includes them. Angle outputs are wrapped in every residual (the local consistency check too). With ``sensitivity=True`` each sensor also gets the Jacobian norms of the fused mean with
+includes them. Angle outputs are wrapped in every residual (the local consistency check too).
+
+With ``sensitivity=True`` each sensor also gets the Jacobian norms of the fused mean with
 respect to what it reports (casadi AD, :func:`gpfverify.symbolic.sensitivity.dmf_sensitivity`) and
 the bound ‖G_m C_y^m‖₂ / σ_r(C_xy^m) on the μ_e^m Jacobian, which grows as C_xy^m nears rank loss.
 """

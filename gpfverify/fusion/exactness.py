@@ -146,7 +146,8 @@ def branch_offsets(case: FusionCase) -> tuple[np.ndarray, ...]:
         n = np.zeros(local.mu_y.shape[0], dtype=int)
         if local.circular:
             j = list(local.circular)
-            total = wrap(local.mu_y[j] - case.central.mu_y[block][j]) + wrap(case.local_measurement(m)[j] - local.mu_y[j])
+            central_part = wrap(local.mu_y[j] - case.central.mu_y[block][j])
+            total = central_part + wrap(case.local_measurement(m)[j] - local.mu_y[j])
             n[j] = np.rint((total - wrap(total)) / TWO_PI).astype(int)
         out.append(n)
     return tuple(out)
@@ -171,8 +172,9 @@ def predicted_gap(case: FusionCase, sensors: tuple[SensorExactness, ...], gain: 
 
 
 def local_consistency_residual(case: FusionCase, m: int) -> np.ndarray:
-    """μ_e^m − μ_p^m − C_xy^m w_m (w_m from the wrapped innovation): zero when the logged local posterior is the local update with the
-    logged y (eq. 32); when it is not, the observed gap need not equal the predicted one."""
+    """μ_e^m − μ_p^m − C_xy^m w_m (w_m from the wrapped innovation): zero when the logged local
+    posterior is the local update with the logged y (eq. 32); when it is not, the observed gap
+    need not equal the predicted one."""
     local = case.locals[m]
     return local.mu_e - local.mu_p - local.C_xy @ whitened_innovation(local, case.local_measurement(m))
 
