@@ -11,14 +11,15 @@ import numpy as np
 import pytest
 
 from gpfverify.errors import InputError
-from gpfverify.filters.flows import (EDHBelief, edh_step, edh_update, exponential_steps,
-                                     ie_pff_step, ie_pff_update, particle_moments, uniform_steps)
+from gpfverify.filters.flows import (edh_step, edh_update, exponential_steps, ie_pff_step, ie_pff_update,
+                                     particle_moments, uniform_steps)
 from gpfverify.filters.kalman import kf_measurement, kf_step
-from gpfverify.filters.models import NonlinearModel, linear_model
 from gpfverify.filters.records import Gaussian
+from gpfverify.filters.resampling import Particles
+from gpfverify.models import Sensor, StateSpaceModel, linear_model
 from gpfverify.filters.update import gaussian_update
 from gpfverify.linalg import right_solve_spd
-from gpfverify.tolerances import CONVERGENCE_ORDER_ATOL, algebra_rtol
+from gpfverify.tolerances import CONVERGENCE_ORDER_ATOL, algebra_rtol, monte_carlo_atol
 
 def _problem(seed=0, dim=3, meas=2, count=200):
     rng = np.random.default_rng(seed)
@@ -26,16 +27,16 @@ def _problem(seed=0, dim=3, meas=2, count=200):
     R = np.diag(rng.uniform(0.2, 0.6, meas))
     model = linear_model(np.eye(dim), H, np.eye(dim), R)
     particles = rng.normal(size=(count, dim)) * rng.uniform(0.5, 2.0, dim) + rng.normal(size=dim)
-    prior = particle_moments(particles)
+    prior = Gaussian(*particle_moments(particles))
     z = H @ prior.mean + 2.0 * rng.normal(size=meas)
-    kalman = gaussian_update(Gaussian(prior.mean, prior.cov), kf_measurement(Gaussian(prior.mean, prior.cov), H, R), z)
+    kalman = gaussian_update(prior, kf_measurement(prior, model), z)
     return model, particles, z, kalman
 
 
 def _step_counts(model, particles):
     """Three halvings of Δλ inside the asymptotic range: explicit Euler on the λ-path is stable
     and accurate once Δλ ρ ≲ 1/4, ρ = the largest eigenvalue of P Hᵀ R⁻¹ H at λ = 0."""
-    P = particle_moments(particles).cov
+    _, P = particle_moments(particles)
     H = model.h_jacobian(particles[0], 0)
     rho = float(np.linalg.eigvals(P @ H.T @ np.linalg.solve(model.R, H)).real.max())
     base = int(2 ** np.ceil(np.log2(4 * max(rho, 1.0))))
@@ -45,8 +46,8 @@ def _step_counts(model, particles):
 def _errors(update, model, particles, z, kalman):
     errs = []
     for count in _step_counts(model, particles):
-        est = particle_moments(update(particles, model, z, uniform_steps(count)))
-        errs.append(max(np.abs(est.mean - kalman.mu_e).max(), np.abs(est.cov - kalman.C_e).max()))
+        mean, cov = particle_moments(update(particles, model, z, uniform_steps(count)))
+        errs.append(max(np.abs(mean - kalman.mu_e).max(), np.abs(cov - kalman.C_e).max()))
     return np.array(errs)
 
 
@@ -60,9 +61,9 @@ def _ie_pff(particles, model, z, steps):
 
 def _frozen_gain_flow(particles, model, z, steps):
     """The mistake the tests must catch: the gain and ĥ computed once at λ = 0."""
-    est = particle_moments(particles)
+    mean, _ = particle_moments(particles)
     hx = model.h(particles, 0)
-    cross = (particles - est.mean).T @ (hx - hx.mean(axis=0)) / particles.shape[0]
+    cross = (particles - mean).T @ (hx - hx.mean(axis=0)) / particles.shape[0]
     gain = right_solve_spd(cross, model.R)
     x = particles.copy()
     for dlam in steps:
@@ -93,7 +94,7 @@ def test_edh_is_exact_for_linear_gaussian_in_the_limit(seed):
     """EDH with P = the particles' covariance and x̄₀ their mean: the Daum–Huang flow carries the
     Gaussian prior to the Kalman posterior; Euler in λ converges at first order."""
     model, particles, z, kalman = _problem(seed)
-    P = particle_moments(particles).cov
+    _, P = particle_moments(particles)
     errs = _errors(lambda x, m, zz, s: edh_update(x, P, m, zz, 0, s), model, particles, z, kalman)
     assert np.all(np.abs(_orders(errs) - 1.0) < CONVERGENCE_ORDER_ATOL), errs
 
@@ -105,13 +106,13 @@ def test_edh_step_tracks_the_ekf_covariance_of_a_linear_model():
     H = np.array([[1.0, 0.0]])
     Q, R = 0.1 * np.eye(2), np.array([[0.5]])
     model = linear_model(F, H, Q, R)
-    belief = EDHBelief(rng.normal(size=(50, 2)), np.eye(2))
+    belief = Particles.equally_weighted(rng.normal(size=(50, 2)), ekf_cov=np.eye(2))
     kalman = Gaussian(np.zeros(2), np.eye(2))
     for k in range(1, 4):
         z = rng.normal(size=1)
-        belief, _ = edh_step(belief, model, z, k, rng, uniform_steps(10))
-        kalman = kf_step(kalman, F, H, Q, R, z).posterior
-    np.testing.assert_allclose(belief.cov, kalman.cov, rtol=algebra_rtol(np.linalg.cond(kalman.cov)))
+        belief = edh_step(belief, model, z, k=k, rng=rng, step_sizes=uniform_steps(10)).posterior
+        kalman = kf_step(kalman, model, z, k=k).posterior
+    np.testing.assert_allclose(belief.ekf_cov, kalman.cov, rtol=algebra_rtol(np.linalg.cond(kalman.cov)))
 
 
 def _bearing_model(sensor, rotation):
@@ -124,11 +125,8 @@ def _bearing_model(sensor, rotation):
         d = x - sensor
         return np.array([[-d[1], d[0]]]) / (d @ d)
 
-    def wrap(y, y_pred):
-        return np.mod(y - y_pred + np.pi, 2 * np.pi) - np.pi
-
-    return NonlinearModel(f=lambda x, k: x, h=h, Q=0.1 * np.eye(2), R=np.array([[0.01]]),
-                          f_jacobian=lambda x, k: np.eye(2), h_jacobian=jac, measurement_residual=wrap)
+    return StateSpaceModel(np.eye(2), 0.1 * np.eye(2), [Sensor(h, [[0.01]], circular=(0,), jacobian=jac)],
+                           sensor + [-10.0, 0.0], np.eye(2))
 
 
 @pytest.mark.parametrize("update", ["ie-pff", "edh"])
@@ -163,13 +161,17 @@ def test_step_schedules():
 
 def test_ie_pff_step_predicts_before_the_flow():
     """With an uninformative measurement (R huge) the step is the prediction: the particle mean
-    is F x̄ up to the process-noise sample mean."""
+    is F x̄ up to the process-noise sample mean (the flow moves it by ~ Cov(X, h) R⁻¹ z ≈ 1e-12)."""
     rng = np.random.default_rng(11)
-    F = np.array([[0.9, 0.2], [0.0, 0.8]])
-    model = linear_model(F, [[1.0, 0.0]], 1e-12 * np.eye(2), [[1e12]])
-    particles = rng.normal(size=(40, 2))
-    x, est = ie_pff_step(particles, model, np.array([3.0]), 1, rng, uniform_steps(4))
-    np.testing.assert_allclose(est.mean, particles.mean(axis=0) @ F.T, atol=1e-5)
+    F, q, count = np.array([[0.9, 0.2], [0.0, 0.8]]), 1e-12, 40
+    model = linear_model(F, [[1.0, 0.0]], q * np.eye(2), [[1e12]])
+    particles = rng.normal(size=(count, 2))
+    record = ie_pff_step(Particles.equally_weighted(particles), model, np.array([3.0]), k=1, rng=rng,
+                         step_sizes=uniform_steps(4))
+    np.testing.assert_allclose(record.mean, particles.mean(axis=0) @ F.T, rtol=0,
+                               atol=monte_carlo_atol(np.sqrt(q), count))
+    assert record.ess == count and not record.resampled
+    np.testing.assert_array_equal(record.posterior.particles, record.weighted.particles)
 
 
 def test_flows_reject_bad_input():
@@ -180,3 +182,6 @@ def test_flows_reject_bad_input():
         edh_update(np.zeros((5, 3)), np.eye(2), model, np.zeros(1), 0, uniform_steps(2))
     with pytest.raises(InputError, match="particles"):
         ie_pff_update(np.zeros((1, 2)), model, np.zeros(1), 0, uniform_steps(2))
+    with pytest.raises(InputError, match="ekf_cov"):
+        edh_step(Particles.equally_weighted(np.zeros((5, 2))), model, np.zeros(1), rng=np.random.default_rng(0),
+                 step_sizes=uniform_steps(2))

@@ -1,30 +1,59 @@
 """Resampling, particle densities and the bootstrap PF against exact references: the systematic
-scheme's floor/ceil property and unbiasedness, scipy's Gaussian density, the Kalman filter."""
+scheme's floor/ceil property (to N and to another size) and unbiasedness, scipy's log-sum-exp and
+Gaussian density, the Kalman filter, and the invariance of bearing-only filtering to where the
+bearing wraps."""
+
+from dataclasses import replace
 
 import numpy as np
 import pytest
+from scipy.special import logsumexp
 from scipy.stats import multivariate_normal
 
+from gpfverify.angles import wrap
 from gpfverify.errors import InputError
 from gpfverify.filters.kalman import kf_step
 from gpfverify.filters.likelihoods import gaussian_logpdf, measurement_loglik
-from gpfverify.filters.models import NonlinearModel, linear_model
 from gpfverify.filters.pf import pf_step
 from gpfverify.filters.records import Gaussian
-from gpfverify.filters.resampling import (ParticleSet, effective_sample_size, needs_resampling,
+from gpfverify.filters.resampling import (Particles, effective_sample_size, log_sum_exp, needs_resampling,
                                           normalize_log_weights, systematic_resample)
-from gpfverify.scenarios.simulate import simulate
+from gpfverify.filters.upf import upf_step
+from gpfverify.models import Sensor, StateSpaceModel, linear_model
 from gpfverify.tolerances import algebra_rtol, monte_carlo_atol
 
 
 @pytest.mark.parametrize("seed", range(5))
-def test_systematic_counts_are_floor_or_ceil_of_n_w(seed):
+@pytest.mark.parametrize("size", [None, 10, 37, 90])
+def test_systematic_counts_are_floor_or_ceil_of_n_w(seed, size):
+    """n draws from M = 37 particles: each index ⌊n w_i⌋ or ⌈n w_i⌉ times (n = M by default)."""
     rng = np.random.default_rng(seed)
     log_w = rng.normal(scale=2.0, size=37)
     w = np.exp(normalize_log_weights(log_w))
-    counts = np.bincount(systematic_resample(log_w, rng), minlength=37)
-    assert counts.sum() == 37
-    assert np.all((counts == np.floor(37 * w)) | (counts == np.ceil(37 * w)))
+    n = 37 if size is None else size
+    counts = np.bincount(systematic_resample(log_w, rng, size=size), minlength=37)
+    assert counts.size == 37 and counts.sum() == n
+    assert np.all((counts == np.floor(n * w)) | (counts == np.ceil(n * w)))
+
+
+def test_systematic_resample_guards_rounding_at_the_end():
+    """Cumulative weights that round below 1 must not send the last position past the end."""
+    class LastPosition:
+        def uniform(self):
+            return np.nextafter(1.0, 0.0)
+
+    log_w = np.log(np.full(10, 0.1))  # Σ of ten 0.1 rounds to 0.9999999999999999
+    for size in (None, 3, 25):
+        idx = systematic_resample(log_w, LastPosition(), size=size)
+        assert idx.max() == 9
+
+
+def test_log_sum_exp_matches_scipy():
+    rng = np.random.default_rng(8)
+    for values in (rng.normal(scale=30.0, size=500), np.full(7, -3.2), np.array([-np.inf, 2.0, 2.0, -1.0]),
+                   np.array([1e-300, -800.0])):
+        assert log_sum_exp(values) == pytest.approx(float(logsumexp(values)), rel=algebra_rtol())
+    assert log_sum_exp(np.full(3, -np.inf)) == -np.inf
 
 
 def test_systematic_resampling_is_unbiased():
@@ -57,41 +86,41 @@ def test_gaussian_logpdf_matches_scipy():
     np.testing.assert_allclose(gaussian_logpdf(r, cov), expected, rtol=algebra_rtol(np.linalg.cond(cov)))
 
 
-def test_measurement_loglik_uses_the_model_residual():
-    wrap = lambda y, yp: np.mod(y - yp + np.pi, 2 * np.pi) - np.pi  # noqa: E731
-    model = NonlinearModel(f=lambda x, k: x, h=lambda x, k: x, Q=np.eye(1), R=np.array([[0.1]]),
-                           measurement_residual=wrap)
-    near_cut = measurement_loglik(model, np.array([np.pi - 0.01]), np.array([[-np.pi + 0.01]]), 0)
-    direct = gaussian_logpdf(np.array([[0.02]]), model.R)
+def test_measurement_loglik_wraps_angle_outputs():
+    model = StateSpaceModel(lambda x: x, np.eye(1), [Sensor(lambda x: x, [[0.1]], circular=(0,))], [0.0], [[1.0]])
+    near_cut = measurement_loglik(model, np.array([np.pi - 0.01]), np.array([[-np.pi + 0.01]]), 1)
+    direct = gaussian_logpdf(np.array([[-0.02]]), model.R)
     np.testing.assert_allclose(near_cut, direct, rtol=algebra_rtol())
 
 
 def _linear_problem():
+    """A linear-Gaussian model with prior N([0.5, −0.5], I) and 4 measurements from x₀ = the prior mean."""
     F = np.array([[1.0, 1.0], [0.0, 0.9]])
     H = np.array([[1.0, 0.0]])
     Q, R = np.diag([0.3, 0.2]), np.array([[0.5]])
-    _, ys = simulate(linear_model(F, H, Q, R), np.array([0.5, -0.5]), 4, np.random.default_rng(3))
-    return F, H, Q, R, ys
+    model = linear_model(F, H, Q, R, prior_mean=[0.5, -0.5])
+    _, ys = model.simulate(4, np.random.default_rng(3), x0=model.prior_mean)
+    return model, ys
 
 
 def test_bootstrap_pf_agrees_with_the_kalman_filter_within_monte_carlo_error():
     """Independent PF runs: the spread of (PF mean − KF mean) over runs is the Monte Carlo error;
     the average error must be within 5 standard errors of zero, for mean and covariance."""
-    F, H, Q, R, ys = _linear_problem()
-    model = linear_model(F, H, Q, R)
-    prior = Gaussian(np.array([0.5, -0.5]), np.eye(2))
+    model, ys = _linear_problem()
+    prior = Gaussian(model.prior_mean, model.prior_cov)
     kalman = prior
     for k, y in enumerate(ys, 1):
-        kalman = kf_step(kalman, F, H, Q, R, y).posterior
+        kalman = kf_step(kalman, model, y, k=k).posterior
     runs, count = 24, 4000
     mean_err, cov_err = [], []
     for seed in range(runs):
         rng = np.random.default_rng(100 + seed)
-        belief = ParticleSet.equally_weighted(rng.multivariate_normal(prior.mean, prior.cov, count))
+        belief = Particles.equally_weighted(rng.multivariate_normal(prior.mean, prior.cov, count))
         for k, y in enumerate(ys, 1):
-            belief, info = pf_step(belief, model, y, k, rng)
-        mean_err.append(info.mean - kalman.mean)
-        cov_err.append(info.cov - kalman.cov)
+            record = pf_step(belief, model, y, k=k, rng=rng)
+            belief = record.posterior
+        mean_err.append(record.mean - kalman.mean)
+        cov_err.append(record.cov - kalman.cov)
     for err in (np.array(mean_err), np.array(cov_err)):
         np.testing.assert_array_less(np.abs(err.mean(0)), monte_carlo_atol(err.std(0, ddof=1), runs))
     # and the Monte Carlo error itself is of order posterior std / sqrt(N)
@@ -101,10 +130,56 @@ def test_bootstrap_pf_agrees_with_the_kalman_filter_within_monte_carlo_error():
 def test_bad_input_raises_input_error():
     model = linear_model(np.eye(2), np.eye(2)[:1], np.eye(2), np.eye(1))
     rng = np.random.default_rng(0)
-    belief = ParticleSet.equally_weighted(np.zeros((5, 2)))
+    belief = Particles.equally_weighted(np.zeros((5, 2)))
     with pytest.raises(InputError, match="y"):
-        pf_step(belief, model, np.zeros(2), 1, rng)
+        pf_step(belief, model, np.zeros(2), k=1, rng=rng)
     with pytest.raises(InputError, match="particles"):
-        pf_step(ParticleSet.equally_weighted(np.zeros((5, 3))), model, np.zeros(1), 1, rng)
+        pf_step(Particles.equally_weighted(np.zeros((5, 3))), model, np.zeros(1), k=1, rng=rng)
     with pytest.raises(InputError, match="y"):
-        pf_step(belief, model, np.array([np.nan]), 1, rng)
+        pf_step(belief, model, np.array([np.nan]), k=1, rng=rng)
+    with pytest.raises(InputError, match="StateSpaceModel"):
+        pf_step(belief, object(), np.zeros(1), k=1, rng=rng)
+    with pytest.raises(InputError, match="sqrt_covs"):
+        upf_step(belief, model, np.zeros(1), k=1, rng=rng)
+
+
+def _bearing_model(rotation: float) -> StateSpaceModel:
+    """Near-constant-velocity target [x, ẋ, y, ẏ] seen from the origin, bearing measured from an
+    axis turned by −``rotation`` (h' = h + φ); prior around (−100, 0) moving up, so that the bearing
+    crosses the ±π cut (from just below π to just above −π) in the unrotated frame."""
+    F = np.kron(np.eye(2), [[1.0, 1.0], [0.0, 1.0]])
+
+    def h(x):
+        return np.arctan2(x[:, 2], x[:, 0])[:, None] + rotation
+
+    return StateSpaceModel(F, np.diag([0.1, 0.05, 0.1, 0.05]), [Sensor(h, [[0.02**2]], circular=(0,))],
+                           [-100.0, 0.0, -8.0, 2.0], np.diag([4.0, 0.1, 4.0, 0.1]))
+
+
+@pytest.mark.parametrize("method", ["pf", "upf"])
+def test_bearing_filters_do_not_see_the_cut(method):
+    """The same run in a rotated bearing frame (h' = h + φ, y' = wrap(y + φ)) where no bearing
+    is near ±π: the wrapped residuals are the same, so with the same generator the weights and
+    estimates agree to rounding — and they would not if a residual or a sigma-point mean were
+    taken across the cut without wrapping (a 2π jump, see the assertion on the measurements)."""
+    model, rotation = _bearing_model(0.0), np.pi / 2
+    rotated = _bearing_model(rotation)
+    _, ys = model.simulate(8, np.random.default_rng(12), x0=model.prior_mean)
+    assert np.any(ys > 3.0) and np.any(ys < -3.0)  # the measurements jump across the cut
+    ys_rotated = wrap(ys + rotation)
+    assert np.all(np.abs(ys_rotated) < 2.5)
+    means = []
+    for m, measurements in ((model, ys), (rotated, ys_rotated)):
+        rng = np.random.default_rng(13)
+        belief = Particles.from_gaussian(m.prior_mean, m.prior_cov, 300, rng)
+        if method == "pf":
+            belief = replace(belief, sqrt_covs=None)
+        step = pf_step if method == "pf" else upf_step
+        out = []
+        for k, y in enumerate(measurements, 1):
+            record = step(belief, m, y, k=k, rng=rng)
+            belief = record.posterior
+            out.append(record.mean)
+        means.append(np.array(out))
+    scale = np.abs(means[1]).max()
+    np.testing.assert_allclose(means[0], means[1], rtol=algebra_rtol(1e4), atol=algebra_rtol(1e4) * scale)

@@ -8,14 +8,14 @@ import numpy as np
 import pytest
 
 from gpfverify.errors import InputError
-from gpfverify.filters.gpsr_upf import GPResidualModel, batched_gaussian_logpdf, gpsr_upf_step, sr_ukf_proposal
+from gpfverify.filters.gpsr_upf import GPResidualModel, gpsr_upf_step, sr_ukf_proposal
 from gpfverify.filters.kalman import kf_step
-from gpfverify.filters.likelihoods import gaussian_logpdf
-from gpfverify.filters.models import NonlinearModel, linear_model
+from gpfverify.filters.likelihoods import batched_gaussian_logpdf, gaussian_logpdf
 from gpfverify.filters.records import Gaussian
-from gpfverify.filters.upf import ParticleCloud, ukf_proposal, upf_step
+from gpfverify.filters.resampling import Particles
+from gpfverify.filters.upf import ukf_proposal, upf_step
 from gpfverify.gp.residual import fit_residual
-from gpfverify.scenarios.simulate import simulate
+from gpfverify.models import Sensor, StateSpaceModel, linear_model
 from gpfverify.scenarios.sins_gps import (ATTITUDE, EARTH_RATE, EQUATORIAL_RADIUS, UNITS, VELOCITY, SinsGpsConfig,
                                           build_models, generate_flight, gravity, measurement_matrix,
                                           training_set)
@@ -77,14 +77,15 @@ def test_sr_ukf_equals_kf_over_the_flight(scenario):
     rng = np.random.default_rng(0)
     prior = config.initial_cov()
     x0 = rng.multivariate_normal(np.zeros(15), prior)
-    _, ys = simulate(models.true, x0, config.steps, rng)
+    _, ys = models.true.simulate(config.steps, rng, x0=x0)
     H = measurement_matrix()
     kf = Gaussian(np.zeros(15), prior)
     mean, factor = np.zeros((1, 15)), np.linalg.cholesky(prior)[None]
     worst = 0.0
     for k, y in enumerate(ys, 1):
-        kf = kf_step(kf, models.transitions_approx[k - 1], H, models.approx.Q, models.approx.R, y).posterior
-        mean, factor = sr_ukf_proposal(mean, factor, models.approx, y, k)
+        linear = linear_model(models.transitions_approx[k - 1], H, models.approx.Q, models.approx.R)
+        kf = kf_step(kf, linear, y, k=k).posterior
+        mean, factor = sr_ukf_proposal(Particles(mean, np.zeros(1), factor), models.approx, y, k=k)
         assert np.all(np.diag(factor[0]) > 0) and np.all(np.isfinite(factor))
         scale = np.sqrt(np.diag(kf.cov))
         worst = max(worst, float(np.max(np.abs(mean[0] - kf.mean) / scale)),
@@ -99,20 +100,20 @@ def _nonlinear_model():
     def h(x, k):
         return np.stack([x[:, 0] + 0.1 * x[:, 1] ** 2, np.tanh(x[:, 1])], axis=1)
 
-    return NonlinearModel(f, h, np.diag([0.3, 0.2]), np.diag([0.2, 0.1]))
+    return StateSpaceModel(f, np.diag([0.3, 0.2]), [Sensor(h, np.diag([0.2, 0.1]))], np.zeros(2), np.eye(2))
 
 
 def test_upf_with_sr_ukf_proposal_equals_upf_with_ukf_proposal():
     model = _nonlinear_model()
     rng = np.random.default_rng(1)
     x0 = np.array([0.5, -0.3])
-    _, ys = simulate(model, x0, 15, rng)
+    _, ys = model.simulate(15, rng, x0=x0)
     clouds = []
     for proposal in (ukf_proposal, sr_ukf_proposal):
         r = np.random.default_rng(2)
-        cloud = ParticleCloud.from_gaussian(np.zeros(2), np.eye(2), 40, r)
+        cloud = Particles.from_gaussian(np.zeros(2), np.eye(2), 40, r)
         for k, y in enumerate(ys, 1):
-            cloud, _ = upf_step(cloud, model, y, k, r, proposal=proposal)
+            cloud = upf_step(cloud, model, y, k=k, rng=r, proposal=proposal).posterior
         clouds.append(cloud)
     covs = clouds[0].sqrt_covs @ np.swapaxes(clouds[0].sqrt_covs, 1, 2)
     tol = algebra_rtol(np.linalg.cond(covs).max() * len(ys))
@@ -133,12 +134,13 @@ def test_gpsr_upf_without_residual_on_linear_model_agrees_with_kf():
     diffs, scaled = [], []
     for run in range(runs):
         rng = np.random.default_rng(100 + run)
-        _, ys = simulate(model.approx, np.zeros(2), steps, rng)
-        cloud = ParticleCloud.from_gaussian(np.zeros(2), np.eye(2), count, rng)
+        _, ys = model.approx.simulate(steps, rng, x0=np.zeros(2))
+        cloud = Particles.from_gaussian(np.zeros(2), np.eye(2), count, rng)
         kf = Gaussian(np.zeros(2), np.eye(2))
         for k, y in enumerate(ys, 1):
-            cloud, info = gpsr_upf_step(cloud, model, y, k, rng)
-            kf = kf_step(kf, F, H, Q, R, y).posterior
+            info = gpsr_upf_step(cloud, model, y, k=k, rng=rng)
+            cloud = info.posterior
+            kf = kf_step(kf, model.approx, y, k=k).posterior
         diffs.append(info.mean - kf.mean)
         scaled.append((info.mean - kf.mean) / np.sqrt(np.diag(kf.cov) / info.ess))
     diffs, scaled = np.array(diffs), np.array(scaled)
@@ -186,11 +188,12 @@ def test_gpsr_upf_factors_stay_valid_over_the_flight(scenario):
     model = GPResidualModel(models.approx, residual, transition_inputs=models.transition_inputs)
     rng = np.random.default_rng(7)
     x0 = rng.multivariate_normal(np.zeros(15), config.initial_cov())
-    _, ys = simulate(models.true, x0, config.steps, rng)
-    cloud = ParticleCloud.from_gaussian(np.zeros(15), config.initial_cov(), 3, rng)
+    _, ys = models.true.simulate(config.steps, rng, x0=x0)
+    cloud = Particles.from_gaussian(np.zeros(15), config.initial_cov(), 3, rng)
     step = partial(gpsr_upf_step, model=model, rng=rng)
     for k, y in enumerate(ys, 1):
-        cloud, info = step(cloud, y=y, k=k)
+        info = step(cloud, y=y, k=k)
+        cloud = info.posterior
         diag = np.diagonal(cloud.sqrt_covs, axis1=1, axis2=2)
         assert np.all(diag > 0) and np.all(np.isfinite(cloud.sqrt_covs))
         assert np.allclose(np.triu(cloud.sqrt_covs, 1), 0.0)

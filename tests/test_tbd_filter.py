@@ -8,9 +8,9 @@ import numpy as np
 import pytest
 
 from gpfverify.errors import InputError
-from gpfverify.filters.tbd import (TbdBelief, TbdConfig, TbdModel, filter_sequence, pf_tbd_step,
-                                   second_stage_update, tpf_tbd_step)
-from gpfverify.filters.tbd.pf import birth_proposal, resample_to_size
+from gpfverify.filters.resampling import Particles, systematic_resample
+from gpfverify.filters.tbd import TbdConfig, TbdModel, filter_sequence, pf_tbd_step, second_stage_update, tpf_tbd_step
+from gpfverify.filters.tbd.pf import birth_proposal
 from gpfverify.filters.tbd.two_stage import transfer_particles
 from gpfverify.scenarios.tbd import TbdScenario, noise_std_for_snr, scenario_model, simulate
 from gpfverify.tolerances import algebra_rtol, monte_carlo_atol
@@ -67,12 +67,13 @@ def test_existence_follows_the_markov_chain_when_the_image_carries_no_informatio
     config = TbdConfig(200)
     image = np.zeros((model.grid_size, model.grid_size))
     rng = np.random.default_rng(1)
-    belief = TbdBelief(np.tile([10.0, 0.1, 10.0, 0.1, 20.0], (config.n_continuing, 1)), 0.3)
-    for _ in range(5):
-        step = pf_tbd_step(belief, model, config, image, rng)
+    belief = Particles.equally_weighted(np.tile([10.0, 0.1, 10.0, 0.1, 20.0], (config.n_continuing, 1)),
+                                        existence=0.3)
+    for k in range(1, 6):
+        step = pf_tbd_step(belief, model, image, k=k, rng=rng, config=config)
         expected = model.p_birth * (1 - belief.existence) + (1 - model.p_death) * belief.existence
-        np.testing.assert_allclose(step.existence, expected, rtol=algebra_rtol())
-        belief = step.belief
+        np.testing.assert_allclose(step.posterior.existence, expected, rtol=algebra_rtol())
+        belief = step.posterior
 
 
 def test_existence_carries_the_birth_importance_weights():
@@ -85,13 +86,14 @@ def test_existence_carries_the_birth_importance_weights():
     image[4:7, 9:12] = 5.0
     rng = np.random.default_rng(17)
     prev = 0.3
-    belief = TbdBelief(np.tile([10.0, 0.1, 10.0, 0.1, 20.0], (config.n_continuing, 1)), prev)
+    belief = Particles.equally_weighted(np.tile([10.0, 0.1, 10.0, 0.1, 20.0], (config.n_continuing, 1)),
+                                        existence=prev)
     _, log_ratio = birth_proposal(model, config, image, copy.deepcopy(rng))
     m_b = model.p_birth * (1 - prev) * np.exp(log_ratio).mean()
     m_c = (1 - model.p_death) * prev
     expected = (m_b + m_c) / (m_b + m_c + model.p_death * prev + (1 - model.p_birth) * (1 - prev))
-    step = pf_tbd_step(belief, model, config, image, rng)
-    np.testing.assert_allclose(step.existence, expected, rtol=algebra_rtol())
+    step = pf_tbd_step(belief, model, image, rng=rng, config=config)
+    np.testing.assert_allclose(step.posterior.existence, expected, rtol=algebra_rtol())
     assert abs(np.exp(log_ratio).mean() - 1.0) > algebra_rtol()  # the ratios matter here
 
 
@@ -107,14 +109,32 @@ def test_birth_importance_ratio_is_exact():
     assert ratio.min() < 1.0 < ratio.max()  # the proposal really favours the bright cells
 
 
-def test_resample_to_size_keeps_expected_counts():
+def test_pf_tbd_resamples_the_merged_set_down_to_n_c_systematically():
+    """Step ⑥ is the shared systematic resampler with size N_c < N_b + N_c: replaying the step's
+    draws from a copy of the generator gives the same resampled particles, and each merged particle
+    is kept ⌊N_c w_i⌋ or ⌈N_c w_i⌉ times."""
+    model = scenario_model(6.0, SCENARIO)
+    config = TbdConfig(400)
     rng = np.random.default_rng(3)
-    w = rng.random(30)
-    w /= w.sum()
-    idx = resample_to_size(w, 10, rng)
-    counts = np.bincount(idx, minlength=30)
-    assert counts.sum() == 10
-    assert np.all(np.abs(counts - 10 * w) < 1.0)  # systematic: ⌊n w⌋ or ⌈n w⌉ copies
+    image = model.noise_std * rng.standard_normal((20, 20)) + model.expected_image(np.array([8.0, 0, 12.0, 0, 20.0]))
+    belief = Particles.equally_weighted(np.tile([8.0, 0.1, 12.0, 0.0, 20.0], (config.n_continuing, 1)), existence=0.5)
+    replay = copy.deepcopy(rng)
+    step = pf_tbd_step(belief, model, image, rng=rng, config=config)
+    birth_proposal(model, config, image, replay)
+    model.propagate(belief.particles, replay)
+    idx = systematic_resample(step.weighted.log_weights, replay, size=config.n_continuing)
+    np.testing.assert_array_equal(step.posterior.particles, step.weighted.particles[idx])
+    n, w = config.n_continuing, np.exp(step.weighted.log_weights)
+    counts = np.bincount(idx, minlength=w.size)
+    assert counts.sum() == n < w.size and step.resampled
+    assert np.all((counts == np.floor(n * w)) | (counts == np.ceil(n * w)))
+
+
+def test_pf_tbd_needs_the_existence_probability():
+    model, config = TbdModel(), TbdConfig(20)
+    with pytest.raises(InputError, match="existence"):
+        pf_tbd_step(Particles.equally_weighted(np.zeros((10, 5))), model, np.zeros((20, 20)),
+                    rng=np.random.default_rng(0), config=config)
 
 
 def _weighted_cloud(rng, model, n=400):
@@ -183,12 +203,20 @@ def test_tpftbd_step_replaces_about_one_minus_zeta_of_the_particles():
     config = TbdConfig(4000, two_stage=True, zeta=0.6)
     rng = np.random.default_rng(9)
     image = model.noise_std * rng.standard_normal((20, 20)) + model.expected_image(np.array([8.0, 0, 12.0, 0, 20.0]))
-    belief = TbdBelief(np.tile([8.0, 0.0, 12.0, 0.0, 20.0], (config.n_continuing, 1)), 0.9)
-    step, second = tpf_tbd_step(belief, model, config, image, rng, np.random.default_rng(10))
+    belief = Particles.equally_weighted(np.tile([8.0, 0.0, 12.0, 0.0, 20.0], (config.n_continuing, 1)), existence=0.9)
+    step = tpf_tbd_step(belief, model, image, rng=rng, config=config, second_rng=np.random.default_rng(10))
+    second = step.second_stage
     share = second.replaced.mean()
     assert abs(share - 0.4) <= monte_carlo_atol(np.sqrt(0.4 * 0.6), second.replaced.size)
-    np.testing.assert_allclose(step.estimate, 0.6 * (np.exp(step.log_weights) @ step.merged) + 0.4 * second.record.mu_e,
-                               rtol=algebra_rtol())
+    pf_mean = np.exp(step.weighted.log_weights) @ step.weighted.particles
+    np.testing.assert_allclose(step.mean, 0.6 * pf_mean + 0.4 * second.record.mu_e, rtol=algebra_rtol())
+    # the estimate's covariance is that of the mixture the transferred particles are drawn from
+    transferred = step.posterior.particles[second.replaced]
+    assert np.all(np.abs(transferred.mean(0) - second.record.mu_e)
+                  <= monte_carlo_atol(np.sqrt(np.diag(second.record.C_e)), transferred.shape[0]))
+    # Weyl: the mixture covariance ζ P + (1 − ζ) P⁺ + ζ (1 − ζ) d dᵀ dominates (1 − ζ) P⁺
+    floor = (1 - config.zeta) * np.linalg.eigvalsh(second.record.C_e).min()
+    assert np.linalg.eigvalsh(step.cov).min() >= floor * (1 - algebra_rtol(np.linalg.cond(step.cov)))
 
 
 @pytest.mark.parametrize("two_stage", [False, True])

@@ -11,13 +11,12 @@ from scipy.integrate import quad
 from gpfverify.errors import InputError
 from gpfverify.filters.kalman import kf_step
 from gpfverify.filters.likelihoods import measurement_loglik
-from gpfverify.filters.models import linear_model
 from gpfverify.filters.records import Gaussian
-from gpfverify.filters.resampling import normalize_log_weights
-from gpfverify.filters.upf import ParticleCloud, upf_step
+from gpfverify.filters.resampling import Particles, normalize_log_weights
+from gpfverify.filters.upf import upf_step
 from gpfverify.linalg import cholesky
+from gpfverify.models import linear_model
 from gpfverify.scenarios.growth import gamma_benchmark_model
-from gpfverify.scenarios.simulate import simulate
 from gpfverify.tolerances import QUADRATURE_RTOL, algebra_rtol, monte_carlo_atol
 
 
@@ -25,20 +24,21 @@ def test_upf_agrees_with_the_kalman_filter_within_monte_carlo_error():
     F = np.array([[1.0, 1.0], [0.0, 0.9]])
     H = np.array([[1.0, 0.0]])
     Q, R = np.diag([0.3, 0.2]), np.array([[0.5]])
-    model = linear_model(F, H, Q, R)
-    prior = Gaussian(np.array([0.5, -0.5]), np.eye(2))
-    _, ys = simulate(model, prior.mean, 4, np.random.default_rng(3))
+    model = linear_model(F, H, Q, R, prior_mean=[0.5, -0.5])
+    prior = Gaussian(model.prior_mean, model.prior_cov)
+    _, ys = model.simulate(4, np.random.default_rng(3), x0=prior.mean)
     kalman = prior
-    for y in ys:
-        kalman = kf_step(kalman, F, H, Q, R, y).posterior
+    for k, y in enumerate(ys, 1):
+        kalman = kf_step(kalman, model, y, k=k).posterior
     runs, count = 24, 1000
     errs = []
     for seed in range(runs):
         rng = np.random.default_rng(200 + seed)
-        cloud = ParticleCloud.from_gaussian(prior.mean, prior.cov, count, rng)
+        belief = Particles.from_gaussian(prior.mean, prior.cov, count, rng)
         for k, y in enumerate(ys, 1):
-            cloud, info = upf_step(cloud, model, y, k, rng)
-        errs.append(np.concatenate([info.mean - kalman.mean, (info.cov - kalman.cov).ravel()]))
+            record = upf_step(belief, model, y, k=k, rng=rng)
+            belief = record.posterior
+        errs.append(np.concatenate([record.mean - kalman.mean, (record.cov - kalman.cov).ravel()]))
     errs = np.array(errs)
     np.testing.assert_array_less(np.abs(errs.mean(0)), monte_carlo_atol(errs.std(0, ddof=1), runs))
 
@@ -49,13 +49,13 @@ def test_prior_proposal_gives_the_bootstrap_weights():
     rng = np.random.default_rng(4)
     q_factor = cholesky(gaussian.Q).factor
 
-    def prior_proposal(particles, sqrt_covs, model_, y, k):
-        return model_.f(particles, k), np.broadcast_to(q_factor, sqrt_covs.shape)
+    def prior_proposal(belief, model_, y, *, k):
+        return model_.f(belief.particles, k), np.broadcast_to(q_factor, belief.sqrt_covs.shape)
 
-    cloud = ParticleCloud.from_gaussian(np.ones(1), np.eye(1), 50, rng)
+    belief = Particles.from_gaussian(np.ones(1), np.eye(1), 50, rng)
     y = np.array([1.3])
-    out, _ = upf_step(cloud, gaussian, y, 1, rng, proposal=prior_proposal, resample_threshold=0.0)
-    expected = normalize_log_weights(cloud.log_weights + measurement_loglik(gaussian, y, out.particles, 1))
+    out = upf_step(belief, gaussian, y, k=1, rng=rng, proposal=prior_proposal, resample_threshold=0.0).posterior
+    expected = normalize_log_weights(belief.log_weights + measurement_loglik(gaussian, y, out.particles, 1))
     np.testing.assert_allclose(out.log_weights, expected, rtol=algebra_rtol(), atol=algebra_rtol())
 
 
@@ -77,17 +77,18 @@ def test_upf_weights_gamma_process_noise_exactly():
     exact = quad(lambda x: x * unnormalised(x), lo, hi, epsabs=0, epsrel=QUADRATURE_RTOL, limit=200)[0] / z
     count = 200_000
     rng = np.random.default_rng(5)
-    cloud = ParticleCloud(np.repeat(x0[None, :], count, 0), np.zeros(count), np.full((count, 1, 1), 0.3))
-    out, info = upf_step(cloud, model, y, k, rng, resample_threshold=0.0)
+    belief = Particles(np.repeat(x0[None, :], count, 0), np.zeros(count), np.full((count, 1, 1), 0.3))
+    record = upf_step(belief, model, y, k=k, rng=rng, resample_threshold=0.0)
+    out = record.posterior
     w = np.exp(out.log_weights)
     # delta-method standard error of a self-normalised importance-sampling mean
-    se = np.sqrt(np.sum(w**2 * (out.particles[:, 0] - info.mean[0]) ** 2))
-    assert abs(info.mean[0] - exact) < monte_carlo_atol(se, 1)
+    se = np.sqrt(np.sum(w**2 * (out.particles[:, 0] - record.mean[0]) ** 2))
+    assert abs(record.mean[0] - exact) < monte_carlo_atol(se, 1)
 
 
 def test_upf_rejects_bad_input():
     model = linear_model(np.eye(2), np.eye(2)[:1], np.eye(2), np.eye(1))
     rng = np.random.default_rng(0)
-    cloud = ParticleCloud.from_gaussian(np.zeros(2), np.eye(2), 5, rng)
+    belief = Particles.from_gaussian(np.zeros(2), np.eye(2), 5, rng)
     with pytest.raises(InputError, match="y"):
-        upf_step(cloud, model, np.zeros(2), 1, rng)
+        upf_step(belief, model, np.zeros(2), k=1, rng=rng)

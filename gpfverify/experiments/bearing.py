@@ -16,7 +16,6 @@ import numpy as np
 from gpfverify.errors import InputError
 from gpfverify.experiments.particle_methods import child_rng, flow_steps, run_method
 from gpfverify.scenarios.bearing import INITIAL_STATE, bearing_model
-from gpfverify.scenarios.simulate import simulate
 
 NAME = "bearing"
 DEFAULT_RUNS = 200
@@ -52,23 +51,20 @@ def params_from_args(args: argparse.Namespace) -> dict:
 
 
 def _model(params: dict):
+    """The bearing model with the filters' prior N(x₀, P₀)."""
     return bearing_model(params["q_pos"], params["q_vel"], params["bearing_std"],
-                         np.deg2rad(params["omega_deg"]), params["switch_time"])
-
-
-def _prior_cov(params: dict) -> np.ndarray:
-    p, v = params["prior_std_pos"] ** 2, params["prior_std_vel"] ** 2
-    return np.diag([p, v, p, v])
+                         np.deg2rad(params["omega_deg"]), params["switch_time"],
+                         prior_std_pos=params["prior_std_pos"], prior_std_vel=params["prior_std_vel"],
+                         initial_state=np.asarray(params["initial_state"], dtype=float))
 
 
 def run_one(params: dict, seed_seq: np.random.SeedSequence) -> dict:
     model = _model(params)
-    x0 = np.asarray(params["initial_state"], dtype=float)
-    xs, ys = simulate(model, x0, params["duration"], child_rng(seed_seq, 0))
+    xs, ys = model.simulate(params["duration"], child_rng(seed_seq, 0), x0=model.prior_mean)
     steps = flow_steps(params["dlambda"], params["spacing"])
     out = {}
     for i, (name, (method, count_key)) in enumerate(METHODS.items(), 1):
-        run = run_method(method, model, x0, _prior_cov(params), ys, params[count_key], child_rng(seed_seq, i),
+        run = run_method(method, model, ys, params[count_key], child_rng(seed_seq, i),
                          steps if method == "IE-PFF" else None)
         sq = None if run.estimates is None else ((run.estimates - xs)[:, [0, 2]] ** 2).sum(axis=1).tolist()
         out[name] = {"sq_pos_err": sq, "seconds": run.seconds}

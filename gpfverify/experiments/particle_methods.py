@@ -1,6 +1,6 @@
-"""Run the particle filters of seed 003's experiments over a measurement sequence: bootstrap PF,
-UPF, EDH and IE-PFF, each from N(prior mean, prior cov), returning the per-step estimates and the
-CPU time. A filter that breaks down (non-finite particles, every weight zero, a covariance
+"""Run the particle filters of seed 003's experiments over a measurement sequence: bootstrap PF
+(resampling at every step, the SIR filter), UPF (likewise), EDH and IE-PFF, each from the model's
+prior N(prior_mean, prior_cov), returning the per-step estimates and the CPU time. A filter that breaks down (non-finite particles, every weight zero, a covariance
 that is not positive definite) is reported as diverged instead of ending the run."""
 
 from __future__ import annotations
@@ -11,11 +11,11 @@ from dataclasses import dataclass
 import numpy as np
 
 from gpfverify.errors import GpfverifyError
-from gpfverify.filters.flows import EDHBelief, edh_step, exponential_steps, ie_pff_step, uniform_steps
-from gpfverify.filters.models import NonlinearModel
+from gpfverify.filters.flows import edh_step, exponential_steps, ie_pff_step, uniform_steps
 from gpfverify.filters.pf import pf_step
-from gpfverify.filters.resampling import ParticleSet
-from gpfverify.filters.upf import ParticleCloud, upf_step
+from gpfverify.filters.resampling import Particles
+from gpfverify.filters.upf import upf_step
+from gpfverify.models import StateSpaceModel
 
 
 @dataclass(frozen=True)
@@ -40,57 +40,55 @@ def flow_steps(dlambda: float, spacing: str) -> np.ndarray:
     return uniform_steps(count) if spacing == "uniform" else exponential_steps(count)
 
 
-def _prior_particles(mean, cov, count, rng):
-    return rng.multivariate_normal(mean, cov, size=count, method="cholesky")
+#: N_eff threshold of the PF and the UPF: resample at every step (SIR), as in seed 003
+SIR_THRESHOLD = 1.0
 
 
-def _pf(model, mean, cov, ys, count, rng, **_):
-    belief = ParticleSet.equally_weighted(_prior_particles(mean, cov, count, rng))
+def _prior_particles(model: StateSpaceModel, count: int, rng: np.random.Generator, **extras) -> Particles:
+    """``count`` equally weighted draws from the model's prior (``extras``: optional fields)."""
+    return Particles.equally_weighted(rng.multivariate_normal(model.prior_mean, model.prior_cov, size=count,
+                                                              method="cholesky"), **extras)
+
+
+def _run(step, belief: Particles, model, ys, rng, **params) -> list[np.ndarray]:
+    """The estimates of ``step`` over the measurements ys (T, L), k = 1 … T."""
     out = []
     for k, y in enumerate(ys, 1):
-        belief, info = pf_step(belief, model, y, k, rng)
-        out.append(info.mean)
+        record = step(belief, model, y, k=k, rng=rng, **params)
+        belief = record.posterior
+        out.append(record.mean)
     return out
 
 
-def _upf(model, mean, cov, ys, count, rng, **_):
-    cloud = ParticleCloud.from_gaussian(mean, cov, count, rng)
-    out = []
-    for k, y in enumerate(ys, 1):
-        cloud, info = upf_step(cloud, model, y, k, rng, resample_threshold=1.0)
-        out.append(info.mean)
-    return out
+def _pf(model, ys, count, rng, steps):
+    return _run(pf_step, _prior_particles(model, count, rng), model, ys, rng, resample_threshold=SIR_THRESHOLD)
 
 
-def _ie_pff(model, mean, cov, ys, count, rng, steps):
-    x = _prior_particles(mean, cov, count, rng)
-    out = []
-    for k, y in enumerate(ys, 1):
-        x, est = ie_pff_step(x, model, y, k, rng, steps)
-        out.append(est.mean)
-    return out
+def _upf(model, ys, count, rng, steps):
+    belief = Particles.from_gaussian(model.prior_mean, model.prior_cov, count, rng)
+    return _run(upf_step, belief, model, ys, rng, resample_threshold=SIR_THRESHOLD)
 
 
-def _edh(model, mean, cov, ys, count, rng, steps):
-    belief = EDHBelief(_prior_particles(mean, cov, count, rng), np.asarray(cov, dtype=float))
-    out = []
-    for k, y in enumerate(ys, 1):
-        belief, est = edh_step(belief, model, y, k, rng, steps)
-        out.append(est.mean)
-    return out
+def _ie_pff(model, ys, count, rng, steps):
+    return _run(ie_pff_step, _prior_particles(model, count, rng), model, ys, rng, step_sizes=steps)
+
+
+def _edh(model, ys, count, rng, steps):
+    belief = _prior_particles(model, count, rng, ekf_cov=model.prior_cov)
+    return _run(edh_step, belief, model, ys, rng, step_sizes=steps)
 
 
 METHODS = {"PF": _pf, "UPF": _upf, "EDH": _edh, "IE-PFF": _ie_pff}
 
 
-def run_method(method: str, model: NonlinearModel, prior_mean, prior_cov, ys: np.ndarray, count: int,
-               rng: np.random.Generator, steps: np.ndarray | None = None) -> MethodRun:
-    """Filter ``ys`` (T, L) with ``count`` particles; ``steps`` are the λ-steps of the flows."""
+def run_method(method: str, model: StateSpaceModel, ys: np.ndarray, count: int, rng: np.random.Generator,
+               steps: np.ndarray | None = None) -> MethodRun:
+    """Filter ``ys`` (T, L) with ``count`` particles from the model's prior; ``steps`` are the
+    λ-steps of the flows."""
     start = time.process_time()
     try:
         with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
-            estimates = np.array(METHODS[method](model, np.asarray(prior_mean, float), prior_cov, ys,
-                                                 count, rng, steps=steps))
+            estimates = np.array(METHODS[method](model, ys, count, rng, steps))
         if not np.all(np.isfinite(estimates)):
             estimates = None
     except (GpfverifyError, np.linalg.LinAlgError):

@@ -16,8 +16,7 @@ import argparse
 import numpy as np
 
 from gpfverify.experiments.particle_methods import child_rng, flow_steps, run_method
-from gpfverify.scenarios.growth import gamma_benchmark_model, ungm_model
-from gpfverify.scenarios.simulate import simulate
+from gpfverify.scenarios.growth import GAMMA_PRIOR, UNGM_PRIOR, gamma_benchmark_model, ungm_model
 
 NAME = "pff1d"
 DEFAULT_RUNS = 30
@@ -25,9 +24,6 @@ DEFAULT_RUNS = 30
 TABLE_METHODS = ("PF", "EDH", "IE-PFF")
 GAMMA_METHODS = ("PF", "UPF", "EDH", "IE-PFF")
 FLOWS = ("EDH", "IE-PFF")
-#: priors: the truth's x_0 and every filter's initial particles (interpretation, see report)
-UNGM_PRIOR = (np.zeros(1), np.eye(1))
-GAMMA_PRIOR = (np.ones(1), np.array([[0.75]]))
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -59,30 +55,32 @@ def params_from_args(args: argparse.Namespace) -> dict:
             "table_r": args.table_r, "dlambda": args.dlambda, "spacings": args.spacings,
             "gamma_r": args.gamma_r, "gamma_main_r": args.gamma_main_r,
             "gamma_dlambda": args.gamma_dlambda, "gamma_shape": 3.0, "gamma_rate": 2.0,
-            "ungm_prior": {"mean": 0.0, "var": 1.0}, "gamma_prior": {"mean": 1.0, "var": 0.75}}
+            "ungm_prior": dict(zip(("mean", "var"), UNGM_PRIOR)),
+            "gamma_prior": dict(zip(("mean", "var"), GAMMA_PRIOR))}
 
 
 def _cases(params: dict):
-    """(case, Q, R, model, prior, methods, Δλ list) in a fixed order."""
+    """(case, Q, R, model, methods, Δλ list) in a fixed order; the truth's x_0 and every filter's
+    initial particles come from the model's prior (interpretation, see report)."""
     for q in params["table_q"]:
         for r in params["table_r"]:
-            yield "ungm", q, r, ungm_model(q, r), UNGM_PRIOR, TABLE_METHODS, params["dlambda"]
+            yield "ungm", q, r, ungm_model(q, r), TABLE_METHODS, params["dlambda"]
     for r in params["gamma_r"]:
         model = gamma_benchmark_model(r, params["gamma_shape"], params["gamma_rate"])
-        yield "gamma", float(model.Q[0, 0]), r, model, GAMMA_PRIOR, GAMMA_METHODS, [params["gamma_dlambda"]]
+        yield "gamma", float(model.Q[0, 0]), r, model, GAMMA_METHODS, [params["gamma_dlambda"]]
 
 
 def run_one(params: dict, seed_seq: np.random.SeedSequence) -> dict:
     records = []
-    for c, (case, q, r, model, (mean, cov), methods, dlambdas) in enumerate(_cases(params)):
+    for c, (case, q, r, model, methods, dlambdas) in enumerate(_cases(params)):
         data_rng = child_rng(seed_seq, c, 0)
-        x0 = data_rng.multivariate_normal(mean, cov)
-        xs, ys = simulate(model, x0, params["steps"], data_rng)
+        x0 = data_rng.multivariate_normal(model.prior_mean, model.prior_cov)
+        xs, ys = model.simulate(params["steps"], data_rng, x0=x0)
         variants = [(m, None, None) for m in methods if m not in FLOWS]
         variants += [(m, d, s) for m in methods if m in FLOWS for d in dlambdas for s in params["spacings"]]
         for v, (method, dlam, spacing) in enumerate(variants):
             steps = flow_steps(dlam, spacing) if dlam is not None else None
-            out = run_method(method, model, mean, cov, ys, params["particles"], child_rng(seed_seq, c, 1 + v), steps)
+            out = run_method(method, model, ys, params["particles"], child_rng(seed_seq, c, 1 + v), steps)
             sq = None if out.estimates is None else ((out.estimates - xs)[:, 0] ** 2).tolist()
             records.append({"case": case, "Q": q, "R": r, "method": method, "dlambda": dlam,
                             "spacing": spacing, "sq_err": sq, "seconds": out.seconds})

@@ -32,11 +32,10 @@ import numpy as np
 from gpfverify.errors import InputError
 from gpfverify.experiments.particle_methods import child_rng
 from gpfverify.filters.gpsr_upf import GPResidualModel, gpsr_upf_step, sr_ukf_proposal
-from gpfverify.filters.models import NonlinearModel
-from gpfverify.filters.upf import ParticleCloud, upf_step
+from gpfverify.filters.resampling import Particles
+from gpfverify.filters.upf import upf_step
 from gpfverify.gp.residual import fit_residual
 from gpfverify.rng import generator
-from gpfverify.scenarios.simulate import simulate
 from gpfverify.scenarios.sins_gps import (ATTITUDE, POSITION, STATE_DIM, VELOCITY, SinsGpsConfig, build_models,
                                           generate_flight, training_set)
 
@@ -94,7 +93,7 @@ def _setup(key: str):
                             state_inputs=range(3), inputs=data.inputs, restarts=params["restarts"], seed=rng)
     fit_seconds = time.process_time() - started
     floor = _floor_cov(params["noise_floor"])
-    upf_model = NonlinearModel(models.approx.f, models.approx.h, models.approx.Q + floor, models.approx.R)
+    upf_model = models.approx.with_noise(process_cov=models.approx.Q + floor)
     gpsr_model = GPResidualModel(models.approx, residual, transition_inputs=models.transition_inputs,
                                  extra_noise=floor)
     return config, models, upf_model, gpsr_model, fit_seconds
@@ -105,20 +104,18 @@ def setup(params: dict):
 
 
 def _run_filter(method: str, params: dict, upf_model, gpsr_model, prior_cov, ys, rng):
-    cloud = ParticleCloud.from_gaussian(np.zeros(STATE_DIM), prior_cov, params["particles"], rng)
+    belief = Particles.from_gaussian(np.zeros(STATE_DIM), prior_cov, params["particles"], rng)
+    step, model = (upf_step, upf_model) if method == "UPF" else (gpsr_upf_step, gpsr_model)
     estimates, ess, resampled = [], [], 0
     min_diag = np.inf
     started = time.process_time()
     for k, y in enumerate(ys, 1):
-        if method == "UPF":
-            cloud, info = upf_step(cloud, upf_model, y, k, rng, resample_threshold=params["resample_threshold"])
-        else:
-            cloud, info = gpsr_upf_step(cloud, gpsr_model, y, k, rng,
-                                        resample_threshold=params["resample_threshold"])
-        estimates.append(info.mean)
-        ess.append(info.ess)
-        resampled += info.resampled
-        min_diag = min(min_diag, float(np.diagonal(cloud.sqrt_covs, axis1=1, axis2=2).min()))
+        record = step(belief, model, y, k=k, rng=rng, resample_threshold=params["resample_threshold"])
+        belief = record.posterior
+        estimates.append(record.mean)
+        ess.append(record.ess)
+        resampled += record.resampled
+        min_diag = min(min_diag, float(np.diagonal(belief.sqrt_covs, axis1=1, axis2=2).min()))
     return (np.array(estimates), time.process_time() - started,
             {"ess_mean": float(np.mean(ess)) / params["particles"], "resample_rate": resampled / len(ys),
              "min_factor_diagonal": min_diag})
@@ -130,11 +127,11 @@ def _run_reference(method: str, upf_model, gpsr_model, prior_cov, ys):
     estimates = []
     started = time.process_time()
     for k, y in enumerate(ys, 1):
+        one = Particles(mean, np.zeros(1), factor)
         if method == "SR-UKF":
-            mean, factor = sr_ukf_proposal(mean, factor, upf_model, y, k)
+            mean, factor = sr_ukf_proposal(one, upf_model, y, k=k)
         else:
-            mean, factor = sr_ukf_proposal(mean, factor, gpsr_model.at_step(k), y, k,
-                                           process_sqrt=gpsr_model.process_sqrt)
+            mean, factor = sr_ukf_proposal(one, gpsr_model.at_step(k), y, k=k, process_sqrt=gpsr_model.process_sqrt)
         estimates.append(mean[0])
     return np.array(estimates), time.process_time() - started
 
@@ -144,7 +141,7 @@ def run_one(params: dict, seed_seq: np.random.SeedSequence) -> dict:
     prior_cov = config.initial_cov()
     truth_rng = child_rng(seed_seq, 0)
     x0 = truth_rng.multivariate_normal(np.zeros(STATE_DIM), prior_cov)
-    xs, ys = simulate(models.true, x0, config.steps, truth_rng)
+    xs, ys = models.true.simulate(config.steps, truth_rng, x0=x0)
     # how well the GP knows this run's residual Δt (f^n − f̂^n) × φ along the true trajectory
     previous = np.vstack([x0, xs[:-1]])
     true_residual = np.einsum("kij,kj->ki", models.transitions_true - models.transitions_approx, previous)[:, VELOCITY]

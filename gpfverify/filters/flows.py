@@ -24,20 +24,23 @@ predicted covariance of a parallel EKF: P_k|k−1 = F P_k−1|k−1 Fᵀ + Q wit
 the previous posterior particle mean, and P_k|k = P_k|k−1 − P_k|k−1 Hᵀ S⁻¹ H P_k|k−1 with H at the
 flowed mean (Ding & Coates 2012, Alg. 1).
 
-Measurements on a circle (bearings) are handled by evaluating h on the branch nearest z
-(:func:`~gpfverify.filters.likelihoods.unwrapped_measurement`).
+Angle outputs of the measurement (``model.circular``, bearings) are handled by evaluating h on
+the branch nearest z (:func:`~gpfverify.filters.likelihoods.unwrapped_measurement`).
+
+Both steps take and return :class:`~gpfverify.filters.resampling.Particles` with equal weights
+(the flows neither weight nor resample); the EDH belief carries the parallel EKF covariance in
+``Particles.ekf_cov``.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import numpy as np
 
 from gpfverify.errors import InputError
-from gpfverify.filters.likelihoods import sample_transition, unwrapped_measurement
-from gpfverify.filters.models import NonlinearModel
+from gpfverify.filters.likelihoods import unwrapped_measurement
+from gpfverify.filters.resampling import Particles, ParticleStep
 from gpfverify.linalg import cholesky, right_solve_spd, symmetrize
+from gpfverify.models.system import StateSpaceModel, require_model
 from gpfverify.validate import as_matrix, as_vector
 
 
@@ -72,37 +75,38 @@ def _check_steps(step_sizes: np.ndarray) -> np.ndarray:
     return steps
 
 
-@dataclass(frozen=True)
-class FlowEstimate:
-    """Posterior estimate after a flow: particle mean (D,) and covariance (D, D)."""
-
-    mean: np.ndarray
-    cov: np.ndarray
-
-
-def particle_moments(particles: np.ndarray) -> FlowEstimate:
-    """Equal-weight mean and covariance (1/N normalisation, as in the gain)."""
+def particle_moments(particles: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Equal-weight mean (D,) and covariance (D, D) (1/N normalisation, as in the gain)."""
     mean = particles.mean(axis=0)
     dev = particles - mean
-    return FlowEstimate(mean, symmetrize(dev.T @ dev / particles.shape[0]))
+    return mean, symmetrize(dev.T @ dev / particles.shape[0])
 
 
-def _check_inputs(particles, z, model: NonlinearModel) -> tuple[np.ndarray, np.ndarray]:
-    """particles (N, D) with N ≥ 2 and z (L,), finite; InputError naming the argument otherwise."""
+def _flow_step(x: np.ndarray, mean: np.ndarray, cov: np.ndarray, **extras) -> ParticleStep:
+    """The record of a flow step with estimate (mean, cov): equally weighted particles (with the
+    optional ``extras`` of :class:`Particles`), N_eff = N, no resampling."""
+    posterior = Particles.equally_weighted(x, **extras)
+    return ParticleStep(posterior, posterior, mean, cov, float(x.shape[0]), False)
+
+
+def _check_inputs(particles, z, model) -> tuple[np.ndarray, np.ndarray]:
+    """particles (N, D) with N ≥ 2 and z (L,), finite, for a StateSpaceModel; InputError naming the
+    argument otherwise."""
+    require_model(model, StateSpaceModel, "a particle flow")
     x = np.array(as_matrix(particles, "particles", None, model.state_dim))
     if x.shape[0] < 2:
         raise InputError(f"particles: a flow needs at least 2 particles, got {x.shape[0]}")
     return x, as_vector(z, "z", model.measurement_dim)
 
 
-def _measurement_cov(model: NonlinearModel) -> np.ndarray:
+def _measurement_cov(model) -> np.ndarray:
     """R, checked positive definite once per update; the λ-loop then uses small dense solves
     (the scipy wrappers cost more than the L × L solve itself)."""
     cholesky(model.R, "R", allow_jitter=False)
     return model.R
 
 
-def ie_pff_update(particles: np.ndarray, model: NonlinearModel, z: np.ndarray, k: int,
+def ie_pff_update(particles: np.ndarray, model, z: np.ndarray, k: int,
                   step_sizes: np.ndarray) -> np.ndarray:
     """Flow predicted particles (N, D) to the posterior of measurement z (L,) (seed 003 eq. 27, 36)."""
     steps = _check_steps(step_sizes)
@@ -118,26 +122,19 @@ def ie_pff_update(particles: np.ndarray, model: NonlinearModel, z: np.ndarray, k
     return x
 
 
-def ie_pff_step(particles: np.ndarray, model: NonlinearModel, z: np.ndarray, k: int,
-                rng: np.random.Generator, step_sizes: np.ndarray) -> tuple[np.ndarray, FlowEstimate]:
-    """Predict particles through the transition (with process noise), then :func:`ie_pff_update`."""
-    x = ie_pff_update(sample_transition(model, particles, k, rng), model, z, k, step_sizes)
-    return x, particle_moments(x)
+def ie_pff_step(belief: Particles, model, z: np.ndarray, *, k: int = 1, rng: np.random.Generator,
+                step_sizes: np.ndarray) -> ParticleStep:
+    """Predict particles through the transition (with process noise), then :func:`ie_pff_update`.
+    The flow treats the particles as equally weighted (it neither weights nor resamples)."""
+    require_model(model, StateSpaceModel, "IE-PFF")
+    x = as_matrix(belief.particles, "particles", None, model.state_dim)
+    x = ie_pff_update(model.sample_transition(x, k, rng), model, z, k, step_sizes)
+    return _flow_step(x, *particle_moments(x))
 
 
-@dataclass(frozen=True)
-class EDHBelief:
-    """EDH state: particles (N, D) and the parallel EKF's posterior covariance (D, D)."""
-
-    particles: np.ndarray
-    cov: np.ndarray
-
-
-def edh_update(particles: np.ndarray, P: np.ndarray, model: NonlinearModel, z: np.ndarray, k: int,
+def edh_update(particles: np.ndarray, P: np.ndarray, model, z: np.ndarray, k: int,
                step_sizes: np.ndarray) -> np.ndarray:
     """Move predicted particles (N, D) along the exact Daum–Huang flow with predicted covariance P."""
-    if model.h_jacobian is None:
-        raise InputError("EDH needs model.h_jacobian")
     steps = _check_steps(step_sizes)
     x, z = _check_inputs(particles, z, model)
     R = _measurement_cov(model)
@@ -147,7 +144,7 @@ def edh_update(particles: np.ndarray, P: np.ndarray, model: NonlinearModel, z: n
     for dlam in steps:
         lam = lam_start + 0.5 * dlam
         mean = x.mean(axis=0)
-        H = np.atleast_2d(model.h_jacobian(mean, k))
+        H = model.h_jacobian(mean, k)
         e = unwrapped_measurement(model, z, mean[None, :], k)[0] - H @ mean
         PHt = P @ H.T
         A = -0.5 * PHt @ np.linalg.solve(lam * H @ PHt + R, H)
@@ -157,26 +154,29 @@ def edh_update(particles: np.ndarray, P: np.ndarray, model: NonlinearModel, z: n
     return x
 
 
-def ekf_covariance_predict(P: np.ndarray, mean: np.ndarray, model: NonlinearModel, k: int) -> np.ndarray:
+def ekf_covariance_predict(P: np.ndarray, mean: np.ndarray, model, k: int) -> np.ndarray:
     """P_k|k−1 = F P Fᵀ + Q, F = ∂f/∂x at ``mean``."""
-    if model.f_jacobian is None:
-        raise InputError("EDH needs model.f_jacobian")
-    F = np.atleast_2d(model.f_jacobian(mean, k))
+    F = model.f_jacobian(mean, k)
     return symmetrize(F @ P @ F.T + model.Q)
 
 
-def ekf_covariance_update(P: np.ndarray, mean: np.ndarray, model: NonlinearModel, k: int) -> np.ndarray:
+def ekf_covariance_update(P: np.ndarray, mean: np.ndarray, model, k: int) -> np.ndarray:
     """P_k|k = P − P Hᵀ (H P Hᵀ + R)⁻¹ H P, H = ∂h/∂x at ``mean`` (Joseph-free, symmetrised)."""
-    H = np.atleast_2d(model.h_jacobian(mean, k))
+    H = model.h_jacobian(mean, k)
     PHt = P @ H.T
     return symmetrize(P - right_solve_spd(PHt, H @ PHt + model.R, "HPHᵀ + R") @ PHt.T)
 
 
-def edh_step(belief: EDHBelief, model: NonlinearModel, z: np.ndarray, k: int,
-             rng: np.random.Generator, step_sizes: np.ndarray) -> tuple[EDHBelief, FlowEstimate]:
-    """Predict particles and the parallel EKF covariance, flow, update the covariance."""
-    prev_mean = belief.particles.mean(axis=0)
-    P_pred = ekf_covariance_predict(belief.cov, prev_mean, model, k)
-    x = edh_update(sample_transition(model, belief.particles, k, rng), P_pred, model, z, k, step_sizes)
-    estimate = particle_moments(x)
-    return EDHBelief(x, ekf_covariance_update(P_pred, estimate.mean, model, k)), estimate
+def edh_step(belief: Particles, model, z: np.ndarray, *, k: int = 1, rng: np.random.Generator,
+             step_sizes: np.ndarray) -> ParticleStep:
+    """Predict particles and the parallel EKF covariance (``belief.ekf_cov``), flow, update the
+    covariance; the posterior carries the updated covariance in ``ekf_cov``."""
+    require_model(model, StateSpaceModel, "EDH")
+    if belief.ekf_cov is None:
+        raise InputError("belief.ekf_cov: EDH needs the parallel EKF covariance "
+                         "(e.g. Particles.equally_weighted(particles, ekf_cov=prior_cov))")
+    particles = as_matrix(belief.particles, "particles", None, model.state_dim)
+    P_pred = ekf_covariance_predict(belief.ekf_cov, particles.mean(axis=0), model, k)
+    x = edh_update(model.sample_transition(particles, k, rng), P_pred, model, z, k, step_sizes)
+    mean, cov = particle_moments(x)
+    return _flow_step(x, mean, cov, ekf_cov=ekf_covariance_update(P_pred, mean, model, k))

@@ -20,38 +20,33 @@ exogenous inputs only: the UPF weights need one R per step.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from functools import partial
+from functools import cached_property, partial
 
 import numpy as np
 
 from gpfverify.errors import InputError
-from gpfverify.filters.likelihoods import LOG_2PI
-from gpfverify.filters.models import NonlinearModel
-from gpfverify.filters.resampling import ParticleStepInfo
+from gpfverify.filters.likelihoods import batched_gaussian_logpdf
+from gpfverify.filters.resampling import RESAMPLE_THRESHOLD, Particles, ParticleStep
 from gpfverify.filters.sigma_points import SigmaParams
 from gpfverify.filters.sr_ukf import SqrtGaussian, noise_sqrt, sr_ukf_predict, sr_ukf_update
-from gpfverify.linalg import cholesky_batched
-from gpfverify.filters.upf import ParticleCloud, upf_step
+from gpfverify.filters.upf import upf_step
 from gpfverify.gp.residual import ResidualGP
+from gpfverify.linalg import cholesky_batched
+from gpfverify.models import Sensor, StateSpaceModel
 
 
-def sr_ukf_proposal(particles: np.ndarray, sqrt_covs: np.ndarray, model: NonlinearModel, y: np.ndarray,
-                    k: int, process_sqrt=None, params: SigmaParams = SigmaParams()):
+def sr_ukf_proposal(belief: Particles, model, y: np.ndarray, *, k: int = 1, process_sqrt=None,
+                    params: SigmaParams = SigmaParams()) -> tuple[np.ndarray, np.ndarray]:
     """One SR-UKF step per particle from N(x^i, S^i S^iᵀ): the UPF proposal (means (N, D), lower
     factors (N, D, D)). ``process_sqrt(particles, k) -> (N, D, D)`` gives per-particle square roots
-    of a state-dependent Q; without it √Q of ``model.Q`` is shared."""
-    sqrt_q = noise_sqrt(model.Q) if process_sqrt is None else process_sqrt(particles, k)
-    prior, _ = sr_ukf_predict(SqrtGaussian(particles, sqrt_covs), model.f, sqrt_q, k, params)
-    record = sr_ukf_update(prior, model.h, noise_sqrt(model.R), y, k, params)
+    of a state-dependent Q; without it √Q of ``model.Q`` is shared. Angle outputs and state
+    components of the model are handled as in the SR-UKF."""
+    sqrt_q = noise_sqrt(model.Q) if process_sqrt is None else process_sqrt(belief.particles, k)
+    prior, _ = sr_ukf_predict(SqrtGaussian(belief.particles, belief.sqrt_covs), model.f, sqrt_q, k, params,
+                              model.circular_state)
+    record = sr_ukf_update(prior, model.h, noise_sqrt(model.R), y, k, params, model.circular,
+                           model.circular_state)
     return record.mu_e, record.S_e
-
-
-def batched_gaussian_logpdf(residuals: np.ndarray, covs: np.ndarray, name: str) -> np.ndarray:
-    """log N(r_i; 0, C_i) for residuals (N, D) and one covariance per row (N, D, D)."""
-    chol = cholesky_batched(covs, name)
-    white = np.linalg.solve(chol, residuals[..., None])[..., 0]
-    log_det = 2.0 * np.sum(np.log(np.diagonal(chol, axis1=-2, axis2=-1)), axis=-1)
-    return -0.5 * (np.sum(white * white, axis=-1) + log_det + residuals.shape[-1] * LOG_2PI)
 
 
 @dataclass(frozen=True)
@@ -62,7 +57,7 @@ class GPResidualModel:
     (``None`` when the residual uses none); extra_noise (D, D): a covariance added to Q(x) after
     the GP variances are put in (a filter tuning shared with a baseline filter), or ``None``."""
 
-    approx: NonlinearModel
+    approx: StateSpaceModel
     transition: ResidualGP | None = None
     measurement: ResidualGP | None = None
     transition_inputs: np.ndarray | None = None
@@ -119,13 +114,25 @@ class GPResidualModel:
         noise = np.einsum("nij,nj->ni", self.process_sqrt(x_prev, k), rng.standard_normal(x_prev.shape))
         return self.f(x_prev, k) + noise
 
-    def at_step(self, k: int) -> NonlinearModel:
-        """The model of step k as a :class:`NonlinearModel` for :func:`~gpfverify.filters.upf.upf_step`
-        (R = R_k; Q the nominal summary, the exact state-dependent density in the hooks)."""
+    @cached_property
+    def model(self) -> StateSpaceModel:
+        """The GP-corrected model as one :class:`~gpfverify.models.StateSpaceModel` (built and
+        probed once): f and h above, the nominal summary Q (+ extra_noise) and R of step 1, the
+        approximate model's prior and angle components, the exact state-dependent transition
+        density in the sampler and log-density hooks."""
         q = self.approx.Q if self.extra_noise is None else self.approx.Q + self.extra_noise
-        return NonlinearModel(self.f, self.h, q, self.measurement_cov(k),
-                              transition_sampler=self.sample_transition,
-                              transition_logpdf=self.transition_logpdf)
+        sensor = Sensor(self.h, self.measurement_cov(1), circular=self.approx.circular)
+        return StateSpaceModel(self.f, q, [sensor], self.approx.prior_mean, self.approx.prior_cov,
+                               circular_state=self.approx.circular_state,
+                               transition_sampler=self.sample_transition,
+                               transition_logpdf=self.transition_logpdf, name="GP-corrected model")
+
+    def at_step(self, k: int) -> StateSpaceModel:
+        """The model of step k for :func:`~gpfverify.filters.upf.upf_step`: :attr:`model` with
+        R = R_k (:meth:`~gpfverify.models.StateSpaceModel.with_noise`, no new probing)."""
+        if self.measurement is None:
+            return self.model
+        return self.model.with_noise(noise_covs=[self.measurement_cov(k)])
 
 
 def _replace_block(covs: np.ndarray, outputs: tuple[int, ...], variances: np.ndarray) -> np.ndarray:
@@ -139,11 +146,11 @@ def _replace_block(covs: np.ndarray, outputs: tuple[int, ...], variances: np.nda
     return out
 
 
-def gpsr_upf_step(cloud: ParticleCloud, model: GPResidualModel, y: np.ndarray, k: int,
+def gpsr_upf_step(belief: Particles, model: GPResidualModel, y: np.ndarray, *, k: int = 1,
                   rng: np.random.Generator, params: SigmaParams = SigmaParams(),
-                  resample_threshold: float = 0.5) -> tuple[ParticleCloud, ParticleStepInfo]:
+                  resample_threshold: float = RESAMPLE_THRESHOLD) -> ParticleStep:
     """One GPSR-UPF step: :func:`~gpfverify.filters.upf.upf_step` with the SR-UKF proposal on the
     GP-corrected model and the GP process noise of each particle."""
     proposal = partial(sr_ukf_proposal, process_sqrt=model.process_sqrt, params=params)
-    return upf_step(cloud, model.at_step(k), y, k, rng, proposal=proposal,
+    return upf_step(belief, model.at_step(k), y, k=k, rng=rng, proposal=proposal,
                     resample_threshold=resample_threshold)

@@ -1,8 +1,12 @@
-"""Densities and samplers a particle filter needs from a :class:`~gpfverify.filters.models.NonlinearModel`,
-with the model's optional non-Gaussian fields taking precedence over the Gaussian defaults:
+"""Densities a particle filter needs from a :class:`~gpfverify.models.StateSpaceModel`:
 
-* transition: x_k ~ p(x_k | x_{k−1}) — default N(f(x_{k−1}, k), Q);
-* measurement: log p(y_k | x_k) = log N(r; 0, R), r = residual(y_k, h(x_k, k)) — default r = y − h;
+* :func:`gaussian_logpdf` / :func:`whitened_gaussian_logpdf`: the one Gaussian log density,
+  log N(r; 0, C) = −½ |L⁻¹ r|² − ½ log|C| − (L/2) log 2π, C = L Lᵀ;
+* transition: log p(x_k | x_{k−1}) — the model's ``transition_logpdf`` hook when it has one
+  (non-Gaussian process noise), else N(x_k; f(x_{k−1}, k), Q); draws come from
+  :meth:`~gpfverify.models.StateSpaceModel.sample_transition`;
+* measurement: log p(y_k | x_k) = log N(r; 0, R), r = ``model.residual(y_k, h(x_k, k))``, the
+  difference with the angle outputs (``model.circular``) wrapped to (−π, π];
 * :func:`unwrapped_measurement`: h(x) moved to the branch nearest y (y − r), so that flows and
   moment computations see a continuous measurement function (bearings near ±π).
 """
@@ -11,53 +15,48 @@ from __future__ import annotations
 
 import numpy as np
 
-from gpfverify.filters.models import NonlinearModel
-from gpfverify.linalg import cholesky
+from gpfverify.linalg import cholesky, cholesky_batched
 
 LOG_2PI = float(np.log(2.0 * np.pi))
 
 
+def whitened_gaussian_logpdf(white: np.ndarray, log_det: np.ndarray | float) -> np.ndarray:
+    """log N(r; 0, C) from the whitened residual L⁻¹ r (..., L) and log|C|:
+    −½ (|L⁻¹ r|² + log|C| + L log 2π)."""
+    return -0.5 * (np.sum(white * white, axis=-1) + log_det + white.shape[-1] * LOG_2PI)
+
+
 def gaussian_logpdf(residuals: np.ndarray, cov: np.ndarray) -> np.ndarray:
-    """log N(r; 0, C) for residuals (..., L): −½ rᵀC⁻¹r − ½ log|C| − (L/2) log 2π."""
+    """log N(r; 0, C) for residuals (..., L) and one covariance C (L, L)."""
     chol = cholesky(cov, "covariance")
     flat = residuals.reshape(-1, residuals.shape[-1])
     # L⁻¹ r; numpy's small dense solve (scipy's solve_triangular is orders of magnitude slower
     # for an L × N right-hand side when threaded BLAS competes for the cores)
-    white = np.linalg.solve(chol.factor, flat.T)
-    quad = np.sum(white * white, axis=0).reshape(residuals.shape[:-1])
-    return -0.5 * (quad + chol.logdet() + residuals.shape[-1] * LOG_2PI)
+    white = np.linalg.solve(chol.factor, flat.T).T
+    return whitened_gaussian_logpdf(white, chol.logdet()).reshape(residuals.shape[:-1])
 
 
-def sample_transition(model: NonlinearModel, x_prev: np.ndarray, k: int,
-                      rng: np.random.Generator) -> np.ndarray:
-    """Draws x_k ~ p(x_k | x_{k−1}) for particles x_prev (N, D)."""
-    if model.transition_sampler is not None:
-        return model.transition_sampler(x_prev, k, rng)
-    noise = rng.multivariate_normal(np.zeros(model.state_dim), model.Q, size=x_prev.shape[0],
-                                    method="cholesky")
-    return model.f(x_prev, k) + noise
+def batched_gaussian_logpdf(residuals: np.ndarray, covs: np.ndarray, name: str) -> np.ndarray:
+    """log N(r_i; 0, C_i) for residuals (N, L) and one covariance per row (N, L, L)."""
+    chol = cholesky_batched(covs, name)
+    white = np.linalg.solve(chol, residuals[..., None])[..., 0]
+    return whitened_gaussian_logpdf(white, 2.0 * np.sum(np.log(np.diagonal(chol, axis1=-2, axis2=-1)), axis=-1))
 
 
-def transition_logpdf(model: NonlinearModel, x_new: np.ndarray, x_prev: np.ndarray, k: int) -> np.ndarray:
+def transition_logpdf(model, x_new: np.ndarray, x_prev: np.ndarray, k: int) -> np.ndarray:
     """log p(x_new | x_prev) per particle (N,)."""
     if model.transition_logpdf is not None:
         return model.transition_logpdf(x_new, x_prev, k)
     return gaussian_logpdf(x_new - model.f(x_prev, k), model.Q)
 
 
-def measurement_residual(model: NonlinearModel, y: np.ndarray, y_pred: np.ndarray) -> np.ndarray:
-    """y − y_pred, or the model's own residual (e.g. wrapped to (−π, π] for bearings)."""
-    if model.measurement_residual is not None:
-        return model.measurement_residual(y, y_pred)
-    return y - y_pred
+def measurement_loglik(model, y: np.ndarray, x: np.ndarray, k: int) -> np.ndarray:
+    """log p(y | x_i) for particles x (N, D) under Gaussian measurement noise R, angle outputs
+    wrapped."""
+    return gaussian_logpdf(model.residual(y, model.h(x, k)), model.R)
 
 
-def measurement_loglik(model: NonlinearModel, y: np.ndarray, x: np.ndarray, k: int) -> np.ndarray:
-    """log p(y | x_i) for particles x (N, D) under Gaussian measurement noise R."""
-    return gaussian_logpdf(measurement_residual(model, y, model.h(x, k)), model.R)
-
-
-def unwrapped_measurement(model: NonlinearModel, y: np.ndarray, x: np.ndarray, k: int) -> np.ndarray:
-    """h(x_i, k) on the branch nearest y: y − residual(y, h(x_i)); equals h(x_i) without a custom
-    residual."""
-    return y - measurement_residual(model, y, model.h(x, k))
+def unwrapped_measurement(model, y: np.ndarray, x: np.ndarray, k: int) -> np.ndarray:
+    """h(x_i, k) on the branch nearest y: y − residual(y, h(x_i)); equals h(x_i) (to rounding)
+    for outputs that are not angles."""
+    return y - model.residual(y, model.h(x, k))

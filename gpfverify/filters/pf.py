@@ -7,24 +7,26 @@ One step, particles {x_{k−1}^i, w_{k−1}^i}:
     x̂_k = Σ w_k^i x_k^i, P̂_k = Σ w_k^i (x_k^i − x̂_k)(x_k^i − x̂_k)ᵀ
     systematic resampling when N_eff < threshold · N (threshold ≥ 1: every step, the SIR filter).
 
-The estimate is taken from the weighted particles *before* resampling (resampling only adds noise).
+Angle outputs of the measurement (``model.circular``) enter the likelihood through the wrapped
+residual (:func:`~gpfverify.filters.likelihoods.measurement_loglik`). The estimate is taken from
+the weighted particles *before* resampling (resampling only adds noise).
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from gpfverify.filters.likelihoods import measurement_loglik, sample_transition
-from gpfverify.filters.models import NonlinearModel
-from gpfverify.filters.resampling import ParticleSet, ParticleStepInfo, reweight_and_resample
+from gpfverify.filters.likelihoods import measurement_loglik
+from gpfverify.filters.resampling import RESAMPLE_THRESHOLD, Particles, ParticleStep, reweight_and_resample
+from gpfverify.models.system import StateSpaceModel, require_model
 from gpfverify.validate import as_matrix, as_vector
 
 
-def pf_step(belief: ParticleSet, model: NonlinearModel, y: np.ndarray, k: int,
-            rng: np.random.Generator, resample_threshold: float = 1.0) -> tuple[ParticleSet, ParticleStepInfo]:
+def pf_step(belief: Particles, model, y: np.ndarray, *, k: int = 1, rng: np.random.Generator,
+            resample_threshold: float = RESAMPLE_THRESHOLD) -> ParticleStep:
     """One bootstrap-PF step from the particles at k−1 with measurement y (L,) at time k."""
+    require_model(model, StateSpaceModel, "the bootstrap PF")
     y = as_vector(y, "y", model.measurement_dim)
-    x = sample_transition(model, as_matrix(belief.particles, "belief.particles", None, model.state_dim), k, rng)
-    log_w = belief.log_weights + measurement_loglik(model, y, x, k)
-    x, log_w, _, info = reweight_and_resample(x, log_w, rng, resample_threshold)
-    return ParticleSet(x, log_w), info
+    x = model.sample_transition(as_matrix(belief.particles, "belief.particles", None, model.state_dim), k, rng)
+    return reweight_and_resample(x, belief.log_weights + measurement_loglik(model, y, x, k), rng,
+                                 resample_threshold)

@@ -17,6 +17,9 @@ with ω = 0.04, φ₁ = 0.5, φ₂ = 0.2, φ₃ = 0.5. Γ(3, 2) is read as shape
 mean 1.5, variance 0.75), the convention of van der Merwe et al., whose Gaussian filters use the
 process-noise variance 3/4. The Gaussian approximation a Gaussian filter uses is ``f`` shifted by
 the noise mean and Q = the noise variance; particle filters sample and weight the gamma noise exactly.
+
+Priors (interpretation; the seed gives none): x₀ ~ N(0, 1) for the UNGM and x₀ ~ N(1, 3/4) for the
+gamma benchmark.
 """
 
 from __future__ import annotations
@@ -24,8 +27,11 @@ from __future__ import annotations
 import numpy as np
 from scipy.special import gammaln
 
-from gpfverify.filters.models import NonlinearModel
+from gpfverify.models import Sensor, StateSpaceModel
 
+#: prior mean and variance of x₀
+UNGM_PRIOR = (0.0, 1.0)
+GAMMA_PRIOR = (1.0, 0.75)
 GAMMA_OMEGA, GAMMA_PHI1, GAMMA_PHI2, GAMMA_PHI3 = 0.04, 0.5, 0.2, 0.5
 #: measurement switches from quadratic to linear after this step
 GAMMA_SWITCH_STEP = 30
@@ -35,15 +41,14 @@ def _ungm_drift(x: np.ndarray, k: int) -> np.ndarray:
     return 0.5 * x + 25.0 * x / (1.0 + x * x) + 8.0 * np.cos(1.2 * k)
 
 
-def ungm_model(Q: float, R: float) -> NonlinearModel:
-    """The UNGM with process-noise variance Q and measurement-noise variance R."""
-    return NonlinearModel(
-        f=_ungm_drift,
-        h=lambda x, k: x * x / 20.0,
-        Q=np.array([[float(Q)]]), R=np.array([[float(R)]]),
-        f_jacobian=lambda x, k: np.array([[0.5 + 25.0 * (1.0 - x[0] ** 2) / (1.0 + x[0] ** 2) ** 2]]),
-        h_jacobian=lambda x, k: np.array([[x[0] / 10.0]]),
-    )
+def ungm_model(Q: float, R: float) -> StateSpaceModel:
+    """The UNGM with process-noise variance Q, measurement-noise variance R and prior N(0, 1)."""
+    sensor = Sensor(lambda x, k: x * x / 20.0, np.array([[float(R)]]),
+                    jacobian=lambda x, k: np.array([[x[0] / 10.0]]), name="x²/20")
+    return StateSpaceModel(
+        _ungm_drift, np.array([[float(Q)]]), [sensor], UNGM_PRIOR[0], UNGM_PRIOR[1],
+        transition_jacobian=lambda x, k: np.array([[0.5 + 25.0 * (1.0 - x[0] ** 2) / (1.0 + x[0] ** 2) ** 2]]),
+        name="UNGM")
 
 
 def _gamma_drift(x: np.ndarray, k: int) -> np.ndarray:
@@ -66,8 +71,8 @@ def gamma_logpdf(w: np.ndarray, shape: float, rate: float) -> np.ndarray:
     return out
 
 
-def gamma_benchmark_model(R: float, shape: float = 3.0, rate: float = 2.0) -> NonlinearModel:
-    """The van der Merwe et al. (2000) benchmark with Γ(shape, rate) process noise."""
+def gamma_benchmark_model(R: float, shape: float = 3.0, rate: float = 2.0) -> StateSpaceModel:
+    """The van der Merwe et al. (2000) benchmark with Γ(shape, rate) process noise and prior N(1, 3/4)."""
     noise_mean, noise_var = shape / rate, shape / rate**2
 
     def sampler(x_prev, k, rng):
@@ -76,11 +81,8 @@ def gamma_benchmark_model(R: float, shape: float = 3.0, rate: float = 2.0) -> No
     def logpdf(x_new, x_prev, k):
         return gamma_logpdf(x_new - _gamma_drift(x_prev, k), shape, rate)[:, 0]
 
-    return NonlinearModel(
-        f=lambda x, k: _gamma_drift(x, k) + noise_mean,
-        h=_gamma_h,
-        Q=np.array([[noise_var]]), R=np.array([[float(R)]]),
-        f_jacobian=lambda x, k: np.array([[GAMMA_PHI1]]),
-        h_jacobian=_gamma_h_jacobian,
-        transition_sampler=sampler, transition_logpdf=logpdf,
-    )
+    return StateSpaceModel(
+        lambda x, k: _gamma_drift(x, k) + noise_mean, np.array([[noise_var]]),
+        [Sensor(_gamma_h, np.array([[float(R)]]), jacobian=_gamma_h_jacobian, name="switching")],
+        GAMMA_PRIOR[0], GAMMA_PRIOR[1], transition_jacobian=lambda x, k: np.array([[GAMMA_PHI1]]),
+        transition_sampler=sampler, transition_logpdf=logpdf, name="gamma benchmark")

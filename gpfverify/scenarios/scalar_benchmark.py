@@ -17,7 +17,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from gpfverify.filters.models import NonlinearModel
+from gpfverify.models import Sensor, StateSpaceModel
 
 
 def transition(x: np.ndarray) -> np.ndarray:
@@ -51,13 +51,15 @@ class ScalarSetting:
     train_points: int = 100
     test_points: int = 200
 
-    def model(self) -> NonlinearModel:
-        """The true model, for the UKF and EKF (vectorised over (N, 1) states)."""
-        return NonlinearModel(
-            f=lambda x, k: transition(x), h=lambda x, k: measurement(x),
-            Q=np.array([[self.system_noise_std**2]]), R=np.array([[self.measurement_noise_std**2]]),
-            f_jacobian=lambda x, k: transition_derivative(x).reshape(1, 1),
-            h_jacobian=lambda x, k: measurement_derivative(x).reshape(1, 1))
+    def model(self, prior_mean: float = 0.0) -> StateSpaceModel:
+        """The true model, for the UKF and EKF (vectorised over (N, 1) states), with the prior
+        N(prior_mean, prior_std²) of one test case (μ_0 = ``prior_mean``)."""
+        sensor = Sensor(lambda x: measurement(x), np.array([[self.measurement_noise_std**2]]),
+                        jacobian=lambda x: measurement_derivative(x).reshape(1, 1), name="5 sin(2x)")
+        return StateSpaceModel(
+            lambda x: transition(x), np.array([[self.system_noise_std**2]]), [sensor], prior_mean,
+            self.prior_std**2, transition_jacobian=lambda x: transition_derivative(x).reshape(1, 1),
+            name="scalar benchmark")
 
 
 @dataclass(frozen=True)

@@ -50,7 +50,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from gpfverify.errors import InputError
-from gpfverify.filters.models import NonlinearModel
+from gpfverify.models import Sensor, StateSpaceModel
 
 STATE_DIM = 15
 MEAS_DIM = 6
@@ -252,13 +252,14 @@ def process_noise(config: SinsGpsConfig) -> np.ndarray:
 
 @dataclass(frozen=True)
 class SinsGpsModels:
-    """True and approximate models in filter units, plus the exogenous inputs the GP residuals use.
+    """True and approximate models in filter units (prior N(0, P₀) of the config), plus the exogenous
+    inputs the GP residuals use.
 
     transitions_true / transitions_approx (K, 15, 15): Φ used to go from step k−1 to k (row k−1);
     transition_inputs (K+1, 3): f^n − f̂^n (m/s²) at each step."""
 
-    true: NonlinearModel
-    approx: NonlinearModel
+    true: StateSpaceModel
+    approx: StateSpaceModel
     transitions_true: np.ndarray
     transitions_approx: np.ndarray
     transition_inputs: np.ndarray
@@ -286,14 +287,16 @@ def build_models(flight: Flight, config: SinsGpsConfig = SinsGpsConfig()) -> Sin
     Q = process_noise(config) / np.outer(UNITS, UNITS)
     H = measurement_matrix()
     R = config.measurement_cov()
+    P0 = config.initial_cov()
 
     def transition(table):
         return lambda x, k: np.einsum("ij,nj->ni", table[k - 1], x)
 
-    true = NonlinearModel(transition(phi_true), lambda x, k: x @ H.T, Q, R,
-                          lambda x, k: phi_true[k - 1], lambda x, k: H)
-    approx = NonlinearModel(transition(phi_approx), lambda x, k: x @ H.T, Q, R,
-                            lambda x, k: phi_approx[k - 1], lambda x, k: H)
+    def model(table, name):
+        return StateSpaceModel(transition(table), Q, [Sensor(H, R, name="GPS position and velocity")],
+                               np.zeros(STATE_DIM), P0, transition_jacobian=lambda x, k: table[k - 1], name=name)
+
+    true, approx = model(phi_true, "true SINS error model"), model(phi_approx, "level-flight SINS error model")
     return SinsGpsModels(true, approx, phi_true, phi_approx, flight.specific_force - level)
 
 

@@ -1,17 +1,20 @@
 """Rutten's PF-TBD step (Rutten, Ristic & Gordon, FUSION 2005; steps ①–⑥ of seed 004 §2).
 
-Given the continuing particles {s_{k−1}^i}, i = 1 … N_c (equal weights, conditional on E_{k−1} = 1)
-and the existence probability P_{k−1}:
+Given the continuing particles {s_{k−1}^i, w_{k−1}^i}, i = 1 … N_c (conditional on E_{k−1} = 1; Rutten's
+filter carries them equally weighted, w_{k−1}^i = 1/N_c, after the resampling of ⑥) and the existence
+probability P_{k−1} (``Particles.existence``):
 
 ① birth particles s_b^i ~ q_b(· | z_k), i = 1 … N_b (data-driven, see :func:`birth_proposal`),
    unnormalised weights  w̃_b^i = P_b (1 − P_{k−1}) / N_b · L(z_k | s_b^i) · p_b(s_b^i) / q_b(s_b^i);
 ② continuing particles s_c^i ~ N(F s_{k−1}^i, Q),
-   unnormalised weights  w̃_c^i = (1 − P_d) P_{k−1} / N_c · L(z_k | s_c^i);
+   unnormalised weights  w̃_c^i = (1 − P_d) P_{k−1} w_{k−1}^i · L(z_k | s_c^i)
+   (= (1 − P_d) P_{k−1} / N_c · L(z_k | s_c^i) for equal weights);
 ③ existence (seed 004 eq. 10), with M_b = Σ w̃_b, M_c = Σ w̃_c:
    P_k = (M_b + M_c) / (M_b + M_c + P_d P_{k−1} + (1 − P_b)(1 − P_{k−1}));
 ④ merge the two sets, w^i = w̃^i / (M_b + M_c);
-⑤ estimate ŝ_k = Σ w^i s^i (conditional on existence);
-⑥ resample N_c particles from the merged set (systematic resampling).
+⑤ estimate ŝ_k = Σ w^i s^i, P̂_k = Σ w^i (s^i − ŝ_k)(s^i − ŝ_k)ᵀ (conditional on existence);
+⑥ resample N_c particles from the N_b + N_c merged ones
+   (:func:`~gpfverify.filters.resampling.systematic_resample` with ``size`` = N_c).
 
 Everything is computed in the log domain (the likelihood ratios of a bright target overflow).
 """
@@ -22,9 +25,11 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.special import expit, logsumexp
+from scipy.special import expit
 
 from gpfverify.errors import InputError
+from gpfverify.filters.resampling import (Particles, ParticleStep, effective_sample_size, log_sum_exp,
+                                          moments_from_weights, normalize_log_weights, systematic_resample)
 from gpfverify.filters.tbd.model import TbdModel
 
 
@@ -69,27 +74,6 @@ class TbdConfig:
         return self.n_particles - self.n_birth
 
 
-@dataclass(frozen=True)
-class TbdBelief:
-    """Continuing particles (N_c, 5), equally weighted, and the existence probability P_k."""
-
-    particles: np.ndarray
-    existence: float
-
-
-@dataclass(frozen=True)
-class TbdStep:
-    """One PF-TBD step: the merged weighted set (N_b + N_c, 5) with normalised ``log_weights``
-    (Σ exp = 1), the existence probability, the estimate (5,) and the next belief (resampled
-    particles)."""
-
-    merged: np.ndarray
-    log_weights: np.ndarray
-    existence: float
-    estimate: np.ndarray
-    belief: TbdBelief
-
-
 def sample_birth_prior(model: TbdModel, n: int, rng: np.random.Generator) -> np.ndarray:
     """n draws from the birth density p_b (uniform position, velocity and intensity), (n, 5)."""
     lo, hi = model.image_extent
@@ -101,10 +85,10 @@ def sample_birth_prior(model: TbdModel, n: int, rng: np.random.Generator) -> np.
                             i_lo + (i_hi - i_lo) * u[:, 4]])
 
 
-def initial_belief(model: TbdModel, config: TbdConfig, rng: np.random.Generator) -> TbdBelief:
+def initial_belief(model: TbdModel, config: TbdConfig, rng: np.random.Generator) -> Particles:
     """P_0 = 0 (no target before the first frame); the continuing set is a placeholder drawn from
     p_b — with P_0 = 0 its weights are zero."""
-    return TbdBelief(sample_birth_prior(model, config.n_continuing, rng), 0.0)
+    return Particles.equally_weighted(sample_birth_prior(model, config.n_continuing, rng), existence=0.0)
 
 
 def birth_proposal(model: TbdModel, config: TbdConfig, image: np.ndarray, rng: np.random.Generator):
@@ -132,35 +116,33 @@ def birth_proposal(model: TbdModel, config: TbdConfig, image: np.ndarray, rng: n
     return states, log_ratio
 
 
-def resample_to_size(weights: np.ndarray, n: int, rng: np.random.Generator) -> np.ndarray:
-    """Indices of n systematic-resampling draws from normalised ``weights`` of M particles.
-
-    Rutten's filter resamples the N_b + N_c merged particles down to N_c, which
-    :func:`gpfverify.filters.resampling.systematic_resample` (n = M) does not cover.
-    """
-    positions = (rng.random() + np.arange(n)) / n
-    return np.minimum(np.searchsorted(np.cumsum(weights), positions, side="right"), weights.size - 1)
-
-
 def _log(p: float) -> float:
     return math.log(p) if p > 0.0 else -math.inf
 
 
-def pf_tbd_step(belief: TbdBelief, model: TbdModel, config: TbdConfig, image: np.ndarray,
-                rng: np.random.Generator) -> TbdStep:
-    """Steps ①–⑥ above for one frame ``image`` (n, n)."""
+def pf_tbd_step(belief: Particles, model: TbdModel, image: np.ndarray, *, k: int = 1,
+                rng: np.random.Generator, config: TbdConfig) -> ParticleStep:
+    """Steps ①–⑥ above for one frame ``image`` (n, n); ``k`` is unused (the model is
+    time-invariant). The record's ``weighted`` is the merged set of ④ (normalised log weights),
+    its ``posterior`` the N_c resampled particles with the existence probability P_k."""
+    if belief.existence is None:
+        raise InputError("belief.existence: PF-TBD needs the existence probability (see initial_belief)")
     prev = belief.existence
     births, log_ratio = birth_proposal(model, config, image, rng)
     continuing = model.propagate(belief.particles, rng)
     merged = np.concatenate([births, continuing])
     log_w = model.log_likelihood_ratio(merged, image)
     log_w[:config.n_birth] += log_ratio + _log(model.p_birth * (1.0 - prev) / config.n_birth)
-    log_w[config.n_birth:] += _log((1.0 - model.p_death) * prev / belief.particles.shape[0])
-    log_mass = float(logsumexp(log_w))
+    # log(N_c w^i_{k−1}) is exactly 0 for the equally weighted set Rutten's filter carries
+    n_prev = belief.size
+    log_w[config.n_birth:] += (_log((1.0 - model.p_death) * prev / n_prev)
+                               + (normalize_log_weights(belief.log_weights) + math.log(n_prev)))
+    log_mass = log_sum_exp(log_w)
     log_absent = math.log(model.p_death * prev + (1.0 - model.p_birth) * (1.0 - prev))
     existence = float(expit(log_mass - log_absent))
     log_w -= log_mass
-    weights = np.exp(log_w)
-    estimate = weights @ merged
-    resampled = merged[resample_to_size(weights, config.n_continuing, rng)]
-    return TbdStep(merged, log_w, existence, estimate, TbdBelief(resampled, existence))
+    mean, cov = moments_from_weights(merged, np.exp(log_w))
+    resampled = merged[systematic_resample(log_w, rng, size=config.n_continuing)]
+    return ParticleStep(Particles.equally_weighted(resampled, existence=existence),
+                        Particles(merged, log_w, existence=existence), mean, cov,
+                        effective_sample_size(log_w), True)

@@ -44,10 +44,10 @@ def filter_sequence(images, model: TbdModel, config: TbdConfig, rng, second_rng=
     estimates = np.empty((images.shape[0], STATE_DIM))
     for k, image in enumerate(images):
         if config.two_stage:
-            step, _ = tpf_tbd_step(belief, model, config, image, rng, second_rng)
+            step = tpf_tbd_step(belief, model, image, k=k + 1, rng=rng, config=config, second_rng=second_rng)
         else:
-            step = pf_tbd_step(belief, model, config, image, rng)
-        belief = step.belief
-        existence[k] = step.existence
-        estimates[k] = step.estimate
+            step = pf_tbd_step(belief, model, image, k=k + 1, rng=rng, config=config)
+        belief = step.posterior
+        existence[k] = belief.existence
+        estimates[k] = step.mean
     return TbdTrack(existence, estimates)

@@ -13,7 +13,10 @@ nearest to the PF estimate (``TbdConfig.second_stage_radius``); then (eq. 18–2
     K = P_xz S⁻¹,   ŝ⁺ = ŝ + K (z_C − ẑ),   P⁺ = P − K S Kᵀ.
 
 Finally (eq. 21) each resampled particle i is replaced by a draw from N(ŝ⁺, P⁺) when its uniform
-draw e_i ~ U[0, 1) exceeds ζ; ζ = 1 leaves the PF unchanged.
+draw e_i ~ U[0, 1) exceeds ζ; ζ = 1 leaves the PF unchanged. The transferred set is thus drawn
+from the mixture ζ p_PF + (1 − ζ) N(ŝ⁺, P⁺), whose mean and covariance are the step's estimate:
+
+    x̂ = ζ ŝ + (1 − ζ) ŝ⁺,   P̂ = ζ P + (1 − ζ) P⁺ + ζ (1 − ζ) (ŝ − ŝ⁺)(ŝ − ŝ⁺)ᵀ.
 
 P⁺ is the Schur complement of a weighted sample covariance plus σ²I, hence positive semidefinite
 by construction (it is symmetrised against rounding).
@@ -21,13 +24,14 @@ by construction (it is symmetrised against rounding).
 
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 
 import numpy as np
 
 from gpfverify.filters.records import StepRecord
+from gpfverify.filters.resampling import Particles, ParticleStep
 from gpfverify.filters.tbd.model import POS, TbdModel
-from gpfverify.filters.tbd.pf import TbdBelief, TbdConfig, TbdStep, pf_tbd_step
+from gpfverify.filters.tbd.pf import TbdConfig, pf_tbd_step
 from gpfverify.linalg import cholesky, right_solve_spd, symmetrize
 
 
@@ -95,18 +99,27 @@ def transfer_particles(particles: np.ndarray, posterior_mean: np.ndarray, poster
     return out, replaced
 
 
-def tpf_tbd_step(belief: TbdBelief, model: TbdModel, config: TbdConfig, image: np.ndarray,
-                 rng: np.random.Generator, second_rng: np.random.Generator) -> tuple[TbdStep, SecondStage]:
-    """PF-TBD with ``rng``, then the second stage and the transfer with ``second_rng``.
+@dataclass(frozen=True)
+class TwoStageStep(ParticleStep):
+    """A TPFTBD step: the :class:`~gpfverify.filters.resampling.ParticleStep` (``weighted`` the
+    merged set of the PF stage, ``posterior`` the transferred particles, ``mean``/``cov`` the
+    mixture moments of the module docstring) and the second stage that produced it."""
 
-    The estimate is the expected mean of the transferred particle set,
-    ζ · ŝ_PF + (1 − ζ) · ŝ⁺ (with ζ = 1 it is the PF estimate).
-    """
-    step = pf_tbd_step(belief, model, config, image, rng)
-    record, cells_x, cells_y = second_stage_update(step.merged, step.log_weights, model, config, image,
-                                                   step.estimate)
-    particles, replaced = transfer_particles(step.belief.particles, record.mu_e, record.C_e,
+    second_stage: SecondStage
+
+
+def tpf_tbd_step(belief: Particles, model: TbdModel, image: np.ndarray, *, k: int = 1,
+                 rng: np.random.Generator, config: TbdConfig, second_rng: np.random.Generator) -> TwoStageStep:
+    """PF-TBD with ``rng``, then the second stage and the transfer with ``second_rng`` (separate
+    streams: with ζ = 1 the step reproduces PF-TBD exactly for the same ``rng``)."""
+    step = pf_tbd_step(belief, model, image, k=k, rng=rng, config=config)
+    record, cells_x, cells_y = second_stage_update(step.weighted.particles, step.weighted.log_weights, model,
+                                                   config, image, step.mean)
+    particles, replaced = transfer_particles(step.posterior.particles, record.mu_e, record.C_e,
                                              config.zeta, second_rng)
-    estimate = config.zeta * step.estimate + (1.0 - config.zeta) * record.mu_e
-    step = replace(step, estimate=estimate, belief=TbdBelief(particles, step.existence))
-    return step, SecondStage(record, cells_x, cells_y, replaced)
+    zeta, gap = config.zeta, step.mean - record.mu_e
+    mean = zeta * step.mean + (1.0 - zeta) * record.mu_e
+    cov = symmetrize(zeta * step.cov + (1.0 - zeta) * record.C_e + zeta * (1.0 - zeta) * np.outer(gap, gap))
+    posterior = Particles.equally_weighted(particles, existence=step.posterior.existence)
+    return TwoStageStep(posterior, step.weighted, mean, cov, step.ess, step.resampled,
+                        SecondStage(record, cells_x, cells_y, replaced))
