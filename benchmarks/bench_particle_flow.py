@@ -17,7 +17,7 @@ from _timing import median_seconds, publish
 from gpfverify.filters.flows import edh_update, ie_pff_update, uniform_steps
 from gpfverify.filters.likelihoods import unwrapped_measurement
 from gpfverify.filters.records import Gaussian
-from gpfverify.filters.resampling import normalize_log_weights, systematic_resample
+from gpfverify.filters.resampling import Particles, normalize_log_weights, systematic_resample
 from gpfverify.filters.ukf import ukf_step
 from gpfverify.filters.upf import ukf_proposal
 from gpfverify.scenarios.bearing import INITIAL_STATE, bearing_model
@@ -69,7 +69,7 @@ def loop_systematic(log_weights, u):
 def loop_ukf_proposal(particles, sqrt_covs, model, z, k):
     means, factors = [], []
     for p, s in zip(particles, sqrt_covs):
-        rec = ukf_step(Gaussian(p, s @ s.T), model, z, k)
+        rec = ukf_step(Gaussian(p, s @ s.T), model, z, k=k)
         means.append(rec.mu_e)
         factors.append(np.linalg.cholesky(rec.C_e))
     return np.array(means), np.array(factors)
@@ -83,7 +83,7 @@ def main() -> None:
     args = parser.parse_args()
     rng = np.random.default_rng(0)
     model = bearing_model(0.05, 0.1, 0.01)
-    prior = np.diag([100.0, 1.0, 100.0, 1.0])
+    prior = model.prior_cov
     particles = INITIAL_STATE + rng.standard_normal((args.particles, 4)) @ np.sqrt(prior)
     z = model.h(INITIAL_STATE[None, :], 1)[0] + 0.01
     steps = uniform_steps(20)
@@ -102,7 +102,8 @@ def main() -> None:
          lambda: loop_edh(particles, prior, model, z, 1, steps)),
         ("systematic resampling", lambda: systematic_resample(log_w, FixedUniform()),
          lambda: loop_systematic(log_w, u)),
-        ("UPF: UKF proposal for all particles", lambda: ukf_proposal(particles, factors, model, z, 1),
+        ("UPF: UKF proposal for all particles",
+         lambda: ukf_proposal(Particles.equally_weighted(particles, sqrt_covs=factors), model, z, k=1),
          lambda: loop_ukf_proposal(particles, factors, model, z, 1)),
     ]
     rows = []

@@ -18,8 +18,9 @@ import numpy as np
 from scipy.special import expit, logsumexp
 
 from _timing import markdown_table, median_seconds
-from gpfverify.filters.tbd import TbdBelief, TbdConfig, initial_belief, pf_tbd_step, tpf_tbd_step
-from gpfverify.filters.tbd.pf import birth_proposal, resample_to_size
+from gpfverify.filters.resampling import Particles, systematic_resample
+from gpfverify.filters.tbd import TbdConfig, initial_belief, pf_tbd_step, tpf_tbd_step
+from gpfverify.filters.tbd.pf import birth_proposal
 from gpfverify.filters.tbd.two_stage import second_stage_axes, transfer_particles
 from gpfverify.scenarios.tbd import TbdScenario, scenario_model, simulate
 
@@ -56,8 +57,8 @@ def loop_pf_step(belief, model, config, image, rng):
     existence = float(expit(log_mass - math.log(model.p_death * prev + (1 - model.p_birth) * (1 - prev))))
     w = np.exp(log_w - log_mass)
     estimate = sum(wi * s for wi, s in zip(w, merged))
-    resampled = merged[resample_to_size(w, config.n_continuing, rng)]
-    return merged, w, existence, estimate, TbdBelief(resampled, existence)
+    resampled = merged[systematic_resample(log_w - log_mass, rng, size=config.n_continuing)]
+    return merged, w, existence, estimate, Particles.equally_weighted(resampled, existence=existence)
 
 
 def loop_second_stage(merged, w, model, config, image, estimate):
@@ -89,7 +90,7 @@ def run_loop(images, model, config, seed, second_seed):
         if config.two_stage:
             mean, cov = loop_second_stage(merged, w, model, config, image, estimate)
             particles, _ = transfer_particles(belief.particles, mean, cov, config.zeta, second_rng)
-            belief = TbdBelief(particles, existence)
+            belief = Particles.equally_weighted(particles, existence=existence)
             estimate = config.zeta * estimate + (1 - config.zeta) * mean
         out.append((existence, estimate))
     return out
@@ -99,13 +100,13 @@ def run_vectorised(images, model, config, seed, second_seed):
     rng, second_rng = np.random.default_rng(seed), np.random.default_rng(second_seed)
     belief = initial_belief(model, config, rng)
     out = []
-    for image in images:
+    for k, image in enumerate(images, 1):
         if config.two_stage:
-            step, _ = tpf_tbd_step(belief, model, config, image, rng, second_rng)
+            step = tpf_tbd_step(belief, model, image, k=k, rng=rng, config=config, second_rng=second_rng)
         else:
-            step = pf_tbd_step(belief, model, config, image, rng)
-        belief = step.belief
-        out.append((step.existence, step.estimate))
+            step = pf_tbd_step(belief, model, image, k=k, rng=rng, config=config)
+        belief = step.posterior
+        out.append((belief.existence, step.mean))
     return out
 
 

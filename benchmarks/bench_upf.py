@@ -19,18 +19,18 @@ import numpy as np
 from _timing import median_seconds, publish
 from gpfverify.experiments import sins_gps
 from gpfverify.filters.gpsr_upf import gpsr_upf_step, sr_ukf_proposal
+from gpfverify.filters.resampling import Particles
 from gpfverify.filters.sr_ukf import cholupdate
-from gpfverify.filters.upf import ParticleCloud, ukf_proposal, upf_step
-from gpfverify.scenarios.simulate import simulate
+from gpfverify.filters.upf import ukf_proposal, upf_step
 
 STEP = 550
 
 
 def looped(proposal):
     """The same proposal applied to one particle at a time."""
-    def run(particles, sqrt_covs, model, y, k, **kwargs):
-        outs = [proposal(particles[i:i + 1], sqrt_covs[i:i + 1], model, y, k, **kwargs)
-                for i in range(particles.shape[0])]
+    def run(belief, model, y, *, k, **kwargs):
+        outs = [proposal(Particles(belief.particles[i:i + 1], belief.log_weights[i:i + 1], belief.sqrt_covs[i:i + 1]),
+                         model, y, k=k, **kwargs) for i in range(belief.size)]
         return np.concatenate([m for m, _ in outs]), np.concatenate([s for _, s in outs])
     return run
 
@@ -41,8 +41,8 @@ def _setup(particles: int):
     params = sins_gps.params_from_args(parser.parse_args(["--particles", str(particles)]))
     config, models, upf_model, gpsr_model, _ = sins_gps.setup(params)
     rng = np.random.default_rng(0)
-    _, ys = simulate(models.true, np.zeros(15), STEP, rng)
-    cloud = ParticleCloud.from_gaussian(np.zeros(15), config.initial_cov(), particles, rng)
+    _, ys = models.true.simulate(STEP, rng, x0=np.zeros(15))
+    cloud = Particles.from_gaussian(np.zeros(15), config.initial_cov(), particles, rng)
     return upf_model, gpsr_model, cloud, ys[STEP - 1]
 
 
@@ -51,14 +51,15 @@ def _cases(particles: int):
     gpsr_sqrt = gpsr_model.process_sqrt
 
     def upf(proposal):
-        return lambda: upf_step(cloud, upf_model, y, STEP, np.random.default_rng(1), proposal=proposal)[0]
+        return lambda: upf_step(cloud, upf_model, y, k=STEP, rng=np.random.default_rng(1), proposal=proposal).posterior
 
     def gpsr_vectorised():
-        return gpsr_upf_step(cloud, gpsr_model, y, STEP, np.random.default_rng(1))[0]
+        return gpsr_upf_step(cloud, gpsr_model, y, k=STEP, rng=np.random.default_rng(1)).posterior
 
     def gpsr_loop():
         proposal = partial(looped(sr_ukf_proposal), process_sqrt=gpsr_sqrt)
-        return upf_step(cloud, gpsr_model.at_step(STEP), y, STEP, np.random.default_rng(1), proposal=proposal)[0]
+        return upf_step(cloud, gpsr_model.at_step(STEP), y, k=STEP, rng=np.random.default_rng(1),
+                        proposal=proposal).posterior
 
     return [(f"UPF step, N = {particles}", upf(ukf_proposal), upf(looped(ukf_proposal))),
             (f"GPSR-UPF step, N = {particles}", gpsr_vectorised, gpsr_loop)]
@@ -85,7 +86,7 @@ def main() -> None:
         for label, fast, slow in _cases(n) + [_downdate_case(n)]:
             a, b = fast(), slow()
             pairs = [(a.particles, b.particles), (a.sqrt_covs, b.sqrt_covs), (a.log_weights, b.log_weights)] \
-                if isinstance(a, ParticleCloud) else [(a, b)]
+                if isinstance(a, Particles) else [(a, b)]
             diff = max(float(np.max(np.abs(x - z))) for x, z in pairs)
             t_fast = median_seconds(fast, args.repeats)
             t_slow = median_seconds(slow, max(3, args.repeats // 3))
