@@ -10,10 +10,12 @@ import scipy.stats
 from gpfverify.cli import main
 from gpfverify.experiments import gpadf_scalar
 from gpfverify.experiments.runner import run_experiment
+from gpfverify.models import Sensor, StateSpaceModel
+from gpfverify.models.functions import FD_STEP
 from gpfverify.report.sections import gpadf_scalar as section
 from gpfverify.scenarios.scalar_benchmark import (ScalarSetting, measurement, measurement_derivative,
                                                   transition, transition_derivative)
-from gpfverify.tolerances import algebra_rtol
+from gpfverify.tolerances import ALGEBRA_SAFETY, EPS, algebra_rtol
 
 TABLE_KEYS = {"nll", "nll_se", "maha", "maha_se", "rmse", "rmse_se"}
 
@@ -28,12 +30,25 @@ def test_scores_match_scipy():
 
 
 def test_model_derivatives_match_central_differences():
-    x = np.linspace(-10, 10, 41)
-    h = 1e-5
-    for fn, deriv in ((transition, transition_derivative), (measurement, measurement_derivative)):
-        numeric = (fn(x + h) - fn(x - h)) / (2 * h)
-        # central differences: truncation O(h²) and rounding O(eps |f| / h)
-        np.testing.assert_allclose(deriv(x), numeric, rtol=1e-6, atol=1e-6 * np.abs(deriv(x)).max())
+    """The experiment's model carries the analytic derivatives (what the EKF uses); the same model
+    without them differentiates by central differences (gpfverify.models.functions), step
+    h = FD_STEP·max(1, |x|). Their error is at most the truncation h²/6·max|f⁽³⁾| plus the rounding
+    eps·(|f| + |x| |f′|)/h (values and perturbed arguments rounded; ALGEBRA_SAFETY on it). On
+    [−10, 10]: |f| ≤ 17.5, |f′| ≤ 25.5, |f⁽³⁾| ≤ 150 (25·6, from x/(1 + x²) at 0); |g| ≤ 5,
+    |g′| ≤ 10, |g⁽³⁾| ≤ 40."""
+    setting = ScalarSetting()
+    exact = gpadf_scalar.true_model(setting)
+    by_differences = StateSpaceModel(transition, exact.Q, [Sensor(measurement, exact.R)],
+                                     exact.prior_mean, exact.prior_cov)
+    x = np.linspace(-setting.domain, setting.domain, 41)[:, None]
+    h = FD_STEP * np.maximum(1.0, np.abs(x[:, 0]))
+    for name, deriv, value, slope, third in (("f", transition_derivative, 17.5, 25.5, 150.0),
+                                             ("h", measurement_derivative, 5.0, 10.0, 40.0)):
+        analytic = getattr(exact, f"{name}_jacobian")(x)[:, 0, 0]
+        np.testing.assert_array_equal(analytic, deriv(x[:, 0]))
+        numeric = getattr(by_differences, f"{name}_jacobian")(x)[:, 0, 0]
+        bound = h**2 / 6.0 * third + ALGEBRA_SAFETY * EPS * (value + np.abs(x[:, 0]) * slope) / h
+        assert np.all(np.abs(numeric - analytic) <= bound), name
 
 
 @pytest.fixture(scope="module")
