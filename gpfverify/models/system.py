@@ -38,6 +38,7 @@ import scipy.linalg as sla
 from gpfverify.angles import difference
 from gpfverify.errors import InputError
 from gpfverify.models.functions import LinearFunction, ModelFunction, NumpyFunction
+from gpfverify.tolerances import algebra_rtol
 from gpfverify.validate import as_covariance, as_vector
 
 
@@ -159,13 +160,19 @@ class StateSpaceModel:
             self.check_functions(self.prior_mean)
 
     def check_functions(self, x, k: int = 1) -> None:
-        """Call every function (and Jacobian) once at the state ``x`` (D,) and at a batch of two:
-        InputError naming the part when one raises or returns the wrong shape or NaN."""
+        """Call every function (and Jacobian) at the state ``x`` (D,) and at the batch
+        (x, x + δ, x − 2δ), δ the prior standard deviations (1 where zero): InputError naming the
+        part when one raises, returns the wrong shape or NaN, or maps a row of the batch
+        differently from the same state alone (not vectorised over the leading axis)."""
         x = as_vector(x, "probe state", self.state_dim)
-        batch = np.stack([x, x])
+        spread = np.sqrt(np.diag(self.prior_cov))
+        spread = np.where(spread > 0.0, spread, 1.0)
+        batch = np.stack([x, x + spread, x - 2.0 * spread])
         for fn in (self.transition,) + tuple(s.measure for s in self.sensors):
-            single, double = fn(x[None], k), fn(batch, k)
-            if not np.array_equal(double[0], double[1]) or not np.allclose(double[0], single[0]):
+            alone = np.concatenate([fn(row[None], k) for row in batch])
+            together = fn(batch, k)
+            tol = algebra_rtol() * max(float(np.abs(alone).max()), 1.0)
+            if np.abs(difference(together, alone, fn.circular)).max() > tol:
                 raise InputError(f"{fn.name} is not vectorised over the leading axis: rows of a "
                                  f"batch (N, {self.state_dim}) must be mapped independently")
             fn.jacobian(x, k)
