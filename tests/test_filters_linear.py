@@ -16,7 +16,6 @@ from gpfverify.errors import InputError, NumericalError
 from gpfverify.filters.driver import run_filter
 from gpfverify.filters.ekf import ekf_step
 from gpfverify.filters.kalman import kf_step
-from gpfverify.experiments.gpadf_scalar import true_model
 from gpfverify.filters.records import Gaussian, MeasurementMoments
 from gpfverify.filters.sigma_points import SigmaParams
 from gpfverify.filters.ukf import ukf_step
@@ -181,7 +180,7 @@ def _scalar_ukf_reference(m0, p0, y, f, h, q, r, alpha, beta, kappa):
 
 @pytest.mark.parametrize("alpha, beta, kappa", [(1.0, 0.0, 2.0), (0.5, 2.0, 0.0)])
 def test_ukf_matches_a_separately_written_scalar_ukf(alpha, beta, kappa):
-    model = true_model(ScalarSetting())
+    model = ScalarSetting().model()
     rng = np.random.default_rng(5)
     means, ys = rng.uniform(-10, 10, size=50), rng.uniform(-5, 5, size=50)
     record = ukf_step(Gaussian(means[:, None], np.full((50, 1, 1), 0.25)), model, ys[:, None], k=1,

@@ -37,7 +37,7 @@ def test_model_derivatives_match_central_differences():
     [−10, 10]: |f| ≤ 17.5, |f′| ≤ 25.5, |f⁽³⁾| ≤ 150 (25·6, from x/(1 + x²) at 0); |g| ≤ 5,
     |g′| ≤ 10, |g⁽³⁾| ≤ 40."""
     setting = ScalarSetting()
-    exact = gpadf_scalar.true_model(setting)
+    exact = setting.model()
     by_differences = StateSpaceModel(transition, exact.Q, [Sensor(measurement, exact.R)],
                                      exact.prior_mean, exact.prior_cov)
     x = np.linspace(-setting.domain, setting.domain, 41)[:, None]

@@ -31,10 +31,9 @@ from gpfverify.filters.records import Gaussian
 from gpfverify.filters.sigma_points import SigmaParams
 from gpfverify.filters.ukf import ukf_step
 from gpfverify.gp import GaussianProcess
-from gpfverify.models import GPModel, Sensor, StateSpaceModel
+from gpfverify.models import GPModel
 from gpfverify.rng import generator
-from gpfverify.scenarios.scalar_benchmark import (ScalarSetting, draw_cases, draw_training_data, measurement,
-                                                  measurement_derivative, transition, transition_derivative)
+from gpfverify.scenarios.scalar_benchmark import ScalarSetting, draw_cases, draw_training_data
 from gpfverify.validate import as_positive
 
 NAME = "gpadf-scalar"
@@ -91,17 +90,6 @@ def _setting(params: dict) -> ScalarSetting:
                                                     "domain", "train_points", "test_points")})
 
 
-def true_model(setting: ScalarSetting) -> StateSpaceModel:
-    """The true model for the UKF and EKF, with the analytic derivatives as Jacobians; its prior
-    N(0, prior_std²) is only the model's default (every test case has its own prior mean)."""
-    return StateSpaceModel(
-        transition, [[setting.system_noise_std**2]],
-        [Sensor(measurement, [[setting.measurement_noise_std**2]],
-                jacobian=lambda x: measurement_derivative(x).reshape(1, 1), name="g")],
-        prior_mean=[0.0], prior_cov=[[setting.prior_std**2]],
-        transition_jacobian=lambda x: transition_derivative(x).reshape(1, 1), name="scalar benchmark")
-
-
 def gaussian_scores(mean: np.ndarray, var: np.ndarray, truth: np.ndarray) -> dict[str, np.ndarray]:
     """Per-case NLL, Mahalanobis distance (square-root form) and squared error of scalar
     Gaussians N(mean, var) at ``truth``; all arrays (N,)."""
@@ -125,7 +113,7 @@ def run_one(params: dict, seed_sequence) -> dict:
     fit_seconds = time.perf_counter() - started
     cases = draw_cases(setting, rng)
 
-    model, gp_model = true_model(setting), GPModel(transition_gp, [measurement_gp])
+    model, gp_model = setting.model(), GPModel(transition_gp, [measurement_gp])
     sigma = SigmaParams(params["alpha"], params["beta"], params["kappa"])
     n = cases.prior_mean.size
     belief0 = Gaussian(cases.prior_mean[:, None], np.full((n, 1, 1), setting.prior_std**2))
