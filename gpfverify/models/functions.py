@@ -32,13 +32,18 @@ FD_STEP: float = EPS ** (1.0 / 3.0)
 
 
 def takes_step_index(fn: Callable) -> bool:
-    """Whether ``fn`` accepts a second positional argument (the step index k)."""
+    """Whether ``fn`` takes the step index k as its second positional argument: a second positional
+    parameter without a default, or one named ``k`` (``f(x, k=0)``); a defaulted parameter with
+    another name (``lambda x, a=a: ...``, a captured value) is not the step index."""
     try:
         params = list(inspect.signature(fn).parameters.values())
     except (TypeError, ValueError):  # builtins and ufuncs without a signature
         return getattr(fn, "nin", 1) >= 2
     positional = [p for p in params if p.kind in (p.POSITIONAL_ONLY, p.POSITIONAL_OR_KEYWORD)]
-    return len(positional) >= 2 or any(p.kind == p.VAR_POSITIONAL for p in params)
+    if len(positional) >= 2:
+        second = positional[1]
+        return second.default is second.empty or second.name == "k"
+    return any(p.kind == p.VAR_POSITIONAL for p in params)
 
 
 class ModelFunction:
@@ -120,23 +125,29 @@ class NumpyFunction(ModelFunction):
         if self.user_jacobian is None:
             return central_difference_jacobian(self, x, k)
         x = np.asarray(x, dtype=float)
+        if x.ndim == 1:
+            return self._user_jacobian_at(x, k)
         flat = x.reshape(-1, self.in_dim)
+        out = np.stack([self._user_jacobian_at(xi, k) for xi in flat])
+        return out.reshape(x.shape[:-1] + out.shape[1:])
+
+    def _user_jacobian_at(self, xi: np.ndarray, k: int) -> np.ndarray:
+        """The user's Jacobian at one state (D,), checked: (E, D), finite."""
         shape = (self.out_dim, self.in_dim)
-        out = np.empty((flat.shape[0],) + shape)
-        for i, xi in enumerate(flat):
-            try:
-                value = self.user_jacobian(xi, k) if self.jacobian_takes_k else self.user_jacobian(xi)
-                value = np.asarray(value, dtype=float)
-            except GpfverifyError:
-                raise
-            except Exception as exc:
-                raise InputError(f"{self.name} jacobian raised {type(exc).__name__}: {exc}") from exc
-            if value.size != out[i].size:
+        try:
+            value = self.user_jacobian(xi, k) if self.jacobian_takes_k else self.user_jacobian(xi)
+            value = np.asarray(value, dtype=float)
+        except GpfverifyError:
+            raise
+        except Exception as exc:
+            raise InputError(f"{self.name} jacobian raised {type(exc).__name__}: {exc}") from exc
+        if value.shape != shape:
+            if value.size != self.out_dim * self.in_dim:
                 raise InputError(f"{self.name} jacobian returned shape {value.shape}; expected {shape}")
-            out[i] = value.reshape(shape)
-        if not np.all(np.isfinite(out)):
+            value = value.reshape(shape)
+        if not np.all(np.isfinite(value)):
             raise InputError(f"{self.name} jacobian returned NaN or inf at step k={k}")
-        return out.reshape(x.shape[:-1] + shape)
+        return value
 
 
 class LinearFunction(ModelFunction):

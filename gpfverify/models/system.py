@@ -228,6 +228,8 @@ class StateSpaceModel:
 
     def h_jacobian(self, x: np.ndarray, k: int = 1) -> np.ndarray:
         """∂h/∂x of the stacked measurement at states x (..., D): (..., L, D)."""
+        if len(self.sensors) == 1:
+            return self.sensors[0].measure.jacobian(x, k)
         return np.concatenate([s.measure.jacobian(x, k) for s in self.sensors], axis=-2)
 
     def residual(self, y: np.ndarray, y_pred: np.ndarray) -> np.ndarray:
