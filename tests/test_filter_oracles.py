@@ -1,11 +1,18 @@
 """One oracle suite for every filter family on the common protocol ``step(belief, model, y, *, k)``:
 
 * on a linear-Gaussian model with full Q and R every Gaussian family equals the exact Kalman filter
-  (computed here by hand from F, H, Q, R — not through the library's KF) to rounding;
+  (computed here by hand from F, H, Q, R — not through the library's KF) to rounding, and every
+  particle family (bootstrap PF, UPF, GPSR-UPF without residuals) equals it statistically: the mean
+  over independent runs of (filter − KF) is zero within Monte Carlo error;
 * on the reference three-sensor tracker whose bearing crosses ±π, every angle-aware family equals
   the same filter run in a rotated bearing frame (the bearing measured from the opposite direction,
   so that no value is near the cut and no wrapping happens there); the filter that ignores the
-  angle flag does not, so the oracle can fail.
+  angle flag does not, so the oracle can fail. The particle families see the same wrapped
+  residuals in both frames, so with the same generator they agree to rounding.
+
+The flows (EDH, IE-PFF) reach the Kalman update only as the λ-step shrinks; their oracle is the
+order of convergence (``test_flows.py``). The GP families filter with *learned* models; their
+oracle is the KF on the true and on the learned noise (``test_filters_gp.py``).
 """
 
 from dataclasses import replace
@@ -17,14 +24,18 @@ from gpfverify.angles import wrap
 from gpfverify.errors import InputError
 from gpfverify.filters.driver import run_filter
 from gpfverify.filters.ekf import ekf_step
+from gpfverify.filters.gpsr_upf import GPResidualModel, gpsr_upf_step
 from gpfverify.filters.kalman import kf_step
+from gpfverify.filters.pf import pf_step
 from gpfverify.filters.records import Gaussian
+from gpfverify.filters.resampling import Particles
 from gpfverify.filters.sigma_points import SigmaParams
 from gpfverify.filters.sr_ukf import SqrtGaussian, sr_ukf_step
 from gpfverify.filters.ukf import ukf_step
+from gpfverify.filters.upf import upf_step
 from gpfverify.models import StateSpaceModel, linear_model
 from gpfverify.scenarios.three_sensor import SENSOR_RANGE_BEARING, three_sensor_model
-from gpfverify.tolerances import algebra_rtol
+from gpfverify.tolerances import algebra_rtol, monte_carlo_atol
 
 
 def sqrt_ukf(belief, model, y, *, k):
@@ -73,6 +84,42 @@ def test_every_gaussian_family_equals_the_kalman_filter_on_a_linear_model(family
     scale = np.abs(means).max() + np.sqrt(np.abs(covs).max())
     np.testing.assert_allclose(run.mu_e, means, rtol=0, atol=rtol * scale)
     np.testing.assert_allclose(run.C_e, covs, rtol=0, atol=rtol * np.abs(covs).max())
+
+
+def gpsr_upf_without_residuals(belief, model, y, *, k, rng):
+    """GPSR-UPF with no GP correction: the UPF with the SR-UKF proposal and exact weights."""
+    return gpsr_upf_step(belief, GPResidualModel(model), y, k=k, rng=rng)
+
+
+#: particle family -> (step, particles per run, whether the belief carries per-particle factors)
+PARTICLE_FAMILIES = {"pf": (pf_step, 4000, False), "upf": (upf_step, 1000, True),
+                     "gpsr-upf": (gpsr_upf_without_residuals, 1000, True)}
+
+
+def _particles(model, count, rng, with_factors):
+    belief = Particles.from_gaussian(model.prior_mean, model.prior_cov, count, rng)
+    return belief if with_factors else replace(belief, sqrt_covs=None)
+
+
+@pytest.mark.parametrize("family", sorted(PARTICLE_FAMILIES))
+def test_every_particle_family_equals_the_kalman_filter_in_expectation(family):
+    """24 independent runs of 4 steps: the average of (filter − KF) in the posterior mean and
+    covariance is within 5 standard errors (from the runs' own spread) of zero."""
+    step, count, with_factors = PARTICLE_FAMILIES[family]
+    model = linear_model(np.array([[1.0, 1.0], [0.0, 0.9]]), [[1.0, 0.0]], np.diag([0.3, 0.2]), [[0.5]],
+                         prior_mean=[0.5, -0.5])
+    _, ys = model.simulate(4, np.random.default_rng(3), x0=model.prior_mean)
+    means, covs = _hand_kalman(*model.linear_matrices(), model.Q, model.R, model.prior_mean, model.prior_cov, ys)
+    runs, errors = 24, []
+    for seed in range(runs):
+        rng = np.random.default_rng(100 + seed)
+        belief = _particles(model, count, rng, with_factors)
+        for k, y in enumerate(ys, 1):
+            record = step(belief, model, y, k=k, rng=rng)
+            belief = record.posterior
+        errors.append(np.concatenate([record.mean - means[-1], (record.cov - covs[-1]).ravel()]))
+    errors = np.array(errors)
+    np.testing.assert_array_less(np.abs(errors.mean(0)), monte_carlo_atol(errors.std(0, ddof=1), runs))
 
 
 # --- angles: the rotated bearing frame ---------------------------------------------------------------
@@ -149,3 +196,26 @@ def test_the_kalman_filter_refuses_a_nonlinear_model(crossing):
     model = crossing[0]
     with pytest.raises(InputError, match="linear model"):
         kf_step(Gaussian(model.prior_mean, model.prior_cov), model, crossing[1][0])
+
+
+@pytest.mark.parametrize("family", sorted(PARTICLE_FAMILIES))
+def test_particle_families_equal_the_rotated_frame(family, crossing):
+    """Same generator, same draws: the likelihoods of wrapped residuals are the same in both frames,
+    so the estimates agree to rounding; without the angle flag they do not (a 2π residual)."""
+    model, ys, rotated_ys = crossing
+    step, _, with_factors = PARTICLE_FAMILIES[family]
+
+    def run(m, measurements):
+        rng = np.random.default_rng(13)
+        belief, means = _particles(m, 300, rng, with_factors), []
+        for k, y in enumerate(measurements, 1):
+            record = step(belief, m, y, k=k, rng=rng)
+            belief = record.posterior
+            means.append(record.mean)
+        return np.array(means)
+
+    oracle = run(rotated_frame(model, circular=True), rotated_ys)
+    rtol = algebra_rtol()
+    np.testing.assert_allclose(run(model, ys), oracle, rtol=0, atol=rtol * np.abs(oracle).max())
+    naive = run(without_angles(model), ys)
+    assert not np.allclose(naive, oracle, rtol=0, atol=rtol * np.abs(oracle).max())

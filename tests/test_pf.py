@@ -1,21 +1,17 @@
 """Resampling, particle densities and the bootstrap PF against exact references: the systematic
 scheme's floor/ceil property (to N and to another size) and unbiasedness, scipy's log-sum-exp and
-Gaussian density, the Kalman filter, and the invariance of bearing-only filtering to where the
-bearing wraps."""
+Gaussian density, wrapped angle residuals. The PF against the Kalman filter and across the bearing
+cut is in the shared oracle suite (``test_filter_oracles.py``)."""
 
-from dataclasses import replace
 
 import numpy as np
 import pytest
 from scipy.special import logsumexp
 from scipy.stats import multivariate_normal
 
-from gpfverify.angles import wrap
 from gpfverify.errors import InputError
-from gpfverify.filters.kalman import kf_step
 from gpfverify.filters.likelihoods import gaussian_logpdf, measurement_loglik
 from gpfverify.filters.pf import pf_step
-from gpfverify.filters.records import Gaussian
 from gpfverify.filters.resampling import (Particles, effective_sample_size, log_sum_exp, needs_resampling,
                                           normalize_log_weights, systematic_resample)
 from gpfverify.filters.upf import upf_step
@@ -93,40 +89,6 @@ def test_measurement_loglik_wraps_angle_outputs():
     np.testing.assert_allclose(near_cut, direct, rtol=algebra_rtol())
 
 
-def _linear_problem():
-    """A linear-Gaussian model with prior N([0.5, −0.5], I) and 4 measurements from x₀ = the prior mean."""
-    F = np.array([[1.0, 1.0], [0.0, 0.9]])
-    H = np.array([[1.0, 0.0]])
-    Q, R = np.diag([0.3, 0.2]), np.array([[0.5]])
-    model = linear_model(F, H, Q, R, prior_mean=[0.5, -0.5])
-    _, ys = model.simulate(4, np.random.default_rng(3), x0=model.prior_mean)
-    return model, ys
-
-
-def test_bootstrap_pf_agrees_with_the_kalman_filter_within_monte_carlo_error():
-    """Independent PF runs: the spread of (PF mean − KF mean) over runs is the Monte Carlo error;
-    the average error must be within 5 standard errors of zero, for mean and covariance."""
-    model, ys = _linear_problem()
-    prior = Gaussian(model.prior_mean, model.prior_cov)
-    kalman = prior
-    for k, y in enumerate(ys, 1):
-        kalman = kf_step(kalman, model, y, k=k).posterior
-    runs, count = 24, 4000
-    mean_err, cov_err = [], []
-    for seed in range(runs):
-        rng = np.random.default_rng(100 + seed)
-        belief = Particles.equally_weighted(rng.multivariate_normal(prior.mean, prior.cov, count))
-        for k, y in enumerate(ys, 1):
-            record = pf_step(belief, model, y, k=k, rng=rng)
-            belief = record.posterior
-        mean_err.append(record.mean - kalman.mean)
-        cov_err.append(record.cov - kalman.cov)
-    for err in (np.array(mean_err), np.array(cov_err)):
-        np.testing.assert_array_less(np.abs(err.mean(0)), monte_carlo_atol(err.std(0, ddof=1), runs))
-    # and the Monte Carlo error itself is of order posterior std / sqrt(N)
-    assert np.all(np.array(mean_err).std(0) < 10 * np.sqrt(np.diag(kalman.cov) / count))
-
-
 def test_bad_input_raises_input_error():
     model = linear_model(np.eye(2), np.eye(2)[:1], np.eye(2), np.eye(1))
     rng = np.random.default_rng(0)
@@ -141,45 +103,3 @@ def test_bad_input_raises_input_error():
         pf_step(belief, object(), np.zeros(1), k=1, rng=rng)
     with pytest.raises(InputError, match="sqrt_covs"):
         upf_step(belief, model, np.zeros(1), k=1, rng=rng)
-
-
-def _bearing_model(rotation: float) -> StateSpaceModel:
-    """Near-constant-velocity target [x, ẋ, y, ẏ] seen from the origin, bearing measured from an
-    axis turned by −``rotation`` (h' = h + φ); prior around (−100, 0) moving up, so that the bearing
-    crosses the ±π cut (from just below π to just above −π) in the unrotated frame."""
-    F = np.kron(np.eye(2), [[1.0, 1.0], [0.0, 1.0]])
-
-    def h(x):
-        return np.arctan2(x[:, 2], x[:, 0])[:, None] + rotation
-
-    return StateSpaceModel(F, np.diag([0.1, 0.05, 0.1, 0.05]), [Sensor(h, [[0.02**2]], circular=(0,))],
-                           [-100.0, 0.0, -8.0, 2.0], np.diag([4.0, 0.1, 4.0, 0.1]))
-
-
-@pytest.mark.parametrize("method", ["pf", "upf"])
-def test_bearing_filters_do_not_see_the_cut(method):
-    """The same run in a rotated bearing frame (h' = h + φ, y' = wrap(y + φ)) where no bearing
-    is near ±π: the wrapped residuals are the same, so with the same generator the weights and
-    estimates agree to rounding — and they would not if a residual or a sigma-point mean were
-    taken across the cut without wrapping (a 2π jump, see the assertion on the measurements)."""
-    model, rotation = _bearing_model(0.0), np.pi / 2
-    rotated = _bearing_model(rotation)
-    _, ys = model.simulate(8, np.random.default_rng(12), x0=model.prior_mean)
-    assert np.any(ys > 3.0) and np.any(ys < -3.0)  # the measurements jump across the cut
-    ys_rotated = wrap(ys + rotation)
-    assert np.all(np.abs(ys_rotated) < 2.5)
-    means = []
-    for m, measurements in ((model, ys), (rotated, ys_rotated)):
-        rng = np.random.default_rng(13)
-        belief = Particles.from_gaussian(m.prior_mean, m.prior_cov, 300, rng)
-        if method == "pf":
-            belief = replace(belief, sqrt_covs=None)
-        step = pf_step if method == "pf" else upf_step
-        out = []
-        for k, y in enumerate(measurements, 1):
-            record = step(belief, m, y, k=k, rng=rng)
-            belief = record.posterior
-            out.append(record.mean)
-        means.append(np.array(out))
-    scale = np.abs(means[1]).max()
-    np.testing.assert_allclose(means[0], means[1], rtol=algebra_rtol(1e4), atol=algebra_rtol(1e4) * scale)

@@ -1,6 +1,7 @@
-"""The unscented particle filter against independent references: the Kalman filter on a linear
-model, the bootstrap weights when the proposal is the prior (exact cancellation), and 1-D
-quadrature of the one-step posterior under gamma process noise."""
+"""The unscented particle filter against independent references: the bootstrap weights when the
+proposal is the prior (exact cancellation) and 1-D quadrature of the one-step posterior under
+gamma process noise. The UPF against the Kalman filter and across the bearing cut is in the shared
+oracle suite (``test_filter_oracles.py``)."""
 
 from dataclasses import replace
 
@@ -9,38 +10,13 @@ import pytest
 from scipy.integrate import quad
 
 from gpfverify.errors import InputError
-from gpfverify.filters.kalman import kf_step
 from gpfverify.filters.likelihoods import measurement_loglik
-from gpfverify.filters.records import Gaussian
 from gpfverify.filters.resampling import Particles, normalize_log_weights
 from gpfverify.filters.upf import upf_step
 from gpfverify.linalg import cholesky
 from gpfverify.models import linear_model
 from gpfverify.scenarios.growth import gamma_benchmark_model
 from gpfverify.tolerances import QUADRATURE_RTOL, algebra_rtol, monte_carlo_atol
-
-
-def test_upf_agrees_with_the_kalman_filter_within_monte_carlo_error():
-    F = np.array([[1.0, 1.0], [0.0, 0.9]])
-    H = np.array([[1.0, 0.0]])
-    Q, R = np.diag([0.3, 0.2]), np.array([[0.5]])
-    model = linear_model(F, H, Q, R, prior_mean=[0.5, -0.5])
-    prior = Gaussian(model.prior_mean, model.prior_cov)
-    _, ys = model.simulate(4, np.random.default_rng(3), x0=prior.mean)
-    kalman = prior
-    for k, y in enumerate(ys, 1):
-        kalman = kf_step(kalman, model, y, k=k).posterior
-    runs, count = 24, 1000
-    errs = []
-    for seed in range(runs):
-        rng = np.random.default_rng(200 + seed)
-        belief = Particles.from_gaussian(prior.mean, prior.cov, count, rng)
-        for k, y in enumerate(ys, 1):
-            record = upf_step(belief, model, y, k=k, rng=rng)
-            belief = record.posterior
-        errs.append(np.concatenate([record.mean - kalman.mean, (record.cov - kalman.cov).ravel()]))
-    errs = np.array(errs)
-    np.testing.assert_array_less(np.abs(errs.mean(0)), monte_carlo_atol(errs.std(0, ddof=1), runs))
 
 
 def test_prior_proposal_gives_the_bootstrap_weights():
