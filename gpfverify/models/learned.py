@@ -25,7 +25,7 @@ import numpy as np
 
 from gpfverify.errors import InputError
 from gpfverify.gp import GaussianProcess, GaussianProcessStack
-from gpfverify.models.system import StateSpaceModel, _indices
+from gpfverify.models.system import StackedMeasurement, StateSpaceModel, _indices
 
 
 def _check_gp(gp, what: str, in_dim: int | None = None, out_dim: int | None = None):
@@ -40,7 +40,7 @@ def _check_gp(gp, what: str, in_dim: int | None = None, out_dim: int | None = No
 
 
 @dataclass(frozen=True, eq=False)
-class GPModel:
+class GPModel(StackedMeasurement):
     """``transition`` GP (D → D), ``sensors`` measurement GPs (D → l_m), ``sensor_circular`` the
     angle outputs of each sensor (0-based; empty tuple or omitted: none), ``circular_state`` the
     angle state components."""
@@ -74,16 +74,6 @@ class GPModel:
     @property
     def sizes(self) -> tuple[int, ...]:
         return tuple(gp.output_dim for gp in self.sensors)
-
-    @property
-    def measurement_dim(self) -> int:
-        return int(sum(self.sizes))
-
-    @cached_property
-    def circular(self) -> tuple[int, ...]:
-        """Angle outputs of the stacked measurement."""
-        starts = np.cumsum((0,) + self.sizes)
-        return tuple(int(s) + i for s, c in zip(starts, self.sensor_circular) for i in c)
 
     @cached_property
     def measurement(self):

@@ -111,8 +111,28 @@ def _floats(value, what: str, ndim: int) -> np.ndarray:
     return np.atleast_2d(arr) if ndim == 2 else np.atleast_1d(arr)
 
 
+class StackedMeasurement:
+    """The stacked measurement y = [y¹; …; y^N] of a model's sensors, shared by the model types:
+    they define ``sizes`` (l_1, …, l_N) and ``sensor_circular`` (each sensor's angle outputs)."""
+
+    @property
+    def measurement_dim(self) -> int:
+        return int(sum(self.sizes))
+
+    @cached_property
+    def blocks(self) -> tuple[slice, ...]:
+        """Slice of sensor m's outputs in the stacked measurement."""
+        ends = np.cumsum((0,) + tuple(self.sizes))
+        return tuple(slice(int(a), int(b)) for a, b in zip(ends[:-1], ends[1:]))
+
+    @cached_property
+    def circular(self) -> tuple[int, ...]:
+        """Indices of the angle outputs in the stacked measurement."""
+        return tuple(b.start + i for b, c in zip(self.blocks, self.sensor_circular) for i in c)
+
+
 @dataclass(frozen=True, eq=False)
-class StateSpaceModel:
+class StateSpaceModel(StackedMeasurement):
     """The model of the module docstring. After construction ``transition`` and every sensor's
     ``measure`` are :class:`ModelFunction`\\ s, ``process_cov``, ``prior_mean``, ``prior_cov`` and
     every ``noise_cov`` validated float arrays, ``sensors`` a tuple."""
@@ -189,19 +209,9 @@ class StateSpaceModel:
         return tuple(s.size for s in self.sensors)
 
     @property
-    def measurement_dim(self) -> int:
-        return int(sum(self.sizes))
-
-    @cached_property
-    def blocks(self) -> tuple[slice, ...]:
-        """Slice of sensor m's outputs in the stacked measurement."""
-        ends = np.cumsum((0,) + self.sizes)
-        return tuple(slice(int(a), int(b)) for a, b in zip(ends[:-1], ends[1:]))
-
-    @cached_property
-    def circular(self) -> tuple[int, ...]:
-        """Indices of the angle outputs in the stacked measurement."""
-        return tuple(b.start + i for b, s in zip(self.blocks, self.sensors) for i in s.circular)
+    def sensor_circular(self) -> tuple[tuple[int, ...], ...]:
+        """Each sensor's angle outputs."""
+        return tuple(s.circular for s in self.sensors)
 
     @property
     def Q(self) -> np.ndarray:
