@@ -33,20 +33,25 @@ def wrap(angle) -> np.ndarray:
 
 
 def difference(a, b, circular: Sequence[int]) -> np.ndarray:
-    """a − b over the last axis, with the components listed in ``circular`` wrapped to (−π, π]."""
-    diff = np.asarray(a, dtype=float) - np.asarray(b, dtype=float)
-    if len(circular):
-        idx = list(circular)
-        diff[..., idx] = wrap(diff[..., idx])
+    """a − b over the last axis, with the components listed in ``circular`` (distinct indices)
+    wrapped to (−π, π]."""
+    diff = np.subtract(a, b, dtype=float)
+    if len(circular) == 0:
+        return diff
+    if len(circular) == diff.shape[-1]:  # every component is an angle
+        return wrap(diff)
+    idx = list(circular)
+    diff[..., idx] = wrap(diff[..., idx])
     return diff
 
 
 def wrap_components(values, circular: Sequence[int]) -> np.ndarray:
     """``values`` with the components listed in ``circular`` (last axis) wrapped to (−π, π]."""
+    if len(circular) == 0:
+        return np.asarray(values, dtype=float)
     values = np.array(values, dtype=float)
-    if len(circular):
-        idx = list(circular)
-        values[..., idx] = wrap(values[..., idx])
+    idx = list(circular)
+    values[..., idx] = wrap(values[..., idx])
     return values
 
 

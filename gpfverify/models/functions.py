@@ -78,7 +78,7 @@ class ModelFunction:
             else:
                 raise InputError(f"{self.name} returned shape {out.shape} for {n} state(s); "
                                  f"expected ({n}, {self.out_dim})")
-        if not np.all(np.isfinite(out)):
+        if not np.isfinite(out).all():
             raise InputError(f"{self.name} returned NaN or inf at step k={k}")
         return out
 
@@ -145,7 +145,7 @@ class NumpyFunction(ModelFunction):
             if value.size != self.out_dim * self.in_dim:
                 raise InputError(f"{self.name} jacobian returned shape {value.shape}; expected {shape}")
             value = value.reshape(shape)
-        if not np.all(np.isfinite(value)):
+        if not np.isfinite(value).all():
             raise InputError(f"{self.name} jacobian returned NaN or inf at step k={k}")
         return value
 
