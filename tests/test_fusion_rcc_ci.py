@@ -1,15 +1,19 @@
 """RCC-CI: primal against the explicitly solved dual, the bound against optimal CI, the centre in
 the intersection, closed-form cases (symmetric configurations, the smallest intersecting size),
-equivariance, and the empty-intersection error/fallback."""
+equivariance, the empty-intersection error/fallback, and bitwise independence of earlier solves."""
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from gpfverify.errors import InputError, SolverError
 from gpfverify.filters.records import Gaussian
 from gpfverify.fusion import rcc_ci as rcc
 from gpfverify.fusion.ci import covariance_intersection, criterion_value
 from gpfverify.fusion.synthetic import random_spd
+from gpfverify.strategies.estimates import correlated_estimates
+from gpfverify.strategies.profiles import scaled_examples
 from gpfverify.tolerances import SOLVER_TOL
 
 #: x* maximises a strongly concave objective: its accuracy is the square root of the objective's.
@@ -110,3 +114,24 @@ def test_bad_arguments():
         rcc.rcc_ci(ests, c=-1.0)
     with pytest.raises(InputError, match="on_empty"):
         rcc.rcc_ci(ests, on_empty="ignore")
+
+
+def _bits(res: rcc.RccCiResult) -> list[bytes]:
+    return [np.asarray(v, dtype=float).tobytes() for v in
+            (res.mean, res.cov, res.weights, res.alpha, res.c, res.primal_mean, res.primal_value)]
+
+
+@settings(max_examples=scaled_examples(0.25))
+@given(target=correlated_estimates(count=st.integers(2, 3), state_dim=st.integers(1, 3)),
+       earlier=st.lists(st.integers(0, 2**32 - 1), min_size=1, max_size=3))
+def test_a_solve_is_bitwise_independent_of_earlier_solves(target, earlier):
+    """The contract's determinism across workers and --resume rests on this: the same inputs give
+    the same bits whether the process has solved other problems of the same size before or not
+    (a warm-started solver, or a fallback chosen by the cache's history, broke it)."""
+    ests = list(target.estimates)
+    n, d = len(ests), ests[0].mean.shape[0]
+    rcc._primal_problem.cache_clear()
+    first = _bits(rcc.rcc_ci(ests, on_empty="enlarge"))
+    for seed in earlier:  # other problems of the same size, through the same cached problem
+        rcc.rcc_ci(_estimates(seed, n, d), on_empty="enlarge")
+    assert _bits(rcc.rcc_ci(ests, on_empty="enlarge")) == first

@@ -26,7 +26,9 @@ uses c = :data:`EMPTY_GROWTH` · c_min and records it.
 Numerics. The RCC is equivariant under translations and isotropic scalings, so the problem is
 solved in coordinates ξ = (x − x̄)/s with x̄ the mean of the x_m and s² = c · max_m λ_max(P_m): every
 ellipsoid then has semi-axes ≤ 1. The problems are DPP (parameters A_m, b_m, d_m), built once per
-(N, D) and re-solved with new values; Clarabel by default.
+(N, D, solver) and re-solved with new values; Clarabel by default, SCS when Clarabel raises.
+Every solve is a function of its inputs alone (no warm start from the previous solve), so a Monte
+Carlo run gives the same bits whichever runs its process solved before (CONTRACT.md, Provenance).
 """
 
 from __future__ import annotations
@@ -102,7 +104,9 @@ def _normalise(estimates, info, c: float) -> _Normalised:
 
 
 @lru_cache(maxsize=32)
-def _primal_problem(n: int, dim: int):
+def _primal_problem(n: int, dim: int, solver: str = cp.CLARABEL):
+    """The DPP primal for N ellipsoids in D dimensions, built once per (N, D, solver): a problem is
+    only ever solved by one solver, so switching solvers never recompiles a shared object."""
     A = [cp.Parameter((dim, dim)) for _ in range(n)]  # symmetric by construction; unchecked is cheaper
     b = [cp.Parameter(dim) for _ in range(n)]
     d = [cp.Parameter() for _ in range(n)]
@@ -114,7 +118,7 @@ def _primal_problem(n: int, dim: int):
 
 
 @lru_cache(maxsize=32)
-def _dual_problem(n: int, dim: int):
+def _dual_problem(n: int, dim: int, solver: str = cp.CLARABEL):
     A = [cp.Parameter((dim, dim), symmetric=True) for _ in range(n)]
     b = [cp.Parameter(dim) for _ in range(n)]
     d = cp.Parameter(n)
@@ -128,20 +132,25 @@ def _dual_problem(n: int, dim: int):
 
 
 def _solve(problem, solver: str, what: str) -> str:
+    """One solve that depends on this problem's parameter values alone: ``warm_start=False`` makes
+    cvxpy build a new solver object instead of updating the one cached by the previous solve (an
+    updated Clarabel solver gives results differing in the last bits from a fresh one, so a run's
+    numbers depended on what the process had solved before)."""
     try:
-        problem.solve(solver=solver)
+        problem.solve(solver=solver, warm_start=False)
     except cp.SolverError as exc:
         raise SolverError(f"{what} failed: {exc}") from None
     return problem.status
 
 
 def _solve_parametrised(build, size: tuple[int, int], set_values, solver: str, what: str):
-    """Solve the cached parametrised problem ``build(*size)``; if the solver raises, solve a freshly
-    built copy (a re-solve of a cached problem has been seen to fail in Clarabel where a fresh one
-    succeeds), then the same with SCS. Returns (status, problem, variables) of the solve used."""
-    attempts = [(build, solver), (build.__wrapped__, solver), (build.__wrapped__, cp.SCS)]
-    for k, (make, use) in enumerate(attempts):
-        problem, params, *variables = make(*size)
+    """Solve the cached parametrised problem ``build(*size, solver)``; if the solver raises, the
+    same with SCS. Each attempt is a function of the parameter values alone (no warm start, one
+    solver per cached problem), so the path taken and the numbers returned do not depend on
+    earlier solves in this process. Returns (status, problem, variables) of the solve used."""
+    attempts = [solver] + ([cp.SCS] if solver != cp.SCS else [])
+    for k, use in enumerate(attempts):
+        problem, params, *variables = build(*size, use)
         set_values(params)
         try:
             return _solve(problem, use, what), problem, variables
