@@ -1,21 +1,33 @@
 """Rank-condition audit of a fusion step (SPEC §3, use 3): which sensor's cross term C_xy^m lost
 column rank, whether DMF is exact anyway, how large the gap is, and what repairs it.
 
-For every sensor: the singular values of C_xy^m, the absolute rank tolerance used (explicit, or
-numpy's matrix_rank rule σ_max · max(D, l_m) · eps), rank and condition number, the
-necessary-and-sufficient exactness verdict ‖G_m C_y^m N_m‖₂ ≤ tol (see
-:mod:`gpfverify.fusion.exactness`), and the repair dimension l_m − r_m with its basis N_m.
+For every sensor: the singular values of C_xy^m, the canonical correlations ρ of state and sensor
+output, the rank under the *rank rule* (:class:`~gpfverify.fusion.exactness.RankRule`; default
+``canonical``: ρ_i > τ = :data:`~gpfverify.tolerances.CANONICAL_RANK_TOL`, unit-free; a case's
+``rank_tol`` or an explicit ``rank_tol`` means the ``absolute`` rule on singular values; ``numpy``:
+σ_max · max(D, l_m) · eps), the tolerance that decided it (``tol``, in the rule's own units: τ for
+canonical, a singular value otherwise), the condition number σ_max/σ_min of C_xy^m, the
+necessary-and-sufficient exactness verdict ‖G_m C_y^m N_m‖ ≤ tol (whitened by L_p⁻¹, so unit-free,
+under the canonical rule; see :mod:`gpfverify.fusion.exactness`), and the repair dimension
+l_m − r_m with its basis N_m.
+
+JSON (:func:`audit_to_dict`): top-level ``"rank_rule"`` = {"name", "tol" (null for numpy, whose
+tolerance is per matrix), "covariance" (whitening covariance of the canonical correlations:
+"local C_p from C_e", "central C_p", "mixed" when the sensors differ, null when none could be
+computed), "description"}; per sensor ``"rank_rule"`` = {"name", "tol" (the one used for this
+matrix), "covariance"} and ``"canonical_correlations"`` (reported under every rule when the
+whitening succeeds, else null).
 
 With y: CMF, the observed gap DMF − CMF, the closed-form gap, each sensor's repair message
-r_m = N_mᵀ(C_y^m)⁻¹(y^m − μ_y^m), the repaired DMF, and how far each logged local posterior is from
+k_m = (I − P_m)(C_y^m)⁻¹(y^m − μ_y^m) (an l_m-vector, basis-free), the repaired DMF, and how far each logged local posterior is from
 the local update with that y (when it is not, the observed and predicted gaps may differ).
 Without y the gap cannot be evaluated: μ_e^m − μ_p^m = C_xy^m w_m fixes w_m = (C_y^m)⁻¹(y^m − μ_y^m)
-only on range(C_xy^mᵀ); the kernel component N_mᵀw_m is lost, and the gap is −Σ_m G_m C_y^m N_m N_mᵀw_m
-(so ``gap_gain_norm`` is the largest gap per unit of lost component).
+only on range(P_m); the kernel component (I − P_m) w_m = N_m Ñ_mᵀ w_m is lost, and the gap is
+−Σ_m G_m C_y^m N_m Ñ_mᵀ w_m (so ``gap_gain_norm`` is the largest gap per unit of lost component).
 
 :func:`audit_run` applies the same audit to every step of a filter run.
 
-With y, each sensor's own share of the gap, 2π G_m n_m − G_m C_y^m N_m r_m, says which sensor's
+With y, each sensor's own share of the gap, 2π G_m n_m − G_m C_y^m k_m, says which sensor's
 report drives it. n_m are the *branch offsets* of its angle outputs
 (:func:`~gpfverify.fusion.exactness.branch_offsets`): where the separately wrapped eq. 35 terms
 wrap(μ_y^m − μ_y(m)) + wrap(y^m − μ_y^m) leave (−π, π], DMF's innovation differs from CMF's
@@ -34,19 +46,24 @@ from typing import Iterable, Sequence
 
 import numpy as np
 
+from gpfverify.errors import NumericalError
 from gpfverify.fusion.case import FusionCase, case_from_records
 from gpfverify.fusion.centralized import cmf_update
 from gpfverify.fusion.distributed import dmf_update
-from gpfverify.fusion.exactness import (branch_offsets, local_consistency_residual, predicted_gap,
-                                        sensor_gap, whitened_innovation)
+from gpfverify.fusion.exactness import (COVARIANCE_CENTRAL, COVARIANCE_LOCAL, DEFAULT_RANK_RULE,  # noqa: F401
+                                        NUMPY_RANK_RULE, RankRule, branch_offsets, canonical_split,
+                                        local_consistency_residual, parse_rank_rule, predicted_gap,
+                                        resolve_rank_rule, sensor_gap, sensor_prior_covariance,
+                                        whitened_innovation)
 from gpfverify.tolerances import algebra_rtol
 
-RANK_RULE_DEFAULT = "numpy matrix_rank rule: sigma_max * max(D, l_m) * eps"
+RANK_RULE_DEFAULT = DEFAULT_RANK_RULE.describe() + "; a case's rank_tol means the absolute rule"
 
 NOTE_NO_Y = ("y not given: the gap cannot be evaluated. mu_e^m - mu_p^m = C_xy^m w_m determines the "
-             "whitened local innovation w_m = (C_y^m)^-1 (y^m - mu_y^m) only on range(C_xy^m^T); its "
-             "kernel component (repair_dim numbers per sensor) is lost, and the gap is "
-             "-sum_m G_m C_y^m N_m N_m^T w_m (gap_gain_norm = largest gap per unit of that component).")
+             "whitened local innovation w_m = (C_y^m)^-1 (y^m - mu_y^m) only on range(P_m) (the rank "
+             "rule's split); its kernel component (I - P_m) w_m (repair_dim dimensions per sensor) is "
+             "lost, and the gap is -sum_m G_m C_y^m (I - P_m) w_m (gap_gain_norm = largest gap per unit "
+             "of that component).")
 
 
 @dataclass(frozen=True)
@@ -70,6 +87,9 @@ class SensorAudit:
     gap_contribution: np.ndarray | None = None
     sensitivity: object | None = None  # gpfverify.symbolic.sensitivity.SensorSensitivity
     branch_offsets: np.ndarray | None = None
+    rank_rule: RankRule | None = None
+    canonical_correlations: np.ndarray | None = None
+    covariance: str | None = None
 
     @property
     def full_column_rank(self) -> bool:
@@ -82,12 +102,13 @@ class SensorAudit:
 
 @dataclass(frozen=True)
 class CaseAudit:
-    """Audit of one fusion case: ``condition_holds`` (Proposition 1: every C_xy^m full column
-    rank), ``exact`` (the necessary-and-sufficient condition for every sensor); the y-dependent
-    fields are None without y."""
+    """Audit of one fusion case: ``rank_rule`` the :class:`RankRule` that decided,
+    ``condition_holds`` (Proposition 1: every C_xy^m full column rank), ``exact`` (the
+    necessary-and-sufficient condition for every sensor); the y-dependent fields are None
+    without y."""
 
     sensors: tuple[SensorAudit, ...]
-    rank_rule: str
+    rank_rule: RankRule
     condition_holds: bool
     exact: bool
     dmf_mean: np.ndarray
@@ -95,6 +116,13 @@ class CaseAudit:
     gap: np.ndarray | None = None
     predicted_gap: np.ndarray | None = None
     repaired_dmf_mean: np.ndarray | None = None
+
+    @property
+    def covariance(self) -> str | None:
+        """Whitening covariance of the canonical correlations: the sensors' common one, "mixed", or
+        None when none was computed."""
+        used = {s.covariance for s in self.sensors if s.covariance is not None}
+        return None if not used else used.pop() if len(used) == 1 else "mixed"
 
     @property
     def notes(self) -> list[str]:
@@ -127,17 +155,39 @@ def _consistency_tol(case: FusionCase, m: int) -> float:
     return algebra_rtol(eig[-1] / eig[0]) * scale
 
 
-def audit_case(case: FusionCase, rank_tol: float | None = None, sensitivity: bool = False) -> CaseAudit:
-    """The rank-condition audit of one case (``rank_tol`` overrides ``case.rank_tol``);
-    ``sensitivity`` adds the per-sensor Jacobian norms (imports casadi)."""
-    tol = case.rank_tol if rank_tol is None else rank_tol
-    dmf = dmf_update(case, rank_tol=tol)
+def _correlations(case: FusionCase, m: int, split) -> tuple[np.ndarray | None, str | None]:
+    """Canonical correlations of sensor m (from its split under the canonical rule, else computed
+    for the report) and the covariance that whitened the state; (None, None) if not computable."""
+    if split.correlations is not None:
+        return split.correlations, split.covariance
+    local = case.locals[m]
+    try:
+        prior, which = sensor_prior_covariance(local, case.central.C_p)
+        try:
+            return canonical_split(local.C_xy, prior, local.C_y, covariance=which).correlations, which
+        except NumericalError:
+            if which != COVARIANCE_LOCAL:
+                raise
+            return canonical_split(local.C_xy, case.central.C_p, local.C_y).correlations, COVARIANCE_CENTRAL
+    except (NumericalError, np.linalg.LinAlgError):
+        return None, None
+
+
+def audit_case(case: FusionCase, rank_tol: float | None = None, sensitivity: bool = False,
+               rank_rule: RankRule | str | None = None) -> CaseAudit:
+    """The rank-condition audit of one case under ``rank_rule`` (a :class:`RankRule` or its string,
+    :func:`parse_rank_rule`), else the absolute ``rank_tol``, else the case's ``rank_tol``
+    (absolute), else the canonical rule; ``sensitivity`` adds the per-sensor Jacobian norms
+    (imports casadi; their pseudo-inverse follows the absolute/numpy rule — the canonical rule's
+    split is not available to the casadi forms, so under it they use numpy's rule)."""
+    rule = resolve_rank_rule(case, rank_rule, rank_tol)
+    dmf = dmf_update(case, rank_rule=rule)
     has_y = case.y is not None
     jacobians = [None] * len(dmf.sensors)
     if sensitivity:
         from gpfverify.symbolic.sensitivity import dmf_sensitivity
 
-        jacobians = list(dmf_sensitivity(case, tol))
+        jacobians = list(dmf_sensitivity(case, rule.tol if rule.name == "absolute" else None))
     offsets = branch_offsets(case) if has_y else [None] * len(dmf.sensors)
     sensors = []
     for s in dmf.sensors:
@@ -145,9 +195,10 @@ def audit_case(case: FusionCase, rank_tol: float | None = None, sensitivity: boo
         message = residual = contribution = None
         if has_y:
             y_m = case.local_measurement(s.index)
-            message = s.split.kernel_basis.T @ whitened_innovation(case.locals[s.index], y_m)
+            message = s.split.kernel_component(whitened_innovation(case.locals[s.index], y_m))
             residual = float(np.linalg.norm(local_consistency_residual(case, s.index)))
             contribution = sensor_gap(case, s, dmf.gain, offsets[s.index])
+        rho, covariance = _correlations(case, s.index, s.split)
         sensors.append(SensorAudit(
             index=s.index, rows=rank.shape[0], cols=rank.shape[1], rank=rank.rank,
             singular_values=rank.singular_values, tol=rank.tol, condition_number=rank.condition_number,
@@ -156,15 +207,20 @@ def audit_case(case: FusionCase, rank_tol: float | None = None, sensitivity: boo
             local_consistency_residual=residual,
             consistency_tol=_consistency_tol(case, s.index) if has_y else None,
             gap_contribution=contribution, sensitivity=jacobians[s.index],
-            branch_offsets=offsets[s.index]))
-    rule = RANK_RULE_DEFAULT if tol is None else f"explicit absolute tolerance {tol:g}"
+            branch_offsets=offsets[s.index], rank_rule=rule, canonical_correlations=rho,
+            covariance=covariance))
     if not has_y:
         return CaseAudit(tuple(sensors), rule, dmf.condition_holds, dmf.exact, dmf.mean)
     cmf = cmf_update(case.central, case.y, dmf.gain)
-    repaired = dmf_update(case, [s.repair_message for s in sensors], rank_tol=tol)
+    repaired = dmf_update(case, [s.repair_message for s in sensors], rank_rule=rule)
     return CaseAudit(tuple(sensors), rule, dmf.condition_holds, dmf.exact, dmf.mean, cmf.mean,
                      dmf.mean - cmf.mean,
                      predicted_gap(case, dmf.sensors, dmf.gain), repaired.mean)
+
+
+def rank_rule_to_dict(rule: RankRule, covariance: str | None = None, tol: float | None = None) -> dict:
+    """{"name", "tol", "covariance"}: ``tol`` overrides the rule's own (numpy's is per matrix)."""
+    return {"name": rule.name, "tol": rule.tol if tol is None else float(tol), "covariance": covariance}
 
 
 def _finite_or_none(x: float):
@@ -176,6 +232,9 @@ def audit_to_dict(audit: CaseAudit) -> dict:
     out = {
         "sensors": [{
             "index": s.index, "rows": s.rows, "cols": s.cols, "rank": s.rank,
+            "rank_rule": rank_rule_to_dict(audit.rank_rule, s.covariance, s.tol),
+            "canonical_correlations": None if s.canonical_correlations is None
+            else s.canonical_correlations.tolist(),
             "full_column_rank": s.full_column_rank, "singular_values": s.singular_values.tolist(),
             "tol": s.tol, "exact": s.exact, "repair_dim": s.repair_dim,
             "condition_number": _finite_or_none(s.condition_number),
@@ -188,9 +247,11 @@ def audit_to_dict(audit: CaseAudit) -> dict:
                 "branch_offsets": s.branch_offsets.tolist()}),
             **({} if s.sensitivity is None else {"sensitivity": {
                 "jacobian_norms": s.sensitivity.jacobian_norms, "sigma_r": s.sensitivity.sigma_r,
-                "mu_e_bound": _finite_or_none(s.sensitivity.mu_e_bound)}}),
+                "mu_e_bound": _finite_or_none(s.sensitivity.mu_e_bound),
+                "rank_rule": "absolute" if audit.rank_rule.name == "absolute" else "numpy"}}),
         } for s in audit.sensors],
-        "rank_rule": audit.rank_rule,
+        "rank_rule": {**rank_rule_to_dict(audit.rank_rule, audit.covariance),
+                      "description": audit.rank_rule.describe()},
         "condition_holds": audit.condition_holds,
         "exact": audit.exact,
         "dmf_mean": audit.dmf_mean.tolist(),
@@ -211,15 +272,23 @@ def _vec(v) -> str:
 
 def format_audit(audit: CaseAudit) -> str:
     """Human-readable audit report."""
-    lines = [f"rank tolerance: {audit.rank_rule}", ""]
+    rule = audit.rank_rule
+    decided = "canonical correlations (tau)" if rule.name == "canonical" else "singular values (tol)"
+    lines = [f"rank rule ({rule.spec}): {rule.describe()}"
+             + (f"; whitened with {audit.covariance}" if audit.covariance else ""),
+             f"the rank is decided by the {decided}", ""]
     header = f"{'sensor':>6} {'D x l':>7} {'rank':>4} {'full col':>8} {'cond':>10} {'exact':>5} " \
-             f"{'gap gain':>10} {'repair':>6}  singular values (tol)"
+             f"{'gap gain':>10} {'repair':>6}  {decided}; other"
     lines.append(header)
     for s in audit.sensors:
         cond = "inf" if not np.isfinite(s.condition_number) else f"{s.condition_number:.3g}"
+        rho = "n/a" if s.canonical_correlations is None else _vec(s.canonical_correlations)
+        if rule.name == "canonical":
+            evidence = f"rho {rho} ({s.tol:.3g}); singular values {_vec(s.singular_values)}"
+        else:
+            evidence = f"singular values {_vec(s.singular_values)} ({s.tol:.3g}); rho {rho}"
         lines.append(f"{s.index:>6} {f'{s.rows}x{s.cols}':>7} {s.rank:>4} {str(s.full_column_rank):>8} "
-                     f"{cond:>10} {str(s.exact):>5} {s.gap_gain_norm:>10.3g} {s.repair_dim:>6}  "
-                     f"{_vec(s.singular_values)} ({s.tol:.3g})")
+                     f"{cond:>10} {str(s.exact):>5} {s.gap_gain_norm:>10.3g} {s.repair_dim:>6}  {evidence}")
     lines += ["", f"Proposition 1 condition (every C_xy^m full column rank): {audit.condition_holds}",
               f"DMF exact for every measurement (ker C_xy^m in ker G_m C_y^m): {audit.exact}",
               f"DMF mean: {_vec(audit.dmf_mean)}"]
@@ -231,7 +300,8 @@ def format_audit(audit: CaseAudit) -> str:
                   f"repaired DMF mean: {_vec(audit.repaired_dmf_mean)}"]
         for s in audit.sensors:
             if s.repair_dim:
-                lines.append(f"sensor {s.index} repair message ({s.repair_dim} numbers): {_vec(s.repair_message)}; "
+                lines.append(f"sensor {s.index} repair message (kernel component of w_m, {s.repair_dim} "
+                             f"dimension(s)): {_vec(s.repair_message)}; "
                              f"its share of the gap: {_vec(s.gap_contribution)}")
     for s in audit.sensors:
         if s.sensitivity is not None:
@@ -285,9 +355,12 @@ class RunAudit:
                          for s in self.steps])
 
 
-def audit_run(cases: Iterable[FusionCase], rank_tol: float | None = None) -> RunAudit:
-    """The audit of every step of a run."""
-    return RunAudit(tuple(audit_case(c, rank_tol) for c in cases))
+def audit_run(cases: Iterable[FusionCase], rank_tol: float | None = None,
+              rank_rule: RankRule | str | None = None) -> RunAudit:
+    """The audit of every step of a run (rule as in :func:`audit_case`)."""
+    rule = None if rank_rule is None else resolve_rank_rule(None, rank_rule, rank_tol)
+    return RunAudit(tuple(audit_case(c, rank_tol, rank_rule=rule) if rule is None
+                          else audit_case(c, rank_rule=rule) for c in cases))
 
 
 def cases_from_run(central_records: Sequence, local_records: Sequence[Sequence], sizes: Sequence[int],

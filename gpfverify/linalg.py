@@ -123,3 +123,78 @@ def numerical_rank(a: np.ndarray, tol: float | None = None) -> RankReport:
     s = np.linalg.svd(a, compute_uv=False) if a.size else np.zeros(0)
     used = numpy_rank_tol(s, a.shape) if tol is None else float(tol)
     return RankReport(int(np.sum(s > used)), s, used, (a.shape[0], a.shape[1]))
+
+
+def equilibrated_cholesky(a: np.ndarray, name: str = "matrix") -> tuple[np.ndarray, np.ndarray]:
+    """``(d, L)`` with ``a ≈ diag(d) L Lᵀ diag(d)``: ``d`` the square roots of the diagonal (1 where
+    it is zero) and ``L`` the lower Cholesky factor of the correlation matrix ``a / (d dᵀ)``
+    (jitter as :func:`cholesky`, now relative to a unit diagonal). Rescaling a coordinate of
+    ``a`` rescales its ``d`` entry and leaves ``L`` unchanged up to rounding, so whitening by
+    ``diag(d) L`` does not depend on units."""
+    a = symmetrize(np.asarray(a, dtype=float))
+    diag = np.diag(a).copy()
+    d = np.sqrt(np.where(diag > 0, diag, 1.0))
+    return d, cholesky(a / np.outer(d, d), name).factor
+
+
+@dataclass(frozen=True)
+class CanonicalCorrelations:
+    """The SVD K = U diag(ρ) Vᵀ of the whitened cross covariance K = L_x⁻¹ C_xy L_y⁻ᵀ, where
+    C_x = L_x L_xᵀ and C_y = L_y L_yᵀ with L = diag(d) L_c (:func:`equilibrated_cholesky`).
+
+    ``correlations`` ρ (min(n, l),) decreasing; ``u`` (n, n) and ``v`` (l, l) orthogonal (full
+    SVD); ``scale_x``/``factor_x`` and ``scale_y``/``factor_y`` the (d, L_c) pairs of C_x and C_y.
+    When C_x and C_y are the marginal covariances of a joint Gaussian whose cross covariance is
+    C_xy, ρ are its canonical correlations, in [0, 1]. They are invariant under any invertible
+    linear change of coordinates of x and of y."""
+
+    correlations: np.ndarray
+    u: np.ndarray
+    v: np.ndarray
+    scale_x: np.ndarray
+    factor_x: np.ndarray
+    scale_y: np.ndarray
+    factor_y: np.ndarray
+
+    def whiten_x(self, a: np.ndarray) -> np.ndarray:
+        """L_x⁻¹ a (a solve, no inverse)."""
+        return sla.solve_triangular(self.factor_x, a / self.scale_x.reshape((-1,) + (1,) * (a.ndim - 1)),
+                                    lower=True, check_finite=False)
+
+    def x_dual(self, a: np.ndarray) -> np.ndarray:
+        """L_x⁻ᵀ a."""
+        out = sla.solve_triangular(self.factor_x, a, lower=True, trans="T", check_finite=False)
+        return out / self.scale_x.reshape((-1,) + (1,) * (out.ndim - 1))
+
+    def y_from_whitened(self, b: np.ndarray) -> np.ndarray:
+        """L_y⁻ᵀ b: whitened y-coordinates back to the dual (C_y⁻¹-scaled) space of w."""
+        out = sla.solve_triangular(self.factor_y, b, lower=True, trans="T", check_finite=False)
+        return out / self.scale_y.reshape((-1,) + (1,) * (out.ndim - 1))
+
+    def y_factor_times(self, b: np.ndarray) -> np.ndarray:
+        """L_y b."""
+        return self.scale_y.reshape((-1,) + (1,) * (b.ndim - 1)) * (self.factor_y @ b)
+
+    def times_y_factor(self, g: np.ndarray) -> np.ndarray:
+        """g L_y (g with l columns)."""
+        return (g * self.scale_y) @ self.factor_y
+
+    @property
+    def whitening_condition(self) -> float:
+        """cond(L_x,c) · cond(L_y,c): how much the two equilibrated whitenings can amplify rounding."""
+        def cond(f):
+            return float(np.linalg.cond(f)) if f.size else 1.0
+        return cond(self.factor_x) * cond(self.factor_y)
+
+
+def canonical_correlations(cov_x: np.ndarray, cov_y: np.ndarray, cross: np.ndarray,
+                           names: tuple[str, str] = ("C_x", "C_y")) -> CanonicalCorrelations:
+    """Canonical correlations of x and y from C_x (n, n), C_y (l, l) and C_xy (n, l): the singular
+    values of L_x⁻¹ C_xy L_y⁻ᵀ, computed from the equilibrated factors by triangular solves."""
+    dx, lx = equilibrated_cholesky(cov_x, names[0])
+    dy, ly = equilibrated_cholesky(cov_y, names[1])
+    scaled = np.asarray(cross, dtype=float) / np.outer(dx, dy)
+    left = sla.solve_triangular(lx, scaled, lower=True, check_finite=False)          # L_xc⁻¹ C
+    k = sla.solve_triangular(ly, left.T, lower=True, check_finite=False).T           # … L_yc⁻ᵀ
+    u, s, vt = np.linalg.svd(k, full_matrices=True)
+    return CanonicalCorrelations(s, u, vt.T, dx, lx, dy, ly)

@@ -66,3 +66,22 @@ def numpy_rank_tol(singular_values, shape) -> float:
     """numpy's ``matrix_rank`` default: ``S.max() * max(M, N) * eps``."""
     s = np.asarray(singular_values, dtype=float)
     return float(s.max(initial=0.0) * max(shape) * EPS)
+
+
+#: Default threshold τ of the canonical rank rule (:class:`~gpfverify.fusion.exactness.RankRule`):
+#: a sensor direction counts as carrying information about the state when its canonical
+#: correlation ρ (a singular value of L_p⁻¹ C_xy L_y⁻ᵀ, unit-free, in [0, 1]) exceeds τ.
+#: τ = sqrt(eps) ≈ 1.5e-8, because
+#:
+#: * ρ² is the fraction of the prior variance that the measurement removes along that canonical
+#:   direction (posterior/prior = 1 − ρ²); for ρ ≤ sqrt(eps) that fraction is at most one ulp of
+#:   1, i.e. below what a double-precision covariance can represent: the direction is
+#:   informationless at working precision;
+#: * dropping a direction with correlation ρ changes the fused mean by at most ρ prior standard
+#:   deviations per unit (whitened) innovation, while keeping it amplifies the rounding of the
+#:   reported μ_e^m (≈ eps, relative) by 1/ρ; the larger of the two, max(ρ, eps/ρ), is smallest
+#:   at ρ = sqrt(eps);
+#: * it stays far above the rounding of the computed correlations themselves (≈ eps times the
+#:   condition of the equilibrated covariances: 1e-13 at condition 1e3), so exactly uncorrelated
+#:   directions are never counted as rank.
+CANONICAL_RANK_TOL: float = float(np.sqrt(EPS))

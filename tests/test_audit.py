@@ -14,7 +14,7 @@ from gpfverify.fusion.case import case_to_dict
 from gpfverify.fusion.centralized import cmf_update
 from gpfverify.fusion.distributed import dmf_update
 from gpfverify.fusion.synthetic import random_case, random_spd
-from gpfverify.tolerances import algebra_rtol
+from gpfverify.tolerances import CANONICAL_RANK_TOL, algebra_rtol
 
 SENSOR_KEYS = {"index", "rows", "cols", "rank", "full_column_rank", "singular_values", "tol", "exact",
                "repair_dim"}
@@ -59,7 +59,7 @@ def test_without_y_the_audit_explains_what_cannot_be_recovered():
     case = dataclasses.replace(random_case(np.random.default_rng(3), 2, (3, 2)), y=None)
     out = audit_to_dict(audit_case(case))
     assert not {"cmf_mean", "gap", "predicted_gap"} & set(out)
-    assert any("range(C_xy^m^T)" in n for n in out["notes"])
+    assert any("range(P_m)" in n for n in out["notes"])
 
 
 def test_inconsistent_log_is_flagged():
@@ -82,8 +82,12 @@ def test_audit_json_contract(tmp_path, capsys):
     assert [s["full_column_rank"] for s in data["sensors"]] == [True, False]
     assert data["sensors"][1]["repair_dim"] == 1 and data["condition_holds"] is False
     assert len(data["dmf_mean"]) == len(data["gap"]) == len(data["predicted_gap"]) == 3
-    assert data["sensors"][0]["tol"] == pytest.approx(
-        max(data["sensors"][0]["singular_values"]) * 3 * np.finfo(float).eps)
+    # default rule (changed from numpy's): canonical correlations against tau, tol in the rule's units
+    assert data["rank_rule"]["name"] == "canonical" and data["rank_rule"]["tol"] == CANONICAL_RANK_TOL
+    assert data["rank_rule"]["covariance"] == "local C_p from C_e"
+    for s in data["sensors"]:
+        assert s["tol"] == CANONICAL_RANK_TOL and s["rank_rule"]["name"] == "canonical"
+        assert s["rank"] == sum(rho > CANONICAL_RANK_TOL for rho in s["canonical_correlations"])
 
 
 def test_rank_tolerance_from_file_and_flag(tmp_path, capsys):
@@ -94,7 +98,8 @@ def test_rank_tolerance_from_file_and_flag(tmp_path, capsys):
     path = _write(tmp_path, data)
     out = json.loads(_run(["audit", path, "--json"], capsys)[1])
     assert out["sensors"][0]["tol"] == 1.5 * s_min and out["sensors"][0]["rank"] == 1
-    assert "explicit" in out["rank_rule"]
+    assert out["rank_rule"]["name"] == "absolute" and out["rank_rule"]["tol"] == 1.5 * s_min
+    assert "explicit" in out["rank_rule"]["description"]
     out = json.loads(_run(["audit", path, "--json", "--rank-tol", "0"], capsys)[1])
     assert out["sensors"][0]["tol"] == 0.0 and out["sensors"][0]["rank"] == 2
 

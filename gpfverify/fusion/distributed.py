@@ -3,9 +3,17 @@
 The centre runs its own prediction (μ_p, C_p, μ_y, C_y, C_xy) and receives from each sensor
 μ_p^m, μ_y^m, C_y^m, C_xy^m, μ_e^m. With G = C_xy C_y⁻¹ in column blocks G_m,
 
-    μ_e = μ_p + Σ_m G_m (μ_y^m ⊖ μ_y(m)) + Σ_m G_m C_y^m (C_xy^m)⁺ (μ_e^m − μ_p^m)   (eq. 35)
-              [+ Σ_m G_m C_y^m N_m r_m   with the repair messages r_m, see exactness.py]
+    μ_e = μ_p + Σ_m G_m (μ_y^m ⊖ μ_y(m)) + Σ_m G_m C_y^m A_m (μ_e^m − μ_p^m)       (eq. 35)
+              [+ Σ_m G_m C_y^m (I − P_m) k_m   with the repair messages k_m, see exactness.py]
     C_e = C_p − G C_xyᵀ                                                                (as CMF)
+
+A_m is the truncated generalised inverse of C_xy^m at the rank the rank rule decides
+(:class:`~gpfverify.fusion.exactness.RankRule`): (C_xy^m)⁺ truncated in C_xy^m's own SVD for the
+``numpy``/``absolute`` rules, in the whitened (canonical) coordinates for the default
+``canonical`` rule — on consistent reports of full column rank both are (C_xy^m)⁺ of eq. 35.
+Default rule: an explicit ``rank_rule``, else an explicit ``rank_tol`` (absolute), else the case's
+``rank_tol`` (absolute), else canonical. (:func:`gpfverify.fusion.model_fusion.dmf_step` defaults
+to numpy's rule instead, for the experiments' reference numbers.)
 
 Computed as μ_p + G v with v stacked from the per-sensor terms (one product with G). ⊖ wraps the
 angle outputs (``locals[m].circular``) to (−π, π]; the local update already wrapped y^m − μ_y^m.
@@ -24,19 +32,20 @@ from gpfverify.angles import difference
 from gpfverify.errors import InputError
 from gpfverify.fusion.case import FusionCase
 from gpfverify.fusion.centralized import fused_covariance, fusion_gain
-from gpfverify.fusion.exactness import SensorExactness, analyse_sensors
+from gpfverify.fusion.exactness import RankRule, SensorExactness, analyse_sensors, resolve_rank_rule
 
 
 @dataclass(frozen=True)
 class DMFResult:
     """DMF posterior ``mean`` (D,), ``cov`` (D, D), the central ``gain`` G (D, L), the per-sensor
-    exactness evidence and whether repair messages were used."""
+    exactness evidence, whether repair messages were used and the ``rank_rule`` that decided."""
 
     mean: np.ndarray
     cov: np.ndarray
     gain: np.ndarray
     sensors: tuple[SensorExactness, ...]
     repaired: bool
+    rank_rule: RankRule | None = None
 
     @property
     def condition_holds(self) -> bool:
@@ -50,24 +59,28 @@ class DMFResult:
 
 
 def dmf_update(case: FusionCase, repair_messages: Sequence[np.ndarray] | None = None,
-               rank_tol: float | None = None) -> DMFResult:
-    """Eq. 35 on ``case`` (``rank_tol`` overrides ``case.rank_tol``); with ``repair_messages``
-    (one r_m per sensor, from :func:`~gpfverify.fusion.exactness.repair_message`) the repaired rule
-    that equals CMF whatever the ranks."""
+               rank_tol: float | None = None, rank_rule: RankRule | str | None = None) -> DMFResult:
+    """Eq. 35 on ``case`` under ``rank_rule`` (a :class:`~gpfverify.fusion.exactness.RankRule` or
+    its string, e.g. ``"numpy"``; or an absolute ``rank_tol``; default the case's ``rank_tol``,
+    else canonical); with ``repair_messages`` (one l_m-vector k_m per sensor, from
+    :func:`~gpfverify.fusion.exactness.repair_message` under the same rule) the repaired rule that
+    equals CMF whatever the ranks. The centre applies the kernel projector I − P_m to each message,
+    so the whole w_m works as well as its kernel component."""
     central = case.central
     gain = fusion_gain(central)
-    sensors = analyse_sensors(case, gain, rank_tol)
+    rule = resolve_rank_rule(case, rank_rule, rank_tol)
+    sensors = analyse_sensors(case, gain, rank_rule=rule)
     if repair_messages is not None and len(repair_messages) != len(case.locals):
         raise InputError(f"repair_messages needs {len(case.locals)} entries, got {len(repair_messages)}")
     parts = []
     for s, block, local in zip(sensors, central.blocks, case.locals):
         recovered = s.split.pinv @ (local.mu_e - local.mu_p)
         if repair_messages is not None:
-            r_m = np.asarray(repair_messages[s.index], dtype=float)
-            if r_m.shape != (s.repair_dim,):
-                raise InputError(f"repair message {s.index} must have {s.repair_dim} entries, "
-                                 f"got shape {r_m.shape}")
-            recovered = recovered + s.split.kernel_basis @ r_m
+            k_m = np.asarray(repair_messages[s.index], dtype=float)
+            if k_m.shape != local.mu_y.shape:
+                raise InputError(f"repair message {s.index} must be the kernel component of w_m "
+                                 f"({local.mu_y.shape[0]} entries), got shape {k_m.shape}")
+            recovered = recovered + s.split.kernel_component(k_m)
         parts.append(difference(local.mu_y, central.mu_y[block], local.circular) + local.C_y @ recovered)
     mean = central.mu_p + gain @ np.concatenate(parts)
-    return DMFResult(mean, fused_covariance(central, gain), gain, sensors, repair_messages is not None)
+    return DMFResult(mean, fused_covariance(central, gain), gain, sensors, repair_messages is not None, rule)

@@ -1,6 +1,7 @@
 r"""When the distributed rule (seed 000 eq. 35) reproduces centralized fusion, and how to repair it.
 
-Notation. Sensor m's local update (eq. 32) is μ_e^m − μ_p^m = C_xy^m w_m with the *whitened local
+Notation (written for the orthogonal SVD split; the canonical split below keeps every formula
+with N_mᵀ replaced by Ñ_mᵀ). Sensor m's local update (eq. 32) is μ_e^m − μ_p^m = C_xy^m w_m with the *whitened local
 innovation* w_m = (C_y^m)⁻¹ (y^m ⊖ μ_y^m) ∈ ℝ^{l_m}, where ⊖ is the difference with sensor m's angle
 outputs (``circular``) wrapped to (−π, π]. With the thin SVD C_xy^m = U S Vᵀ at rank
 r_m, let P_m = (C_xy^m)⁺ C_xy^m = V_r V_rᵀ (projector onto range(C_xy^mᵀ)) and N_m an orthonormal
@@ -29,7 +30,7 @@ j. In general (any rank) the block-m innovations differ by 2π n_m − C_y^m N_m
 n_m ∈ {−1, 0, 1}^{l_m} the *branch offsets* (:func:`branch_offsets`; zero on non-angle outputs).
 Both wrapped terms are small when the central and local predictions agree and the measurement is
 near its prediction, so a nonzero offset means |a| + |b| > π: predictions or innovations of
-more than π/2 on an angle. Repair messages do not remove it (they restore only N_mᵀ w_m).
+more than π/2 on an angle. Repair messages do not remove it (they restore only (I − P_m) w_m).
 
 Exactness. As y^m ranges over ℝ^{l_m}, w_m does too, independently per sensor; so DMF = CMF for
 every measurement iff every *gap gain* G_m C_y^m N_m is zero, i.e. ker C_xy^m ⊆ ker G_m C_y^m.
@@ -37,57 +38,298 @@ Full column rank (N_m empty, Proposition 1) is sufficient, not necessary: a meas
 uncorrelated with the state and with every other component has a zero column in C_xy^m and still
 leaves DMF exact. Full column rank needs l_m ≤ D (rank C_xy^m ≤ min(D, l_m)).
 
-Repair. The part of w_m that eq. 35 cannot recover is N_mᵀ w_m: μ_e^m − μ_p^m determines w_m only
-on range(C_xy^mᵀ) (its kernel component is annihilated by C_xy^m). If sensor m also sends the
-l_m − r_m numbers r_m = N_mᵀ w_m (:func:`repair_message`), the centre adds Σ_m G_m C_y^m N_m r_m
-and recovers CMF exactly. Sensor and centre compute N_m from the same C_xy^m with the same rank
-tolerance (:func:`kernel_split`), so they agree on the basis.
+Rank rules (:class:`RankRule`). Which singular directions of C_xy^m count as rank is a choice:
 
-Numerics. Ranks use an explicit absolute singular-value tolerance (default numpy's matrix_rank
-rule σ_max · max(D, l_m) · eps); singular values at or below it count as zero, and the
-pseudo-inverse in eq. 35 uses the same decision. A gap gain counts as zero when
-‖G_m C_y^m N_m‖₂ ≤ algebra_rtol(cond C_y) · ‖G_m‖₂ ‖C_y^m‖₂ — the rounding level of forming the
-product through a solve with the central C_y.
+* ``canonical`` (the library and audit default, τ = :data:`~gpfverify.tolerances.CANONICAL_RANK_TOL`):
+  the canonical correlations of state and sensor output under the sensor's predicted joint,
+  ρ_i = σ_i(K_m), K_m = L_p⁻¹ C_xy^m L_y⁻ᵀ with C_p^m = L_p L_pᵀ, C_y^m = L_y L_yᵀ (Cholesky
+  factors of the equilibrated matrices, triangular solves; :func:`~gpfverify.linalg.canonical_correlations`);
+  rank = #{ρ_i > τ}. Unit-free: rescaling state or measurement coordinates (x → S_x x,
+  y → S_y y, any invertible S) gives L_p → S_x L_p Q, L_y → S_y L_y Q' (Q, Q' orthogonal), so
+  K_m → Qᵀ K_m Q' and ρ do not change. C_p^m is the sensor's own prior covariance: recovered from
+  C_e^m when the case has it, C_p^m = C_e^m + C_xy^m (C_y^m)⁻¹ C_xy^mᵀ (eq. 16 rearranged), else the
+  centre's C_p (then ρ are the correlations *as if* the sensor's prior were the centre's; still
+  unit-free, possibly above 1 when the two priors disagree). Which one was used is reported
+  (``"local C_p from C_e"`` / ``"central C_p"``).
+* ``absolute`` (tol): singular values of C_xy^m above tol (a case's ``rank_tol`` means this);
+* ``numpy``: singular values above numpy's matrix_rank rule σ_max · max(D, l_m) · eps.
+
+The last two depend on units: a bearing in microradians instead of radians multiplies its column
+of C_xy^m by 1e6. They are kept, bit for bit as before, for the experiments' reference numbers.
+
+Kernel split. With the SVD rules the split is the orthogonal one above: (C_xy^m)⁺ truncated at the
+rank, N_m orthonormal, P_m = V_r V_rᵀ. With the canonical rule the truncation is done in the
+whitened coordinates and mapped back. Let K_m = U diag(ρ) Vᵀ (full SVD), r the rank, and
+
+    A_m = L_y⁻ᵀ V_r diag(ρ_r)⁻¹ U_rᵀ L_p⁻¹        (the truncated generalised inverse, ``pinv``),
+    N_m = L_y⁻ᵀ V_⊥,   Ñ_m = L_y V_⊥ = C_y^m N_m      (``kernel_basis``, ``cokernel``).
+
+Then A_m C_xy^m = L_y⁻ᵀ (K_r⁺ K_m) L_yᵀ = L_y⁻ᵀ V_r V_rᵀ L_yᵀ =: P_m *exactly*, for the truncated
+K_r⁺ whatever the dropped ρ_i are (U_rᵀ U = [I 0]). P_m is idempotent but not symmetric: an oblique
+projector, orthogonal in the metric of C_y^m (C_y^m P_m = L_y V_r V_rᵀ L_yᵀ is symmetric), and
+I − P_m = N_m Ñ_mᵀ with Ñ_mᵀ N_m = I. The gap derivation above used only A_m C_xy^m = P_m and
+I − P_m = N_m Ñ_mᵀ, so with N_mᵀ w_m replaced by Ñ_mᵀ w_m it holds unchanged:
+
+    μ_DMF − μ_CMF = Σ_m [2π G_m n_m − (G_m C_y^m N_m)(Ñ_mᵀ w_m)],
+
+exact in exact arithmetic, not only to first order. Ñ_mᵀ w_m = V_⊥ᵀ L_y⁻¹ (y^m ⊖ μ_y^m) are the
+dropped canonical coordinates of the innovation, unit variance under the sensor's predictive, so
+G_m C_y^m N_m = G_m L_y V_⊥ is the gap per standard deviation of what was dropped. For a
+consistent report (μ_e^m − μ_p^m = C_xy^m w_m, exact rank) A_m returns the minimum-C_y^m-norm
+solution of C_xy^m w = μ_e^m − μ_p^m, which is E[w_m | C_xy^m w_m] for w_m ~ N(0, (C_y^m)⁻¹): the
+best the centre can infer from the report. (The orthogonal split's Moore–Penrose choice is not
+covariant under rescaling — (S_x C S_y)⁺ ≠ S_y⁻¹ C⁺ S_x⁻¹ when C is rank deficient — so under the
+SVD rules even the DMF mean of a rank-deficient sensor depends on units; under the canonical split
+A_m → S_y⁻¹ A_m S_x⁻¹, N_m Ñ_mᵀ → S_y⁻¹ N_m Ñ_mᵀ S_y, and DMF mean and gap transform as states do.)
+With full rank, A_m is a left inverse of C_xy^m and eq. 35 is unchanged on consistent reports.
+
+Exactness verdict. SVD rules (as before): a gap gain counts as zero when
+‖G_m C_y^m N_m‖₂ ≤ algebra_rtol(cond C_y) · ‖G_m‖₂ ‖C_y^m‖₂. Canonical rule (unit-free): the
+whitened gap gain L_p⁻¹ G_m C_y^m N_m (prior standard deviations per unit dropped canonical
+coordinate) against the whitened gain of the whole block, W_m = L_p⁻¹ G_m L_y:
+
+    ‖L_p⁻¹ G_m C_y^m N_m‖₂ ≤ algebra_rtol(κ) · ‖W_m‖₂,
+    κ = max(cond of the correlation matrices of the central C_y, of C_y^m, of C_p^m),
+
+every factor of which is invariant under diagonal rescaling. A dropped direction with a nonzero
+but small ρ (≤ τ) generally leaves a gap of that size: the verdict is then "not exact" with a
+gap gain of order ρ (for one sensor sharing the centre's prior, exactly ρ_{r+1}).
+
+Repair. The part of w_m that eq. 35 cannot recover is its kernel component (I − P_m) w_m: μ_e^m −
+μ_p^m determines w_m only on range(P_m). The repair message (:func:`repair_message`) is that
+component itself, k_m = (I − P_m) w_m = N_m Ñ_mᵀ w_m, an l_m-vector: it depends on the projector
+only, never on the sign or rotation of a kernel basis (the l_m − r_m coordinates Ñ_mᵀ w_m would).
+The centre adds G_m C_y^m (I − P_m) k_m — applying the projector again, so k_m or the whole w_m
+give the same result — and recovers CMF exactly (branch offsets aside). Sensor and centre must
+use the same rank rule and covariance (:func:`sensor_split`).
+
+Numerics. A singular value (SVD rules) or canonical correlation (canonical rule) at or below the
+tolerance counts as zero and the generalised inverse in eq. 35 uses the same decision.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 import scipy.linalg as sla
 
 from gpfverify.angles import TWO_PI, difference, wrap
-from gpfverify.fusion.case import FusionCase, LocalReport
+from gpfverify.errors import InputError, NumericalError
+from gpfverify.fusion.case import CentralPrediction, FusionCase, LocalReport
 from gpfverify.fusion.centralized import fusion_gain
-from gpfverify.linalg import RankReport, solve_spd
-from gpfverify.tolerances import algebra_rtol, numpy_rank_tol
+from gpfverify.linalg import (CanonicalCorrelations, RankReport, canonical_correlations, right_solve_spd,
+                              solve_spd, symmetrize)
+from gpfverify.tolerances import CANONICAL_RANK_TOL, algebra_rtol, numpy_rank_tol
+
+#: the rank rules :class:`RankRule` knows
+RULE_NAMES: tuple[str, ...] = ("canonical", "absolute", "numpy")
+#: which prior covariance whitened the state for the canonical correlations
+COVARIANCE_LOCAL = "local C_p from C_e"
+COVARIANCE_CENTRAL = "central C_p"
+
+
+@dataclass(frozen=True)
+class RankRule:
+    """How the rank of each C_xy^m is decided (module docstring, "Rank rules"):
+
+    * ``RankRule("canonical", tau)`` — canonical correlations ρ_i > tau (unit-free; ``tol``
+      defaults to :data:`~gpfverify.tolerances.CANONICAL_RANK_TOL`, must be in [0, 1));
+    * ``RankRule("absolute", tol)`` — singular values of C_xy^m > tol (tol ≥ 0 required);
+    * ``RankRule("numpy")`` — singular values > σ_max · max(D, l_m) · eps (no tol).
+
+    Invalid combinations raise :class:`~gpfverify.errors.InputError`."""
+
+    name: str
+    tol: float | None = None
+
+    def __post_init__(self):
+        if self.name not in RULE_NAMES:
+            raise InputError(f"unknown rank rule {self.name!r}; choose from {', '.join(RULE_NAMES)}")
+        tol = self.tol
+        if self.name == "numpy":
+            if tol is not None:
+                raise InputError("the numpy rank rule takes no tolerance (it is sigma_max * max(D, l) * eps)")
+            return
+        if tol is None:
+            if self.name == "absolute":
+                raise InputError("the absolute rank rule needs a tolerance, e.g. absolute:1e-9")
+            tol = CANONICAL_RANK_TOL
+        if isinstance(tol, bool) or not isinstance(tol, (int, float, np.floating, np.integer)):
+            raise InputError(f"rank rule tolerance must be a number, got {tol!r}")
+        tol = float(tol)
+        if not np.isfinite(tol) or tol < 0:
+            raise InputError(f"rank rule tolerance must be a finite number >= 0, got {tol!r}")
+        if self.name == "canonical" and tol >= 1:
+            raise InputError(f"a canonical-correlation threshold must be in [0, 1), got {tol!r}")
+        object.__setattr__(self, "tol", tol)
+
+    @property
+    def unit_free(self) -> bool:
+        return self.name == "canonical"
+
+    @property
+    def spec(self) -> str:
+        """The string :func:`parse_rank_rule` reads back (``"numpy"``, ``"canonical:1.49e-08"`` …)."""
+        return self.name if self.tol is None else f"{self.name}:{self.tol!r}"
+
+    def describe(self) -> str:
+        if self.name == "canonical":
+            return (f"canonical correlations of state and sensor output > tau = {self.tol:.3g} "
+                    "(unit-free; tol is tau)")
+        if self.name == "absolute":
+            return f"explicit absolute tolerance {self.tol:g} on the singular values of C_xy^m"
+        return "numpy matrix_rank rule: sigma_max * max(D, l_m) * eps (absolute, per matrix)"
+
+    def __str__(self) -> str:
+        return self.spec
+
+
+#: the library's and the audit's default rule
+DEFAULT_RANK_RULE = RankRule("canonical")
+#: numpy's matrix_rank rule (the experiments' rule)
+NUMPY_RANK_RULE = RankRule("numpy")
+
+
+def parse_rank_rule(text: str) -> RankRule:
+    """``"canonical"``, ``"canonical:1e-6"``, ``"absolute:1e-9"`` or ``"numpy"`` as a
+    :class:`RankRule`; anything else raises :class:`~gpfverify.errors.InputError`."""
+    if not isinstance(text, str):
+        raise InputError(f"a rank rule must be a string like 'canonical:1e-6', got {text!r}")
+    name, sep, value = text.strip().partition(":")
+    name = name.strip().lower()
+    if name not in RULE_NAMES:
+        raise InputError(f"unknown rank rule {text!r}; use canonical[:TAU], absolute:TOL or numpy")
+    if not sep:
+        return RankRule(name)
+    try:
+        tol = float(value)
+    except ValueError:
+        raise InputError(f"rank rule {text!r}: {value.strip()!r} is not a number") from None
+    return RankRule(name, tol)
+
+
+def as_rank_rule(rule) -> RankRule | None:
+    """``rule`` as a :class:`RankRule`: None stays None, strings go through :func:`parse_rank_rule`."""
+    if rule is None or isinstance(rule, RankRule):
+        return rule
+    if isinstance(rule, str):
+        return parse_rank_rule(rule)
+    raise InputError(f"rank_rule must be a RankRule or a string like 'canonical:1e-6', got {rule!r}")
+
+
+def resolve_rank_rule(case: FusionCase | None, rank_rule=None, rank_tol: float | None = None,
+                      default: RankRule = DEFAULT_RANK_RULE) -> RankRule:
+    """The rule that decides: an explicit ``rank_rule``, else an explicit absolute ``rank_tol``,
+    else the case's ``rank_tol`` (absolute, CONTRACT.md), else ``default`` (canonical). Giving both
+    ``rank_rule`` and ``rank_tol`` is an InputError."""
+    rule = as_rank_rule(rank_rule)
+    if rule is not None and rank_tol is not None:
+        raise InputError("give rank_rule or rank_tol, not both")
+    if rule is not None:
+        return rule
+    if rank_tol is not None:
+        return RankRule("absolute", rank_tol)
+    if case is not None and case.rank_tol is not None:
+        return RankRule("absolute", case.rank_tol)
+    return default
 
 
 @dataclass(frozen=True)
 class KernelSplit:
-    """C_xy^m = U S Vᵀ split at the rank tolerance: ``rank`` (singular values, tol),
-    ``pinv`` (l, D) = V_r S_r⁻¹ U_rᵀ, ``kernel_basis`` N (l, l − r) orthonormal."""
+    """C_xy^m split at its rank (module docstring, "Kernel split"): ``rank`` (rank, singular
+    values of C_xy^m, the tolerance in the rule's own units — τ for the canonical rule),
+    ``pinv`` (l, D) the truncated generalised inverse A_m with A_m C_xy^m = P_m, ``kernel_basis``
+    N_m (l, l − r) and ``cokernel`` Ñ_m (l, l − r) with I − P_m = N_m Ñ_mᵀ (None: Ñ_m = N_m,
+    the orthogonal SVD split). Canonical splits also carry the ``correlations`` ρ, the
+    ``covariance`` used (:data:`COVARIANCE_LOCAL` / :data:`COVARIANCE_CENTRAL`), the
+    ``whitening`` and a ``condition`` number of the reconstruction."""
 
     rank: RankReport
     pinv: np.ndarray
     kernel_basis: np.ndarray
+    cokernel: np.ndarray | None = None
+    rule: RankRule = NUMPY_RANK_RULE
+    correlations: np.ndarray | None = None
+    covariance: str | None = None
+    whitening: CanonicalCorrelations | None = None
+    condition: float | None = None
+
+    @property
+    def dual_basis(self) -> np.ndarray:
+        """Ñ_m (= N_m for the orthogonal split)."""
+        return self.kernel_basis if self.cokernel is None else self.cokernel
+
+    def kernel_component(self, w: np.ndarray) -> np.ndarray:
+        """(I − P_m) w = N_m (Ñ_mᵀ w): basis-free (any N_m Q, Ñ_m Q with Q orthogonal gives the same)."""
+        return self.kernel_basis @ (self.dual_basis.T @ w)
 
 
 def kernel_split(cross_cov: np.ndarray, tol: float | None = None) -> KernelSplit:
-    """SVD of a sensor's cross covariance C_xy^m (D, l) with absolute tolerance ``tol``
-    (default numpy's matrix_rank rule)."""
+    """Orthogonal SVD split of a sensor's cross covariance C_xy^m (D, l) with absolute tolerance
+    ``tol`` (default numpy's matrix_rank rule): the ``absolute``/``numpy`` rules."""
     u, s, vt = np.linalg.svd(cross_cov, full_matrices=True)
     used = numpy_rank_tol(s, cross_cov.shape) if tol is None else float(tol)
     r = int(np.sum(s > used))
     pinv = (vt[:r].T / s[:r]) @ u[:, :r].T
-    return KernelSplit(RankReport(r, s, used, cross_cov.shape), pinv, vt[r:].T)
+    rule = NUMPY_RANK_RULE if tol is None else RankRule("absolute", float(tol))
+    return KernelSplit(RankReport(r, s, used, cross_cov.shape), pinv, vt[r:].T, rule=rule)
+
+
+def canonical_split(cross_cov: np.ndarray, prior_cov: np.ndarray, cov_y: np.ndarray,
+                    tol: float = CANONICAL_RANK_TOL, covariance: str | None = None) -> KernelSplit:
+    """Canonical split of C_xy^m (D, l) under the prior covariance C_p^m (D, D) and C_y^m (l, l):
+    rank = #{ρ_i > tol}, A_m, N_m, Ñ_m as in the module docstring (solves, no inverses)."""
+    cc = canonical_correlations(prior_cov, cov_y, cross_cov, ("C_p^m", "C_y^m"))
+    rho = cc.correlations
+    r = int(np.sum(rho > tol))
+    d, l = cross_cov.shape
+    v_r, v_perp = cc.v[:, :r], cc.v[:, r:]
+    pinv = cc.y_from_whitened(v_r / rho[:r]) @ cc.x_dual(cc.u[:, :r]).T if r else np.zeros((l, d))
+    s = np.linalg.svd(cross_cov, compute_uv=False)
+    condition = (float(rho[0] / rho[r - 1]) if r else 1.0) * cc.whitening_condition
+    return KernelSplit(RankReport(r, s, float(tol), cross_cov.shape), pinv, cc.y_from_whitened(v_perp),
+                       cc.y_factor_times(v_perp), RankRule("canonical", float(tol)), rho, covariance,
+                       cc, condition)
+
+
+def sensor_prior_covariance(local: LocalReport, central_cov: np.ndarray | None = None
+                            ) -> tuple[np.ndarray, str]:
+    """(C_p^m, which) for the canonical rule: C_e^m + C_xy^m (C_y^m)⁻¹ C_xy^mᵀ when the report has
+    C_e^m (eq. 16 rearranged; ``"local C_p from C_e"``), else ``central_cov`` (``"central C_p"``).
+    InputError when neither is available."""
+    if local.C_e is not None:
+        return symmetrize(local.C_e + right_solve_spd(local.C_xy, local.C_y, "local C_y") @ local.C_xy.T), \
+            COVARIANCE_LOCAL
+    if central_cov is None:
+        raise InputError("the canonical rank rule needs the sensor's prior covariance: the report has "
+                         "no C_e and no central C_p was given")
+    return np.asarray(central_cov, dtype=float), COVARIANCE_CENTRAL
+
+
+def sensor_split(local: LocalReport, rule: RankRule, central_cov: np.ndarray | None = None) -> KernelSplit:
+    """Sensor m's kernel split under ``rule``; the canonical rule whitens with the sensor's C_p^m
+    (:func:`sensor_prior_covariance`), falling back to ``central_cov`` when the recovered C_p^m is
+    not positive definite even with jitter."""
+    if rule.name == "numpy":
+        return kernel_split(local.C_xy)
+    if rule.name == "absolute":
+        return kernel_split(local.C_xy, rule.tol)
+    prior, which = sensor_prior_covariance(local, central_cov)
+    try:
+        return canonical_split(local.C_xy, prior, local.C_y, rule.tol, which)
+    except NumericalError:
+        if which != COVARIANCE_LOCAL or central_cov is None:
+            raise
+        return canonical_split(local.C_xy, np.asarray(central_cov, dtype=float), local.C_y, rule.tol,
+                               COVARIANCE_CENTRAL)
 
 
 @dataclass(frozen=True)
 class SensorExactness:
     """Exactness evidence for sensor ``index``: its kernel split, the gap gain G_m C_y^m N_m
-    (D, l − r), its 2-norm ``residual`` and the tolerance ``tol`` that decides ``exact``."""
+    (D, l − r, state units per unit of Ñ_mᵀ w_m), its 2-norm ``residual`` and the tolerance ``tol``
+    that decides ``exact`` — both whitened by L_p⁻¹ (unit-free) under the canonical rule."""
 
     index: int
     split: KernelSplit
@@ -108,16 +350,37 @@ class SensorExactness:
         return self.split.kernel_basis.shape[1]
 
 
-def analyse_sensors(case: FusionCase, gain: np.ndarray, rank_tol: float | None = None
-                    ) -> tuple[SensorExactness, ...]:
-    """Kernel split and gap gain of every sensor; ``rank_tol`` (default ``case.rank_tol``, else
-    numpy's rule per matrix) is the absolute singular-value tolerance."""
-    tol = case.rank_tol if rank_tol is None else rank_tol
-    eig = np.linalg.eigvalsh(case.central.C_y)
-    rtol = algebra_rtol(eig[-1] / eig[0])
+def _correlation_condition(cov: np.ndarray) -> float:
+    """Condition number of the correlation matrix of ``cov`` (invariant under diagonal scaling)."""
+    diag = np.diag(cov)
+    d = np.sqrt(np.where(diag > 0, diag, 1.0))
+    eig = np.linalg.eigvalsh(cov / np.outer(d, d))
+    return float(eig[-1] / eig[0]) if eig[0] > 0 else float("inf")
+
+
+def analyse_sensors(case: FusionCase, gain: np.ndarray, rank_tol: float | None = None,
+                    rank_rule=None) -> tuple[SensorExactness, ...]:
+    """Kernel split and gap gain of every sensor under the rule :func:`resolve_rank_rule` picks
+    (``rank_rule``, else absolute ``rank_tol``, else ``case.rank_tol``, else canonical)."""
+    rule = resolve_rank_rule(case, rank_rule, rank_tol)
+    central = case.central
     out = []
-    for m, (block, local) in enumerate(zip(case.central.blocks, case.locals)):
-        split = kernel_split(local.C_xy, tol)
+    if rule.name == "canonical":
+        central_cond = _correlation_condition(central.C_y)
+        for m, (block, local) in enumerate(zip(central.blocks, case.locals)):
+            split = sensor_split(local, rule, central.C_p)
+            g_m = gain[:, block]
+            gap_gain = g_m @ local.C_y @ split.kernel_basis
+            cc = split.whitening
+            residual = float(np.linalg.norm(cc.whiten_x(gap_gain), 2)) if gap_gain.size else 0.0
+            scale = float(np.linalg.norm(cc.whiten_x(cc.times_y_factor(g_m)), 2)) if g_m.size else 0.0
+            kappa = max(central_cond, cc.whitening_condition ** 2)
+            out.append(SensorExactness(m, split, gap_gain, residual, algebra_rtol(kappa) * scale))
+        return tuple(out)
+    eig = np.linalg.eigvalsh(central.C_y)
+    rtol = algebra_rtol(eig[-1] / eig[0])
+    for m, (block, local) in enumerate(zip(central.blocks, case.locals)):
+        split = sensor_split(local, rule)
         g_m = gain[:, block]
         gap_gain = g_m @ local.C_y @ split.kernel_basis
         residual = float(np.linalg.norm(gap_gain, 2)) if gap_gain.size else 0.0
@@ -132,9 +395,19 @@ def whitened_innovation(local: LocalReport, y_m: np.ndarray) -> np.ndarray:
     return solve_spd(local.C_y, difference(y_m, local.mu_y, local.circular), "local C_y")
 
 
-def repair_message(local: LocalReport, y_m: np.ndarray, rank_tol: float | None = None) -> np.ndarray:
-    """What sensor m sends besides eq. 34 so that DMF is exact: r_m = N_mᵀ w_m (l_m − r_m numbers)."""
-    return kernel_split(local.C_xy, rank_tol).kernel_basis.T @ whitened_innovation(local, y_m)
+def repair_message(local: LocalReport, y_m: np.ndarray, rank_tol: float | None = None, *,
+                   rank_rule=None, prior_cov: np.ndarray | None = None,
+                   split: KernelSplit | None = None) -> np.ndarray:
+    """What sensor m sends besides eq. 34 so that DMF is exact: the kernel component
+    k_m = (I − P_m) w_m (an l_m-vector in an (l_m − r_m)-dimensional subspace; basis-free).
+
+    The split is ``split`` when given, else the one :func:`sensor_split` computes under
+    ``rank_rule`` (or absolute ``rank_tol``; default canonical); the canonical rule whitens with the
+    C_p^m recovered from ``local.C_e`` or, without C_e, with ``prior_cov``. Sensor and centre must
+    use the same rule (and covariance)."""
+    if split is None:
+        split = sensor_split(local, resolve_rank_rule(None, rank_rule, rank_tol), prior_cov)
+    return split.kernel_component(whitened_innovation(local, y_m))
 
 
 def branch_offsets(case: FusionCase) -> tuple[np.ndarray, ...]:
@@ -154,15 +427,15 @@ def branch_offsets(case: FusionCase) -> tuple[np.ndarray, ...]:
 
 
 def sensor_gap(case: FusionCase, sensor: SensorExactness, gain: np.ndarray, offsets: np.ndarray) -> np.ndarray:
-    """Sensor m's share of μ_DMF − μ_CMF: 2π G_m n_m − (G_m C_y^m N_m)(N_mᵀ w_m) (needs ``case.y``)."""
+    """Sensor m's share of μ_DMF − μ_CMF: 2π G_m n_m − (G_m C_y^m N_m)(Ñ_mᵀ w_m) (needs ``case.y``)."""
     w = whitened_innovation(case.locals[sensor.index], case.local_measurement(sensor.index))
     g_m = gain[:, case.central.blocks[sensor.index]]
-    return TWO_PI * (g_m @ offsets) - sensor.gap_gain @ (sensor.split.kernel_basis.T @ w)
+    return TWO_PI * (g_m @ offsets) - sensor.gap_gain @ (sensor.split.dual_basis.T @ w)
 
 
 def predicted_gap(case: FusionCase, sensors: tuple[SensorExactness, ...], gain: np.ndarray | None = None
                   ) -> np.ndarray:
-    """Closed-form μ_DMF − μ_CMF = Σ_m [2π G_m n_m − (G_m C_y^m N_m)(N_mᵀ w_m)], the sum of
+    """Closed-form μ_DMF − μ_CMF = Σ_m [2π G_m n_m − (G_m C_y^m N_m)(Ñ_mᵀ w_m)], the sum of
     :func:`sensor_gap` (``gain`` G defaults to the case's; needs ``case.y``)."""
     gain = fusion_gain(case.central) if gain is None else gain
     gap = np.zeros(case.state_dim)
@@ -180,25 +453,29 @@ def local_consistency_residual(case: FusionCase, m: int) -> np.ndarray:
 
 
 def range_condition_number(split: KernelSplit) -> float:
-    """σ_max / σ_r over the singular values kept by the rank decision (1 for a zero matrix)."""
+    """How much the reconstruction A_m (μ_e^m − μ_p^m) can amplify rounding: σ_max / σ_r over the
+    kept singular values for the SVD split (1 for a zero matrix); for the canonical split
+    (ρ_1 / ρ_r) · cond(L_p) · cond(L_y) of the equilibrated whitening factors."""
+    if split.condition is not None:
+        return split.condition
     s = split.rank.singular_values[: split.rank.rank]
     return float(s[0] / s[-1]) if s.size else 1.0
 
 
 def equivalence_tolerance(case: FusionCase, gain: np.ndarray, sensors: tuple[SensorExactness, ...]) -> float:
-    """Rounding bound on ‖μ_DMF − μ_CMF‖ when DMF is exact *at the rank tolerance used* (every
-    sensor's verdict ``exact``; a singular value at or below the tolerance is dropped, and its
-    effect is then the closed-form gap, not rounding):
+    """Rounding bound on ‖μ_DMF − μ_CMF‖ when DMF is exact *at the rank rule used* (every
+    sensor's verdict ``exact``; a singular value or correlation at or below the tolerance is
+    dropped, and its effect is then the closed-form gap, not rounding):
 
-        algebra_rtol(κ) · (‖μ_p‖ + ‖G‖₂ Σ_m [‖C_y^m‖₂ ‖(C_xy^m)⁺‖₂ (‖μ_e^m‖ + ‖μ_p^m‖)
+        algebra_rtol(κ) · (‖μ_p‖ + ‖G‖₂ Σ_m [‖C_y^m‖₂ ‖A_m‖₂ (‖μ_e^m‖ + ‖μ_p^m‖)
                                                + ‖μ_y^m‖ + ‖μ_y(m)‖ + ‖y^m‖]),
-        κ = max(cond C_y, max_m cond(C_xy^m on its range) · cond C_y^m).
+        κ = max(cond C_y, max_m range_condition_number(split_m) · cond C_y^m).
 
     Each term is the size of an operand eq. 35 or 36 works with, which loses ≈ eps·κ of itself.
-    The recovered innovation (C_xy^m)⁺(μ_e^m − μ_p^m) carries the rounding of μ_e^m and μ_p^m —
+    The recovered innovation A_m(μ_e^m − μ_p^m) carries the rounding of μ_e^m and μ_p^m —
     of their sizes, not of their difference: when C_xy^m is small the local update C_xy^m w_m can
-    fall below eps·‖μ_e^m‖ and be lost in the report itself, and (C_xy^m)⁺ amplifies that loss by
-    1/σ_r. Norms are BLAS nrm2 (scipy.linalg.norm), which does not underflow for tiny entries.
+    fall below eps·‖μ_e^m‖ and be lost in the report itself, and A_m amplifies that loss by up to
+    ‖A_m‖. Norms are BLAS nrm2 (scipy.linalg.norm), which does not underflow for tiny entries.
     Needs ``case.y``."""
     c = case.central
     eig = np.linalg.eigvalsh(c.C_y)
@@ -210,3 +487,30 @@ def equivalence_tolerance(case: FusionCase, gain: np.ndarray, sensors: tuple[Sen
                   + sla.norm(local.mu_y) + sla.norm(c.mu_y[block])
                   + sla.norm(case.local_measurement(s.index)))
     return algebra_rtol(cond) * (sla.norm(c.mu_p) + sla.norm(gain, 2) * terms)
+
+
+def rescaled_case(case: FusionCase, state_scale, output_scale) -> FusionCase:
+    """The same fusion step in other units: x → S_x x and y → S_y y with S_x = diag(state_scale)
+    (D positive numbers) and S_y = diag(output_scale) (L, stacked; sensor m's block scales its
+    outputs), e.g. 1e6 on a bearing for radians → microradians. Means scale as their variable,
+    covariances as S C S; the case's absolute ``rank_tol`` is kept as it is (it has no units to
+    follow). Angle outputs must keep scale 1 (wrapping is in radians): InputError otherwise."""
+    s_x = np.asarray(state_scale, dtype=float)
+    s_y = np.asarray(output_scale, dtype=float)
+    c = case.central
+    if s_x.shape != (case.state_dim,) or s_y.shape != c.mu_y.shape:
+        raise InputError(f"scales must have shapes ({case.state_dim},) and {c.mu_y.shape}, "
+                         f"got {s_x.shape} and {s_y.shape}")
+    if not (np.all(np.isfinite(s_x)) and np.all(s_x > 0) and np.all(np.isfinite(s_y)) and np.all(s_y > 0)):
+        raise InputError("scales must be finite and positive")
+    if c.circular and np.any(s_y[list(c.circular)] != 1.0):
+        raise InputError(f"angle outputs {list(c.circular)} must keep scale 1 (wrapping is in radians)")
+    central = CentralPrediction(s_x * c.mu_p, c.C_p * np.outer(s_x, s_x), s_y * c.mu_y,
+                                c.C_y * np.outer(s_y, s_y), c.C_xy * np.outer(s_x, s_y), c.sizes, c.circular)
+    reports = []
+    for block, r in zip(c.blocks, case.locals):
+        s_m = s_y[block]
+        reports.append(replace(r, mu_p=s_x * r.mu_p, mu_y=s_m * r.mu_y, C_y=r.C_y * np.outer(s_m, s_m),
+                               C_xy=r.C_xy * np.outer(s_x, s_m), mu_e=s_x * r.mu_e,
+                               C_e=None if r.C_e is None else r.C_e * np.outer(s_x, s_x)))
+    return FusionCase(central, tuple(reports), None if case.y is None else s_y * case.y, case.rank_tol)

@@ -40,6 +40,7 @@ from gpfverify.filters.records import Gaussian, StepRecord
 from gpfverify.filters.sigma_points import SigmaParams
 from gpfverify.fusion.case import CentralPrediction, FusionCase, LocalReport, sensor_blocks, split_circular
 from gpfverify.fusion.distributed import DMFResult, dmf_update
+from gpfverify.fusion.exactness import NUMPY_RANK_RULE, RankRule, resolve_rank_rule
 from gpfverify.models.learned import GPModel
 from gpfverify.models.system import StateSpaceModel, require_model
 from gpfverify.validate import as_matrix, as_vector
@@ -103,14 +104,18 @@ def local_reports(local_records: Sequence[StepRecord], central: CentralPredictio
 
 def dmf_step(belief: Gaussian, model, y=None, *, local_records: Sequence[StepRecord], k: int = 1,
              family: str = "ukf", params: SigmaParams = SigmaParams(),
-             rank_tol: float | None = None) -> DMFStep:
+             rank_tol: float | None = None, rank_rule: RankRule | str | None = None) -> DMFStep:
     """One distributed-fusion cycle (eq. 35) from the fused ``belief``: ``local_records[m]`` is
     sensor m's step record from its own filter; ``y`` (stacked, optional) is kept in the case for
-    the gap diagnostics only."""
+    the gap diagnostics only. The rank rule is ``rank_rule``, else the absolute ``rank_tol``
+    (also stored as the case's ``rank_tol``), else **numpy's rule** σ_max · max(D, l_m) · eps —
+    this module's default, unlike the library's and the audit's (canonical), so that the paper's
+    experiments keep their reference numbers; ``result.rank_rule`` says which decided."""
     _, central = central_prediction(belief, model, k=k, family=family, params=params)
     stacked = None if y is None else as_vector(y, "y", int(sum(central.sizes)))
     case = FusionCase(central, local_reports(local_records, central), stacked, rank_tol)
-    result = dmf_update(case)
+    rule = resolve_rank_rule(None, rank_rule, rank_tol, default=NUMPY_RANK_RULE)
+    result = dmf_update(case, rank_rule=rule)
     mean = wrap_components(result.mean, model.circular_state)
     record = StepRecord(central.mu_p, central.C_p, central.mu_y, central.C_y, central.C_xy, mean, result.cov)
     return DMFStep(record, case, result)
@@ -217,11 +222,13 @@ def _priors(model, local_priors, fused_prior) -> tuple[list[Gaussian], Gaussian]
 def run_fusion(model, ys, *, family: str = "ukf", methods: Sequence[str] = METHODS, first_k: int = 1,
                params: SigmaParams = SigmaParams(), rank_tol: float | None = None,
                local_priors: Sequence[Gaussian] | None = None, fused_prior: Gaussian | None = None,
-               audit: bool = True, rcc_size: float | None = None) -> FusionRun:
+               audit: bool = True, rcc_size: float | None = None,
+               rank_rule: RankRule | str | None = None) -> FusionRun:
     """Filter the stacked measurements ``ys`` (T, L) — ``ys[t]`` at step k = first_k + t — with
     every sensor's local filter, CMF and DMF (each its own recursion from ``fused_prior``) and the
     chosen baselines; ``rcc_size`` is RCC-CI's ellipsoid size c (default χ²_D(0.99)). Priors default
-    to the model's (a GPModel has none: then both are required)."""
+    to the model's (a GPModel has none: then both are required). ``rank_rule``/``rank_tol`` as in
+    :func:`dmf_step` (default numpy's rule); the per-step audit uses the same rule."""
     chosen = model_family(family, model, params)
     methods = _checked_methods(methods, audit)
     ys = as_matrix(ys, "ys", None, model.measurement_dim)
@@ -242,7 +249,8 @@ def run_fusion(model, ys, *, family: str = "ukf", methods: Sequence[str] = METHO
             cmf_belief = cmf.posterior
         if "dmf" in methods:
             dmf, seconds["dmf"] = _timed(dmf_step, dmf_belief, model, y, local_records=local, k=k,
-                                         family=family, params=params, rank_tol=rank_tol)
+                                         family=family, params=params, rank_tol=rank_tol,
+                                         rank_rule=rank_rule)
             dmf_belief = dmf.record.posterior
         for name, rule in baselines.items():
             fused_estimates[name], seconds[name] = _timed(rule, local_beliefs)
@@ -254,4 +262,4 @@ def run_fusion(model, ys, *, family: str = "ukf", methods: Sequence[str] = METHO
 def _audit(dmf: DMFStep) -> "CaseAudit":
     from gpfverify.audit import audit_case
 
-    return audit_case(dmf.case)
+    return audit_case(dmf.case, rank_rule=dmf.result.rank_rule)
