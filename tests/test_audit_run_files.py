@@ -1,0 +1,328 @@
+"""Run files (.jsonl, .npz) for ``gpfverify audit``: the run audit equals the single-case audit
+step by step, both layouts agree, k round-trips, the schemas in docs/schemas/ are the ones the
+reader validates against, and every malformed run file exits 2 with one line naming the line or
+array, writing nothing. An audit never imports cvxpy."""
+
+import dataclasses
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from gpfverify.audit import audit_case, audit_to_dict
+from gpfverify.cli import main
+from gpfverify.commands.audit import audit_run_file
+from gpfverify.fusion import run_fusion
+from gpfverify.fusion.case import case_to_dict
+from gpfverify.fusion.runfile import (CASE_SCHEMA, RUN_LINE_SCHEMA, load_run, validate_against_schema,
+                                      write_run)
+from gpfverify.fusion.synthetic import random_case
+from gpfverify.scenarios.three_sensor import three_sensor_model
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+@pytest.fixture(scope="module")
+def three_sensor_run():
+    """(ks, cases) of a short three-sensor DMF run whose bearing crosses ±π (k ≈ 10)."""
+    model = three_sensor_model()
+    _, ys = model.simulate(14, np.random.default_rng(3))
+    run = run_fusion(model, ys, methods=("cmf", "dmf"), audit=False)
+    return [s.k for s in run.steps], [s.dmf.case for s in run.steps]
+
+
+def _synthetic_cases():
+    """Rank loss not exact / rank loss but exact / full rank / no y; sizes (2, 2), D = 2."""
+    rng = np.random.default_rng(0)
+    return [random_case(rng, 2, (2, 2), ranks=(1, 2)), random_case(rng, 2, (2, 2), ranks=(1, 2), decoupled=(1,)),
+            random_case(rng, 2, (2, 2)), random_case(rng, 2, (2, 2), ranks=(2, 1), with_y=False)]
+
+
+def _expected(case, k):
+    return json.loads(json.dumps({"k": k, **audit_to_dict(audit_case(case))}))
+
+
+def _cli(argv, capsys):
+    code = main(argv)
+    out, err = capsys.readouterr()
+    return code, out, err
+
+
+def test_cli_run_audit_equals_single_case_audit_step_by_step(tmp_path, three_sensor_run):
+    ks, cases = three_sensor_run
+    path = write_run(tmp_path / "run.jsonl", cases, ks)
+    proc = subprocess.run([sys.executable, "-m", "gpfverify", "audit", str(path), "--json"],
+                          capture_output=True, text=True, cwd=tmp_path)
+    assert proc.returncode == 0 and proc.stderr == ""
+    data = json.loads(proc.stdout)
+    assert len(data["steps"]) == len(cases)
+    for k, case, step in zip(ks, cases, data["steps"]):
+        assert step == _expected(case, k)
+    summary = data["summary"]
+    assert summary["steps"] == len(cases) and summary["condition_held_steps"] == summary["exact_steps"] == len(cases)
+    gaps = [s["gap_norm"] for s in data["steps"]]
+    assert summary["max_gap_norm"] == max(gaps) and summary["max_gap_k"] == ks[int(np.argmax(gaps))]
+    assert data["rank_rule"] == summary["rank_rule"] == data["steps"][0]["rank_rule"]
+    assert [s["rank_lost_steps"] for s in summary["sensors"]] == [[], [], []]
+
+
+def test_npz_layout_gives_the_same_audit(tmp_path, three_sensor_run):
+    ks, cases = three_sensor_run
+    jsonl = audit_run_file(write_run(tmp_path / "run.jsonl", cases, ks))
+    npz = audit_run_file(write_run(tmp_path / "run.npz", cases, ks))
+    assert json.dumps(npz[1:]) == json.dumps(jsonl[1:])
+    with np.load(tmp_path / "run.npz") as z:
+        assert z["central_mu_p"].shape == (len(cases), 4) and z["local1_C_xy"].shape == (len(cases), 4, 2)
+        assert z["circular1"].tolist() == [1] and z["k"].tolist() == ks
+
+
+def test_summary_names_the_steps_where_a_sensor_lost_rank(tmp_path, capsys):
+    cases, ks = _synthetic_cases(), [2, 5, 6, 9]
+    audits = [audit_case(c) for c in cases]
+    lost = [[k for k, a in zip(ks, audits) if not a.sensors[m].full_column_rank] for m in range(2)]
+    inexact = [[k for k, a in zip(ks, audits) if not a.sensors[m].exact] for m in range(2)]
+    assert lost == [[2, 5], [9]] and inexact[0] == [2]  # the fixture covers what it claims
+    for name in ("run.jsonl", "run.npz"):
+        code, out, err = _cli(["audit", str(write_run(tmp_path / name, cases, ks)), "--json"], capsys)
+        assert code == 0 and err == ""
+        data = json.loads(out)
+        assert [s == _expected(c, k) for s, c, k in zip(data["steps"], cases, ks)] == [True] * 4
+        summary = data["summary"]
+        assert summary["steps"] == 4 and summary["steps_with_y"] == 3
+        assert summary["condition_held_steps"] == sum(a.condition_holds for a in audits)
+        assert summary["exact_steps"] == sum(a.exact for a in audits)
+        assert [s["rank_lost_steps"] for s in summary["sensors"]] == lost
+        assert [s["rank_lost_not_exact_steps"] for s in summary["sensors"]] == inexact
+        gaps = [np.linalg.norm(a.gap) for a in audits[:3]]
+        assert summary["max_gap_norm"] == max(gaps) and summary["max_gap_k"] == ks[int(np.argmax(gaps))]
+    code, out, _ = _cli(["audit", str(tmp_path / "run.jsonl")], capsys)
+    assert code == 0 and "sensor 0: lost full column rank at k = 2, 5; not exact at k = 2" in out
+    assert "steps: 4;" in out and f"at k = {ks[int(np.argmax(gaps))]}" in out
+
+
+@pytest.mark.parametrize("name", ["run.jsonl", "run.npz"])
+def test_k_round_trips(tmp_path, name):
+    cases = _synthetic_cases()
+    given = load_run(write_run(tmp_path / name, cases, [0, 3, 4, 10]))
+    assert given.ks == [0, 3, 4, 10] and given.explicit_k and given.format == name.split(".")[1]
+    default = load_run(write_run(tmp_path / name, cases))
+    assert default.ks == [0, 1, 2, 3] and not default.explicit_k
+    for a, b in zip(given.cases, cases):
+        assert json.dumps(case_to_dict(a)) == json.dumps(case_to_dict(b))
+
+
+def test_single_case_file_is_a_run_of_one_and_keeps_its_output(tmp_path, capsys):
+    case = _synthetic_cases()[0]
+    path = tmp_path / "case.json"
+    path.write_text(json.dumps(case_to_dict(case)))
+    run = load_run(path)
+    assert run.format == "json" and run.ks == [0]
+    code, out, _ = _cli(["audit", str(path), "--json"], capsys)
+    assert code == 0 and json.loads(out) == {key: v for key, v in _expected(case, 0).items() if key != "k"}
+    assert audit_run_file(path)[1] == [_expected(case, 0)]
+
+
+def test_schemas_in_docs_are_the_ones_validated_against():
+    for name, schema in (("fusion-case", CASE_SCHEMA), ("run-line", RUN_LINE_SCHEMA)):
+        assert json.loads((ROOT / "docs" / "schemas" / f"{name}.schema.json").read_text()) == schema
+    for case in _synthetic_cases():
+        validate_against_schema(case_to_dict(case), CASE_SCHEMA)
+        validate_against_schema({"k": 3, **case_to_dict(case)}, RUN_LINE_SCHEMA)
+    with pytest.raises(ValueError, match="not supported"):
+        validate_against_schema({}, {"type": "object", "maxProperties": 1})
+
+
+def test_schemas_are_valid_json_schema_when_jsonschema_is_installed():
+    jsonschema = pytest.importorskip("jsonschema")
+    good = {"k": 1, **case_to_dict(_synthetic_cases()[0])}
+    bad = json.loads(json.dumps(good))
+    bad["locals"][0]["C_y"][0][0] = "a"
+    for schema in (CASE_SCHEMA, RUN_LINE_SCHEMA):
+        jsonschema.Draft202012Validator.check_schema(schema)
+        assert jsonschema.Draft202012Validator(schema).is_valid(good)
+        assert not jsonschema.Draft202012Validator(schema).is_valid(bad)
+
+
+def _good_lines(n=3):
+    return [json.dumps({"k": k, **case_to_dict(c)}) for k, c in enumerate(_synthetic_cases()[:n])]
+
+
+def _edit(line, change):
+    obj = json.loads(line)
+    change(obj)
+    return json.dumps(obj)
+
+
+def _not_pd(obj):
+    obj["locals"][1]["C_y"] = [[1.0, 0.0], [0.0, -1.0]]
+
+
+def _jsonl_cases():
+    good = _good_lines()
+    other = json.dumps({"k": 5, **case_to_dict(random_case(np.random.default_rng(1), 3, (2, 2)))})
+    return {
+        "not positive definite": ("\n".join([good[0], good[1], _edit(good[2], _not_pd)]) + "\n",
+                                  "line 3: locals[1].C_y is not positive"),
+        "invalid utf-8": (good[0].encode() + b"\n" + b'{"k": 1, "\xff": 2}\n', "line 2: not valid UTF-8"),
+        "empty": ("", "is empty"),
+        "only whitespace": ("\n  \n", "is empty"),
+        "blank line": (good[0] + "\n\n" + good[1] + "\n", "line 2: blank line"),
+        "not an object": (good[0] + "\n[1, 2]\n", "line 2: must be a JSON object"),
+        "not json": (good[0] + "\n" + good[1][:-5] + "\n", "line 2: not valid JSON"),
+        "NaN literal": (good[0].replace("[[", "[[NaN, ", 1) + "\n", "line 1: NaN is not valid JSON"),
+        "number overflow": (_edit(good[0], lambda o: o.update(y=[1.0, 2.0, 3.0, 4.0])).replace("4.0", "1e999")
+                            + "\n", "line 1: the number 1e999 is outside the float range"),
+        "string in a matrix": (_edit(good[0], lambda o: o["locals"][0]["C_y"][0].__setitem__(0, "a")) + "\n",
+                               'line 1: locals[0].C_y[0][0] must be a number, got a string "a"'),
+        "missing key": (good[0] + "\n" + _edit(good[1], lambda o: o["locals"][1].pop("mu_e")) + "\n",
+                        "line 2: locals[1] lacks the key 'mu_e'"),
+        "other dimensions": (good[0] + "\n" + other + "\n", "line 2: state dimension D 3 differs from line 1's 2"),
+        "k on some lines": (good[0] + "\n" + _edit(good[1], lambda o: o.pop("k")) + "\n",
+                            "line 2: lacks \"k\" but line 1 has it"),
+        "k not increasing": (good[1] + "\n" + good[0] + "\n", "line 2: k = 0 does not increase"),
+        "k negative": (_edit(good[0], lambda o: o.update(k=-1)) + "\n", "line 1: k must be >= 0"),
+        "k not an integer": (_edit(good[0], lambda o: o.update(k=True)) + "\n",
+                             "line 1: k must be an integer, got a boolean"),
+    }
+
+
+@pytest.mark.parametrize("name", list(_jsonl_cases()))
+def test_malformed_jsonl_exits_2_with_one_line(tmp_path, capsys, name):
+    content, expected = _jsonl_cases()[name]
+    path = tmp_path / "RUN.jsonl"
+    path.write_bytes(content if isinstance(content, bytes) else content.encode())
+    before = sorted(tmp_path.iterdir())
+    code, out, err = _cli(["audit", str(path), "--json"], capsys)
+    assert code == 2 and out == "" and sorted(tmp_path.iterdir()) == before
+    assert err.count("\n") == 1 and err.startswith(f"gpfverify audit: error: {path}")
+    assert expected in err and "Traceback" not in err
+
+
+def _npz_cases(tmp_path):
+    cases = _synthetic_cases()[:3]
+    write_run(tmp_path / "good.npz", cases, [1, 2, 3])
+    with np.load(tmp_path / "good.npz") as z:
+        good = dict(z)
+
+    def variant(**changes):
+        arrays = {k: v for k, v in good.items() if changes.get(k, 0) is not None}
+        arrays.update({k: v for k, v in changes.items() if v is not None})
+        return arrays
+
+    c_y = good["local1_C_y"].copy()
+    c_y[2] = [[1.0, 0.0], [0.0, -1.0]]
+    return {
+        "missing array": (variant(local1_mu_e=None), "missing array local1_mu_e"),
+        "wrong shape": (variant(central_C_xy=good["central_C_xy"][:, :, :3]),
+                        "array central_C_xy has shape (3, 2, 3), expected (T, D, L) = (3, 2, 4)"),
+        "wrong step count": (variant(y=good["y"][:2]), "array y has shape (2, 4)"),
+        "unknown array": (variant(local0_Ce=good["local0_C_e"]), "unknown array(s) local0_Ce"),
+        "not positive definite": (variant(local1_C_y=c_y), "step 2 (k = 3): local1_C_y is not positive"),
+        "strings": (variant(central_mu_p=good["central_mu_p"].astype(str)),
+                    "array central_mu_p must hold real numbers"),
+        "float sizes": (variant(sizes=np.array([2.0, 2.0])), "array sizes must hold integers"),
+        "k not increasing": (variant(k=np.array([1, 1, 2])), "array k entry 1: k = 1 does not increase"),
+        "object array": (variant(y=np.array([None] * 3, dtype=object)), "array y cannot be read"),
+        "not an npz": (b"central_mu_p = 1\n", "is not an npz archive"),
+        "npy not npz": ("npy", "is not an npz archive"),
+    }
+
+
+@pytest.mark.parametrize("name", ["missing array", "wrong shape", "wrong step count", "unknown array",
+                                  "not positive definite", "strings", "float sizes", "k not increasing",
+                                  "object array", "not an npz", "npy not npz"])
+def test_malformed_npz_exits_2_with_one_line(tmp_path, capsys, name):
+    content, expected = _npz_cases(tmp_path)[name]
+    path = tmp_path / "RUN.npz"
+    if isinstance(content, bytes):
+        path.write_bytes(content)
+    elif content == "npy":
+        with open(path, "wb") as fh:
+            np.save(fh, np.zeros(3))
+    else:
+        np.savez(path, **content)
+    before = sorted(tmp_path.iterdir())
+    code, out, err = _cli(["audit", str(path), "--json"], capsys)
+    assert code == 2 and out == "" and sorted(tmp_path.iterdir()) == before
+    assert err.count("\n") == 1 and err.startswith(f"gpfverify audit: error: {path}")
+    assert expected in err and "Traceback" not in err
+
+
+def test_truncated_npz_is_refused(tmp_path, capsys):
+    write_run(tmp_path / "good.npz", _synthetic_cases()[:2])
+    data = (tmp_path / "good.npz").read_bytes()
+    (tmp_path / "RUN.npz").write_bytes(data[: len(data) // 2])
+    code, out, err = _cli(["audit", str(tmp_path / "RUN.npz")], capsys)
+    assert code == 2 and out == "" and err.count("\n") == 1 and "RUN.npz" in err
+
+
+def test_missing_run_file(tmp_path, capsys):
+    for name in ("none.jsonl", "none.npz"):
+        code, out, err = _cli(["audit", str(tmp_path / name)], capsys)
+        assert code == 2 and out == "" and err.count("\n") == 1 and "cannot read" in err
+
+
+def test_writer_refuses_what_the_reader_would(tmp_path):
+    cases = _synthetic_cases()
+    with pytest.raises(ValueError, match="strictly increasing"):
+        write_run(tmp_path / "r.jsonl", cases, [0, 2, 2, 3])
+    with pytest.raises(ValueError, match="other dimensions"):
+        write_run(tmp_path / "r.npz", cases + [random_case(np.random.default_rng(2), 3, (2, 2))])
+    with pytest.raises(ValueError, match=".jsonl, .ndjson or .npz"):
+        write_run(tmp_path / "r.json", cases)
+    assert not list(tmp_path.iterdir())
+
+
+def test_help_points_to_the_format_documents(capsys):
+    with pytest.raises(SystemExit) as exit_:
+        main(["audit", "--help"])
+    out = " ".join(capsys.readouterr().out.split())
+    assert exit_.value.code == 0
+    assert "docs/run-file-format.md" in out and "docs/fusion-case-format.md" in out
+    for doc in ("run-file-format.md", "fusion-case-format.md"):
+        assert (ROOT / "docs" / doc).is_file()
+
+
+def test_rank_rule_option_and_mixed_rules(tmp_path, capsys):
+    cases = _synthetic_cases()
+    path = write_run(tmp_path / "run.jsonl", cases)
+    code, out, err = _cli(["audit", str(path), "--rank-rule", "absolute:1e-9", "--json"], capsys)
+    assert code == 0 and err == ""
+    data = json.loads(out)
+    assert [s == _expected_with(c, k, "absolute:1e-9") for k, (s, c) in enumerate(zip(data["steps"], cases))] \
+        == [True] * 4
+    assert data["summary"]["rank_rule"]["name"] == "absolute" and data["summary"]["rank_rule"]["tol"] == 1e-9
+    for argv in (["--rank-rule", "sometimes"], ["--rank-rule", "numpy", "--rank-tol", "1e-9"]):
+        code, out, err = _cli(["audit", str(path), *argv], capsys)
+        assert code == 2 and out == "" and err.count("\n") == 1
+    mixed = [dataclasses.replace(c, rank_tol=1e-3) if t == 1 else c for t, c in enumerate(cases)]
+    summary = audit_run_file(write_run(tmp_path / "mixed.jsonl", mixed))[2]
+    assert isinstance(summary["rank_rule"], list) and len(summary["rank_rule"]) == 2
+
+
+def _expected_with(case, k, rule):
+    return json.loads(json.dumps({"k": k, **audit_to_dict(audit_case(case, rank_rule=rule))}))
+
+
+def test_audit_of_a_run_never_imports_cvxpy(tmp_path):
+    path = write_run(tmp_path / "run.jsonl", _synthetic_cases())
+    npz = write_run(tmp_path / "run.npz", _synthetic_cases())
+    code = ("import contextlib, io, sys\n"
+            "from gpfverify.cli import main\n"
+            "with contextlib.redirect_stdout(io.StringIO()):\n"
+            f"    codes = [main(['audit', {str(path)!r}, '--json']), main(['audit', {str(npz)!r}])]\n"
+            "print(codes, 'cvxpy' in sys.modules)")
+    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert proc.stdout.strip() == "[0, 0] False"
+
+
+def test_malformed_run_file_in_a_real_process(tmp_path):
+    path = tmp_path / "RUN.jsonl"
+    path.write_text("\n".join(_good_lines(2)[:1] + ["[]"]) + "\n")
+    proc = subprocess.run([sys.executable, "-m", "gpfverify", "audit", str(path), "--json"],
+                          capture_output=True, text=True)
+    assert proc.returncode == 2 and proc.stdout == ""
+    assert proc.stderr.count("\n") == 1 and "line 2" in proc.stderr and "Traceback" not in proc.stderr
