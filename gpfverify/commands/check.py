@@ -1,0 +1,104 @@
+"""``gpfverify check SYSTEM.py:NAME``: does DMF reproduce CMF on your system, at every step, and why
+(not)? Simulated runs (truth known) or your logged measurements; every step audited.
+
+The system file defines NAME, a gpfverify.models.StateSpaceModel (format: docs/models.md).
+Results go to --out DIR (results.json, the per-run records and the equivalence report) or, with
+--json alone, to stdout.
+"""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+import json
+import sys
+import tempfile
+from pathlib import Path
+
+from gpfverify.filters.families import FAMILY_NAMES
+
+
+def _methods(text: str) -> list[str]:
+    return [m.strip() for m in text.split(",") if m.strip()]
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("system", metavar="SYSTEM.py:NAME",
+                        help="a Python file and the name of the StateSpaceModel it defines (docs/models.md)")
+    parser.add_argument("--filter", default="ukf", choices=[f for f in FAMILY_NAMES if f != "kf"],
+                        help="the Gaussian family of every local filter and of the centre (default ukf)")
+    parser.add_argument("--steps", type=int, default=50, help="steps per simulated run (default 50)")
+    parser.add_argument("--runs", type=int, default=1, help="simulated Monte Carlo runs (default 1)")
+    parser.add_argument("--seed", type=int, default=1, help="root seed (default 1)")
+    parser.add_argument("--measurements", metavar="RUN.npz", default=None,
+                        help="filter your logged measurements instead of simulating: y (T, L) stacked in "
+                             "sensor order, optional truth x (T, D)")
+    parser.add_argument("--training", metavar="TRAIN.npz", default=None,
+                        help="GP families: learn from your samples, x (n, D) consecutive states and y (n, L)")
+    parser.add_argument("--train", type=int, default=200,
+                        help="GP families: samples drawn from the system to learn from (default 200)")
+    parser.add_argument("--fit-points", type=int, default=200,
+                        help="GP families: at most this many samples for the evidence maximisation (default 200)")
+    parser.add_argument("--restarts", type=int, default=2, help="GP families: optimiser starts (default 2)")
+    parser.add_argument("--methods", type=_methods, default=["cmf", "dmf", "cw", "ci"],
+                        help="comma-separated fusion rules among cmf,dmf,cw,ci,rcc-ci (cmf and dmf always; "
+                             "default cmf,dmf,cw,ci)")
+    parser.add_argument("--rank-tol", type=float, default=None, metavar="TOL",
+                        help="absolute singular-value tolerance of the rank decisions (default: numpy's "
+                             "matrix_rank rule per matrix)")
+    parser.add_argument("--out", type=Path, default=None, help="output folder (results.json, runs/, report)")
+    parser.add_argument("--json", action="store_true", help="print results.json to stdout")
+    parser.add_argument("--resume", action="store_true", help="continue the runs saved in --out")
+    parser.add_argument("--workers", type=int, default=1, help="local worker processes (default 1)")
+    parser.add_argument("--scheduler", default=None, metavar="ADDRESS",
+                        help="dask.distributed scheduler address (needs gpfverify[cluster])")
+
+
+def summary_line(results: dict) -> str:
+    """The plain-words verdict of a check."""
+    total, held, exact = results["total_steps"], results["condition_held_steps"], results["exact_steps"]
+    runs = results["runs_ok"]
+    where = f"{results['steps']} steps" + (f" of {runs} runs" if runs > 1 else "")
+    if exact == total:
+        verdict = f"DMF reproduced CMF at all {where}"
+        if held < total:
+            verdict += f" (the rank condition failed at {total - held}, exact anyway)"
+    else:
+        verdict = f"DMF differed from CMF at {total - exact} of {total} steps ({where})"
+    return f"{verdict}; largest one-step gap {results['max_gap']:.3g}."
+
+
+def run(args: argparse.Namespace) -> int:
+    from gpfverify.errors import InputError
+    from gpfverify.experiments import check
+    from gpfverify.experiments.runner import make_executor, run_experiment
+    from gpfverify.systems import load_system
+
+    params = check.params_for(args.system, args.filter, args.steps, args.measurements, args.training,
+                              args.train, args.fit_points, args.restarts, args.methods, args.rank_tol)
+    model = load_system(params["system"])  # fail before anything is written
+    if params["measurements"] is not None:
+        if args.runs != 1:
+            raise InputError("--measurements filters one logged run: --runs must be 1")
+        check.logged_measurements(params["measurements"], model)
+    if args.workers < 1:
+        raise InputError(f"--workers must be at least 1, got {args.workers}")
+    if args.out is None and not args.json:
+        raise InputError("give --out DIR (results and report) and/or --json (results on stdout)")
+    with contextlib.ExitStack() as stack:
+        out = args.out if args.out is not None else Path(stack.enter_context(tempfile.TemporaryDirectory()))
+        with make_executor(args.workers, args.scheduler) as executor:
+            results = run_experiment(check, params, args.runs, args.seed, out, args.resume, executor)
+        if args.out is not None:
+            from gpfverify.report.equivalence import write_equivalence_report
+
+            write_equivalence_report(results, args.out)
+    if results["failed_runs"]:
+        first = results["failed_runs"][0]
+        print(f"gpfverify check: {len(results['failed_runs'])} run(s) failed; first: {first['error']}",
+              file=sys.stderr)
+    if args.json:
+        print(json.dumps(results))
+    else:
+        print(summary_line(results) + f" Results: {args.out / 'results.json'}")
+    return 0

@@ -1,0 +1,240 @@
+"""``gpfverify check``: does distributed fusion reproduce centralized fusion on *your* system, at
+every step, and if not, why (SPEC §6).
+
+One run: the measurements y_1..y_T — simulated from the system (truth known) or the user's logged
+``y`` (T, L) with optional truth ``x`` (T, D) — are filtered by every sensor's local filter, the
+centre's CMF and DMF (seed 000 eq. 35; each with its own recursion from the prior) and the chosen
+baselines (:func:`gpfverify.fusion.run_fusion`), and every DMF step is audited
+(:func:`gpfverify.audit.audit_case`): the one-step gap μ_DMF − μ_CMF from the same central
+prediction against its rounding bound (:func:`~gpfverify.fusion.exactness.equivalence_tolerance`),
+each sensor's rank verdict, exactness, share of the gap and repair size. With the truth, every
+estimate's squared error and NEES, and the NIS of CMF and of each local filter.
+
+The GP families (``gp-adf``, ``gp-ukf``) first learn the system from ``train`` samples drawn from it
+(:func:`gpfverify.models.learn_gp_model`) or from the user's training file (``x`` (n, D) states,
+``y`` (n, L) their stacked measurements). Each run draws its training data and its measurements
+from independent child streams of its seed.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from gpfverify.angles import difference
+from gpfverify.consistency import Consistency
+from gpfverify.errors import InputError
+from gpfverify.filters.families import FAMILY_NAMES, GP_FAMILIES
+from gpfverify.filters.records import Gaussian
+from gpfverify.fusion.exactness import equivalence_tolerance
+from gpfverify.fusion.model_fusion import METHODS, run_fusion
+from gpfverify.models import fit_gp_model, learn_gp_model
+from gpfverify.rng import generator
+from gpfverify.systems import load_system, split_spec
+from gpfverify.validate import as_array
+
+NAME = "check"
+DEFAULT_RUNS = 1
+#: fields of results.json that are measurements of time, not results
+TIMING_KEYS = ("time_per_step",)
+#: two-sided level of the ANEES / ANIS bands
+CONSISTENCY_LEVEL = 0.95
+
+
+def params_for(system: str, filter: str = "ukf", steps: int = 50, measurements: str | None = None,
+               training: str | None = None, train: int = 200, fit_points: int | None = 200,
+               restarts: int = 2, methods=("cmf", "dmf", "cw", "ci"), rank_tol: float | None = None) -> dict:
+    """The JSON-able parameters of a check, validated (paths made absolute)."""
+    path, name = split_spec(system)
+    if filter not in FAMILY_NAMES:
+        raise InputError(f"--filter must be one of {', '.join(FAMILY_NAMES)}, got {filter!r}")
+    methods = tuple(methods)
+    unknown = [m for m in methods if m not in METHODS]
+    if unknown or "cmf" not in methods or "dmf" not in methods:
+        raise InputError(f"--methods must include cmf and dmf and be among {', '.join(METHODS)}, got "
+                         f"{','.join(methods)}")
+    for label, value, low in (("--steps", steps, 1), ("--train", train, 2), ("--restarts", restarts, 1)):
+        if isinstance(value, bool) or not isinstance(value, int) or value < low:
+            raise InputError(f"{label} must be an integer >= {low}, got {value!r}")
+    if fit_points is not None and fit_points < 2:
+        raise InputError(f"--fit-points must be at least 2, got {fit_points}")
+    if rank_tol is not None and not (np.isfinite(rank_tol) and rank_tol >= 0):
+        raise InputError(f"--rank-tol must be a finite number >= 0, got {rank_tol}")
+    return {"system": f"{path}:{name}", "filter": filter, "steps": steps,
+            "measurements": None if measurements is None else str(Path(measurements).resolve()),
+            "training": None if training is None else str(Path(training).resolve()),
+            "train": train, "fit_points": fit_points, "restarts": restarts, "methods": list(methods),
+            "rank_tol": rank_tol}
+
+
+def _load_npz(path: str, what: str) -> dict[str, np.ndarray]:
+    try:
+        with np.load(path, allow_pickle=False) as data:
+            return {key: data[key] for key in data.files}
+    except (OSError, ValueError) as exc:
+        raise InputError(f"cannot read {what} {path}: {exc}") from None
+
+
+def logged_measurements(path: str, model) -> tuple[np.ndarray | None, np.ndarray]:
+    """(truth x (T, D) or None, measurements y (T, L)) from a run file (``y`` required)."""
+    data = _load_npz(path, "measurements")
+    if "y" not in data:
+        raise InputError(f"{path} has no array 'y' (the measurements, (T, {model.measurement_dim}))")
+    ys = as_array(data["y"], f"{Path(path).name}: y", shape=(None, model.measurement_dim))
+    truth = None
+    if "x" in data:
+        truth = as_array(data["x"], f"{Path(path).name}: x", shape=(ys.shape[0], model.state_dim))
+    return truth, ys
+
+
+def _gp_model(model, params: dict, rng: np.random.Generator):
+    """The system learned as GPs from the user's training file or from samples of the system."""
+    if params["training"] is None:
+        return learn_gp_model(model, params["train"], rng, restarts=params["restarts"],
+                              fit_points=params["fit_points"])
+    data = _load_npz(params["training"], "training data")
+    name = Path(params["training"]).name
+    if "x" not in data or "y" not in data:
+        raise InputError(f"{name} needs arrays 'x' (n, D) and 'y' (n, L)")
+    x = as_array(data["x"], f"{name}: x", shape=(None, model.state_dim))
+    y = as_array(data["y"], f"{name}: y", shape=(x.shape[0], model.measurement_dim))
+    return fit_gp_model(x[:-1], x[1:], x, [y[:, b] for b in model.blocks], rng, restarts=params["restarts"],
+                        fit_points=params["fit_points"], sensor_circular=model.sensor_circular,
+                        circular_state=model.circular_state)
+
+
+def run_one(params: dict, seed: np.random.SeedSequence) -> dict:
+    """One run of the check (module docstring)."""
+    model = load_system(params["system"])
+    data_rng, train_rng = (generator(s) for s in seed.spawn(2))
+    if params["measurements"] is None:
+        truth, ys = model.simulate(params["steps"], data_rng)
+    else:
+        truth, ys = logged_measurements(params["measurements"], model)
+    prior = Gaussian(model.prior_mean, model.prior_cov)
+    fusion_model = _gp_model(model, params, train_rng) if params["filter"] in GP_FAMILIES else model
+    fused = run_fusion(fusion_model, ys, family=params["filter"], methods=params["methods"],
+                       rank_tol=params["rank_tol"], local_priors=[prior] * len(model.sensors),
+                       fused_prior=prior)
+    return _record(model, fused, ys, truth)
+
+
+def _normalised_errors(model, fused, ys: np.ndarray, truth: np.ndarray | None) -> dict:
+    """NIS of CMF and of every local filter, and (with the truth) NEES of every estimate, per step
+    (:class:`gpfverify.consistency.Consistency`; angle components wrapped)."""
+    cmf = [s.cmf for s in fused.steps]
+    locals_ = [[s.local[m] for s in fused.steps] for m in range(len(model.sensors))]
+    out = {"nis": {"cmf": Consistency.nis_from_records(ys, cmf, circular=model.circular).values[0],
+                   "local": [Consistency.nis_from_records(ys[:, b], records, circular=sensor.circular).values[0]
+                             for b, sensor, records in zip(model.blocks, model.sensors, locals_)]}}
+    if truth is not None:
+        nees = lambda estimates: Consistency.from_records(  # noqa: E731
+            truth, estimates, circular_state=model.circular_state).values[0]
+        out["nees"] = {m: nees([s.estimate(m) for s in fused.steps]) for m in fused.methods}
+        out["local_nees"] = [nees([r.posterior for r in records]) for records in locals_]
+    return out
+
+
+def _record(model, fused, ys: np.ndarray, truth: np.ndarray | None) -> dict:
+    errors = _normalised_errors(model, fused, ys, truth)
+    steps = []
+    for t, step in enumerate(fused.steps):
+        audit, dmf = step.audit, step.dmf
+        bound = equivalence_tolerance(dmf.case, dmf.result.gain, dmf.result.sensors)
+        entry = {
+            "k": step.k, "cmf_mean": audit.cmf_mean.tolist(), "dmf_mean": audit.dmf_mean.tolist(),
+            "gap": audit.gap.tolist(), "gap_norm": float(np.linalg.norm(audit.gap)),
+            "predicted_gap_norm": float(np.linalg.norm(audit.predicted_gap)), "gap_bound": float(bound),
+            "repaired_gap_norm": float(np.linalg.norm(audit.repaired_dmf_mean - audit.cmf_mean)),
+            "recursive_gap_norm": float(np.linalg.norm(step.estimate("dmf").mean - step.estimate("cmf").mean)),
+            "condition_holds": bool(audit.condition_holds), "exact": bool(audit.exact),
+            "sensors": [{"index": s.index, "rank": int(s.rank), "cols": s.cols,
+                         "full_column_rank": bool(s.full_column_rank), "exact": bool(s.exact),
+                         "repair_dim": int(s.repair_dim), "singular_values": s.singular_values.tolist(),
+                         "tol": float(s.tol),
+                         "gap_share": float(np.linalg.norm(s.gap_contribution)),
+                         "branch_offsets": s.branch_offsets.tolist()} for s in audit.sensors],
+            "means": {m: step.estimate(m).mean.tolist() for m in fused.methods},
+            "local_means": [r.mu_e.tolist() for r in step.local],
+            "seconds": {**step.seconds, "local": list(step.local_seconds)},
+            "nis": {"cmf": float(errors["nis"]["cmf"][t]),
+                    "local": [float(v[t]) for v in errors["nis"]["local"]]},
+        }
+        if truth is not None:
+            x = truth[t]
+            entry["sq_err"] = {m: float(np.sum(difference(x, step.estimate(m).mean, model.circular_state) ** 2))
+                               for m in fused.methods}
+            entry["nees"] = {m: float(v[t]) for m, v in errors["nees"].items()}
+            entry["local_sq_err"] = [float(np.sum(difference(x, r.mu_e, model.circular_state) ** 2))
+                                     for r in step.local]
+            entry["local_nees"] = [float(v[t]) for v in errors["local_nees"]]
+        steps.append(entry)
+    return {"truth_known": truth is not None, "steps": steps}
+
+
+# -- results.json ----------------------------------------------------------------------------------
+
+def _sensor_table(model) -> list[dict]:
+    return [{"index": m, "name": s.name or f"sensor {m}", "outputs": s.size, "circular": list(s.circular),
+             "more_outputs_than_states": s.size > model.state_dim} for m, s in enumerate(model.sensors)]
+
+
+def _per_sensor(steps_by_run: list[list[dict]], key: str) -> list:
+    """(R, T, N) nested lists of a per-sensor field."""
+    return [[[s[key] for s in e["sensors"]] for e in steps] for steps in steps_by_run]
+
+
+def _average(kind: str, values: np.ndarray, dof: int) -> dict:
+    """ANEES / ANIS at every step of (R, T) normalised errors with its two-sided χ² band
+    (Bar-Shalom's test, :meth:`gpfverify.consistency.Consistency.average_over_runs`)."""
+    test = Consistency(kind, values, dof).average_over_runs(CONSISTENCY_LEVEL)
+    return {"average": test.values.tolist(), "band": [test.lower, test.upper], "dof": dof, "runs": test.samples,
+            "level": test.level, "fraction_inside": test.fraction_inside, "verdict": test.verdict()}
+
+
+def summarize(params: dict, results: list[dict]) -> dict:
+    """The results.json body (CONTRACT "Checking a user's own system" keys first)."""
+    model = load_system(params["system"])
+    steps_by_run = [r["steps"] for r in results]
+    first = steps_by_run[0]
+    every = [e for steps in steps_by_run for e in steps]
+    methods = list(params["methods"])
+    out = {
+        "steps": len(first), "filter": params["filter"],
+        "per_step": [{"k": e["k"], "cmf_mean": e["cmf_mean"], "dmf_mean": e["dmf_mean"], "gap": e["gap"],
+                      "sensors": [{key: s[key] for key in ("index", "rank", "full_column_rank", "exact")}
+                                  for s in e["sensors"]]} for e in first],
+        "max_gap": max(e["gap_norm"] for e in every),
+        "condition_held_steps": sum(e["condition_holds"] for e in every),
+        "exact_steps": sum(e["exact"] for e in every),
+        "exact_steps_within_bound": sum(bool(e["exact"] and e["gap_norm"] <= e["gap_bound"]) for e in every),
+        "total_steps": len(every),
+        "system": params["system"], "state_dim": model.state_dim, "sensors": _sensor_table(model),
+        "rank_rule": "absolute tolerance" if params["rank_tol"] is not None else "numpy matrix_rank rule",
+        "k": [e["k"] for e in first],
+        "gap_norm": [[e["gap_norm"] for e in steps] for steps in steps_by_run],
+        "gap_bound": [[e["gap_bound"] for e in steps] for steps in steps_by_run],
+        "recursive_gap_norm": [[e["recursive_gap_norm"] for e in steps] for steps in steps_by_run],
+        **{key: _per_sensor(steps_by_run, key)
+           for key in ("rank", "full_column_rank", "exact", "repair_dim", "gap_share", "tol")},
+        "time_per_step": {**{m: float(np.mean([e["seconds"][m] for e in every])) for m in methods},
+                          "local": float(np.mean([sum(e["seconds"]["local"]) for e in every]))},
+        "timing_keys": list(TIMING_KEYS),
+        "truth_known": all(r["truth_known"] for r in results),
+    }
+    nis = np.array([[e["nis"]["cmf"] for e in steps] for steps in steps_by_run])
+    out["nis"] = {"cmf": _average("NIS", nis, model.measurement_dim),
+                  "local": [_average("NIS", np.array([[e["nis"]["local"][m] for e in steps] for steps in steps_by_run]),
+                                     s.size) for m, s in enumerate(model.sensors)]}
+    if out["truth_known"]:
+        d = model.state_dim
+        sq = {m: np.array([[e["sq_err"][m] for e in steps] for steps in steps_by_run]) for m in methods}
+        nees = {m: np.array([[e["nees"][m] for e in steps] for steps in steps_by_run]) for m in methods}
+        local_sq = np.array([[e["local_sq_err"] for e in steps] for steps in steps_by_run])   # (R, T, N)
+        local_nees = np.array([[e["local_nees"] for e in steps] for steps in steps_by_run])
+        out["rmse"] = {m: np.sqrt(v.mean(axis=0)).tolist() for m, v in sq.items()}
+        out["local_rmse"] = [np.sqrt(local_sq[:, :, m].mean(axis=0)).tolist() for m in range(len(model.sensors))]
+        out["nees"] = {m: _average("NEES", v, d) for m, v in nees.items()}
+        out["local_nees"] = [_average("NEES", local_nees[:, :, m], d) for m in range(len(model.sensors))]
+    return out

@@ -1,0 +1,60 @@
+"""Load a user's system from ``SYSTEM.py:NAME`` (the ``gpfverify check`` argument).
+
+``SYSTEM.py`` is imported as a module of its own (not on ``sys.path``); ``NAME`` must be a
+:class:`~gpfverify.models.StateSpaceModel` or a function of no arguments returning one. Every
+failure — no such file, the file raising while it is imported, no such name, not a model, a model
+function that raises or returns the wrong shape when the model is built — is an
+:class:`~gpfverify.errors.InputError` whose message names the file and the cause in one line.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import importlib.util
+import sys
+from pathlib import Path
+
+from gpfverify.errors import GpfverifyError, InputError
+from gpfverify.models import StateSpaceModel
+
+
+def split_spec(spec: str) -> tuple[Path, str]:
+    """``"path/to/system.py:NAME"`` → (absolute path, NAME)."""
+    path, sep, name = str(spec).rpartition(":")
+    if not sep or not path or not name.isidentifier():
+        raise InputError(f"the system must be given as SYSTEM.py:NAME, got {spec!r}")
+    return Path(path).expanduser().resolve(), name
+
+
+def load_system(spec: str) -> StateSpaceModel:
+    """The model ``NAME`` defined in ``SYSTEM.py`` (module docstring)."""
+    path, name = split_spec(spec)
+    if not path.is_file():
+        raise InputError(f"no such file: {path}")
+    module_name = "gpfverify_user_system_" + hashlib.sha1(str(path).encode()).hexdigest()[:12]
+    module = sys.modules.get(module_name)
+    if module is None:
+        module_spec = importlib.util.spec_from_file_location(module_name, path)
+        if module_spec is None or module_spec.loader is None:
+            raise InputError(f"{path} is not a Python file")
+        module = importlib.util.module_from_spec(module_spec)
+        try:
+            module_spec.loader.exec_module(module)
+        except GpfverifyError as exc:
+            raise InputError(f"{path.name}: {exc}") from exc
+        except Exception as exc:  # the user's code
+            raise InputError(f"{path.name} raised {type(exc).__name__} while loading: {exc}") from exc
+        sys.modules[module_name] = module
+    if not hasattr(module, name):
+        raise InputError(f"{path.name} defines no {name!r}")
+    model = getattr(module, name)
+    if callable(model) and not isinstance(model, StateSpaceModel):
+        try:
+            model = model()
+        except GpfverifyError as exc:
+            raise InputError(f"{path.name}:{name}(): {exc}") from exc
+        except Exception as exc:
+            raise InputError(f"{path.name}:{name}() raised {type(exc).__name__}: {exc}") from exc
+    if not isinstance(model, StateSpaceModel):
+        raise InputError(f"{path.name}:{name} is a {type(model).__name__}, not a gpfverify.models.StateSpaceModel")
+    return model
