@@ -1,0 +1,163 @@
+"""The equivalence report of ``gpfverify check`` and of a run audit: rendered from results alone,
+summary counts computed from the arrays, the l_m > D sentence only where it applies, a
+self-contained HTML page, no half-written files."""
+
+from __future__ import annotations
+
+import copy
+import json
+import re
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from gpfverify.report.equivalence import (summary_paragraphs, write_equivalence_report,
+                                          write_run_audit_report)
+
+ROOT = Path(__file__).resolve().parents[1]
+LM_GT_D = "l_m > D: the rank condition can never hold for this sensor"
+
+
+def _check_results(system: str, steps: int = 8) -> dict:
+    from gpfverify.experiments.check import params_for, run_one, summarize
+
+    params = params_for(str(ROOT / "examples" / system), steps=steps)
+    runs = [run_one(params, seed) for seed in np.random.SeedSequence(1).spawn(2)]
+    # what the runner adds around summarize (gpfverify.experiments.runner.write_results)
+    return json.loads(json.dumps({"experiment": "check", "runs": 2, "seed": 1, "params": params, "runs_ok": 2,
+                                  "failed_runs": [], **summarize(params, runs)}))
+
+
+@pytest.fixture(scope="module")
+def tracker() -> dict:
+    return _check_results("three_sensor_system.py:tracker")
+
+
+@pytest.fixture(scope="module")
+def redundant() -> dict:
+    return _check_results("redundant_sensor_system.py:system")
+
+
+def _counts(results: dict) -> tuple[int, int]:
+    """(steps judged exact, total steps) from the per-sensor arrays, independently of the report."""
+    exact = np.asarray(results["exact"], bool)
+    return int(exact.all(axis=2).sum()), exact.shape[0] * exact.shape[1]
+
+
+def _assert_self_contained(html: str, out: Path) -> None:
+    """Every figure of the folder embedded, nothing loaded from elsewhere."""
+    sources = re.findall(r'src="([^"]*)"', html)
+    assert len(sources) == len(list((out / "figures").glob("*.png")))
+    assert all(s.startswith("data:image/png;base64,") for s in sources)
+    assert "href=\"http" not in html and "<link" not in html and "<script" not in html
+
+
+def _assert_complete(out: Path, pngs: list[str]) -> None:
+    for name in ["README.md", "report.html"] + [f"figures/{p}" for p in pngs]:
+        assert (out / name).is_file() and (out / name).stat().st_size > 0, name
+    leftovers = [p.name for p in out.iterdir() if p.name.startswith(".")]
+    assert not leftovers, leftovers
+
+
+def test_tracker_report(tracker, tmp_path):
+    exact, total = _counts(tracker)
+    assert exact == total  # every step of the tracker is exact (UKF, full rank)
+    html_path = write_equivalence_report(tracker, tmp_path)
+    assert html_path == tmp_path / "report.html"
+    pngs = ["gap.png", "verdicts.png", "drift.png", "rmse.png", "consistency.png"]
+    _assert_complete(tmp_path, pngs)
+    first = summary_paragraphs(tracker)[0]
+    assert first.startswith(f"DMF reproduced CMF at all {total} steps of 2 runs")
+    readme = (tmp_path / "README.md").read_text(encoding="utf-8")
+    assert first in readme
+    assert LM_GT_D not in readme and "l_m > D:" not in readme
+    assert "matrix_rank rule" in readme or "canonical" in readme  # the rule that decided, by name
+    html = html_path.read_text(encoding="utf-8")
+    _assert_self_contained(html, tmp_path)
+    for png in pngs:
+        assert f"figures/{png}" in readme
+
+
+def test_redundant_report(redundant, tmp_path):
+    exact, total = _counts(redundant)
+    assert exact < total
+    write_equivalence_report(redundant, tmp_path)
+    _assert_complete(tmp_path, ["gap.png", "verdicts.png", "drift.png", "rmse.png", "consistency.png"])
+    paragraphs = summary_paragraphs(redundant)
+    assert paragraphs[0].startswith(f"DMF differed from CMF at {total - exact} of {total} steps of 2 runs "
+                                    f"and reproduced it at {exact}")
+    readme = (tmp_path / "README.md").read_text(encoding="utf-8")
+    sensor_1 = [p for p in paragraphs if p.startswith("Sensor 1 (polar and sum) lost full column rank")]
+    assert len(sensor_1) == 1 and LM_GT_D in sensor_1[0] and "3 outputs and the state 2" in sensor_1[0]
+    assert readme.count(LM_GT_D) == 1  # sensor 0 (1 output) does not get it
+    full = np.asarray(redundant["full_column_rank"], bool)
+    lost = int((~full[:, :, 1]).sum())
+    sensor_exact = np.asarray(redundant["exact"], bool)[:, :, 1]
+    assert f"exact anyway at {int((~full[:, :, 1] & sensor_exact).sum())} of those {lost} steps" in sensor_1[0]
+    # every inexact step explained: one row per step judged not exact (or above its bound)
+    gap, bound = np.asarray(redundant["gap_norm"]), np.asarray(redundant["gap_bound"])
+    flagged = int((~np.asarray(redundant["exact"], bool).all(axis=2) | (gap > bound)).sum())
+    assert f"({flagged} of {total})" in readme
+    assert "Every inexact step is explained" in readme
+    _assert_self_contained((tmp_path / "report.html").read_text(encoding="utf-8"), tmp_path)
+
+
+def test_report_replaces_previous_and_optional_fields(tracker, tmp_path):
+    """A second render into the same folder replaces the first; a rank-rule object and canonical
+    correlations are rendered when present; without the truth there is no RMSE figure."""
+    write_equivalence_report(tracker, tmp_path)
+    results = copy.deepcopy(tracker)
+    results["rank_rule"] = {"name": "canonical", "tol": 1e-6}
+    sizes = [s["outputs"] for s in results["sensors"]]
+    runs, steps = np.asarray(results["gap_norm"]).shape
+    results["canonical_correlations"] = [[[[0.5 + 0.1 * j for j in range(l)] for l in sizes]
+                                          for _ in range(steps)] for _ in range(runs)]
+    results["truth_known"] = False
+    for key in ("rmse", "local_rmse", "nees", "local_nees"):
+        results.pop(key)
+    write_equivalence_report(results, tmp_path)
+    _assert_complete(tmp_path, ["gap.png", "verdicts.png", "drift.png", "consistency.png", "canonical.png"])
+    assert not (tmp_path / "figures" / "rmse.png").exists()
+    readme = (tmp_path / "README.md").read_text(encoding="utf-8")
+    assert "canonical rank rule (tol = 1e-06)" in readme
+    assert "smallest canonical correlation" in readme.lower() and "0.5" in readme
+    assert "truth is not known" in readme
+
+
+def _run_audit(model, steps: int = 6) -> dict:
+    from gpfverify.audit import audit_to_dict
+    from gpfverify.fusion import run_fusion
+    from gpfverify.rng import generator
+
+    _, ys = model.simulate(steps, generator(np.random.SeedSequence(4)))
+    run = run_fusion(model, ys)
+    records = [{"k": step.k, **audit_to_dict(step.audit)} for step in run.steps]
+    summary = {"steps": len(records), "condition_held_steps": sum(r["condition_holds"] for r in records),
+               "exact_steps": sum(r["exact"] for r in records), "rank_rule": records[0]["rank_rule"]}
+    return {"steps": records, "summary": summary}
+
+
+def test_run_audit_report(tmp_path):
+    from gpfverify.scenarios.three_sensor import three_sensor_model
+    from gpfverify.systems import load_system
+
+    tracker_audit = _run_audit(three_sensor_model())
+    out = tmp_path / "tracker"
+    write_run_audit_report(tracker_audit, out)
+    _assert_complete(out, ["gap.png", "verdicts.png", "singular-values.png"])
+    assert json.loads((out / "audit.json").read_text(encoding="utf-8")) == tracker_audit
+    readme = (out / "README.md").read_text(encoding="utf-8")
+    assert f"DMF reproduces CMF at all {len(tracker_audit['steps'])} steps" in readme
+    assert "l_m > D:" not in readme
+    _assert_self_contained((out / "report.html").read_text(encoding="utf-8"), out)
+
+    redundant_audit = _run_audit(load_system(str(ROOT / "examples" / "redundant_sensor_system.py:system")))
+    out = tmp_path / "redundant"
+    write_run_audit_report(redundant_audit, out)
+    _assert_complete(out, ["gap.png", "verdicts.png", "repair.png", "singular-values.png"])
+    readme = (out / "README.md").read_text(encoding="utf-8")
+    assert readme.count(LM_GT_D) == 1
+    inexact = sum(not s["exact"] for s in redundant_audit["steps"])
+    assert f"DMF differs from CMF at {inexact} of {len(redundant_audit['steps'])} steps" in readme
+    _assert_self_contained((out / "report.html").read_text(encoding="utf-8"), out)
