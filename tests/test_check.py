@@ -143,3 +143,16 @@ def test_bad_measurement_files_exit_2(tmp_path):
     for name, message in (("wrong.npz", "y must have shape"), ("junk.npz", "cannot read measurements")):
         result = _cli(TRACKER, "--measurements", tmp_path / name, "--json")
         assert result.returncode == 2 and message in result.stderr and result.stderr.count("\n") == 1
+
+
+def test_the_rank_rule_is_unit_free_by_default_and_recorded():
+    records = {}
+    for rule in ("canonical", "numpy"):
+        params = check.params_for(REDUNDANT, steps=6, methods=("cmf", "dmf"), rank_rule=rule)
+        records[rule] = check.summarize(params, [check.run_one(params, np.random.SeedSequence(3))])
+    assert records["canonical"]["rank_rule"]["name"] == "canonical"
+    assert records["numpy"]["rank_rule"]["name"] == "numpy"
+    correlations = np.array(records["canonical"]["min_canonical_correlation"], dtype=float)  # (R, T, N)
+    assert np.all((correlations >= 0) & (correlations <= 1))
+    with pytest.raises(check.InputError, match="unknown rank rule"):
+        check.params_for(REDUNDANT, rank_rule="sigma-max")

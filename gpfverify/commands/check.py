@@ -43,9 +43,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--methods", type=_methods, default=["cmf", "dmf", "cw", "ci"],
                         help="comma-separated fusion rules among cmf,dmf,cw,ci,rcc-ci (cmf and dmf always; "
                              "default cmf,dmf,cw,ci)")
-    parser.add_argument("--rank-tol", type=float, default=None, metavar="TOL",
-                        help="absolute singular-value tolerance of the rank decisions (default: numpy's "
-                             "matrix_rank rule per matrix)")
+    parser.add_argument("--rank-rule", default="canonical", metavar="RULE",
+                        help="how the rank of each C_xy^m is decided: canonical[:TAU] (default; canonical "
+                             "correlations of state and sensor output > TAU, unit-free), absolute:TOL "
+                             "(singular values > TOL) or numpy (sigma_max * max(D, l) * eps)")
     parser.add_argument("--out", type=Path, default=None, help="output folder (results.json, runs/, report)")
     parser.add_argument("--json", action="store_true", help="print results.json to stdout")
     parser.add_argument("--resume", action="store_true", help="continue the runs saved in --out")
@@ -75,7 +76,7 @@ def run(args: argparse.Namespace) -> int:
     from gpfverify.systems import load_system
 
     params = check.params_for(args.system, args.filter, args.steps, args.measurements, args.training,
-                              args.train, args.fit_points, args.restarts, args.methods, args.rank_tol)
+                              args.train, args.fit_points, args.restarts, args.methods, args.rank_rule)
     model = load_system(params["system"])  # fail before anything is written
     if params["measurements"] is not None:
         if args.runs != 1:

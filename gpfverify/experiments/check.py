@@ -27,7 +27,8 @@ from gpfverify.consistency import Consistency
 from gpfverify.errors import InputError
 from gpfverify.filters.families import FAMILY_NAMES, GP_FAMILIES
 from gpfverify.filters.records import Gaussian
-from gpfverify.fusion.exactness import equivalence_tolerance
+from gpfverify.audit import rank_rule_to_dict
+from gpfverify.fusion.exactness import equivalence_tolerance, parse_rank_rule
 from gpfverify.fusion.model_fusion import METHODS, run_fusion
 from gpfverify.models import fit_gp_model, learn_gp_model
 from gpfverify.rng import generator
@@ -44,8 +45,10 @@ CONSISTENCY_LEVEL = 0.95
 
 def params_for(system: str, filter: str = "ukf", steps: int = 50, measurements: str | None = None,
                training: str | None = None, train: int = 200, fit_points: int | None = 200,
-               restarts: int = 2, methods=("cmf", "dmf", "cw", "ci"), rank_tol: float | None = None) -> dict:
-    """The JSON-able parameters of a check, validated (paths made absolute)."""
+               restarts: int = 2, methods=("cmf", "dmf", "cw", "ci"), rank_rule: str = "canonical") -> dict:
+    """The JSON-able parameters of a check, validated (paths made absolute). ``rank_rule`` is a
+    :func:`~gpfverify.fusion.exactness.parse_rank_rule` string: the unit-free canonical-correlation
+    rule by default (``"canonical[:TAU]"``), ``"absolute:TOL"`` or ``"numpy"``."""
     path, name = split_spec(system)
     if filter not in FAMILY_NAMES:
         raise InputError(f"--filter must be one of {', '.join(FAMILY_NAMES)}, got {filter!r}")
@@ -59,13 +62,12 @@ def params_for(system: str, filter: str = "ukf", steps: int = 50, measurements: 
             raise InputError(f"{label} must be an integer >= {low}, got {value!r}")
     if fit_points is not None and fit_points < 2:
         raise InputError(f"--fit-points must be at least 2, got {fit_points}")
-    if rank_tol is not None and not (np.isfinite(rank_tol) and rank_tol >= 0):
-        raise InputError(f"--rank-tol must be a finite number >= 0, got {rank_tol}")
+    rule = parse_rank_rule(rank_rule)
     return {"system": f"{path}:{name}", "filter": filter, "steps": steps,
             "measurements": None if measurements is None else str(Path(measurements).resolve()),
             "training": None if training is None else str(Path(training).resolve()),
             "train": train, "fit_points": fit_points, "restarts": restarts, "methods": list(methods),
-            "rank_tol": rank_tol}
+            "rank_rule": rule.spec}
 
 
 def _load_npz(path: str, what: str) -> dict[str, np.ndarray]:
@@ -115,7 +117,7 @@ def run_one(params: dict, seed: np.random.SeedSequence) -> dict:
     prior = Gaussian(model.prior_mean, model.prior_cov)
     fusion_model = _gp_model(model, params, train_rng) if params["filter"] in GP_FAMILIES else model
     fused = run_fusion(fusion_model, ys, family=params["filter"], methods=params["methods"],
-                       rank_tol=params["rank_tol"], local_priors=[prior] * len(model.sensors),
+                       rank_rule=params["rank_rule"], local_priors=[prior] * len(model.sensors),
                        fused_prior=prior)
     return _record(model, fused, ys, truth)
 
@@ -154,6 +156,9 @@ def _record(model, fused, ys: np.ndarray, truth: np.ndarray | None) -> dict:
                          "repair_dim": int(s.repair_dim), "singular_values": s.singular_values.tolist(),
                          "tol": float(s.tol),
                          "gap_share": float(np.linalg.norm(s.gap_contribution)),
+                         "min_canonical_correlation": (None if s.canonical_correlations is None
+                                                       or not s.canonical_correlations.size
+                                                       else float(s.canonical_correlations.min())),
                          "branch_offsets": s.branch_offsets.tolist()} for s in audit.sensors],
             "means": {m: step.estimate(m).mean.tolist() for m in fused.methods},
             "local_means": [r.mu_e.tolist() for r in step.local],
@@ -196,6 +201,7 @@ def _average(kind: str, values: np.ndarray, dof: int) -> dict:
 def summarize(params: dict, results: list[dict]) -> dict:
     """The results.json body (CONTRACT "Checking a user's own system" keys first)."""
     model = load_system(params["system"])
+    rule = parse_rank_rule(params["rank_rule"])
     steps_by_run = [r["steps"] for r in results]
     first = steps_by_run[0]
     every = [e for steps in steps_by_run for e in steps]
@@ -211,13 +217,14 @@ def summarize(params: dict, results: list[dict]) -> dict:
         "exact_steps_within_bound": sum(bool(e["exact"] and e["gap_norm"] <= e["gap_bound"]) for e in every),
         "total_steps": len(every),
         "system": params["system"], "state_dim": model.state_dim, "sensors": _sensor_table(model),
-        "rank_rule": "absolute tolerance" if params["rank_tol"] is not None else "numpy matrix_rank rule",
+        "rank_rule": {**rank_rule_to_dict(rule), "description": rule.describe()},
         "k": [e["k"] for e in first],
         "gap_norm": [[e["gap_norm"] for e in steps] for steps in steps_by_run],
         "gap_bound": [[e["gap_bound"] for e in steps] for steps in steps_by_run],
         "recursive_gap_norm": [[e["recursive_gap_norm"] for e in steps] for steps in steps_by_run],
         **{key: _per_sensor(steps_by_run, key)
-           for key in ("rank", "full_column_rank", "exact", "repair_dim", "gap_share", "tol")},
+           for key in ("rank", "full_column_rank", "exact", "repair_dim", "gap_share", "tol",
+                       "min_canonical_correlation")},
         "time_per_step": {**{m: float(np.mean([e["seconds"][m] for e in every])) for m in methods},
                           "local": float(np.mean([sum(e["seconds"]["local"]) for e in every]))},
         "timing_keys": list(TIMING_KEYS),
