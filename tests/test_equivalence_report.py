@@ -77,6 +77,10 @@ def test_tracker_report(tracker, tmp_path):
     _assert_self_contained(html, tmp_path)
     for png in pngs:
         assert f"figures/{png}" in readme
+    canonical = tracker.get("min_canonical_correlation")
+    if canonical is not None and any(v is not None for run in canonical for step in run for v in step):
+        assert (tmp_path / "figures" / "canonical.png").is_file()
+        assert "smallest canonical correlation" in readme.lower()
 
 
 def test_redundant_report(redundant, tmp_path):
@@ -111,6 +115,7 @@ def test_report_replaces_previous_and_optional_fields(tracker, tmp_path):
     results["rank_rule"] = {"name": "canonical", "tol": 1e-6}
     sizes = [s["outputs"] for s in results["sensors"]]
     runs, steps = np.asarray(results["gap_norm"]).shape
+    results.pop("min_canonical_correlation", None)   # the ragged per-correlation form instead
     results["canonical_correlations"] = [[[[0.5 + 0.1 * j for j in range(l)] for l in sizes]
                                           for _ in range(steps)] for _ in range(runs)]
     results["truth_known"] = False

@@ -66,7 +66,7 @@ def rank_rule_text(rule, rank_tol=None) -> str:
         text = "the rank rule recorded with the run"
     elif isinstance(rule, dict):
         name = rule.get("name") or rule.get("kind") or rule.get("rule") or "rank rule"
-        rest = [f"{k} = {v:g}" if isinstance(v, float) else f"{k} = {v}" for k, v in rule.items()
+        rest = [f"{k} = {v:.3g}" if isinstance(v, float) else f"{k} = {v}" for k, v in rule.items()
                 if k not in ("name", "kind", "rule", "description") and v is not None]
         extras = f" ({', '.join(rest)})" if rest else ""
         text = (f"{name} rank rule{extras}" if not rule.get("description")
@@ -81,8 +81,8 @@ def rank_rule_text(rule, rank_tol=None) -> str:
 
 
 def _rule_threshold(rule):
-    """The scalar threshold of a rule object, if it names one."""
-    if isinstance(rule, dict):
+    """The threshold τ of a canonical-correlation rule object, if it names one."""
+    if isinstance(rule, dict) and "canonical" in str(rule.get("name", "canonical")):
         for key in ("tol", "tau", "threshold", "rtol"):
             value = rule.get(key)
             if isinstance(value, (int, float)) and not isinstance(value, bool):
@@ -129,7 +129,15 @@ class CheckData:
         labels = [i for i in range(runs) if i not in failed]
         self.run_labels = labels if len(labels) == self.runs_ok else list(range(self.runs_ok))
         self.canonical = None
-        if results.get("canonical_correlations") is not None:
+        if results.get("min_canonical_correlation") is not None:
+            try:
+                self.canonical = np.array([[[np.nan if v is None else v for v in step] for step in run]
+                                           for run in results["min_canonical_correlation"]], dtype=float)
+                if self.canonical.shape != self.full.shape or np.isnan(self.canonical).all():
+                    self.canonical = None
+            except (TypeError, ValueError):
+                self.canonical = None
+        if self.canonical is None and results.get("canonical_correlations") is not None:
             try:
                 self.canonical = _min_ragged(results["canonical_correlations"])  # (R, T, N)
                 if self.canonical.shape != self.full.shape:
@@ -283,8 +291,10 @@ def _rule_sentence(d: CheckData) -> str:
     params = d.r.get("params") or {}
     rule = rank_rule_text(d.r.get("rank_rule"), params.get("rank_tol"))
     tols = d.tol[np.isfinite(d.tol)]
+    rule_obj = d.r.get("rank_rule")
+    stated = isinstance(rule_obj, dict) and isinstance(rule_obj.get("tol"), (int, float))
     span = (f"the tolerances it gave ranged from {_g(tols.min())} to {_g(tols.max())}" if tols.size
-            and tols.min() != tols.max() else f"tolerance {_g(tols.max())}" if tols.size else "")
+            and tols.min() != tols.max() else f"tolerance {_g(tols.max())}" if tols.size and not stated else "")
     return (f"Every rank verdict was decided by the {rule}" + (f"; {span}" if span else "") +
             ". A sensor is exact when the directions its rank decision drops carry no gain "
             "(‖G_m C_y^m N_m‖₂ at rounding level), a step when every sensor is; the rounding bound of the gap is "
