@@ -122,7 +122,7 @@ def test_audit_of_a_short_run_matches_the_dmf_steps():
         dmf_gaps.append(np.linalg.norm(dmf.record.mu_e - cmf.mu_e))
         central, local_beliefs = cmf.posterior, [r.posterior for r in local]
     cases = cases_from_run(cmf_records, local_runs, [2, 2], ys)
-    run = audit_run(cases)
+    run = audit_run(cases, rank_rule="numpy")  # dmf_step's default rule
     assert run.rank.shape == (3, 2) and not run.full_column_rank.any()
     np.testing.assert_array_equal(run.repair_dim, np.ones((3, 2), dtype=int))
     tol = [equivalence_tolerance(c, dmf_update(c).gain, dmf_update(c).sensors) for c in cases]

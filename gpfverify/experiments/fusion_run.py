@@ -142,7 +142,7 @@ def _rcc_ci(estimates, size):
 
 
 def _audit_entry(step: int, family: str, case) -> dict:
-    audit = audit_case(case)
+    audit = audit_case(case, rank_rule=None if case.rank_tol is not None else "numpy")  # eq. 35's rule
     gap, predicted = audit.gap, audit.predicted_gap
     return {"step": step + 1, "family": family, "condition_holds": audit.condition_holds,
             "exact": audit.exact,
@@ -205,7 +205,7 @@ def run_family(family: str, models: GPModel, data: FusionData, local_starts: Seq
         same = cmf_update(dmf.case.central, ys[k])
         online[f"CMF-{family}"][k] = time.perf_counter() - start
         start = time.perf_counter()
-        dmf_update(dmf.case)
+        dmf_update(dmf.case, rank_rule=dmf.result.rank_rule)
         online[f"DMF-{family}"][k] = time.perf_counter() - start
 
         truth = data.test_states[k]
