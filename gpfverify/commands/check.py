@@ -56,16 +56,22 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def summary_line(results: dict) -> str:
-    """The plain-words verdict of a check."""
-    total, held, exact = results["total_steps"], results["condition_held_steps"], results["exact_steps"]
+    """The plain-words verdict of a check: DMF = CMF to rounding (the one-step gap within its
+    rounding bound) at how many steps, and why not elsewhere."""
+    total, held = results["total_steps"], results["condition_held_steps"]
+    reproduced, inexact = results["reproduced_steps"], total - results["exact_steps"]
     runs = results["runs_ok"]
     where = f"{results['steps']} steps" + (f" of {runs} runs" if runs > 1 else "")
-    if exact == total:
+    if reproduced == total:
         verdict = f"DMF reproduced CMF at all {where}"
         if held < total:
             verdict += f" (the rank condition failed at {total - held}, exact anyway)"
     else:
-        verdict = f"DMF differed from CMF at {total - exact} of {total} steps ({where})"
+        reasons = [f"{inexact} not exact"] if inexact else []
+        if results["branch_offset_steps"]:
+            reasons.append(f"{results['branch_offset_steps']} with an angle branch offset")
+        verdict = (f"DMF differed from CMF beyond rounding at {total - reproduced} of {total} steps ({where}"
+                   + (f"; {', '.join(reasons)}" if reasons else "") + ")")
     return f"{verdict}; largest one-step gap {results['max_gap']:.3g}."
 
 

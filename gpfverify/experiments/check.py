@@ -159,7 +159,8 @@ def _record(model, fused, ys: np.ndarray, truth: np.ndarray | None) -> dict:
                          "min_canonical_correlation": (None if s.canonical_correlations is None
                                                        or not s.canonical_correlations.size
                                                        else float(s.canonical_correlations.min())),
-                         "branch_offsets": s.branch_offsets.tolist()} for s in audit.sensors],
+                         "branch_offsets": s.branch_offsets.tolist(),
+                         "branch_offset_count": int(np.count_nonzero(s.branch_offsets))} for s in audit.sensors],
             "means": {m: step.estimate(m).mean.tolist() for m in fused.methods},
             "local_means": [r.mu_e.tolist() for r in step.local],
             "seconds": {**step.seconds, "local": list(step.local_seconds)},
@@ -215,6 +216,8 @@ def summarize(params: dict, results: list[dict]) -> dict:
         "condition_held_steps": sum(e["condition_holds"] for e in every),
         "exact_steps": sum(e["exact"] for e in every),
         "exact_steps_within_bound": sum(bool(e["exact"] and e["gap_norm"] <= e["gap_bound"]) for e in every),
+        "reproduced_steps": sum(bool(e["gap_norm"] <= e["gap_bound"]) for e in every),
+        "branch_offset_steps": sum(any(s["branch_offset_count"] for s in e["sensors"]) for e in every),
         "total_steps": len(every),
         "system": params["system"], "state_dim": model.state_dim, "sensors": _sensor_table(model),
         "rank_rule": {**rank_rule_to_dict(rule), "description": rule.describe()},
@@ -224,7 +227,7 @@ def summarize(params: dict, results: list[dict]) -> dict:
         "recursive_gap_norm": [[e["recursive_gap_norm"] for e in steps] for steps in steps_by_run],
         **{key: _per_sensor(steps_by_run, key)
            for key in ("rank", "full_column_rank", "exact", "repair_dim", "gap_share", "tol",
-                       "min_canonical_correlation")},
+                       "min_canonical_correlation", "branch_offset_count")},
         "time_per_step": {**{m: float(np.mean([e["seconds"][m] for e in every])) for m in methods},
                           "local": float(np.mean([sum(e["seconds"]["local"]) for e in every]))},
         "timing_keys": list(TIMING_KEYS),

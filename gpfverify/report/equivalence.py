@@ -117,6 +117,9 @@ class CheckData:
         self.repair = np.asarray(results["repair_dim"], dtype=int)
         self.share = np.asarray(results["gap_share"], dtype=float)
         self.tol = np.asarray(results["tol"], dtype=float)
+        offsets = results.get("branch_offset_count")
+        self.branch = (np.asarray(offsets, dtype=int) if offsets is not None
+                       else np.zeros(np.shape(results["full_column_rank"]), dtype=int))   # (R, T, N)
         self.runs_ok, self.steps, self.n = self.full.shape
         self.total = self.runs_ok * self.steps
         self.ks = list(results.get("k") or range(1, self.steps + 1))
@@ -257,7 +260,17 @@ def summary_paragraphs(results: dict) -> list[str]:
             out.append(f"At {_plural(int(quiet.sum()), 'step')} judged not exact the observed gap still stayed "
                        "within the rounding bound: the innovation happened to have little component in the lost "
                        "directions.")
-    odd = d.step_exact & ~within
+    wrapped = d.step_exact & ~within & d.branch.any(axis=2)
+    if wrapped.any():
+        where = list(zip(*np.nonzero(wrapped)))
+        who = sorted({int(m) for r, t in where for m in np.nonzero(d.branch[r, t])[0]})
+        listed = "; ".join(f"run {d.run_labels[r]} k = {d.ks[t]}: gap {_g(d.gap[r, t])}" for r, t in where[:10])
+        out.append(f"At {_plural(len(where), 'step')} every sensor was exact but an angle output of "
+                   + " and ".join(d.sensor_label(m) for m in who)
+                   + " had a branch offset: its eq. 35 terms μ_y^m − μ_y(m) and y^m − μ_y^m, each wrapped to "
+                     "(−π, π], summed outside (−π, π], so DMF's innovation differs from CMF's by 2π and the gap is "
+                     f"2π G_m e_j, as the audit predicts ({listed}).")
+    odd = d.step_exact & ~within & ~d.branch.any(axis=2)
     if odd.any():
         where = list(zip(*np.nonzero(odd)))
         def top(r, t):
