@@ -326,3 +326,16 @@ def test_malformed_run_file_in_a_real_process(tmp_path):
                           capture_output=True, text=True)
     assert proc.returncode == 2 and proc.stdout == ""
     assert proc.stderr.count("\n") == 1 and "line 2" in proc.stderr and "Traceback" not in proc.stderr
+
+
+def test_out_writes_the_run_report_with_the_json_it_renders(tmp_path, capsys, three_sensor_run):
+    ks, cases = three_sensor_run
+    path = write_run(tmp_path / "run.jsonl", cases, ks)
+    code, out, err = _cli(["audit", str(path), "--json", "--out", str(tmp_path / "report")], capsys)
+    assert code == 0 and err == ""
+    report = tmp_path / "report"
+    assert {"report.html", "README.md", "audit.json"} <= {p.name for p in report.iterdir()}
+    assert json.loads((report / "audit.json").read_text()) == json.loads(out)
+    (tmp_path / "one.json").write_text(json.dumps(case_to_dict(cases[0])))
+    code, out, err = _cli(["audit", str(tmp_path / "one.json"), "--out", str(tmp_path / "x")], capsys)
+    assert code == 2 and err.count("\n") == 1 and "run file" in err and not (tmp_path / "x").exists()

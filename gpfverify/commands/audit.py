@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import argparse
 import json
+from pathlib import Path
 
 import numpy as np
 
@@ -37,6 +38,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="how the rank of each C_xy^m is decided: canonical[:TAU] (canonical "
                              "correlations > TAU, unit-free), absolute:TOL (singular values > TOL) or "
                              "numpy; overrides the case's 'rank_tol'; not together with --rank-tol")
+    parser.add_argument("--out", type=Path, default=None, metavar="DIR",
+                        help="run files: write the report (DIR/report.html, DIR/README.md, figures, "
+                             "DIR/audit.json)")
     parser.add_argument("--sensitivity", action="store_true",
                         help="add each sensor's Jacobian norms of the fused mean (casadi AD) and the "
                              "|G_m C_y^m| / sigma_r bound")
@@ -159,6 +163,8 @@ def run(args: argparse.Namespace) -> int:
     if args.rank_tol is not None and args.rank_rule is not None:
         raise InputError("give --rank-tol or --rank-rule, not both")
     if run_format(args.case) == "json":  # one case: output as it always was
+        if args.out is not None:
+            raise InputError("--out writes the report of a run file (.jsonl or .npz); a single case has none")
         from gpfverify.fusion.case import load_case
 
         audit = _audit(load_case(args.case), args.rank_tol, _resolve_rank_rule(args.rank_rule),
@@ -166,6 +172,10 @@ def run(args: argparse.Namespace) -> int:
         print(json.dumps(audit_to_dict(audit)) if args.json else format_audit(audit))
         return 0
     _, steps, summary = audit_run_file(args.case, args.rank_rule, args.rank_tol, args.sensitivity)
+    if args.out is not None:
+        from gpfverify.report.equivalence import write_run_audit_report
+
+        write_run_audit_report({"steps": steps, "summary": summary, "rank_rule": summary["rank_rule"]}, args.out)
     if args.json:
         print(json.dumps({"steps": steps, "summary": summary, "rank_rule": summary["rank_rule"]}))
     else:
