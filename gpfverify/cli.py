@@ -1,5 +1,15 @@
 """Command line: parse, call, print. User errors exit with status 2 and one line on stderr.
 
+One error boundary (:func:`main`) for every command: a :class:`~gpfverify.errors.GpfverifyError`,
+an operating-system error (a missing or unwritable file, ``--out`` naming a file), undecodable
+text, input nested too deeply, and a closed output pipe (``gpfverify audit CASE | head -3``) each
+end as exit status 2 and exactly one line ``gpfverify COMMAND: error: ...`` on stderr. Numeric
+options must be finite (``inf``/``nan`` are refused by the parser). Warnings raised while a
+command runs (numpy's floating-point RuntimeWarnings, for instance) are collected instead of
+printed: dropped when the command fails (its one line says what went wrong), summarised in one
+line when it succeeds. Anything else is a bug: one line asking for a report, exit status 1, and
+the traceback only with ``GPFVERIFY_DEBUG=1``.
+
 Each subcommand lives in its own module under :mod:`gpfverify.commands` with
 ``add_arguments(parser)`` and ``run(args) -> int``; modules are imported only when their command
 runs, so ``gpfverify --help`` stays fast.
@@ -9,10 +19,13 @@ from __future__ import annotations
 
 import argparse
 import importlib
+import math
+import os
 import signal
 import sys
+import warnings
 
-from gpfverify import __version__
+from gpfverify import __version__, provenance
 from gpfverify.errors import GpfverifyError
 from gpfverify.runtime import default_single_blas_thread
 
@@ -21,6 +34,7 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "report": ("gpfverify.commands.report", "build the verification report (quick profile by default)"),
     "reproduce": ("gpfverify.commands.reproduce", "run one of the papers' experiments"),
     "props": ("gpfverify.commands.props", "run the property-based test suite and write a summary"),
+    "check": ("gpfverify.commands.check", "check DMF against CMF at every step of your own system (SYSTEM.py:NAME)"),
     "audit": ("gpfverify.commands.audit", "rank-condition audit of a fusion-case file"),
     "fuse": ("gpfverify.commands.fuse", "fuse a fusion-case file with one method (cmf, dmf, cc, ci, rcc-ci, ...)"),
     "prove": ("gpfverify.commands.prove", "run the symbolic proofs and casadi cross-checks, write certificates"),
@@ -31,7 +45,44 @@ class OneLineParser(argparse.ArgumentParser):
     """argparse that reports a usage error as one line and exit status 2."""
 
     def error(self, message: str):  # noqa: D401 - argparse API
-        self.exit(2, f"{self.prog}: error: {message}\n")
+        self.exit(2, f"{self.prog}: error: {one_line(message)}\n")
+
+    def parse_args(self, args=None, namespace=None):
+        """Parse, then refuse non-finite numbers (argparse's ``float`` accepts inf and nan)."""
+        parsed = super().parse_args(args, namespace)
+        for action in self._actions:
+            value = getattr(parsed, action.dest, None)
+            values = value if isinstance(value, list) else [value]
+            for v in values:
+                if isinstance(v, float) and not math.isfinite(v):
+                    flag = action.option_strings[-1] if action.option_strings else action.dest
+                    self.error(f"{flag} must be a finite number, got {v}")
+        return parsed
+
+
+def one_line(text) -> str:
+    """``text`` with its line breaks folded, for the single stderr line of an error."""
+    return " ".join(str(text).split()) or "(no message)"
+
+
+def non_negative_int(text: str) -> int:
+    """argparse type: an integer >= 0 (seeds)."""
+    value = int(text)
+    if value < 0:
+        raise argparse.ArgumentTypeError(f"must be an integer >= 0, got {value}")
+    return value
+
+
+def positive_int(text: str) -> int:
+    """argparse type: an integer >= 1 (run and worker counts)."""
+    value = int(text)
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"must be an integer >= 1, got {value}")
+    return value
+
+
+non_negative_int.__name__ = "integer >= 0"  # argparse names the type in "invalid ... value"
+positive_int.__name__ = "integer >= 1"
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -48,24 +99,105 @@ def _interrupt(signum, frame):
     raise KeyboardInterrupt
 
 
+def _user_error(exc: BaseException) -> str | None:
+    """The one-line message for an error the user caused, or None for a bug."""
+    if isinstance(exc, GpfverifyError):
+        return str(exc)
+    if isinstance(exc, BrokenPipeError):
+        return "the output was closed before everything was written (broken pipe)"
+    if isinstance(exc, OSError):
+        where = " ".join(f"{name}" for name in (exc.filename, exc.filename2) if name is not None)
+        return f"{exc.strerror or exc}" + (f": {where}" if where else "")
+    if isinstance(exc, UnicodeError):
+        return f"not valid UTF-8 text ({exc})"
+    if isinstance(exc, RecursionError):
+        return "input nested too deeply"
+    if isinstance(exc, FloatingPointError):
+        return (f"numerical overflow ({exc}): the input's numbers are too large or too small in "
+                "combination")
+    return None
+
+
+#: commands that read one user case: a floating-point overflow there is the input's fault
+OVERFLOW_IS_INPUT_ERROR = ("audit", "fuse")
+
+
+def _float_errors(command: str):
+    import contextlib
+
+    if command not in OVERFLOW_IS_INPUT_ERROR:
+        return contextlib.nullcontext()
+    import numpy as np
+
+    return np.errstate(over="raise")
+
+
+def _silence_stdout() -> None:
+    """After a broken pipe: point stdout at /dev/null so the interpreter's final flush does not
+    print a second error."""
+    try:
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())
+    except (OSError, ValueError, AttributeError):  # no real file descriptor (captured in tests)
+        pass
+
+
+#: warning categories handed back to the warnings machinery (hidden by default outside tests)
+DEVELOPER_WARNINGS = (DeprecationWarning, PendingDeprecationWarning, ImportWarning)
+
+
+def _summarise_warnings(command: str, caught: list) -> None:
+    """One line for the warnings a successful command raised (numpy's floating-point
+    RuntimeWarnings, a solver's accuracy warning); developer warnings are handed back unchanged."""
+    shown = [w for w in caught if not issubclass(w.category, DEVELOPER_WARNINGS)]
+    for w in caught:
+        if issubclass(w.category, DEVELOPER_WARNINGS):
+            warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
+    if shown:
+        first = shown[0]
+        print(f"gpfverify {command}: note: {len(shown)} warning(s) while running, first: "
+              f"{first.category.__name__}: {one_line(first.message)}", file=sys.stderr)
+
+
 def main(argv: list[str] | None = None) -> int:
     default_single_blas_thread()  # before any command imports numpy (see gpfverify.runtime)
-    signal.signal(signal.SIGTERM, _interrupt)  # `kill` stops cleanly, like Ctrl-C
+    try:
+        signal.signal(signal.SIGTERM, _interrupt)  # `kill` stops cleanly, like Ctrl-C
+    except ValueError:  # not the main thread (an embedding application): leave signals alone
+        pass
     argv = list(sys.argv[1:] if argv is None else argv)
+    provenance.set_command(argv)
     parser = build_parser()
     known, rest = parser.parse_known_args(argv[:1] if argv and argv[0] in COMMANDS else argv)
-    module = importlib.import_module(COMMANDS[known.command][0])
-    sub = OneLineParser(prog=f"gpfverify {known.command}", description=COMMANDS[known.command][1])
-    module.add_arguments(sub)
-    args = sub.parse_args(argv[1:])
-    try:
-        return int(module.run(args) or 0)
-    except GpfverifyError as exc:
-        print(f"gpfverify {known.command}: error: {exc}", file=sys.stderr)
-        return 2
-    except KeyboardInterrupt:
-        print(f"gpfverify {known.command}: interrupted", file=sys.stderr)
-        return 130
+    command = known.command
+    with warnings.catch_warnings(record=True) as caught:
+        try:
+            module = importlib.import_module(COMMANDS[command][0])
+            sub = OneLineParser(prog=f"gpfverify {command}", description=COMMANDS[command][1])
+            module.add_arguments(sub)
+            args = sub.parse_args(argv[1:])
+            with _float_errors(command):
+                code = int(module.run(args) or 0)
+            sys.stdout.flush()  # a closed pipe shows here, inside the boundary
+        except KeyboardInterrupt:
+            print(f"gpfverify {command}: interrupted", file=sys.stderr)
+            return 130
+        except SystemExit:  # argparse: usage error (one line) or --help
+            raise
+        except BaseException as exc:  # noqa: BLE001 - the one error boundary of the command line
+            if isinstance(exc, BrokenPipeError):
+                _silence_stdout()
+            message = _user_error(exc)
+            if message is not None:
+                print(f"gpfverify {command}: error: {one_line(message)}", file=sys.stderr)
+                return 2
+            if os.environ.get("GPFVERIFY_DEBUG"):
+                raise
+            print(f"gpfverify {command}: internal error: {type(exc).__name__}: {one_line(exc)} "
+                  "(a bug: please report it; GPFVERIFY_DEBUG=1 shows the traceback)", file=sys.stderr)
+            return 1
+    _summarise_warnings(command, caught)
+    return code
 
 
 if __name__ == "__main__":  # pragma: no cover

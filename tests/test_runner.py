@@ -7,7 +7,7 @@ from pathlib import Path
 import pytest
 
 from gpfverify.errors import InputError
-from gpfverify.experiments.runner import make_executor, run_experiment
+from gpfverify.experiments.runner import make_executor, run_experiment, without_timing
 
 HERE = Path(__file__).parent
 
@@ -26,7 +26,7 @@ PARAMS = {"scale": 2.0, "fail_run": -1}
 
 
 def _numbers(results):
-    return {k: v for k, v in results.items() if not k.startswith("time_")}
+    return without_timing(results)
 
 
 def test_same_results_for_any_worker_count(toy, tmp_path):

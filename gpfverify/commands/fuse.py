@@ -6,6 +6,8 @@ from __future__ import annotations
 import argparse
 import json
 
+import numpy as np
+
 from gpfverify.errors import InputError
 from gpfverify.fusion.case import load_case
 from gpfverify.fusion.methods import METHODS, fuse_case
@@ -37,5 +39,8 @@ def run(args: argparse.Namespace) -> int:
     if args.c is not None and not args.c > 0:
         raise InputError(f"--c must be > 0, got {args.c}")
     result = fuse_case(load_case(args.case), args.method, args.criterion, args.c, args.on_empty)
+    if not all(np.isfinite(result[key]).all() for key in ("mean", "cov")):
+        raise InputError(f"{args.method} gave a non-finite result on this case: its numbers are too "
+                         "large or too small in combination")
     print(json.dumps(result) if args.json else _text(result))
     return 0

@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from gpfverify.cli import non_negative_int, positive_int
 from gpfverify.report import SECTIONS, ReportContext, build_report
 
 
@@ -13,10 +14,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="the papers' run counts (hours) instead of the quick profile (minutes)")
     parser.add_argument("--out", type=Path, default=None,
                         help="output folder (default reports/quick or reports/full)")
-    parser.add_argument("--seed", type=int, default=1, help="root seed (default 1)")
-    parser.add_argument("--workers", type=int, default=1, help="worker processes for experiments")
+    parser.add_argument("--seed", type=non_negative_int, default=1, help="root seed, an integer >= 0 (default 1)")
+    parser.add_argument("--workers", type=positive_int, default=1,
+                        help="worker processes for experiments (>= 1; results do not depend on it)")
     parser.add_argument("--only", nargs="+", metavar="SECTION", choices=list(SECTIONS),
-                        help=f"build only these sections: {', '.join(SECTIONS)}")
+                        help=f"build (or rebuild) only these sections, keeping the others already in "
+                             f"the output folder: {', '.join(SECTIONS)}")
 
 
 def run(args: argparse.Namespace) -> int:

@@ -7,6 +7,7 @@ import importlib
 import sys
 from pathlib import Path
 
+from gpfverify.errors import InputError
 from gpfverify.experiments import EXPERIMENTS
 
 
@@ -17,13 +18,16 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def add_common_arguments(parser: argparse.ArgumentParser, default_runs: int) -> None:
-    parser.add_argument("--runs", type=int, default=default_runs,
+    from gpfverify.cli import non_negative_int, positive_int
+
+    parser.add_argument("--runs", type=positive_int, default=default_runs,
                         help=f"Monte Carlo runs (default {default_runs}, the paper's)")
-    parser.add_argument("--seed", type=int, default=1, help="root seed (default 1)")
+    parser.add_argument("--seed", type=non_negative_int, default=1, help="root seed, an integer >= 0 (default 1)")
     parser.add_argument("--out", type=Path, required=True, help="output folder")
     parser.add_argument("--resume", action="store_true", help="continue the runs saved in --out")
-    parser.add_argument("--workers", type=int, default=1,
-                        help="local worker processes (BLAS pinned to 1 thread each; default 1)")
+    parser.add_argument("--workers", type=positive_int, default=1,
+                        help="local worker processes, >= 1 (BLAS pinned to 1 thread each; default 1); "
+                             "results are the same for any number")
     parser.add_argument("--scheduler", default=None, metavar="ADDRESS",
                         help="dask.distributed scheduler address (needs gpfverify[cluster])")
 
@@ -38,6 +42,8 @@ def run(args: argparse.Namespace) -> int:
     module.add_arguments(sub)
     opts = sub.parse_args(args.rest)
     params = module.params_from_args(opts)
+    if opts.out.exists() and not opts.out.is_dir():
+        raise InputError(f"--out {opts.out} exists and is not a folder")
     with make_executor(opts.workers, opts.scheduler) as executor:
         results = run_experiment(module, params, opts.runs, opts.seed, opts.out, opts.resume, executor)
     print(f"{args.experiment}: {results['runs_ok']} of {results['runs']} runs ok -> {opts.out / 'results.json'}",

@@ -7,7 +7,17 @@
 * A run that raises is saved with its error and seed; the summary counts it and leaves it out.
 * ``results.json`` is always computed from the saved runs (JSON round-trips floats exactly), so an
   interrupted-and-resumed run ends with the same numbers as an uninterrupted one. Timing fields
-  (``time_per_*``) are measurements and naturally differ between executions.
+  are measurements and naturally differ between executions: ``results.json`` lists their names
+  in ``"timing_keys"`` (every key, at any depth, matching :data:`TIMING_KEY`, plus an experiment's
+  own ``TIMING_KEYS``). Apart from those and ``"provenance"``, every field of ``results.json`` is
+  byte-identical for any number of workers, with a dask scheduler, and after ``--resume``
+  (CONTRACT.md, "Provenance"): each run is a function of its seed alone — which also requires the
+  numerical code to be a function of its inputs alone (e.g. no solver warm-started from another
+  run's problem; see :mod:`gpfverify.fusion.rcc_ci`).
+* ``manifest.json`` and ``results.json`` carry the provenance record of
+  :mod:`gpfverify.provenance`.
+* Local worker processes exit when the main process dies, whatever the signal (each watches its
+  parent; see :func:`_exit_with_parent`), so a SIGKILL leaves no orphans behind.
 """
 
 from __future__ import annotations
@@ -17,7 +27,9 @@ import importlib
 import itertools
 import json
 import os
+import re
 import sys
+import threading
 import time
 import traceback
 from concurrent.futures import FIRST_COMPLETED, Executor, Future, ProcessPoolExecutor, wait
@@ -26,8 +38,14 @@ from types import ModuleType
 
 import numpy as np
 
+from gpfverify import provenance
 from gpfverify.errors import InputError
 from gpfverify.runtime import BLAS_THREAD_VARS
+
+#: a key of ``results.json`` (at any depth) whose value is a measured time, not a result
+TIMING_KEY = re.compile(r"time_per|seconds")
+#: how often a local worker checks that its parent is still alive
+PARENT_POLL_SECONDS = 0.2
 
 
 
@@ -60,14 +78,16 @@ def make_executor(workers: int = 1, scheduler: str | None = None):
         finally:
             client.close()
         return
-    if workers <= 1:
+    check_workers(workers)
+    if workers == 1:
         yield SerialExecutor()
         return
     saved = {k: os.environ.get(k) for k in BLAS_THREAD_VARS}
     os.environ.update({k: "1" for k in BLAS_THREAD_VARS})  # inherited by the spawned workers
     import multiprocessing as mp
 
-    pool = ProcessPoolExecutor(max_workers=workers, mp_context=mp.get_context("spawn"))
+    pool = ProcessPoolExecutor(max_workers=workers, mp_context=mp.get_context("spawn"),
+                               initializer=_exit_with_parent, initargs=(os.getpid(),))
     try:
         yield pool
     except BaseException:
@@ -85,6 +105,43 @@ def make_executor(workers: int = 1, scheduler: str | None = None):
                 os.environ.pop(k, None)
             else:
                 os.environ[k] = v
+
+
+def check_workers(workers) -> int:
+    """``workers`` as a count of at least 1 (InputError otherwise: 0 used to mean serial silently)."""
+    if isinstance(workers, bool) or not isinstance(workers, int) or workers < 1:
+        raise InputError(f"--workers must be an integer >= 1, got {workers!r}")
+    return workers
+
+
+def check_seed(seed) -> int:
+    """``seed`` as a root seed for ``SeedSequence``: an integer >= 0."""
+    if isinstance(seed, bool) or not isinstance(seed, int) or seed < 0:
+        raise InputError(f"--seed must be an integer >= 0, got {seed!r}")
+    return seed
+
+
+def _exit_with_parent(parent_pid: int) -> None:
+    """Worker initializer: a daemon thread ends this process as soon as its parent (the main
+    process, which started it) is gone — killed by any signal, SIGKILL included, when no cleanup
+    of ours can run. On Linux the kernel also delivers SIGKILL at once (``PR_SET_PDEATHSIG``).
+    The multiprocessing resource tracker exits by itself once every process holding its pipe
+    (the main process and these workers) is gone."""
+    if sys.platform.startswith("linux"):
+        with contextlib.suppress(Exception):
+            import ctypes
+            import signal
+
+            ctypes.CDLL(None, use_errno=True).prctl(1, int(signal.SIGKILL), 0, 0, 0)  # PR_SET_PDEATHSIG
+    if os.getppid() != parent_pid:  # the parent died before the prctl took effect
+        os._exit(1)
+
+    def watch():
+        while os.getppid() == parent_pid:
+            time.sleep(PARENT_POLL_SECONDS)
+        os._exit(1)
+
+    threading.Thread(target=watch, name="gpfverify-parent-watch", daemon=True).start()
 
 
 def _in_flight_limit(executor: Executor) -> int:
@@ -122,18 +179,45 @@ def _run_path(out_dir: Path, index: int) -> Path:
     return out_dir / "runs" / f"run-{index:06d}.json"
 
 
-def _check_manifest(out_dir: Path, manifest: dict, resume: bool) -> None:
+def _read_json(path: Path, what: str):
+    """A JSON file this runner wrote, or InputError saying it is damaged (never a traceback)."""
+    try:
+        return json.loads(path.read_bytes().decode("utf-8"))
+    except OSError as exc:
+        raise InputError(f"cannot read {path}: {exc.strerror or exc}") from None
+    except (ValueError, RecursionError) as exc:  # JSONDecodeError, UnicodeDecodeError, huge ints
+        reason = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
+        raise InputError(f"{path} is not a valid {what} ({reason}); remove it or choose a new "
+                         "--out") from None
+
+
+SETTINGS_KEYS = ("experiment", "seed", "params")
+
+
+def read_manifest(out_dir: Path) -> dict:
+    """``DIR/manifest.json`` as a dict; InputError when it is missing, corrupted or not a manifest."""
+    manifest = _read_json(Path(out_dir) / "manifest.json", "manifest")
+    if not isinstance(manifest, dict) or not all(k in manifest for k in (*SETTINGS_KEYS, "runs")):
+        raise InputError(f"{Path(out_dir) / 'manifest.json'} is not a gpfverify run manifest; "
+                         "remove it or choose a new --out")
+    return manifest
+
+
+def _check_manifest(out_dir: Path, manifest: dict, resume: bool, write: bool = True) -> None:
+    """Refuse to mix settings or to overwrite saved runs without ``resume``; then (``write``)
+    write the manifest with this command's provenance."""
     path = out_dir / "manifest.json"
     existing_runs = list((out_dir / "runs").glob("run-*.json")) if (out_dir / "runs").exists() else []
     if path.exists() and (resume or not existing_runs):
-        old = json.loads(path.read_text(encoding="utf-8"))
+        old = read_manifest(out_dir)
         if resume and {k: old.get(k) for k in ("experiment", "seed", "params")} != \
                 {k: manifest[k] for k in ("experiment", "seed", "params")}:
             raise InputError(f"{out_dir} holds runs of different settings; use a new --out")
     elif existing_runs and not resume:
         raise InputError(f"{out_dir} already holds {len(existing_runs)} saved runs; "
                          "pass --resume to continue them or choose a new --out")
-    _atomic_write_json(path, manifest)
+    if write:
+        _atomic_write_json(path, {**manifest, "provenance": provenance.current()})
 
 
 def _progress(enabled: bool):
@@ -153,12 +237,19 @@ def run_experiment(module: ModuleType | str, params: dict, runs: int, seed: int,
     """Run (or finish) ``runs`` Monte Carlo runs of an experiment and write ``results.json``."""
     module = importlib.import_module(module) if isinstance(module, str) else module
     name = module.NAME
-    if runs < 1:
-        raise InputError(f"--runs must be at least 1, got {runs}")
+    if isinstance(runs, bool) or not isinstance(runs, int) or runs < 1:
+        raise InputError(f"--runs must be an integer >= 1, got {runs!r}")
+    check_seed(seed)
     out_dir = Path(out_dir)
-    (out_dir / "runs").mkdir(parents=True, exist_ok=True)
+    for folder in (out_dir, out_dir / "runs"):
+        if folder.exists() and not folder.is_dir():
+            raise InputError(f"--out {folder} exists and is not a folder")
     manifest = {"experiment": name, "seed": seed, "runs": runs, "params": params}
-    _check_manifest(out_dir, json.loads(json.dumps(manifest)), resume)
+    manifest = json.loads(json.dumps(manifest))  # exactly what a resumed run reads back
+    if out_dir.exists():  # check before writing anything: a refused run leaves no trace
+        _check_manifest(out_dir, manifest, resume, write=False)
+    (out_dir / "runs").mkdir(parents=True, exist_ok=True)
+    _check_manifest(out_dir, manifest, resume)
     seeds = np.random.SeedSequence(seed).spawn(runs)
     pending = [i for i in range(runs) if not _is_ok(_run_path(out_dir, i))]
     show = sys.stderr.isatty() if show_progress is None else show_progress
@@ -211,8 +302,43 @@ def load_runs(out_dir: Path, runs: int) -> list[dict]:
     for i in range(runs):
         path = _run_path(out_dir, i)
         if path.exists():
-            records.append(json.loads(path.read_text(encoding="utf-8")))
+            records.append(_read_json(path, "saved run"))
     return records
+
+
+def timing_keys(module: ModuleType, body) -> list[str]:
+    """Names of the timing fields in a ``results.json`` body: every key, at any depth, matching
+    :data:`TIMING_KEY`, and the experiment's own ``TIMING_KEYS`` when it declares any."""
+    found = set(getattr(module, "TIMING_KEYS", ()))
+
+    def walk(value):
+        if isinstance(value, dict):
+            for key, item in value.items():
+                if TIMING_KEY.search(str(key)):
+                    found.add(str(key))
+                else:
+                    walk(item)
+        elif isinstance(value, list):
+            for item in value:
+                walk(item)
+
+    walk(body)
+    return sorted(found)
+
+
+def without_timing(results: dict) -> dict:
+    """``results`` without ``provenance`` and the fields named in its ``timing_keys`` (at any
+    depth): the part that the contract requires to be byte-identical across executions."""
+    keys = set(results.get("timing_keys", ())) | {"provenance"}
+
+    def strip(value):
+        if isinstance(value, dict):
+            return {k: strip(v) for k, v in value.items() if k not in keys}
+        if isinstance(value, list):
+            return [strip(v) for v in value]
+        return value
+
+    return strip(results)
 
 
 def write_results(module: ModuleType, out_dir: Path, manifest: dict) -> dict:
@@ -226,7 +352,8 @@ def write_results(module: ModuleType, out_dir: Path, manifest: dict) -> dict:
         raise InputError(f"every run of {manifest['experiment']} failed; first error: {first}")
     body = module.summarize(manifest["params"], [r["result"] for r in ok])
     results = {"experiment": manifest["experiment"], "runs": manifest["runs"], "seed": manifest["seed"],
-               "params": manifest["params"], "runs_ok": len(ok), "failed_runs": failed, **body}
+               "params": manifest["params"], "runs_ok": len(ok), "failed_runs": failed, **body,
+               "timing_keys": timing_keys(module, body), "provenance": provenance.current()}
     _atomic_write_json(out_dir / "results.json", results)
     return results
 
@@ -235,5 +362,5 @@ def rewrite_results(out_dir: Path, module: ModuleType | str) -> dict:
     """``results.json`` recomputed from the runs saved in ``out_dir`` with its manifest (e.g. after
     an experiment's summary gained fields); returns it."""
     module = importlib.import_module(module) if isinstance(module, str) else module
-    manifest = json.loads((Path(out_dir) / "manifest.json").read_text(encoding="utf-8"))
+    manifest = read_manifest(Path(out_dir))
     return write_results(module, Path(out_dir), manifest)

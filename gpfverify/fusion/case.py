@@ -16,6 +16,16 @@ A fusion case holds what the fusion centre knows at time k (seed 000 §3):
   innovation) is then taken on the circle, wrapped to (−π, π] (:mod:`gpfverify.angles`).
 
 Every check raises :class:`~gpfverify.errors.CaseFileError` naming the offending entry.
+
+Numbers are strict JSON numbers: a string (``"1.0"``), a boolean, ``NaN``/``Infinity`` or a
+null inside an array is refused, and so is any magnitude above :data:`MAX_MAGNITUDE` = 1e100
+(an integer of any length included). Within that range the squares and quadratic forms the
+fusion rules build stay inside the float range (checked for every method and the audit with
+each entry, and each field scaled, at the bound: tests/test_error_boundary.py). Tiny entries are
+accepted (a computed covariance holds rounding-sized ones); a case whose covariances are so
+small that an inverse overflows is refused by the command line (``audit`` and ``fuse`` run with
+floating-point overflow as an error). The file must be UTF-8 text and nested no deeper than the
+format needs.
 """
 
 from __future__ import annotations
@@ -109,6 +119,31 @@ class FusionCase:
         return self.y[self.central.blocks[m]]
 
 
+#: largest magnitude accepted for a number in a case file
+MAX_MAGNITUDE = 1e100
+
+
+def strict_numbers(value, where: str, depth: int = 2):
+    """``value`` unchanged after checking it is a JSON number or nested lists (at most ``depth``
+    levels) of JSON numbers, each finite, not a boolean, and of magnitude at most MAX_MAGNITUDE;
+    CaseFileError naming ``where`` otherwise."""
+    if isinstance(value, list):
+        if depth == 0:
+            raise CaseFileError(f"{where} is nested too deeply")
+        for i, item in enumerate(value):
+            strict_numbers(item, f"{where}[{i}]", depth - 1)
+        return value
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        raise CaseFileError(f"{where} must be a number, got {json.dumps(value)[:40]}")
+    if isinstance(value, float) and not np.isfinite(value):
+        raise CaseFileError(f"{where} must be finite, got {value}")
+    if abs(value) > MAX_MAGNITUDE:
+        shown = f"{value:.3g}" if isinstance(value, float) else f"an integer of {len(str(abs(value)))} digits"
+        raise CaseFileError(f"{where} = {shown} is outside the accepted range: magnitudes up to "
+                            f"{MAX_MAGNITUDE:g}")
+    return value
+
+
 def _checked(build, what: str):
     try:
         return build()
@@ -170,21 +205,25 @@ def _agreed_circular(central, per_sensor, sizes) -> tuple[int, ...]:
     return central
 
 
+def _numeric_field(obj, key: str, where: str, depth: int):
+    return strict_numbers(_field(obj, key, where), f"{where}.{key}", depth)
+
+
 def central_from_dict(data) -> CentralPrediction:
     where = "central"
     sizes = _sizes(_field(data, "sizes", where))
-    mu_p = _checked(lambda: as_vector(_field(data, "mu_p", where), "central.mu_p"), "central.mu_p")
+    mu_p = _checked(lambda: as_vector(_numeric_field(data, "mu_p", where, 1), "central.mu_p"), "central.mu_p")
     d, total = mu_p.shape[0], sum(sizes)
     if d == 0:
         raise CaseFileError("central.mu_p must not be empty")
     return CentralPrediction(
         mu_p=mu_p,
-        C_p=_checked(lambda: as_covariance(_field(data, "C_p", where), "central.C_p", d), "central.C_p"),
-        mu_y=_checked(lambda: as_vector(_field(data, "mu_y", where), "central.mu_y", total),
+        C_p=_checked(lambda: as_covariance(_numeric_field(data, "C_p", where, 2), "central.C_p", d), "central.C_p"),
+        mu_y=_checked(lambda: as_vector(_numeric_field(data, "mu_y", where, 1), "central.mu_y", total),
                       "central.mu_y"),
-        C_y=_checked(lambda: as_covariance(_field(data, "C_y", where), "central.C_y", total,
+        C_y=_checked(lambda: as_covariance(_numeric_field(data, "C_y", where, 2), "central.C_y", total,
                                            definite=True), "central.C_y"),
-        C_xy=_checked(lambda: as_matrix(_field(data, "C_xy", where), "central.C_xy", d, total),
+        C_xy=_checked(lambda: as_matrix(_numeric_field(data, "C_xy", where, 2), "central.C_xy", d, total),
                       "central.C_xy"),
         sizes=sizes,
     )
@@ -194,7 +233,9 @@ def local_from_dict(data, m: int, d: int, size: int) -> LocalReport:
     where = f"locals[{m}]"
 
     def get(key, check):
-        return _checked(lambda: check(_field(data, key, where), f"{where}.{key}"), f"{where}.{key}")
+        depth = 2 if key.startswith("C_") else 1
+        return _checked(lambda: check(_numeric_field(data, key, where, depth), f"{where}.{key}"),
+                        f"{where}.{key}")
 
     c_e = None
     if isinstance(data, dict) and data.get("C_e") is not None:
@@ -230,28 +271,52 @@ def case_from_dict(data) -> FusionCase:
     local = tuple(replace(r, circular=c) for r, c in zip(local, split_circular(circular, central.sizes)))
     y = None
     if data.get("y") is not None:
-        y = _checked(lambda: as_vector(data["y"], "y", sum(central.sizes)), "y")
+        y = _checked(lambda: as_vector(strict_numbers(data["y"], "y", 1), "y", sum(central.sizes)), "y")
     rank_tol = data.get("rank_tol")
     if rank_tol is not None:
         if isinstance(rank_tol, bool) or not isinstance(rank_tol, (int, float)) \
                 or not np.isfinite(rank_tol) or rank_tol < 0:
-            raise CaseFileError(f"rank_tol must be a finite number >= 0, got {rank_tol!r}")
-        rank_tol = float(rank_tol)
+            raise CaseFileError(f"rank_tol must be a finite number >= 0, got {json.dumps(rank_tol)[:40]}")
+        rank_tol = float(strict_numbers(rank_tol, "rank_tol", 0))
     return FusionCase(central, local, y, rank_tol)
 
 
-def load_case(path) -> FusionCase:
-    """Read and validate a fusion-case JSON file."""
+def _refuse_constant(name: str):
+    raise CaseFileError(f"{name} is not a JSON number (NaN and Infinity are refused)")
+
+
+def parse_json_text(text: str, where: str):
+    """Strict JSON: NaN/Infinity refused, integers of any size parsed as text first (so an
+    out-of-range one is reported, not overflowed), deep nesting reported; CaseFileError naming
+    ``where`` (a file, or a file and line) for every failure."""
+    try:
+        return json.loads(text, parse_constant=_refuse_constant)
+    except CaseFileError as exc:
+        raise CaseFileError(f"{where}: {exc}") from None
+    except json.JSONDecodeError as exc:
+        raise CaseFileError(f"{where} is not valid JSON: {exc.msg} at line {exc.lineno}") from None
+    except RecursionError:
+        raise CaseFileError(f"{where} is nested too deeply to be a fusion case") from None
+    except ValueError as exc:  # e.g. an integer longer than Python's digit limit
+        raise CaseFileError(f"{where} is not valid JSON: {' '.join(str(exc).split())[:120]}") from None
+
+
+def read_text_file(path) -> str:
+    """The UTF-8 text of ``path``; CaseFileError when it cannot be read or is not UTF-8."""
     path = Path(path)
     try:
-        text = path.read_text()
+        raw = path.read_bytes()
     except OSError as exc:
         raise CaseFileError(f"cannot read {path}: {exc.strerror or exc}") from None
     try:
-        data = json.loads(text)
-    except json.JSONDecodeError as exc:
-        raise CaseFileError(f"{path} is not valid JSON: {exc.msg} at line {exc.lineno}") from None
-    return case_from_dict(data)
+        return raw.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        raise CaseFileError(f"{path} is not UTF-8 text (invalid byte at offset {exc.start})") from None
+
+
+def load_case(path) -> FusionCase:
+    """Read and validate a fusion-case JSON file (strict numbers: module docstring)."""
+    return case_from_dict(parse_json_text(read_text_file(path), str(path)))
 
 
 def case_to_dict(case: FusionCase) -> dict:

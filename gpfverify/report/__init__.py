@@ -50,6 +50,12 @@ def build_report(ctx: ReportContext, only: list[str] | None = None, progress=pri
         from gpfverify.errors import InputError
 
         raise InputError(f"unknown section(s) {unknown}; choose from {list(SECTIONS)}")
+    from gpfverify import provenance
+
+    if ctx.out_dir.exists() and not ctx.out_dir.is_dir():
+        from gpfverify.errors import InputError
+
+        raise InputError(f"--out {ctx.out_dir} exists and is not a folder")
     sections: list[Section] = []
     for slug, module in SECTIONS.items():
         if only and slug not in only:
@@ -57,8 +63,11 @@ def build_report(ctx: ReportContext, only: list[str] | None = None, progress=pri
         progress(f"[report] {slug} ...")
         sections.append(importlib.import_module(module).build(ctx))
     preamble = (f"Profile `{ctx.profile}`, seed {ctx.seed}. Every number on these pages was computed "
-                "by the run that wrote them; claims that did not hold are marked NOT held.")
-    return write_report(sections, ctx.out_dir, "gpfverify verification report", preamble)
+                "by the run that wrote them; claims that did not hold are marked NOT held. Each page "
+                "ends with what produced it.")
+    # --only rebuilds its sections and keeps the others already in the folder
+    return write_report(sections, ctx.out_dir, "gpfverify verification report", preamble,
+                        order=list(SECTIONS), provenance=provenance.current())
 
 
 def run_for_report(ctx: ReportContext, slug: str, module, params: dict, runs: int) -> dict:
@@ -72,9 +81,12 @@ def run_for_report(ctx: ReportContext, slug: str, module, params: dict, runs: in
     run_dir = ctx.section_dir(slug) / "run"
     manifest = run_dir / "manifest.json"
     if manifest.exists():
-        old = json.loads(manifest.read_text(encoding="utf-8"))
-        same = (old.get("seed"), old.get("runs"), old.get("params")) == \
-            (ctx.seed, runs, json.loads(json.dumps(params)))
+        try:
+            old = json.loads(manifest.read_text(encoding="utf-8"))
+            same = (old.get("seed"), old.get("runs"), old.get("params")) == \
+                (ctx.seed, runs, json.loads(json.dumps(params)))
+        except (ValueError, AttributeError, RecursionError):  # damaged: start this run afresh
+            same = False
         if not same:
             shutil.rmtree(run_dir)
     with make_executor(ctx.workers) as executor:

@@ -16,8 +16,12 @@ def _md_cell(value) -> str:
 
 
 def to_markdown(section: Section, page_dir: Path) -> str:
-    lines = [f"# {section.title}", ""]
-    for block in section.blocks:
+    return "\n".join([f"# {section.title}", "", *_markdown_lines(section.blocks, page_dir)])
+
+
+def _markdown_lines(blocks, page_dir: Path) -> list[str]:
+    lines = []
+    for block in blocks:
         if isinstance(block, Paragraph):
             lines += [block.text, ""]
         elif isinstance(block, Table):
@@ -34,7 +38,7 @@ def to_markdown(section: Section, page_dir: Path) -> str:
             lines += ["```", block.text, "```", ""]
         else:
             raise TypeError(f"unknown block {type(block).__name__}")
-    return "\n".join(lines)
+    return lines
 
 
 def _html_block(block) -> str:
@@ -70,17 +74,72 @@ def to_html(sections: list[Section], title: str) -> str:
             f"<style>{_STYLE}</style></head><body><nav>{nav}</nav>{body}</body></html>")
 
 
-def write_report(sections: list[Section], out_dir: Path, title: str, preamble: str) -> Path:
+def provenance_table(record: dict) -> Table:
+    """The provenance record (CONTRACT.md, "Provenance") as a table for a report page."""
+    packages = ", ".join(f"{k} {v}" for k, v in sorted(record.get("packages", {}).items()))
+    rows = [["gpfverify", record.get("gpfverify")], ["git commit", record.get("git_commit") or "unknown"],
+            ["Python", record.get("python")], ["platform", record.get("platform")],
+            ["libraries", packages], ["created (UTC)", record.get("created")],
+            ["command", " ".join(record.get("command", []))]]
+    return Table(["provenance", ""], rows, "What produced this page")
+
+
+def _with_provenance(section: Section, record: dict | None) -> Section:
+    if record is None:
+        return section
+    return Section(section.slug, section.title, [*section.blocks, provenance_table(record)])
+
+
+#: per-section files that let a later ``--only`` build keep the sections it did not rebuild
+SECTION_HTML, SECTION_META = "section.html", "section.json"
+
+
+def write_report(sections: list[Section], out_dir: Path, title: str, preamble: str,
+                 order: list[str] | None = None, provenance: dict | None = None) -> Path:
     """Write ``out_dir/<slug>/README.md`` per section, ``out_dir/README.md`` as the index and
-    ``out_dir/report.html`` with everything embedded. Returns the HTML path."""
+    ``out_dir/report.html`` with everything embedded. Returns the HTML path.
+
+    With ``order`` (every slug of the full report, in report order), the index and the HTML list
+    every section of ``order`` whose page exists in ``out_dir`` — the ones built now and those
+    kept from earlier builds (each section also leaves ``<slug>/section.html`` and
+    ``<slug>/section.json``) — so building a few sections updates them and keeps the rest.
+    Without ``order`` only ``sections`` are listed. ``provenance`` (the record of
+    :mod:`gpfverify.provenance`) is added at the end of every page written and to the index."""
+    import json
+
     out_dir.mkdir(parents=True, exist_ok=True)
-    index = [f"# {title}", "", preamble, ""]
+    built = {}
     for section in sections:
+        section = _with_provenance(section, provenance)
         page_dir = out_dir / section.slug
         page_dir.mkdir(parents=True, exist_ok=True)
         (page_dir / "README.md").write_text(to_markdown(section, page_dir), encoding="utf-8")
-        index.append(f"- [{section.title}]({section.slug}/README.md)")
-    (out_dir / "README.md").write_text("\n".join(index) + "\n", encoding="utf-8")
+        fragment = (f'<section id="{section.slug}"><h1>{html.escape(section.title)}</h1>'
+                    + "".join(_html_block(b) for b in section.blocks) + "</section>")
+        (page_dir / SECTION_HTML).write_text(fragment, encoding="utf-8")
+        (page_dir / SECTION_META).write_text(json.dumps({"slug": section.slug, "title": section.title,
+                                                         "provenance": provenance}), encoding="utf-8")
+        built[section.slug] = (section.title, fragment)
+    listed = {}
+    for slug in (order if order is not None else list(built)):
+        if slug in built:
+            listed[slug] = built[slug]
+            continue
+        try:
+            meta = json.loads((out_dir / slug / SECTION_META).read_text(encoding="utf-8"))
+            listed[slug] = (str(meta["title"]), (out_dir / slug / SECTION_HTML).read_text(encoding="utf-8"))
+        except (OSError, ValueError, KeyError, TypeError):
+            continue  # never built here (or damaged): not listed
+    index = [f"# {title}", "", preamble, ""]
+    index += [f"- [{page_title}]({slug}/README.md)" for slug, (page_title, _) in listed.items()]
+    if provenance is not None:
+        index += ["", *_markdown_lines([provenance_table(provenance)], out_dir)]
+    (out_dir / "README.md").write_text("\n".join(index).rstrip() + "\n", encoding="utf-8")
+    nav = "".join(f'<a href="#{slug}">{html.escape(t)}</a>' for slug, (t, _) in listed.items())
+    head = "" if provenance is None else _html_block(provenance_table(provenance))
+    page = (f"<!DOCTYPE html><html><head><meta charset='utf-8'><title>{html.escape(title)}</title>"
+            f"<style>{_STYLE}</style></head><body><nav>{nav}</nav><p>{html.escape(preamble)}</p>"
+            + "".join(fragment for _, fragment in listed.values()) + head + "</body></html>")
     html_path = out_dir / "report.html"
-    html_path.write_text(to_html(sections, title), encoding="utf-8")
+    html_path.write_text(page, encoding="utf-8")
     return html_path
