@@ -32,6 +32,7 @@ import sys
 import threading
 import time
 import traceback
+import warnings
 from concurrent.futures import FIRST_COMPLETED, Executor, Future, ProcessPoolExecutor, wait
 from pathlib import Path
 from types import ModuleType
@@ -158,13 +159,18 @@ def _execute(module_name: str, params: dict, seed: np.random.SeedSequence, index
     module = importlib.import_module(module_name)
     start = time.perf_counter()
     record = {"index": index, "seed_entropy": str(seed.entropy), "spawn_key": list(seed.spawn_key)}
-    try:
-        record["result"] = module.run_one(params, seed)
-        record["status"] = "ok"
-    except Exception as exc:  # noqa: BLE001 - recorded, counted, reported
-        record["status"] = "error"
-        record["error"] = f"{type(exc).__name__}: {exc}"
-        record["traceback"] = traceback.format_exc(limit=8)
+    # warnings (numpy's floating-point ones) are kept with the run instead of printed by whichever
+    # process ran it; filters set to "error" (as in the test suite) still raise
+    with warnings.catch_warnings(record=True) as caught:
+        try:
+            record["result"] = module.run_one(params, seed)
+            record["status"] = "ok"
+        except Exception as exc:  # noqa: BLE001 - recorded, counted, reported
+            record["status"] = "error"
+            record["error"] = f"{type(exc).__name__}: {exc}"
+            record["traceback"] = traceback.format_exc(limit=8)
+    if caught:
+        record["warnings"] = sorted({f"{w.category.__name__}: {w.message}" for w in caught})
     record["seconds"] = time.perf_counter() - start
     return record
 

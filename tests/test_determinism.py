@@ -1,0 +1,130 @@
+"""CONTRACT.md, "Provenance": apart from ``provenance`` and the fields named in ``timing_keys``,
+``results.json`` is byte-identical for any ``--workers``, with ``--scheduler`` (a dask cluster
+whose workers are separate processes) and after a SIGKILL and ``--resume`` — checked end to end
+through the command line on a small ct2d (RCC-CI included, whose solver once depended on the
+process's earlier solves) and a small ungm1d. The SIGKILL also checks that no worker process nor
+the resource tracker outlives the killed main process."""
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+from gpfverify.experiments.runner import without_timing
+
+pytestmark = pytest.mark.slow
+
+EXPERIMENTS = {
+    "ct2d": ["ct2d", "--kappa", "12", "--omega", "0.0698", "--test-steps", "3", "--fit-points", "12"],
+    "ungm1d": ["ungm1d", "--train", "15", "--test-steps", "3", "--sweep", "2"],
+}
+RUNS, SEED = "3", "11"
+
+
+def _cli(*args, **kwargs):
+    return [sys.executable, "-m", "gpfverify", *args]
+
+
+def _reproduce(name, out, *extra, check=True):
+    proc = subprocess.run(_cli("reproduce", *EXPERIMENTS[name], "--runs", RUNS, "--seed", SEED,
+                               "--out", str(out), *extra), capture_output=True, text=True, timeout=300)
+    if check:
+        assert proc.returncode == 0, proc.stderr
+    return proc
+
+
+def _canonical(out: Path) -> str:
+    """The part of results.json the contract makes byte-identical, as bytes-comparable text."""
+    results = json.loads((out / "results.json").read_text(encoding="utf-8"))
+    assert results["timing_keys"] and "provenance" in results
+    return json.dumps(without_timing(results))
+
+
+def _children(pid: int) -> set[int]:
+    """Processes whose parent is ``pid`` (Linux /proc)."""
+    found = set()
+    for entry in Path("/proc").iterdir():
+        if entry.name.isdigit():
+            try:
+                stat = (entry / "stat").read_text()
+            except OSError:
+                continue
+            fields = stat.rsplit(")", 1)[1].split()
+            if int(fields[1]) == pid and fields[0] != "Z":
+                found.add(int(entry.name))
+    return found
+
+
+def _alive(pid: int) -> bool:
+    try:
+        stat = Path(f"/proc/{pid}/stat").read_text()
+    except OSError:
+        return False
+    return stat.rsplit(")", 1)[1].split()[0] != "Z"
+
+
+@pytest.fixture(scope="module")
+def serial(tmp_path_factory):
+    """The reference: one process, uninterrupted."""
+    base = tmp_path_factory.mktemp("serial")
+    return {name: _canonical(_reproduce(name, base / name, "--workers", "1") and base / name)
+            for name in EXPERIMENTS}
+
+
+@pytest.mark.parametrize("name", sorted(EXPERIMENTS))
+def test_two_workers_give_the_same_bytes(serial, tmp_path, name):
+    _reproduce(name, tmp_path / "w2", "--workers", "2")
+    assert _canonical(tmp_path / "w2") == serial[name]
+
+
+@pytest.mark.parametrize("name", sorted(EXPERIMENTS))
+def test_a_dask_cluster_of_worker_processes_gives_the_same_bytes(serial, tmp_path, name):
+    distributed = pytest.importorskip("distributed")
+    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
+                                  dashboard_address=None) as cluster:
+        _reproduce(name, tmp_path / "dask", "--scheduler", cluster.scheduler_address)
+    assert _canonical(tmp_path / "dask") == serial[name]
+
+
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="reads /proc")
+@pytest.mark.parametrize("name", sorted(EXPERIMENTS))
+def test_sigkill_leaves_no_orphans_and_resume_gives_the_same_bytes(serial, tmp_path, name):
+    out = tmp_path / "killed"
+    proc = subprocess.Popen(_cli("reproduce", *EXPERIMENTS[name], "--runs", RUNS, "--seed", SEED,
+                                 "--out", str(out), "--workers", "2"),
+                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    children: set[int] = set()
+    deadline = time.monotonic() + 120
+    try:
+        while time.monotonic() < deadline and proc.poll() is None:
+            children |= _children(proc.pid)  # two workers and the resource tracker
+            if list((out / "runs").glob("run-*.json")):
+                break
+            time.sleep(0.02)
+        children |= _children(proc.pid)
+        assert proc.poll() is None, "the run finished before it could be killed"
+        proc.send_signal(signal.SIGKILL)
+        proc.wait(timeout=10)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+    assert len(children) >= 2
+    deadline = time.monotonic() + 15
+    while time.monotonic() < deadline and any(_alive(pid) for pid in children):
+        time.sleep(0.05)
+    orphans = [pid for pid in children if _alive(pid)]
+    for pid in orphans:  # do not leave them to the rest of the suite
+        os.kill(pid, signal.SIGKILL)
+    assert not orphans, f"processes outlived the killed main process: {orphans}"
+    saved = sorted(p.name for p in (out / "runs").glob("run-*.json"))
+    assert 1 <= len(saved) < int(RUNS), saved
+    assert not (out / "results.json").exists()
+    refused = _reproduce(name, out, check=False)  # without --resume: refused, one line
+    assert refused.returncode == 2 and len(refused.stderr.strip().splitlines()) == 1
+    _reproduce(name, out, "--resume", "--workers", "1")
+    assert _canonical(out) == serial[name]
