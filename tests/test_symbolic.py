@@ -10,12 +10,11 @@ import sympy as sp
 
 from gpfverify.cli import main
 from gpfverify.errors import InputError
-from gpfverify.symbolic import rewrites
 from gpfverify.symbolic.certificate import Certificate
 from gpfverify.symbolic.claims import CLAIMS, run_claim
 from gpfverify.symbolic.fusion_claims import build_sensor, cofactor_kernel_vector, random_point
 from gpfverify.symbolic.fusion_forms import cmf_term, dmf_term, predicted_gap_term
-from gpfverify.symbolic.gp_claims import integrate_completed_square, mean_integral_closed, same_positive, u, nu_i, ell_a, alpha_a
+from gpfverify.symbolic import dimension_free, gp_claims, word_algebra as wa
 from gpfverify.symbolic.polynomial import Fraction, generic_symmetric, identity, inverse, lift, polynomial_ring
 from gpfverify.symbolic.ukf_claims import unscented_moments
 from gpfverify.tolerances import algebra_rtol
@@ -64,30 +63,67 @@ def test_symbolic_fusion_terms_match_numpy_formulas_at_a_point(rank):
         assert np.abs(gap).max() > 0  # the point really is a rank-deficient case with a gap
 
 
-def test_rewrite_checker_rejects_false_steps_and_broken_chains():
-    wrong = rewrites.Rewrite(rewrites.GAP_TERM, sp.ZeroMatrix(rewrites.n_states, 1), "no hypothesis")
-    assert not rewrites.step_holds(wrong)
-    steps = rewrites.full_rank_chain()
-    broken = [steps[0], steps[2]]  # skips the middle link
-    assert rewrites.check_chain(steps).holds
-    assert not rewrites.check_chain(broken).holds
-    # the projector onto the column space is not the identity, even with the full-rank formula
-    a = rewrites.A
-    other = rewrites.Rewrite(a * (a.T * a).I * a.T, sp.Identity(rewrites.n_states), "not a valid step")
-    assert not rewrites.step_holds(other)
-
-
 def test_cofactor_vector_spans_the_kernel_of_a_numeric_wide_matrix():
     a = sp.Matrix([[1, 2, 3], [4, 5, 7]])
     v = cofactor_kernel_vector(a)
     assert a * v == sp.zeros(2, 1) and any(v)
 
 
-def test_moment_integral_check_rejects_a_wrong_closed_form():
-    log_ka = -(u - nu_i) ** 2 / (2 * ell_a**2)
-    integral = integrate_completed_square(alpha_a**2, log_ka)
-    assert same_positive(integral, mean_integral_closed())
-    assert not same_positive(integral, mean_integral_closed() * sp.sqrt(1 + 1 / ell_a**2))
+def test_moment_integral_equality_rejects_a_sign_flipped_cross_moment():
+    """The old log-based test accepted exp(2·diff) = 1 for diff = ±iπ, i.e. a flipped sign."""
+    setting = gp_claims.Setting.of(1)
+    got = gp_claims.integrals(setting, product=False)
+    closed = gp_claims.closed_forms(setting, product=False)
+    flipped = gp_claims.closed_forms(setting, product=False, mutate="cross moment sign flipped")
+    key = "Cov[x, k_a]_0 (eq. 20)"
+    assert gp_claims.exactly_equal(got[key], closed[key])
+    assert not gp_claims.exactly_equal(got[key], flipped[key])
+    assert not gp_claims.exactly_equal(got["q_i (eq. 8-9)"],
+                                       gp_claims.closed_forms(setting, False, "determinant dropped")["q_i (eq. 8-9)"])
+
+
+def test_word_algebra_needs_the_stated_rules():
+    """C C⁻¹ = I is not built in: without the rule the local update does not cancel; Penrose alone
+    does not give A⁺A = I; a chain step that applies no rule is refused."""
+    d = dimension_free
+    lhs, rhs = d.dmf_term() - d.cmf_term(), d.gap_term()
+    assert wa.prove_by_normal_form(lhs, rhs, d.C_RULES + [d.LOCAL_UPDATE]).proved
+    assert not wa.prove_by_normal_form(lhs, rhs, [d.LOCAL_UPDATE]).proved
+    assert not wa.prove_by_normal_form(d.Ap * d.A, d.I_l, d.PENROSE).proved
+    bogus = wa.prove_by_chain([(d.Ap * d.A, None), (d.I_l, d.PENROSE[0].name)], d.PENROSE)
+    assert not bogus.proved
+    with pytest.raises(wa.ShapeError):
+        _ = d.A * d.A  # n×l times n×l
+
+
+def test_word_algebra_rules_are_checked_on_instances():
+    d = dimension_free
+    wrong = wa.Rule("wrong Penrose", d.Ap * d.A * d.Ap, d.Ap * d.A * d.Ap * d.A * d.Ap + d.Ap, "axiom")
+    checked = d.check_rules(d.PENROSE + [wrong], {})
+    assert all(checked.verdicts[r.name] for r in d.PENROSE) and not checked.verdicts["wrong Penrose"]
+    assert not checked.holds
+
+
+def test_a_proof_whose_negative_control_is_accepted_is_not_a_proof(tmp_path, monkeypatch, capsys):
+    c = Certificate("x", "s", "m", "proved", "d", negative_controls=({"mutant": "sign", "rejected": False},))
+    assert c.status == "checked" and c.detail.startswith("NOT A PROOF")
+    assert c.to_json()["negative_controls"] == [{"mutant": "sign", "rejected": False}]
+    import gpfverify.symbolic.claims as claims_module
+
+    monkeypatch.setattr(claims_module, "run_claims", lambda size, only, progress=None: [c])
+    assert main(["prove", "--out", str(tmp_path), "--size", "small", "--only", "full-rank-needs-l-le-D"]) == 1
+    assert "NOT A PROOF" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("claim", ["prop1-full-column-rank", "dmf-gap-formula", "dmf-exact-iff-kernel-inclusion",
+                                   "full-rank-needs-l-le-D"])
+def test_contract_claims_have_scope_and_rejected_controls(claim):
+    record = run_claim(claim, "small").to_json()
+    assert record["status"] == "proved" and "any dimension" in record["scope"]
+    controls = record["negative_controls"]
+    assert len(controls) >= 3 and all(c["rejected"] for c in controls)
+    # every control that names an instance check is false there (the mutant is a real error)
+    assert all(c.get("false_on_instance", True) for c in controls)
 
 
 def test_unscented_transform_is_not_exact_for_a_quadratic_map():

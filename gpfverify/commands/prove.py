@@ -40,4 +40,9 @@ def run(args: argparse.Namespace) -> int:
     (args.out / "README.md").write_text(to_markdown(render(records), args.out), encoding="utf-8")
     summary = ", ".join(f"{c.claim}: {c.status}" for c in certificates)
     print(f"{len(certificates)} certificates -> {args.out / 'certificates.json'} ({summary})")
+    accepted = [(c.claim, m["mutant"]) for c in certificates for m in c.negative_controls if not m["rejected"]]
+    if accepted:  # CONTRACT.md: a negative control that is not rejected fails the run
+        for claim, mutant in accepted:
+            print(f"NOT A PROOF: {claim} accepted the mutated statement {mutant!r}", file=sys.stderr)
+        return 1
     return 0

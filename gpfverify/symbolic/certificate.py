@@ -20,13 +20,34 @@ class Certificate:
     status: str
     detail: str
     seconds: float = 0.0
+    #: "any dimension" or the sizes covered (CONTRACT.md, Certificates)
+    scope: str = ""
+    #: ({"mutant": str, "rejected": bool, ...}, ...): mutated statements the proof must reject
+    negative_controls: tuple = ()
 
     def __post_init__(self):
         if self.status not in STATUSES:
             raise ValueError(f"status must be one of {STATUSES}, got {self.status!r}")
+        if self.status == "proved" and not self.controls_rejected:
+            # a proof that accepts a mutated statement is not a proof: demote it and say so
+            accepted = [c["mutant"] for c in self.negative_controls if not c["rejected"]]
+            object.__setattr__(self, "status", "checked")
+            object.__setattr__(self, "detail", "NOT A PROOF: negative controls accepted ("
+                               + "; ".join(accepted) + "). " + self.detail)
+
+    @property
+    def controls_rejected(self) -> bool:
+        """Every negative control was rejected (vacuously true without controls)."""
+        return all(c["rejected"] for c in self.negative_controls)
 
     def to_json(self) -> dict:
-        return asdict(self)
+        out = asdict(self)
+        out["negative_controls"] = [dict(c) for c in self.negative_controls]
+        if not self.scope:
+            out.pop("scope")
+        if not self.negative_controls:
+            out.pop("negative_controls")
+        return out
 
 
 def verdict(holds: bool, proved: str = "proved") -> str:

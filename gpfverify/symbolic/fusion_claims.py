@@ -1,8 +1,9 @@
 """Symbolic proofs of the fusion claims (seed 000 Proposition 1 and what SPEC §3 adds to it).
 
 Every explicit-size check is exact polynomial arithmetic over Q[entries] (see
-:mod:`gpfverify.symbolic.polynomial`); every dimension-free argument is a chain of rewrites
-checked by sympy (see :mod:`gpfverify.symbolic.rewrites`). μ_DMF − μ_CMF = Σ_m (DMF_m − CMF_m)
+:mod:`gpfverify.symbolic.polynomial`); every dimension-free argument is a proof in the word
+algebra of :mod:`gpfverify.symbolic.word_algebra` from stated, instance-checked rules, with negative
+controls (see :mod:`gpfverify.symbolic.dimension_free`). μ_DMF − μ_CMF = Σ_m (DMF_m − CMF_m)
 is a sum of per-sensor rational functions (module docstring of
 :mod:`gpfverify.symbolic.fusion_forms`), so an identity checked for every sensor of a
 configuration holds for the configuration.
@@ -16,7 +17,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 import sympy as sp
 
-from gpfverify.symbolic import rewrites
+from gpfverify.symbolic import dimension_free, rewrites
 from gpfverify.symbolic.certificate import Certificate, verdict
 from gpfverify.symbolic.fusion_forms import (LiftedSensor, SensorSymbols, cmf_term, dmf_term,
                                              kernel_condition, lift_sensor, predicted_gap_term,
@@ -127,8 +128,13 @@ def nonzero_somewhere(formula, symbols, build, rng: np.random.Generator, tries: 
     return None
 
 
-def _chain_detail(chain: rewrites.ChainResult) -> str:
-    return f"dimension-free chain ({'all steps checked' if chain.holds else 'a step FAILED'}): {chain.describe()}"
+def _dimension_free_detail(result: dimension_free.DimensionFreeResult) -> str:
+    return (f"Any dimension (word-algebra rewriting from stated rules, "
+            f"{'every proof accepted' if result.holds else 'a proof or rule check FAILED'}): {result.describe()}")
+
+
+def _controls(result: dimension_free.DimensionFreeResult) -> tuple:
+    return tuple(c.to_json() for c in result.controls)
 
 
 # ---- prop1-full-column-rank ------------------------------------------------------------------
@@ -144,8 +150,8 @@ def prove_prop1(size: str = "small") -> Certificate:
         largest = max(largest, dmf_term(s).term_count())
     whole = WHOLE_EXPRESSION[size]
     whole_ok = all(whole_difference(d, sizes).is_zero_matrix for d, sizes in whole)
-    chain = rewrites.check_chain(rewrites.full_rank_chain())
-    holds = per_sensor_ok and penrose_ok and whole_ok and chain.holds
+    general = dimension_free.prop1()
+    holds = per_sensor_ok and penrose_ok and whole_ok and general.holds
     detail = (
         "(a) Per sensor, for every (D, l_m) with l_m ≤ D ≤ 3: DMF_m − CMF_m = N_m/(det(C_xyᵀC_xy)·det(C_y^m)) "
         "with every entry of G_m, C_y^m (symmetric), C_xy^m, y^m, μ_y^m, μ_y(m), μ_p^m a free symbol and "
@@ -157,12 +163,14 @@ def prove_prop1(size: str = "small") -> Certificate:
         f"({', '.join(f'D={d}:' + '/'.join(map(str, c)) for d, c in whole)}) ({'yes' if whole_ok else 'NO'}). "
         "(c) (C_xyᵀC_xy)⁻¹C_xyᵀ satisfies the four Penrose conditions identically "
         f"({'yes' if penrose_ok else 'NO'}); the denominators are nonzero exactly under the hypotheses "
-        "(full column rank, C_y^m SPD). (d) " + _chain_detail(chain))
+        "(full column rank, C_y^m SPD). (d) " + _dimension_free_detail(general))
     return Certificate("prop1-full-column-rank",
                        "DMF (eq. 35) equals CMF (eq. 15) for every measurement when every C_xy^m has full column rank",
-                       "sympy: polynomial identity over Q[entries] with cleared denominators, rational-function "
-                       "field reduction, matrix-expression rewrites",
-                       verdict(holds), detail, time.perf_counter() - start)
+                       "word-algebra rewriting from the Penrose equations and a left inverse (any dimension) + "
+                       "sympy polynomial identity over Q[entries] and rational-function field reduction (l_m ≤ D ≤ 3)",
+                       verdict(holds), detail, time.perf_counter() - start,
+                       scope="any dimension (route (d)); (a)-(c) l_m ≤ D ≤ 3",
+                       negative_controls=_controls(general))
 
 
 # ---- dmf-gap-formula -------------------------------------------------------------------------
@@ -183,8 +191,8 @@ def prove_gap_formula(size: str = "small") -> Certificate:
         ok &= (dmf_term(s) - cmf_term(s) - predicted_gap_term(s)).is_zero()
         rows.append(f"(D={d}, l={l}, full rank)")
     penrose = rewrites.check_independent(rewrites.factored_pinv_penrose())
-    chain = rewrites.check_chain(rewrites.gap_formula_chain())
-    holds = ok and penrose.holds and nonvacuous and chain.holds
+    general = dimension_free.gap_formula()
+    holds = ok and penrose.holds and nonvacuous and general.holds
     detail = (f"(a) Families {', '.join(rows)}: C_xy^m = B Fᵀ with B (D×r), F (l×r) generic and "
               "(C_xy^m)⁺ = F(FᵀF)⁻¹(BᵀB)⁻¹Bᵀ; every entry of B, F, G_m, C_y^m (symmetric), y^m, μ_y^m, μ_y(m), "
               "μ_p^m a free symbol. (DMF_m − CMF_m) − G_m C_y^m (P_m − I)(C_y^m)⁻¹(y^m − μ_y^m) expands to the "
@@ -192,11 +200,13 @@ def prove_gap_formula(size: str = "small") -> Certificate:
               f"at an integer point ({'yes' if nonvacuous else 'NO'}): the formula is not vacuous. "
               "(c) F(FᵀF)⁻¹(BᵀB)⁻¹Bᵀ is the Moore–Penrose inverse of BFᵀ for every size (four Penrose "
               f"conditions checked on matrix symbols: {'yes' if penrose.holds else 'NO'}). Since μ_DMF − μ_CMF "
-              "is the sum of the sensor terms, (a) holds for any N. (d) " + _chain_detail(chain))
+              "is the sum of the sensor terms, (a) holds for any N. (d) " + _dimension_free_detail(general))
     return Certificate("dmf-gap-formula",
                        "μ_DMF − μ_CMF = Σ_m G_m C_y^m (P_m − I)(C_y^m)⁻¹(y^m − μ_y^m), P_m = (C_xy^m)⁺C_xy^m",
-                       "sympy: polynomial identity for rank-deficient families + matrix-expression rewrites",
-                       verdict(holds), detail, time.perf_counter() - start)
+                       "word-algebra rewriting (any dimension) + sympy polynomial identity for rank-deficient "
+                       "families", verdict(holds), detail, time.perf_counter() - start,
+                       scope="any dimension and rank (route (d)); (a) the listed (D, l_m, rank) families",
+                       negative_controls=_controls(general))
 
 
 # ---- dmf-exact-iff-kernel-inclusion and the two refuted statements ----------------------------
@@ -238,9 +248,8 @@ def prove_kernel_inclusion(size: str = "small") -> Certificate:
         identity_holds, witnessed = _necessity(d, l, r, rng)
         necessary &= identity_holds
         nonzero &= witnessed
-    chains = {"sufficiency": rewrites.check_chain(rewrites.sufficiency_chain()),
-              "necessity": rewrites.check_chain(rewrites.necessity_chain())}
-    holds = sufficient and necessary and nonzero and all(c.holds for c in chains.values())
+    general = dimension_free.kernel_inclusion()
+    holds = sufficient and necessary and nonzero and general.holds
     fams = ", ".join(f"(D={d}, l={l}, rank {r})" for d, l, r in families)
     detail = (
         f"Families {fams}, C_xy^m = BFᵀ generic of rank r. Sufficiency: with G_m = W C_xy^m (C_y^m)⁻¹, W generic "
@@ -250,13 +259,17 @@ def prove_kernel_inclusion(size: str = "small") -> Certificate:
         "y^m = μ_y^m + C_y^m (I − P_m) v (C_y^m times a vector of ker C_xy^m), DMF_m − CMF_m = −G_m C_y^m (I − P_m) v "
         f"identically ({'yes' if necessary else 'NO'}), and that vector is nonzero at an integer point "
         f"({'yes' if nonzero else 'NO'}): whenever X_m = G_m C_y^m (I − P_m) ≠ 0, some v (other sensors at "
-        "y^k = μ_y^k) gives a nonzero gap. " + " ".join(f"{k}: {_chain_detail(c)}" for k, c in chains.items()))
+        "y^k = μ_y^k) gives a nonzero gap. " + _dimension_free_detail(general)
+        + " Logic steps not rewritten: X_m v = 0 for every v ⇒ X_m = 0; (⇐ of the kernel form) A(I − P_m) = 0 "
+        "puts (I − P_m)w in ker C_xy^m ⊆ ker G_m C_y^m, so X_m w = 0.")
     return Certificate("dmf-exact-iff-kernel-inclusion",
                        "DMF = CMF for every measurement iff G_m C_y^m (I − P_m) = 0 for every m "
                        "(ker C_xy^m ⊆ ker G_m C_y^m)",
                        "sympy: polynomial identities for rank-deficient families (sufficiency), explicit "
-                       "breaking measurement direction (necessity), matrix-expression rewrites",
-                       verdict(holds), detail, time.perf_counter() - start)
+                       "breaking measurement direction (necessity), word-algebra rewriting (any dimension)",
+                       verdict(holds), detail, time.perf_counter() - start,
+                       scope="any dimension and rank (word algebra); the listed families (polynomial identities)",
+                       negative_controls=_controls(general))
 
 
 # ---- concrete counterexamples (the two refuted statements) ------------------------------------
@@ -355,14 +368,19 @@ def prove_full_rank_needs_l_le_d(size: str = "small") -> Certificate:
         if d * l <= GRAM_DET_MAX_ENTRIES:
             gram_ok &= not (a.transpose() * a).det()
             gram_sizes.append(f"{d}×{l}")
-    holds = kernel_ok and gram_ok
+    general = dimension_free.l_le_d()
+    holds = kernel_ok and gram_ok and general.holds
     detail = (f"For generic D×l_m matrices C_xy^m with l_m > D, (D, l_m) ∈ {{{', '.join(f'({d},{l})' for d, l in WIDE[size])}}}: "
               "the cofactor vector v (signed maximal minors of the first D + 1 columns) is a nonzero polynomial "
               f"vector with C_xy^m v ≡ 0 ({'yes' if kernel_ok else 'NO'}), so rank C_xy^m ≤ l_m − 1 for every value "
               f"of the entries; det(C_xyᵀC_xy) expands to the zero polynomial for {', '.join(gram_sizes)} "
               f"({'yes' if gram_ok else 'NO'}), so (C_xyᵀC_xy)⁻¹ never exists and P_m = (C_xy^m)⁺C_xy^m ≠ I. "
-              "Every size: rank C_xy^m ≤ min(D, l_m) = D < l_m (rank–nullity: dim ker C_xy^m ≥ l_m − D > 0).")
+              "Every size: full column rank ⇔ a left inverse L (LA = I); then E = AL is idempotent and "
+              "l_m = tr(I) = tr(LA) = tr(AL) = rank(AL) ≤ D. " + _dimension_free_detail(general))
     return Certificate("full-rank-needs-l-le-D",
                        "a sensor with l_m > D outputs never has a full-column-rank C_xy^m (Proposition 1 cannot apply)",
-                       "sympy: explicit polynomial kernel vector and vanishing Gram determinant",
-                       verdict(holds), detail, time.perf_counter() - start)
+                       "word-algebra rewriting + trace facts (any dimension) + sympy explicit polynomial kernel "
+                       "vector and vanishing Gram determinant (listed sizes)",
+                       verdict(holds), detail, time.perf_counter() - start,
+                       scope="any dimension (idempotent route); the listed (D, l_m) (polynomial route)",
+                       negative_controls=_controls(general))

@@ -1,4 +1,6 @@
-"""Dimension-free arguments as chains of matrix-expression rewrites, each step checked by sympy.
+"""Matrix-expression identities checked by sympy's own simplification (used for the Penrose
+conditions of the factored pseudo-inverse). The dimension-free proofs of the fusion claims are in
+:mod:`gpfverify.symbolic.dimension_free` (explicit rules, no conclusion substituted).
 
 Matrices are ``sympy.MatrixSymbol`` objects of symbolic size (n states, l outputs), so a checked
 chain holds for every dimension. A step says ``before = after`` because of a stated reason; the
@@ -90,54 +92,6 @@ mu_p = sp.MatrixSymbol("mu_pm", n_states, 1)
 mu_e = sp.MatrixSymbol("mu_em", n_states, 1)
 v = sp.MatrixSymbol("v", n_outputs, 1)
 I_l = sp.Identity(n_outputs)
-
-#: sensor m's share of μ_DMF − μ_CMF (eq. 35 minus eq. 15)
-SENSOR_DIFFERENCE = G * (mu_y - mu_c) + G * C * A_pinv * (mu_e - mu_p) - G * (y - mu_c)
-#: sensor m's term of the closed-form gap
-GAP_TERM = G * C * (P - I_l) * C.I * (y - mu_y)
-
-
-def gap_formula_chain() -> list[Rewrite]:
-    """DMF_m − CMF_m = G_m C_y^m (P_m − I)(C_y^m)⁻¹(y^m − μ_y^m) for any C_xy^m."""
-    after_local = G * (mu_y - y) + G * C * A_pinv * A * C.I * (y - mu_y)
-    return [
-        Rewrite(SENSOR_DIFFERENCE, after_local,
-                "local update μ_e^m − μ_p^m = C_xy^m (C_y^m)⁻¹(y^m − μ_y^m) (eq. 32)",
-                {mu_e: mu_p + A * C.I * (y - mu_y)}),
-        Rewrite(after_local, GAP_TERM,
-                "C_y^m (C_y^m)⁻¹ = I (C_y^m SPD), with P_m := (C_xy^m)⁺C_xy^m", {P: A_pinv * A}),
-    ]
-
-
-def full_rank_chain() -> list[Rewrite]:
-    """Proposition 1: the gap term vanishes when C_xy^m has full column rank."""
-    return gap_formula_chain() + [
-        Rewrite(GAP_TERM, sp.ZeroMatrix(n_states, 1),
-                "full column rank: (C_xy^m)⁺ = (C_xyᵀC_xy)⁻¹C_xyᵀ with C_xyᵀC_xy invertible, so P_m = I",
-                {P: A_pinv * A, A_pinv: (A.T * A).I * A.T}),
-    ]
-
-
-def sufficiency_chain() -> list[Rewrite]:
-    """G_m C_y^m (I − P_m) = 0 ⇒ the gap term vanishes for every y^m."""
-    return [
-        Rewrite(GAP_TERM, -X * C.I * (y - mu_y), "definition X_m := G_m C_y^m (I − P_m)",
-                {X: G * C * (I_l - P)}),
-        Rewrite(-X * C.I * (y - mu_y), sp.ZeroMatrix(n_states, 1), "hypothesis X_m = 0",
-                {X: sp.ZeroMatrix(n_states, n_outputs)}),
-    ]
-
-
-def necessity_chain() -> list[Rewrite]:
-    """With y^m − μ_y^m = C_y^m (I − P_m) v the gap term is −X_m v: nonzero for some v unless X_m = 0."""
-    chosen = G * C * (P - I_l) * C.I * C * (I_l - P) * v
-    return [
-        Rewrite(GAP_TERM, chosen, "choose the measurement y^m = μ_y^m + C_y^m (I − P_m) v",
-                {y: mu_y + C * (I_l - P) * v}),
-        Rewrite(chosen, -X * v, "P_m² = P_m (Penrose: A⁺AA⁺ = A⁺) and X_m := G_m C_y^m (I − P_m)",
-                {X: G * C * (I_l - P)}, ((P**2, P),)),
-    ]
-
 
 def factored_pinv_penrose() -> list[Rewrite]:
     """X = F(FᵀF)⁻¹(BᵀB)⁻¹Bᵀ is the Moore–Penrose inverse of A = BFᵀ when B (n×r) and F (l×r)

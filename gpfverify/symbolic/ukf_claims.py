@@ -54,6 +54,7 @@ def prove_ukf_equals_kf(size: str = "small") -> Certificate:
         cov = factor * factor.T
         ok &= _is_zero(y_bar - (h * mean + b)) and _is_zero(c_y - h * cov * h.T) and _is_zero(c_xy - cov * h.T)
         shown.append(f"(D={d}, l={l})")
+    controls = _negative_controls(s, gamma)
     detail = (f"For {', '.join(shown)}: every entry of μ, the lower Cholesky factor L of C, H and b free, "
               "the sigma-point parameters symbolic through s = D + λ = α²(D + κ) > 0 and γ = 1 − α² + β, the only "
               "ways α, β, κ enter (√s kept symbolic): the unscented mean, covariance and cross "
@@ -62,4 +63,25 @@ def prove_ukf_equals_kf(size: str = "small") -> Certificate:
               "identical moments, so UKF = KF on linear-Gaussian models for any sigma-point parameters with s > 0.")
     return Certificate("ukf-equals-kf-linear",
                        "the unscented transform is exact for affine maps, so the UKF equals the KF on linear models",
-                       "sympy: symbolic sigma points", verdict(ok), detail, time.perf_counter() - start)
+                       "sympy: symbolic sigma points", verdict(ok), detail, time.perf_counter() - start,
+                       scope=f"(D, l) ∈ {{{', '.join(shown)}}}, any sigma-point parameters with s > 0",
+                       negative_controls=controls)
+
+
+def _negative_controls(s, gamma) -> tuple:
+    """The same exactness test on statements that must fail, at D = 2, l = 1."""
+    mean = generic_matrix("mu", 2, 1)
+    factor = sp.Matrix(2, 2, lambda i, j: sp.Symbol(f"L_{i}_{j}") if j <= i else 0)
+    h, b = generic_matrix("H", 1, 2), generic_matrix("b", 1, 1)
+    cov = factor * factor.T
+    y_bar, c_y, c_xy = unscented_moments(mean, factor, lambda x: h * x + b, s, gamma)
+    sq_bar, _, _ = unscented_moments(mean, factor, lambda x: (h * x).applyfunc(lambda e: e**4), s, gamma)
+    cases = {
+        "ȳ = Hμ (offset b dropped)": _is_zero(y_bar - h * mean),
+        "C_xy = −CHᵀ (sign)": _is_zero(c_xy + cov * h.T),
+        "C_y = HCHᵀ + HHᵀ (extra term)": _is_zero(c_y - h * cov * h.T - h * h.T),
+        "mean exact for the quartic map x ↦ (Hx)⁴ (true only at s = 3)": _is_zero(
+            sq_bar - sp.Matrix([(h * mean)[0] ** 4 + 6 * (h * mean)[0] ** 2 * (h * cov * h.T)[0]
+                                + 3 * (h * cov * h.T)[0] ** 2])),
+    }
+    return tuple({"mutant": k, "rejected": not accepted} for k, accepted in cases.items())
