@@ -159,14 +159,34 @@ def _solve_parametrised(build, size: tuple[int, int], set_values, solver: str, w
                 raise
 
 
+#: relative slack allowed when checking that an inaccurate solution lies in every ellipsoid
+INACCURATE_SLACK = 1e-3
+
+
+def _in_every_ellipsoid(norm: _Normalised, xi) -> bool:
+    """Whether ξ satisfies f_m(ξ) = ξᵀA_mξ + 2b_mᵀξ + d_m ≤ 0 for every m, up to
+    :data:`INACCURATE_SLACK` relative to the size of the terms (normalised coordinates)."""
+    if xi is None or not np.all(np.isfinite(xi)):
+        return False
+    quad = np.einsum("i,mij,j->m", xi, norm.A, xi)
+    lin = 2.0 * norm.b @ xi
+    size = 1.0 + np.abs(quad) + np.abs(lin) + np.abs(norm.d)
+    return bool(np.all(quad + lin + norm.d <= INACCURATE_SLACK * size))
+
+
 def smallest_intersecting_size(estimates: Sequence) -> float:
     """c_min = min_x max_m (x − x_m)ᵀP_m⁻¹(x − x_m): the ellipsoids meet iff c ≥ c_min."""
     checked = checked_estimates(estimates)
+    # c_min is invariant under x -> (x - x̄)/s with P_m -> P_m/s²: solve in those coordinates
+    # (as the primal) so that the solver sees numbers of order one whatever the units
+    centre = np.mean([e.mean for e in checked], axis=0)
+    scale = float(np.sqrt(max(np.linalg.eigvalsh(e.cov)[-1] for e in checked)))
     x, t = cp.Variable(checked[0].mean.shape[0]), cp.Variable()
     cons = []
     for e in checked:
-        whiten = np.linalg.solve(np.linalg.cholesky(e.cov), np.eye(e.mean.shape[0]))  # L⁻¹, P⁻¹ = L⁻ᵀL⁻¹
-        cons.append(cp.sum_squares(whiten @ (x - e.mean)) <= t)
+        cov, mean = e.cov / scale**2, (e.mean - centre) / scale
+        whiten = np.linalg.solve(np.linalg.cholesky(cov), np.eye(e.mean.shape[0]))  # L⁻¹, P⁻¹ = L⁻ᵀL⁻¹
+        cons.append(cp.sum_squares(whiten @ (x - mean)) <= t)
     status = _solve(cp.Problem(cp.Minimize(t), cons), cp.CLARABEL, "smallest intersecting size")
     if status not in SOLVED:
         raise SolverError(f"smallest intersecting size: solver status {status}")
@@ -194,6 +214,8 @@ def rcc_ci(estimates: Sequence, c: float | None = None, on_empty: str = "error",
 
         status, problem, (x, ellipsoids) = _solve_parametrised(
             _primal_problem, (len(checked), dim), set_values, solver, "RCC-CI primal")
+        if status == "optimal_inaccurate" and not _in_every_ellipsoid(norm, x.value):
+            status = "infeasible_inaccurate"  # a badly scaled empty intersection, not a centre
         if status in SOLVED:
             break
         if "infeasible" not in status:

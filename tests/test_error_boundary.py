@@ -1,0 +1,259 @@
+"""One error boundary (gpfverify.cli): every user error on every command path exits 2 with exactly
+one line on stderr, no traceback, no warning lines, and nothing written — the cases listed in
+issue #15, then hypothesis-generated malformed case files, run files and arguments. Cases at the
+accepted range's bound are fused or refused, never overflowed into warnings."""
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+from gpfverify import cli
+from gpfverify.fusion.case import MAX_MAGNITUDE, case_to_dict
+from gpfverify.fusion.methods import METHODS
+from gpfverify.fusion.synthetic import random_case
+from gpfverify.strategies.profiles import scaled_examples
+
+CASE = case_to_dict(random_case(np.random.default_rng(0), 2, (1, 2)))
+CASE_COMMANDS = [["audit", "--json"]] + [["fuse", "--method", m, "--json"] for m in METHODS]
+TINY_CT2D = ["ct2d", "--kappa", "12", "--test-steps", "3", "--fit-points", "12", "--runs", "2"]
+
+
+def _listing(folder: Path) -> dict:
+    return {str(p.relative_to(folder)): p.stat().st_mtime_ns for p in sorted(folder.rglob("*"))}
+
+
+def run_cli(args, capsys) -> tuple[int, str, str]:
+    capsys.readouterr()
+    try:
+        code = cli.main([str(a) for a in args])
+    except SystemExit as exc:  # argparse usage errors
+        code = exc.code
+    out, err = capsys.readouterr()
+    return code, out, err
+
+
+def assert_user_error(args, capsys, folder: Path):
+    """Exit 2, one stderr line naming the command, nothing on stdout, no file changed in folder."""
+    before = _listing(folder)
+    code, out, err = run_cli(args, capsys)
+    lines = err.strip().splitlines()
+    assert code == 2, (args, code, err)
+    assert len(lines) == 1 and lines[0].startswith("gpfverify"), (args, err)
+    assert "Traceback" not in err and out == ""
+    assert _listing(folder) == before, f"{args} wrote files"
+
+
+def _write(folder: Path, name: str, content) -> Path:
+    path = folder / name
+    path.write_bytes(content if isinstance(content, bytes) else content.encode("utf-8"))
+    return path
+
+
+def _with(path, value):
+    data = json.loads(json.dumps(CASE))
+    target = data
+    for key in path[:-1]:
+        target = target[key]
+    target[path[-1]] = value
+    return json.dumps(data)
+
+
+BAD_CASES = {
+    "invalid-utf8": json.dumps(CASE).encode()[:40] + b"\xff\xfe" + json.dumps(CASE).encode()[40:],
+    "int-10e400": _with(("y", 0), 10**400),
+    "deep-nesting": "[" * 100_000 + "]" * 100_000,
+    "string-number": _with(("locals", 0, "mu_e", 0), "1.0"),
+    "boolean-number": _with(("central", "C_p", 0, 0), True),
+    "overflowing-1e308": _with(("locals", 1, "mu_e", 0), 1e308),
+    "nan": json.dumps(CASE).replace(str(CASE["y"][0]), "NaN", 1),
+    "null-in-array": _with(("central", "mu_y", 0), None),
+    "not-json": "{",
+    "empty": "",
+}
+
+
+@pytest.mark.parametrize("command", CASE_COMMANDS, ids=lambda c: " ".join(c[:3]))
+@pytest.mark.parametrize("bad", sorted(BAD_CASES))
+def test_listed_malformed_case_files(tmp_path, capsys, bad, command):
+    path = _write(tmp_path, "case.json", BAD_CASES[bad])
+    assert_user_error([*command[:1], path, *command[1:]], capsys, tmp_path)
+
+
+@pytest.mark.parametrize("args", [
+    ["reproduce", *TINY_CT2D, "--seed", "-5"],
+    ["reproduce", *TINY_CT2D, "--seed", "1.5"],
+    ["reproduce", *TINY_CT2D, "--workers", "0"],
+    ["reproduce", *TINY_CT2D, "--runs", "0"],
+    ["reproduce", "ungm1d", "--sweep", "inf"],
+    ["report", "--only", "moments", "--workers", "0"],
+    ["report", "--only", "moments", "--seed", "-1"],
+], ids=" ".join)
+def test_bad_arguments_write_nothing(tmp_path, capsys, args):
+    out = tmp_path / "out"
+    assert_user_error([*args, "--out", out], capsys, tmp_path)
+    assert not out.exists()
+
+
+@pytest.mark.parametrize("args", [["audit", "--rank-tol", "inf"], ["audit", "--rank-tol", "nan"],
+                                  ["fuse", "--method", "rcc-ci", "--c", "inf"]], ids=" ".join)
+def test_non_finite_options_are_refused(tmp_path, capsys, args):
+    path = _write(tmp_path, "case.json", json.dumps(CASE))
+    assert_user_error([args[0], path, *args[1:]], capsys, tmp_path)
+
+
+@pytest.mark.parametrize("command", [["reproduce", *TINY_CT2D], ["report", "--only", "moments"],
+                                     ["props", "-k", "nothing"]], ids=lambda c: c[0])
+def test_out_naming_an_existing_file(tmp_path, capsys, command):
+    target = _write(tmp_path, "a-file", "keep me")
+    assert_user_error([*command, "--out", target], capsys, tmp_path)
+    assert target.read_text() == "keep me"
+
+
+@pytest.mark.parametrize("manifest", ["{not json", b"\xff", "[1, 2]", "{\"seed\": " + "9" * 5000 + "}"],
+                         ids=["broken", "binary", "not-a-manifest", "huge-int"])
+def test_resume_on_a_corrupted_manifest(tmp_path, capsys, manifest):
+    out = tmp_path / "out"
+    (out / "runs").mkdir(parents=True)
+    _write(out, "manifest.json", manifest)
+    assert_user_error(["reproduce", *TINY_CT2D, "--out", out, "--resume"], capsys, tmp_path)
+
+
+def test_closed_output_pipe(tmp_path):
+    """`gpfverify audit CASE | head -3` with the reader gone before the output is written."""
+    path = _write(tmp_path, "case.json", json.dumps(CASE))
+    proc = subprocess.Popen([sys.executable, "-m", "gpfverify", "audit", str(path)],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+    proc.stdout.close()
+    err = proc.stderr.read().decode()
+    assert proc.wait(timeout=120) == 2
+    assert len(err.strip().splitlines()) == 1 and "Traceback" not in err, err
+
+
+@pytest.mark.parametrize("command", CASE_COMMANDS, ids=lambda c: " ".join(c[:3]))
+@pytest.mark.parametrize("scale", [MAX_MAGNITUDE, 1 / MAX_MAGNITUDE, 1e-250])
+def test_cases_at_the_range_bound_fuse_or_are_refused_without_warnings(tmp_path, capsys, command, scale):
+    """Every number scaled so the largest is ``scale`` (or covariances alone, tiny): accepted
+    with a finite result and a silent stderr, or refused with one line — never overflowing."""
+    biggest = max(abs(x) for x in np.ravel(np.concatenate([np.ravel(v) for v in _arrays(CASE)])))
+    for which in ("all", "covariances"):
+        data = _scaled(CASE, scale / biggest, covariances_only=which == "covariances")
+        path = _write(tmp_path, f"case-{which}.json", json.dumps(data))
+        code, out, err = run_cli([command[0], path, *command[1:]], capsys)
+        assert "Traceback" not in err and "warning" not in err.lower(), err
+        if code == 0:
+            assert err == "" and np.isfinite(np.array(json.loads(out).get("mean", 0.0))).all()
+        else:
+            assert code == 2 and len(err.strip().splitlines()) == 1, err
+
+
+def _arrays(data):
+    for part in [data["central"], *data["locals"]]:
+        for key, value in part.items():
+            if key not in ("sizes", "circular"):
+                yield value
+    yield data["y"]
+
+
+def _scaled(data, factor, covariances_only=False):
+    data = json.loads(json.dumps(data))
+    for part in [data["central"], *data["locals"]]:
+        for key, value in part.items():
+            if key not in ("sizes", "circular") and (key in ("C_p", "C_y", "C_e") or not covariances_only):
+                part[key] = (np.asarray(value) * factor).tolist()
+    if not covariances_only:
+        data["y"] = (np.asarray(data["y"]) * factor).tolist()
+    return data
+
+
+# ---- fuzz -------------------------------------------------------------------------------------
+
+def _numeric_paths(obj, path=()):
+    if isinstance(obj, dict):
+        for key, value in obj.items():
+            if key not in ("sizes", "circular"):
+                yield from _numeric_paths(value, path + (key,))
+    elif isinstance(obj, list):
+        for i, value in enumerate(obj):
+            yield from _numeric_paths(value, path + (i,))
+    else:
+        yield path
+
+
+NUMERIC_PATHS = list(_numeric_paths(CASE))
+REQUIRED = ([("central",), ("locals",)] + [("central", k) for k in ("mu_p", "C_p", "mu_y", "C_y", "C_xy", "sizes")]
+            + [("locals", m, k) for m in range(len(CASE["locals"])) for k in ("mu_p", "mu_y", "C_y", "C_xy", "mu_e")])
+NOT_A_NUMBER = st.one_of(
+    st.text(max_size=4), st.booleans(), st.none(), st.dictionaries(st.text(max_size=2), st.integers(), max_size=1),
+    st.integers(min_value=10**101, max_value=10**500), st.integers(max_value=-(10**101), min_value=-(10**500)),
+    st.floats(min_value=1.01e100), st.floats(max_value=-1.01e100),
+    st.lists(st.floats(-1, 1), min_size=2, max_size=3),
+)
+
+
+@st.composite
+def malformed_case_texts(draw) -> bytes:
+    kind = draw(st.sampled_from(["leaf", "delete", "truncate", "byte"]))
+    data = json.loads(json.dumps(CASE))
+    if kind == "leaf":
+        path = draw(st.sampled_from(NUMERIC_PATHS))
+        target = data
+        for key in path[:-1]:
+            target = target[key]
+        target[path[-1]] = draw(NOT_A_NUMBER)
+        return json.dumps(data).encode()
+    if kind == "delete":
+        path = draw(st.sampled_from(REQUIRED))
+        target = data
+        for key in path[:-1]:
+            target = target[key]
+        del target[path[-1]]
+        return json.dumps(data).encode()
+    text = json.dumps(data).encode()
+    cut = draw(st.integers(0, len(text) - 1))
+    if kind == "truncate":
+        return text[:cut]
+    return text[:cut] + draw(st.sampled_from([b"\xff", b"\xc0", b"\xed\xa0\x80", b"\x80"])) + text[cut:]
+
+
+@settings(max_examples=scaled_examples(1.0), suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(text=malformed_case_texts(), command=st.sampled_from(CASE_COMMANDS), as_run_file=st.booleans())
+def test_fuzz_malformed_case_and_run_files(tmp_path, capsys, text, command, as_run_file):
+    folder = tmp_path / f"f{abs(hash(text)) % 10**8}"
+    folder.mkdir(exist_ok=True)
+    if as_run_file:  # a run file: one valid step, then the malformed one
+        path = _write(folder, "run.jsonl", json.dumps(CASE).encode() + b"\n" + text + b"\n")
+    else:
+        path = _write(folder, "case.json", text)
+    assert_user_error([command[0], path, *command[1:]], capsys, folder)
+
+
+BAD_COUNTS = st.one_of(st.integers(max_value=0).map(str), st.sampled_from(["1.5", "x", "inf", "nan", "", "1e3"]))
+BAD_SEEDS = st.one_of(st.integers(max_value=-1).map(str), st.sampled_from(["1.5", "x", "inf", "nan", ""]))
+
+
+@settings(max_examples=scaled_examples(0.5), suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(option=st.sampled_from(["--runs", "--workers", "--seed"]), data=st.data())
+def test_fuzz_bad_reproduce_arguments(tmp_path, capsys, option, data):
+    value = data.draw(BAD_SEEDS if option == "--seed" else BAD_COUNTS)
+    out = tmp_path / "never"
+    assert_user_error(["reproduce", *TINY_CT2D, option, value, "--out", out], capsys, tmp_path)
+    assert not out.exists()
+
+
+@settings(max_examples=scaled_examples(0.5), suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(value=st.one_of(st.sampled_from(["inf", "-inf", "nan", "x", "", "-1"]),
+                       st.floats(max_value=-1e-300).map(repr)),
+       option=st.sampled_from([("audit", "--rank-tol"), ("fuse", "--c")]))
+def test_fuzz_bad_numeric_options(tmp_path, capsys, value, option):
+    path = tmp_path / "case.json"
+    if not path.exists():
+        _write(tmp_path, "case.json", json.dumps(CASE))
+    command, flag = option
+    extra = ["--method", "rcc-ci"] if command == "fuse" else []
+    assert_user_error([command, path, *extra, f"{flag}={value}"], capsys, tmp_path)
