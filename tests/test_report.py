@@ -35,3 +35,39 @@ def test_moments_page_is_built_with_numbers_and_an_embedded_figure(tmp_path):
         assert max(quad_errors) < 1e-6  # ... and the closed form agrees with it
         assert mc_z < 5.0  # and with Monte Carlo within 5 standard errors
     assert re.search(r"data:image/png;base64,[A-Za-z0-9+/]{1000}", html_path.read_text())
+
+
+def _fake_sections(monkeypatch, built: list):
+    """Three cheap sections standing in for the real ones."""
+    import sys
+    import types
+
+    import gpfverify.report as report
+
+    sections = {}
+    for slug in ("first", "second", "third"):
+        module = types.ModuleType(f"fake_section_{slug}")
+
+        def build(ctx, slug=slug):
+            built.append(slug)
+            return Section(slug, f"Page {slug} (seed {ctx.seed})").add(Paragraph(f"body of {slug}"))
+
+        module.build = build
+        monkeypatch.setitem(sys.modules, module.__name__, module)
+        sections[slug] = module.__name__
+    monkeypatch.setattr(report, "SECTIONS", sections)
+
+
+def test_only_updates_its_sections_and_keeps_the_rest_of_the_index(monkeypatch, tmp_path):
+    built: list = []
+    _fake_sections(monkeypatch, built)
+    build_report(ReportContext(tmp_path, "quick", seed=1), progress=lambda _: None)
+    build_report(ReportContext(tmp_path, "quick", seed=2), only=["second"], progress=lambda _: None)
+    assert built == ["first", "second", "third", "second"]
+    index = (tmp_path / "README.md").read_text()
+    links = re.findall(r"- \[(.*?)\]\((.*?)/README.md\)", index)
+    assert links == [("Page first (seed 1)", "first"), ("Page second (seed 2)", "second"),
+                     ("Page third (seed 1)", "third")]  # report order, the rebuilt one updated
+    page = (tmp_path / "report.html").read_text()
+    assert [m for m in re.findall(r'<section id="(\w+)"', page)] == ["first", "second", "third"]
+    assert "body of first" in page and "Page second (seed 2)" in page and "seed 1)</h1>" in page

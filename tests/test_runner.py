@@ -109,3 +109,40 @@ def test_interrupting_a_pool_terminates_its_workers():
     for p in processes:
         p.join(timeout=10)
     assert not any(p.is_alive() for p in processes)
+
+
+@pytest.mark.parametrize("workers", [0, -1, 1.5, True])
+def test_worker_count_must_be_at_least_one(workers):
+    with pytest.raises(InputError, match="--workers"):
+        with make_executor(workers=workers):
+            pass
+
+
+@pytest.mark.parametrize("seed", [-5, 1.5, None])
+def test_a_bad_seed_or_run_count_writes_nothing(toy, tmp_path, seed):
+    with pytest.raises(InputError, match="--seed"):
+        run_experiment(toy, PARAMS, 2, seed, tmp_path / "out")
+    with pytest.raises(InputError, match="--runs"):
+        run_experiment(toy, PARAMS, 0, 1, tmp_path / "out")
+    assert not (tmp_path / "out").exists()
+
+
+def test_a_corrupted_manifest_is_an_input_error_and_stays_untouched(toy, tmp_path):
+    run_experiment(toy, PARAMS, 2, 1, tmp_path)
+    (tmp_path / "manifest.json").write_text("{\"experiment\": ")
+    with pytest.raises(InputError, match="manifest.json is not a valid manifest"):
+        run_experiment(toy, PARAMS, 2, 1, tmp_path, resume=True)
+    assert (tmp_path / "manifest.json").read_text() == "{\"experiment\": "
+
+
+def test_results_list_their_timing_keys_at_any_depth():
+    from gpfverify.experiments.runner import timing_keys
+
+    class Module:
+        TIMING_KEYS = ("wall",)
+
+    body = {"rmse": [1.0], "time_per_run": {"a": 1.0},
+            "groups": [{"seconds": 2.0, "rmse": 3.0, "fit_time_per_run": 1.0}], "wall": 0.1}
+    assert timing_keys(Module, body) == ["fit_time_per_run", "seconds", "time_per_run", "wall"]
+    assert without_timing({**body, "timing_keys": timing_keys(Module, body), "provenance": {}}) == \
+        {"rmse": [1.0], "groups": [{"rmse": 3.0}], "timing_keys": timing_keys(Module, body)}
