@@ -127,14 +127,25 @@ def strict_numbers(value, where: str, depth: int = 2):
     """``value`` unchanged after checking it is a JSON number or nested lists (at most ``depth``
     levels) of JSON numbers, each finite, not a boolean, and of magnitude at most MAX_MAGNITUDE;
     CaseFileError naming ``where`` otherwise."""
+    if isinstance(value, np.ndarray):  # arrays from a .npz run file: the same rules, vectorised
+        if value.dtype.kind not in "iuf":
+            raise CaseFileError(f"{where} must hold numbers, got an array of {value.dtype}")
+        if value.ndim > depth:
+            raise CaseFileError(f"{where} is nested too deeply")
+        if value.size and not np.all(np.abs(value.astype(float)) <= MAX_MAGNITUDE):
+            raise CaseFileError(f"{where} holds a NaN, an inf or a magnitude above {MAX_MAGNITUDE:g}")
+        return value
     if isinstance(value, list):
         if depth == 0:
             raise CaseFileError(f"{where} is nested too deeply")
         for i, item in enumerate(value):
             strict_numbers(item, f"{where}[{i}]", depth - 1)
         return value
+    if isinstance(value, (np.integer, np.floating)):
+        value = value.item()
     if isinstance(value, bool) or not isinstance(value, (int, float)):
-        raise CaseFileError(f"{where} must be a number, got {json.dumps(value)[:40]}")
+        shown = json.dumps(value)[:40] if isinstance(value, (str, list, dict, type(None))) else type(value).__name__
+        raise CaseFileError(f"{where} must be a number, got {shown}")
     if isinstance(value, float) and not np.isfinite(value):
         raise CaseFileError(f"{where} must be finite, got {value}")
     if abs(value) > MAX_MAGNITUDE:
