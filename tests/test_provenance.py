@@ -83,3 +83,19 @@ def test_property_testing_is_a_runtime_dependency():
     names = {re.split(r"[<>=!~\[ ]", d, maxsplit=1)[0].lower() for d in project["dependencies"]}
     assert {"hypothesis", "pytest"} <= names
     import gpfverify.strategies  # noqa: F401
+
+
+def test_the_run_audit_report_carries_provenance(tmp_path, capsys):
+    import numpy as np
+
+    from gpfverify.fusion.case import case_to_dict
+    from gpfverify.fusion.synthetic import random_case
+
+    case = case_to_dict(random_case(np.random.default_rng(0), 2, (1, 2)))
+    run = tmp_path / "run.jsonl"
+    run.write_text("".join(json.dumps({**case, "k": k}) + "\n" for k in range(2)))
+    args = ["audit", str(run), "--out", str(tmp_path / "report")]
+    assert cli.main(args) == 0
+    for page in ("README.md", "report.html"):
+        text = (tmp_path / "report" / page).read_text()
+        assert "What produced this page" in text and " ".join(["gpfverify", *args]) in text

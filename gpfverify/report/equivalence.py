@@ -24,7 +24,7 @@ from pathlib import Path
 import numpy as np
 
 from gpfverify.report.document import Code, Figure, Paragraph, Section, Table, fmt
-from gpfverify.report.render import to_html, to_markdown
+from gpfverify.report.render import provenance_section, to_html, to_markdown
 
 FIGURES = "figures"
 #: inexact steps listed one per row up to this many (the rest counted)
@@ -534,7 +534,7 @@ def write_equivalence_report(results: dict, out_dir: Path) -> Path:
     title = f"DMF vs CMF on {Path(str(system).split(':')[0]).name}:{str(system).split(':')[-1]}"
 
     def build(tmp: Path) -> dict[str, str]:
-        sections = equivalence_sections(results, tmp / FIGURES)
+        sections = equivalence_sections(results, tmp / FIGURES) + [provenance_section()]
         markdown = _markdown(sections, tmp)
         return {"README.md": _with_title(title, markdown), "report.html": to_html(sections, title)}
 
@@ -696,7 +696,7 @@ def write_run_audit_report(run_audit: dict, out_dir: Path) -> Path:
     title = "Run audit: DMF vs CMF per step"
 
     def build(tmp: Path) -> dict[str, str]:
-        sections = run_audit_sections(run_audit, tmp / FIGURES)
+        sections = run_audit_sections(run_audit, tmp / FIGURES) + [provenance_section()]
         return {"audit.json": json.dumps(run_audit, indent=1, default=_json_default),
                 "README.md": _with_title(title, _markdown(sections, tmp)), "report.html": to_html(sections, title)}
 

@@ -84,6 +84,16 @@ def provenance_table(record: dict) -> Table:
     return Table(["provenance", ""], rows, "What produced this page")
 
 
+def provenance_section(record: dict | None = None) -> Section:
+    """A closing "Provenance" section for a single-page report (default: the running command's
+    record, :func:`gpfverify.provenance.current`)."""
+    if record is None:
+        from gpfverify import provenance
+
+        record = provenance.current()
+    return Section("provenance", "Provenance", [provenance_table(record)])
+
+
 def _with_provenance(section: Section, record: dict | None) -> Section:
     if record is None:
         return section
