@@ -45,9 +45,11 @@ def test_record_shape_and_command():
 def test_git_commit_in_a_checkout():
     if not (ROOT / ".git").exists():
         pytest.skip("not a git checkout")
+    provenance.git_commit.cache_clear()  # cached per process; HEAD may have moved since
+    recorded = provenance.git_commit()
     head = subprocess.run(["git", "-C", str(ROOT), "rev-parse", "HEAD"], capture_output=True,
                           text=True).stdout.strip()
-    assert provenance.git_commit().split("+")[0] == head
+    assert recorded.split("+")[0] == head
 
 
 def test_results_and_manifest_carry_provenance(monkeypatch, tmp_path):
