@@ -9,7 +9,7 @@ import pytest
 from gpfverify.cli import main
 from gpfverify.errors import InputError
 from gpfverify.experiments import tbd
-from gpfverify.experiments.runner import run_experiment
+from gpfverify.experiments.runner import run_experiment, without_timing
 from gpfverify.report.document import Figure, Section, Table
 from gpfverify.report.sections import tbd as tbd_section
 
@@ -24,7 +24,7 @@ def small_results(tmp_path_factory):
 
 
 def _numbers(results):
-    return {k: v for k, v in results.items() if not k.startswith("time_")}
+    return without_timing(results)
 
 
 def test_results_follow_the_contract(small_results):

@@ -69,8 +69,10 @@ def criterion_value(cov: np.ndarray, criterion: str) -> float:
 
 
 @lru_cache(maxsize=32)
-def _ci_problem(n: int, d: int, criterion: str):
-    """The DPP problem over ω for N information matrices of size D (built once, re-solved)."""
+def _ci_problem(n: int, d: int, criterion: str, solver: str):
+    """The DPP problem over ω for N information matrices of size D, built once per solver (a
+    problem is only ever solved by one solver) and re-solved without warm start, so a solve depends
+    on its parameter values alone, not on what the process solved before."""
     mats = [cp.Parameter((d, d), symmetric=True) for _ in range(n)]
     omega = cp.Variable(n, nonneg=True)
     total = sum(omega[m] * mats[m] for m in range(n))
@@ -87,13 +89,13 @@ def _ci_problem(n: int, d: int, criterion: str):
 def _ci_weights_cvxpy(info: Information, criterion: str) -> list[np.ndarray]:
     """Solver weights: Clarabel's, or SCS's when Clarabel fails; [] when both fail."""
     n, d = info.matrices.shape[:2]
-    problem, mats, omega = _ci_problem(n, d, criterion)
     scale = np.mean(np.trace(info.matrices, axis1=1, axis2=2)) / d  # ω is scale invariant
-    for param, mat in zip(mats, info.matrices):
-        param.value = 0.5 * (mat + mat.T) / scale
     for solver in (cp.CLARABEL, cp.SCS):
+        problem, mats, omega = _ci_problem(n, d, criterion, solver)
+        for param, mat in zip(mats, info.matrices):
+            param.value = 0.5 * (mat + mat.T) / scale
         try:
-            problem.solve(solver=solver)
+            problem.solve(solver=solver, warm_start=False)
         except cp.SolverError:
             continue
         if problem.status in ("optimal", "optimal_inaccurate") and omega.value is not None:
