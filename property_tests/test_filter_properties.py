@@ -50,3 +50,51 @@ def test_gp_adf_covariances_stay_psd(transition, data):
         np.testing.assert_array_equal(cov, cov.T, err_msg=name)
         assert np.linalg.eigvalsh(cov)[0] >= -algebra_rtol(np.linalg.cond(record.C_y)) * np.abs(cov).max(), name
     assert np.linalg.eigvalsh(record.C_y)[0] > 0
+
+
+@given(model=linear_gaussian_models())
+def test_kf_update_equals_the_information_form(model):
+    """The shared Gaussian update (used by KF, EKF, UKF, GP-ADF, GP-UKF) against the information
+    form of the same posterior, written here independently:
+    C_e = (C_p⁻¹ + HᵀR⁻¹H)⁻¹, μ_e = C_e (C_p⁻¹ μ_p + HᵀR⁻¹ y)."""
+    system = linear_model(model.F, model.H, model.Q, model.R)
+    kf = kf_step(model.prior, system, model.y, k=1)
+    h, r_inv, p_inv = model.H, np.linalg.inv(model.R), np.linalg.inv(kf.C_p)
+    info = p_inv + h.T @ r_inv @ h
+    cov = np.linalg.inv(info)
+    mean = cov @ (p_inv @ kf.mu_p + h.T @ r_inv @ model.y)
+    cond = np.linalg.cond(kf.C_p) * np.linalg.cond(model.R) * np.linalg.cond(info)
+    tol = algebra_rtol(cond)
+    scale = max(np.abs(kf.mu_p).max(), np.abs(model.y).max(), np.abs(mean).max(), 1.0)
+    np.testing.assert_allclose(kf.mu_e, mean, rtol=0, atol=tol * scale * np.linalg.cond(kf.C_y))
+    np.testing.assert_allclose(kf.C_e, cov, rtol=0, atol=tol * np.abs(kf.C_p).max())
+
+
+class _FixedUniform:
+    """An rng whose uniform() returns a given value (systematic resampling draws one uniform)."""
+
+    def __init__(self, value: float):
+        self.value = value
+
+    def uniform(self, *args, **kwargs):
+        return self.value
+
+
+@given(counts=st.lists(st.integers(0, 4), min_size=1, max_size=12).filter(lambda c: sum(c) > 0),
+       u=st.one_of(st.just(0.0), st.floats(0.0, 1.0, exclude_max=True)), size=st.integers(1, 40))
+def test_systematic_resampling_counts_are_floor_or_ceil(counts, u, size):
+    """Systematic resampling with offset u: particle i is drawn between ⌊n w_i⌋ and ⌈n w_i⌉ times
+    (each stratum [(u + j)/n, (u + j + 1)/n) holds one draw), and never when w_i = 0 — also at
+    the stratum boundaries (u = 0, weights that are multiples of 1/n). Counts of n·w_i within
+    n·(number of particles)·eps of an integer may round either way."""
+    from gpfverify.filters.resampling import systematic_resample
+
+    weights = np.array(counts, dtype=float) / sum(counts)
+    with np.errstate(divide="ignore"):
+        log_w = np.log(weights)
+    idx = systematic_resample(log_w, _FixedUniform(u), size)
+    drawn = np.bincount(idx, minlength=len(weights))
+    expected = size * weights
+    slack = size * len(weights) * np.finfo(float).eps
+    assert np.all(drawn >= np.floor(expected - slack)) and np.all(drawn <= np.ceil(expected + slack)), (drawn, expected)
+    assert not np.any(drawn[weights == 0]), (drawn, weights)

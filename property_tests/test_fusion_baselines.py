@@ -202,3 +202,34 @@ def test_rcc_ci_does_not_depend_on_earlier_solves(earlier):
     rcc_ci(earlier.estimates, on_empty="enlarge")
     again = rcc_ci(target, on_empty="enlarge")
     assert abs(again.primal_value - fresh_value) <= SOLVER_TOL * max(1.0, abs(fresh_value))
+
+
+@given(drawn=correlated_estimates(count=2), criterion=CRITERIA, omega=st.floats(0.0, 1.0))
+@settings(max_examples=scaled_examples(0.5))
+def test_two_sensor_ci_weight_is_optimal_against_any_other_weight(drawn, criterion, omega):
+    """The closed-form two-sensor CI weight minimises the criterion: no ω ∈ [0, 1] gives a smaller
+    tr P(ω) or log det P(ω), P(ω) = (ωP_1⁻¹ + (1 − ω)P_2⁻¹)⁻¹ formed here directly, and the fused
+    mean is P Σ ω_m P_m⁻¹ x_m with the reported weights."""
+    first, second = drawn.estimates
+    fused = covariance_intersection(drawn.estimates, criterion)
+    info = [np.linalg.inv(e.cov) for e in drawn.estimates]
+    other = np.linalg.inv(omega * info[0] + (1.0 - omega) * info[1])
+    value, rival = criterion_value(fused.cov, criterion), criterion_value(other, criterion)
+    assert value <= rival + SOLVER_TOL * max(1.0, abs(rival)), (fused.weights, omega, value, rival)
+    w = np.asarray(fused.weights, dtype=float)
+    direct = np.linalg.solve(w[0] * info[0] + w[1] * info[1], w[0] * info[0] @ first.mean + w[1] * info[1] @ second.mean)
+    scale = max(np.abs(first.mean).max(), np.abs(second.mean).max(), 1.0)
+    np.testing.assert_allclose(fused.mean, direct, rtol=0, atol=algebra_rtol(_conditioning(drawn.estimates) ** 2) * scale)
+
+
+@given(drawn=correlated_estimates())
+def test_convex_combination_is_the_information_weighted_mean(drawn):
+    """CC/CW: P = (Σ P_m⁻¹)⁻¹ and x = P Σ P_m⁻¹ x_m, formed here with numpy.linalg.inv."""
+    cc = convex_combination(drawn.estimates)
+    info = [np.linalg.inv(e.cov) for e in drawn.estimates]
+    cov = np.linalg.inv(sum(info))
+    mean = cov @ sum(i @ e.mean for i, e in zip(info, drawn.estimates))
+    tol = algebra_rtol(_conditioning(drawn.estimates) ** 2)
+    scale = max(max(np.abs(e.mean).max() for e in drawn.estimates), 1.0)
+    np.testing.assert_allclose(cc.mean, mean, rtol=0, atol=tol * scale)
+    np.testing.assert_allclose(cc.cov, cov, rtol=0, atol=tol * np.abs(cov).max())

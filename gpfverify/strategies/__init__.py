@@ -31,7 +31,7 @@ from gpfverify.strategies.fusion import PRIORS, DrawnCase, fusion_case_files, fu
 from gpfverify.strategies.gaussians import KINDS, JointGaussian, SensorDesign, joint_gaussians
 from gpfverify.strategies.matrices import (matrices_with_singular_values, orthonormal_matrices,
                                            spd_matrices)
-from gpfverify.strategies.models import (LinearGaussianModel, gaussian_inputs, gaussian_processes,
+from gpfverify.strategies.models import (GPStackCase, LinearGaussianModel, gaussian_inputs, gaussian_processes, gp_stacks,
                                          linear_gaussian_models, psd_matrices, sigma_params)
 from gpfverify.strategies.profiles import PROFILES, load_profile, register_profiles, scaled_examples
 
@@ -39,5 +39,5 @@ __all__ = ["saving_case_on_failure", "write_case", "CorrelatedEstimates", "corre
            "estimate_pairs", "PRIORS", "DrawnCase", "fusion_case_files", "fusion_cases", "KINDS",
            "JointGaussian", "SensorDesign", "joint_gaussians", "matrices_with_singular_values",
            "orthonormal_matrices", "spd_matrices", "LinearGaussianModel", "gaussian_inputs",
-           "gaussian_processes", "linear_gaussian_models", "psd_matrices", "sigma_params",
+           "gaussian_processes", "gp_stacks", "GPStackCase", "linear_gaussian_models", "psd_matrices", "sigma_params",
            "PROFILES", "load_profile", "register_profiles", "scaled_examples"]

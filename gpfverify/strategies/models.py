@@ -105,3 +105,54 @@ def sigma_params(draw, dim: int, min_alpha: float = 1e-3, max_alpha: float = 2.0
     beta = draw(unit_floats(0.0, max_beta))
     kappa = draw(unit_floats(min_spread - dim, max_kappa))
     return SigmaParams(alpha=alpha, beta=beta, kappa=kappa)
+
+
+#: Regimes of :func:`gp_stacks`: ordinary; ``near-linear`` (lengthscales 1e3–1e6 × the input range,
+#: so every exponent d_ij of the centred second moments is tiny — the expm1 path); ``wide`` (input
+#: covariance up to 100 ℓ²: inputs much wider than the lengthscales); ``far`` (one training point
+#: of each GP 80–100 lengthscales from μ, the others near, Σ ≈ ℓ²: d_ij > 700 for the far point, so
+#: exp(d) would overflow and the block is formed by the log-space branch, near entries included).
+STACK_REGIMES = ("ordinary", "near-linear", "wide", "far")
+
+
+@dataclass(frozen=True)
+class GPStackCase:
+    """Several GPs on one input space, each with its own training set, and a Gaussian input."""
+
+    gps: tuple
+    mu: np.ndarray
+    sigma: np.ndarray
+    regime: str
+
+
+@st.composite
+def gp_stacks(draw, regime=st.sampled_from(STACK_REGIMES), count=st.integers(1, 3),
+              input_dim=st.integers(1, 2)) -> GPStackCase:
+    """A stack of 1–3 GPs with *different* training sets (sizes 1–8, own inputs and targets) and
+    1–2 outputs each, plus N(μ, Σ) in the given regime (see :data:`STACK_REGIMES`)."""
+    kind, k, d = draw(as_strategy(regime)), draw(as_strategy(count)), draw(as_strategy(input_dim))
+    mu = draw(float_arrays((d,), -INPUT_BOUND, INPUT_BOUND))
+    gps = []
+    for _ in range(k):
+        n, e = draw(st.integers(1, 8)), draw(st.integers(1, 2))
+        if kind == "near-linear":
+            ell = draw(log_uniform_arrays((e, d), 1e3 * INPUT_BOUND, 1e6 * INPUT_BOUND))
+        else:
+            ell = draw(log_uniform_arrays((e, d), *LENGTHSCALE_BOX))
+        x = draw(float_arrays((n, d), -INPUT_BOUND, INPUT_BOUND))
+        if kind == "far":  # one point 80–100 of the largest lengthscale from μ
+            direction = draw(float_arrays((d,), 0.5, 1.0))
+            distance = draw(unit_floats(80.0, 100.0)) * ell.max()
+            x = x.copy()
+            x[0] = mu + distance * direction / np.linalg.norm(direction)
+        y = draw(float_arrays((n, e), -INPUT_BOUND, INPUT_BOUND))
+        gps.append(GaussianProcess(x, y, lengthscales=ell, signal_var=draw(log_uniform_arrays((e,), *SIGNAL_BOX)),
+                                   noise_var=draw(log_uniform_arrays((e,), *NOISE_BOX))))
+    ell_min = min(float(gp.lengthscales.min()) for gp in gps)
+    if kind == "wide":
+        sigma = draw(psd_matrices(d, 1.0 * ell_min**2, 100.0 * ell_min**2, allow_singular=False))
+    elif kind == "far":
+        sigma = draw(psd_matrices(d, 0.3 * ell_min**2, 1.0 * ell_min**2, allow_singular=False))
+    else:
+        sigma = draw(psd_matrices(d, 1e-4, 1.0, allow_singular=True))
+    return GPStackCase(tuple(gps), mu, sigma, kind)

@@ -1,0 +1,81 @@
+"""The mutants of the numerical core: each replaces one exact snippet of one file (which must occur
+exactly once) and names the property tests that are expected to notice.
+
+A mutant is *killed by a property* when a hypothesis test (``@given``) fails on the mutated copy;
+a failure of a plain test (a fixed example) is recorded but does not count.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+GP = ("property_tests/test_gp_properties.py", "property_tests/test_gp_stack_properties.py")
+FILTER = ("property_tests/test_filter_properties.py",)
+FUSION = ("property_tests/test_fusion_prop1.py", "property_tests/test_fusion_baselines.py")
+BASELINES = ("property_tests/test_fusion_baselines.py",)
+RANK = ("property_tests/test_fusion_prop1.py", "property_tests/test_rank_rule_properties.py")
+
+
+@dataclass(frozen=True)
+class Mutant:
+    name: str
+    area: str
+    path: str
+    old: str
+    new: str
+    tests: tuple[str, ...]
+
+
+MUTANTS: tuple[Mutant, ...] = (
+    Mutant("model-uncertainty term dropped", "moments", "gpfverify/gp/moments.py",
+           "block[diag] += _model_uncertainty(", "block[diag] += 0.0 * _model_uncertainty(", GP),
+    Mutant("stack cross-GP blocks zeroed", "stack cross blocks", "gpfverify/gp/moments.py",
+           "            rows, cols = offsets[g] + ia, offsets[h] + ib\n",
+           "            block = block if g == h else 0.0 * block\n            rows, cols = offsets[g] + ia, offsets[h] + ib\n",
+           GP),
+    Mutant("expm1(d) replaced by exp(d) - 1", "expm1 path", "gpfverify/gp/moments.py",
+           "ratio = np.expm1(exponent, out=exponent)", "ratio = np.exp(exponent) - 1.0", GP),
+    Mutant("log-space branch: expm1(d) replaced by d", "expm1 path (log space)", "gpfverify/gp/moments.py",
+           "np.exp(log_base) * np.expm1(np.minimum(exponent, _EXPM1_SAFE))",
+           "np.exp(log_base) * np.minimum(exponent, _EXPM1_SAFE)", GP),
+    Mutant("cross covariance sign flipped", "moments", "gpfverify/gp/moments.py",
+           "return _FirstMoments(mean, sigma @ solved.T,", "return _FirstMoments(mean, -(sigma @ solved.T),", GP),
+    Mutant("|ΣΛ⁻¹ + I|^(-1/2) as ^(-1/4)", "moments", "gpfverify/gp/moments.py",
+           "- 0.5 * b_logdet[:, None]", "- 0.25 * b_logdet[:, None]", GP),
+    Mutant("Σ ignored in the cross covariance", "moments", "gpfverify/gp/moments.py",
+           "return _FirstMoments(mean, sigma @ solved.T,", "return _FirstMoments(mean, solved.T,", GP),
+    Mutant("Gaussian update: half the covariance reduction", "filters' update", "gpfverify/filters/update.py",
+           "C_e = symmetrize(prediction.cov - np.swapaxes(w, -1, -2) @ w)",
+           "C_e = symmetrize(prediction.cov - 0.5 * np.swapaxes(w, -1, -2) @ w)", FILTER),
+    Mutant("Gaussian update: innovation sign flipped", "filters' update", "gpfverify/filters/update.py",
+           "mu_e = prediction.mean + np.einsum(", "mu_e = prediction.mean - np.einsum(", FILTER),
+    Mutant("eq. 35: G_m(μ_y^m − μ_y(m)) dropped", "eq. 35", "gpfverify/fusion/distributed.py",
+           "parts.append(difference(local.mu_y, central.mu_y[block], local.circular) + local.C_y @ recovered)",
+           "parts.append(local.C_y @ recovered)", FUSION),
+    Mutant("eq. 35: C_xy^mᵀ for the pseudo-inverse", "eq. 35", "gpfverify/fusion/distributed.py",
+           "recovered = s.split.pinv @ (local.mu_e - local.mu_p)",
+           "recovered = local.C_xy.T @ (local.mu_e - local.mu_p)", FUSION),
+    Mutant("gap formula sign flipped", "gap", "gpfverify/fusion/exactness.py",
+           "return TWO_PI * (g_m @ offsets) - sensor.gap_gain @ (", "return TWO_PI * (g_m @ offsets) + sensor.gap_gain @ (",
+           FUSION),
+    Mutant("exactness tolerance × 1e6", "exactness tolerance", "gpfverify/fusion/exactness.py",
+           "return self.residual <= self.tol", "return self.residual <= 1e6 * self.tol", FUSION),
+    Mutant("canonical rank threshold × 1e3", "rank decision", "gpfverify/fusion/exactness.py",
+           "r = int(np.sum(rho > tol))", "r = int(np.sum(rho > 1e3 * tol))", RANK),
+    Mutant("SVD rank: ≥ instead of >", "rank decision", "gpfverify/fusion/exactness.py",
+           "r = int(np.sum(s > used))", "r = int(np.sum(s >= 0.0 * used))", RANK),
+    Mutant("CI: two-sensor weight fixed at ½", "CI weights", "gpfverify/fusion/ci.py",
+           "    omega = minimise_convex_on_unit_interval(\n        criterion_derivative(criterion, jd.column_norms, q, lambda w: 1.0 - 1.0 / mu))",
+           "    omega = 0.5", BASELINES),
+    Mutant("RCC-CI: ellipsoid constraint with b_m instead of 2b_m", "RCC-CI constraint",
+           "gpfverify/fusion/rcc_ci.py", "cp.trace(A[m] @ delta) + 2 * b[m] @ x + d[m] <= 0",
+           "cp.trace(A[m] @ delta) + b[m] @ x + d[m] <= 0", BASELINES),
+    Mutant("systematic resampling: one uniform per particle", "resampling", "gpfverify/filters/resampling.py",
+           "positions = (rng.uniform() + np.arange(n)) / n", "positions = np.sort(rng.uniform(size=n))", FILTER),
+    Mutant("systematic resampling: searchsorted side left", "resampling", "gpfverify/filters/resampling.py",
+           'np.searchsorted(cumulative, positions, side="right")', 'np.searchsorted(cumulative, positions, side="left")',
+           FILTER),
+    Mutant("convex combination: mean from unweighted average", "CW", "gpfverify/fusion/convex.py",
+           "return FusedEstimate(fused.mean, fused.cov)",
+           "return FusedEstimate(sum(e.mean for e in checked) / len(checked), fused.cov)", BASELINES),
+)
