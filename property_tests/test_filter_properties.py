@@ -9,9 +9,11 @@
 """
 
 import numpy as np
+import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
+from gpfverify.filters.ekf import ekf_step
 from gpfverify.filters.gp_adf import gp_adf_step
 from gpfverify.filters.kalman import kf_step
 from gpfverify.filters.records import Gaussian
@@ -52,17 +54,20 @@ def test_gp_adf_covariances_stay_psd(transition, data):
     assert np.linalg.eigvalsh(record.C_y)[0] > 0
 
 
+@pytest.mark.parametrize("step", [kf_step, ekf_step, ukf_step], ids=["KF", "EKF", "UKF"])
 @given(model=linear_gaussian_models())
-def test_kf_update_equals_the_information_form(model):
-    """The shared Gaussian update (used by KF, EKF, UKF, GP-ADF, GP-UKF) against the information
-    form of the same posterior, written here independently:
-    C_e = (C_p⁻¹ + HᵀR⁻¹H)⁻¹, μ_e = C_e (C_p⁻¹ μ_p + HᵀR⁻¹ y)."""
+def test_gaussian_filters_equal_the_information_form_on_linear_models(step, model):
+    """KF, EKF and UKF (default sigma points) on a linear-Gaussian model against the information
+    form of the exact posterior, written here independently of the shared Gaussian update:
+    C_p = F C Fᵀ + Q, C_e = (C_p⁻¹ + HᵀR⁻¹H)⁻¹, μ_e = C_e (C_p⁻¹ F μ + HᵀR⁻¹ y)."""
     system = linear_model(model.F, model.H, model.Q, model.R)
-    kf = kf_step(model.prior, system, model.y, k=1)
+    kf = step(model.prior, system, model.y, k=1)
+    np.testing.assert_allclose(kf.C_p, model.F @ model.prior.cov @ model.F.T + model.Q, rtol=0,
+                               atol=algebra_rtol(np.linalg.cond(model.prior.cov)) * np.abs(kf.C_p).max())
     h, r_inv, p_inv = model.H, np.linalg.inv(model.R), np.linalg.inv(kf.C_p)
     info = p_inv + h.T @ r_inv @ h
     cov = np.linalg.inv(info)
-    mean = cov @ (p_inv @ kf.mu_p + h.T @ r_inv @ model.y)
+    mean = cov @ (p_inv @ (model.F @ model.prior.mean) + h.T @ r_inv @ model.y)
     cond = np.linalg.cond(kf.C_p) * np.linalg.cond(model.R) * np.linalg.cond(info)
     tol = algebra_rtol(cond)
     scale = max(np.abs(kf.mu_p).max(), np.abs(model.y).max(), np.abs(mean).max(), 1.0)

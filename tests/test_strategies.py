@@ -12,7 +12,7 @@ from hypothesis import strategies as st
 
 from gpfverify.errors import InputError
 from gpfverify.fusion.case import case_from_dict
-from gpfverify.strategies import (KINDS, correlated_estimates, fusion_case_files, fusion_cases,
+from gpfverify.strategies import (KINDS, gp_stacks, correlated_estimates, fusion_case_files, fusion_cases,
                                   joint_gaussians, matrices_with_singular_values,
                                   orthonormal_matrices, psd_matrices, saving_case_on_failure,
                                   sigma_params, spd_matrices)
@@ -139,3 +139,35 @@ def test_failing_property_saves_its_shrunk_case(tmp_path, monkeypatch):
         prop()
     saved = json.loads((tmp_path / "two-sensors.json").read_text())
     assert len(case_from_dict(saved).locals) == 1
+
+
+@settings(max_examples=20)
+@given(case=gp_stacks(regime="far"))
+def test_far_gp_stacks_reach_the_log_space_branch(case):
+    """The ``far`` regime puts a training point where exp(d_ij) would overflow, so the centred
+    second moments take the log-space branch (the exponent exceeds the expm1 limit)."""
+    from gpfverify.gp import moments
+
+    biggest = []
+    original = moments._centred_second_moments
+
+    def spy(gp_a, gp_b, ia, ib, first_a, first_b, mu, sigma):
+        out = original(gp_a, gp_b, ia, ib, first_a, first_b, mu, sigma)
+        biggest.append(bool(np.all(out[1].left == 1.0)))  # the branch returns unit scalings
+        return out
+
+    moments._centred_second_moments = spy
+    try:
+        moments.moment_match_stack(list(case.gps), case.mu, case.sigma)
+    finally:
+        moments._centred_second_moments = original
+    assert any(biggest)
+
+
+@settings(max_examples=20)
+@given(case=gp_stacks(regime=st.sampled_from(("ordinary", "near-linear", "wide")), count=st.just(2)))
+def test_gp_stacks_have_their_own_training_sets(case):
+    first, second = case.gps
+    assert first.X.shape[0] != second.X.shape[0] or not np.array_equal(first.X, second.X) or first.X.size == 1
+    if case.regime == "near-linear":
+        assert min(gp.lengthscales.min() for gp in case.gps) >= 1e3 * 3.0

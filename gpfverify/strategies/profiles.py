@@ -4,6 +4,9 @@
   the falsifying blob printed; what ``make test`` and ``gpfverify props --profile ci`` use.
 * ``dev`` — random, no deadline, 25 examples: quick exploration while editing.
 * ``thorough`` — random, no deadline, 1000 examples: for users hunting counterexamples (minutes).
+* ``mutation`` — ``ci``'s examples without the explicit ``@example`` s and without shrinking: what
+  ``tests/mutation`` runs on mutated copies (a kill must come from a generated example, and the
+  first failure is enough).
 
 Properties that are expensive per example scale their own count with :func:`scaled_examples`,
 so every profile keeps its meaning (``thorough`` still tries many more than ``ci``).
@@ -15,13 +18,15 @@ from __future__ import annotations
 
 import os
 
-from hypothesis import HealthCheck, settings
+from hypothesis import HealthCheck, Phase, settings
 
 PROFILES: dict[str, dict] = {
     "ci": dict(derandomize=True, deadline=None, max_examples=60, print_blob=True,
                suppress_health_check=[HealthCheck.too_slow]),
     "dev": dict(deadline=None, max_examples=25),
     "thorough": dict(deadline=None, max_examples=1000, suppress_health_check=[HealthCheck.too_slow]),
+    "mutation": dict(derandomize=True, deadline=None, max_examples=60, print_blob=False, database=None,
+                     phases=(Phase.generate,), suppress_health_check=[HealthCheck.too_slow]),
 }
 DEFAULT_PROFILE = "dev"
 

@@ -4,7 +4,8 @@
 
 For each mutant of :mod:`tests.mutation.mutants`: copy ``gpfverify/``, ``property_tests/``,
 ``conftest.py`` and ``pyproject.toml`` to a fresh temporary folder, apply the one replacement there,
-and run the mutant's property tests (hypothesis profile ``ci``, ``-x``) with that copy first on
+and run the mutant's property tests (hypothesis profile ``mutation``: ``ci``'s generated examples, no
+explicit ``@example`` s, no shrinking; ``-x``) with that copy first on
 ``sys.path`` (the plugin checks that the copy's package is the one imported). Tests that already
 fail on an unmutated copy are deselected. A mutant is
 
@@ -60,9 +61,9 @@ def run_tests(copy: Path, tests, deselect=(), timeout: float = 900.0, stop_first
     report = copy / "mutation_report.jsonl"
     report.unlink(missing_ok=True)
     env = dict(os.environ, PYTHONPATH=str(copy), MPLBACKEND="Agg", MUTATION_REPORT=str(report),
-               HYPOTHESIS_PROFILE="ci")
+               HYPOTHESIS_PROFILE="mutation")
     cmd = [sys.executable, "-m", "pytest", "-p", "no:cacheprovider", "-p", "kill_plugin", "-q",
-           "--hypothesis-profile=ci", "--tb=no", "-o", "addopts=--import-mode=importlib", *extra]
+           "--hypothesis-profile=mutation", "--tb=no", "-o", "addopts=--import-mode=importlib", *extra]
     if stop_first:
         cmd.append("-x")
     for nodeid in deselect:
@@ -114,7 +115,8 @@ def run_one(mutant: Mutant, deselect, timeout: float) -> dict:
 def markdown(rows: list[dict], baseline: list[str]) -> str:
     killed = sum(r["verdict"] == "killed (property)" for r in rows)
     out = ["# Mutation kill table", "",
-           f"{killed} of {len(rows)} mutants killed by a property (hypothesis profile `ci`, `-x`, on a copy "
+           f"{killed} of {len(rows)} mutants killed by a property (hypothesis profile `mutation`: the `ci` "
+           "profile's generated examples without explicit examples or shrinking, `-x`, on a copy "
            "of the package). Regenerate with `python -m tests.mutation.run_mutants`.", "",
            "| mutant | area | verdict | first failing test | seconds |", "|---|---|---|---|---|"]
     for r in rows:
