@@ -101,3 +101,22 @@ def test_the_run_audit_report_carries_provenance(tmp_path, capsys):
     for page in ("README.md", "report.html"):
         text = (tmp_path / "report" / page).read_text()
         assert "What produced this page" in text and " ".join(["gpfverify", *args]) in text
+
+
+def test_certificates_and_the_props_summary_carry_provenance(tmp_path):
+    args = ["prove", "--out", str(tmp_path / "proofs"), "--size", "small", "--only", "full-rank-needs-l-le-D",
+            "--no-casadi"]
+    assert cli.main(args) == 0
+    records = json.loads((tmp_path / "proofs" / "certificates.json").read_text())
+    assert records  # a list, as the contract says: every certificate carries the provenance
+    for record in records:
+        check_record(record["provenance"], ["gpfverify", *args])
+    suite = tmp_path / "suite"
+    suite.mkdir()
+    (suite / "test_one.py").write_text("from hypothesis import given, strategies as st\n\n"
+                                       "@given(st.integers())\ndef test_holds(n):\n    assert n == n\n")
+    out = tmp_path / "props"
+    command = ["props", "--profile", "dev", "--out", str(out), "--suite", str(suite)]
+    proc = subprocess.run([sys.executable, "-m", "gpfverify", *command], capture_output=True, text=True)
+    assert proc.returncode == 0, proc.stderr
+    check_record(json.loads((out / "summary.json").read_text())["provenance"], ["gpfverify", *command])

@@ -59,7 +59,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def make_collector(pytest):
     """A pytest plugin recording each property's outcome, example count, time and failure text
-    (``pytest`` is passed in: it is only importable with the test extra)."""
+    (``pytest`` is passed in: it is imported only when props runs)."""
 
     class Collector:
         def __init__(self):
@@ -112,7 +112,8 @@ def run(args: argparse.Namespace) -> int:
         import hypothesis  # noqa: F401
         import pytest
     except ImportError as exc:
-        raise InputError(f"props needs the test extra (pip install 'gpfverify[test]'): {exc}") from None
+        raise InputError(f"props needs pytest and hypothesis, dependencies of gpfverify that are missing "
+                         f"here (reinstall gpfverify): {exc}") from None
     from gpfverify.strategies.profiles import register_profiles
 
     register_profiles()  # also for a --suite outside the repository (no root conftest.py)
@@ -136,7 +137,10 @@ def run(args: argparse.Namespace) -> int:
         raise InputError(f"the property suite could not run (pytest exit status {int(code)})")
     files = sorted(counterexamples.glob("*.json")) if counterexamples.is_dir() else []
     properties = sorted(collector.records.values(), key=lambda r: r["name"])
+    from gpfverify.provenance import current
+
     summary = {
+        "provenance": current(),
         "profile": args.profile, "suite": str(suite), "passed": code == pytest.ExitCode.OK,
         "seconds": round(seconds, 3), "properties": properties,
         "counterexample_files": [str(f) for f in files],

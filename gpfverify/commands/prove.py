@@ -34,7 +34,10 @@ def run(args: argparse.Namespace) -> int:
     certificates = run_claims(args.size, args.only, progress)
     if not args.no_casadi and not args.only:
         certificates += run_crosschecks(args.size, seed=args.seed, progress=progress)
-    records = [c.to_json() for c in certificates]
+    from gpfverify.provenance import current
+
+    provenance = current()  # certificates.json is a list (CONTRACT.md): every record carries it
+    records = [{**c.to_json(), "provenance": provenance} for c in certificates]
     args.out.mkdir(parents=True, exist_ok=True)
     (args.out / "certificates.json").write_text(json.dumps(records, indent=2), encoding="utf-8")
     (args.out / "README.md").write_text(to_markdown(render(records), args.out), encoding="utf-8")
