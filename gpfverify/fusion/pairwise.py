@@ -17,7 +17,6 @@ from typing import Callable
 
 import numpy as np
 import scipy.linalg as sla
-from scipy.optimize import brentq
 
 from gpfverify.filters.records import Gaussian
 from gpfverify.fusion.estimates import FusedEstimate
@@ -69,4 +68,6 @@ def minimise_convex_on_unit_interval(derivative: Callable[[float], float]) -> fl
         return 0.0
     if d1 <= 0.0:
         return 1.0
+    from scipy.optimize import brentq  # 0.3 s to import; only CI-type weights need it
+
     return float(brentq(derivative, 0.0, 1.0))
