@@ -17,6 +17,7 @@ from gpfverify.audit import (RANK_RULE_DEFAULT, RunAudit, audit_case, audit_to_d
                              parse_rank_rule)
 from gpfverify.errors import InputError
 from gpfverify.fusion.runfile import load_run, run_format
+from gpfverify.report.document import integer_ranges
 
 EPILOG = ("FILE formats: a single fusion case (.json) is described in docs/fusion-case-format.md; "
           "a run of cases, one per step (.jsonl: one case per line with an optional integer \"k\"; "
@@ -113,18 +114,6 @@ def audit_run_file(path, rank_rule=None, rank_tol: float | None = None, sensitiv
     return run, steps, run_summary(run, run_file.ks, steps)
 
 
-def _ks_text(ks) -> str:
-    """[1, 2, 3, 7] -> '1-3, 7'."""
-    parts, start = [], None
-    for i, k in enumerate(ks):
-        if start is None:
-            start = k
-        if i + 1 == len(ks) or ks[i + 1] != k + 1:
-            parts.append(str(start) if start == k else f"{start}-{k}")
-            start = None
-    return ", ".join(parts)
-
-
 def format_run(steps: list[dict], summary: dict) -> str:
     """Per-step table and summary of a run audit (text output)."""
     rule = summary["rank_rule"]
@@ -149,8 +138,8 @@ def format_run(steps: list[dict], summary: dict) -> str:
                      f"({summary['steps_with_y']} step(s) with y)")
     for s in summary["sensors"]:
         if s["rank_lost_steps"]:
-            lines.append(f"sensor {s['index']}: lost full column rank at k = {_ks_text(s['rank_lost_steps'])}; "
-                         f"not exact at " + (f"k = {_ks_text(s['rank_lost_not_exact_steps'])}"
+            lines.append(f"sensor {s['index']}: lost full column rank at k = {integer_ranges(s['rank_lost_steps'], '-')}; "
+                         f"not exact at " + (f"k = {integer_ranges(s['rank_lost_not_exact_steps'], '-')}"
                                              if s["rank_lost_not_exact_steps"] else "none of them"))
         else:
             lines.append(f"sensor {s['index']}: full column rank at every step")

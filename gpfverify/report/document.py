@@ -69,3 +69,16 @@ def fmt(value, digits: int = 4) -> str:
     if isinstance(value, float):
         return f"{value:.{digits}g}"
     return str(value)
+
+
+def integer_ranges(values, dash: str = "–") -> str:
+    """Sorted integers as ranges: [1, 2, 3, 7] -> '1–3, 7' (step indices in report text)."""
+    values = [int(v) for v in values]
+    parts, start = [], None
+    for i, v in enumerate(values):
+        if start is None:
+            start = v
+        if i + 1 == len(values) or values[i + 1] != v + 1:
+            parts.append(str(start) if start == v else f"{start}{dash}{v}")
+            start = None
+    return ", ".join(parts)

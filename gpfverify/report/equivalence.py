@@ -23,7 +23,7 @@ from pathlib import Path
 
 import numpy as np
 
-from gpfverify.report.document import Code, Figure, Paragraph, Section, Table, fmt
+from gpfverify.report.document import Code, Figure, Paragraph, Section, Table, integer_ranges
 from gpfverify.report.render import provenance_section, to_html, to_markdown
 
 FIGURES = "figures"
@@ -44,19 +44,6 @@ def _g(x: float, digits: int = 2) -> str:
 
 def _plural(n: int, word: str, plural: str | None = None) -> str:
     return f"{n} {word if n == 1 else (plural or word + 's')}"
-
-
-def _ks_text(ks) -> str:
-    """[1, 2, 3, 7] -> '1–3, 7'."""
-    ks = [int(k) for k in ks]
-    parts, start = [], None
-    for i, k in enumerate(ks):
-        if start is None:
-            start = k
-        if i + 1 == len(ks) or ks[i + 1] != k + 1:
-            parts.append(str(start) if start == k else f"{start}–{k}")
-            start = None
-    return ", ".join(parts)
 
 
 def rank_rule_text(rule, rank_tol=None) -> str:
@@ -231,7 +218,7 @@ def summary_paragraphs(results: dict) -> list[str]:
     else:
         worst = np.unravel_index(np.argmax(d.gap), d.gap.shape)
         out.append(f"DMF differed from CMF at {d.total - exact_steps} of {d.total} steps{d.of_runs} and "
-                   f"reproduced it at {exact_steps} (largest one-step gap {_g(max_gap)}, at {d.where([worst])}); "                   + (f"the rank condition of Proposition 1 never held." if held_steps == 0 else
+                   f"reproduced it at {exact_steps} (largest one-step gap {_g(max_gap)}, at {d.where([worst])}); "                   + ("the rank condition of Proposition 1 never held." if held_steps == 0 else
                       f"the rank condition of Proposition 1 held at {held_steps} of the {d.total} steps."))
     out += [s for s in (_sensor_sentence(d, m) for m in range(d.n)) if s]
     inexact = ~d.step_exact
@@ -610,7 +597,7 @@ def audit_summary_paragraphs(run_audit: dict) -> list[str]:
         if not lost.any() and not too_many:
             continue
         l, D = int(a.cols[0, m]), int(a.rows[0, m])
-        when = "at every step" if lost.all() else f"at k = {_ks_text(np.asarray(a.ks)[lost])}"
+        when = "at every step" if lost.all() else f"at k = {integer_ranges(np.asarray(a.ks)[lost])}"
         text = f"Sensor {m} lost full column rank {when}" if lost.any() else f"Sensor {m}"
         if too_many:
             text += (f"{':' if lost.any() else ''} it has {l} outputs and the state {D} — l_m > D: the rank condition "
