@@ -32,7 +32,7 @@ from gpfverify.fusion.distributed import dmf_update
 from gpfverify.fusion.exactness import equivalence_tolerance, kernel_split, whitened_innovation
 from gpfverify.strategies import fusion_cases, saving_case_on_failure
 from gpfverify.strategies.matrices import float_arrays, log_uniform
-from gpfverify.tolerances import algebra_rtol
+from gpfverify.tolerances import CANONICAL_RANK_TOL, algebra_rtol
 
 REGRESSIONS = Path(__file__).parent / "regressions"
 
@@ -234,3 +234,33 @@ def test_saved_regression_cases_replay():
     assert SAVED, "no saved regression cases found"
     for path in SAVED:
         CHECKS[path.stem.split("--")[0]](load_case(path))
+
+
+def _canonical_correlations(c_p: np.ndarray, c_xy: np.ndarray, c_y: np.ndarray) -> np.ndarray:
+    """σ(L_p⁻¹ C_xy L_y⁻ᵀ), written here with numpy Cholesky factors (no library code)."""
+    l_p, l_y = np.linalg.cholesky(c_p), np.linalg.cholesky(c_y)
+    return np.linalg.svd(np.linalg.solve(l_y, np.linalg.solve(l_p, c_xy).T).T, compute_uv=False)
+
+
+@given(drawn=fusion_cases(kinds="nearly", sigma_min=log_uniform(1e-12, 1e-5), sensors=st.integers(1, 2)))
+def test_canonical_verdicts_near_the_threshold(drawn):
+    """Nearly rank-deficient cross terms whose smallest canonical correlation straddles
+    τ = CANONICAL_RANK_TOL: the audit's rank is the number of canonical correlations above τ, with ρ
+    computed here independently (skipped only within rounding of τ, algebra_rtol of the whitening
+    conditions); and its exactness verdict brackets the observed gap map as in
+    :func:`check_exact_iff_kernel_inclusion` — a truncated direction whose gap gain exceeds the
+    tolerance must not be called exact."""
+    case = drawn.case
+    with saving_case_on_failure(case, "canonical-near-threshold"):
+        audit = audit_case(case)
+        assert audit.rank_rule.name == "canonical"
+        for s, local in zip(audit.sensors, case.locals):
+            c_p = (case.central.C_p if local.C_e is None
+                   else local.C_e + local.C_xy @ np.linalg.solve(local.C_y, local.C_xy.T))
+            rho = _canonical_correlations(c_p, local.C_xy, local.C_y)
+            band = algebra_rtol(np.linalg.cond(c_p) * np.linalg.cond(local.C_y))
+            near = np.abs(rho - CANONICAL_RANK_TOL) <= band
+            event(f"smallest ρ / τ: 10^{int(np.floor(np.log10(max(rho.min(), 1e-300) / CANONICAL_RANK_TOL)))}")
+            if not near.any():
+                assert s.rank == int(np.sum(rho > CANONICAL_RANK_TOL)), (s.rank, rho)
+        check_exact_iff_kernel_inclusion(case)
