@@ -121,7 +121,8 @@ def markdown(rows: list[dict], baseline: list[str]) -> str:
            "| mutant | area | verdict | first failing test | seconds |", "|---|---|---|---|---|"]
     for r in rows:
         first = r["killed_by"][0].split("::")[-1] if r["killed_by"] else "—"
-        out.append(f"| {r['mutant']} | {r['area']} | {r['verdict']} | {first} | {r['seconds']} |")
+        name = r["mutant"].replace("|", "\\|")
+        out.append(f"| {name} | {r['area']} | {r['verdict']} | {first} | {r['seconds']} |")
     if baseline:
         out += ["", "Deselected (failing on the unmutated copy already): " + ", ".join(f"`{b}`" for b in baseline)]
     return "\n".join(out) + "\n"
