@@ -19,7 +19,6 @@ ones in ``regressions/<check>--<name>.json`` are replayed as ``@example`` s of t
 from pathlib import Path
 
 import numpy as np
-import pytest
 import scipy.linalg as sla
 from hypothesis import event, example, given
 from hypothesis.control import currently_in_test_context
@@ -27,7 +26,6 @@ from hypothesis import strategies as st
 
 from gpfverify.audit import audit_case
 from gpfverify.fusion.case import FusionCase, LocalReport, load_case
-from gpfverify.fusion.centralized import cmf_update
 from gpfverify.fusion.distributed import dmf_update
 from gpfverify.fusion.exactness import equivalence_tolerance, kernel_split, whitened_innovation
 from gpfverify.strategies import fusion_cases, saving_case_on_failure

@@ -3,7 +3,6 @@ list still applies to the working tree, the committed kill table covers it, and 
 run end to end on a copy of the package and killed by a property."""
 
 import json
-from pathlib import Path
 
 import pytest
 
