@@ -19,6 +19,16 @@ VERDICT_COLORS = ("#4daf4a", "#ffbf00", "#e41a1c")
 VERDICT_LABELS = ("full column rank", "rank lost, exact anyway", "not exact")
 
 
+def _log_steps_axes(ax, ylabel: str, title: str) -> None:
+    """Log y-axis over the steps k, labels, the legend right of the plot, a light grid."""
+    ax.set_yscale("log")
+    ax.set_xlabel("step k")
+    ax.set_ylabel(ylabel)
+    ax.set_title(title)
+    ax.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0), frameon=False)
+    ax.grid(True, which="major", alpha=0.3)
+
+
 def save(fig, path: Path) -> Path:
     """Save with integer step ticks on every x axis labelled 'step k'."""
     from matplotlib.ticker import MaxNLocator
@@ -70,12 +80,7 @@ def plot_gap(ks, gap: np.ndarray, bound: np.ndarray | None, inexact: np.ndarray,
         shown = np.where(gap[rows, cols] > 0, gap[rows, cols], floor)
         ax.scatter(np.asarray(ks)[cols], shown, s=22, facecolors="none", edgecolors="tab:red", zorder=5,
                    label="step judged not exact")
-    ax.set_yscale("log")
-    ax.set_xlabel("step k")
-    ax.set_ylabel("norm of the one-step gap")
-    ax.set_title("DMF − CMF from the same central prediction")
-    ax.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0), frameon=False)
-    ax.grid(True, which="major", alpha=0.3)
+    _log_steps_axes(ax, "norm of the one-step gap", "DMF − CMF from the same central prediction")
     return save(fig, path), floor
 
 
@@ -137,12 +142,7 @@ def plot_rmse(ks, rmse: dict[str, list], local_rmse: list[list], local_labels: l
                 ls="--" if method == "dmf" else "-")
     for label, values in zip(local_labels, local_rmse):
         ax.plot(ks, values, ":", lw=1.0, label=label)
-    ax.set_yscale("log")
-    ax.set_xlabel("step k")
-    ax.set_ylabel("RMSE over runs")
-    ax.set_title("RMSE per step")
-    ax.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0), frameon=False)
-    ax.grid(True, which="major", alpha=0.3)
+    _log_steps_axes(ax, "RMSE over runs", "RMSE per step")
     return save(fig, path)
 
 
@@ -201,12 +201,7 @@ def plot_drift(ks, recursive: np.ndarray, one_step: np.ndarray, path: Path, run_
     ax = axes[0, 0]
     _runs_plot(ax, ks, one_step, "0.5", "one-step gap", floor, "--", run_labels)
     _runs_plot(ax, ks, recursive, "tab:purple", "recursive DMF − CMF", floor, "-", run_labels)
-    ax.set_yscale("log")
-    ax.set_xlabel("step k")
-    ax.set_ylabel("‖μ_DMF − μ_CMF‖")
-    ax.set_title("drift of the recursive filters")
-    ax.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0), frameon=False)
-    ax.grid(True, which="major", alpha=0.3)
+    _log_steps_axes(ax, "‖μ_DMF − μ_CMF‖", "drift of the recursive filters")
     return save(fig, path), floor
 
 
