@@ -20,7 +20,7 @@ Ground floor: imports nothing from the package.
 
 from __future__ import annotations
 
-from typing import Sequence
+from collections.abc import Sequence
 
 import numpy as np
 

@@ -42,7 +42,7 @@ the bound ‖G_m C_y^m‖₂ / σ_r(C_xy^m) on the μ_e^m Jacobian, which grows 
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Iterable, Sequence
+from collections.abc import Iterable, Sequence
 
 import numpy as np
 

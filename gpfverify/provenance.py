@@ -15,7 +15,7 @@ from __future__ import annotations
 import platform
 import subprocess
 import sys
-from datetime import datetime, timezone
+from datetime import datetime, UTC
 from functools import lru_cache
 from importlib import metadata
 from pathlib import Path
@@ -74,7 +74,7 @@ def provenance(argv: list[str] | None = None) -> dict:
         "python": platform.python_version(),
         "packages": package_versions(),
         "platform": platform.platform(),
-        "created": datetime.now(timezone.utc).isoformat(timespec="seconds").replace("+00:00", "Z"),
+        "created": datetime.now(UTC).isoformat(timespec="seconds").replace("+00:00", "Z"),
         "command": command,
     }
 

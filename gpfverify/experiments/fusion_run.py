@@ -31,7 +31,7 @@ conditions on *all* training samples with those hyperparameters. The cap keeps f
 from __future__ import annotations
 
 import time
-from typing import Sequence
+from collections.abc import Sequence
 
 import numpy as np
 

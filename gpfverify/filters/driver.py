@@ -4,7 +4,7 @@
 from __future__ import annotations
 
 from dataclasses import dataclass, fields
-from typing import Callable
+from collections.abc import Callable
 
 import numpy as np
 

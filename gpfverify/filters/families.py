@@ -12,7 +12,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from functools import partial
-from typing import Callable
+from collections.abc import Callable
 
 from gpfverify.errors import InputError
 from gpfverify.filters.ekf import ekf_measurement, ekf_predict

@@ -119,14 +119,14 @@ class Particles:
     existence: float | None = None
 
     @classmethod
-    def equally_weighted(cls, particles: np.ndarray, **extras) -> "Particles":
+    def equally_weighted(cls, particles: np.ndarray, **extras) -> Particles:
         """Particles (N, D) with weights 1/N; ``extras`` are the optional fields."""
         particles = np.asarray(particles, dtype=float)
         return cls(particles, equal_log_weights(particles.shape[0]), **extras)
 
     @classmethod
     def from_gaussian(cls, mean: np.ndarray, cov: np.ndarray, count: int,
-                      rng: np.random.Generator) -> "Particles":
+                      rng: np.random.Generator) -> Particles:
         """``count`` equally weighted draws x_i = μ + L ε_i (L the Cholesky factor of ``cov``,
         ε_i ~ N(0, I)), each carrying the factor L as its ``sqrt_covs`` (the UPF's initial set)."""
         factor = cholesky(cov, "prior covariance").factor

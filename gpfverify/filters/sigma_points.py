@@ -8,7 +8,7 @@ Seed 000 eq. 21–23 with the default α = 1, β = 0, κ = 2.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Sequence
+from collections.abc import Sequence
 
 import numpy as np
 

@@ -29,7 +29,7 @@ whose downdate fails in exact arithmetic (the UKF covariance itself is indefinit
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Callable, Sequence
+from collections.abc import Callable, Sequence
 
 import numpy as np
 

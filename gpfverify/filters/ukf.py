@@ -17,7 +17,7 @@ Every function accepts beliefs with leading batch axes: mean (..., D), cov (...,
 
 from __future__ import annotations
 
-from typing import Callable, Sequence
+from collections.abc import Callable, Sequence
 
 import numpy as np
 

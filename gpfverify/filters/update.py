@@ -13,7 +13,7 @@ leading batch axes (one update per particle, per test point, …).
 
 from __future__ import annotations
 
-from typing import Sequence
+from collections.abc import Sequence
 
 import numpy as np
 

@@ -21,7 +21,7 @@ sqrt_covs (N, D, D))`` with lower-triangular factors of positive diagonal.
 
 from __future__ import annotations
 
-from typing import Callable
+from collections.abc import Callable
 
 import numpy as np
 

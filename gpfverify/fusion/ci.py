@@ -30,7 +30,7 @@ estimates ICI is applied sequentially in the given order (the rule is defined fo
 from __future__ import annotations
 
 from functools import lru_cache
-from typing import Sequence
+from collections.abc import Sequence
 
 import cvxpy as cp
 import numpy as np

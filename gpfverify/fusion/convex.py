@@ -10,7 +10,7 @@ local errors are correlated (they are: the sensors share the process noise).
 
 from __future__ import annotations
 
-from typing import Sequence
+from collections.abc import Sequence
 
 import numpy as np
 

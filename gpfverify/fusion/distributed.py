@@ -24,7 +24,7 @@ Wrapping the two terms separately can land on another branch than CMF's wrap(y^m
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Sequence
+from collections.abc import Sequence
 
 import numpy as np
 

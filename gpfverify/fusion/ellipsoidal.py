@@ -12,7 +12,7 @@ For N estimates EI is applied sequentially in the given order.
 
 from __future__ import annotations
 
-from typing import Sequence
+from collections.abc import Sequence
 
 import numpy as np
 

@@ -7,7 +7,7 @@ result is a :class:`FusedEstimate`. Information matrices I_m = P_m⁻¹ are form
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Sequence
+from collections.abc import Sequence
 
 import numpy as np
 

@@ -29,7 +29,8 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Callable, Sequence
+from typing import TYPE_CHECKING
+from collections.abc import Callable, Sequence
 
 import numpy as np
 
@@ -135,7 +136,7 @@ class FusionStep:
     cmf: StepRecord | None
     dmf: DMFStep | None
     baselines: dict
-    audit: "CaseAudit | None"
+    audit: CaseAudit | None
     seconds: dict
     local_seconds: tuple[float, ...]
 
@@ -167,7 +168,7 @@ class FusionRun:
         return np.array([s.local[m].mu_e for s in self.steps])
 
     @property
-    def audit(self) -> "RunAudit | None":
+    def audit(self) -> RunAudit | None:
         """The per-step audits as a :class:`~gpfverify.audit.RunAudit` (None without audit)."""
         from gpfverify.audit import RunAudit
 
@@ -259,7 +260,7 @@ def run_fusion(model, ys, *, family: str = "ukf", methods: Sequence[str] = METHO
     return FusionRun(family, methods, tuple(steps))
 
 
-def _audit(dmf: DMFStep) -> "CaseAudit":
+def _audit(dmf: DMFStep) -> CaseAudit:
     from gpfverify.audit import audit_case
 
     return audit_case(dmf.case, rank_rule=dmf.result.rank_rule)

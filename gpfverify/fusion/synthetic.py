@@ -10,7 +10,7 @@ other component (centrally and locally): rank-deficient yet exact for DMF.
 
 from __future__ import annotations
 
-from typing import Sequence
+from collections.abc import Sequence
 
 import numpy as np
 

@@ -156,7 +156,7 @@ class GaussianProcess:
 
     # -- construction by evidence maximisation ---------------------------------------------------
     @classmethod
-    def fit(cls, X, Y, restarts: int = 3, seed=0, bounds: FitBounds | None = None) -> "GaussianProcess":
+    def fit(cls, X, Y, restarts: int = 3, seed=0, bounds: FitBounds | None = None) -> GaussianProcess:
         """Maximise the log evidence of each output independently (log-parameterised L-BFGS-B with
         analytic gradients, ``restarts`` starts, deterministic for a given ``seed``)."""
         x = as_array(X, "X", ndim=2)

@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import re
 from dataclasses import replace
-from typing import Callable, Sequence
+from collections.abc import Callable, Sequence
 
 import casadi as ca
 import numpy as np

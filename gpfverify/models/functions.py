@@ -17,7 +17,7 @@ into :class:`~gpfverify.errors.InputError` naming the part of the model ("sensor
 from __future__ import annotations
 
 import inspect
-from typing import Callable, Sequence
+from collections.abc import Callable, Sequence
 
 import numpy as np
 
@@ -54,7 +54,7 @@ class ModelFunction:
         self.name, self.in_dim, self.out_dim = name, int(in_dim), int(out_dim)
         self.circular = tuple(circular)
 
-    def renamed(self, name: str, circular: Sequence[int]) -> "ModelFunction":
+    def renamed(self, name: str, circular: Sequence[int]) -> ModelFunction:
         """A copy that reports errors as ``name`` and wraps the ``circular`` outputs."""
         clone = object.__new__(type(self))
         clone.__dict__.update(self.__dict__)

@@ -19,7 +19,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, replace
 from functools import cached_property
-from typing import Sequence
+from collections.abc import Sequence
 
 import numpy as np
 
@@ -80,11 +80,11 @@ class GPModel(StackedMeasurement):
         """The sensors' GP, or their stack when there are several."""
         return self.sensors[0] if len(self.sensors) == 1 else GaussianProcessStack(self.sensors)
 
-    def sensor_model(self, m: int) -> "GPModel":
+    def sensor_model(self, m: int) -> GPModel:
         """Sensor ``m`` alone (its local filter's model)."""
         return self.with_sensors([m])
 
-    def with_sensors(self, indices: Sequence[int]) -> "GPModel":
+    def with_sensors(self, indices: Sequence[int]) -> GPModel:
         if not _indices(indices, len(self.sensors), "sensor indices"):
             raise InputError("a GP model needs at least one sensor")
         return replace(self, sensors=tuple(self.sensors[i] for i in indices),

@@ -20,7 +20,7 @@ InputError naming the part of the model.
 from __future__ import annotations
 
 from dataclasses import replace
-from typing import Sequence
+from collections.abc import Sequence
 
 import casadi as ca
 import numpy as np

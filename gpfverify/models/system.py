@@ -30,7 +30,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field, replace
 from functools import cached_property
-from typing import Callable, Sequence
+from collections.abc import Callable, Sequence
 
 import numpy as np
 import scipy.linalg as sla
@@ -262,17 +262,17 @@ class StateSpaceModel(StackedMeasurement):
 
     # -- derived models ---------------------------------------------------------------------------
 
-    def sensor_model(self, m: int) -> "StateSpaceModel":
+    def sensor_model(self, m: int) -> StateSpaceModel:
         """The same system seen by sensor ``m`` alone (its local filter's model)."""
         return self.with_sensors([m])
 
-    def with_sensors(self, indices: Sequence[int]) -> "StateSpaceModel":
+    def with_sensors(self, indices: Sequence[int]) -> StateSpaceModel:
         """The same system with the sensors ``indices`` (in that order)."""
         if not _indices(indices, len(self.sensors), "sensor indices"):
             raise InputError("a model needs at least one sensor")
         return replace(self, sensors=tuple(self.sensors[i] for i in indices), probe=False)
 
-    def with_noise(self, process_cov=None, noise_covs: Sequence | None = None) -> "StateSpaceModel":
+    def with_noise(self, process_cov=None, noise_covs: Sequence | None = None) -> StateSpaceModel:
         """The same functions with new noise covariances (validated; the functions are not probed
         again): a time-varying Q_k or R_k without rebuilding the model."""
         sensors = self.sensors if noise_covs is None else tuple(

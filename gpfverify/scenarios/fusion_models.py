@@ -19,7 +19,7 @@ the n samples; the test part (the next T samples) is filtered.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Callable
+from collections.abc import Callable
 
 import numpy as np
 

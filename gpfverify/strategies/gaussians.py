@@ -33,7 +33,7 @@ DMF-exact (the kernel of C_xy^m lies in the kernel of G_m C_y^m).
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Sequence
+from collections.abc import Sequence
 
 import numpy as np
 from hypothesis import strategies as st
@@ -99,7 +99,7 @@ class JointGaussian:
     def cov(self) -> np.ndarray:
         return np.block([[self.cov_x, self.cross_cov], [self.cross_cov.T, self.cov_y]])
 
-    def sensor_marginal(self, m: int) -> "JointGaussian":
+    def sensor_marginal(self, m: int) -> JointGaussian:
         """The joint Gaussian of (x, y^m) alone."""
         b = self.blocks[m]
         return JointGaussian(self.mean_x, self.cov_x, self.mean_y[b], self.cov_y[b, b],

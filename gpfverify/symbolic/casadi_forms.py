@@ -40,7 +40,7 @@ class GPData:
     noise_var: np.ndarray
 
     @classmethod
-    def of(cls, gp) -> "GPData":
+    def of(cls, gp) -> GPData:
         """From any object with these attributes (e.g. :class:`~gpfverify.gp.GaussianProcess`)."""
         y = np.asarray(gp.Y, dtype=float)
         return cls(np.asarray(gp.X, float), y.reshape(len(y), -1), np.asarray(gp.lengthscales, float),

@@ -7,7 +7,7 @@
 from __future__ import annotations
 
 import importlib
-from typing import Callable
+from collections.abc import Callable
 
 from gpfverify.errors import InputError
 from gpfverify.symbolic.certificate import SIZES, Certificate

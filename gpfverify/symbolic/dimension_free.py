@@ -20,7 +20,7 @@ false on an exact instance.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from functools import lru_cache
+from functools import cache
 
 import numpy as np
 import sympy as sp
@@ -109,7 +109,7 @@ def fusion_instance(rng, d: int, outputs: int, rank: int | None, kernel_inclusio
     return values, {n: d, l: outputs}
 
 
-@lru_cache(maxsize=None)
+@cache
 def _instances(full_rank, kernel_inclusion) -> tuple:
     rng = np.random.default_rng(SEED)
     out = []

@@ -38,7 +38,7 @@ class SensorSymbols:
 
     @classmethod
     def generic(cls, index: int, state_dim: int, outputs: int, G: sp.Matrix | None = None,
-                C_y: sp.Matrix | None = None) -> "SensorSymbols":
+                C_y: sp.Matrix | None = None) -> SensorSymbols:
         """Every entry an independent symbol unless ``G`` or ``C_y`` is given."""
         m = index
         return cls(m,

@@ -112,7 +112,7 @@ class Setting:
     zs: list
 
     @classmethod
-    def of(cls, d: int) -> "Setting":
+    def of(cls, d: int) -> Setting:
         chol = sp.Matrix(d, d, lambda i, j: (sp.Symbol(f"L{i}{j}", positive=True) if i == j
                                              else sp.Symbol(f"L{i}{j}", real=True) if i > j else 0))
         pos = lambda name: sp.Matrix([sp.Symbol(f"{name}{k}", positive=True) for k in range(d)])  # noqa: E731

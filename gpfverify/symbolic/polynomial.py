@@ -49,29 +49,29 @@ class Fraction:
     den: object
 
     @classmethod
-    def of(cls, matrix: DomainMatrix) -> "Fraction":
+    def of(cls, matrix: DomainMatrix) -> Fraction:
         return cls(matrix, matrix.domain.one)
 
     @property
     def shape(self) -> tuple[int, int]:
         return self.num.shape
 
-    def __matmul__(self, other: "Fraction") -> "Fraction":
+    def __matmul__(self, other: Fraction) -> Fraction:
         return Fraction(self.num * other.num, self.den * other.den)
 
-    def __add__(self, other: "Fraction") -> "Fraction":
+    def __add__(self, other: Fraction) -> Fraction:
         if self.den == other.den:
             return Fraction(self.num + other.num, self.den)
         return Fraction(self.num.mul(other.den) + other.num.mul(self.den), self.den * other.den)
 
-    def __neg__(self) -> "Fraction":
+    def __neg__(self) -> Fraction:
         return Fraction(-self.num, self.den)
 
-    def __sub__(self, other: "Fraction") -> "Fraction":
+    def __sub__(self, other: Fraction) -> Fraction:
         return self + (-other)
 
     @property
-    def T(self) -> "Fraction":
+    def T(self) -> Fraction:
         return Fraction(self.num.transpose(), self.den)
 
     def is_zero(self) -> bool:

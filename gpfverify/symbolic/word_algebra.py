@@ -32,7 +32,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 from fractions import Fraction as Q
-from typing import Callable, Iterable
+from collections.abc import Callable, Iterable
 
 import sympy as sp
 
@@ -54,7 +54,7 @@ class Letter:
         return (self.cols, self.rows) if self.transposed else (self.rows, self.cols)
 
     @property
-    def T(self) -> "Letter":
+    def T(self) -> Letter:
         if self.symmetric:
             return self
         return Letter(self.name, self.rows, self.cols, not self.transposed)
@@ -94,7 +94,7 @@ class Expr:
 
     # -- construction ----------------------------------------------------------------------------
     @staticmethod
-    def of(terms: dict, shape) -> "Expr":
+    def of(terms: dict, shape) -> Expr:
         merged: dict = {}
         words: dict = {}
         for word, coeff in terms.items():
@@ -116,7 +116,7 @@ class Expr:
         return {_word_key(w): (w, c) for w, c in self.terms}
 
     # -- algebra ---------------------------------------------------------------------------------
-    def __add__(self, other: "Expr") -> "Expr":
+    def __add__(self, other: Expr) -> Expr:
         if not (_same(self.shape[0], other.shape[0]) and _same(self.shape[1], other.shape[1])):
             raise ShapeError(f"sum of {self.shape} and {other.shape}")
         total: dict = {}
@@ -124,13 +124,13 @@ class Expr:
             total[w] = total.get(w, Q(0)) + c
         return Expr.of(total, self.shape)
 
-    def __neg__(self) -> "Expr":
+    def __neg__(self) -> Expr:
         return Expr.of({w: -c for w, c in self.terms}, self.shape)
 
-    def __sub__(self, other: "Expr") -> "Expr":
+    def __sub__(self, other: Expr) -> Expr:
         return self + (-other)
 
-    def __mul__(self, other) -> "Expr":
+    def __mul__(self, other) -> Expr:
         if not isinstance(other, Expr):
             return Expr.of({w: c * Q(other) for w, c in self.terms}, self.shape)
         if not _same(self.shape[1], other.shape[0]):
@@ -142,11 +142,11 @@ class Expr:
                 out[w] = out.get(w, Q(0)) + c1 * c2
         return Expr.of(out, (self.shape[0], other.shape[1]))
 
-    def __rmul__(self, scalar) -> "Expr":
+    def __rmul__(self, scalar) -> Expr:
         return self * scalar
 
     @property
-    def T(self) -> "Expr":
+    def T(self) -> Expr:
         return Expr.of({_transpose_word(w): c for w, c in self.terms}, (self.shape[1], self.shape[0]))
 
     def __eq__(self, other) -> bool:
@@ -230,7 +230,7 @@ class Rule:
         """Usable by normal-form rewriting: the left side is a single word with coefficient 1."""
         return len(self.lhs.terms) == 1 and self.lhs.terms[0][1] == 1 and len(self.lhs.terms[0][0]) > 0
 
-    def transposed(self) -> "Rule":
+    def transposed(self) -> Rule:
         return Rule(self.name + "ᵀ", self.lhs.T, self.rhs.T, self.kind, self.derivation)
 
     def __str__(self) -> str:
