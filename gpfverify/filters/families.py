@@ -45,8 +45,10 @@ class GaussianFamily:
 
 
 def gaussian_family(name: str, params: SigmaParams = SigmaParams()) -> GaussianFamily:
-    """The family ``name`` (one of :data:`FAMILY_NAMES`); ``params`` are the sigma-point
-    parameters of the unscented families."""
+    """The family ``name`` (one of :data:`FAMILY_NAMES`, in any case: ``"GP-ADF"`` as the papers
+    and ``results.json`` spell it, or ``"gp-adf"`` as on the command line); ``params`` are the
+    sigma-point parameters of the unscented families."""
+    name = name.lower() if isinstance(name, str) else name
     if name == "kf":
         return GaussianFamily(name, kf_predict, kf_measurement)
     if name == "ekf":
