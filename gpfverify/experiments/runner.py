@@ -34,17 +34,20 @@ import time
 import traceback
 import warnings
 from concurrent.futures import FIRST_COMPLETED, Executor, Future, ProcessPoolExecutor, wait
+from collections.abc import Callable
 from pathlib import Path
 from types import ModuleType
 
 import numpy as np
 
 from gpfverify import provenance
+from gpfverify.contract.params import Params
+from gpfverify.contract.serial import from_json, to_json
 from gpfverify.errors import InputError
 from gpfverify.runtime import BLAS_THREAD_VARS
 
 #: a key of ``results.json`` (at any depth) whose value is a measured time, not a result
-TIMING_KEY = re.compile(r"time_per|seconds")
+TIMING_KEY = re.compile(r"time_per|seconds|machine_load")
 #: how often a local worker checks that its parent is still alive
 PARENT_POLL_SECONDS = 0.2
 
@@ -154,7 +157,7 @@ def _in_flight_limit(executor: Executor) -> int:
     return 2 * workers if workers else 1024
 
 
-def _execute(module_name: str, params: dict, seed: np.random.SeedSequence, index: int) -> dict:
+def _execute(module_name: str, params: Params | dict, seed: np.random.SeedSequence, index: int) -> dict:
     """One run, never raising: the record saved under ``runs/``."""
     module = importlib.import_module(module_name)
     start = time.perf_counter()
@@ -163,7 +166,7 @@ def _execute(module_name: str, params: dict, seed: np.random.SeedSequence, index
     # process ran it; filters set to "error" (as in the test suite) still raise
     with warnings.catch_warnings(record=True) as caught:
         try:
-            record["result"] = module.run_one(params, seed)
+            record["result"] = to_json(module.run_one(params, seed))
             record["status"] = "ok"
         except Exception as exc:  # noqa: BLE001 - recorded, counted, reported
             record["status"] = "error"
@@ -237,10 +240,14 @@ def _progress(enabled: bool):
                     transient=False)
 
 
-def run_experiment(module: ModuleType | str, params: dict, runs: int, seed: int, out_dir: Path,
+def run_experiment(module: ModuleType | str, params: Params | dict, runs: int, seed: int, out_dir: Path,
                    resume: bool = False, executor: Executor | None = None,
-                   show_progress: bool | None = None) -> dict:
-    """Run (or finish) ``runs`` Monte Carlo runs of an experiment and write ``results.json``."""
+                   show_progress: bool | None = None,
+                   on_run: Callable[[int, int], None] | None = None) -> dict:
+    """Run (or finish) ``runs`` Monte Carlo runs of an experiment and write ``results.json``.
+
+    ``params`` is the experiment's ``Params`` (see :mod:`gpfverify.contract.experiment`);
+    ``on_run(saved, runs)`` is called after every saved run (progress off a terminal)."""
     module = importlib.import_module(module) if isinstance(module, str) else module
     name = module.NAME
     if isinstance(runs, bool) or not isinstance(runs, int) or runs < 1:
@@ -250,8 +257,10 @@ def run_experiment(module: ModuleType | str, params: dict, runs: int, seed: int,
     for folder in (out_dir, out_dir / "runs"):
         if folder.exists() and not folder.is_dir():
             raise InputError(f"--out {folder} exists and is not a folder")
-    manifest = {"experiment": name, "seed": seed, "runs": runs, "params": params}
+    params_json = params.to_json() if isinstance(params, Params) else params
+    manifest = {"experiment": name, "seed": seed, "runs": runs, "params": params_json}
     manifest = json.loads(json.dumps(manifest))  # exactly what a resumed run reads back
+    run_params = _typed_params(module, manifest["params"])
     if out_dir.exists():  # check before writing anything: a refused run leaves no trace
         _check_manifest(out_dir, manifest, resume, write=False)
     (out_dir / "runs").mkdir(parents=True, exist_ok=True)
@@ -273,7 +282,7 @@ def run_experiment(module: ModuleType | str, params: dict, runs: int, seed: int,
             while True:
                 # submit lazily so each run is saved as soon as it finishes, whatever the executor
                 for i in itertools.islice(queue, max(0, limit - len(in_flight))):
-                    in_flight.add(executor.submit(_execute, module.__name__, params, seeds[i], i))
+                    in_flight.add(executor.submit(_execute, module.__name__, run_params, seeds[i], i))
                 if not in_flight:
                     break
                 done, in_flight = wait(in_flight, return_when=FIRST_COMPLETED)
@@ -281,6 +290,8 @@ def run_experiment(module: ModuleType | str, params: dict, runs: int, seed: int,
                     record = future.result()
                     _atomic_write_json(_run_path(out_dir, record["index"]), record)
                     n_done += 1
+                    if on_run is not None:
+                        on_run(runs - len(pending) + n_done, runs)
                     if progress:
                         rate = n_done / max(time.perf_counter() - started, 1e-9)
                         progress.update(task, advance=1, rate=f"{rate:.2f} runs/s")
@@ -292,6 +303,28 @@ def run_experiment(module: ModuleType | str, params: dict, runs: int, seed: int,
                   "run again with --resume to continue", file=sys.stderr)
             raise
     return write_results(module, out_dir, manifest)
+
+
+def _typed_params(module: ModuleType, params: dict) -> Params | dict:
+    """The recorded parameters read back through the experiment's ``Params`` type (so a resumed
+    run uses exactly what was recorded)."""
+    typed = getattr(module, "Params", None)
+    return typed.from_json(params) if typed is not None else params
+
+
+def _typed_record(module: ModuleType, result):
+    typed = getattr(module, "RunRecord", None)
+    return from_json(typed, result, "run record") if typed is not None else result
+
+
+def machine_load() -> dict:
+    """The 1-, 5- and 15-minute load averages and the core count at the time of writing: timings in
+    ``results.json`` depend on them (a timing field, see :data:`TIMING_KEY`)."""
+    try:
+        load = [round(v, 2) for v in os.getloadavg()]
+    except OSError:  # not available on this platform
+        load = []
+    return {"load_average": load, "cpus": os.cpu_count()}
 
 
 def _is_ok(path: Path) -> bool:
@@ -356,7 +389,9 @@ def write_results(module: ModuleType, out_dir: Path, manifest: dict) -> dict:
     if not ok:
         first = failed[0]["error"] if failed else "no run finished"
         raise InputError(f"every run of {manifest['experiment']} failed; first error: {first}")
-    body = module.summarize(manifest["params"], [r["result"] for r in ok])
+    body = to_json(module.summarize(_typed_params(module, manifest["params"]),
+                                    [_typed_record(module, r["result"]) for r in ok]))
+    body["machine_load"] = machine_load()
     results = {"experiment": manifest["experiment"], "runs": manifest["runs"], "seed": manifest["seed"],
                "params": manifest["params"], "runs_ok": len(ok), "failed_runs": failed, **body,
                "timing_keys": timing_keys(module, body), "provenance": provenance.current()}
