@@ -108,9 +108,9 @@ def _need(ok: bool, path: str, what: str, data: Any) -> None:
         raise InputError(f"{path} must be {what}, got {shown}")
 
 
-def _dataclass_from_json(cls: type[T], data: Any, path: str) -> T:
+def _dataclass_from_json(cls: Any, data: Any, path: str) -> Any:
     _need(isinstance(data, dict), path, "an object", data)
-    fields = {f.name: f for f in dataclasses.fields(cls)}  # type: ignore[arg-type]
+    fields = {f.name: f for f in dataclasses.fields(cls)}
     unknown = sorted(set(data) - set(fields))
     if unknown:
         raise InputError(f"{path}: unknown field(s) {unknown} for {cls.__name__}")
