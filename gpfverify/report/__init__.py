@@ -1,6 +1,9 @@
 """The verification report: one page per section, Markdown + PNG, plus one HTML page.
 
-Sections are modules listed in :data:`SECTIONS`; each defines ``build(ctx) -> Section``.
+Sections are modules listed in :data:`SECTIONS`; each defines
+``render_section(data: SectionInput) -> Section``, rendering from the files the command layer
+wrote (:mod:`gpfverify.report.inputs`). A section that still defines only ``build(ctx)`` runs its
+own experiment (being phased out).
 """
 
 from __future__ import annotations
@@ -60,8 +63,14 @@ def build_report(ctx: ReportContext, only: list[str] | None = None, progress=pri
     for slug, module in SECTIONS.items():
         if only and slug not in only:
             continue
-        progress(f"[report] {slug} ...")
-        sections.append(importlib.import_module(module).build(ctx))
+        progress(f"{slug}: rendering")
+        section_module = importlib.import_module(module)
+        if hasattr(section_module, "render_section"):
+            from gpfverify.report.inputs import load_section
+
+            sections.append(section_module.render_section(load_section(ctx.out_dir, slug)))
+        else:
+            sections.append(section_module.build(ctx))
     preamble = (f"Profile `{ctx.profile}`, seed {ctx.seed}. Every number on these pages was computed "
                 "by the run that wrote them; claims that did not hold are marked NOT held. Each page "
                 "ends with what produced it.")

@@ -43,6 +43,18 @@ class Claim:
     evidence: str
 
 
+def claim_records_table(records, caption: str = "Claims checked") -> Table:
+    """Claim records (:class:`gpfverify.contract.ClaimRecord`, as stored in ``results.json``) as a
+    table: claim, where the paper makes it, verdict, evidence, and the cautions a reader needs
+    (fewer runs than the paper, wall-clock timing, the record's own caveats)."""
+    rows = []
+    for r in records:
+        notes = [*r.cautions, *r.caveats]
+        rows.append([r.claim + (f" ({r.setting})" if r.setting else ""), r.source, r.verdict, r.evidence,
+                     "; ".join(notes)])
+    return Table(["claim", "source", "verdict", "evidence", "caution"], rows, caption)
+
+
 def claims_table(claims: list[Claim], caption: str = "Claims checked") -> Table:
     verdict = {True: "held", False: "NOT held", None: "undecided"}
     return Table(["claim", "verdict", "evidence"],
