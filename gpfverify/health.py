@@ -1,0 +1,108 @@
+"""Health checks of a filter in one experiment configuration: a verdict about a paper's claim
+stands only when the filters it compares work there (issue "Verdicts that survive scrutiny").
+
+Three checks, each a :class:`HealthCheck` record (name, passed, statistic, threshold, detail):
+
+* **weight collapse** (:func:`ess_check`) — the effective sample size of a particle filter,
+  N_eff = 1 / Σ_i w_i² (Kong, Liu & Wong 1994), as a fraction of N, per step; the filter has
+  collapsed when the median over steps of N_eff/N is at most ``min_fraction`` (default
+  :data:`MIN_ESS_FRACTION`): then most steps carry their posterior on a handful of particles and its
+  errors measure the proposal, not the filter. N_eff/N = 1/N is total collapse (one particle).
+* **divergence** (:func:`divergence_check`) — runs whose estimate left the finite numbers or whose
+  error exceeded ``bound`` at some step; passes when the fraction of diverged runs is at most
+  ``max_fraction`` (default 0: one diverged run fails it).
+* **NEES** (:func:`nees_check`) — where the truth is known: the ANEES per step against its
+  two-sided χ² interval (:class:`gpfverify.consistency.Consistency`, binomial verdict on the count
+  of steps outside). A failing filter is over- or under-confident and its errors are not what it
+  claims.
+
+:func:`decide` applies the checks to a verdict: any failed check turns it into
+``"not decidable"`` with a caveat naming the failed checks and their numbers, so a page never
+reports a comparison of filters that did not work as a finding about the method.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from gpfverify.contract.claims import Verdict
+from gpfverify.errors import InputError
+
+#: median N_eff / N at or below which a particle filter counts as collapsed
+MIN_ESS_FRACTION = 0.05
+
+
+@dataclass(frozen=True)
+class HealthCheck:
+    """One check of one filter configuration: ``passed`` when ``statistic`` is on the healthy side
+    of ``threshold`` (the side depends on the check; ``detail`` says it in words)."""
+
+    name: str
+    subject: str
+    passed: bool
+    statistic: float
+    threshold: float
+    detail: str
+
+
+def ess_check(subject: str, ess_fraction, n_particles: int, *,
+              min_fraction: float = MIN_ESS_FRACTION) -> HealthCheck:
+    """Weight collapse from N_eff/N per step (any shape: runs × steps or steps), N particles."""
+    fractions = np.asarray(ess_fraction, dtype=float)
+    if fractions.size == 0 or not np.all(np.isfinite(fractions)):
+        raise InputError(f"{subject}: N_eff/N must be a non-empty array of finite numbers")
+    if np.any(fractions <= 0) or np.any(fractions > 1 + 1e-12):
+        raise InputError(f"{subject}: N_eff/N must lie in (0, 1]")
+    if not 0 < min_fraction < 1:
+        raise InputError(f"min_fraction must lie in (0, 1), got {min_fraction}")
+    median = float(np.median(fractions))
+    passed = median > min_fraction
+    total = median <= 1.5 / n_particles
+    detail = (f"median N_eff/N {median:.3g} over {fractions.size} step(s) at N = {n_particles}"
+              + (" — collapsed to about one particle" if total and not passed else
+                 " — collapsed" if not passed else "")
+              + f" (healthy above {min_fraction:g})")
+    return HealthCheck("weight collapse", subject, passed, median, min_fraction, detail)
+
+
+def divergence_check(subject: str, errors, *, bound: float, max_fraction: float = 0.0) -> HealthCheck:
+    """Divergence from estimation errors (runs × steps [× D]): a run diverged when an error is not
+    finite or its norm exceeds ``bound`` at some step."""
+    e = np.asarray(errors, dtype=float)
+    if e.ndim < 2 or e.shape[0] == 0:
+        raise InputError(f"{subject}: errors must have shape (runs, steps[, D])")
+    if not bound > 0:
+        raise InputError(f"bound must be positive, got {bound}")
+    norms = np.linalg.norm(e, axis=-1) if e.ndim == 3 else np.abs(e)
+    with np.errstate(invalid="ignore"):
+        diverged = np.any(~np.isfinite(norms) | (norms > bound), axis=1)
+    fraction = float(np.mean(diverged))
+    passed = fraction <= max_fraction
+    detail = (f"{int(diverged.sum())} of {diverged.size} run(s) diverged (error not finite or above {bound:g})"
+              f"; healthy at most {max_fraction:g} of the runs")
+    return HealthCheck("divergence", subject, passed, fraction, max_fraction, detail)
+
+
+def nees_check(subject: str, truth, means, covs, *, circular_state: Sequence[int] = (),
+               level: float = 0.95) -> HealthCheck:
+    """NEES consistency over Monte Carlo runs (truth, means (R, T, D), covs (R, T, D, D))."""
+    from gpfverify.consistency import Consistency
+
+    test = Consistency.from_estimates(truth, means, covs, circular_state=circular_state).average_over_runs(level)
+    verdict = test.verdict()
+    return HealthCheck("NEES", subject, verdict == "consistent", float(np.mean(test.values)), float(test.dim),
+                       f"{verdict}: {test.summary()}")
+
+
+def decide(verdict: Verdict, checks: Sequence[HealthCheck]) -> tuple[Verdict, tuple[str, ...]]:
+    """The verdict with the health checks applied: unchanged when every check passed, else
+    ``"not decidable"``; the caveats name each failed check."""
+    failed = [c for c in checks if not c.passed]
+    if not failed:
+        return verdict, ()
+    caveats = tuple(f"{c.subject}: {c.name} — {c.detail}" for c in failed)
+    return "not decidable", (f"verdict withheld (would be '{verdict}'): the filters compared did not pass "
+                             "their health checks", *caveats)
