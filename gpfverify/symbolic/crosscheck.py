@@ -121,6 +121,7 @@ def check_cmf_dmf(size: str = "small", seed: int = 1) -> Certificate:
             case = random_case(rng, d, sizes)
             c = case.central
             jac = dmf_jacobians(case)
+            assert case.y is not None  # random_case draws a measurement by default
             reference = cmf_update(c, case.y)
             mu, cov = cmf(c.mu_p, c.C_p, c.mu_y, c.C_y, c.C_xy, case.y)
             errors = [relative_error(mu, reference.mean), relative_error(cov, reference.cov),
@@ -159,7 +160,9 @@ def check_dmf_sensitivity(size: str = "small", seed: int = 1) -> Certificate:
             ok &= relative_error(jac["mu_y"], g_m) <= tol
             begin += l
         for s in dmf_sensitivity(case):
-            ok &= s.jacobian_norms["mu_e"] <= s.mu_e_bound * (1 + algebra_rtol(1.0 / s.sigma_r))
+            mu_e_norm = s.jacobian_norms["mu_e"]
+            assert mu_e_norm is not None  # only the C_xy entry is undefined (at a fixed rank)
+            ok &= mu_e_norm <= s.mu_e_bound * (1 + algebra_rtol(1.0 / s.sigma_r))
             ok &= (s.jacobian_norms["C_xy"] is None) == (ranks is not None)
             label = f"cond {cond:g}" if ranks is None else f"ranks {ranks}"
             cxy = "undefined (fixed rank)" if s.jacobian_norms["C_xy"] is None else f"{s.jacobian_norms['C_xy']:.2e}"
@@ -201,7 +204,8 @@ def check_gp_evidence(size: str = "small", seed: int = 1) -> Certificate:
         value, grad = neg_log_evidence_function(x, y)(theta)
         ref_value, ref_grad = _neg_log_evidence(theta, x, y, sq_diff)
         grad_err = relative_error(grad, ref_grad)
-        gram = np.exp(theta[d]) * np.exp(-0.5 * sq_diff @ np.exp(-2 * theta[:d])) + np.exp(theta[d + 1]) * np.eye(len(y))
+        gram = (np.exp(theta[d]) * np.exp(-0.5 * sq_diff @ np.exp(-2 * theta[:d]))
+                + np.exp(theta[d + 1]) * np.eye(len(y)))
         tol = algebra_rtol(np.linalg.cond(gram))
         grad_ok &= grad_err <= tol and abs(float(value) - ref_value) <= tol * abs(ref_value)
         start = np.clip(_initial_guess(x, y), lo, hi)

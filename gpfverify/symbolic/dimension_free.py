@@ -244,7 +244,7 @@ def stacked_full_rank_rules(st) -> list[Rule]:
     return out
 
 
-def stacked_instance(rng, dims: tuple, outputs: tuple, full_rank: bool) -> tuple:
+def stacked_instance(rng, dims: int, outputs: tuple, full_rank: bool) -> tuple:
     d = dims
     values, sizes = {}, {n: d}
     blocks_g, blocks_y, blocks_mu = [], [], []
@@ -303,9 +303,11 @@ def _nf(lhs, rhs, rules, statement=""):
     return lambda: wa.prove_by_normal_form(lhs, rhs, rules, statement)
 
 
-def _stacked_proofs(statement_rhs: str, full_rank: bool) -> tuple[list[Proof], list[Rule], list]:
+def _stacked_proofs(statement_rhs: str, full_rank: bool) -> tuple[list[Proof], list[Rule], dict[str, list[tuple]]]:
     """μ_DMF − μ_CMF reduced for N = 2 and 3 explicit sensors (block product rules)."""
-    proofs, rules_all, families = [], [], {}
+    proofs: list[Proof] = []
+    rules_all: list[Rule] = []
+    families: dict[str, list[tuple]] = {}
     rng = np.random.default_rng(SEED + 1)
     for count in (2, 3):
         st = stacked(count)
@@ -397,9 +399,11 @@ def kernel_inclusion() -> DimensionFreeResult:
     necessity = wa.prove_by_normal_form(gap_term(), -x_v, necessity_rules,
                                         "necessity: at y^m = μ_y^m + C_y^m(I − P_m)v, gap_m = −X_m v (so gap ≡ 0 "
                                         "for every y forces X_m v = 0 for every v, i.e. X_m = 0)")
-    kernel_fwd = wa.prove_by_chain([(G * C * v, None), (G * C * Ap * A * v, x_zero.name), (zero(n, ONE), in_kernel.name)],
+    kernel_fwd = wa.prove_by_chain([(G * C * v, None), (G * C * Ap * A * v, x_zero.name),
+                                    (zero(n, ONE), in_kernel.name)],
                                    [x_zero, in_kernel],
-                                   "X_m = 0 ⇒ ker C_xy^m ⊆ ker G_m C_y^m: G_m C_y^m v = G_m C_y^m P_m v = 0 for A v = 0")
+                                   "X_m = 0 ⇒ ker C_xy^m ⊆ ker G_m C_y^m: "
+                                   "G_m C_y^m v = G_m C_y^m P_m v = 0 for A v = 0")
     # ⇐: A(I − P)w = 0 for every w (lemma A(I−P)=0), so (I − P)w ∈ ker A ⊆ ker G C and X w = 0.
     # instance families: X_m = 0 holds for G = W A C⁻¹; a kernel vector v of a deficient A
     incl = instances(kernel_inclusion=True)

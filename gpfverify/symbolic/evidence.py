@@ -24,7 +24,7 @@ def neg_log_evidence_function(x: np.ndarray, y: np.ndarray) -> ca.Function:
     """casadi Function θ (D+2,) -> (−log evidence, its gradient) for data x (n, D), y (n,)."""
     n, d = x.shape
     theta = ca.SX.sym("theta", d + 2)
-    scaled = 0
+    scaled: ca.SX | int = 0
     for k in range(d):
         diff = x[:, k][:, None] - x[:, k][None, :]
         scaled = scaled + ca.DM(diff**2) * ca.exp(-2 * theta[k])

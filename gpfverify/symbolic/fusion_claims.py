@@ -77,11 +77,12 @@ def build_sensor(state_dim: int, outputs: int, rank: int | None = None, kernel_i
     generic = SensorSymbols.generic(0, state_dim, outputs)
     sensor = generic if not kernel_inclusion else SensorSymbols(
         0, sp.zeros(state_dim, outputs), *generic.matrices()[1:])
+    factors: tuple[sp.Matrix, ...]
     if rank is None:
         factors = (generic_matrix("A0", state_dim, outputs),)
     else:
         factors = (generic_matrix("B0", state_dim, rank), generic_matrix("F0", outputs, rank))
-    w_sym = (generic_matrix("W0", state_dim, state_dim),) if kernel_inclusion else ()
+    w_sym: tuple[sp.Matrix, ...] = (generic_matrix("W0", state_dim, state_dim),) if kernel_inclusion else ()
     symbols = tuple(m for m in sensor.matrices() if m.free_symbols) + factors + w_sym + tuple(extra)
     if point is not None:
         sensor = SensorSymbols(0, *(m.subs(point) for m in sensor.matrices()))
@@ -187,8 +188,8 @@ def prove_gap_formula(size: str = "small") -> Certificate:
         nonvacuous &= witness is not None
         rows.append(f"(D={d}, l={l}, rank {r})")
     for d, l in ((2, 2), (3, 2)):  # full rank: the same residual, through the other pseudo-inverse
-        s = build_sensor(d, l).lifted
-        ok &= (dmf_term(s) - cmf_term(s) - predicted_gap_term(s)).is_zero()
+        full = build_sensor(d, l).lifted
+        ok &= (dmf_term(full) - cmf_term(full) - predicted_gap_term(full)).is_zero()
         rows.append(f"(D={d}, l={l}, full rank)")
     penrose = rewrites.check_independent(rewrites.factored_pinv_penrose())
     general = dimension_free.gap_formula()
@@ -324,11 +325,14 @@ def refute_exact_without_condition(size: str = "small") -> Certificate:
     gap_at = gap_value.subs(mu)
     dir_value = (direction.num.to_Matrix() / direction.num.domain.to_sympy(direction.den))
     refuted = bool(any(gap_at)) and not gap_value.free_symbols
-    detail = (f"Counterexample (exact rationals): D = 2, C_xy^m = [[1, 1], [1, 1]] (rank 1), C_y^m = [[2, 1], [1, 2]], "
-              f"G_m = I, every other sensor at y^k = μ_y^k. Measurement y^m = μ_y^m + C_y^m (I − P_m) v with v = (1, 0): "
+    detail = (f"Counterexample (exact rationals): D = 2, C_xy^m = [[1, 1], [1, 1]] (rank 1), "
+              f"C_y^m = [[2, 1], [1, 2]], "
+              f"G_m = I, every other sensor at y^k = μ_y^k. Measurement y^m = μ_y^m + C_y^m (I − P_m) v "
+              f"with v = (1, 0): "
               f"y^m − μ_y^m = {sp.sstr(dir_value.T.tolist()[0])} (C_y^m times a kernel vector of C_xy^m). "
               f"μ_DMF − μ_CMF = {sp.sstr(gap_at.T.tolist()[0])} ≠ 0 for every value of the means "
-              f"({'yes' if refuted else 'NO'}); here G_m C_y^m (I − P_m) ≠ 0, so eq. 35 is not exact without the condition.")
+              f"({'yes' if refuted else 'NO'}); here G_m C_y^m (I − P_m) ≠ 0, "
+              f"so eq. 35 is not exact without the condition.")
     return Certificate("dmf-exact-without-condition",
                        "DMF (eq. 35) equals CMF for every measurement without any rank or kernel condition",
                        "sympy: exact counterexample (the measurement direction that breaks it)",
@@ -370,7 +374,8 @@ def prove_full_rank_needs_l_le_d(size: str = "small") -> Certificate:
             gram_sizes.append(f"{d}×{l}")
     general = dimension_free.l_le_d()
     holds = kernel_ok and gram_ok and general.holds
-    detail = (f"For generic D×l_m matrices C_xy^m with l_m > D, (D, l_m) ∈ {{{', '.join(f'({d},{l})' for d, l in WIDE[size])}}}: "
+    wide = ", ".join(f"({d},{l})" for d, l in WIDE[size])
+    detail = (f"For generic D×l_m matrices C_xy^m with l_m > D, (D, l_m) ∈ {{{wide}}}: "
               "the cofactor vector v (signed maximal minors of the first D + 1 columns) is a nonzero polynomial "
               f"vector with C_xy^m v ≡ 0 ({'yes' if kernel_ok else 'NO'}), so rank C_xy^m ≤ l_m − 1 for every value "
               f"of the entries; det(C_xyᵀC_xy) expands to the zero polynomial for {', '.join(gram_sizes)} "

@@ -91,7 +91,8 @@ def gaussian_expectation(prefactor: sp.Expr, exponent: sp.Expr, zs: list[sp.Symb
         p0 = sp.cancel(p0 + p[0] * b[0] / pivot)
         p = [sp.cancel(p[i + 1] - p[0] * col[i] / pivot) for i in range(len(col))]
         b = [sp.cancel(b[i + 1] - col[i] * b[0] / pivot) for i in range(len(col))]
-        a = sp.Matrix(len(col), len(col), lambda i, j: sp.cancel(a[i + 1, j + 1] - col[i] * col[j] / pivot))
+        a = sp.Matrix(len(col), len(col),
+                      lambda i, j, a=a, col=col, pivot=pivot: sp.cancel(a[i + 1, j + 1] - col[i] * col[j] / pivot))
         s = sp.cancel(s / pivot)
     return ExpForm(sp.cancel(p0), s, sp.cancel(c))
 
@@ -239,14 +240,14 @@ def _gp_instances() -> list[tuple]:
     rng = np.random.default_rng(2009)
     out = []
     for d in (1, 2, 3, 4):
-        def spd():
+        def spd(d: int = d) -> sp.Matrix:
             m = sp.Matrix(d, d, lambda i, j: int(rng.integers(-3, 4)))
             return m * m.T + sp.eye(d)
         lam = sp.diag(*[int(rng.integers(1, 5)) for _ in range(d)])
         lam_b = sp.diag(*[int(rng.integers(1, 5)) for _ in range(d)])
         sig = spd()
         xi = lam.inv() + lam_b.inv()
-        vec = lambda: sp.Matrix(d, 1, lambda i, j: int(rng.integers(-4, 5)))  # noqa: E731
+        vec = lambda d=d: sp.Matrix(d, 1, lambda i, j: int(rng.integers(-4, 5)))  # noqa: E731
         values = {"Λ": lam, "Λ⁻¹": lam.inv(), "Σ": sig, "Σ⁻¹": sig.inv(), "C": (lam.inv() + sig.inv()).inv(),
                   "S": (lam + sig).inv(), "Ξ": xi, "M⁻¹": (xi + sig.inv()).inv(), "R⁻¹": (sig * xi + sp.eye(d)).inv(),
                   "x": vec(), "x_i": vec(), "μ": vec(), "u": vec(), "z": vec()}
@@ -294,7 +295,7 @@ def dimension_free_route() -> tuple[list, list, bool, list]:
     c = Cc * (Lam_i * av + Sig_i * bv)
     product_lhs = _quad(xv - av, Lam_i) + _quad(xv - bv, Sig_i)
     product_rhs = _quad(xv - c, Lam_i + Sig_i) + _quad(av - bv, Sm)
-    proofs = [c_lemma_proof for c_lemma_proof in []]
+    proofs: list[wa.Proof] = []
     proofs += s_proofs + [m_proof]
     proofs.append(wa.prove_by_normal_form(
         product_lhs, product_rhs, base,
@@ -302,11 +303,14 @@ def dimension_free_route() -> tuple[list, list, bool, list]:
         "c = C(Λ⁻¹x_i + Σ⁻¹μ); so N(x; x_i, Λ)N(x; μ, Σ) = N(x_i; μ, Λ + Σ)N(x; c, C) and "
         "q_i = α²(2π)^{D/2}|Λ|^{1/2} N(x_i; μ, Σ + Λ)"))
     proofs.append(wa.prove_by_normal_form(Lam * (Lam_i + Sig_i) * Sig, Lam + Sig, INVERSES,
-                                          "Λ(Λ⁻¹ + Σ⁻¹)Σ = Λ + Σ, so |Λ + Σ| = |Λ||C|⁻¹|Σ| (normalisers match)"))
+                                          "Λ(Λ⁻¹ + Σ⁻¹)Σ = Λ + Σ, so |Λ + Σ| = |Λ||C|⁻¹|Σ| "
+                                          "(normalisers match)"))
     proofs.append(wa.prove_by_normal_form((Sig * Lam_i + I_n) * Lam, Sig + Lam, INVERSES,
-                                          "(ΣΛ⁻¹ + I)Λ = Σ + Λ, so |Λ|^{1/2}|Σ + Λ|^{-1/2} = |ΣΛ⁻¹ + I|^{-1/2} (eq. 9)"))
+                                          "(ΣΛ⁻¹ + I)Λ = Σ + Λ, so |Λ|^{1/2}|Σ + Λ|^{-1/2} = "
+                                          "|ΣΛ⁻¹ + I|^{-1/2} (eq. 9)"))
     proofs.append(wa.prove_by_normal_form(c - bv, Sig * Sm * (av - bv), base,
-                                          "c − μ = Σ(Σ + Λ)⁻¹ν_i, so E[(x − μ)k_a(x, x_i)] = q_i Σ(Σ + Λ)⁻¹ν_i (eq. 20)"))
+                                          "c − μ = Σ(Σ + Λ)⁻¹ν_i, so E[(x − μ)k_a(x, x_i)] = "
+                                          "q_i Σ(Σ + Λ)⁻¹ν_i (eq. 20)"))
     m = Xi + Sig_i
     square_lhs = _quad(uv, m) - 2 * _quad(uv, I_n, zv)
     square_rhs = _quad(uv - Mi * zv, m) - _quad(zv, Mi)

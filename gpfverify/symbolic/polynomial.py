@@ -11,6 +11,7 @@ exact: the arithmetic is sympy's sparse ``DomainMatrix`` over ``QQ[x_1, …, x_k
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 import sympy as sp
 from sympy import QQ
@@ -46,7 +47,7 @@ class Fraction:
     ring element. Products and sums are formed exactly, with no cancellation."""
 
     num: DomainMatrix
-    den: object
+    den: Any  # an element of num.domain (sympy ships no type information)
 
     @classmethod
     def of(cls, matrix: DomainMatrix) -> Fraction:

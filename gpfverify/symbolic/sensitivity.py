@@ -9,9 +9,10 @@ For sensor m the Jacobians of μ_DMF with respect to μ_e^m and μ_p^m are ±G_m
 report whose cross term is nearly rank deficient amplifies any error in its μ_e^m by up to
 1/σ_r. The Jacobian with respect to C_xy^m involves the derivative of the pseudo-inverse, up to
 ‖μ_e^m − μ_p^m‖/σ_min² in general; for a consistent report (μ_e^m − μ_p^m = C_xy^m w_m, in the
-range of C_xy^m) the 1/σ² part cancels and it grows like ‖w_m‖/σ_min. For a sensor without full column rank at the tolerance the
-pseudo-inverse is taken at that fixed rank (SVD, :func:`gpfverify.fusion.exactness.kernel_split`)
-and held constant: the Jacobian with respect to C_xy^m is then not defined (None).
+range of C_xy^m) the 1/σ² part cancels and it grows like ‖w_m‖/σ_min. For a sensor without full
+column rank at the tolerance the pseudo-inverse is taken at that fixed rank (SVD,
+:func:`gpfverify.fusion.exactness.kernel_split`) and held constant: the Jacobian with respect to
+C_xy^m is then not defined (None).
 """
 
 from __future__ import annotations

@@ -50,7 +50,7 @@ def prove_ukf_equals_kf(size: str = "small") -> Certificate:
         mean = generic_matrix("mu", d, 1)
         factor = sp.Matrix(d, d, lambda i, j: sp.Symbol(f"L_{i}_{j}") if j <= i else 0)
         h, b = generic_matrix("H", l, d), generic_matrix("b", l, 1)
-        y_bar, c_y, c_xy = unscented_moments(mean, factor, lambda x: h * x + b, s, gamma)
+        y_bar, c_y, c_xy = unscented_moments(mean, factor, lambda x, h=h, b=b: h * x + b, s, gamma)
         cov = factor * factor.T
         ok &= _is_zero(y_bar - (h * mean + b)) and _is_zero(c_y - h * cov * h.T) and _is_zero(c_xy - cov * h.T)
         shown.append(f"(D={d}, l={l})")

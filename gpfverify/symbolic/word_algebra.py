@@ -357,7 +357,7 @@ def prove_by_chain(chain: list[tuple[Expr, str | None]], rules: list[Rule], stat
     by_name = {r.name: r for r in rules}
     ok, lines, used = True, [str(chain[0][0])], []
     for (prev, _), (cur, name) in zip(chain, chain[1:]):
-        rule = by_name.get(name)
+        rule = None if name is None else by_name.get(name)
         try:
             step_ok = rule is not None and _one_application(cur - prev, rule)
         except ShapeError:
@@ -429,6 +429,9 @@ def run_controls(mutants: list[Mutant], instances: list[Instance]) -> list[Contr
             proved = m.attempt().proved
         except (ShapeError, ValueError):
             proved = False
-        false = None if m.lhs is None else counterexample(m.lhs, m.rhs, instances)
+        false = None
+        if m.lhs is not None:
+            assert m.rhs is not None, f"mutant {m.name} has lhs but no rhs"
+            false = counterexample(m.lhs, m.rhs, instances)
         out.append(ControlResult(m.name, not proved, false))
     return out
