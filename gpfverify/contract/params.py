@@ -31,8 +31,9 @@ def option(default: Any, help: str, *, minimum: float | None = None, maximum: fl
            above: float | None = None, choices: tuple | None = None, cli: bool = True) -> Any:
     """A field of a :class:`Params` dataclass: ``default`` (immutable: tuples, not lists), the
     ``help`` text of its command-line option and of the documentation, bounds (``minimum`` ≤ value
-    ≤ ``maximum``, value > ``above``) or ``choices`` checked on every instance, and whether the
-    command line offers it (``cli``; tuple-valued fields are not offered)."""
+    ≤ ``maximum``, value > ``above``; for a tuple, every entry) or ``choices`` checked on every
+    instance, and whether the command line offers it (``cli``; scalar fields and tuples of scalars,
+    ``--snr 2 4 6``, are offered)."""
     return dataclasses.field(default=default, metadata={
         "help": help, "minimum": minimum, "maximum": maximum, "above": above, "choices": choices,
         "cli": cli})
@@ -110,11 +111,27 @@ def _scalar_type(tp: Any) -> tuple[Any, bool]:
     return (tp, optional) if tp in (bool, int, float, str) else (None, False)
 
 
+def _sequence_type(tp: Any) -> tuple[Any, str | int | None]:
+    """(the scalar entry type, argparse ``nargs``) of ``tuple[T, ...]`` (any count) or of a
+    fixed-length ``tuple[T, T, ...]`` of one scalar type T; (None, None) otherwise."""
+    if typing.get_origin(tp) is not tuple:
+        return None, None
+    args = typing.get_args(tp)
+    items = args[:1] if len(args) == 2 and args[1] is Ellipsis else args
+    if not items or len(set(items)) != 1:
+        return None, None
+    item, optional = _scalar_type(items[0])
+    if item is None or optional or item is bool:
+        return None, None
+    return item, "*" if items is not args else len(args)
+
+
 def cli_fields(cls: type[Params]) -> list[dataclasses.Field]:
-    """The fields the command line offers."""
+    """The fields the command line offers: scalars and tuples of one scalar type."""
     hints = typing.get_type_hints(cls)
     return [f for f in dataclasses.fields(cls)
-            if f.metadata.get("cli", True) and _scalar_type(hints[f.name])[0] is not None]
+            if f.metadata.get("cli", True)
+            and (_scalar_type(hints[f.name])[0] is not None or _sequence_type(hints[f.name])[0] is not None)]
 
 
 def add_arguments(parser: argparse.ArgumentParser, cls: type[Params]) -> None:
@@ -122,8 +139,19 @@ def add_arguments(parser: argparse.ArgumentParser, cls: type[Params]) -> None:
     hints = typing.get_type_hints(cls)
     defaults = cls()
     for field in cli_fields(cls):
-        tp, optional = _scalar_type(hints[field.name])
         default = getattr(defaults, field.name)
+        item, nargs = _sequence_type(hints[field.name])
+        if item is not None:  # a tuple: --name V1 V2 ... (read back as a tuple by the Params)
+            shown = " ".join(f"{v:g}" if isinstance(v, float) else str(v) for v in default) or "none"
+            many: dict[str, Any] = {"dest": field.name, "default": default, "nargs": nargs,
+                                    "help": f"{field.metadata.get('help', '')} (default {shown})"}
+            if typing.get_origin(item) is Literal:
+                many.update(choices=list(typing.get_args(item)), type=type(typing.get_args(item)[0]))
+            else:
+                many["type"] = item
+            parser.add_argument(flag_name(field.name), **many)
+            continue
+        tp, optional = _scalar_type(hints[field.name])
         shown = "none" if default is None else f"{default:g}" if isinstance(default, float) else str(default)
         help_text = f"{field.metadata.get('help', '')} (default {shown})"
         if tp is bool:
