@@ -40,7 +40,7 @@ def test_reproduce_runs_an_experiment_and_refuses_to_overwrite(monkeypatch, tmp_
     assert cli.main(["reproduce", "toy", "--runs", "3", "--seed", "4", "--out", str(out)]) == 0
     results = json.loads((out / "results.json").read_text())
     assert (results["experiment"], results["runs"], results["seed"]) == ("toy", 3, 4)
-    assert results["params"] == {"scale": 1.0, "fail_run": -1, "interrupt_run": -1}
+    assert results["params"] == {"scale": 1.0, "shift": 0.0, "fail_run": -1, "interrupt_run": -1}
     assert cli.main(["reproduce", "toy", "--runs", "3", "--seed", "4", "--out", str(out)]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "--resume" in err[0]

@@ -22,45 +22,42 @@ def toy(monkeypatch):
     return toy_experiment
 
 
-PARAMS = {"scale": 2.0, "fail_run": -1}
-
-
 def _numbers(results):
     return without_timing(results)
 
 
 def test_same_results_for_any_worker_count(toy, tmp_path):
-    serial = run_experiment(toy, PARAMS, 6, 11, tmp_path / "a")
+    serial = run_experiment(toy, toy.Params(scale=2.0), 6, 11, tmp_path / "a")
     with make_executor(workers=2) as pool:
-        parallel = run_experiment(toy, PARAMS, 6, 11, tmp_path / "b", executor=pool)
+        parallel = run_experiment(toy, toy.Params(scale=2.0), 6, 11, tmp_path / "b", executor=pool)
     assert _numbers(serial) == _numbers(parallel)
     assert serial["runs_ok"] == 6 and serial["failed_runs"] == []
-    other_seed = run_experiment(toy, PARAMS, 6, 12, tmp_path / "c")
+    other_seed = run_experiment(toy, toy.Params(scale=2.0), 6, 12, tmp_path / "c")
     assert other_seed["mean"] != serial["mean"]
 
 
 def test_resume_after_lost_runs_ends_with_the_same_results(toy, tmp_path):
-    full = run_experiment(toy, PARAMS, 5, 3, tmp_path / "full")
+    full = run_experiment(toy, toy.Params(scale=2.0), 5, 3, tmp_path / "full")
     out = tmp_path / "partial"
-    run_experiment(toy, PARAMS, 5, 3, out)
+    run_experiment(toy, toy.Params(scale=2.0), 5, 3, out)
     for i in (1, 4):  # as if the process died before these runs were saved
         (out / "runs" / f"run-{i:06d}.json").unlink()
     (out / "results.json").unlink()
-    resumed = run_experiment(toy, PARAMS, 5, 3, out, resume=True)
+    resumed = run_experiment(toy, toy.Params(scale=2.0), 5, 3, out, resume=True)
     assert _numbers(resumed) == _numbers(full)
     assert json.loads((out / "results.json").read_text()) == resumed
 
 
 def test_existing_runs_need_resume_and_matching_settings(toy, tmp_path):
-    run_experiment(toy, PARAMS, 2, 1, tmp_path)
+    run_experiment(toy, toy.Params(scale=2.0), 2, 1, tmp_path)
     with pytest.raises(InputError, match="--resume"):
-        run_experiment(toy, PARAMS, 2, 1, tmp_path)
+        run_experiment(toy, toy.Params(scale=2.0), 2, 1, tmp_path)
     with pytest.raises(InputError, match="different settings"):
-        run_experiment(toy, PARAMS | {"scale": 3.0}, 2, 1, tmp_path, resume=True)
+        run_experiment(toy, toy.Params(scale=2.0).replace(scale=3.0), 2, 1, tmp_path, resume=True)
 
 
 def test_a_failing_run_is_recorded_with_its_seed_and_counted(toy, tmp_path):
-    results = run_experiment(toy, PARAMS | {"fail_run": 2}, 4, 5, tmp_path)
+    results = run_experiment(toy, toy.Params(scale=2.0).replace(fail_run=2), 4, 5, tmp_path)
     assert results["runs_ok"] == 3
     assert results["failed_runs"] == [{"index": 2, "error": "RuntimeError: planned failure", "spawn_key": [2]}]
     record = json.loads((tmp_path / "runs" / "run-000002.json").read_text())
@@ -69,27 +66,27 @@ def test_a_failing_run_is_recorded_with_its_seed_and_counted(toy, tmp_path):
 
 def test_dask_executor_gives_the_same_results(toy, tmp_path):
     distributed = pytest.importorskip("distributed")
-    serial = run_experiment(toy, PARAMS, 4, 9, tmp_path / "serial")
+    serial = run_experiment(toy, toy.Params(scale=2.0), 4, 9, tmp_path / "serial")
     with distributed.LocalCluster(n_workers=1, threads_per_worker=2, processes=False,
                                   dashboard_address=None) as cluster:
         with make_executor(scheduler=cluster.scheduler_address) as executor:
-            remote = run_experiment(toy, PARAMS, 4, 9, tmp_path / "dask", executor=executor)
+            remote = run_experiment(toy, toy.Params(scale=2.0), 4, 9, tmp_path / "dask", executor=executor)
     assert _numbers(remote) == _numbers(serial)
 
 
 def test_serial_run_saves_each_run_as_it_finishes_and_ctrl_c_loses_only_the_current_one(toy, tmp_path, capsys):
-    full = run_experiment(toy, PARAMS, 6, 8, tmp_path / "full")
+    full = run_experiment(toy, toy.Params(scale=2.0), 6, 8, tmp_path / "full")
     out = tmp_path / "interrupted"
     with pytest.raises(KeyboardInterrupt):
-        run_experiment(toy, PARAMS | {"interrupt_run": 3}, 6, 8, out)
+        run_experiment(toy, toy.Params(scale=2.0).replace(interrupt_run=3), 6, 8, out)
     saved = sorted(p.name for p in (out / "runs").glob("run-*.json"))
     assert saved == [f"run-{i:06d}.json" for i in range(3)]
     assert "3 of 6 runs saved" in capsys.readouterr().err
     # the manifest's params differ only by the interruption switch: resume with the plain settings
     manifest = json.loads((out / "manifest.json").read_text())
-    manifest["params"] = PARAMS
+    manifest["params"] = toy.Params(scale=2.0).to_json()
     (out / "manifest.json").write_text(json.dumps(manifest))
-    resumed = run_experiment(toy, PARAMS, 6, 8, out, resume=True)
+    resumed = run_experiment(toy, toy.Params(scale=2.0), 6, 8, out, resume=True)
     assert _numbers(resumed) == _numbers(full)
 
 
@@ -121,17 +118,17 @@ def test_worker_count_must_be_at_least_one(workers):
 @pytest.mark.parametrize("seed", [-5, 1.5, None])
 def test_a_bad_seed_or_run_count_writes_nothing(toy, tmp_path, seed):
     with pytest.raises(InputError, match="--seed"):
-        run_experiment(toy, PARAMS, 2, seed, tmp_path / "out")
+        run_experiment(toy, toy.Params(scale=2.0), 2, seed, tmp_path / "out")
     with pytest.raises(InputError, match="--runs"):
-        run_experiment(toy, PARAMS, 0, 1, tmp_path / "out")
+        run_experiment(toy, toy.Params(scale=2.0), 0, 1, tmp_path / "out")
     assert not (tmp_path / "out").exists()
 
 
 def test_a_corrupted_manifest_is_an_input_error_and_stays_untouched(toy, tmp_path):
-    run_experiment(toy, PARAMS, 2, 1, tmp_path)
+    run_experiment(toy, toy.Params(scale=2.0), 2, 1, tmp_path)
     (tmp_path / "manifest.json").write_text("{\"experiment\": ")
     with pytest.raises(InputError, match="manifest.json is not a valid manifest"):
-        run_experiment(toy, PARAMS, 2, 1, tmp_path, resume=True)
+        run_experiment(toy, toy.Params(scale=2.0), 2, 1, tmp_path, resume=True)
     assert (tmp_path / "manifest.json").read_text() == "{\"experiment\": "
 
 

@@ -1,30 +1,52 @@
-"""A tiny experiment for runner tests: each run draws numbers from its own stream."""
+"""A tiny typed experiment for runner, command-line and sensitivity tests: each run draws numbers
+from its own stream; one claim ("the mean is near zero") whose verdict an interpretation flips."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
 
 import numpy as np
 
+from gpfverify.contract import ClaimRecord, Params, PairedDifference, Profile, Setting, option
+from gpfverify.contract.interpretations import InterpretationSpec
+
 NAME = "toy"
+PAPER = "seed000"
 DEFAULT_RUNS = 4
 
 
-def add_arguments(parser):
-    parser.add_argument("--scale", type=float, default=1.0)
-    parser.add_argument("--fail-run", type=int, default=-1)
-    parser.add_argument("--interrupt-run", type=int, default=-1)
+@dataclass(frozen=True)
+class Params(Params):  # noqa: F811 - the experiment's own Params, as every experiment names it
+    scale: float = option(1.0, "standard deviation of the draws", above=0.0)
+    shift: float = option(0.0, "mean of the draws")
+    fail_run: int = option(-1, "index of a run that raises (-1: none)")
+    interrupt_run: int = option(-1, "index of a run that is interrupted as by Ctrl-C (-1: none)")
 
 
-def params_from_args(args):
-    return {"scale": args.scale, "fail_run": args.fail_run, "interrupt_run": args.interrupt_run}
+@dataclass(frozen=True)
+class RunRecord:
+    x: tuple[float, ...]
 
 
-def run_one(params, seed):
-    if seed.spawn_key[-1] == params["fail_run"]:
+PROFILES = {"quick": Profile(3, (Setting("", "default", Params()),)),
+            "full": Profile(DEFAULT_RUNS, (Setting("", "default", Params()),))}
+INTERPRETATIONS = (InterpretationSpec("shifted", {"shift": 10.0}, "draws centred at 10"),
+                   InterpretationSpec("wide", {"scale": 3.0}, "draws three times wider"))
+
+
+def run_one(params: Params, seed) -> RunRecord:
+    if seed.spawn_key[-1] == params.fail_run:
         raise RuntimeError("planned failure")
-    if seed.spawn_key[-1] == params.get("interrupt_run", -1):
+    if seed.spawn_key[-1] == params.interrupt_run:
         raise KeyboardInterrupt  # as if the user pressed Ctrl-C during this run
     rng = np.random.default_rng(seed)
-    return {"x": (params["scale"] * rng.standard_normal(3)).tolist()}
+    return RunRecord(tuple((params.shift + params.scale * rng.standard_normal(3)).tolist()))
 
 
-def summarize(params, results):
-    x = np.array([r["x"] for r in results])
-    return {"mean": x.mean(axis=0).tolist(), "time_per_run": {"toy": 0.0}}
+def summarize(params: Params, records: list[RunRecord]) -> dict:
+    x = np.array([r.x for r in records])
+    above = PairedDifference.of(x.mean(axis=1), np.ones(len(records)))  # mean below 1?
+    claim = ClaimRecord("the draws' mean is below 1", "toy", above.verdict, above.mean, above.atol, above.n,
+                        "paired difference of each run's mean and 1", id="toy/mean-below-1", paper=PAPER,
+                        paper_n=DEFAULT_RUNS)
+    return {"mean": x.mean(axis=0).tolist(), "time_per_run": {"toy": 0.0}, "claims": [claim]}

@@ -30,6 +30,10 @@ def add_common_arguments(parser: argparse.ArgumentParser, default_runs: int) -> 
                              "results are the same for any number")
     parser.add_argument("--scheduler", default=None, metavar="ADDRESS",
                         help="dask.distributed scheduler address (needs gpfverify[cluster])")
+    parser.add_argument("--interpretations", default=None, metavar="NAMES",
+                        help="also run the experiment under these interpretations of what the paper leaves "
+                             "unstated ('all' or comma-separated names), in OUT/interpretations/NAME, and record "
+                             "each claim's verdict under each in results.json")
 
 
 def run(args: argparse.Namespace) -> int:
@@ -53,8 +57,15 @@ def run(args: argparse.Namespace) -> int:
         params = module.params_from_args(opts)
     if opts.out.exists() and not opts.out.is_dir():
         raise InputError(f"--out {opts.out} exists and is not a folder")
+    specs = None
+    if opts.interpretations is not None:
+        from gpfverify.experiments.sensitivity import run_interpretations, select
+
+        specs = select(module, opts.interpretations)  # before any run: a wrong name costs nothing
     with make_executor(opts.workers, opts.scheduler) as executor:
         results = run_experiment(module, params, opts.runs, opts.seed, opts.out, opts.resume, executor)
+        if specs:
+            results = run_interpretations(module, params, specs, opts.runs, opts.seed, opts.out, executor)
     print(f"{args.experiment}: {results['runs_ok']} of {results['runs']} runs ok -> {opts.out / 'results.json'}",
           file=sys.stderr if results["failed_runs"] else sys.stdout)
     return 0
