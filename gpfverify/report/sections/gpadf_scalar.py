@@ -1,5 +1,6 @@
 """Report page: the scalar benchmark of Deisenroth et al. (ICML 2009) — UKF, EKF, GP-UKF, GP-ADF
-after one predict–update step, scored by NLL, Mahalanobis distance and RMSE."""
+after one predict–update step, scored by NLL, Mahalanobis distance and RMSE. Renders the
+``gpadf-scalar`` experiment's ``results.json``; computes nothing."""
 
 from __future__ import annotations
 
@@ -7,80 +8,42 @@ from pathlib import Path
 
 import numpy as np
 
-from gpfverify.experiments import gpadf_scalar
-from gpfverify.report.document import Claim, Figure, Paragraph, Section, Table, claims_table, fmt
+from gpfverify.contract.claims import read_claims
+from gpfverify.contract.gpadf_scalar import CITATION, GP_ADF, METHODS, NAME, PAPER, Example, FittedGPs, TableRow
+from gpfverify.contract.papers import PAPERS
+from gpfverify.contract.serial import from_json
+from gpfverify.report.document import Figure, Paragraph, Section, Table, claim_records_table, fmt
 from gpfverify.report.figures import new_figure, save
-from gpfverify.tolerances import monte_carlo_atol
+from gpfverify.report.inputs import SectionInput
 
 SLUG = "gpadf-scalar"
-QUICK_RUNS = 5
-#: P(|z| > 2) for z ~ N(0, 1): the ±2σ exceedance of a calibrated Gaussian posterior.
-CALIBRATED_EXCEEDANCE = 0.04550026389635842
+#: the posterior figure's vertical range (a few UKF/EKF means lie beyond it)
+FIGURE_YLIM = 30.0
 
 
-def build(ctx) -> Section:
-    runs = QUICK_RUNS if ctx.quick else gpadf_scalar.DEFAULT_RUNS
-    results = _run(ctx, runs)
-    return render(results, ctx)
-
-
-def _run(ctx, runs: int) -> dict:
-    from gpfverify.report import run_for_report
-
-    return run_for_report(ctx, SLUG, gpadf_scalar, gpadf_scalar.default_params(), runs)
+def render_section(data: SectionInput) -> Section:
+    """The page from the section's ``gpadf-scalar`` run (the first one, if several)."""
+    runs = data.of(NAME)
+    if not runs:
+        return Section(SLUG, "GP-ADF scalar benchmark (Deisenroth et al. 2009)", [
+            Paragraph("No gpadf-scalar run was found in this report folder.")])
+    return render(runs[0][1], data.folder)
 
 
 def _pm(value: float, se: float) -> str:
     return f"{fmt(value)} ± {fmt(se, 2)}"
 
 
-def exceedance_tolerance(cases: int) -> float:
-    """Monte Carlo tolerance on the ±2σ exceedance frequency of a calibrated filter (binomial)."""
-    p = CALIBRATED_EXCEEDANCE
-    return float(monte_carlo_atol(np.sqrt(p * (1.0 - p)), cases))
-
-
-def nees_consistent(row: dict) -> bool:
-    """Mean NEES within the Monte Carlo tolerance (5 s.e.) of 1."""
-    return abs(row["nees"] - 1.0) <= float(monte_carlo_atol(row["nees_std"], row["cases"]))
-
-
-def exceedance_excess(row: dict) -> float:
-    """Observed ±2σ exceedance minus the calibrated 4.55 %, in units of its tolerance."""
-    return (row["outside_2sigma"] - CALIBRATED_EXCEEDANCE) / exceedance_tolerance(row["cases"])
-
-
-def claims(results: dict) -> list[Claim]:
-    table = results["table"]
-    adf = table["GP-ADF"]
-    others = [m for m in gpadf_scalar.METHODS if m != "GP-ADF"]
-    out = [Claim("GP-ADF has the smallest NLL of the four filters",
-                 all(adf["nll"] < table[m]["nll"] for m in others),
-                 "NLL " + ", ".join(f"{m} {_pm(table[m]['nll'], table[m]['nll_se'])}"
-                                    for m in gpadf_scalar.METHODS))]
-    consistent = nees_consistent(adf) and abs(exceedance_excess(adf)) <= 1.0
-    out.append(Claim("GP-ADF is consistent: mean NEES compatible with 1 and ±2σ exceedance compatible "
-                     "with 4.55 % (each within 5 standard errors)", consistent,
-                     f"NEES {_pm(adf['nees'], adf['nees_se'])} ((NEES − 1)/s.e. = "
-                     f"{(adf['nees'] - 1.0) / adf['nees_se']:+.1f}; below 0: conservative); outside ±2σ "
-                     f"{100 * adf['outside_2sigma']:.2f} % (tolerance ±"
-                     f"{100 * exceedance_tolerance(adf['cases']):.2f} points) over {adf['cases']} cases"))
-    for m in others:
-        row = table[m]
-        out.append(Claim(f"{m} is over-confident: true state outside ±2σ significantly more often "
-                         "than 4.55 % (more than 5 binomial standard errors)", exceedance_excess(row) > 1.0,
-                         f"outside ±2σ {100 * row['outside_2sigma']:.2f} % (tolerance ±"
-                         f"{100 * exceedance_tolerance(row['cases']):.2f} points); NEES "
-                         f"{_pm(row['nees'], row['nees_se'])}"))
-    return out
-
-
-def render(results: dict, ctx_or_dir) -> Section:
-    """The page from a ``results.json`` body; figures go to the section folder of a report
-    context, or to the given directory."""
-    out_dir = ctx_or_dir.section_dir(SLUG) if hasattr(ctx_or_dir, "section_dir") else Path(ctx_or_dir)
-    p, table = results["params"], results["table"]
+def render(results: dict, out_dir: Path) -> Section:
+    """The page from a ``results.json`` body; figures go to ``out_dir``."""
+    p = results["params"]
+    table = {k: from_json(TableRow, v, f"table.{k}") for k, v in results["table"].items()}
+    gps = [from_json(FittedGPs, g, "gps") for g in results["gps"]]
+    adf = table[GP_ADF.key]
     section = Section(SLUG, "GP-ADF scalar benchmark (Deisenroth et al. 2009)")
+    section.add(Paragraph(
+        f"{CITATION} The benchmark of the GP-ADF filter that {PAPERS[PAPER].short} (reference [7]) build "
+        "their fusion rules on."))
     section.add(Paragraph(
         "Setting: x₁ = 0.5x₀ + 25x₀/(1 + x₀²) + w, w ~ N(0, "
         f"{p['system_noise_std']}²); y₁ = 5 sin(2x₁) + v, v ~ N(0, {p['measurement_noise_std']}²); "
@@ -93,51 +56,51 @@ def render(results: dict, ctx_or_dir) -> Section:
         f"α = {p['alpha']}, β = {p['beta']}, κ = {p['kappa']}; GP-UKF's Q and R are the GP predictive "
         "variances of a noisy target (latent variance plus learned noise) at the previous and the "
         f"predicted mean. {results['runs_ok']} run(s) (seeds spawned from root seed {results['seed']}), "
-        f"{table['GP-ADF']['cases']} test cases pooled."))
+        f"{adf.cases} test cases pooled."))
     section.add(Paragraph(
         "Conventions: NLL = −log N(x₁ | μₑ, σₑ²) in nats including ½ log 2π; Mahalanobis distance in the "
         "square-root form |x₁ − μₑ|/σₑ (as in Deisenroth et al.), whose square, the NEES, has mean 1 for a "
         "consistent filter; RMSE of μₑ. Mean ± standard error over all pooled test cases (RMSE by the "
-        "delta method); the NLL s.e. over per-run means, which also carries the GP-training "
+        "delta method); the NLL standard error over per-run means, which also carries the GP-training "
         "variability, is given in its own column."))
-    rows = [[m, _pm(r["nll"], r["nll_se"]), fmt(r["nll_se_runs"], 2), _pm(r["maha"], r["maha_se"]),
-             _pm(r["rmse"], r["rmse_se"]), _pm(r["nees"], r["nees_se"]), f"{100 * r['outside_2sigma']:.1f} %",
-             fmt(1e3 * results["time_per_run"][m], 3)]
+    rows = [[m, _pm(r.nll, r.nll_se), fmt(r.nll_se_runs, 2), _pm(r.maha, r.maha_se), _pm(r.rmse, r.rmse_se),
+             _pm(r.nees, r.nees_se), f"{100 * r.outside_2sigma:.1f} %", fmt(1e3 * results["time_per_run"][m], 3)]
             for m, r in table.items()]
     section.add(Table(["filter", "NLL", "NLL s.e. (runs)", "Mahalanobis", "RMSE", "NEES",
                        "outside ±2σ", f"ms per {p['test_points']} steps"], rows,
                       "One-step filtering on the scalar benchmark (mean ± s.e.)"))
-    section.add(claims_table(claims(results), "Claims of Deisenroth et al. (2009) checked"))
-    gps = results["gps"]
+    section.add(claim_records_table(read_claims(results), "Claims of Deisenroth et al. (2009) checked"))
+
+    def median(gp: str, field: str) -> str:
+        return fmt(float(np.median([getattr(getattr(g, gp), field) for g in gps])), 3)
+
     section.add(Paragraph(
-        "Fitted hyperparameters (median over runs): transition GP ℓ = "
-        f"{fmt(float(np.median([g['transition']['lengthscale'] for g in gps])), 3)}, noise variance "
-        f"{fmt(float(np.median([g['transition']['noise_var'] for g in gps])), 3)} (true "
-        f"{fmt(p['system_noise_std'] ** 2, 3)}); measurement GP ℓ = "
-        f"{fmt(float(np.median([g['measurement']['lengthscale'] for g in gps])), 3)}, noise variance "
-        f"{fmt(float(np.median([g['measurement']['noise_var'] for g in gps])), 3)} (true "
-        f"{fmt(p['measurement_noise_std'] ** 2, 3)}). GP fitting took "
-        f"{fmt(results['fit_time_per_run'], 3)} s per run."))
-    section.add(Figure(_figure(results["example"], out_dir / "posteriors.png"),
+        f"Fitted hyperparameters (median over runs): transition GP ℓ = {median('transition', 'lengthscale')}, "
+        f"noise variance {median('transition', 'noise_var')} (true {fmt(p['system_noise_std'] ** 2, 3)}); "
+        f"measurement GP ℓ = {median('measurement', 'lengthscale')}, noise variance "
+        f"{median('measurement', 'noise_var')} (true {fmt(p['measurement_noise_std'] ** 2, 3)}). GP fitting "
+        f"took {fmt(results['fit_time_per_run'], 3)} s per run."))
+    example = from_json(Example, results["example"], "example")
+    section.add(Figure(_figure(example, out_dir / "posteriors.png"),
                        "First run: posterior mean ± 2σ of each filter (colour) and the true x₁ (black) "
-                       "against the prior mean μ₀; the vertical axis is clipped to ±30 (a few UKF/EKF "
-                       "means lie beyond)."))
+                       f"against the prior mean μ₀; the vertical axis is clipped to ±{FIGURE_YLIM:g} (a few "
+                       "UKF/EKF means lie beyond)."))
     return section
 
 
-def _figure(example: dict, path: Path) -> Path:
-    mu0 = np.asarray(example["cases"]["prior_mean"])
-    x1 = np.asarray(example["cases"]["x1"])
+def _figure(example: Example, path: Path) -> Path:
+    mu0 = np.asarray(example.cases.prior_mean)
+    x1 = np.asarray(example.cases.x1)
     order = np.argsort(mu0)
     fig, axes = new_figure(2, 2, width=5.0, height=3.6)
-    for ax, (i, method) in zip(axes.ravel(), enumerate(gpadf_scalar.METHODS)):
-        post = example["posteriors"][method]
-        mean, std = np.asarray(post["mean"])[order], np.asarray(post["std"])[order]
+    for ax, (i, method) in zip(axes.ravel(), enumerate(METHODS)):
+        post = example.posteriors[method.key]
+        mean, std = np.asarray(post.mean)[order], np.asarray(post.std)[order]
         ax.errorbar(mu0[order], mean, yerr=2 * std, fmt="o", ms=2.5, color=f"C{i}", ecolor=f"C{i}",
-                    elinewidth=0.8, alpha=0.8, label=f"{method} μₑ ± 2σₑ")
+                    elinewidth=0.8, alpha=0.8, label=f"{method.key} μₑ ± 2σₑ")
         ax.plot(mu0[order], x1[order], "k.", ms=3, label="true x₁")
-        ax.set_ylim(-30, 30)
-        ax.set_title(method)
+        ax.set_ylim(-FIGURE_YLIM, FIGURE_YLIM)
+        ax.set_title(method.key)
         ax.set_xlabel("prior mean μ₀")
         ax.set_ylabel("x₁")
         ax.legend(fontsize=7, loc="upper left")
