@@ -17,7 +17,7 @@ import numpy as np
 import scipy.linalg as sla
 
 from gpfverify.errors import InputError
-from gpfverify.gp.kernels import scaled_sq_dist, se_ard
+from gpfverify.gp.kernels import se_ard
 from gpfverify.linalg import Cholesky, cholesky
 from gpfverify.rng import generator
 from gpfverify.validate import as_array, as_covariance, as_positive, as_vector
@@ -213,14 +213,13 @@ class GaussianProcess:
         var = np.empty_like(mean)
         for a, c in enumerate(self._chol):
             v = sla.solve_triangular(c.factor, ks[a].T, lower=True, check_finite=False)
-            var[:, a] = self.signal_var[a] - np.sum(v * v, axis=0)
+            var[:, a] = self.signal_var[a] - np.einsum("ij,ij->j", v, v)
         return mean, np.maximum(var, 0.0)
 
     def predict_mean(self, Xs: np.ndarray) -> np.ndarray:
         """Predictive mean only, without argument checks: the hot path of sigma-point filters.
         ``Xs`` is (m, D); returns (m, E)."""
-        sq = scaled_sq_dist(Xs, self.X, self.lengthscales)
-        return np.einsum("emn,en->me", self.signal_var[:, None, None] * np.exp(-0.5 * sq), self.beta)
+        return np.einsum("emn,en->me", se_ard(Xs, self.X, self.lengthscales, self.signal_var), self.beta)
 
     def predict_uncertain(self, mu, Sigma):
         """Exact moments of f(x) for x ~ N(mu, Sigma) (eq. 8–11, 20); see
