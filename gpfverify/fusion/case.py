@@ -32,6 +32,7 @@ from __future__ import annotations
 
 import json
 from dataclasses import dataclass, replace
+from typing import Any
 from pathlib import Path
 
 import numpy as np
@@ -333,7 +334,7 @@ def load_case(path) -> FusionCase:
 def case_to_dict(case: FusionCase) -> dict:
     """The JSON-able form read back by :func:`case_from_dict`."""
     c = case.central
-    out = {"central": {"mu_p": c.mu_p.tolist(), "C_p": c.C_p.tolist(), "mu_y": c.mu_y.tolist(),
+    out: dict[str, Any] = {"central": {"mu_p": c.mu_p.tolist(), "C_p": c.C_p.tolist(), "mu_y": c.mu_y.tolist(),
                        "C_y": c.C_y.tolist(), "C_xy": c.C_xy.tolist(), "sizes": list(c.sizes)},
            "locals": []}
     if c.circular:

@@ -16,6 +16,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
+from gpfverify.filters.records import Gaussian
 from gpfverify.fusion.estimates import FusedEstimate, checked_estimates
 from gpfverify.fusion.pairwise import joint_diagonalise
 from gpfverify.tolerances import algebra_rtol
@@ -35,7 +36,7 @@ def _two_sensor_ei(first, second) -> FusedEstimate:
 def ellipsoidal_intersection(estimates: Sequence) -> FusedEstimate:
     """EI of N local estimates, pairwise in order."""
     checked = checked_estimates(estimates)
-    fused = checked[0]
+    fused: Gaussian | FusedEstimate = checked[0]
     for nxt in checked[1:]:
         fused = _two_sensor_ei(fused, nxt)
     return FusedEstimate(fused.mean, fused.cov)

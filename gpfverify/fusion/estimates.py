@@ -30,7 +30,7 @@ def checked_estimates(estimates: Sequence, minimum: int = 1) -> list[Gaussian]:
     """Validated local estimates: objects with ``mean`` (D,) and positive definite ``cov``."""
     if len(estimates) < minimum:
         raise InputError(f"fusion needs at least {minimum} estimate(s), got {len(estimates)}")
-    out = []
+    out: list[Gaussian] = []
     for m, e in enumerate(estimates):
         mean = as_vector(e.mean, f"estimates[{m}].mean", None if not out else out[0].mean.shape[0])
         out.append(Gaussian(mean, as_covariance(e.cov, f"estimates[{m}].cov", mean.shape[0], definite=True)))

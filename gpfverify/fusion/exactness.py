@@ -315,6 +315,7 @@ def sensor_split(local: LocalReport, rule: RankRule, central_cov: np.ndarray | N
         return kernel_split(local.C_xy)
     if rule.name == "absolute":
         return kernel_split(local.C_xy, rule.tol)
+    assert rule.tol is not None  # RankRule.__post_init__ sets the canonical default
     prior, which = sensor_prior_covariance(local, central_cov)
     try:
         return canonical_split(local.C_xy, prior, local.C_y, rule.tol, which)
@@ -372,6 +373,7 @@ def analyse_sensors(case: FusionCase, gain: np.ndarray, rank_tol: float | None =
             g_m = gain[:, block]
             gap_gain = g_m @ local.C_y @ split.kernel_basis
             cc = split.whitening
+            assert cc is not None  # canonical splits carry their whitening
             residual = float(np.linalg.norm(cc.whiten_x(gap_gain), 2)) if gap_gain.size else 0.0
             scale = float(np.linalg.norm(cc.whiten_x(cc.times_y_factor(g_m)), 2)) if g_m.size else 0.0
             kappa = max(central_cond, cc.whitening_condition ** 2)

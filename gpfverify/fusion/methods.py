@@ -17,39 +17,47 @@ from gpfverify.fusion.case import FusionCase
 from gpfverify.fusion.centralized import cmf_update
 from gpfverify.fusion.ci import covariance_intersection, inverse_covariance_intersection
 from gpfverify.fusion.convex import convex_combination
-from gpfverify.fusion.distributed import dmf_update
+from gpfverify.fusion.distributed import DMFResult, dmf_update
 from gpfverify.fusion.ellipsoidal import ellipsoidal_intersection
-from gpfverify.fusion.rcc_ci import rcc_ci
+from gpfverify.fusion.estimates import FusedEstimate
+from gpfverify.fusion.rcc_ci import RccCiResult, rcc_ci
 
 METHODS = ("cmf", "dmf", "cc", "ci", "rcc-ci", "ici", "ei")
 
 
 def _local_estimates(case: FusionCase, method: str) -> list[Gaussian]:
-    missing = [m for m, r in enumerate(case.locals) if r.C_e is None]
-    if missing:
-        raise CaseFileError(f"method {method} needs C_e in every local entry; locals[{missing[0]}] has none")
-    return [Gaussian(r.mu_e, r.C_e) for r in case.locals]
+    out = []
+    for m, r in enumerate(case.locals):
+        if r.C_e is None:
+            raise CaseFileError(f"method {method} needs C_e in every local entry; locals[{m}] has none")
+        out.append(Gaussian(r.mu_e, r.C_e))
+    return out
 
 
 def fuse_case(case: FusionCase, method: str, criterion: str = "trace", c: float | None = None,
               on_empty: str = "error") -> dict:
     """The ``fuse --json`` object for one method."""
-    extra = {}
+    extra: dict = {}
+    fused: Gaussian | FusedEstimate | DMFResult | RccCiResult
     if method == "cmf":
         if case.y is None:
             raise CaseFileError("method cmf needs the stacked measurement 'y' in the case file")
         fused = cmf_update(case.central, case.y)
     elif method == "dmf":
-        fused = dmf_update(case)
-        extra = {"condition_holds": fused.condition_holds, "exact": fused.exact}
+        dmf = dmf_update(case)
+        fused = dmf
+        extra = {"condition_holds": dmf.condition_holds, "exact": dmf.exact}
     elif method == "cc":
         fused = convex_combination(_local_estimates(case, method))
     elif method == "ci":
-        fused = covariance_intersection(_local_estimates(case, method), criterion)
-        extra = {"weights": fused.weights.tolist(), "criterion": criterion}
+        ci = covariance_intersection(_local_estimates(case, method), criterion)
+        assert ci.weights is not None  # CI always reports its weights ω
+        fused = ci
+        extra = {"weights": ci.weights.tolist(), "criterion": criterion}
     elif method == "ici":
-        fused = inverse_covariance_intersection(_local_estimates(case, method), criterion)
-        extra = {"weights": [] if fused.weights is None else fused.weights.tolist(), "criterion": criterion}
+        ici = inverse_covariance_intersection(_local_estimates(case, method), criterion)
+        fused = ici
+        extra = {"weights": [] if ici.weights is None else ici.weights.tolist(), "criterion": criterion}
     elif method == "ei":
         fused = ellipsoidal_intersection(_local_estimates(case, method))
     elif method == "rcc-ci":

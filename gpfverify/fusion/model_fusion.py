@@ -48,6 +48,8 @@ from gpfverify.validate import as_matrix, as_vector
 
 if TYPE_CHECKING:
     from gpfverify.audit import CaseAudit, RunAudit
+    from gpfverify.fusion.estimates import FusedEstimate
+    from gpfverify.fusion.rcc_ci import RccCiResult
 
 #: the fusion rules :func:`run_fusion` can run
 METHODS: tuple[str, ...] = ("cmf", "dmf", "cw", "ci", "rcc-ci")
@@ -172,7 +174,13 @@ class FusionRun:
         """The per-step audits as a :class:`~gpfverify.audit.RunAudit` (None without audit)."""
         from gpfverify.audit import RunAudit
 
-        return None if self.steps[0].audit is None else RunAudit(tuple(s.audit for s in self.steps))
+        if self.steps[0].audit is None:
+            return None
+        audits = []
+        for s in self.steps:
+            assert s.audit is not None  # run_fusion audits every step or none
+            audits.append(s.audit)
+        return RunAudit(tuple(audits))
 
 
 def _timed(fn: Callable, *args, **kwargs):
@@ -184,7 +192,7 @@ def _timed(fn: Callable, *args, **kwargs):
 def _baselines(methods: Sequence[str], rcc_size: float | None) -> dict[str, Callable]:
     """The requested baselines as functions of the local posteriors (convex solvers imported
     only when requested)."""
-    out = {}
+    out: dict[str, Callable[[Sequence], FusedEstimate | RccCiResult]] = {}
     if "cw" in methods:
         from gpfverify.fusion.convex import convex_combination
         out["cw"] = convex_combination
@@ -255,7 +263,11 @@ def run_fusion(model, ys, *, family: str = "ukf", methods: Sequence[str] = METHO
             dmf_belief = dmf.record.posterior
         for name, rule in baselines.items():
             fused_estimates[name], seconds[name] = _timed(rule, local_beliefs)
-        steps.append(FusionStep(k, local, cmf, dmf, fused_estimates, _audit(dmf) if audit else None,
+        step_audit = None
+        if audit:
+            assert dmf is not None  # _checked_methods requires dmf when auditing
+            step_audit = _audit(dmf)
+        steps.append(FusionStep(k, local, cmf, dmf, fused_estimates, step_audit,
                                 seconds, tuple(s for _, s in timed)))
     return FusionRun(family, methods, tuple(steps))
 

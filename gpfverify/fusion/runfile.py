@@ -27,6 +27,7 @@ import re
 import tempfile
 import zipfile
 from dataclasses import dataclass
+from typing import Any
 from pathlib import Path
 from collections.abc import Iterable, Sequence
 
@@ -236,7 +237,7 @@ def load_run(path) -> RunFile:
     return RunFile(str(path), "json", ((0, load_case(path)),), False)
 
 
-def _one_line(message: str) -> str:
+def _one_line(message: object) -> str:
     return " ".join(str(message).split())
 
 
@@ -336,9 +337,11 @@ def _load_jsonl(path: Path) -> RunFile:
 
 def _signature_difference(sig, first) -> str:
     names = ("state dimension D", "central.sizes", "angle outputs (central.circular)")
+    def shown(v):
+        return list(v) if isinstance(v, tuple) else v
+
     for name, a, b in zip(names, sig, first):
         if a != b:
-            shown = (lambda v: list(v) if isinstance(v, tuple) else v)
             return f"{name} {shown(a)} differs from line 1's {shown(b)}"
     return "the layout differs from line 1's"  # pragma: no cover
 
@@ -420,10 +423,10 @@ def _load_npz(path: Path) -> RunFile:
     for name in ("sizes", "central_mu_p"):
         if name not in arrays:
             raise CaseFileError(f"{path}: missing array {name} (layout in docs/run-file-format.md)")
-    sizes = _numeric(path, "sizes", arrays["sizes"], integer=True)
-    if sizes.ndim != 1 or sizes.size == 0 or np.any(sizes <= 0):
-        raise CaseFileError(f"{path}: array sizes must be (N,) positive integers, got {sizes.tolist()}")
-    sizes = [int(s) for s in sizes]
+    sizes_arr = _numeric(path, "sizes", arrays["sizes"], integer=True)
+    if sizes_arr.ndim != 1 or sizes_arr.size == 0 or np.any(sizes_arr <= 0):
+        raise CaseFileError(f"{path}: array sizes must be (N,) positive integers, got {sizes_arr.tolist()}")
+    sizes = [int(s) for s in sizes_arr]
     mu_p = _numeric(path, "central_mu_p", arrays["central_mu_p"])
     if mu_p.ndim != 2 or 0 in mu_p.shape:
         raise CaseFileError(f"{path}: array central_mu_p has shape {mu_p.shape}, expected (T, D) with "
@@ -459,7 +462,7 @@ def _load_npz(path: Path) -> RunFile:
             raise CaseFileError(f"{path}: array k must hold step indices >= 0, got {int(k.min())}")
         ks = [int(v) for v in k]
         _check_ks(ks, lambda i: f"{path}: array k entry {i}")
-    rank_tol = [None] * T
+    rank_tol: list[float | None] = [None] * T
     if "rank_tol" in arrays:
         tol = _numeric(path, "rank_tol", arrays["rank_tol"]).astype(float)
         if tol.shape not in ((), (T,)):
@@ -474,8 +477,8 @@ def _load_npz(path: Path) -> RunFile:
             circular[name] = [int(i) for i in arr]
     steps = []
     for t in range(T):
-        data = {"central": {key: arrays[f"central_{key}"][t] for key in ("mu_p", "C_p", "mu_y", "C_y", "C_xy")},
-                "locals": [], "rank_tol": rank_tol[t]}
+        central = {key: arrays[f"central_{key}"][t] for key in ("mu_p", "C_p", "mu_y", "C_y", "C_xy")}
+        data: dict[str, Any] = {"central": central, "locals": [], "rank_tol": rank_tol[t]}
         data["central"]["sizes"] = list(sizes)
         if "central_circular" in circular:
             data["central"]["circular"] = circular["central_circular"]
@@ -572,9 +575,10 @@ def _npz_arrays(cases: list[FusionCase], ks) -> dict[str, np.ndarray]:
         for key in _LOCAL_KEYS[:-1]:
             out[f"local{m}_{key}"] = np.stack([getattr(c.locals[m], key) for c in cases])
         c_e = [c.locals[m].C_e for c in cases]
-        if all(v is not None for v in c_e):
-            out[f"local{m}_C_e"] = np.stack(c_e)
-        elif any(v is not None for v in c_e):
+        given = [v for v in c_e if v is not None]
+        if len(given) == len(c_e):
+            out[f"local{m}_C_e"] = np.stack(given)
+        elif given:
             raise InputError(f"locals[{m}].C_e must be given at every step or at none for an npz run file")
         if cases[0].locals[m].circular:
             out[f"circular{m}"] = np.array(cases[0].locals[m].circular, dtype=np.int64)
