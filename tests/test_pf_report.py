@@ -1,34 +1,87 @@
-"""The particle-flow report page: the paired decision rule, and rendering from tiny runs."""
+"""The particle-flow report page rendered from committed results.json fixtures (tiny pff1d and
+bearing runs; no experiment runs here). Regenerate the fixtures with
+``python tests/test_pf_report.py`` after a change of the experiments' summaries."""
 
-import numpy as np
+import json
+import shutil
+import sys
+from pathlib import Path
 
-from gpfverify.experiments import bearing, pff1d
-from gpfverify.experiments.runner import run_experiment
+from gpfverify.contract.claims import read_claims
+from gpfverify.contract.experiment import RunEntry, SectionRuns
 from gpfverify.report.document import Figure, Table
-from gpfverify.report.sections.particle_flow import _params, claims, paired_comparison, render
+from gpfverify.report.inputs import SectionInput
+from gpfverify.report.sections import particle_flow as section
+
+FIXTURES = Path(__file__).parent / "fixtures"
+PFF1D = FIXTURES / "pff1d" / "results.json"
+BEARING = FIXTURES / "bearing" / "results.json"
 
 
-def test_paired_comparison_decides_by_the_paired_t_test():
-    rng = np.random.default_rng(0)
-    worse = list(rng.normal(5.0, 1.0, 30))
-    assert paired_comparison([w - 1.0 + 0.01 * rng.normal() for w in worse], worse)[0] is True
-    assert paired_comparison([w + 1.0 + 0.01 * rng.normal() for w in worse], worse)[0] is False
-    assert paired_comparison([w + rng.normal() for w in worse], worse)[0] is None
-    # a divergence where the competitor stayed finite loses the claim, whatever the other runs say
-    assert paired_comparison([None] + [w - 1.0 for w in worse[1:]], worse)[0] is False
-    assert paired_comparison([None, None], [None, 1.0])[0] is False
+def _section_input(folder: Path, pff: dict | None, brg: dict | None) -> SectionInput:
+    entries, results = [], []
+    if pff is not None:
+        entries.append(RunEntry("pff1d", "tiny grid", "tiny", "pff1d-tiny/run/results.json"))
+        results.append(pff)
+    if brg is not None:
+        entries.append(RunEntry("bearing", "", "tiny", "bearing-tiny/run/results.json"))
+        results.append(brg)
+    return SectionInput(section.SLUG, folder, SectionRuns(section.SLUG, "quick", 1, tuple(entries)), tuple(results))
 
 
-def test_render_from_tiny_runs(tmp_path):
-    pff = run_experiment(pff1d, _params(pff1d, ["--steps", "5", "--table-q", "0.1", "10", "--table-r", "1",
-                                               "--dlambda", "0.05", "--gamma-r", "0.1", "1",
-                                               "--gamma-main-r", "0.1", "--gamma-dlambda", "0.05"]),
-                         3, 1, tmp_path / "pff", show_progress=False)
-    brg = run_experiment(bearing, _params(bearing, ["--duration", "8"]), 3, 1, tmp_path / "brg",
-                         show_progress=False)
-    section = render({"pff1d": pff, "bearing": brg}, tmp_path / "page")
-    figures = [b for b in section.blocks if isinstance(b, Figure)]
-    assert len(figures) == 3 and all(f.path.exists() for f in figures)
-    verdicts = [c.held for c in claims(pff, brg)]
-    assert len(verdicts) == 5 and all(v in (True, False, None) for v in verdicts)
-    assert any(isinstance(b, Table) and b.caption.startswith("Table 2") for b in section.blocks)
+def _texts(page) -> str:
+    return " ".join(getattr(b, "text", "") or getattr(b, "caption", "") for b in page.blocks)
+
+
+def test_render_from_the_stored_results(tmp_path):
+    pff, brg = json.loads(PFF1D.read_text()), json.loads(BEARING.read_text())
+    page = section.render_section(_section_input(tmp_path, pff, brg))
+    figures = [b for b in page.blocks if isinstance(b, Figure)]
+    assert len(figures) == 3 and all(f.path.exists() and f.path.parent == tmp_path for f in figures)
+    tables = {b.caption.split(":")[0]: b for b in page.blocks if isinstance(b, Table)}
+    assert len(tables["Table 1 (UNGM, N = 20, T = 6, 3 runs)"].rows) == len(pff["table1"])
+    assert [row[0] for row in tables["Table 2"].rows] == ["PF-N50", "PF-N200", "IE-PFF-N50"]
+    claims = [b for b in page.blocks if isinstance(b, Table) and b.css == "claims"]
+    records = read_claims(pff) + read_claims(brg)
+    assert len(claims) == 1 and len(claims[0].rows) == len(records) == 6  # 1 Δλ: 4 pff1d, 2 bearing
+    assert [row[2].verdict for row in claims[0].rows] == [r.verdict for r in records]
+    # every claim rests on 3 runs where the paper used 30 or 200; the run-time claim on timing
+    assert all(row[2].cautions for row in claims[0].rows)
+    assert any("wall-clock" in c for row in claims[0].rows for c in row[2].cautions)
+    text = _texts(page)
+    assert "Zhou et al. 2020" in page.title and "Journal of Computer Applications" in text
+    assert "the paper used 30" in text and "the paper used 200" in text
+    divergences = ", ".join(f"{d['method']} Δλ = {d['dlambda']:g} {d['spacing']}: {d['diverged']}/{d['total']}"
+                            for d in pff["divergences"])
+    assert divergences.split(", ")[0] in text
+    assert "_{" not in text and "x_k" not in text  # Unicode maths, no pseudo-LaTeX
+
+
+def test_render_states_a_missing_run(tmp_path):
+    page = section.render_section(_section_input(tmp_path, None, json.loads(BEARING.read_text())))
+    assert "No pff1d run" in _texts(page)
+    assert sum(isinstance(b, Figure) for b in page.blocks) == 1
+
+
+def test_report_section_imports_no_experiment():
+    source = Path(section.__file__).read_text(encoding="utf-8")
+    assert "gpfverify.experiments" not in source and "run_for_report" not in source
+    assert not hasattr(section, "build")
+
+
+def regenerate(work: Path) -> None:
+    """Write the fixtures from tiny runs (3 runs each; two gamma R so every claim is decided)."""
+    from gpfverify.experiments import bearing, pff1d
+    from gpfverify.experiments.runner import run_experiment
+
+    pff = pff1d.Params(steps=6, particles=20, table_q=(0.1, 10.0), table_r=(1.0,), dlambda=(0.1,),
+                       gamma_r=(0.1, 1.0), gamma_dlambda=0.1)
+    for name, module, params in (("pff1d", pff1d, pff), ("bearing", bearing, bearing.Params(duration=10))):
+        shutil.rmtree(work / name, ignore_errors=True)
+        run_experiment(module, params, 3, 1, work / name, show_progress=False)
+        (FIXTURES / name).mkdir(parents=True, exist_ok=True)
+        shutil.copyfile(work / name / "results.json", FIXTURES / name / "results.json")
+
+
+if __name__ == "__main__":
+    regenerate(Path(sys.argv[1]) if len(sys.argv) > 1 else Path("/tmp/gpfverify-pf-fixtures"))

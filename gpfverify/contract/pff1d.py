@@ -1,0 +1,179 @@
+"""Contract of the ``pff1d`` experiment (Zhou et al. 2020 §3.1: Table 1, Figs. 1–2): parameters,
+profiles, the per-run record and the summary records the report reads back.
+
+``results.json`` (CONTRACT.md): ``"rmse"``, ``"time_per_run"``, ``"diverged"``: {"PF", "UPF",
+"EDH", "IE-PFF"} at the gamma case's main R (``"main_case"``); ``"table1"``: a list of
+:class:`Table1Row`; ``"gamma"``: {R: {variant label: :class:`GammaEntry`}}; ``"divergences"``: a
+list of :class:`DivergenceCount`; ``"significance_level"`` of the paired tests; ``"claims"``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Literal
+
+from gpfverify.contract.experiment import Profile, Setting
+from gpfverify.contract.methods import Method
+from gpfverify.contract.params import Params as ParamsBase
+from gpfverify.contract.params import option
+from gpfverify.contract.particle_flow import EDH, IE_PFF, PF, UPF, Spacing, Variant
+from gpfverify.errors import InputError
+
+NAME = "pff1d"
+#: the paper's Monte Carlo runs (§3.1: "30 次蒙特卡洛仿真")
+PAPER_RUNS = 30
+#: methods of Table 1 (Gaussian UNGM) and of Fig. 2 (gamma noise)
+TABLE_METHODS: tuple[Method, ...] = (PF, EDH, IE_PFF)
+GAMMA_METHODS: tuple[Method, ...] = (PF, UPF, EDH, IE_PFF)
+
+Case = Literal["ungm", "gamma"]
+
+
+@dataclass(frozen=True)
+class Prior:
+    """A scalar Gaussian prior N(mean, var) of x₀ (the truth's and every filter's)."""
+
+    mean: float
+    var: float
+
+
+@dataclass(frozen=True)
+class Params(ParamsBase):
+    """Parameters of ``pff1d``; defaults are the paper's settings (N = 50, T = 50, the Table-1 grid)
+    and, where the paper is silent, the interpretations stated in the report."""
+
+    particles: int = option(50, "particles per filter", minimum=2)
+    steps: int = option(50, "time steps T", minimum=1)
+    table_q: tuple[float, ...] = option((0.1, 1.0, 10.0), "UNGM process-noise variances Q of the Table-1 grid",
+                                        above=0.0)
+    table_r: tuple[float, ...] = option((0.1, 1.0), "UNGM measurement-noise variances R of the Table-1 grid",
+                                        above=0.0)
+    dlambda: tuple[float, ...] = option((0.1, 0.01, 0.001), "pseudo-time steps Δλ of the flows (Table-1 grid)",
+                                        above=0.0, maximum=1.0)
+    spacings: tuple[Spacing, ...] = option(("uniform", "exponential"),
+                                           "λ-step schedules of the flows; the first is the main one")
+    exponential_ratio: float = option(1.2, "ratio of consecutive λ-steps of the exponential schedule", above=0.0)
+    gamma_r: tuple[float, ...] = option((0.01, 0.1, 1.0), "measurement-noise variances R of the gamma case (Fig. 2)",
+                                        above=0.0)
+    gamma_main_r: float = option(0.1, "R of the gamma case reported under the 'rmse' key", above=0.0)
+    gamma_dlambda: float = option(0.01, "Δλ of the flows in the gamma case", above=0.0, maximum=1.0)
+    gamma_shape: float = option(3.0, "shape of the gamma process noise Γ(shape, rate)", above=0.0)
+    gamma_rate: float = option(2.0, "rate of the gamma process noise Γ(shape, rate)", above=0.0)
+    ungm_prior: Prior = option(Prior(0.0, 1.0), "prior N(mean, var) of x₀ in the UNGM cases", cli=False)
+    gamma_prior: Prior = option(Prior(1.0, 0.75), "prior N(mean, var) of x₀ in the gamma cases", cli=False)
+
+    def check(self) -> None:
+        for name in ("table_q", "table_r", "dlambda", "spacings", "gamma_r"):
+            values = getattr(self, name)
+            if not values:
+                raise InputError(f"--{name.replace('_', '-')} needs at least one value")
+            if len(set(values)) != len(values):
+                raise InputError(f"--{name.replace('_', '-')} has a repeated value: {list(values)}")
+        if self.gamma_main_r not in self.gamma_r:
+            raise InputError(f"--gamma-main-r {self.gamma_main_r:g} must be one of --gamma-r {list(self.gamma_r)}")
+        for name in ("ungm_prior", "gamma_prior"):
+            if not getattr(self, name).var > 0:
+                raise InputError(f"{name} variance must be positive, got {getattr(self, name).var}")
+
+    @property
+    def main_spacing(self) -> Spacing:
+        return self.spacings[0]
+
+
+#: quick profile: the grid's extreme process noises at one R, two Δλ, the gamma case at its main R
+QUICK_PARAMS = Params(table_q=(0.1, 10.0), table_r=(1.0,), dlambda=(0.1, 0.01), gamma_r=(0.1,))
+PROFILES: dict[str, Profile] = {
+    "quick": Profile(2, (Setting("reduced grid", "reduced", QUICK_PARAMS),)),
+    "full": Profile(PAPER_RUNS, (Setting("the paper's grid", "paper", Params()),)),
+}
+
+
+# ----------------------------------------------------------------------------- per run
+
+@dataclass(frozen=True)
+class VariantRun:
+    """One filter variant on one case's trajectory: the squared error per step (None when the
+    filter diverged) and the CPU seconds it took."""
+
+    case: Case
+    q: float
+    r: float
+    variant: Variant
+    sq_err: tuple[float, ...] | None
+    seconds: float
+
+
+@dataclass(frozen=True)
+class RunRecord:
+    """One Monte Carlo run: every (case, Q, R) × variant, in a fixed order."""
+
+    records: tuple[VariantRun, ...]
+
+
+# ----------------------------------------------------------------------------- summary
+
+@dataclass(frozen=True)
+class Table1Row:
+    """One cell × variant of the UNGM grid (``results.json`` "table1")."""
+
+    Q: float
+    R: float
+    method: str
+    dlambda: float | None
+    spacing: Spacing | None
+    #: the RMSE curve averaged over time
+    mean_rmse: float
+    diverged: int
+    runs: int
+    time_per_run: float
+    #: RMSE per step over the runs that did not diverge
+    rmse: tuple[float, ...]
+    #: per run √(mean over steps of err²), None where the filter diverged
+    run_rmse: tuple[float | None, ...]
+
+    @property
+    def variant(self) -> Variant:
+        return Variant(Method.parse(self.method), self.dlambda, self.spacing)
+
+
+@dataclass(frozen=True)
+class GammaEntry:
+    """One variant at one R of the gamma case (``results.json`` "gamma"[R][label])."""
+
+    method: str
+    dlambda: float | None
+    spacing: Spacing | None
+    rmse: tuple[float, ...]
+    mean_rmse: float
+    diverged: int
+    time_per_run: float
+    run_rmse: tuple[float | None, ...]
+
+    @property
+    def variant(self) -> Variant:
+        return Variant(Method.parse(self.method), self.dlambda, self.spacing)
+
+
+@dataclass(frozen=True)
+class DivergenceCount:
+    """How often a flow variant diverged over the whole UNGM grid (cells × runs)."""
+
+    method: str
+    dlambda: float
+    spacing: Spacing
+    diverged: int
+    total: int
+
+
+def gamma_entries(results: dict) -> dict[str, dict[str, GammaEntry]]:
+    """``results.json``'s "gamma" read back as typed entries."""
+    from gpfverify.contract.serial import from_json
+
+    return from_json(dict[str, dict[str, GammaEntry]], results["gamma"], "gamma")
+
+
+def table1_rows(results: dict) -> list[Table1Row]:
+    """``results.json``'s "table1" read back as typed rows."""
+    from gpfverify.contract.serial import from_json
+
+    return from_json(list[Table1Row], results["table1"], "table1")
