@@ -1,37 +1,45 @@
 """The tbd experiment: results.json per CONTRACT.md, determinism, metrics against direct counts,
-the report page, and CLI errors."""
+typed parameters and run records, claim records, the report page rendered from a stored
+results.json, and command-line errors."""
 
 import json
+import shutil
+from pathlib import Path
 
 import numpy as np
 import pytest
 
 from gpfverify.cli import main
+from gpfverify.contract import VERDICTS, ClaimRecord, from_json, read_claims, to_json
+from gpfverify.contract.tbd import PROFILES, MethodRun, Params, RunRecord, SnrRun, TbdMethod
 from gpfverify.errors import InputError
 from gpfverify.experiments import tbd
 from gpfverify.experiments.runner import run_experiment, without_timing
 from gpfverify.report.document import Figure, Section, Table
+from gpfverify.report.inputs import load_section
 from gpfverify.report.sections import tbd as tbd_section
 
-SMALL = ("--snr", "4", "6", "9", "--particles", "80", "--tpf-particles", "80", "40",
-         "--zeta-sweep-particles", "40", "--zeta-sweep", "1", "0.6", "0.4")
+FIXTURE = Path(__file__).parent / "fixtures" / "tbd"
+SMALL = Params(snr=(4.0, 6.0, 9.0), particles=80, tpf_particles=(80, 40), zeta_sweep_particles=40,
+               zeta_sweep=(1.0, 0.6, 0.4))
 
 
 @pytest.fixture(scope="module")
-def small_results(tmp_path_factory):
-    params = tbd.default_params(SMALL)
-    return run_experiment(tbd, params, 3, 5, tmp_path_factory.mktemp("tbd"), show_progress=False)
+def small_run(tmp_path_factory):
+    out = tmp_path_factory.mktemp("tbd")
+    return run_experiment(tbd, SMALL, 3, 5, out, show_progress=False), out
 
 
-def _numbers(results):
-    return without_timing(results)
+@pytest.fixture(scope="module")
+def small_results(small_run):
+    return small_run[0]
 
 
 def test_results_follow_the_contract(small_results):
     r = small_results
     assert r["experiment"] == "tbd" and r["runs"] == 3 and r["seed"] == 5 and r["runs_ok"] == 3
     keys = {"PFTBD-N80", "TPFTBD-N80", "TPFTBD-N40"}
-    frames = r["params"]["scenario"]["frames"]
+    frames = r["params"]["frames"]
     assert set(r["existence_prob"]) == keys and set(r["rmse"]) == keys and set(r["roc"]) == keys
     for key in keys:
         assert len(r["existence_prob"][key]) == frames and len(r["rmse"][key]) == frames
@@ -46,12 +54,146 @@ def test_results_follow_the_contract(small_results):
     assert r["zeta_sweep"]["methods"] == ["PFTBD-N80", "TPFTBD-N40-1", "TPFTBD-N40-0.6", "TPFTBD-N40-0.4"]
     # the sweep's ζ = 0.6 method is the headline TPFTBD-N40, computed once
     assert r["zeta_sweep"]["existence_prob"]["TPFTBD-N40-0.6"] == r["existence_prob"]["TPFTBD-N40"]
+    assert Params.from_json(r["params"]) == SMALL  # the parameters recorded once, read back typed
     json.dumps(r, allow_nan=False)  # strict JSON: absent frames are null, not NaN
 
 
+def _deterministic(results: dict) -> dict:
+    """The fields that must repeat exactly: without timing fields and without the claim records
+    that rest on wall-clock timing (their statistic is a time ratio)."""
+    out = without_timing(results)
+    out["claims"] = [c for c in out["claims"] if not c["timing"]]
+    return out
+
+
 def test_same_numbers_for_the_same_seed(small_results, tmp_path):
-    again = run_experiment(tbd, tbd.default_params(SMALL), 3, 5, tmp_path, show_progress=False)
-    assert _numbers(again) == _numbers(small_results)
+    again = run_experiment(tbd, SMALL, 3, 5, tmp_path, show_progress=False)
+    assert _deterministic(again) == _deterministic(small_results)
+    assert [c["id"] for c in again["claims"]] == [c["id"] for c in small_results["claims"]]
+
+
+def test_params_and_run_records_round_trip(small_run):
+    for params in (SMALL, Params(), *(s.params for p in PROFILES.values() for s in p.settings)):
+        assert from_json(Params, json.loads(json.dumps(to_json(params)))) == params
+    saved = json.loads((small_run[1] / "runs" / "run-000000.json").read_text())
+    record = from_json(RunRecord, saved["result"])
+    assert isinstance(record, RunRecord) and isinstance(record.cases[0], SnrRun)
+    assert isinstance(record.cases[0].methods["PFTBD-N80"], MethodRun)
+    assert from_json(RunRecord, json.loads(json.dumps(to_json(record)))) == record
+    assert [c.snr_db for c in record.cases] == list(SMALL.snr)
+
+
+def test_method_names_are_values():
+    for key in ("PFTBD-N2000", "TPFTBD-N1000", "TPFTBD-N1000-0.6", "TPFTBD-N250-1"):
+        assert TbdMethod.parse(key).key == key
+    assert TbdMethod.parse("TPFTBD-N1000-0.6") == TbdMethod("TPFTBD", 1000, 0.6)
+    with pytest.raises(InputError, match="not a TBD method"):
+        TbdMethod.parse("TPFTBD-1000")
+
+
+def test_profiles_are_the_quick_settings_and_the_papers_counts():
+    quick, full = PROFILES["quick"], PROFILES["full"]
+    (q,), (f,) = quick.settings, full.settings
+    assert quick.runs == 32 and q.params.snr == (2.0, 4.0, 6.0, 8.0)
+    assert (q.params.particles, q.params.tpf_particles, q.params.zeta_sweep_particles) == (500, (500, 250), 250)
+    assert full.runs == tbd.DEFAULT_RUNS == 3000 and f.params == Params()
+    assert Params().snr == tuple(float(s) for s in range(1, 10)) and Params().focus_snr_db == 6.0
+
+
+@pytest.mark.parametrize("changes, option", [
+    ({"particles": 999}, "--particles"),
+    ({"tpf_particles": (80, 41)}, "--tpf-particles"),
+    ({"snr": (3.0, 9.0), "focus_snr": 6.0}, "--focus-snr"),
+    ({"snr": (3.0, 3.0)}, "--snr"),
+    ({"snr": ()}, "--snr"),
+    ({"zeta": 1.5}, "--zeta"),
+    ({"zeta_sweep": (0.6, -0.1)}, "--zeta-sweep"),
+    ({"pfa": 1.0}, "--pfa"),
+    ({"snr_convention": "mean"}, "--snr-convention"),
+    ({"first_frame": 25}, "--first-frame"),
+    ({"initial_state": (1.0, 2.0)}, "--initial-state"),
+    ({"blur": 0.0}, "--blur"),
+])
+def test_invalid_params_name_the_option(changes, option):
+    with pytest.raises(InputError, match=option):
+        Params(**changes)
+
+
+def test_claims_are_records_decided_from_the_data(small_results):
+    records = read_claims(small_results)
+    assert [c.id for c in records] == ["tbd/snr-gain-equal-n", "tbd/time-equal-n", "tbd/half-n-detects-as-well",
+                                       "tbd/time-half-n", "tbd/zeta-best", "tbd/only-zeta-0.4-worse"]
+    by_id = {c.id: c for c in records}
+    times = small_results["time_per_run"]
+    for slug, key, threshold in (("time-equal-n", "TPFTBD-N80", 1.2), ("time-half-n", "TPFTBD-N40", 0.6)):
+        claim = by_id[f"tbd/{slug}"]
+        ratio = times[key] / times["PFTBD-N80"]
+        assert claim.timing and claim.statistic == pytest.approx(ratio) and claim.threshold == threshold
+        assert claim.verdict == ("held" if ratio <= threshold else "NOT held")
+    gain = small_results["snr_gain"]["TPFTBD-N80"]
+    claim = by_id["tbd/snr-gain-equal-n"]
+    assert claim.statistic == gain["mean_gain_db"]
+    assert claim.verdict == ("held" if gain["mean_gain_db"] >= 1 else "NOT held")
+    pd = small_results["pd_at_pfa"]
+    assert by_id["tbd/half-n-detects-as-well"].statistic == pytest.approx(pd["TPFTBD-N40"] - pd["PFTBD-N80"])
+    for c in records:
+        assert c.paper == "seed004" and c.n == 3 and c.paper_n == 3000 and c.source.startswith("Chen et al. 2015")
+        assert any("3 runs" in caution for caution in c.cautions)  # fewer runs than the paper's 3000
+        assert ClaimRecord.from_json(json.loads(json.dumps(c.to_json()))) == c
+
+
+def _fixture_section(tmp_path) -> Section:
+    shutil.copytree(FIXTURE, tmp_path / "tbd")
+    return tbd_section.render_section(load_section(tmp_path, "tbd"))
+
+
+def test_report_page_renders_from_a_stored_results_file(tmp_path):
+    section = _fixture_section(tmp_path)
+    assert isinstance(section, Section) and "Chen et al. 2015" in section.title
+    figures = [b for b in section.blocks if isinstance(b, Figure)]
+    assert len(figures) == 2 and all(f.path.exists() and f.path.parent == tmp_path / "tbd" for f in figures)
+    claims = [b for b in section.blocks if isinstance(b, Table) and b.caption.startswith("Claims")]
+    assert len(claims) == 1 and len(claims[0].rows) == 6
+    stored = json.loads((FIXTURE / "tbd-small" / "results.json").read_text())
+    rows = claims[0].rows
+    assert [_verdict(row) for row in rows] == [c["verdict"] for c in stored["claims"]]
+    assert all(row[0].startswith(c["claim"]) for row, c in zip(rows, stored["claims"]))
+    assert all("the paper used 3000" in _cautions(row) for row in rows)  # a caution on every row
+
+
+def _verdict(row) -> str:
+    cell = next(c for c in row if str(getattr(c, "verdict", c)) in VERDICTS)
+    return str(getattr(cell, "verdict", cell))
+
+
+def _cautions(row) -> str:
+    return " ".join(" ".join(getattr(c, "cautions", ())) + " " + str(c) for c in row)
+
+
+def test_the_renderer_runs_no_experiment():
+    source = Path(tbd_section.__file__).read_text()
+    assert "gpfverify.experiments" not in source and "run_for_report" not in source
+    assert not hasattr(tbd_section, "build")
+
+
+def test_reproduce_offers_the_generated_options(capsys):
+    with pytest.raises(SystemExit) as exit_info:
+        main(["reproduce", "tbd", "--help"])
+    out = capsys.readouterr().out
+    assert exit_info.value.code == 0
+    for option in ("--snr", "--focus-snr", "--snr-convention", "--particles", "--tpf-particles", "--zeta-sweep",
+                   "--patch-radius", "--grid-size", "--runs", "--out"):
+        assert option in out
+
+
+def test_bad_options_are_input_errors(tmp_path, capsys):
+    code = main(["reproduce", "tbd", "--snr", "3", "--focus-snr", "6", "--runs", "1", "--out", str(tmp_path)])
+    err = capsys.readouterr().err
+    assert code == 2 and len(err.strip().splitlines()) == 1 and "focus-snr" in err
+    with pytest.raises(SystemExit) as exit_info:  # argparse refuses a value outside the choices
+        main(["reproduce", "tbd", "--snr-convention", "mean", "--runs", "1", "--out", str(tmp_path)])
+    assert exit_info.value.code == 2 and "--snr-convention" in capsys.readouterr().err
+    assert not (tmp_path / "results.json").exists()
 
 
 def test_pd_at_pfa_matches_a_direct_count():
@@ -79,23 +221,3 @@ def test_snr_gain_of_a_shifted_curve():
     assert np.all(np.abs(np.array(gain["gain_db"]) - 1.5) < 0.5)
     assert gain["mean_gain_db"] == pytest.approx(np.mean(gain["gain_db"]))
     assert tbd.snr_gain(snrs, np.ones(9), np.zeros(9)) is None
-
-
-def test_report_page_renders_from_results(small_results, tmp_path):
-    section = tbd_section.render(small_results, tmp_path)
-    assert isinstance(section, Section)
-    figures = [b for b in section.blocks if isinstance(b, Figure)]
-    assert len(figures) == 2 and all(f.path.exists() for f in figures)
-    claims = [b for b in section.blocks if isinstance(b, Table) and b.caption.startswith("Claims")]
-    assert len(claims) == 1 and len(claims[0].rows) == 6
-    assert {row[1] for row in claims[0].rows} <= {"held", "NOT held", "undecided"}
-
-
-def test_bad_options_are_input_errors(tmp_path, capsys):
-    with pytest.raises(InputError, match="focus-snr"):
-        tbd.default_params(("--snr", "3", "9", "--focus-snr", "6"))
-    with pytest.raises(InputError, match="n_particles"):
-        tbd.default_params(("--particles", "999"))
-    code = main(["reproduce", "tbd", "--snr", "3", "--focus-snr", "6", "--runs", "1", "--out", str(tmp_path)])
-    err = capsys.readouterr().err
-    assert code == 2 and len(err.strip().splitlines()) == 1 and "focus-snr" in err

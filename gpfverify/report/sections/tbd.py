@@ -1,5 +1,7 @@
-"""Report page: seed 004 — PF-TBD against the two-stage TPFTBD (Rutten's scenario), laid out like
-the paper's figures 1–6 and table 1, with its claims checked."""
+"""Report page: Chen et al. 2015 (seed 004) — PF-TBD against the two-stage TPFTBD in Rutten's
+scenario, laid out like the paper's figures 1–6 and table 1, with the claim records the experiment
+wrote. A pure renderer: it reads ``results.json`` (through :mod:`gpfverify.contract.tbd`'s types)
+and computes no experiment."""
 
 from __future__ import annotations
 
@@ -7,216 +9,151 @@ from pathlib import Path
 
 import numpy as np
 
-from gpfverify.experiments import tbd
-from gpfverify.report.document import Claim, Figure, Paragraph, Section, Table, claims_table, fmt
+from gpfverify.contract.claims import read_claims
+from gpfverify.contract.papers import PAPERS
+from gpfverify.contract.tbd import INTERPRETATIONS, NAME, PAPER, PAPER_RUNS, Params, TbdMethod
+from gpfverify.report.document import Figure, Paragraph, Section, Table, claim_records_table, fmt
 from gpfverify.report.figures import new_figure, save
+from gpfverify.report.inputs import SectionInput
 
 SLUG = "tbd"
-#: quick profile: particle counts divided by 4 (the 2:1 ratio of the claims kept), 4 SNRs, few runs
-QUICK_ARGS = ("--snr", "2", "4", "6", "8", "--particles", "500", "--tpf-particles", "500", "250",
-              "--zeta-sweep-particles", "250")
-QUICK_RUNS = 32
-#: a difference counts as significant beyond this many (combined) standard errors
-SIGNIFICANCE_SE = 2.0
+#: the settings a reduced run changes, in words
+REDUCIBLE = {"particles": "PF-TBD particles", "tpf_particles": "TPFTBD particles",
+             "zeta_sweep_particles": "ζ-sweep particles", "snr": "SNR values"}
 
 
-def build(ctx) -> Section:
-    from gpfverify.report import run_for_report
-
-    if ctx.quick:
-        params, runs = tbd.default_params(QUICK_ARGS), QUICK_RUNS
-    else:
-        params, runs = tbd.default_params(), tbd.DEFAULT_RUNS
-    return render(run_for_report(ctx, SLUG, tbd, params, runs), ctx)
+def render_section(data: SectionInput) -> Section:
+    entries = data.of(NAME)
+    if not entries:
+        return Section(SLUG, _title()).add(Paragraph("No tbd run was recorded for this section."))
+    _, results = entries[0]
+    return render(results, data.folder)
 
 
-def _labels(results: dict) -> tuple[str, str | None, str | None]:
-    """(PF-TBD, TPFTBD at the same N, TPFTBD at half that N) labels, when present."""
-    p = results["params"]
-    n = p["pf_particles"]
-    same = f"TPFTBD-N{n}" if n in p["tpf_particles"] else None
-    half = f"TPFTBD-N{n // 2}" if n // 2 in p["tpf_particles"] else None
-    return f"PFTBD-N{n}", same, half
+def _title() -> str:
+    return f"Track-before-detect: PF-TBD against the two-stage TPFTBD ({PAPERS[PAPER].short})"
 
 
-def _compare(better: float, worse: float, se: float) -> bool | None:
-    """Held when better ≥ worse, NOT held when it falls short by more than SIGNIFICANCE_SE s.e.,
-    undecided in between."""
-    if better >= worse:
-        return True
-    return False if worse - better > SIGNIFICANCE_SE * se else None
+def _values(values) -> str:
+    return ", ".join(fmt(v) for v in values)
 
 
-def _all(verdicts: list[bool | None]) -> bool | None:
-    """NOT held if any part is NOT held, undecided if any is undecided, else held."""
-    if any(v is False for v in verdicts):
-        return False
-    return None if any(v is None for v in verdicts) else True
-
-
-def claims(results: dict) -> list[Claim]:
-    p = results["params"]
-    pf, same, half = _labels(results)
-    focus = results["focus_snr_db"]
-    pd, se, times = results["pd_at_pfa"], results["pd_at_pfa_se"], results["time_per_run"]
-    out = []
-
-    def pd_text(label):
-        return f"{label} {pd[label]:.3f} ± {se[label]:.3f}"
-
-    if same:
-        gain = tbd.snr_gain(results["snr_db"], results["pd_vs_snr"][same], results["pd_vs_snr"][pf])
-        evidence = ("P_d curves do not overlap" if gain is None else
-                    f"mean horizontal gap {gain['mean_gain_db']:.2f} dB over P_d ∈ "
-                    f"[{gain['pd_levels'][0]:.2f}, {gain['pd_levels'][-1]:.2f}] "
-                    f"(min {min(gain['gain_db']):.2f}, max {max(gain['gain_db']):.2f} dB)")
-        out.append(Claim(f"≥ 1 dB SNR gain of TPFTBD over PF-TBD at equal N = {p['pf_particles']} "
-                         f"(P_d at P_fa = {p['pfa']})",
-                         None if gain is None else gain["mean_gain_db"] >= 1.0, evidence))
-        ratio = times[same] / times[pf]
-        out.append(Claim("At equal N, TPFTBD costs about 10–20 % more time than PF-TBD (at most 20 %)",
-                         ratio <= 1.2, f"time ratio {ratio:.2f} ({times[same]:.3f} s vs {times[pf]:.3f} s "
-                                       "CPU per sequence)"))
-    if half:
-        comb = float(np.hypot(se[half], se[pf]))
-        out.append(Claim(f"TPFTBD with N = {p['pf_particles'] // 2} detects at least as well as PF-TBD "
-                         f"with N = {p['pf_particles']} ({focus:g} dB, P_fa = {p['pfa']})",
-                         _compare(pd[half], pd[pf], comb),
-                         f"P_d {pd_text(half)} vs {pd_text(pf)}; position RMSE {results['rmse_mean'][half]:.3f} "
-                         f"vs {results['rmse_mean'][pf]:.3f} cells"))
-        ratio = times[half] / times[pf]
-        out.append(Claim("… and needs only 55–60 % of PF-TBD's time (at most 60 %)", ratio <= 0.60,
-                         f"time ratio {ratio:.2f} ({times[half]:.3f} s vs {times[pf]:.3f} s CPU per sequence)"))
-    sweep = results.get("zeta_sweep")
-    if sweep:
-        by_zeta = {z: f"TPFTBD-N{sweep['n_particles']}-{z:g}" for z in sweep["zeta"]}
-        spd, sse = sweep["pd_at_pfa"], sweep["pd_at_pfa_se"]
-        listing = "; ".join(f"ζ = {z:g}: P_d {spd[l]:.3f} ± {sse[l]:.3f}, RMSE {sweep['rmse_mean'][l]:.3f}"
-                            for z, l in by_zeta.items())
-        if 0.6 in by_zeta:
-            best = max(by_zeta.values(), key=lambda l: spd[l])
-            six = by_zeta[0.6]
-            out.append(Claim(f"ζ ≈ 0.6 is the best transfer parameter (N = {sweep['n_particles']}, "
-                             f"{sweep['snr_db']:g} dB)", _compare(spd[six], spd[best], float(np.hypot(sse[six], sse[best]))),
-                             listing))
-        if 0.4 in by_zeta and pf in spd:
-            def vs_pf(label, beats):
-                comb = float(np.hypot(sse[label], sse[pf]))
-                return _compare(spd[label], spd[pf], comb) if beats else _compare(spd[pf], spd[label], comb)
-
-            held = _all([vs_pf(label, z != 0.4) for z, label in by_zeta.items()])
-            out.append(Claim(f"Only ζ = 0.4 is worse than PF-TBD N = {p['pf_particles']}; the other ζ "
-                             "(including ζ = 1) beat it", held,
-                             f"PF-TBD: P_d {spd[pf]:.3f} ± {sse[pf]:.3f}; " + listing))
-    return out
-
-
-def render(results: dict, ctx_or_dir) -> Section:
-    """The page from a ``results.json`` body; figures go to the section folder of a report
-    context, or to the given directory."""
-    out_dir = ctx_or_dir.section_dir(SLUG) if hasattr(ctx_or_dir, "section_dir") else Path(ctx_or_dir)
-    p = results["params"]
-    m, s = p["model"], p["scenario"]
-    section = Section(SLUG, "Track-before-detect: PF-TBD vs two-stage TPFTBD (seed 004)")
+def render(results: dict, out_dir: Path) -> Section:
+    """The page from one ``results.json`` body; figures go to ``out_dir``."""
+    p = Params.from_json(results["params"])
+    pfa = fmt(p.pfa)
+    section = Section(SLUG, _title())
+    section.add(Paragraph(f"Source: {PAPERS[PAPER].citation}"))
     section.add(Paragraph(
-        f"Rutten's scenario: {m['grid_size']}×{m['grid_size']} cells, Σ = {m['blur']}, q1 = {m['q1']}, "
-        f"q2 = {m['q2']}, T = {m['period']}, P_b = {m['p_birth']}, P_d = {m['p_death']}, {s['frames']} frames, "
-        f"target in frames {s['first_frame']}–{s['last_frame']} starting at {s['initial_state']}. "
-        f"{results['runs_ok']} runs (root seed {results['seed']}), each with a target-present and a "
-        f"target-absent sequence at every SNR in {p['snr_db']} dB; PF-TBD N = {p['pf_particles']}, TPFTBD "
-        f"N = {p['tpf_particles']} with ζ = {p['zeta']}. The paper used 3000 runs and N = 2000/2000/1000."
-        + _reduced_note(results)))
-    section.add(Table(["interpretation", "choice"], [[k, v] for k, v in p["interpretations"].items()],
+        f"Rutten's scenario: {p.grid_size}×{p.grid_size} cells of size Δ = {fmt(p.cell_size)}, blur Σ = {fmt(p.blur)}, "
+        f"q₁ = {fmt(p.q1)}, q₂ = {fmt(p.q2)}, T = {fmt(p.period)}, birth and death probabilities "
+        f"{fmt(p.p_birth)} and {fmt(p.p_death)}, {p.frames} frames, the target in frames {p.first_frame}–"
+        f"{p.last_frame} starting at [{_values(p.initial_state)}]. {results['runs_ok']} runs (root seed "
+        f"{results['seed']}), each with a target-present and a target-absent sequence at every SNR in "
+        f"{_values(p.snr)} dB ({p.snr_convention} convention); PF-TBD with N = {p.particles}, TPFTBD with "
+        f"N = {_values(p.tpf_particles)} and ζ = {fmt(p.zeta)}. The paper used {PAPER_RUNS} runs at each SNR "
+        f"from 1 to 9 dB and N = 2000 (PF-TBD), 2000 and 1000 (TPFTBD)." + _reduced_note(results, p)))
+    section.add(Table(["what", "how this implementation does it"], [[k, v] for k, v in INTERPRETATIONS.items()],
                       "Interpretations (seed 004's parameter table and equations were lost in extraction)"))
-    section.add(Figure(_main_figure(results, out_dir / "tbd_fig1_4.png"),
-                       f"Paper's figures 1–4: existence probability (solid: target present, dashed: absent), "
-                       f"ROC and position RMSE at {results['focus_snr_db']:g} dB, and P_d at P_fa = {p['pfa']} "
-                       "against SNR (±1 s.e.)."))
-    rows = [[label, fmt(results["pd_at_pfa"][label], 3), fmt(results["pd_at_pfa_se"][label], 2),
-             fmt(results["rmse_mean"][label], 3), fmt(results["time_per_run"][label], 3)]
-            for label in results["existence_prob"]]
-    section.add(Table(["method", f"P_d at P_fa = {p['pfa']}", "s.e.", "position RMSE (cells)",
-                       "CPU s per sequence"], rows,
-                      f"Paper's table 1 and the {results['focus_snr_db']:g} dB summary"))
-    section.add(Table(["method"] + [f"{v:g} dB" for v in results["snr_db"]],
-                      [[label] + [fmt(v, 3) for v in vals] for label, vals in results["pd_vs_snr"].items()],
-                      f"P_d at P_fa = {p['pfa']} against SNR"))
+    focus = fmt(results["focus_snr_db"])
+    section.add(Figure(_main_figure(results, p, out_dir / "tbd_fig1_4.png"),
+                       f"The paper's figures 1–4: existence probability (solid: target present, dashed: absent), "
+                       f"ROC and position RMSE at {focus} dB, and the detection probability Pd at false-alarm "
+                       f"rate Pfa = {pfa} against SNR (±1 standard error)."))
+    rows = [[key, fmt(results["pd_at_pfa"][key], 3), fmt(results["pd_at_pfa_se"][key], 2),
+             fmt(results["rmse_mean"][key], 3), fmt(results["time_per_run"][key], 3)]
+            for key in results["existence_prob"]]
+    section.add(Table(["method", f"Pd at Pfa = {pfa}", "s.e.", "position RMSE (cells)", "CPU s per sequence"], rows,
+                      f"The paper's table 1 and the {focus} dB summary"))
+    section.add(Table(["method"] + [f"{fmt(v)} dB" for v in results["snr_db"]],
+                      [[key] + [fmt(v, 3) for v in values] for key, values in results["pd_vs_snr"].items()],
+                      f"Pd at Pfa = {pfa} against SNR"))
+    gains = [[key, "—" if g is None else fmt(g["mean_gain_db"], 3),
+              "—" if g is None else f"{fmt(g['pd_levels'][0], 2)}–{fmt(g['pd_levels'][-1], 2)}"]
+             for key, g in results.get("snr_gain", {}).items()]
+    if gains:
+        section.add(Table(["method", "mean SNR gain over PF-TBD (dB)", "over Pd levels"], gains,
+                          "Horizontal distance between the Pd-against-SNR curves (linear interpolation between "
+                          "the simulated SNRs; — when the curves share no Pd level)"))
     sweep = results.get("zeta_sweep")
     if sweep:
+        sweep_snr = fmt(sweep["snr_db"])
         section.add(Figure(_sweep_figure(sweep, out_dir / "tbd_fig5_6.png"),
-                           f"Paper's figures 5–6: ROC and position RMSE for ζ ∈ {sweep['zeta']} "
-                           f"(N = {sweep['n_particles']}) against PF-TBD at {sweep['snr_db']:g} dB."))
-        rows = [[label, fmt(sweep["pd_at_pfa"][label], 3), fmt(sweep["pd_at_pfa_se"][label], 2),
-                 fmt(sweep["rmse_mean"][label], 3)] for label in sweep["methods"]]
-        section.add(Table(["method", f"P_d at P_fa = {p['pfa']}", "s.e.", "position RMSE (cells)"], rows,
-                          f"ζ sweep at {sweep['snr_db']:g} dB"))
+                           f"The paper's figures 5–6: ROC and position RMSE for ζ ∈ {{{_values(sweep['zeta'])}}} "
+                           f"(N = {sweep['n_particles']}) against PF-TBD at {sweep_snr} dB."))
+        rows = [[key, fmt(sweep["pd_at_pfa"][key], 3), fmt(sweep["pd_at_pfa_se"][key], 2),
+                 fmt(sweep["rmse_mean"][key], 3)] for key in sweep["methods"]]
+        section.add(Table(["method", f"Pd at Pfa = {pfa}", "s.e.", "position RMSE (cells)"], rows,
+                          f"ζ sweep at {sweep_snr} dB"))
         section.add(Paragraph(
-            "ζ = 1 replaces no particle, so TPFTBD with ζ = 1 is PF-TBD with the same N (our tests check "
+            "ζ = 1 replaces no particle, so TPFTBD with ζ = 1 is PF-TBD with the same N (the tests check "
             "equality for the same random stream). The paper nevertheless reports ζ = 1 at N = 1000 beating "
-            "PF-TBD at N = 2000, which suggests its reported estimate includes the second-stage mean even "
-            "when no particle is transferred; we report the expected mean of the transferred particles "
-            "(see the interpretations), which for ζ = 1 is the PF estimate."))
+            "PF-TBD at N = 2000, which suggests that its reported estimate includes the second-stage mean even "
+            "when no particle is transferred; we report the expected mean of the transferred particles (see the "
+            "interpretations), which for ζ = 1 is the PF estimate."))
     section.add(Paragraph(
-        "Verdicts: a comparison 'A at least as good as B' is held when A ≥ B, NOT held when A falls short "
-        f"by more than {SIGNIFICANCE_SE:g} combined standard errors (over runs), undecided in between. "
-        "The SNR gain is the mean horizontal distance between the P_d-vs-SNR curves (linear interpolation "
-        "between the simulated SNRs). Times are CPU seconds of this implementation, in which the PF step "
-        "is vectorised over particles and patch pixels, so the second stage's weighted moments over all "
-        "merged particles weigh relatively more than in the paper's implementation."))
-    section.add(claims_table(claims(results), "Claims of seed 004 checked"))
+        "How the verdicts are decided: a comparison “A at least as good as B” holds when A ≥ B, does not hold "
+        "when A falls short by more than the number of combined standard errors over runs stated in its "
+        "evidence, and is undecided in between. The SNR gain is the mean horizontal distance between the "
+        "Pd-against-SNR curves. Times are CPU seconds of this implementation, in which the PF step is "
+        "vectorised over particles and patch pixels, so the second stage's weighted moments over all merged "
+        "particles weigh relatively more than in the paper's implementation."))
+    section.add(claim_records_table(read_claims(results), f"Claims of {PAPERS[PAPER].short} checked"))
     return section
 
 
-def _reduced_note(results: dict) -> str:
+def _reduced_note(results: dict, p: Params) -> str:
     """A warning when the run used fewer runs, particles or SNRs than the paper."""
-    paper, p = tbd.default_params(), results["params"]
-    reduced = [k for k in ("pf_particles", "tpf_particles", "zeta_sweep_particles", "snr_db") if p[k] != paper[k]]
-    if not reduced and results["runs"] >= tbd.DEFAULT_RUNS:
+    paper = Params()
+    reduced = [words for name, words in REDUCIBLE.items() if getattr(p, name) != getattr(paper, name)]
+    if not reduced and results["runs"] >= PAPER_RUNS:
         return ""
-    fewer_particles = p["pf_particles"] < paper["pf_particles"]
-    return (" REDUCED SETTINGS (e.g. the report's quick profile): fewer runs"
-            + (f" and other {', '.join(reduced)}" if reduced else "")
-            + " than the paper, so the numbers are noisier"
+    return (f" Reduced settings (e.g. the report's quick profile): {results['runs']} runs instead of {PAPER_RUNS}"
+            + (f", other {', '.join(reduced)}" if reduced else "")
+            + ", so the numbers are noisier"
             + (" and the second stage's fixed per-frame cost weighs more in the time ratios"
-               if fewer_particles else "")
+               if p.particles < paper.particles else "")
             + "; `gpfverify report --full` uses the paper's settings.")
 
 
-def _plot_curves(ax, curves: dict, frames: int, ylabel: str):
-    k = np.arange(1, frames + 1)
-    for i, (label, values) in enumerate(curves.items()):
+def _plot_curves(ax, curves: dict, ylabel: str) -> None:
+    for i, (key, values) in enumerate(curves.items()):
         y = np.array([np.nan if v is None else v for v in values], dtype=float)
-        ax.plot(k, y, f"C{i}", marker=".", label=label)
+        ax.plot(np.arange(1, y.size + 1), y, color=_colour(key, i), marker=".", label=key)
     ax.set_xlabel("frame")
     ax.set_ylabel(ylabel)
 
 
-def _plot_roc(ax, roc: dict):
-    for i, (label, curve) in enumerate(roc.items()):
-        ax.plot(curve["pfa"], curve["pd"], f"C{i}", label=label)
+def _colour(key: str, index: int) -> str:
+    """PF-TBD in black, the TPFTBD variants in the colour cycle."""
+    return "k" if TbdMethod.parse(key).kind == "PFTBD" else f"C{index}"
+
+
+def _plot_roc(ax, roc: dict) -> None:
+    for i, (key, curve) in enumerate(roc.items()):
+        ax.plot(curve["pfa"], curve["pd"], color=_colour(key, i), label=key)
     ax.set_xscale("symlog", linthresh=0.01)
     ax.set_xlim(0, 1)
     ax.set_xlabel("false-alarm probability")
     ax.set_ylabel("detection probability")
 
 
-def _main_figure(results: dict, path: Path) -> Path:
-    frames = results["params"]["scenario"]["frames"]
+def _main_figure(results: dict, p: Params, path: Path) -> Path:
     fig, axes = new_figure(2, 2, width=5.2, height=3.6)
     ax = axes[0, 0]
-    _plot_curves(ax, results["existence_prob"], frames, "existence probability")
-    for i, values in enumerate(results["existence_prob_absent"].values()):
-        ax.plot(np.arange(1, frames + 1), values, f"C{i}--", lw=0.8)
+    _plot_curves(ax, results["existence_prob"], "existence probability")
+    for i, (key, values) in enumerate(results["existence_prob_absent"].items()):
+        ax.plot(np.arange(1, len(values) + 1), values, color=_colour(key, i), ls="--", lw=0.8)
     ax.legend(fontsize=8)
     _plot_roc(axes[0, 1], results["roc"])
     axes[0, 1].legend(fontsize=8)
-    _plot_curves(axes[1, 0], results["rmse"], frames, "position RMSE (cells)")
+    _plot_curves(axes[1, 0], results["rmse"], "position RMSE (cells)")
     ax = axes[1, 1]
-    for i, (label, values) in enumerate(results["pd_vs_snr"].items()):
-        ax.errorbar(results["snr_db"], values, yerr=results["pd_vs_snr_se"][label], color=f"C{i}",
-                    marker="o", capsize=2, label=label)
+    for i, (key, values) in enumerate(results["pd_vs_snr"].items()):
+        ax.errorbar(results["snr_db"], values, yerr=results["pd_vs_snr_se"][key], color=_colour(key, i),
+                    marker="o", capsize=2, label=key)
     ax.set_xlabel("SNR (dB)")
-    ax.set_ylabel(f"P_d at P_fa = {results['params']['pfa']}")
+    ax.set_ylabel(f"Pd at Pfa = {fmt(p.pfa)}")
     ax.legend(fontsize=8)
     return save(fig, path)
 
@@ -225,6 +162,6 @@ def _sweep_figure(sweep: dict, path: Path) -> Path:
     fig, axes = new_figure(2, 1, width=5.2, height=3.6)
     _plot_roc(axes[0, 0], sweep["roc"])
     axes[0, 0].legend(fontsize=8)
-    _plot_curves(axes[0, 1], sweep["rmse"], len(next(iter(sweep["rmse"].values()))), "position RMSE (cells)")
+    _plot_curves(axes[0, 1], sweep["rmse"], "position RMSE (cells)")
     axes[0, 1].legend(fontsize=8)
     return save(fig, path)
