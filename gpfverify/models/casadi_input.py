@@ -135,7 +135,8 @@ def model_from_casadi(state, transition, process_cov, sensors: Sequence[Sensor],
         if not isinstance(expr, (ca.SX, ca.MX)):
             return expr
         try:
-            return ca.Function(casadi_name(label), inputs, [expr])
+            # SX or MX: casadi's overloads take one kind per call, a mix is casadi's error below
+            return ca.Function(casadi_name(label), inputs, [expr])  # type: ignore[list-item]
         except Exception as exc:  # free symbols, a state that is not a symbol, mixed SX and MX
             raise InputError(f"{label} is not a casadi expression in the state"
                              f"{'' if step is None else ' and the step k'}: {casadi_message(exc)}") from exc

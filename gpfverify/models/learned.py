@@ -19,6 +19,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, replace
 from functools import cached_property
+from typing import Protocol
 from collections.abc import Sequence
 
 import numpy as np
@@ -39,13 +40,21 @@ def _check_gp(gp, what: str, in_dim: int | None = None, out_dim: int | None = No
         raise InputError(f"{what} gives {gp.output_dim} outputs, expected {out_dim}")
 
 
+class GaussianProcessLike(Protocol):
+    """What :class:`GPModel` reads from its transition GP itself (:func:`_check_gp` checks the
+    rest of the GaussianProcess interface the filters use)."""
+
+    @property
+    def input_dim(self) -> int: ...
+
+
 @dataclass(frozen=True, eq=False)
 class GPModel(StackedMeasurement):
     """``transition`` GP (D → D), ``sensors`` measurement GPs (D → l_m), ``sensor_circular`` the
     angle outputs of each sensor (0-based; empty tuple or omitted: none), ``circular_state`` the
     angle state components."""
 
-    transition: object
+    transition: GaussianProcessLike
     sensors: Sequence
     sensor_circular: Sequence[Sequence[int]] = ()
     circular_state: tuple[int, ...] = ()

@@ -30,6 +30,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field, replace
 from functools import cached_property
+from typing import TYPE_CHECKING
 from collections.abc import Callable, Sequence
 
 import numpy as np
@@ -84,11 +85,16 @@ class Sensor:
     ``circular`` the 0-based outputs that are angles (radians), ``jacobian`` optional for numpy
     callables (``jacobian(x (D,)[, k]) -> (l, D)``), ``name`` used in messages."""
 
-    measure: object
-    noise_cov: object
+    measure: object  # as given; a StateSpaceModel binds it to a ModelFunction (StateSpaceModel.measures)
+    noise_cov: np.ndarray
     circular: tuple[int, ...] = ()
     jacobian: Callable | None = None
     name: str = ""
+
+    if TYPE_CHECKING:
+        # the arguments as given; __post_init__ stores noise_cov and circular validated
+        def __init__(self, measure: object, noise_cov: object, circular: Sequence[int] = (),
+                     jacobian: Callable | None = None, name: str = "") -> None: ...
 
     def __post_init__(self):
         label = f"sensor {self.name!r}" if self.name else "sensor"
@@ -115,6 +121,13 @@ class StackedMeasurement:
     """The stacked measurement y = [y¹; …; y^N] of a model's sensors, shared by the model types:
     they define ``sizes`` (l_1, …, l_N) and ``sensor_circular`` (each sensor's angle outputs)."""
 
+    if TYPE_CHECKING:
+        @property
+        def sizes(self) -> tuple[int, ...]: ...
+
+        @property
+        def sensor_circular(self) -> Sequence[Sequence[int]]: ...
+
     @property
     def measurement_dim(self) -> int:
         return int(sum(self.sizes))
@@ -137,17 +150,36 @@ class StateSpaceModel(StackedMeasurement):
     ``measure`` are :class:`ModelFunction`\\ s, ``process_cov``, ``prior_mean``, ``prior_cov`` and
     every ``noise_cov`` validated float arrays, ``sensors`` a tuple."""
 
-    transition: object
-    process_cov: object
-    sensors: Sequence[Sensor]
-    prior_mean: object
-    prior_cov: object
+    transition: ModelFunction
+    process_cov: np.ndarray
+    sensors: tuple[Sensor, ...]
+    prior_mean: np.ndarray
+    prior_cov: np.ndarray
     circular_state: tuple[int, ...] = ()
     transition_jacobian: Callable | None = None
     transition_sampler: Callable | None = None
     transition_logpdf: Callable | None = None
     name: str = ""
     probe: bool = field(default=True, repr=False)
+
+    if TYPE_CHECKING:
+        # the arguments as given (module docstring); __post_init__ stores them validated and bound
+        def __init__(self, transition: object, process_cov: object, sensors: Sensor | Sequence[Sensor],
+                     prior_mean: object, prior_cov: object, circular_state: Sequence[int] = (),
+                     transition_jacobian: Callable | None = None, transition_sampler: Callable | None = None,
+                     transition_logpdf: Callable | None = None, name: str = "", probe: bool = True) -> None: ...
+
+    @classmethod
+    def from_casadi(cls, *args, **kwargs) -> StateSpaceModel:
+        """See :func:`gpfverify.models.casadi_input.model_from_casadi`."""
+        from gpfverify.models.casadi_input import model_from_casadi
+        return model_from_casadi(*args, **kwargs)
+
+    @classmethod
+    def from_sympy(cls, *args, **kwargs) -> StateSpaceModel:
+        """See :func:`gpfverify.models.sympy_input.model_from_sympy`."""
+        from gpfverify.models.sympy_input import model_from_sympy
+        return model_from_sympy(*args, **kwargs)
 
     def __post_init__(self):
         set_ = lambda key, value: object.__setattr__(self, key, value)  # noqa: E731
@@ -188,7 +220,7 @@ class StateSpaceModel(StackedMeasurement):
         spread = np.sqrt(np.diag(self.prior_cov))
         spread = np.where(spread > 0.0, spread, 1.0)
         batch = np.stack([x, x + spread, x - 2.0 * spread])
-        for fn in (self.transition,) + tuple(s.measure for s in self.sensors):
+        for fn in (self.transition,) + self.measures:
             alone = np.concatenate([fn(row[None], k) for row in batch])
             together = fn(batch, k)
             tol = algebra_rtol() * max(float(np.abs(alone).max()), 1.0)
@@ -213,6 +245,15 @@ class StateSpaceModel(StackedMeasurement):
         """Each sensor's angle outputs."""
         return tuple(s.circular for s in self.sensors)
 
+    @cached_property
+    def measures(self) -> tuple[ModelFunction, ...]:
+        """Every sensor's ``measure`` as the :class:`ModelFunction` ``__post_init__`` bound it to."""
+        out = []
+        for s in self.sensors:
+            assert isinstance(s.measure, ModelFunction)  # bound in __post_init__
+            out.append(s.measure)
+        return tuple(out)
+
     @property
     def Q(self) -> np.ndarray:
         return self.process_cov
@@ -229,8 +270,8 @@ class StateSpaceModel(StackedMeasurement):
     def h(self, x: np.ndarray, k: int = 1) -> np.ndarray:
         """Stacked h(x, k) for states x (N, D): (N, L)."""
         if len(self.sensors) == 1:
-            return self.sensors[0].measure(x, k)
-        return np.concatenate([s.measure(x, k) for s in self.sensors], axis=-1)
+            return self.measures[0](x, k)
+        return np.concatenate([h(x, k) for h in self.measures], axis=-1)
 
     def f_jacobian(self, x: np.ndarray, k: int = 1) -> np.ndarray:
         """∂f/∂x at states x (..., D): (..., D, D)."""
@@ -239,8 +280,8 @@ class StateSpaceModel(StackedMeasurement):
     def h_jacobian(self, x: np.ndarray, k: int = 1) -> np.ndarray:
         """∂h/∂x of the stacked measurement at states x (..., D): (..., L, D)."""
         if len(self.sensors) == 1:
-            return self.sensors[0].measure.jacobian(x, k)
-        return np.concatenate([s.measure.jacobian(x, k) for s in self.sensors], axis=-2)
+            return self.measures[0].jacobian(x, k)
+        return np.concatenate([h.jacobian(x, k) for h in self.measures], axis=-2)
 
     def residual(self, y: np.ndarray, y_pred: np.ndarray) -> np.ndarray:
         """y − y_pred with the angle outputs wrapped to (−π, π]."""
@@ -255,10 +296,10 @@ class StateSpaceModel(StackedMeasurement):
 
     @cached_property
     def _linear(self) -> tuple[np.ndarray, np.ndarray] | None:
-        parts = (self.transition,) + tuple(s.measure for s in self.sensors)
-        if not all(isinstance(p, LinearFunction) for p in parts):
+        linear = [h for h in self.measures if isinstance(h, LinearFunction)]
+        if not isinstance(self.transition, LinearFunction) or len(linear) != len(self.measures):
             return None
-        return self.transition.matrix, np.concatenate([s.measure.matrix for s in self.sensors])
+        return self.transition.matrix, np.concatenate([h.matrix for h in linear])
 
     # -- derived models ---------------------------------------------------------------------------
 
@@ -329,21 +370,6 @@ def linear_model(F, H, Q, R, prior_mean=None, prior_cov=None, sizes: Sequence[in
     return StateSpaceModel(F, Q, sensors, np.zeros(d) if prior_mean is None else prior_mean,
                            np.eye(d) if prior_cov is None else prior_cov)
 
-
-def _from_casadi(cls, *args, **kwargs) -> StateSpaceModel:
-    """:meth:`StateSpaceModel.from_casadi` (see :func:`gpfverify.models.casadi_input.model_from_casadi`)."""
-    from gpfverify.models.casadi_input import model_from_casadi
-    return model_from_casadi(*args, **kwargs)
-
-
-def _from_sympy(cls, *args, **kwargs) -> StateSpaceModel:
-    """:meth:`StateSpaceModel.from_sympy` (see :func:`gpfverify.models.sympy_input.model_from_sympy`)."""
-    from gpfverify.models.sympy_input import model_from_sympy
-    return model_from_sympy(*args, **kwargs)
-
-
-StateSpaceModel.from_casadi = classmethod(_from_casadi)
-StateSpaceModel.from_sympy = classmethod(_from_sympy)
 
 
 def require_model(model, kind: type, who: str) -> None:
