@@ -6,6 +6,7 @@ templates with numbers pasted in.
 
 from __future__ import annotations
 
+import re
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -17,9 +18,68 @@ class Paragraph:
 
 @dataclass(frozen=True)
 class Table:
+    """Rows of cells: plain values (numbers formatted with :func:`fmt`), or :class:`Cell`,
+    :class:`VerdictCell` and :class:`Link` for colour, cautions and links. ``row_ids`` (optional,
+    one per row, "" for none) become HTML anchors; ``css`` is the table's HTML class."""
+
     headers: list[str]
     rows: list[list]
     caption: str = ""
+    row_ids: tuple[str, ...] = ()
+    css: str = ""
+
+
+@dataclass(frozen=True)
+class Cell:
+    """A table cell with an HTML class (colour) and a tooltip; Markdown shows the value alone."""
+
+    value: object
+    css: str = ""
+    title: str = ""
+
+
+class VerdictCell(str):
+    """A verdict ("held", "NOT held", "undecided", "not decidable", or a certificate status
+    "proved", "refuted", "checked"), coloured in HTML, with the reasons to hold it loosely
+    (:attr:`gpfverify.contract.ClaimRecord.cautions`) shown as one caution mark. It is the
+    verdict's string (``VerdictCell("held") == "held"``), so tables compare as before."""
+
+    cautions: tuple[str, ...]
+
+    def __new__(cls, verdict: str, cautions: tuple[str, ...] | list[str] = ()) -> VerdictCell:
+        cell = super().__new__(cls, verdict)
+        cell.cautions = tuple(cautions)
+        return cell
+
+    @property
+    def verdict(self) -> str:
+        return str(self)
+
+    def __repr__(self) -> str:
+        return f"VerdictCell({str(self)!r}, {self.cautions!r})"
+
+
+@dataclass(frozen=True)
+class Link:
+    """A link to another place of the report: ``slug`` (a section) and an optional ``anchor``
+    inside the HTML page; Markdown links to the section's page."""
+
+    text: str
+    slug: str
+    anchor: str = ""
+
+
+#: verdict or status -> HTML class (colours in :mod:`gpfverify.report.render`)
+VERDICT_CLASSES = {"held": "v-held", "NOT held": "v-not-held", "undecided": "v-undecided",
+                   "not decidable": "v-not-decidable", "proved": "v-proved", "refuted": "v-refuted",
+                   "checked": "v-checked"}
+#: the warning sign that marks a caution, on the page and in Markdown
+CAUTION_MARK = "\u26a0"
+
+
+def anchor_id(text: str) -> str:
+    """``text`` as an HTML id (letters, digits, '-', '_')."""
+    return re.sub(r"[^A-Za-z0-9_-]+", "-", text).strip("-") or "x"
 
 
 @dataclass(frozen=True)
@@ -34,6 +94,23 @@ class Code:
 
 
 @dataclass(frozen=True)
+class Details:
+    """Long text a reader opens on demand (HTML ``<details>``; Markdown: a bold line and the text)."""
+
+    summary: str
+    text: str
+
+
+@dataclass(frozen=True)
+class Chips:
+    """A row of small coloured marks, one per verdict, each linking to its claim's row (the
+    summary table); Markdown shows ``text`` instead."""
+
+    chips: tuple[tuple[str, str, str, bool], ...]  # (verdict, tooltip, anchor, cautioned)
+    text: str = ""
+
+
+@dataclass(frozen=True)
 class Claim:
     """One claim of a paper checked against our numbers: ``held`` is True, False, or None when
     the run was too small to decide."""
@@ -45,20 +122,26 @@ class Claim:
 
 def claim_records_table(records, caption: str = "Claims checked") -> Table:
     """Claim records (:class:`gpfverify.contract.ClaimRecord`, as stored in ``results.json``) as a
-    table: claim, where the paper makes it, verdict, evidence, and the cautions a reader needs
-    (fewer runs than the paper, wall-clock timing, the record's own caveats)."""
-    rows = []
+    table: claim, where the paper makes it, verdict (coloured, with one caution mark when it rests
+    on fewer runs than the paper or on wall-clock timing), evidence and the record's caveats. Rows
+    are anchored by the record's ``id`` so that the summary links to them."""
+    rows, ids = [], []
     for r in records:
-        notes = [*r.cautions, *r.caveats]
-        rows.append([r.claim + (f" ({r.setting})" if r.setting else ""), r.source, r.verdict, r.evidence,
-                     "; ".join(notes)])
-    return Table(["claim", "source", "verdict", "evidence", "caution"], rows, caption)
+        rows.append([r.claim + (f" ({r.setting})" if r.setting else ""), r.source,
+                     VerdictCell(r.verdict, tuple(r.cautions)), r.evidence, "; ".join(r.caveats)])
+        ids.append(claim_anchor(r))
+    return Table(["claim", "source", "verdict", "evidence", "caveats"], rows, caption, tuple(ids), "claims")
+
+
+def claim_anchor(record) -> str:
+    """The HTML id of a claim record's row (from its ``id``, else its claim and setting)."""
+    return "claim-" + anchor_id(record.id or f"{record.claim}-{record.setting}")
 
 
 def claims_table(claims: list[Claim], caption: str = "Claims checked") -> Table:
     verdict = {True: "held", False: "NOT held", None: "undecided"}
     return Table(["claim", "verdict", "evidence"],
-                 [[c.claim, verdict[c.held], c.evidence] for c in claims], caption)
+                 [[c.claim, VerdictCell(verdict[c.held]), c.evidence] for c in claims], caption, css="claims")
 
 
 @dataclass
@@ -94,3 +177,46 @@ def integer_ranges(values, dash: str = "–") -> str:
             parts.append(str(start) if start == v else f"{start}{dash}{v}")
             start = None
     return ", ".join(parts)
+
+
+# ---- maths as Unicode ------------------------------------------------------------------------------
+
+_SUB = dict(zip("0123456789+-=()aehijklmnoprstuvx", "₀₁₂₃₄₅₆₇₈₉₊₋₌₍₎ₐₑₕᵢⱼₖₗₘₙₒₚᵣₛₜᵤᵥₓ"))
+_SUP = dict(zip("0123456789+-=()inTt", "⁰¹²³⁴⁵⁶⁷⁸⁹⁺⁻⁼⁽⁾ⁱⁿᵀᵗ"))
+_SUP["−"] = "⁻"
+_SUB["−"] = "₋"
+_COMMANDS = {
+    "alpha": "α", "beta": "β", "gamma": "γ", "delta": "δ", "epsilon": "ε", "varepsilon": "ε", "zeta": "ζ",
+    "eta": "η", "theta": "θ", "kappa": "κ", "lambda": "λ", "mu": "μ", "nu": "ν", "xi": "ξ", "pi": "π",
+    "rho": "ρ", "sigma": "σ", "tau": "τ", "phi": "φ", "varphi": "φ", "chi": "χ", "psi": "ψ", "omega": "ω",
+    "Gamma": "Γ", "Delta": "Δ", "Theta": "Θ", "Lambda": "Λ", "Xi": "Ξ", "Pi": "Π", "Sigma": "Σ", "Phi": "Φ",
+    "Psi": "Ψ", "Omega": "Ω", "sum": "Σ", "prod": "Π", "int": "∫", "partial": "∂", "nabla": "∇",
+    "le": "≤", "leq": "≤", "ge": "≥", "geq": "≥", "ne": "≠", "neq": "≠", "approx": "≈", "sim": "~",
+    "times": "×", "cdot": "·", "pm": "±", "in": "∈", "infty": "∞", "to": "→", "rightarrow": "→",
+    "mapsto": "↦", "sqrt": "√", "top": "ᵀ", "|": "‖", "ldots": "…", "dots": "…", "otimes": "⊗",
+    "subseteq": "⊆", "propto": "∝",
+}
+_BLACKBOARD = {"R": "ℝ", "N": "ℕ", "Z": "ℤ", "Q": "ℚ", "C": "ℂ", "E": "𝔼"}
+
+
+def _script(text: str, table: dict[str, str], marker: str) -> str:
+    if all(ch in table for ch in text):
+        return "".join(table[ch] for ch in text)
+    return f"{marker}({text})" if len(text) > 1 else f"{marker}{text}"
+
+
+def unicode_math(text: str) -> str:
+    """Pseudo-LaTeX in report text as Unicode, legible offline without a maths renderer:
+    ``x_{k+1}`` → xₖ₊₁, ``C^{-1}`` → C⁻¹, ``A^T`` → Aᵀ, ``\\sigma^2`` → σ², ``\\Sigma`` → Σ,
+    ``\\le`` → ≤, ``\\mathbb{R}`` → ℝ. Only braced scripts (``_{...}``, ``^{...}``), single-digit or
+    ``T`` superscripts and backslash commands are converted, so identifiers such as
+    ``results_json`` (and the readable ``P_m``) are left alone; a script with a character that
+    Unicode has no sub/superscript for stays readable as ``C_(xy)``."""
+    if "\\" not in text and "_{" not in text and "^" not in text:
+        return text
+    text = re.sub(r"\\mathbb\{(\w)\}", lambda m: _BLACKBOARD.get(m.group(1), m.group(1)), text)
+    text = re.sub(r"\\(?:mathrm|text|mathbf|operatorname)\{([^{}]*)\}", r"\1", text)
+    text = re.sub(r"\\([A-Za-z]+|\|)", lambda m: _COMMANDS.get(m.group(1), m.group(0)), text)
+    text = re.sub(r"_\{([^{}]*)\}", lambda m: _script(m.group(1).replace(" ", ""), _SUB, "_"), text)
+    text = re.sub(r"\^\{([^{}]*)\}", lambda m: _script(m.group(1).replace(" ", ""), _SUP, "^"), text)
+    return re.sub(r"\^([0-9T])(?![0-9A-Za-z])", lambda m: _SUP[m.group(1)], text)

@@ -5,10 +5,15 @@ The report package reads these files and renders; it never runs an experiment.""
 from __future__ import annotations
 
 import json
+from collections import Counter
+from collections.abc import Iterable
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
+from gpfverify.contract.claims import VERDICTS, ClaimRecord, read_claims
 from gpfverify.contract.experiment import RunEntry, SectionRuns
+from gpfverify.contract.serial import from_json, to_json
 from gpfverify.errors import InputError
 
 RUNS_FILE = "runs.json"
@@ -51,16 +56,19 @@ def load_section(out_dir: Path, slug: str) -> SectionInput:
     """The section ``slug`` of the report in ``out_dir`` as written by the command layer."""
     folder = Path(out_dir) / slug
     runs = SectionRuns.from_json(_read(folder / RUNS_FILE))
-    results = tuple(_read(folder / e.results) for e in runs.entries)
-    if not all(isinstance(r, dict) for r in results):
-        raise InputError(f"{folder}: a results.json named in {RUNS_FILE} is not an object")
+    results: list[dict] = []
+    for entry in runs.entries:
+        loaded = _read(folder / entry.results)
+        if not isinstance(loaded, dict):
+            raise InputError(f"{folder / entry.results} is not a results object")
+        results.append(loaded)
     certificates: tuple = ()
     if runs.certificates is not None:
-        loaded = _read(folder / runs.certificates)
-        if not isinstance(loaded, list):
+        listed = _read(folder / runs.certificates)
+        if not isinstance(listed, list) or not all(isinstance(c, dict) for c in listed):
             raise InputError(f"{folder / runs.certificates} is not a list of certificates")
-        certificates = tuple(loaded)
-    return SectionInput(slug, folder, runs, results, certificates)
+        certificates = tuple(listed)
+    return SectionInput(slug, folder, runs, tuple(results), certificates)
 
 
 def write_runs(out_dir: Path, runs: SectionRuns) -> Path:
@@ -74,3 +82,145 @@ def write_runs(out_dir: Path, runs: SectionRuns) -> Path:
     tmp.write_text(json.dumps(runs.to_json(), indent=1), encoding="utf-8")
     os.replace(tmp, path)
     return path
+
+
+# ---- what the page summarises: runs, verdicts and certificates of a section -------------------------
+
+#: certificate statuses (gpfverify.symbolic.certificate), in the order the page counts them
+STATUSES = ("proved", "refuted", "checked")
+
+
+@dataclass(frozen=True)
+class RunInfo:
+    """What was run for one setting of an experiment (read from its ``results.json``)."""
+
+    experiment: str
+    setting: str
+    runs: int
+    runs_ok: int
+    seed: int | None
+    #: the paper's run counts stated by the setting's claim records (usually one)
+    paper_n: tuple[int, ...] = ()
+    #: 1-, 5- and 15-minute load averages when results.json was written, and the core count
+    load_average: tuple[float, ...] = ()
+    cpus: int | None = None
+    git_commit: str | None = None
+    created: str | None = None
+
+
+@dataclass(frozen=True)
+class Control:
+    """A negative control of a certificate: a mutated statement the proof must reject."""
+
+    mutant: str
+    rejected: bool
+    false_on_instance: bool | None = None
+
+
+@dataclass(frozen=True)
+class CertificateInfo:
+    """A proof certificate (``certificates.json``, CONTRACT.md) as the page shows it."""
+
+    claim: str
+    statement: str
+    method: str
+    status: str
+    detail: str
+    seconds: float = 0.0
+    scope: str = ""
+    negative_controls: tuple[Control, ...] = ()
+
+    @classmethod
+    def of(cls, record: dict) -> CertificateInfo:
+        """From one record of ``certificates.json`` (unknown fields such as ``provenance`` are
+        not shown)."""
+        try:
+            controls = tuple(Control(str(c["mutant"]), bool(c["rejected"]),
+                                     None if c.get("false_on_instance") is None else bool(c["false_on_instance"]))
+                             for c in record.get("negative_controls", ()))
+            return cls(str(record["claim"]), str(record.get("statement", "")), str(record.get("method", "")),
+                       str(record["status"]), str(record.get("detail", "")), float(record.get("seconds", 0.0)),
+                       str(record.get("scope", "")), controls)
+        except (KeyError, TypeError, ValueError) as exc:
+            raise InputError(f"malformed certificate {str(record)[:80]!r}: {exc}") from None
+
+
+@dataclass(frozen=True)
+class SectionSummary:
+    """A section as the report's summary, "what was run" table and table of contents see it; kept
+    in ``<section>/section.json`` so that a later ``--only`` build still counts it."""
+
+    slug: str
+    title: str
+    profile: str
+    seed: int | None
+    #: keys of gpfverify.contract.PAPERS the section reproduces
+    papers: tuple[str, ...]
+    claims: tuple[ClaimRecord, ...] = ()
+    certificates: tuple[CertificateInfo, ...] = ()
+    runs: tuple[RunInfo, ...] = ()
+
+    def to_json(self) -> dict[str, Any]:
+        return to_json(self)
+
+    @classmethod
+    def from_json(cls, data: Any) -> SectionSummary:
+        return from_json(cls, data, "section summary")
+
+    @property
+    def counts(self) -> Counter[str]:
+        """Verdicts and certificate statuses -> how many."""
+        return Counter([c.verdict for c in self.claims] + [c.status for c in self.certificates])
+
+    @property
+    def cautioned(self) -> int:
+        """How many verdicts carry a caution (fewer runs than the paper, wall-clock timing)."""
+        return sum(1 for c in self.claims if c.cautions)
+
+
+def run_info(entry: RunEntry, results: dict) -> RunInfo:
+    """One setting's line of the "what was run" table."""
+    def integer(value: Any) -> int | None:
+        return value if isinstance(value, int) and not isinstance(value, bool) else None
+
+    claims = read_claims(results)
+    load = results.get("machine_load") or {}
+    average = load.get("load_average") if isinstance(load, dict) else None
+    prov = results.get("provenance") or {}
+    runs = integer(results.get("runs")) or 0
+    runs_ok = integer(results.get("runs_ok"))
+    return RunInfo(entry.experiment, entry.setting, runs, runs if runs_ok is None else runs_ok,
+                   integer(results.get("seed")),
+                   tuple(sorted({c.paper_n for c in claims if c.paper_n is not None})),
+                   tuple(float(v) for v in average) if isinstance(average, list) else (),
+                   integer(load.get("cpus")) if isinstance(load, dict) else None,
+                   prov.get("git_commit") if isinstance(prov, dict) else None,
+                   prov.get("created") if isinstance(prov, dict) else None)
+
+
+def summarize_section(data: SectionInput, title: str, papers: tuple[str, ...] = ()) -> SectionSummary:
+    """The summary of a section rendered from ``data``: its claim records (every ``results.json``
+    in run order), its certificates and what was run. ``papers`` are added to the papers its
+    claim records name."""
+    claims = tuple(c for results in data.results for c in read_claims(results))
+    named = [*papers, *(c.paper for c in claims if c.paper)]
+    return SectionSummary(data.slug, title, data.runs.profile, data.runs.seed, tuple(dict.fromkeys(named)),
+                          claims, tuple(CertificateInfo.of(c) for c in data.certificates),
+                          tuple(run_info(e, r) for e, r in zip(data.runs.entries, data.results)))
+
+
+def verdict_counts(summaries: Iterable[SectionSummary]) -> Counter[str]:
+    """Verdicts and certificate statuses over sections -> how many."""
+    total: Counter[str] = Counter()
+    for summary in summaries:
+        total.update(summary.counts)
+    return total
+
+
+def counts_line(counts: Counter[str], cautioned: int | None = None) -> str:
+    """'18 held, 22 NOT held, 22 undecided, 0 not decidable; proofs: 6 proved, 2 refuted, 6 checked'."""
+    text = ", ".join(f"{counts[v]} {v}" for v in VERDICTS)
+    text += "; proofs: " + ", ".join(f"{counts[s]} {s}" for s in STATUSES)
+    if cautioned:
+        text += f"; {cautioned} verdict{'s' if cautioned != 1 else ''} with a caution"
+    return text

@@ -1,83 +1,207 @@
 """Render :class:`~gpfverify.report.document.Section` pages to Markdown files and one
-self-contained HTML page (figures embedded as base64 PNG)."""
+self-contained HTML page (figures embedded as base64 PNG, styles inline, no script, no network).
+
+The report page (:func:`write_report`) has a title, a summary of every verdict per paper (counts
+in colour and one mark per verdict, linking to its row), what was run (profile, seed, runs,
+machine load), the sections — each opening with its paper and a standard "what was run" table
+made from its files — the papers cited in full, and the provenance; a table of contents stays in
+view while scrolling (CSS ``position: sticky``)."""
 
 from __future__ import annotations
 
 import base64
 import html
+import json
 import os
+from collections.abc import Iterable
 from pathlib import Path
 
-from gpfverify.report.document import Code, Figure, Paragraph, Section, Table, fmt
+from gpfverify.contract.claims import VERDICTS
+from gpfverify.contract.papers import PAPERS
+from gpfverify.report.document import (CAUTION_MARK, VERDICT_CLASSES, Cell, Chips, Code, Details, Figure, Link,
+                                       Paragraph, Section, Table, VerdictCell, anchor_id, claim_anchor, fmt,
+                                       unicode_math)
+from gpfverify.report.inputs import STATUSES, RunInfo, SectionSummary, counts_line, verdict_counts
+
+esc = html.escape
+
+
+# ---- cells ---------------------------------------------------------------------------------------
+
+def _text(value) -> str:
+    return unicode_math(value) if isinstance(value, str) else fmt(value)
 
 
 def _md_cell(value) -> str:
-    return fmt(value).replace("|", "\\|").replace("\n", " ")
+    if isinstance(value, VerdictCell):
+        text = value.verdict + (f" {CAUTION_MARK} " + "; ".join(value.cautions) if value.cautions else "")
+    elif isinstance(value, Cell):
+        text = _text(value.value)
+    elif isinstance(value, Link):
+        text = f"[{_text(value.text)}]({value.slug}/README.md)"
+    elif isinstance(value, Chips):
+        text = value.text
+    else:
+        text = _text(value)
+    return text.replace("|", "\\|").replace("\n", " ")
 
+
+def _html_cell(value) -> str:
+    if isinstance(value, VerdictCell):
+        caution = ""
+        if value.cautions:
+            reasons = "; ".join(value.cautions)
+            caution = f'<div class="caution" title="{esc(reasons)}">{CAUTION_MARK} {esc(reasons)}</div>'
+        css = VERDICT_CLASSES.get(value.verdict, "")
+        return f'<td class="verdict {css}"><span class="verdict-text">{esc(value.verdict)}</span>{caution}</td>'
+    if isinstance(value, Cell):
+        title = f' title="{esc(value.title)}"' if value.title else ""
+        css = f' class="{esc(value.css)}"' if value.css else ""
+        return f"<td{css}{title}>{esc(_text(value.value))}</td>"
+    if isinstance(value, Link):
+        return f'<td><a href="#{esc(value.anchor or value.slug)}">{esc(_text(value.text))}</a></td>'
+    if isinstance(value, Chips):
+        marks = "".join(
+            f'<a class="chip {VERDICT_CLASSES.get(verdict, "")}{" cautioned" if cautioned else ""}" '
+            f'href="#{esc(anchor)}" title="{esc(tooltip)}">{CAUTION_MARK if cautioned else ""}</a>'
+            for verdict, tooltip, anchor, cautioned in value.chips)
+        return f'<td class="chips">{marks}</td>'
+    return f"<td>{esc(_text(value))}</td>"
+
+
+# ---- blocks --------------------------------------------------------------------------------------
 
 def to_markdown(section: Section, page_dir: Path) -> str:
-    return "\n".join([f"# {section.title}", "", *_markdown_lines(section.blocks, page_dir)])
+    return "\n".join([f"# {_text(section.title)}", "", *_markdown_lines(section.blocks, page_dir)])
 
 
 def _markdown_lines(blocks, page_dir: Path) -> list[str]:
     lines = []
     for block in blocks:
         if isinstance(block, Paragraph):
-            lines += [block.text, ""]
+            lines += [_text(block.text), ""]
         elif isinstance(block, Table):
             if block.caption:
-                lines += [f"**{block.caption}**", ""]
+                lines += [f"**{_text(block.caption)}**", ""]
             lines.append("| " + " | ".join(_md_cell(h) for h in block.headers) + " |")
             lines.append("|" + "---|" * len(block.headers))
             lines += ["| " + " | ".join(_md_cell(c) for c in row) + " |" for row in block.rows]
             lines.append("")
         elif isinstance(block, Figure):
             rel = os.path.relpath(block.path, page_dir)
-            lines += [f"![{block.caption}]({rel})", "", f"*{block.caption}*", ""]
+            lines += [f"![{_text(block.caption)}]({rel})", "", f"*{_text(block.caption)}*", ""]
         elif isinstance(block, Code):
             lines += ["```", block.text, "```", ""]
+        elif isinstance(block, Details):
+            lines += [f"**{_text(block.summary)}** {_text(block.text)}", ""]
         else:
             raise TypeError(f"unknown block {type(block).__name__}")
     return lines
 
 
 def _html_block(block) -> str:
-    esc = html.escape
     if isinstance(block, Paragraph):
-        return f"<p>{esc(block.text)}</p>"
+        return f"<p>{esc(_text(block.text))}</p>"
     if isinstance(block, Table):
-        head = "".join(f"<th>{esc(h)}</th>" for h in block.headers)
-        body = "".join("<tr>" + "".join(f"<td>{esc(fmt(c))}</td>" for c in row) + "</tr>"
-                       for row in block.rows)
-        cap = f"<caption>{esc(block.caption)}</caption>" if block.caption else ""
-        return f"<table>{cap}<thead><tr>{head}</tr></thead><tbody>{body}</tbody></table>"
+        head = "".join(f"<th>{esc(_text(h))}</th>" for h in block.headers)
+        ids = list(block.row_ids) + [""] * (len(block.rows) - len(block.row_ids))
+        body = "".join((f'<tr id="{esc(row_id)}">' if row_id else "<tr>")
+                       + "".join(_html_cell(c) for c in row) + "</tr>" for row, row_id in zip(block.rows, ids))
+        cap = f"<caption>{esc(_text(block.caption))}</caption>" if block.caption else ""
+        css = f' class="{esc(block.css)}"' if block.css else ""
+        return (f'<div class="table-wrap"><table{css}>{cap}<thead><tr>{head}</tr></thead>'
+                f"<tbody>{body}</tbody></table></div>")
     if isinstance(block, Figure):
         data = base64.b64encode(Path(block.path).read_bytes()).decode("ascii")
-        return (f'<figure><img alt="{esc(block.caption)}" src="data:image/png;base64,{data}">'
-                f"<figcaption>{esc(block.caption)}</figcaption></figure>")
+        return (f'<figure><img alt="{esc(_text(block.caption))}" src="data:image/png;base64,{data}">'
+                f"<figcaption>{esc(_text(block.caption))}</figcaption></figure>")
     if isinstance(block, Code):
         return f"<pre>{esc(block.text)}</pre>"
+    if isinstance(block, Details):
+        return (f"<details><summary>{esc(_text(block.summary))}</summary>"
+                f"<p>{esc(_text(block.text))}</p></details>")
     raise TypeError(f"unknown block {type(block).__name__}")
 
 
-_STYLE = """body{font-family:system-ui,sans-serif;max-width:60rem;margin:2rem auto;padding:0 1rem;
-line-height:1.45}table{border-collapse:collapse;margin:1rem 0}td,th{border:1px solid #bbb;
-padding:.25rem .5rem;text-align:left;vertical-align:top}caption{font-weight:bold;text-align:left}
-img{max-width:100%}pre{background:#f4f4f4;padding:.5rem;overflow-x:auto}nav a{margin-right:1rem}"""
+_STYLE = """
+:root{--held:#d7f0dc;--held-ink:#14532d;--not:#fbd9d9;--not-ink:#8b1a1a;--und:#fdecc2;--und-ink:#7a4b00;
+--nd:#e4e6e9;--nd-ink:#3b4148;--proved:#c9ecd2;--refuted:#f6cfd6;--checked:#d3ebf3;--checked-ink:#114b5f;
+--line:#c8ccd2;--muted:#5a6270}
+*{box-sizing:border-box}
+body{font-family:system-ui,-apple-system,"Segoe UI",Roboto,"Noto Sans","DejaVu Sans",sans-serif;margin:0;
+line-height:1.45;color:#1d232b;background:#fff}
+.layout{display:grid;grid-template-columns:17rem minmax(0,1fr)}
+nav.toc{position:sticky;top:0;align-self:start;height:100vh;overflow-y:auto;padding:1rem .9rem;
+background:#f5f6f8;border-right:1px solid var(--line);font-size:.88rem}
+nav.toc h2{font-size:.95rem;margin:.2rem 0 .6rem}
+nav.toc ol{list-style:none;margin:0;padding:0}
+nav.toc li{margin:.15rem 0}
+nav.toc a{display:block;padding:.2rem .4rem;border-radius:4px;color:#1d3d6b;text-decoration:none}
+nav.toc a:hover{background:#e3e8f0}
+nav.toc .toc-counts{display:block;margin-top:.1rem}
+.mini{display:inline-block;min-width:1.3rem;padding:0 .25rem;margin-right:.15rem;border-radius:3px;
+font-size:.72rem;text-align:center}
+main{padding:1rem 2rem 4rem;max-width:78rem;min-width:0}
+main > header h1{margin:.4rem 0 .2rem;font-size:1.7rem}
+.subtitle{color:var(--muted);margin-top:0}
+h2{margin-top:2.2rem;border-bottom:2px solid #e3e6ea;padding-bottom:.2rem}
+section,tr[id]{scroll-margin-top:1rem}
+.paper-line{color:var(--muted);margin-top:-.3rem}
+.table-wrap{overflow-x:auto}
+table{border-collapse:collapse;margin:.8rem 0;font-size:.92rem}
+td,th{border:1px solid var(--line);padding:.25rem .5rem;text-align:left;vertical-align:top}
+th{background:#eef0f3}
+caption{font-weight:bold;text-align:left;padding:.2rem 0}
+img{max-width:100%}
+pre{background:#f4f4f4;padding:.5rem;overflow-x:auto}
+details{margin:.3rem 0}summary{cursor:pointer;color:#1d3d6b}
+.v-held{background:var(--held);color:var(--held-ink)}
+.v-not-held{background:var(--not);color:var(--not-ink);font-weight:600}
+.v-undecided{background:var(--und);color:var(--und-ink)}
+.v-not-decidable{background:var(--nd);color:var(--nd-ink)}
+.v-proved{background:var(--proved);color:var(--held-ink)}
+.v-refuted{background:var(--refuted);color:var(--not-ink)}
+.v-checked{background:var(--checked);color:var(--checked-ink)}
+td.verdict{white-space:nowrap}
+.caution{margin-top:.25rem;padding:.1rem .35rem;border:1px solid #b7791f;border-radius:4px;background:#fff7e6;
+color:#7a4b00;font-size:.78rem;font-weight:normal;white-space:normal;min-width:9rem}
+td.zero{color:#b0b5bc;text-align:center}
+td.count{text-align:center;font-weight:600}
+td.total{font-weight:700}
+td.runs-low{background:#fff7e6}
+td.chips{min-width:12rem}
+.chip{display:inline-block;width:1.05rem;height:1.05rem;margin:1px;border-radius:3px;border:1px solid #0002;
+font-size:.7rem;line-height:1rem;text-align:center;text-decoration:none;color:#7a4b00;vertical-align:middle}
+.chip.cautioned{border:1px solid #b7791f;box-shadow:inset 0 0 0 1px #fff7e6}
+table.summary td,table.summary th{padding:.3rem .55rem}
+.totals{display:flex;flex-wrap:wrap;gap:.4rem;margin:.6rem 0}
+.badge{padding:.3rem .6rem;border-radius:6px;font-weight:600;border:1px solid #0001}
+.badge.caution-badge{background:#fff7e6;color:#7a4b00;border-color:#b7791f}
+ol.refs li{margin:.3rem 0}
+.legend{font-size:.88rem;color:var(--muted)}
+@media (max-width:900px){.layout{display:block}nav.toc{height:auto;max-height:35vh;z-index:2;
+border-right:0;border-bottom:1px solid var(--line)}main{padding:1rem}}
+@media print{nav.toc{display:none}.layout{display:block}}
+"""
 
 
 def to_html(sections: list[Section], title: str) -> str:
-    nav = "".join(f'<a href="#{s.slug}">{html.escape(s.title)}</a>' for s in sections)
-    body = "".join(f'<section id="{s.slug}"><h1>{html.escape(s.title)}</h1>'
-                   + "".join(_html_block(b) for b in s.blocks) + "</section>" for s in sections)
-    return (f"<!DOCTYPE html><html><head><meta charset='utf-8'><title>{html.escape(title)}</title>"
-            f"<style>{_STYLE}</style></head><body><nav>{nav}</nav>{body}</body></html>")
+    """A plain self-contained page of ``sections`` (with a sticky table of contents)."""
+    listed = {s.slug: (s.title, _fragment(s)) for s in sections}
+    return _page(title, "", listed, {}, None)
 
+
+def _fragment(section: Section) -> str:
+    return (f'<section id="{esc(section.slug)}"><h2>{esc(_text(section.title))}</h2>'
+            + "".join(_html_block(b) for b in section.blocks) + "</section>")
+
+
+# ---- provenance, papers, what was run, summary -----------------------------------------------------
 
 def provenance_table(record: dict) -> Table:
     """The provenance record (CONTRACT.md, "Provenance") as a table for a report page."""
     packages = ", ".join(f"{k} {v}" for k, v in sorted(record.get("packages", {}).items()))
-    rows = [["gpfverify", record.get("gpfverify")], ["git commit", record.get("git_commit") or "unknown"],
+    rows: list[list] = [["gpfverify", record.get("gpfverify")], ["git commit", record.get("git_commit") or "unknown"],
             ["Python", record.get("python")], ["platform", record.get("platform")],
             ["libraries", packages], ["created (UTC)", record.get("created")],
             ["command", " ".join(record.get("command", []))]]
@@ -94,41 +218,183 @@ def provenance_section(record: dict | None = None) -> Section:
     return Section("provenance", "Provenance", [provenance_table(record)])
 
 
-def _with_provenance(section: Section, record: dict | None) -> Section:
-    if record is None:
-        return section
-    return Section(section.slug, section.title, [*section.blocks, provenance_table(record)])
+def paper_name(key: str) -> str:
+    paper = PAPERS.get(key)
+    return paper.short if paper else key
 
+
+def section_title(summary: SectionSummary | None, title: str) -> str:
+    """The title as the page shows it: naming the section's paper(s) unless it already does."""
+    if summary is None:
+        return title
+    missing = [paper_name(k) for k in summary.papers if paper_name(k) not in title]
+    return f"{title} — {', '.join(missing)}" if missing else title
+
+
+def _load(run: RunInfo) -> str:
+    if not run.load_average:
+        return "not recorded"
+    text = " / ".join(f"{v:.2f}" for v in run.load_average)
+    if run.cpus:
+        text += f" on {run.cpus} CPU{'s' if run.cpus != 1 else ''}"
+        if run.load_average[0] > run.cpus:
+            text += " (busy: timings unreliable)"
+    return text
+
+
+def run_table(summary: SectionSummary) -> Table:
+    """The standard "what was run" table that opens every section page."""
+    rows: list[list] = []
+    for run in summary.runs:
+        paper_n = ", ".join(str(n) for n in run.paper_n) or "not stated"
+        low = any(run.runs_ok < n for n in run.paper_n)
+        done = f"{run.runs_ok} of {run.runs}" if run.runs_ok != run.runs else str(run.runs)
+        rows.append([run.experiment, run.setting or "(one setting)",
+                     Cell(done + (f" {CAUTION_MARK} fewer than the paper" if low else ""),
+                          "runs-low" if low else ""),
+                     paper_n, "—" if run.seed is None else run.seed, _load(run),
+                     " ".join(x for x in ((run.git_commit or "")[:12], run.created or "") if x) or "unknown"])
+    return Table(["experiment", "setting", "runs", "paper's runs", "root seed",
+                  "machine load (1, 5, 15 min) at the end", "computed at (commit, UTC)"], rows,
+                 f"What was run ({summary.profile} profile)", css="runs")
+
+
+def header_blocks(summary: SectionSummary) -> list:
+    """What every section page opens with: its paper(s) and, for experiments, what was run."""
+    blocks: list = []
+    papers = [PAPERS[k] for k in summary.papers if k in PAPERS]
+    if papers:
+        blocks.append(Paragraph("Paper: " + "; ".join(f"{p.short}, “{p.title_en}” ({p.venue}, {p.year})"
+                                                      for p in papers) + "."))
+    if summary.runs:
+        blocks.append(run_table(summary))
+    if summary.certificates:
+        seconds = sum(c.seconds for c in summary.certificates)
+        blocks.append(Paragraph(f"What was run: {len(summary.certificates)} certificates (exact symbolic "
+                                f"computation and independent implementations), {seconds:.0f} s in all."))
+    return blocks
+
+
+def with_header(section: Section, summary: SectionSummary | None) -> Section:
+    if summary is None:
+        return section
+    return Section(section.slug, section_title(summary, section.title), [*header_blocks(summary), *section.blocks])
+
+
+def _paper_order(summary: SectionSummary) -> int:
+    keys = list(PAPERS)
+    first = summary.papers[0] if summary.papers else None
+    return keys.index(first) if first in keys else len(keys)
+
+
+def summary_table(summaries: Iterable[SectionSummary]) -> Table:
+    """Every verdict of the report per paper and section: counts in colour, one mark per verdict
+    (⚠ on those with a caution) linking to its row, and the totals."""
+    ordered = sorted(summaries, key=_paper_order)  # stable: report order within a paper
+    kinds = [*VERDICTS, *STATUSES]
+    rows: list[list] = []
+    total, cautioned = verdict_counts(ordered), 0
+    for s in ordered:
+        counts = s.counts
+        chips: list[tuple[str, str, str, bool]] = []
+        for c in s.claims:
+            tip = f"{c.claim}" + (f" ({c.setting})" if c.setting else "") + f": {c.verdict}"
+            if c.cautions:
+                tip += f" — {CAUTION_MARK} " + "; ".join(c.cautions)
+            chips.append((c.verdict, tip, claim_anchor(c), bool(c.cautions)))
+        chips += [(c.status, f"{c.claim}: {c.status}", certificate_anchor(c.claim), False) for c in s.certificates]
+        cautioned += s.cautioned
+        papers = ", ".join(paper_name(k) for k in s.papers) or ("the toolkit's own algebra" if s.certificates else "—")
+        rows.append([Cell(papers, title="; ".join(PAPERS[k].citation for k in s.papers if k in PAPERS)),
+                     Link(s.title, s.slug),
+                     *[_count_cell(counts[k], k) for k in kinds],
+                     Cell(f"{CAUTION_MARK} {s.cautioned}" if s.cautioned else 0, "count" if s.cautioned else "zero"),
+                     Chips(tuple(chips), f"{len(chips)} verdicts")])
+    rows.append([Cell("all", "total"), Cell("every section", "total"),
+                 *[_count_cell(total[k], k, "total") for k in kinds],
+                 Cell(f"{CAUTION_MARK} {cautioned}" if cautioned else 0, "count total"), ""])
+    return Table(["paper", "section", *kinds, f"{CAUTION_MARK} caution", "each verdict (hover: claim; click: row)"],
+                 rows, "Verdicts per paper and section", css="summary")
+
+
+def _count_cell(n: int, kind: str, extra: str = "") -> Cell:
+    css = f"count {VERDICT_CLASSES[kind]}" if n else "zero"
+    return Cell(n, f"{css} {extra}".strip())
+
+
+def certificate_anchor(claim: str) -> str:
+    return "cert-" + anchor_id(claim)
+
+
+def references_blocks() -> list:
+    return [Paragraph(f"[{i}] {p.short}: {p.citation}") for i, p in enumerate(PAPERS.values(), 1)]
+
+
+_LEGEND = ("Colours: held (green) — our runs agree with the paper's claim; NOT held (red) — they contradict "
+           "it beyond the Monte Carlo error; undecided (amber) — the Monte Carlo interval contains the "
+           "threshold, more runs would decide; not decidable (grey) — the runs as made cannot decide it. "
+           "Proofs: proved (exact symbolic argument), refuted (an exact counterexample to the statement), "
+           f"checked (two implementations agree numerically). {CAUTION_MARK} marks a verdict that rests on "
+           "fewer runs than the paper used or on wall-clock timing (which depends on the machine and its "
+           "load): hold it loosely.")
+
+
+def overview_line(summaries: list[SectionSummary]) -> str:
+    """Profile, seed, settings, runs and the busiest machine load, in one sentence."""
+    runs = [r for s in summaries for r in s.runs]
+    profiles = sorted({s.profile for s in summaries if s.runs or s.certificates})
+    seeds = sorted({s.seed for s in summaries if s.seed is not None})
+    text = (f"Profile {', '.join(profiles) or 'unknown'}"
+            + (" (few runs per setting, minutes on a laptop; `gpfverify report --full` runs the papers' counts)"
+               if "quick" in profiles else "")
+            + f", root seed {', '.join(map(str, seeds)) or 'unknown'}: run i of a setting is seeded by "
+            "SeedSequence(seed).spawn(runs)[i], so any run can be repeated alone. ")
+    if runs:
+        text += (f"{len({r.experiment for r in runs})} experiments in {len(runs)} settings, "
+                 f"{sum(r.runs for r in runs)} runs ({sum(r.runs_ok for r in runs)} finished). ")
+        loaded = [r for r in runs if r.load_average]
+        if loaded:
+            busiest = max(loaded, key=lambda r: r.load_average[0])
+            text += f"Highest 1-minute machine load when a setting finished: {_load(busiest)}."
+    return text
+
+
+# ---- the report folder ---------------------------------------------------------------------------
 
 #: per-section files that let a later ``--only`` build keep the sections it did not rebuild
 SECTION_HTML, SECTION_META = "section.html", "section.json"
 
 
 def write_report(sections: list[Section], out_dir: Path, title: str, preamble: str,
-                 order: list[str] | None = None, provenance: dict | None = None) -> Path:
+                 order: list[str] | None = None, provenance: dict | None = None,
+                 summaries: dict[str, SectionSummary] | None = None) -> Path:
     """Write ``out_dir/<slug>/README.md`` per section, ``out_dir/README.md`` as the index and
     ``out_dir/report.html`` with everything embedded. Returns the HTML path.
 
     With ``order`` (every slug of the full report, in report order), the index and the HTML list
     every section of ``order`` whose page exists in ``out_dir`` — the ones built now and those
     kept from earlier builds (each section also leaves ``<slug>/section.html`` and
-    ``<slug>/section.json``) — so building a few sections updates them and keeps the rest.
-    Without ``order`` only ``sections`` are listed. ``provenance`` (the record of
-    :mod:`gpfverify.provenance`) is added at the end of every page written and to the index."""
-    import json
-
+    ``<slug>/section.json``, which holds its summary) — so building a few sections updates them
+    and keeps the rest. Without ``order`` only ``sections`` are listed. ``summaries`` (slug ->
+    :class:`SectionSummary`) give each page its header (paper, what was run) and feed the summary
+    of verdicts. ``provenance`` (the record of :mod:`gpfverify.provenance`) is added at the end of
+    every page written and to the index."""
     out_dir.mkdir(parents=True, exist_ok=True)
+    summaries = dict(summaries or {})
     built = {}
     for section in sections:
-        section = _with_provenance(section, provenance)
+        summary = summaries.get(section.slug)
+        section = with_header(section, summary)
+        if provenance is not None:
+            section = Section(section.slug, section.title, [*section.blocks, provenance_table(provenance)])
         page_dir = out_dir / section.slug
         page_dir.mkdir(parents=True, exist_ok=True)
         (page_dir / "README.md").write_text(to_markdown(section, page_dir), encoding="utf-8")
-        fragment = (f'<section id="{section.slug}"><h1>{html.escape(section.title)}</h1>'
-                    + "".join(_html_block(b) for b in section.blocks) + "</section>")
+        fragment = _fragment(section)
         (page_dir / SECTION_HTML).write_text(fragment, encoding="utf-8")
-        (page_dir / SECTION_META).write_text(json.dumps({"slug": section.slug, "title": section.title,
-                                                         "provenance": provenance}), encoding="utf-8")
+        meta = {"slug": section.slug, "title": section.title, "provenance": provenance,
+                "summary": None if summary is None else summary.to_json()}
+        (page_dir / SECTION_META).write_text(json.dumps(meta), encoding="utf-8")
         built[section.slug] = (section.title, fragment)
     listed = {}
     for slug in (order if order is not None else list(built)):
@@ -138,18 +404,97 @@ def write_report(sections: list[Section], out_dir: Path, title: str, preamble: s
         try:
             meta = json.loads((out_dir / slug / SECTION_META).read_text(encoding="utf-8"))
             listed[slug] = (str(meta["title"]), (out_dir / slug / SECTION_HTML).read_text(encoding="utf-8"))
+            if meta.get("summary") is not None:
+                summaries[slug] = SectionSummary.from_json(meta["summary"])
         except (OSError, ValueError, KeyError, TypeError):
             continue  # never built here (or damaged): not listed
-    index = [f"# {title}", "", preamble, ""]
-    index += [f"- [{page_title}]({slug}/README.md)" for slug, (page_title, _) in listed.items()]
-    if provenance is not None:
-        index += ["", *_markdown_lines([provenance_table(provenance)], out_dir)]
-    (out_dir / "README.md").write_text("\n".join(index).rstrip() + "\n", encoding="utf-8")
-    nav = "".join(f'<a href="#{slug}">{html.escape(t)}</a>' for slug, (t, _) in listed.items())
-    head = "" if provenance is None else _html_block(provenance_table(provenance))
-    page = (f"<!DOCTYPE html><html><head><meta charset='utf-8'><title>{html.escape(title)}</title>"
-            f"<style>{_STYLE}</style></head><body><nav>{nav}</nav><p>{html.escape(preamble)}</p>"
-            + "".join(fragment for _, fragment in listed.values()) + head + "</body></html>")
+    shown = [summaries[slug] for slug in listed if slug in summaries]
+    shown = [SectionSummary(s.slug, listed[s.slug][0], s.profile, s.seed, s.papers, s.claims, s.certificates,
+                            s.runs) for s in shown]
+    (out_dir / "README.md").write_text(_index_markdown(title, preamble, listed, shown, provenance, out_dir),
+                                       encoding="utf-8")
     html_path = out_dir / "report.html"
-    html_path.write_text(page, encoding="utf-8")
+    html_path.write_text(_page(title, preamble, listed, {s.slug: s for s in shown}, provenance), encoding="utf-8")
     return html_path
+
+
+def _index_markdown(title: str, preamble: str, listed: dict, shown: list[SectionSummary],
+                    provenance: dict | None, out_dir: Path) -> str:
+    lines = [f"# {title}", "", preamble, ""]
+    if shown:
+        cautioned = sum(s.cautioned for s in shown)
+        lines += ["## Summary of verdicts", "", counts_line(verdict_counts(shown), cautioned) + ".", "",
+                  *_markdown_lines([summary_table(shown)], out_dir), _LEGEND, "",
+                  "## What was run", "", overview_line(shown), ""]
+    lines += ["## Sections", ""]
+    lines += [f"- [{page_title}]({slug}/README.md)" for slug, (page_title, _) in listed.items()]
+    lines += ["", "## References", ""]
+    lines += [f"{i}. **{p.short}**: {p.citation}" for i, p in enumerate(PAPERS.values(), 1)]
+    if provenance is not None:
+        lines += ["", "## Provenance", "", *_markdown_lines([provenance_table(provenance)], out_dir)]
+    return "\n".join(lines).rstrip() + "\n"
+
+
+def _toc_counts(summary: SectionSummary | None) -> str:
+    if summary is None:
+        return ""
+    counts = summary.counts
+    marks = "".join(f'<span class="mini {VERDICT_CLASSES[k]}" title="{counts[k]} {esc(k)}">{counts[k]}</span>'
+                    for k in (*VERDICTS, *STATUSES) if counts[k])
+    if summary.cautioned:
+        marks += f'<span class="mini caution-mini" title="with a caution">{CAUTION_MARK}{summary.cautioned}</span>'
+    return f'<span class="toc-counts">{marks}</span>' if marks else ""
+
+
+def _page(title: str, preamble: str, listed: dict, summaries: dict[str, SectionSummary],
+          provenance: dict | None) -> str:
+    toc = ['<nav class="toc" aria-label="Contents"><h2>Contents</h2><ol>']
+    parts = [f"<header><h1>{esc(title)}</h1>"
+             + (f'<p class="subtitle">{esc(_text(preamble))}</p>' if preamble else "") + "</header>"]
+    if summaries:
+        shown = list(summaries.values())
+        counts = verdict_counts(shown)
+        cautioned = sum(s.cautioned for s in shown)
+        badges = "".join(f'<span class="badge {VERDICT_CLASSES[k]}">{counts[k]} {esc(k)}</span>'
+                         for k in (*VERDICTS, *STATUSES))
+        if cautioned:
+            badges += f'<span class="badge caution-badge">{CAUTION_MARK} {cautioned} with a caution</span>'
+        parts.append('<section id="summary"><h2>Summary of verdicts</h2>'
+                     f'<div class="totals">{badges}</div>' + _html_block(summary_table(shown))
+                     + f'<p class="legend">{esc(_LEGEND)}</p></section>')
+        parts.append(f'<section id="what-was-run"><h2>What was run</h2><p>{esc(overview_line(shown))}</p>'
+                     "<p>Each section opens with the runs it rests on: settings, run counts against the "
+                     "paper's, seed and machine load.</p></section>")
+        toc += ['<li><a href="#summary">Summary of verdicts</a></li>',
+                '<li><a href="#what-was-run">What was run</a></li>']
+    for slug, (page_title, _) in listed.items():
+        toc.append(f'<li><a href="#{esc(slug)}">{esc(_text(page_title))}{_toc_counts(summaries.get(slug))}</a></li>')
+    parts += [fragment for _, fragment in listed.values()]
+    if summaries or provenance is not None:
+        parts.append('<section id="references"><h2>References</h2><ol class="refs">'
+                     + "".join(f'<li id="ref-{esc(p.key)}"><b>{esc(p.short)}</b>: {esc(p.citation)}</li>'
+                               for p in PAPERS.values()) + "</ol></section>")
+        toc.append('<li><a href="#references">References</a></li>')
+    if provenance is not None:
+        parts.append('<section id="provenance"><h2>Provenance</h2>'
+                     + _html_block(provenance_table(provenance)) + "</section>")
+        toc.append('<li><a href="#provenance">Provenance</a></li>')
+    toc.append("</ol></nav>")
+    return (f"<!DOCTYPE html><html lang='en'><head><meta charset='utf-8'>"
+            f"<meta name='viewport' content='width=device-width, initial-scale=1'><title>{esc(title)}</title>"
+            f"<style>{_STYLE}</style></head><body><div class='layout'>{''.join(toc)}"
+            f"<main>{''.join(parts)}</main></div></body></html>")
+
+
+def read_summaries(out_dir: Path, order: list[str]) -> list[SectionSummary]:
+    """The summaries of the sections of ``order`` listed in the report at ``out_dir`` (from their
+    ``section.json``; sections never rendered there, or rendered without one, are left out)."""
+    out = []
+    for slug in order:
+        try:
+            meta = json.loads((Path(out_dir) / slug / SECTION_META).read_text(encoding="utf-8"))
+        except (OSError, ValueError):
+            continue
+        if isinstance(meta, dict) and meta.get("summary") is not None:
+            out.append(SectionSummary.from_json(meta["summary"]))
+    return out

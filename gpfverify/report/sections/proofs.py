@@ -1,42 +1,51 @@
-"""Report page: the symbolic proofs (sympy) and the casadi cross-checks, from their certificates."""
+"""Report page: the symbolic proofs (sympy) and the casadi cross-checks, from their certificates
+(``certificates.json``, written by the command layer or by ``gpfverify prove``)."""
 
 from __future__ import annotations
 
-import json
 from collections import Counter
 from pathlib import Path
 
-from gpfverify.report.document import Paragraph, Section, Table, fmt
+from gpfverify.report.document import Cell, Details, Paragraph, Section, Table, VerdictCell, fmt
+from gpfverify.report.inputs import STATUSES, CertificateInfo, SectionInput
+from gpfverify.report.render import certificate_anchor
 
 SLUG = "proofs"
-TITLE = "Symbolic proofs and second implementation"
+TITLE = "Symbolic proofs and a second implementation"
+
+
+def render_section(data: SectionInput) -> Section:
+    """The page from the section's certificates."""
+    return render(list(data.certificates))
+
+
+def _controls(c: CertificateInfo) -> Cell:
+    if not c.negative_controls:
+        return Cell("none", "zero")
+    accepted = [m.mutant for m in c.negative_controls if not m.rejected]
+    if accepted:
+        return Cell(f"ACCEPTED {len(accepted)} of {len(c.negative_controls)}: " + "; ".join(accepted), "v-not-held")
+    return Cell(f"all {len(c.negative_controls)} rejected: " + "; ".join(m.mutant for m in c.negative_controls))
 
 
 def render(certificates: list[dict], out_dir: Path | None = None) -> Section:
     """The page for a list of certificate dicts (``certificates.json``); ``out_dir`` is unused
     (the page has no figures) and accepted for the common ``render(results, dir)`` shape."""
-    counts = Counter(c["status"] for c in certificates)
+    infos = [CertificateInfo.of(c) for c in certificates]
+    counts = Counter(c.status for c in infos)
     section = Section(SLUG, TITLE)
     section.add(
-        Paragraph("Each claim is checked by exact symbolic computation (status 'proved', or 'refuted' with an "
-                  "exact counterexample) or by numerical agreement of two independent implementations within a "
-                  "stated tolerance ('checked'). Statements the toolkit expects to be false are kept and shown "
-                  "as refuted. Totals: " + ", ".join(f"{counts[s]} {s}" for s in ("proved", "refuted", "checked"))
-                  + "."),
-        Table(["claim", "status", "method", "seconds"],
-              [[c["claim"], c["status"], c["method"], fmt(float(c.get("seconds", 0.0)), 3)] for c in certificates],
-              "Certificates"),
+        Paragraph("Each statement is checked by exact symbolic computation (proved; or refuted by an exact "
+                  "counterexample) or by numerical agreement of two independent implementations within a stated "
+                  "tolerance (checked). A proof must also reject its negative controls — deliberately wrong "
+                  "variants of the statement (a sign, a transpose, a dropped term) — or it is demoted. "
+                  "Statements expected to be false are kept and shown as refuted. Totals: "
+                  + ", ".join(f"{counts[s]} {s}" for s in STATUSES) + "."),
+        Table(["claim", "status", "statement", "scope", "method", "negative controls", "seconds"],
+              [[c.claim, VerdictCell(c.status), c.statement, c.scope or "not stated", c.method, _controls(c),
+                fmt(c.seconds, 3)] for c in infos],
+              "Certificates", tuple(certificate_anchor(c.claim) for c in infos), "certificates"),
     )
-    for c in certificates:
-        section.add(Paragraph(f"{c['claim']} ({c['status']}): {c.get('statement', '')}. {c['detail']}"))
+    for c in infos:
+        section.add(Details(f"{c.claim} ({c.status}): what was shown", c.detail))
     return section
-
-
-def build(ctx) -> Section:
-    from gpfverify.symbolic.claims import run_claims
-    from gpfverify.symbolic.crosscheck import run_crosschecks
-
-    size = "small" if ctx.quick else "large"
-    certificates = [c.to_json() for c in run_claims(size) + run_crosschecks(size, seed=ctx.seed)]
-    (ctx.section_dir(SLUG) / "certificates.json").write_text(json.dumps(certificates, indent=2), encoding="utf-8")
-    return render(certificates, ctx.section_dir(SLUG))

@@ -1,0 +1,366 @@
+"""The report page rendered from a stored tiny report folder (tests/fixtures/report: two sections
+of toy experiments with claim records, and proof certificates; no experiment is run), read back
+with the standard library's HTML parser; the command layer's progress lines; and the rule that
+the report package imports nothing from gpfverify.experiments."""
+
+from __future__ import annotations
+
+import ast
+import io
+import shutil
+import sys
+import types
+from html.parser import HTMLParser
+from pathlib import Path
+
+import pytest
+
+from gpfverify.contract import PAPERS, read_claims
+from gpfverify.report.document import Section, claim_records_table, unicode_math
+from gpfverify.report.inputs import SectionInput, load_section
+
+HERE = Path(__file__).parent
+FIXTURE = HERE / "fixtures" / "report"
+ROOT = HERE.parent
+
+
+# ---- a small DOM from html.parser ------------------------------------------------------------------
+
+class Node:
+    def __init__(self, tag: str, attrs: dict[str, str], parent: Node | None):
+        self.tag, self.attrs, self.parent, self.children = tag, attrs, parent, []
+        self.parts: list = []  # text and child nodes in document order
+
+    @property
+    def classes(self) -> set[str]:
+        return set(self.attrs.get("class", "").split())
+
+    @property
+    def text(self) -> str:
+        return "".join(p if isinstance(p, str) else p.text for p in self.parts)
+
+    def iter(self):
+        yield self
+        for child in self.children:
+            yield from child.iter()
+
+    def find_all(self, tag: str | None = None, cls: str | None = None, **attrs: str) -> list[Node]:
+        return [n for n in self.iter() if (tag is None or n.tag == tag) and (cls is None or cls in n.classes)
+                and all(n.attrs.get(k) == v for k, v in attrs.items())]
+
+    def ancestor(self, tag: str) -> Node | None:
+        node = self.parent
+        while node is not None and node.tag != tag:
+            node = node.parent
+        return node
+
+
+VOID = {"meta", "img", "br", "hr", "link", "input"}
+
+
+class DomBuilder(HTMLParser):
+    def __init__(self):
+        super().__init__(convert_charrefs=True)
+        self.root = self.node = Node("#document", {}, None)
+
+    def handle_starttag(self, tag, attrs):
+        node = Node(tag, {k: v or "" for k, v in attrs}, self.node)
+        self.node.children.append(node)
+        self.node.parts.append(node)
+        if tag not in VOID:
+            self.node = node
+
+    def handle_endtag(self, tag):
+        node = self.node
+        while node is not None and node.tag != tag:
+            node = node.parent
+        assert node is not None and node.parent is not None, f"unbalanced </{tag}>"
+        self.node = node.parent
+
+    def handle_data(self, data):
+        self.node.parts.append(data)
+
+
+def parse(html_text: str) -> Node:
+    builder = DomBuilder()
+    builder.feed(html_text)
+    builder.close()
+    assert builder.node is builder.root, "unclosed elements"
+    return builder.root
+
+
+# ---- the fixture report, rendered ------------------------------------------------------------------
+
+def _toy_section(title: str):
+    def render_section(data: SectionInput) -> Section:
+        section = Section(data.slug, title)
+        for entry, results in zip(data.runs.entries, data.results):
+            section.add(claim_records_table(read_claims(results), f"Claims ({entry.setting or 'one setting'})"))
+        return section
+    return render_section
+
+
+@pytest.fixture
+def report(monkeypatch, tmp_path):
+    """The fixture folder rendered by the real build_report with two toy sections and the real
+    proofs page; returns (folder, parsed HTML page, every claim record of the fixture)."""
+    import gpfverify.report as report
+
+    shutil.copytree(FIXTURE, tmp_path / "r")
+    out = tmp_path / "r"
+    sections = {}
+    for slug, title in (("alpha", "Toy fusion"), ("beta", "Toy detection")):
+        module = types.ModuleType(f"toy_section_{slug}")
+        module.render_section = _toy_section(title)  # type: ignore[attr-defined]
+        monkeypatch.setitem(sys.modules, module.__name__, module)
+        sections[slug] = module.__name__
+    sections["proofs"] = "gpfverify.report.sections.proofs"
+    monkeypatch.setattr(report, "SECTIONS", sections)
+    lines: list[str] = []
+    html_path = report.build_report(report.ReportContext(out, "quick", seed=1), progress=lines.append)
+    assert lines[-1].startswith("writing the report pages")
+    records = [c for slug in ("alpha", "beta") for r in load_section(out, slug).results for c in read_claims(r)]
+    return out, parse(html_path.read_text(encoding="utf-8")), records
+
+
+def test_the_fixture_has_what_the_page_must_show():
+    records = [c for slug in ("alpha", "beta") for r in load_section(FIXTURE, slug).results for c in read_claims(r)]
+    assert {c.verdict for c in records} == {"held", "NOT held", "undecided", "not decidable"}
+    assert any(c.paper_n and c.n < c.paper_n for c in records) and any(c.timing for c in records)
+    assert any(c.paper_n and c.n < c.paper_n and c.timing for c in records)  # two reasons, one caution
+    assert any(c.paper_n and c.n >= c.paper_n and not c.timing for c in records)  # enough runs: none
+
+
+def test_title_and_sticky_table_of_contents(report):
+    _, page, _ = report
+    (title,) = page.find_all("title")
+    (h1,) = page.find_all("h1")
+    assert title.text == h1.text and "Verification report" in h1.text
+    (nav,) = page.find_all("nav", cls="toc")
+    style = "".join(s.text for s in page.find_all("style"))
+    assert "nav.toc{position:sticky;top:0" in style.replace("\n", "")
+    targets = [a.attrs["href"] for a in nav.find_all("a")]
+    assert targets == ["#summary", "#what-was-run", "#alpha", "#beta", "#proofs", "#references", "#provenance"]
+    for target in targets:  # every entry leads somewhere on the page
+        assert page.find_all(id=target[1:])
+    assert not page.find_all("script") and not page.find_all("link")  # one file, works offline
+
+
+def test_summary_table_counts_every_verdict_per_section(report):
+    _, page, records = report
+    (table,) = page.find_all("table", cls="summary")
+    headers = [th.text for th in table.find_all("th")]
+    kinds = ["held", "NOT held", "undecided", "not decidable", "proved", "refuted", "checked"]
+    assert headers[2:9] == kinds
+    rows = {r.find_all("td")[1].text: r for r in table.find_all("tbody")[0].find_all("tr")}
+    assert set(rows) == {"Toy fusion — Liao et al. 2019", "Toy detection — Chen et al. 2015",
+                         "Symbolic proofs and a second implementation", "every section"}
+
+    def counts(row: Node) -> list[int]:
+        return [int(td.text) for td in row.find_all("td")[2:9]]
+
+    by_section = {"alpha": counts(rows["Toy fusion — Liao et al. 2019"]),
+                  "beta": counts(rows["Toy detection — Chen et al. 2015"])}
+    for slug, found in by_section.items():
+        verdicts = [c.verdict for c in records if c.id.startswith("toy-a" if slug == "alpha" else "toy-b")]
+        assert found == [verdicts.count(k) for k in kinds[:4]] + [0, 0, 0]
+    assert counts(rows["Symbolic proofs and a second implementation"]) == [0, 0, 0, 0, 1, 1, 1]
+    total = counts(rows["every section"])
+    assert total == [sum(c.verdict == k for c in records) for k in kinds[:4]] + [1, 1, 1]
+    # colour: a non-zero count carries its verdict's class, a zero none
+    held_cell = rows["Toy fusion — Liao et al. 2019"].find_all("td")[2]
+    assert "v-held" in held_cell.classes
+    assert "zero" in rows["Toy fusion — Liao et al. 2019"].find_all("td")[6].classes
+    # each row links to its section
+    links = [a.attrs["href"] for a in table.find_all("a") if "chip" not in a.classes]
+    assert links == ["#alpha", "#beta", "#proofs"]
+    # one mark per verdict and certificate, linking to an existing row
+    chips = table.find_all("a", cls="chip")
+    assert len(chips) == len(records) + 3
+    for chip in chips:
+        (row,) = page.find_all("tr", id=chip.attrs["href"][1:])
+
+
+def test_one_caution_per_low_count_or_timing_verdict(report):
+    _, page, records = report
+    cautioned = [c for c in records if c.cautions]
+    assert 0 < len(cautioned) < len(records)
+    # in the section tables: exactly one caution mark in each cautioned verdict's cell, none elsewhere
+    marks = page.find_all(cls="caution")
+    assert len(marks) == len(cautioned)
+    from gpfverify.report.document import claim_anchor
+
+    for record in records:
+        (row,) = page.find_all("tr", id=claim_anchor(record))
+        (verdict,) = row.find_all("td", cls="verdict")
+        assert verdict.find_all("span", cls="verdict-text")[0].text == record.verdict
+        found = verdict.find_all(cls="caution")
+        assert len(found) == (1 if record.cautions else 0)
+        if record.paper_n is not None and record.n < record.paper_n:
+            assert f"the paper used {record.paper_n}" in found[0].text
+        if record.timing:
+            assert "wall-clock" in found[0].text
+    # in the summary: one marked chip per cautioned verdict, and the count
+    (table,) = page.find_all("table", cls="summary")
+    assert len(table.find_all("a", cls="cautioned")) == len(cautioned)
+    assert f"{len(cautioned)} with a caution" in page.find_all("div", cls="totals")[0].text
+
+
+def test_verdict_cells_are_coloured(report):
+    _, page, records = report
+    colour = {"held": "v-held", "NOT held": "v-not-held", "undecided": "v-undecided",
+              "not decidable": "v-not-decidable"}
+    cells = [td for td in page.find_all("td", cls="verdict") if td.ancestor("table").attrs.get("class") == "claims"]
+    assert len(cells) == len(records)
+    for td in cells:
+        verdict = td.find_all("span", cls="verdict-text")[0].text
+        assert colour[verdict] in td.classes
+    style = "".join(s.text for s in page.find_all("style"))
+    assert ".v-held{background:var(--held)" in style and "--held:#d7f0dc" in style
+
+
+def test_what_was_run_and_provenance(report):
+    _, page, _ = report
+    run_tables = page.find_all("table", cls="runs")
+    assert len(run_tables) == 2  # alpha and beta open with what was run; proofs with a sentence
+    rows = run_tables[0].find_all("tbody")[0].find_all("tr")
+    cells = [[td.text for td in row.find_all("td")] for row in rows]
+    assert [c[:2] for c in cells] == [["toy-a", "κ = 300"], ["toy-a", "κ = 30"]]
+    assert cells[0][2] == "5 ⚠ fewer than the paper" and cells[0][3] == "100"  # 5 runs, paper 100
+    assert cells[1][2].startswith("4 of 5")  # one run failed
+    assert cells[0][4] == "1" and cells[0][5] == "1.50 / 1.20 / 1.00 on 2 CPUs"
+    assert "busy: timings unreliable" in cells[1][5]  # load 3.1 on 2 CPUs
+    assert cells[0][6].startswith("0123456789ab")
+    (what,) = page.find_all("section", id="what-was-run")
+    assert "Profile quick" in what.text and "root seed 1" in what.text and "3 settings" in what.text
+    (prov,) = page.find_all("section", id="provenance")
+    assert "What produced this page" in prov.text and "git commit" in prov.text
+
+
+def test_papers_are_cited_in_full(report):
+    _, page, _ = report
+    (refs,) = page.find_all("section", id="references")
+    items = refs.find_all("li")
+    assert [li.attrs["id"] for li in items] == [f"ref-{k}" for k in PAPERS]
+    for li, paper in zip(items, PAPERS.values()):
+        assert paper.citation in li.text and paper.authors in li.text
+    (alpha,) = page.find_all("section", id="alpha")
+    assert "Liao et al. 2019" in alpha.find_all("h2")[0].text
+    assert PAPERS["seed000"].title_en in alpha.text
+
+
+def test_proof_certificates_are_a_table(report):
+    _, page, _ = report
+    (table,) = page.find_all("table", cls="certificates")
+    assert [th.text for th in table.find_all("th")] == ["claim", "status", "statement", "scope", "method",
+                                                        "negative controls", "seconds"]
+    rows = {tr.attrs["id"]: [td.text for td in tr.find_all("td")] for tr in table.find_all("tbody")[0].find_all("tr")}
+    proved = rows["cert-ukf-equals-kf-linear"]
+    assert proved[:3] == ["ukf-equals-kf-linear", "proved", "the UKF equals the KF on linear models"]
+    assert proved[3] == "(D, l) ∈ {(1, 1), (2, 1)}" and proved[4] == "sympy: symbolic sigma points"
+    assert proved[5].startswith("all 2 rejected: ȳ = Hμ (offset b dropped)")
+    assert rows["cert-dmf-exact-without-condition"][3] == "not stated"
+    assert rows["cert-dmf-exact-without-condition"][5] == "none"
+    status = table.find_all("tr", id="cert-dmf-exact-without-condition")[0].find_all("td")[1]
+    assert "v-refuted" in status.classes
+
+
+def test_markdown_pages_and_index(report):
+    out, _, records = report
+    index = (out / "README.md").read_text(encoding="utf-8")
+    held = sum(c.verdict == "held" for c in records)
+    assert f"{held} held" in index and "1 proved, 1 refuted, 1 checked" in index
+    assert "[Toy fusion — Liao et al. 2019](alpha/README.md)" in index
+    assert PAPERS["seed001"].citation in index
+    page = (out / "alpha" / "README.md").read_text(encoding="utf-8")
+    assert "| NOT held |" in page and "held ⚠ rests on 5 runs; the paper used 100" in page
+    assert "DMF equals CMF (xₖ₊₁ = F xₖ)" in page  # pseudo-LaTeX in a claim rendered as Unicode
+
+
+def test_only_keeps_the_summary_of_sections_not_rebuilt(report, monkeypatch):
+    import gpfverify.report as report_package
+
+    out, page, records = report
+    html_path = report_package.build_report(report_package.ReportContext(out, "quick", seed=1), only=["beta"],
+                                            progress=lambda _: None)
+    again = parse(html_path.read_text(encoding="utf-8"))
+    (table,) = again.find_all("table", cls="summary")
+    assert len(table.find_all("a", cls="chip")) == len(records) + 3
+    from gpfverify.report.render import read_summaries
+
+    assert [s.slug for s in read_summaries(out, ["alpha", "beta", "proofs", "nowhere"])] == ["alpha", "beta", "proofs"]
+
+
+def test_unicode_math():
+    assert unicode_math(r"x_{k+1} = F x_k, C^{-1}, A^T, \sigma^2 \le \Sigma_{ij}") == \
+        "xₖ₊₁ = F x_k, C⁻¹, Aᵀ, σ² ≤ Σᵢⱼ"
+    assert unicode_math("results_json and run_for_report") == "results_json and run_for_report"
+    assert unicode_math(r"C_{xy} \in \mathbb{R}^{n}") == "C_(xy) ∈ ℝⁿ"
+
+
+# ---- the command layer -------------------------------------------------------------------------------
+
+def test_progress_lines_and_heartbeat():
+    now = [0.0]
+    stream = io.StringIO()
+    progress = __import__("gpfverify.commands.report", fromlist=["Progress"]).Progress(
+        stream, heartbeat=20.0, clock=lambda: now[0])
+    progress("ct2d: ct2d κ = 300 (1 of 4): 2 runs")
+    now[0] = 15.0
+    progress.beat()  # 15 s of silence: nothing yet
+    now[0] = 75.5
+    progress.beat()
+    lines = stream.getvalue().splitlines()
+    assert lines == ["[report  0:00] ct2d: ct2d κ = 300 (1 of 4): 2 runs",
+                     "[report  1:15] ... still working (76 s since: ct2d: ct2d κ = 300 (1 of 4): 2 runs)"]
+
+
+def test_report_command_runs_a_toy_section_with_progress(monkeypatch, tmp_path, capsys):
+    """The command runs a (typed) toy experiment at its quick profile into the section folder,
+    prints one line per event, renders the page and ends with where it is and the counts."""
+    import gpfverify.commands.report as command
+    import gpfverify.report as report
+    from gpfverify.experiments import EXPERIMENTS
+
+    monkeypatch.syspath_prepend(str(FIXTURE))
+    import toy_typed_experiment as toy
+    monkeypatch.setitem(EXPERIMENTS, "toy-typed", toy.__name__)
+    module = types.ModuleType("toy_typed_section")
+    module.render_section = _toy_section("Toy typed")  # type: ignore[attr-defined]
+    monkeypatch.setitem(sys.modules, module.__name__, module)
+    monkeypatch.setattr(report, "SECTIONS", {"toy": module.__name__})
+    monkeypatch.setattr(command, "SECTIONS", {"toy": module.__name__})
+    monkeypatch.setattr(command, "SECTION_EXPERIMENTS", {"toy": ("toy-typed",)})
+    from gpfverify import cli
+
+    assert cli.main(["report", "--out", str(tmp_path), "--seed", "2"]) == 0
+    out = capsys.readouterr().out
+    lines = out.splitlines()
+    assert lines[0].startswith("[report  0:00] building the quick report in")
+    assert any("toy: toy-typed small (1 of 2): 3 runs" in line for line in lines)
+    assert any("toy: toy-typed large (2 of 2): run 3 of 3 saved" in line for line in lines)
+    assert any("toy: rendering the page" in line for line in lines)
+    assert f"The report: {tmp_path / 'report.html'}" in out
+    records = [c for r in load_section(tmp_path, "toy").results for c in read_claims(r)]
+    held = sum(c.verdict == "held" for c in records)
+    assert f"Verdicts:   {held} held, {len(records) - held} NOT held, 0 undecided" in out
+    assert (tmp_path / "toy" / "toy-typed-small" / "run" / "results.json").is_file()
+
+
+# ---- the report package only reads and renders --------------------------------------------------------
+
+def test_the_report_package_imports_nothing_from_the_experiments():
+    offenders = []
+    for path in sorted((ROOT / "gpfverify" / "report").rglob("*.py")):
+        tree = ast.parse(path.read_text(encoding="utf-8"))
+        for node in ast.walk(tree):
+            names = []
+            if isinstance(node, ast.Import):
+                names = [a.name for a in node.names]
+            elif isinstance(node, ast.ImportFrom) and node.module:
+                names = [node.module] if node.level == 0 else []
+                if node.module == "gpfverify":
+                    names += [f"gpfverify.{a.name}" for a in node.names]
+            offenders += [f"{path.relative_to(ROOT)}:{node.lineno} imports {n}" for n in names
+                          if n == "gpfverify.experiments" or n.startswith("gpfverify.experiments.")]
+    assert not offenders, "\n".join(offenders)
