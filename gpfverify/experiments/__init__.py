@@ -19,4 +19,5 @@ EXPERIMENTS: dict[str, str] = {
     "ungm1d": "gpfverify.experiments.ungm1d",
     "tbd": "gpfverify.experiments.tbd",
     "sins-gps": "gpfverify.experiments.sins_gps",
+    "moments": "gpfverify.experiments.moments",
 }
