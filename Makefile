@@ -6,21 +6,28 @@ BIN    := $(VENV)/bin
 .PHONY: report test install clean
 
 $(BIN)/python:
+	@echo "creating a virtual environment in $(VENV) (first run only)..."
 	$(PYTHON) -m venv $(VENV)
+	@echo "updating pip in $(VENV)..."
 	$(BIN)/python -m pip install --quiet --upgrade pip
 
 # Stamps re-run the install whenever pyproject.toml changes.
 $(VENV)/.runtime-installed: pyproject.toml | $(BIN)/python
+	@echo "installing gpfverify and its dependencies (numpy, scipy, sympy, casadi, cvxpy, matplotlib) into $(VENV):"
+	@echo "about a minute on a fresh machine, quiet until done..."
 	$(BIN)/python -m pip install --quiet -e .
+	@echo "installed."
 	touch $@
 
 $(VENV)/.test-installed: pyproject.toml | $(BIN)/python
+	@echo "installing gpfverify with its test extras into $(VENV): about a minute on a fresh machine, quiet until done..."
 	$(BIN)/python -m pip install --quiet -e '.[test]'
 	touch $@ $(VENV)/.runtime-installed
 
 install: $(VENV)/.runtime-installed
 
 report: $(VENV)/.runtime-installed
+	@echo "building the quick report into reports/quick (several minutes on two cores; one line per step)..."
 	$(BIN)/gpfverify report
 
 test: $(VENV)/.test-installed
