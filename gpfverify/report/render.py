@@ -345,7 +345,7 @@ def overview_line(summaries: list[SectionSummary]) -> str:
     profiles = sorted({s.profile for s in summaries if s.runs or s.certificates})
     seeds = sorted({s.seed for s in summaries if s.seed is not None})
     text = (f"Profile {', '.join(profiles) or 'unknown'}"
-            + (" (few runs per setting, minutes on a laptop; `gpfverify report --full` runs the papers' counts)"
+            + (" (few runs per setting, minutes on a laptop; “gpfverify report --full” runs the papers' counts)"
                if "quick" in profiles else "")
             + f", root seed {', '.join(map(str, seeds)) or 'unknown'}: run i of a setting is seeded by "
             "SeedSequence(seed).spawn(runs)[i], so any run can be repeated alone. ")
