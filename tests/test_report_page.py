@@ -312,7 +312,7 @@ def test_progress_lines_and_heartbeat():
     progress.beat()
     lines = stream.getvalue().splitlines()
     assert lines == ["[report  0:00] ct2d: ct2d κ = 300 (1 of 4): 2 runs",
-                     "[report  1:15] ... still working (76 s since: ct2d: ct2d κ = 300 (1 of 4): 2 runs)"]
+                     "[report  1:15] ... still working (76 s since the last line: ct2d: ct2d κ = 300 (1 of 4): 2 runs)"]
 
 
 def test_report_command_runs_a_toy_section_with_progress(monkeypatch, tmp_path, capsys):
@@ -337,8 +337,8 @@ def test_report_command_runs_a_toy_section_with_progress(monkeypatch, tmp_path, 
     out = capsys.readouterr().out
     lines = out.splitlines()
     assert lines[0].startswith("[report  0:00] building the quick report in")
-    assert any("toy: toy-typed small (1 of 2): 3 runs" in line for line in lines)
-    assert any("toy: toy-typed large (2 of 2): run 3 of 3 saved" in line for line in lines)
+    assert any("toy: toy-typed, small (setting 1 of 2): 3 runs" in line for line in lines)
+    assert any("toy: toy-typed, large (setting 2 of 2): run 3 of 3 saved" in line for line in lines)
     assert any("toy: rendering the page" in line for line in lines)
     assert f"The report: {tmp_path / 'report.html'}" in out
     records = [c for r in load_section(tmp_path, "toy").results for c in read_claims(r)]

@@ -1,0 +1,234 @@
+"""``gpfverify report``: run the experiments of every section (the runner, seeded and resumable)
+and the proofs, then render the verification report from the files they wrote
+(:mod:`gpfverify.report` only reads and renders).
+
+Progress is one line per event with the elapsed time, on a terminal or not (``make report``, CI
+logs): each setting started, every tenth run saved (and at least every ten seconds), each proof,
+each page rendered; a heartbeat line says what is still running after
+:data:`HEARTBEAT_SECONDS` without news. The command ends with where the report is and the verdict
+counts."""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import json
+import shutil
+import sys
+import threading
+import time
+from collections.abc import Callable
+from pathlib import Path
+from typing import TextIO
+
+from gpfverify.cli import non_negative_int, positive_int
+from gpfverify.contract.experiment import RunEntry, SectionRuns
+from gpfverify.report import SECTIONS, ReportContext, build_report
+from gpfverify.report.inputs import counts_line, verdict_counts, write_runs
+from gpfverify.report.render import read_summaries
+
+#: report section -> the experiments it renders (names as in gpfverify.experiments.EXPERIMENTS)
+SECTION_EXPERIMENTS: dict[str, tuple[str, ...]] = {
+    "moments": ("moments",),
+    "gpadf-scalar": ("gpadf-scalar",),
+    "ungm1d": ("ungm1d",),
+    "ct2d": ("ct2d",),
+    "tbd": ("tbd",),
+    "particle-flow": ("pff1d", "bearing"),
+    "sins-gps": ("sins-gps",),
+}
+#: the section whose "runs" are the symbolic proofs and cross-checks
+PROOFS = "proofs"
+CERTIFICATES = "certificates.json"
+#: the longest silence before a line saying what is still running
+HEARTBEAT_SECONDS = 20.0
+#: a run line at least this often while runs are being saved (besides every tenth run)
+RUN_LINE_SECONDS = 10.0
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--full", action="store_true",
+                        help="the papers' run counts (hours) instead of the quick profile (minutes)")
+    parser.add_argument("--out", type=Path, default=None,
+                        help="output folder (default reports/quick or reports/full)")
+    parser.add_argument("--seed", type=non_negative_int, default=1, help="root seed, an integer >= 0 (default 1)")
+    parser.add_argument("--workers", type=positive_int, default=1,
+                        help="worker processes for experiments (>= 1; results do not depend on it)")
+    parser.add_argument("--only", nargs="+", metavar="SECTION", choices=list(SECTIONS),
+                        help=f"build (or rebuild) only these sections, keeping the others already in "
+                             f"the output folder: {', '.join(SECTIONS)}")
+
+
+class Progress:
+    """One line per event with the elapsed time, on a terminal or not (CI logs, ``make report``).
+
+    Used as a context manager it also watches for silence: after ``heartbeat`` seconds without a
+    line it prints one saying what is still running (the last event) and for how long."""
+
+    def __init__(self, stream: TextIO | None = None, heartbeat: float = HEARTBEAT_SECONDS,
+                 clock: Callable[[], float] = time.monotonic):
+        self.stream = stream or sys.stdout
+        self.clock = clock
+        self.started = self.last = clock()
+        self.heartbeat = heartbeat
+        self.current = "starting"
+        self._lock = threading.Lock()
+        self._stop = threading.Event()
+        self._thread: threading.Thread | None = None
+
+    def _stamp(self) -> str:
+        elapsed = self.clock() - self.started
+        return f"[report {int(elapsed // 60):2d}:{int(elapsed % 60):02d}]"
+
+    def __call__(self, message: str) -> None:
+        with self._lock:
+            print(f"{self._stamp()} {message}", file=self.stream, flush=True)
+            self.current = message
+            self.last = self.clock()
+
+    def beat(self) -> None:
+        """A heartbeat line when nothing was said for ``heartbeat`` seconds."""
+        with self._lock:
+            quiet = self.clock() - self.last
+            if quiet < self.heartbeat:
+                return
+            print(f"{self._stamp()} ... still working ({quiet:.0f} s since the last line: {self.current})",
+                  file=self.stream, flush=True)
+            self.last = self.clock()
+
+    def __enter__(self) -> Progress:
+        def watch() -> None:
+            while not self._stop.wait(min(1.0, self.heartbeat / 4)):
+                self.beat()
+
+        self._thread = threading.Thread(target=watch, name="gpfverify-report-heartbeat", daemon=True)
+        self._thread.start()
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self._stop.set()
+        if self._thread is not None:
+            self._thread.join()
+
+
+def _module_renders(slug: str) -> bool:
+    """The section renders from files (``render_section``) rather than running its own experiment."""
+    return hasattr(importlib.import_module(SECTIONS[slug]), "render_section")
+
+
+def run_section(ctx: ReportContext, slug: str, progress: Callable[[str], None]) -> SectionRuns:
+    """Run every setting of the section's experiments at the report's profile into
+    ``<out>/<slug>/<experiment>-<tag>/run`` (reusing runs saved there with the same settings) and
+    write the section's ``runs.json``."""
+    from gpfverify.experiments import EXPERIMENTS
+    from gpfverify.experiments.runner import make_executor, run_experiment
+
+    entries = []
+    for name in SECTION_EXPERIMENTS[slug]:
+        module = importlib.import_module(EXPERIMENTS[name])
+        profile = module.PROFILES[ctx.profile]
+        for i, setting in enumerate(profile.settings, 1):
+            folder = f"{name}-{setting.tag}"
+            run_dir = ctx.out_dir / slug / folder / "run"
+            _discard_other_settings(run_dir, ctx.seed, profile.runs, setting.params.to_json())
+            where = f"{slug}: " + (name if name != slug else "experiment")
+            where += f", {setting.label}" if setting.label else ""
+            if len(profile.settings) > 1:
+                where += f" (setting {i} of {len(profile.settings)})"
+            progress(f"{where}: {profile.runs} run{'s' if profile.runs != 1 else ''}")
+            step = max(1, profile.runs // 10)
+            last = [time.monotonic()]
+
+            def on_run(done: int, total: int, where: str = where, step: int = step, last: list = last) -> None:
+                now = time.monotonic()
+                if done == total or done % step == 0 or now - last[0] >= RUN_LINE_SECONDS:
+                    progress(f"{where}: run {done} of {total} saved")
+                    last[0] = now
+
+            with make_executor(ctx.workers) as executor:
+                run_experiment(module, setting.params, profile.runs, ctx.seed, run_dir, resume=True,
+                               executor=executor, show_progress=False, on_run=on_run)
+            entries.append(RunEntry(name, setting.label, setting.tag, f"{folder}/run/results.json"))
+    runs = SectionRuns(slug, ctx.profile, ctx.seed, tuple(entries))
+    write_runs(ctx.out_dir, runs)
+    return runs
+
+
+def run_proofs(ctx: ReportContext, progress: Callable[[str], None]) -> SectionRuns:
+    """The symbolic proofs and casadi cross-checks (small problems in the quick profile, large in
+    the full one) into ``<out>/proofs/certificates.json`` (each record with its provenance, as
+    ``gpfverify prove`` writes it), and the section's ``runs.json`` naming that file."""
+    from gpfverify.provenance import current
+    from gpfverify.symbolic.claims import run_claims
+    from gpfverify.symbolic.crosscheck import run_crosschecks
+
+    size = "small" if ctx.quick else "large"
+
+    def say(text: str) -> None:
+        progress(f"{PROOFS}: {text.removeprefix('[prove] ')}")
+
+    certificates = run_claims(size, progress=say) + run_crosschecks(size, seed=ctx.seed, progress=say)
+    record = current()
+    folder = ctx.out_dir / PROOFS
+    folder.mkdir(parents=True, exist_ok=True)
+    path = folder / CERTIFICATES
+    tmp = path.with_name(path.name + ".tmp")
+    tmp.write_text(json.dumps([{**c.to_json(), "provenance": record} for c in certificates], indent=2),
+                   encoding="utf-8")
+    tmp.replace(path)
+    runs = SectionRuns(PROOFS, ctx.profile, ctx.seed, (), certificates=CERTIFICATES)
+    write_runs(ctx.out_dir, runs)
+    return runs
+
+
+def _discard_other_settings(run_dir: Path, seed: int, runs: int, params: dict) -> None:
+    """Remove saved runs made with other settings (a report folder holds one profile's runs)."""
+    manifest = run_dir / "manifest.json"
+    if not manifest.exists():
+        return
+    try:
+        old = json.loads(manifest.read_text(encoding="utf-8"))
+        same = (old.get("seed"), old.get("runs"), old.get("params")) == (seed, runs, json.loads(json.dumps(params)))
+    except (ValueError, AttributeError, RecursionError):  # damaged: start afresh
+        same = False
+    if not same:
+        shutil.rmtree(run_dir)
+
+
+def _duration(seconds: float) -> str:
+    minutes, rest = divmod(int(round(seconds)), 60)
+    return f"{minutes} min {rest} s" if minutes else f"{rest} s"
+
+
+def build(ctx: ReportContext, only: list[str] | None, progress: Progress) -> Path:
+    """Run what the selected sections render, then render the report; returns the HTML path."""
+    selected = [s for s in SECTIONS if not only or s in only]
+    for number, slug in enumerate(selected, 1):
+        progress(f"section {number} of {len(selected)}: {slug}")
+        if slug == PROOFS and _module_renders(slug):
+            run_proofs(ctx, progress)
+        elif slug in SECTION_EXPERIMENTS and _module_renders(slug):
+            run_section(ctx, slug, progress)
+    return build_report(ctx, only, progress)
+
+
+def run(args: argparse.Namespace) -> int:
+    profile = "full" if args.full else "quick"
+    out = args.out or Path("reports") / profile
+    if out.exists() and not out.is_dir():  # before any section runs (and prints progress)
+        from gpfverify.errors import InputError
+
+        raise InputError(f"--out {out} exists and is not a folder")
+    ctx = ReportContext(out, profile, args.seed, args.workers)
+    selected = [s for s in SECTIONS if not args.only or s in args.only]
+    with Progress() as progress:
+        progress(f"building the {profile} report in {out} (seed {args.seed}, {args.workers} worker(s)): "
+                 f"{', '.join(selected)}")
+        html_path = build(ctx, args.only, progress)
+        summaries = read_summaries(out, list(SECTIONS))
+        progress(f"done in {_duration(time.monotonic() - progress.started)}")
+    counts = verdict_counts(summaries)
+    print(f"\nThe report: {html_path} (one self-contained page; open it in a browser)\n"
+          f"            {out / 'README.md'} (Markdown pages, one per section)\n"
+          f"Verdicts:   {counts_line(counts, sum(s.cautioned for s in summaries))}", flush=True)
+    return 0
