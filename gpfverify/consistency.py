@@ -357,7 +357,7 @@ def _measurement_fields(obj):
     return None
 
 
-def _collect(nested, name: str, fields) -> tuple[list, list]:
+def _collect(nested, name: str, fields) -> tuple[np.ndarray, np.ndarray]:
     """Two nested lists [r][t] of the fields of ``nested[r][t]``; InputError naming the element."""
     firsts, seconds = [], []
     try:

@@ -64,10 +64,12 @@ def provenance(argv: list[str] | None = None) -> dict:
     API call from a script: the script's command line)."""
     from gpfverify import __version__
 
-    if argv is None and _current_argv is None:
-        command = [str(a) for a in sys.argv]
+    if argv is not None:
+        command = [PROGRAM, *map(str, argv)]
+    elif _current_argv is not None:
+        command = [PROGRAM, *map(str, _current_argv)]
     else:
-        command = [PROGRAM, *map(str, _current_argv if argv is None else argv)]
+        command = [str(a) for a in sys.argv]
     return {
         "gpfverify": __version__,
         "git_commit": git_commit(),

@@ -62,7 +62,7 @@ def make_collector(pytest):
     (``pytest`` is passed in: it is imported only when props runs)."""
 
     class Collector:
-        def __init__(self):
+        def __init__(self) -> None:
             self.records: dict[str, dict] = {}
 
         def _record(self, nodeid: str) -> dict:

@@ -70,4 +70,5 @@ def bearing_model(q_pos: float, q_vel: float, bearing_std: float, omega: float =
     return StateSpaceModel(
         lambda x, k: x @ phi(k).T, np.diag([q_pos, q_vel, q_pos, q_vel]).astype(float),
         [Sensor(h, np.array([[bearing_std**2]]), circular=(0,), jacobian=h_jacobian, name="bearing")],
-        initial_state, prior_cov(prior_std_pos, prior_std_vel), transition_jacobian=lambda x, k: phi(k), name="bearing-only CV/CT")
+        initial_state, prior_cov(prior_std_pos, prior_std_vel), transition_jacobian=lambda x, k: phi(k),
+        name="bearing-only CV/CT")

@@ -71,8 +71,8 @@ def simulate_data(scenario: FusionScenario, rng: np.random.Generator) -> FusionD
     process = rng.multivariate_normal(np.zeros(d), model.Q, size=total - 1)
     for k in range(1, total):
         states[k] = model.f(states[k - 1:k])[0] + process[k - 1]
-    measurements = [s.measure(states) + rng.multivariate_normal(np.zeros(s.size), s.noise_cov, size=total)
-                    for s in model.sensors]
+    measurements = [h(states) + rng.multivariate_normal(np.zeros(s.size), s.noise_cov, size=total)
+                    for h, s in zip(model.measures, model.sensors)]
     n = scenario.train
     return FusionData(transition_inputs=states[:n - 1], transition_targets=states[1:n],
                       measurement_inputs=states[:n],

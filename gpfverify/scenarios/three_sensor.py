@@ -13,6 +13,8 @@ at (100, 0): its bearing crosses the ±π cut at about k = 10.
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import numpy as np
 
 from gpfverify.models import Sensor, StateSpaceModel
@@ -29,7 +31,7 @@ def cv_matrices(dt: float, q: float) -> tuple[np.ndarray, np.ndarray]:
     return F, Q
 
 
-def range_bearing(position) -> callable:
+def range_bearing(position) -> Callable[[np.ndarray], np.ndarray]:
     """x (N, 4) ↦ [‖p − s‖, atan2(p_y − s_y, p_x − s_x)] (N, 2)."""
     s = np.asarray(position, dtype=float)
 
@@ -40,7 +42,7 @@ def range_bearing(position) -> callable:
     return measure
 
 
-def range_only(position) -> callable:
+def range_only(position) -> Callable[[np.ndarray], np.ndarray]:
     """x (N, 4) ↦ ‖p − s‖ (N, 1)."""
     s = np.asarray(position, dtype=float)
     return lambda x: np.hypot(x[:, 0] - s[0], x[:, 1] - s[1])[:, None]

@@ -31,8 +31,8 @@ from gpfverify.strategies.fusion import PRIORS, DrawnCase, fusion_case_files, fu
 from gpfverify.strategies.gaussians import KINDS, JointGaussian, SensorDesign, joint_gaussians
 from gpfverify.strategies.matrices import (matrices_with_singular_values, orthonormal_matrices,
                                            spd_matrices)
-from gpfverify.strategies.models import (GPStackCase, LinearGaussianModel, gaussian_inputs, gaussian_processes, gp_stacks,
-                                         linear_gaussian_models, psd_matrices, sigma_params)
+from gpfverify.strategies.models import (GPStackCase, LinearGaussianModel, gaussian_inputs, gaussian_processes,
+                                         gp_stacks, linear_gaussian_models, psd_matrices, sigma_params)
 from gpfverify.strategies.profiles import PROFILES, load_profile, register_profiles, scaled_examples
 
 __all__ = ["saving_case_on_failure", "write_case", "CorrelatedEstimates", "correlated_estimates",

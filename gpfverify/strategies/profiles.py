@@ -47,7 +47,9 @@ def load_profile(name: str | None = None) -> str:
 def scaled_examples(fraction: float, minimum: int = 5) -> int:
     """``fraction`` of the active profile's ``max_examples`` (at least ``minimum``): for a property
     whose examples are expensive, e.g. ``@settings(max_examples=scaled_examples(0.5))``."""
-    return max(minimum, int(round(fraction * settings.default.max_examples)))
+    active = settings.default
+    assert active is not None  # hypothesis always has an active profile
+    return max(minimum, int(round(fraction * active.max_examples)))
 
 
 register_profiles()
