@@ -1,17 +1,22 @@
-"""The 1-D two-sensor fusion experiment (tiny runs): the results contract, the σ² sweep, DMF = CMF
-on full-rank steps, the squared Mahalanobis metric and the model equations."""
+"""The 1-D two-sensor fusion experiment (tiny runs): the results contract, the σ² sweep written
+once, DMF = CMF on full-rank steps, the squared Mahalanobis metric, the model equations, the
+claims, and the page rendered from stored results (no experiment run)."""
 
 import json
+from pathlib import Path
 
 import numpy as np
 import pytest
 
 from gpfverify.cli import main
+from gpfverify.contract import ClaimRecord, RunEntry, SectionRuns
 from gpfverify.experiments import ungm1d
-from gpfverify.experiments.fusion_run import FAMILIES, METHODS, one_step_equivalence, squared_mahalanobis
+from gpfverify.experiments.fusion_run import FAMILIES, METHOD_KEYS, one_step_equivalence, squared_mahalanobis
 from gpfverify.filters.records import Gaussian
 from gpfverify.scenarios.fusion_models import sine_sensor, ungm_transition
 from gpfverify.tolerances import algebra_rtol
+
+FIXTURE = Path(__file__).parent / "fixtures" / "ungm1d" / "results.json"
 
 
 @pytest.fixture(scope="module")
@@ -23,25 +28,42 @@ def cli_results(tmp_path_factory):
     return json.loads((out / "results.json").read_text())
 
 
-def test_results_follow_the_contract_and_hold_the_sweep(cli_results):
+def test_results_follow_the_contract_and_hold_the_sweep_once(cli_results):
     r = cli_results
     assert (r["experiment"], r["runs_ok"]) == ("ungm1d", 2)
-    assert set(r["mahalanobis"]) == set(METHODS) and len(METHODS) == 12
+    assert set(r["mahalanobis"]) == set(METHOD_KEYS) and len(METHOD_KEYS) == 12
     assert all(len(v) == 3 and all(x >= 0 for x in v) for v in r["mahalanobis"].values())
-    assert r["params"]["noise_vars"] == [1.0, 2.0]
-    assert set(r["sweep"]) == {"1.0", "2.0"}
-    assert r["sweep"]["1.0"]["mahalanobis"] == r["mahalanobis"]
-    for key in ("measurement_noise_var", "prior_var", "prior_mean", "mahalanobis", "trajectory_start"):
+    assert r["params"]["sweep"] == [2.0] and r["noise_vars"] == [1.0, 2.0] and r["main_noise"] == "1.0"
+    # the main σ² at top level only; the others under per_noise and sweep
+    assert set(r["sweep"]) == set(r["per_noise"]) == {"2.0"}
+    assert r["sweep"]["2.0"]["mahalanobis"] == r["per_noise"]["2.0"]["average_mahalanobis"]
+    assert r["mahalanobis"] == r["average_mahalanobis"]
+    assert set(r["average_mahalanobis_by_noise"]) == {"1.0", "2.0"}
+    for key in ("measurement_noise_var", "prior_var", "prior_mean", "mahalanobis", "trajectory_start_var"):
         assert key in r["params"]
+    assert all(not isinstance(v, str) or " " not in v for v in r["params"].values())  # no prose
     assert set(r["max_equivalence_gap"]) == set(FAMILIES)
-    assert set(r["time_per_run"]) == set(METHODS)
+    assert set(r["time_per_run"]) == set(METHOD_KEYS)
+
+
+def test_claims_per_noise_and_across_the_sweep(cli_results):
+    claims = [ClaimRecord.from_json(c) for c in cli_results["claims"]]
+    ids = {c.id for c in claims}
+    for noise in ("1.0", "2.0"):
+        for family in FAMILIES:
+            for name in ("dmf-equals-cmf", "fusion-beats-sensors", "fusion-beats-baselines", "sensor2-beats-sensor1"):
+                assert f"ungm1d/s{noise}/{name}/{family}" in ids
+    assert {"ungm1d/s1.0/fusion-gp-adf-beats-gp-ukf", "ungm1d/s2.0/fusion-gp-ukf-beats-gp-adf",
+            "ungm1d/fusion-beats-sensors-every-noise"} <= ids
+    assert all(c.n == 2 for c in claims)
+    assert {c.paper_n for c in claims if c.setting} == {1000}  # Figs. 2, 3
 
 
 def test_dmf_equals_cmf_on_every_full_rank_step():
-    params = ungm1d.default_params(train=20, test_steps=4, sweep=[])
-    record = ungm1d.run_one(params, np.random.SeedSequence(3))["settings"]["1.0"]
+    params = ungm1d.Params(train=20, test_steps=4, sweep=())
+    record = ungm1d.run_one(params, np.random.SeedSequence(3)).settings["1.0"]
     for family in FAMILIES:
-        holds, within = one_step_equivalence(record["families"][family])
+        holds, within = one_step_equivalence(record.families[family])
         assert holds.any() and within[holds].all()
 
 
@@ -64,22 +86,25 @@ def test_model_equations():
                                rtol=algebra_rtol(1.0))
 
 
-def test_page_renders_both_noise_levels_and_the_sweep(cli_results, tmp_path):
+def test_page_renders_from_stored_results(tmp_path):
+    from gpfverify.report.inputs import SectionInput
     from gpfverify.report.render import to_markdown
     from gpfverify.report.sections import fusion_ungm1d
 
-    page = to_markdown(fusion_ungm1d.render(cli_results, tmp_path), tmp_path)
-    assert "Claims of the paper checked — σ² = 1.0" in page and "σ² = 2.0" in page
-    assert "Claim across σ²" in page
+    results = json.loads(FIXTURE.read_text())
+    runs = SectionRuns("ungm1d", "quick", 1, (RunEntry("ungm1d", "σ² = 1", "sweep", "results.json"),))
+    page = to_markdown(fusion_ungm1d.render_section(SectionInput("ungm1d", tmp_path, runs, (results,))), tmp_path)
+    assert "Claims of Liao et al. 2019 checked — σ² = 1" in page and "σ² = 2" in page
+    assert "Claim of Liao et al. 2019 across σ²" in page
+    assert "x_{k+1}" not in page and "xₖ₊₁" in page
     for name in ("mahalanobis-s1.0.png", "mahalanobis-s2.0.png", "sweep.png"):
         assert (tmp_path / name).stat().st_size > 5_000
 
 
 def test_same_seed_object_twice_gives_the_same_numbers():
-    params = ungm1d.default_params(train=15, test_steps=3, sweep=[2.0])
+    params = ungm1d.Params(train=15, test_steps=3, sweep=(2.0,))
     seed = np.random.SeedSequence(1).spawn(2)[1]
     first, again = ungm1d.run_one(params, seed), ungm1d.run_one(params, seed)
     for noise in ("1.0", "2.0"):
         for family in FAMILIES:
-            assert first["settings"][noise]["families"][family]["maha"] == \
-                again["settings"][noise]["families"][family]["maha"]
+            assert first.settings[noise].families[family].maha == again.settings[noise].families[family].maha

@@ -1,99 +1,130 @@
-"""The fusion paper's 2-D constant-turn experiment (seed 000 §4.2, Figs. 5–15): two range–bearing
-sensors, GPs learned from κ training samples, 50 test steps filtered by twelve methods
-(Sensor1/Sensor2/CMF/DMF/RCC-CI/CW × GP-ADF/GP-UKF); RMSE per step (eq. 45), the ratio of full
-column rank of each local C_xy^m per step, the DMF − CMF gap, computation time per method, and
-the audit of every step on which the rank condition failed.
+"""The fusion paper's 2-D constant-turn experiment (Liao et al. 2019 §4.2, Figs. 5–15): two
+range–bearing sensors, GPs learned from κ training samples, 50 test steps filtered by twelve
+methods (Sensor1/Sensor2/CMF/DMF/RCC-CI/CW × GP-ADF/GP-UKF); RMSE per step (eq. 45), the ratio of
+full column rank of each local C_xy^m per step, the DMF − CMF gap, computation time per method,
+the audit of every step on which the rank condition failed, and the paper's claims as records.
 
-Interpretations (each a parameter recorded in ``params``): sensor positions z₁ = [−200, 200],
-z₂ = [200, 200]; each sensor's filter starts at the polar→Cartesian conversion of its *first test
-observation* plus a per-coordinate N(b, 1) perturbation (b = 10 for κ = 300, 20 for κ = 30, 60),
-with initial covariance (b² + 1) I — the second moment of that perturbation; the fused filters
-start at the mean of the sensors' starts with the same covariance. See
-:mod:`gpfverify.experiments.fusion_run` for the methods and the records.
+Parameters, profiles and the run record: :mod:`gpfverify.contract.ct2d` (the interpretations are
+stated there); the methods and records: :mod:`gpfverify.experiments.fusion_run`.
 """
 
 from __future__ import annotations
 
+import time
+
 import numpy as np
 
-from gpfverify.errors import InputError
-from gpfverify.experiments.fusion_run import (add_method_arguments, hyperparameters, method_params,
-                                              params_with, run_setting, summarize_setting, train_models)
+from gpfverify.contract.claims import ClaimRecord, verdict_of
+from gpfverify.contract.ct2d import (DEFAULT_RUNS, LARGE_TRAINING, NAME, PROFILES, Params, RunRecord,
+                                     default_perturbation_mean, omega_label)
+from gpfverify.contract.fusion import FAMILIES, FUSION_RULES, LOCAL_FILTERS, PAPER
+from gpfverify.contract.methods import Method
+from gpfverify.experiments.fusion_run import (ClaimContext, _num, equivalence_claim, fusion_beats_baselines,
+                                              fusion_beats_sensors, run_setting, summarize_setting, train_models)
 from gpfverify.filters.records import Gaussian
 from gpfverify.filters.sigma_points import SigmaParams
+from gpfverify.models import Sensor, StateSpaceModel
 from gpfverify.rng import generator
-from gpfverify.scenarios.fusion_models import (CT_SENSOR_POSITIONS, ct_scenario, polar_to_cartesian,
-                                               sensor_side, simulate_data)
+from gpfverify.scenarios.fusion_models import (FusionScenario, polar_to_cartesian, range_bearing, sensor_side,
+                                               simulate_data, turn_matrix)
 
-NAME = "ct2d"
-DEFAULT_RUNS = 1000
-#: κ = 300 uses an N(10, 1) start perturbation, κ = 30, 60 an N(20, 1) one (seed 000 §4.2)
-LARGE_TRAINING = 300
+__all__ = ["DEFAULT_RUNS", "NAME", "PAPER", "PROFILES", "Params", "RunRecord", "default_perturbation_mean",
+           "run_one", "summarize"]
 
 
-def default_perturbation_mean(kappa: int) -> float:
-    return 10.0 if kappa >= LARGE_TRAINING else 20.0
+def scenario(params: Params) -> FusionScenario:
+    """The model of eq. 46–47 with the parameters' noise variances and sensor positions."""
+    R = np.diag([params.range_noise_var, params.bearing_noise_var])
+    sensors = tuple(Sensor(range_bearing(np.array(z)), R, name=f"range-arctan at {z}")
+                    for z in params.sensor_positions)
+    model = StateSpaceModel(turn_matrix(params.omega), params.process_noise_var * np.eye(2), sensors, np.zeros(2),
+                            params.training_start_var * np.eye(2), name="2-D constant turn")
+    return FusionScenario(model, params.kappa, params.test_steps)
 
 
-def add_arguments(parser) -> None:
-    parser.add_argument("--kappa", type=int, default=300, help="training samples κ (paper: 300, 30, 60)")
-    parser.add_argument("--omega", type=float, default=2 * np.pi / 90,
-                        help="turn rate Ω in rad/s (paper: 2π/90 ≈ 0.0698 and 0.5)")
-    parser.add_argument("--test-steps", type=int, default=50, help="test steps (default 50)")
-    parser.add_argument("--perturbation-mean", type=float, default=None,
-                        help="mean b of the N(b, 1) start perturbation (default 10 for κ ≥ 300, else 20)")
-    parser.add_argument("--perturbation-std", type=float, default=1.0, help="its std (default 1)")
-    add_method_arguments(parser, fit_points=100)
-
-def params_from_args(args) -> dict:
-    if args.kappa < 3:
-        raise InputError(f"--kappa must be at least 3, got {args.kappa}")
-    if args.test_steps < 1:
-        raise InputError(f"--test-steps must be at least 1, got {args.test_steps}")
-    b = default_perturbation_mean(args.kappa) if args.perturbation_mean is None else args.perturbation_mean
-    s = args.perturbation_std
-    return {"kappa": args.kappa, "omega": args.omega, "test_steps": args.test_steps,
-            "sensor_positions": [list(z) for z in CT_SENSOR_POSITIONS],
-            "process_noise_cov": "5 I", "measurement_noise_cov": "diag(5, (0.1 pi/180)^2)",
-            "training_start": "x ~ N(0, I)",
-            "start_observation": "first test observation, polar->Cartesian on the origin's side",
-            "perturbation_mean": b, "perturbation_std": s, "initial_cov_scale": b * b + s * s,
-            "fused_start": "mean of the sensors' starts, same covariance", **method_params(args)}
-
-
-def default_params(**overrides) -> dict:
-    """The command line's defaults as a params dict, with ``overrides`` applied to the options."""
-    return params_with(add_arguments, params_from_args, **overrides)
-
-
-def starts(params: dict, first_observations, rng: np.random.Generator) -> tuple[list[Gaussian], Gaussian]:
-    """Each sensor's initial belief and the fused filters' one (see module docstring)."""
-    cov = params["initial_cov_scale"] * np.eye(2)
+def starts(params: Params, first_observations, rng: np.random.Generator) -> tuple[list[Gaussian], Gaussian]:
+    """Each sensor's initial belief and the fused filters' one (see :mod:`gpfverify.contract.ct2d`)."""
+    cov = params.start_cov_scale * np.eye(2)
     means = [polar_to_cartesian(y, z, sensor_side(z))
-             + rng.normal(params["perturbation_mean"], params["perturbation_std"], size=2)
-             for y, z in zip(first_observations, params["sensor_positions"])]
+             + rng.normal(params.start_mean, params.perturbation_std, size=2)
+             for y, z in zip(first_observations, params.sensor_positions)]
     return [Gaussian(m, cov) for m in means], Gaussian(np.mean(means, axis=0), cov)
 
 
-def run_one(params: dict, seed_sequence) -> dict:
-    import time
-
+def run_one(params: Params, seed_sequence: np.random.SeedSequence) -> RunRecord:
     rng = generator(seed_sequence)
-    scenario = ct_scenario(params["omega"], params["kappa"], params["test_steps"],
-                           tuple(tuple(z) for z in params["sensor_positions"]))
-    data = simulate_data(scenario, rng)
+    data = simulate_data(scenario(params), rng)
     started = time.perf_counter()
-    models = train_models(data, params["restarts"], params["fit_points"], rng)
+    models = train_models(data, params.restarts, params.fit_points, rng)
     training = time.perf_counter() - started
     local_starts, fused_start = starts(params, [y[0] for y in data.test_measurements], rng)
-    sigma = SigmaParams(params["alpha"], params["beta"], params["sigma_kappa"])
-    record = run_setting(data, models, local_starts, fused_start, sigma, params["rcc_size"], params["rank_tol"])
-    record["training_seconds"] = training
-    record["hyperparameters"] = hyperparameters(models)
-    return record
+    sigma = SigmaParams(params.alpha, params.beta, params.sigma_kappa)
+    return run_setting(data, models, local_starts, fused_start, sigma, params.rcc_size, params.rank_tol,
+                       training, params.rcc_on_empty)
 
 
-def summarize(params: dict, results: list[dict]) -> dict:
+def summarize(params: Params, results: list[RunRecord]) -> dict:
     body = summarize_setting(results)
-    body["training_time_per_run"] = float(np.mean([r["training_seconds"] for r in results]))
+    # the start the runs used (params hold None for "the paper's choice for κ")
+    body["start_perturbation"] = {"mean": params.start_mean, "std": params.perturbation_std,
+                                  "initial_cov_scale": params.start_cov_scale}
+    ctx = ClaimContext(NAME, params.label, "", len(results), DEFAULT_RUNS)
+    body["claims"] = claims(params, body, ctx)
     return body
+
+
+def claims(params: Params, r: dict, ctx: ClaimContext) -> list[ClaimRecord]:
+    """The paper's claims checked on one setting's summary."""
+    out = []
+    for family in FAMILIES:
+        out += [equivalence_claim(ctx, r, family, "rmse", "Proposition 1 and eq. 35; Figs. 6, 7 (§4.2, case 1)"),
+                fusion_beats_sensors(ctx, r, family, "run_mean_sq_err", "m²", "Figs. 6, 7, 12, 13 (§4.2)"),
+                fusion_beats_baselines(ctx, r, family, "run_mean_sq_err", "m²", "Figs. 6, 7, 12, 13 (§4.2)")]
+    out += time_claims(ctx, r)
+    if params.kappa < LARGE_TRAINING:
+        out.append(rank_claim(ctx, params, r))
+    return out
+
+
+def _ms(seconds: float) -> str:
+    return f"{_num(1e3 * seconds)} ms"
+
+
+def time_claims(ctx: ClaimContext, r: dict) -> list[ClaimRecord]:
+    """DMF costs less than CMF, RCC-CI costs the most of the fusion methods (Figs. 8, 9, 14, 15): means of
+    each method's own time per step, compared as they are (wall-clock, no Monte Carlo interval)."""
+    t, online = r["time_per_step"], r["online_time_per_step"]
+    out = []
+    for family in FAMILIES:
+        cmf, dmf = Method("CMF", family).key, Method("DMF", family).key
+        ratio = t[dmf] / t[cmf]
+        out.append(ctx.record(
+            f"dmf-cheaper-than-cmf/{family}", f"{family}: DMF costs less time than CMF", "Figs. 8, 9, 14, 15 (§4.2)",
+            verdict_of(t[dmf] < t[cmf]), ratio, 1.0,
+            f"time per step DMF / CMF = {_num(ratio)}: whole fusion step (the centre's prediction, stacked moments "
+            f"and update) DMF {_ms(t[dmf])} vs CMF {_ms(t[cmf])}; the update alone once the data arrive: eq. 35 "
+            f"{_ms(online[dmf])} vs CMF update {_ms(online[cmf])}", timing=True))
+        rcc = Method("RCC-CI", family).key
+        others = {Method(rule, family).key: t[Method(rule, family).key] for rule in FUSION_RULES if rule != "RCC-CI"}
+        ratio = t[rcc] / max(others.values())
+        out.append(ctx.record(
+            f"rcc-ci-costs-most/{family}", f"{family}: RCC-CI costs the most time of the fusion methods",
+            "Figs. 8, 9, 14, 15 (§4.2)", verdict_of(all(t[rcc] > v for v in others.values())), ratio, 1.0,
+            f"RCC-CI time per step / the largest of the others = {_num(ratio)}: RCC-CI {_ms(t[rcc])}; "
+            + ", ".join(f"{m} {_ms(v)}" for m, v in others.items()), timing=True))
+    return out
+
+
+def rank_claim(ctx: ClaimContext, params: Params, r: dict) -> ClaimRecord:
+    """With κ = 30 or 60, GP-UKF's cross covariances lose full column rank on some step while
+    GP-ADF's keep it on every step (Figs. 10, 11; at eq. 35's rank tolerance). Statistic: the
+    smallest full-rank ratio of GP-UKF over sensors and steps (below 1 for the claim)."""
+    ratio = {m: min(r["full_rank_ratio"][m.key]) for m in LOCAL_FILTERS}
+    ukf = min(v for m, v in ratio.items() if m.family == "GP-UKF")
+    adf = min(v for m, v in ratio.items() if m.family == "GP-ADF")
+    evidence = ("smallest ratio of full column rank over steps: "
+                + ", ".join(f"{m.key} {100 * v:.1f} %" for m, v in ratio.items())
+                + f" (κ = {params.kappa}, Ω = {omega_label(params.omega)}; numpy/MATLAB rank tolerance)")
+    return ctx.record("gp-ukf-loses-full-rank", "GP-UKF loses full column rank with small training sets "
+                      "(κ = 30, 60) while GP-ADF keeps it", "Figs. 10, 11 (§4.2, case 2)",
+                      verdict_of(ukf < 1.0 and adf == 1.0), ukf, 1.0, evidence)

@@ -1,14 +1,11 @@
-"""The fusion paper's 1-D two-sensor example (seed 000 §4.1, Figs. 2–4): x_{k+1} = 0.5 x_k +
-25 x_k/(1 + x_k²) + w, y^m = 5 sin(2x + z_m) + v^m; one trajectory of 250 samples per run, the
-first 200 train the GPs, the last 50 are filtered by the twelve methods of
-:mod:`gpfverify.experiments.fusion_run`; average squared Mahalanobis distance per step (eq. 44).
+"""The fusion paper's 1-D two-sensor example (Liao et al. 2019 §4.1, Figs. 2–4):
+xₖ₊₁ = 0.5xₖ + 25xₖ/(1 + xₖ²) + w, yᵐ = 5 sin(2x + zₘ) + vᵐ; one trajectory of 250 samples per run
+and σ², the first 200 train the GPs, the last 50 are filtered by the twelve methods of
+:mod:`gpfverify.experiments.fusion_run`; average squared Mahalanobis distance per step (eq. 44), and
+the paper's claims as records.
 
-Settings: the system noise σ² of the main setting (``--system-noise-var``, Fig. 2: 1; Fig. 3: 2)
-and a sweep (``--sweep``, Fig. 4, whose σ² values were lost in extraction: interpretation
-0.5, 1, 2, 3). Every run simulates one independent trajectory per σ² (child seeds of the run's seed).
-
-Interpretations (each in ``params``): measurement noise variance 0.01; the filters' prior at step
-200 is N(0, 1) for every method; the trajectory starts at x_1 ~ N(0, 1).
+Every run simulates one independent trajectory per σ² (the main setting's and the sweep's; child
+seeds of the run's seed). Parameters, profiles and the run record: :mod:`gpfverify.contract.ungm1d`.
 """
 
 from __future__ import annotations
@@ -17,85 +14,119 @@ import time
 
 import numpy as np
 
-from gpfverify.errors import InputError
-from gpfverify.experiments.fusion_run import (METHODS, add_method_arguments, hyperparameters, method_params,
-                                              params_with, run_setting, summarize_setting, train_models)
+from gpfverify.contract.claims import ClaimRecord, verdict_of
+from gpfverify.contract.fusion import FAMILIES, METHODS, PAPER
+from gpfverify.contract.methods import Method
+from gpfverify.contract.ungm1d import (DEFAULT_RUNS, FIGURE_NOISES, NAME, PROFILES, Params, RunRecord,
+                                      noise_key)
+from gpfverify.experiments.fusion_run import (ClaimContext, _num, equivalence_claim, fusion_beats_baselines,
+                                              fusion_beats_sensors, paired_claim, run_setting, summarize_setting,
+                                              train_models)
 from gpfverify.filters.records import Gaussian
 from gpfverify.filters.sigma_points import SigmaParams
 from gpfverify.rng import generator
-from gpfverify.scenarios.fusion_models import ungm_scenario, simulate_data
+from gpfverify.scenarios.fusion_models import simulate_data, ungm_scenario
 
-NAME = "ungm1d"
-DEFAULT_RUNS = 1000
-DEFAULT_SWEEP = (0.5, 1.0, 2.0, 3.0)
+__all__ = ["DEFAULT_RUNS", "NAME", "PAPER", "PROFILES", "Params", "RunRecord", "run_one", "summarize"]
 
-
-def add_arguments(parser) -> None:
-    parser.add_argument("--system-noise-var", type=float, default=1.0,
-                        help="σ² of the main setting (paper: 1 and 2; default 1)")
-    parser.add_argument("--sweep", type=float, nargs="*", default=list(DEFAULT_SWEEP),
-                        help="further σ² values (Fig. 4; default 0.5 1 2 3)")
-    parser.add_argument("--measurement-noise-var", type=float, default=0.01,
-                        help="sensor noise variance (interpretation; default 0.01)")
-    parser.add_argument("--prior-var", type=float, default=1.0,
-                        help="variance of the filters' prior N(0, ·) at step 200 (interpretation; default 1)")
-    parser.add_argument("--train", type=int, default=200, help="training samples (default 200)")
-    parser.add_argument("--test-steps", type=int, default=50, help="test steps (default 50)")
-    add_method_arguments(parser, fit_points=200)
-
-def params_from_args(args) -> dict:
-    values = sorted({float(args.system_noise_var), *map(float, args.sweep)})
-    if min(values) <= 0 or args.measurement_noise_var <= 0 or args.prior_var <= 0:
-        raise InputError("noise and prior variances must be positive")
-    if args.train < 3 or args.test_steps < 1:
-        raise InputError(f"--train must be >= 3 and --test-steps >= 1, got {args.train}, {args.test_steps}")
-    return {"system_noise_var": float(args.system_noise_var), "noise_vars": values,
-            "measurement_noise_var": args.measurement_noise_var, "sensor_phases": [0.0, float(np.pi / 4)],
-            "prior_mean": 0.0, "prior_var": args.prior_var, "trajectory_start": "x_1 ~ N(0, 1)",
-            "train": args.train, "test_steps": args.test_steps,
-            "mahalanobis": "squared form (x - x_hat)^T C^-1 (x - x_hat), eq. 44", **method_params(args)}
+#: the per-σ² fields repeated under "sweep" for σ² other than the main one
+SWEEP_FIELDS = ("rmse", "max_equivalence_gap", "one_step_gap", "full_rank_ratio", "time_per_step")
 
 
-def default_params(**overrides) -> dict:
-    """The command line's defaults as a params dict, with ``overrides`` applied to the options."""
-    return params_with(add_arguments, params_from_args, **overrides)
-
-
-def run_one(params: dict, seed_sequence) -> dict:
-    sigma = SigmaParams(params["alpha"], params["beta"], params["sigma_kappa"])
-    prior = Gaussian(np.array([params["prior_mean"]]), np.array([[params["prior_var"]]]))
+def run_one(params: Params, seed_sequence: np.random.SeedSequence) -> RunRecord:
+    sigma = SigmaParams(params.alpha, params.beta, params.sigma_kappa)
+    prior = Gaussian(np.array([params.prior_mean]), np.array([[params.prior_var]]))
     settings = {}
-    for i, noise_var in enumerate(params["noise_vars"]):
+    for i, noise_var in enumerate(params.noise_vars):
         # the i-th child of the run's seed, built explicitly: spawn() would depend on earlier spawns
         child = np.random.SeedSequence(seed_sequence.entropy, spawn_key=tuple(seed_sequence.spawn_key) + (i,))
         rng = generator(child)
-        scenario = ungm_scenario(noise_var, params["measurement_noise_var"], 1.0, params["train"],
-                                 params["test_steps"], tuple(params["sensor_phases"]))
+        scenario = ungm_scenario(noise_var, params.measurement_noise_var, params.trajectory_start_var, params.train,
+                                 params.test_steps, tuple(params.sensor_phases))
         data = simulate_data(scenario, rng)
         started = time.perf_counter()
-        models = train_models(data, params["restarts"], params["fit_points"], rng)
+        models = train_models(data, params.restarts, params.fit_points, rng)
         training = time.perf_counter() - started
-        record = run_setting(data, models, [prior, prior], prior, sigma, params["rcc_size"], params["rank_tol"])
-        record["training_seconds"] = training
-        record["hyperparameters"] = hyperparameters(models)
-        settings[repr(noise_var)] = record
-    return {"settings": settings}
+        settings[noise_key(noise_var)] = run_setting(data, models, [prior, prior], prior, sigma, params.rcc_size,
+                                                     params.rank_tol, training, params.rcc_on_empty)
+    return RunRecord(settings)
 
 
-def summarize(params: dict, results: list[dict]) -> dict:
-    per_setting = {}
-    for noise_var in params["noise_vars"]:
-        runs = [r["settings"][repr(noise_var)] for r in results]
-        body = summarize_setting(runs)
-        body["training_time_per_run"] = float(np.mean([r["training_seconds"] for r in runs]))
-        per_setting[repr(noise_var)] = body
-    main = per_setting[repr(params["system_noise_var"])]
-    return {"mahalanobis": main["average_mahalanobis"], **{k: v for k, v in main.items()},
-            "sweep": {k: {"mahalanobis": v["average_mahalanobis"], "rmse": v["rmse"],
-                          "max_equivalence_gap": v["max_equivalence_gap"],
-                          "one_step_gap": v["one_step_gap"], "full_rank_ratio": v["full_rank_ratio"],
-                          "time_per_step": v["time_per_step"]}
-                      for k, v in per_setting.items()},
-            "per_noise": per_setting,
-            "average_mahalanobis_by_noise": {k: {m: float(np.mean(v["average_mahalanobis"][m])) for m in METHODS}
-                                             for k, v in per_setting.items()}}
+def summarize(params: Params, results: list[RunRecord]) -> dict:
+    """The body of ``results.json``: the main σ²'s summary once, at top level (``"mahalanobis"``
+    and the keys of
+    :func:`~gpfverify.experiments.fusion_run.summarize_setting`); ``"per_noise"`` the full summaries of
+    the *other* σ² values; ``"sweep"`` the per-step curves of every σ² except the main one's (which are
+    the top-level ones); ``"average_mahalanobis_by_noise"`` the step-mean of every σ²."""
+    per_noise = {noise_key(v): summarize_setting([r.settings[noise_key(v)] for r in results])
+                 for v in params.noise_vars}
+    main_key = noise_key(params.system_noise_var)
+    main = per_noise[main_key]
+    others = {k: v for k, v in per_noise.items() if k != main_key}
+    return {
+        "mahalanobis": main["average_mahalanobis"], **main,
+        "main_noise": main_key,
+        "noise_vars": list(params.noise_vars),
+        "sweep": {k: {"mahalanobis": v["average_mahalanobis"], **{f: v[f] for f in SWEEP_FIELDS}}
+                  for k, v in others.items()},
+        "per_noise": others,
+        "average_mahalanobis_by_noise": {k: {m.key: float(np.mean(v["average_mahalanobis"][m.key])) for m in METHODS}
+                                         for k, v in per_noise.items()},
+        "claims": claims(params, per_noise, len(results)),
+    }
+
+
+def claims(params: Params, per_noise: dict[str, dict], n: int) -> list[ClaimRecord]:
+    out = []
+    for noise in params.noise_vars:
+        key = noise_key(noise)
+        in_figure = noise in FIGURE_NOISES
+        ctx = ClaimContext(NAME, f"σ² = {noise:g}", f"s{key}", n, DEFAULT_RUNS if in_figure else None)
+        out += setting_claims(ctx, per_noise[key], noise, in_figure)
+    out.append(sweep_claim(params, per_noise, n))
+    return out
+
+
+def setting_claims(ctx: ClaimContext, r: dict, noise: float, in_figure: bool) -> list[ClaimRecord]:
+    source = "Figs. 2, 3 (§4.1)" if in_figure else "Fig. 4 (§4.1)"
+    caveats = () if in_figure else ("the paper shows this σ² only in Fig. 4, without a run count; the σ² values of "
+                                    "Fig. 4 are an interpretation (lost in extraction)",)
+    out = []
+    for family in FAMILIES:
+        out += [equivalence_claim(ctx, r, family, "average_mahalanobis", "Proposition 1 and eq. 35; " + source,
+                                  caveats=caveats),
+                fusion_beats_sensors(ctx, r, family, "run_mean_mahalanobis", "", source, caveats=caveats),
+                fusion_beats_baselines(ctx, r, family, "run_mean_mahalanobis", "", source, caveats=caveats),
+                paired_claim(ctx, f"sensor2-beats-sensor1/{family}", f"{family}: Sensor 2 performs better than "
+                             "Sensor 1", source, r["run_mean_mahalanobis"],
+                             [(Method.sensor_filter(2, family), Method.sensor_filter(1, family))], "",
+                             caveats=caveats)]
+    if noise in FIGURE_NOISES:
+        better, worse = ("GP-ADF", "GP-UKF") if noise == FIGURE_NOISES[0] else ("GP-UKF", "GP-ADF")
+        out.append(paired_claim(ctx, f"fusion-{better.lower()}-beats-{worse.lower()}",
+                                f"σ² = {noise:g}: fusion with {better} beats fusion with {worse}",
+                                "§4.1, Figs. 2, 3", r["run_mean_mahalanobis"],
+                                [(Method("CMF", better), Method("CMF", worse))], ""))
+    return out
+
+
+def sweep_claim(params: Params, per_noise: dict[str, dict], n: int) -> ClaimRecord:
+    """Fusion beats the single sensors for every σ² (Fig. 4), read as the paper reads its figure:
+    the worse of CMF and DMF against the better sensor, on the step-mean of the average
+    Mahalanobis distance (point estimates). Statistic: the largest ratio fused / best sensor."""
+    ratios, parts = [], []
+    for noise in params.noise_vars:
+        means = {m: float(np.mean(v)) for m, v in per_noise[noise_key(noise)]["average_mahalanobis"].items()}
+        for family in FAMILIES:
+            fused = max(means[Method("CMF", family).key], means[Method("DMF", family).key])
+            single = min(means[Method.sensor_filter(m, family).key] for m in (1, 2))
+            ratios.append(fused / single)
+            parts.append(f"σ² = {noise:g} {family}: fused {_num(fused)} vs best sensor {_num(single)}")
+    worst = max(ratios)
+    ctx = ClaimContext(NAME, "", "", n, None)
+    return ctx.record("fusion-beats-sensors-every-noise", "fusion beats the single sensors for every σ²",
+                      "Fig. 4 (§4.1)", verdict_of(worst < 1.0), worst, 1.0,
+                      "worse fused filter / better sensor, step-mean of the average squared Mahalanobis distance: "
+                      + "; ".join(parts),
+                      caveats=("point estimates, without a Monte Carlo interval", "the paper states no run count "
+                               "for Fig. 4; its σ² values are an interpretation (lost in extraction)"))

@@ -1,0 +1,85 @@
+"""Contract of the fusion paper's 1-D two-sensor example (Liao et al. 2019 §4.1, Figs. 2–4): its
+parameters, report profiles and run record (computed by :mod:`gpfverify.experiments.ungm1d`).
+
+Model (eq. 42–43): xₖ₊₁ = 0.5xₖ + 25xₖ/(1 + xₖ²) + w, w ~ N(0, σ²); yᵐ = 5 sin(2x + zₘ) + vᵐ,
+z = (0, π/4); one trajectory of 250 samples per run and σ², the first 200 train the GPs, the last 50
+are filtered. Settings: σ² of the main setting (Fig. 2: 1; Fig. 3: 2) and a sweep (Fig. 4, whose σ²
+values were lost in extraction: interpretation 0.5, 1, 2, 3).
+
+Interpretations (each a parameter): measurement noise variance 0.01; every filter's prior at the
+first test step N(0, 1); the trajectory starts at x₁ ~ N(0, 1).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Literal
+
+from gpfverify.contract.experiment import Profile, Setting
+from gpfverify.contract.fusion import SENSORS, FusionParams, FusionRun
+from gpfverify.contract.params import option
+from gpfverify.errors import InputError
+
+NAME = "ungm1d"
+#: the paper's run count (Figs. 2 and 3: 1000 independent runs; Fig. 4 states none)
+DEFAULT_RUNS = 1000
+#: σ² of the paper's Figs. 2 and 3
+FIGURE_NOISES: tuple[float, float] = (1.0, 2.0)
+DEFAULT_SWEEP: tuple[float, ...] = (0.5, 1.0, 2.0, 3.0)
+
+
+def noise_key(noise_var: float) -> str:
+    """The key of one σ² in ``results.json`` and in a run record: ``repr`` of the float ("1.0")."""
+    return repr(float(noise_var))
+
+
+@dataclass(frozen=True)
+class Params(FusionParams):
+    """The 1-D example's parameters (see the module docstring); defaults as in the paper."""
+
+    fit_points: int = option(200, "at most this many training samples (evenly spaced) for the hyperparameter "
+                             "fit; the GP then conditions on all of them", minimum=3)
+    system_noise_var: float = option(1.0, "system noise σ² of the main setting (paper: 1 and 2)", above=0)
+    sweep: tuple[float, ...] = option(DEFAULT_SWEEP, "further σ² values (Fig. 4; interpretation of the lost "
+                                      "values)", above=0)
+    measurement_noise_var: float = option(0.01, "sensor noise variance (interpretation)", above=0)
+    sensor_phases: tuple[float, ...] = option((0.0, math.pi / 4), "phases zₘ of the sensors 5 sin(2x + zₘ)",
+                                              cli=False)
+    prior_mean: float = option(0.0, "mean of every filter's prior at the first test step")
+    prior_var: float = option(1.0, "variance of every filter's prior at the first test step (interpretation)",
+                              above=0)
+    trajectory_start_var: float = option(1.0, "the trajectory starts at x₁ ~ N(0, v); this is v (interpretation)",
+                                         above=0)
+    train: int = option(200, "training samples at the start of each trajectory", minimum=3)
+    test_steps: int = option(50, "test steps filtered after the training samples", minimum=1)
+    mahalanobis: Literal["squared"] = option(
+        "squared", "the metric of eq. 44 as written: the squared form (x − x̂)ᵀC⁻¹(x − x̂), averaged over runs")
+
+    def check(self) -> None:
+        if len(self.sensor_phases) != SENSORS:
+            raise InputError(f"sensor_phases must hold {SENSORS} phases, got {len(self.sensor_phases)}")
+
+    @property
+    def noise_vars(self) -> tuple[float, ...]:
+        """Every σ² run: the main one and the sweep, sorted, without repeats."""
+        return tuple(sorted({float(self.system_noise_var), *map(float, self.sweep)}))
+
+
+@dataclass(frozen=True)
+class RunRecord:
+    """One run: one independent trajectory per σ², keyed by :func:`noise_key`."""
+
+    settings: dict[str, FusionRun]
+
+
+def _setting(params: Params) -> Setting:
+    values = ", ".join(f"{v:g}" for v in params.noise_vars)
+    return Setting(f"σ² = {params.system_noise_var:g}; σ² ∈ {{{values}}}", "sweep", params)
+
+
+PROFILES: dict[str, Profile] = {
+    # the two noise levels of Figs. 2 and 3, few runs
+    "quick": Profile(4, (_setting(Params(sweep=(2.0,))),)),
+    "full": Profile(DEFAULT_RUNS, (_setting(Params()),)),
+}
