@@ -102,7 +102,7 @@ def test_results_follow_the_contract(small_results):
     assert [c.id for c in records] == ["gpadf-scalar/smallest-nll", "gpadf-scalar/gp-adf-consistent",
                                        "gpadf-scalar/over-confident/UKF", "gpadf-scalar/over-confident/EKF",
                                        "gpadf-scalar/over-confident/GP-UKF"]
-    assert all(c.paper == "seed000" and c.n == 3 and c.paper_n == gpadf_scalar.DEFAULT_RUNS for c in records)
+    assert all(c.paper == "deisenroth2009" and c.n == 3 and c.paper_n == gpadf_scalar.DEFAULT_RUNS for c in records)
     assert all(c.cautions for c in records)  # 3 runs against the paper's 20
 
 

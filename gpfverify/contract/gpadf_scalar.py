@@ -18,12 +18,9 @@ from gpfverify.contract.params import Params as ParamsBase
 from gpfverify.contract.params import option
 
 NAME = "gpadf-scalar"
-#: the benchmark comes with the GP-ADF moments of seed 000 (its reference [7]; SPEC §4)
-PAPER = "seed000"
-#: the benchmark's paper, cited in full (it is not one of the four seed papers)
-CITATION = ("Marc Peter Deisenroth, Marco F. Huber, Uwe D. Hanebeck. Analytic moment-based Gaussian "
-            "process filtering. Proceedings of the 26th International Conference on Machine Learning "
-            "(ICML), 2009.")
+#: the benchmark's paper: the GP-ADF filter whose moments the fusion paper (seed 000) builds on,
+#: its reference [7] (SPEC §4)
+PAPER = "deisenroth2009"
 #: the run count of the full profile (20 independent training sets and test sets)
 DEFAULT_RUNS = 20
 #: runs of the quick report profile

@@ -40,4 +40,9 @@ PAPERS: dict[str, Paper] = {p.key: p for p in (
           "两级量测更新的粒子滤波检测前跟踪算法",
           "A particle-filter track-before-detect algorithm with a two-stage measurement update",
           "Chinese Journal of Sensors and Actuators (传感技术学报) 2015(1)", 2015, "Chen et al. 2015"),
+    # the GP-ADF filter and its scalar benchmark, reference [7] of the fusion paper
+    Paper("deisenroth2009", "Marc Peter Deisenroth, Marco F. Huber, Uwe D. Hanebeck",
+          "Analytic Moment-based Gaussian Process Filtering", "Analytic Moment-based Gaussian Process Filtering",
+          "Proceedings of the 26th International Conference on Machine Learning (ICML), 225–232", 2009,
+          "Deisenroth et al. 2009"),
 )}

@@ -48,7 +48,7 @@ __all__ = ["DEFAULT_RUNS", "METHODS", "NAME", "PAPER", "PROFILES", "Params", "Ru
 SCORES = ("nll", "maha", "sq_err")
 _LOG_2PI = float(np.log(2.0 * np.pi))
 #: where Deisenroth et al. state the claims
-SOURCE = "Deisenroth et al. 2009 (ref. [7] of {short}), §5 and Table 1"
+SOURCE = "{short}, §5 and Table 1 (ref. [7] of Liao et al. 2019)"
 
 
 def _setting(params: Params) -> ScalarSetting:

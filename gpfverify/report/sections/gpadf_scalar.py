@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 
 from gpfverify.contract.claims import read_claims
-from gpfverify.contract.gpadf_scalar import CITATION, GP_ADF, METHODS, NAME, PAPER, Example, FittedGPs, TableRow
+from gpfverify.contract.gpadf_scalar import GP_ADF, METHODS, NAME, PAPER, Example, FittedGPs, TableRow
 from gpfverify.contract.papers import PAPERS
 from gpfverify.contract.serial import from_json
 from gpfverify.report.document import Figure, Paragraph, Section, Table, claim_records_table, fmt
@@ -42,8 +42,8 @@ def render(results: dict, out_dir: Path) -> Section:
     adf = table[GP_ADF.key]
     section = Section(SLUG, "GP-ADF scalar benchmark (Deisenroth et al. 2009)")
     section.add(Paragraph(
-        f"{CITATION} The benchmark of the GP-ADF filter that {PAPERS[PAPER].short} (reference [7]) build "
-        "their fusion rules on."))
+        f"{PAPERS[PAPER].citation} The benchmark of the GP-ADF filter that {PAPERS['seed000'].short} "
+        "(reference [7]) build their fusion rules on."))
     section.add(Paragraph(
         "Setting: x₁ = 0.5x₀ + 25x₀/(1 + x₀²) + w, w ~ N(0, "
         f"{p['system_noise_std']}²); y₁ = 5 sin(2x₁) + v, v ~ N(0, {p['measurement_noise_std']}²); "
