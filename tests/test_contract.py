@@ -112,6 +112,14 @@ def test_paired_difference_decides_by_five_standard_errors():
     assert PairedDifference.of([3.0, 4.1, 5.0, 6.1], [1.0, 2.0, 3.0, 4.0]).verdict == "NOT held"
     assert PairedDifference.of([1.0, 2.0, 3.0, 4.0], [1.1, 1.9, 3.1, 3.9]).verdict == "undecided"
     assert PairedDifference.of([1.0], [2.0]).atol is None
+    close = PairedDifference.of([1.0, 2.0, 3.0, 4.0], [1.1, 1.9, 3.1, 3.9])
+    assert close.runs_to_decide is None  # mean difference exactly 0
+    undecided = PairedDifference.of([1.0, 2.0, 3.0, 4.0, 5.0], [1.3, 1.9, 3.3, 3.9, 5.3])
+    assert undecided.verdict == "undecided"
+    more = undecided.runs_to_decide
+    assert more is not None and more > undecided.n
+    # at that many runs with the same mean and spread the interval excludes zero
+    assert undecided.atol * (undecided.n / more) ** 0.5 <= abs(undecided.mean) + 1e-12
     assert combine(["held", "undecided"]) == "undecided" and combine(["held", "NOT held"]) == "NOT held"
     assert combine(["held", "held"]) == "held"
 

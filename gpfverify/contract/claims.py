@@ -76,6 +76,9 @@ class ClaimRecord:
     paper_n: int | None = None
     #: the verdict compares wall-clock times (which depend on the machine and its load)
     timing: bool = False
+    #: for an undecided Monte Carlo verdict: about how many runs would decide it, were the
+    #: observed mean and spread the true ones (:attr:`PairedDifference.runs_to_decide`)
+    runs_to_decide: int | None = None
 
     def to_json(self) -> dict[str, Any]:
         return to_json(self)
@@ -110,6 +113,15 @@ class PairedDifference:
     mean: float
     atol: float | None  # None with fewer than two runs
     n: int
+
+    @property
+    def runs_to_decide(self) -> int | None:
+        """For an undecided verdict, the run count n' at which the same mean would lie outside
+        ±atol: atol scales as 1/√n, so n' = ⌈n (atol / |mean|)²⌉ (None when decided, when the mean
+        is exactly zero or with fewer than two runs)."""
+        if self.verdict != "undecided" or self.atol is None or self.mean == 0.0:
+            return None
+        return int(np.ceil(self.n * (self.atol / abs(self.mean)) ** 2))
 
     @classmethod
     def of(cls, a: Any, b: Any) -> PairedDifference:
