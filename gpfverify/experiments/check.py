@@ -18,6 +18,7 @@ from independent child streams of its seed.
 
 from __future__ import annotations
 
+from typing import Any
 from pathlib import Path
 
 import numpy as np
@@ -110,6 +111,7 @@ def run_one(params: dict, seed: np.random.SeedSequence) -> dict:
     """One run of the check (module docstring)."""
     model = load_system(params["system"])
     data_rng, train_rng = (generator(s) for s in seed.spawn(2))
+    truth: np.ndarray | None
     if params["measurements"] is None:
         truth, ys = model.simulate(params["steps"], data_rng)
     else:
@@ -127,7 +129,7 @@ def _normalised_errors(model, fused, ys: np.ndarray, truth: np.ndarray | None) -
     (:class:`gpfverify.consistency.Consistency`; angle components wrapped)."""
     cmf = [s.cmf for s in fused.steps]
     locals_ = [[s.local[m] for s in fused.steps] for m in range(len(model.sensors))]
-    out = {"nis": {"cmf": Consistency.nis_from_records(ys, cmf, circular=model.circular).values[0],
+    out: dict[str, Any] = {"nis": {"cmf": Consistency.nis_from_records(ys, cmf, circular=model.circular).values[0],
                    "local": [Consistency.nis_from_records(ys[:, b], records, circular=sensor.circular).values[0]
                              for b, sensor, records in zip(model.blocks, model.sensors, locals_)]}}
     if truth is not None:

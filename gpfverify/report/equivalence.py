@@ -107,13 +107,17 @@ class CheckData:
         offsets = results.get("branch_offset_count")
         self.branch = (np.asarray(offsets, dtype=int) if offsets is not None
                        else np.zeros(np.shape(results["full_column_rank"]), dtype=int))   # (R, T, N)
+        self.runs_ok: int
+        self.steps: int
+        self.n: int
         self.runs_ok, self.steps, self.n = self.full.shape
         self.total = self.runs_ok * self.steps
         self.ks = list(results.get("k") or range(1, self.steps + 1))
         self.D = int(results["state_dim"])
         self.sensors = results["sensors"]
-        self.step_exact = self.exact.all(axis=2)                              # (R, T)
-        self.step_held = self.full.all(axis=2)
+        # asarray: numpy's stubs cannot tell that all(axis=2) of (R, T, N) is an array, not a scalar
+        self.step_exact = np.asarray(self.exact.all(axis=2))                  # (R, T)
+        self.step_held = np.asarray(self.full.all(axis=2))
         failed = {f.get("index") for f in results.get("failed_runs") or []}
         runs = int(results.get("runs", self.runs_ok))
         labels = [i for i in range(runs) if i not in failed]
@@ -169,8 +173,9 @@ def _sensor_sentence(d: CheckData, m: int) -> str | None:
         return None
     label = d.sensor_label(m)
     if not n_lost:   # l_m > D cannot keep full column rank; say so if the data disagree
-        return (f"{label[0].upper()}{label[1:]} has {outputs} outputs and the state {d.D} (l_m > D: the rank condition can never hold "
-                f"for this sensor), yet no step recorded a rank loss for it — check the rank rule.")
+        return (f"{label[0].upper()}{label[1:]} has {outputs} outputs and the state {d.D} "
+                f"(l_m > D: the rank condition can never hold for this sensor), yet no step recorded a rank loss "
+                f"for it — check the rank rule.")
     when = "at every step" if n_lost == d.total else f"at {n_lost} of {d.total} steps"
     text = f"{label[0].upper()}{label[1:]} lost full column rank {when}"
     if too_many:
@@ -196,7 +201,7 @@ def summary_paragraphs(results: dict) -> list[str]:
     d = CheckData(results)
     exact_steps = int(d.step_exact.sum())
     held_steps = int(d.step_held.sum())
-    within = d.gap <= d.bound
+    within = np.less_equal(d.gap, d.bound)
     n_within = int(within.sum())
     max_gap = float(d.gap.max())
     out = []
@@ -218,7 +223,8 @@ def summary_paragraphs(results: dict) -> list[str]:
     else:
         worst = np.unravel_index(np.argmax(d.gap), d.gap.shape)
         out.append(f"DMF differed from CMF at {d.total - exact_steps} of {d.total} steps{d.of_runs} and "
-                   f"reproduced it at {exact_steps} (largest one-step gap {_g(max_gap)}, at {d.where([worst])}); "                   + ("the rank condition of Proposition 1 never held." if held_steps == 0 else
+                   f"reproduced it at {exact_steps} (largest one-step gap {_g(max_gap)}, at {d.where([worst])}); "
+                   + ("the rank condition of Proposition 1 never held." if held_steps == 0 else
                       f"the rank condition of Proposition 1 held at {held_steps} of the {d.total} steps."))
     out += [s for s in (_sensor_sentence(d, m) for m in range(d.n)) if s]
     inexact = ~d.step_exact
@@ -250,10 +256,10 @@ def summary_paragraphs(results: dict) -> list[str]:
     wrapped = d.step_exact & ~within & d.branch.any(axis=2)
     if wrapped.any():
         where = list(zip(*np.nonzero(wrapped)))
-        who = sorted({int(m) for r, t in where for m in np.nonzero(d.branch[r, t])[0]})
+        offset_sensors = sorted({int(m) for r, t in where for m in np.nonzero(d.branch[r, t])[0]})
         listed = "; ".join(f"run {d.run_labels[r]} k = {d.ks[t]}: gap {_g(d.gap[r, t])}" for r, t in where[:10])
         out.append(f"At {_plural(len(where), 'step')} every sensor was exact but an angle output of "
-                   + " and ".join(d.sensor_label(m) for m in who)
+                   + " and ".join(d.sensor_label(m) for m in offset_sensors)
                    + " had a branch offset: its eq. 35 terms μ_y^m − μ_y(m) and y^m − μ_y^m, each wrapped to "
                      "(−π, π], summed outside (−π, π], so DMF's innovation differs from CMF's by 2π and the gap is "
                      f"2π G_m e_j, as the audit predicts ({listed}).")
@@ -264,7 +270,8 @@ def summary_paragraphs(results: dict) -> list[str]:
             m = int(np.argmax(d.share[r, t]))
             return (f", largest share {d.sensor_label(m)} {_g(d.share[r, t, m])}" if d.share[r, t, m] > 0 else "")
         listed = "; ".join(f"run {d.run_labels[r]} k = {d.ks[t]}: gap {_g(d.gap[r, t])} vs bound "
-                           f"{_g(d.bound[r, t])}{top(r, t)}" for r, t in where[:10]) + ("; …" if len(where) > 10 else "")
+                           f"{_g(d.bound[r, t])}{top(r, t)}" for r, t in where[:10])
+        listed += "; …" if len(where) > 10 else ""
         lost = [(r, t) for r, t in where if not d.step_held[r, t]]
         angles = any(s.get("circular") for s in d.sensors)
         out.append(f"At {_plural(len(where), 'step')} every sensor was judged exact but the observed gap exceeded "
@@ -440,7 +447,8 @@ def equivalence_sections(results: dict, fig_dir: Path, fig_prefix: str = FIGURES
         threshold = _rule_threshold(results.get("rank_rule"))
         gap.add(Figure(ef.plot_min_per_sensor(d.ks, d.canonical[0], labels, fig_dir / "canonical.png",
                                               "smallest canonical correlation",
-                                              f"smallest canonical correlation of state and output, run {d.run_labels[0]}",
+                                              "smallest canonical correlation of state and output, "
+                                              f"run {d.run_labels[0]}",
                                               threshold, "rank rule threshold"),
                        "Smallest canonical correlation per step and sensor (unit-free: a correlation near 0 means "
                        "an output direction carries almost no information about the state)"))
@@ -643,9 +651,11 @@ def run_audit_sections(run_audit: dict, fig_dir: Path) -> list[Section]:
         pred = np.where(np.isfinite(a.predicted), a.predicted, 0.0)[None, :]
         path, _ = ef.plot_gap(a.ks, gap, None, inexact[None, :], fig_dir / "gap.png", predicted=pred)
         figs.add(Figure(path, "‖μ_DMF − μ_CMF‖ per step (solid) against the closed-form predicted gap "
-                              "−Σ_m G_m C_y^m N_m r_m (dotted; hidden under the solid line where it explains the gap), log scale; "
+                              "−Σ_m G_m C_y^m N_m r_m (dotted; hidden under the solid line where it explains the gap), "
+                              "log scale; "
                               "circles: steps judged not exact"))
-    figs.add(Figure(ef.plot_verdict_strip(a.ks, a.full[None], a.exact[None], labels, fig_dir / "verdicts.png", "this run"),
+    figs.add(Figure(ef.plot_verdict_strip(a.ks, a.full[None], a.exact[None], labels, fig_dir / "verdicts.png",
+                                          "this run"),
                     "Rank verdict and exactness per step and sensor: green full column rank, amber rank lost but "
                     "exact anyway, red not exact"))
     if a.repair.any():

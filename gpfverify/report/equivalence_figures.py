@@ -121,8 +121,9 @@ def plot_verdict_strip(ks, full_rank: np.ndarray, exact: np.ndarray, sensor_labe
         ks_arr = np.asarray(ks)
         step = ks_arr[1] - ks_arr[0] if len(ks_arr) > 1 else 1
         extent = (ks_arr[0] - step / 2, ks_arr[-1] + step / 2, n - 0.5, -0.5)
-        for ax, data, title in ((axes[1, 0], full_rank.mean(axis=0), f"fraction of the {runs} runs with full column rank"),
-                                (axes[2, 0], exact.mean(axis=0), f"fraction of the {runs} runs where the sensor is exact")):
+        for ax, data, title in (
+                (axes[1, 0], full_rank.mean(axis=0), f"fraction of the {runs} runs with full column rank"),
+                (axes[2, 0], exact.mean(axis=0), f"fraction of the {runs} runs where the sensor is exact")):
             image = ax.imshow(data.T, aspect="auto", interpolation="nearest", cmap="RdYlGn", vmin=0, vmax=1,
                               extent=extent)
             ax.set_yticks(range(n))
@@ -172,7 +173,7 @@ def plot_consistency(ks, nees: dict | None, nis_cmf: dict, nis_local: list[dict]
                      path: Path) -> Path:
     """ANEES of every method with its χ² band (when the truth is known), and the ANIS of CMF and of
     every local filter, each against its own band (degrees of freedom differ)."""
-    panels = [] if nees is None else [("nees", None)]
+    panels: list[tuple[str, tuple[str, dict] | None]] = [] if nees is None else [("nees", None)]
     panels += [("nis", ("CMF", nis_cmf))] + [("nis", (label, s)) for label, s in zip(local_labels, nis_local)]
     ncols = 2
     nrows = (len(panels) + ncols - 1) // ncols
@@ -180,11 +181,13 @@ def plot_consistency(ks, nees: dict | None, nis_cmf: dict, nis_local: list[dict]
     flat = axes.ravel()
     for ax, (kind, payload) in zip(flat, panels):
         if kind == "nees":
+            assert nees is not None  # the NEES panel is drawn only with nees
             first = next(iter(nees.values()))
             _band_panel(ax, ks, [(m.upper(), s) for m, s in nees.items()],
                         f"ANEES (χ²_{first['dof']} per run, {first['runs']} runs, "
                         f"{100 * first['level']:.0f} % band)")
         else:
+            assert payload is not None  # every NIS panel carries (label, statistics)
             label, stat = payload
             _band_panel(ax, ks, [(label, stat)],
                         f"ANIS of {label} (χ²_{stat['dof']}, {100 * stat['level']:.0f} % band)")
