@@ -1,13 +1,27 @@
 """SINS/GPS scenario and GPSR-UPF: flight facts against closed forms, the error model's mismatch
 structure, the SR-UKF against the exact KF over the flight, the SR-UKF proposal inside the
-UPF against the UKF proposal and the KF, and factor validity of GPSR-UPF over the flight."""
+UPF against the UKF proposal and the KF, and factor validity of GPSR-UPF over the flight. The
+sins-gps experiment: typed parameters and run records, results.json per CONTRACT.md (with the mean
+N_eff/N of each particle filter), claim records with the collapse caveat, and the report page
+rendered from a stored results.json."""
 
+import json
+import shutil
 from functools import partial
+from pathlib import Path
 
 import numpy as np
 import pytest
 
+from gpfverify.cli import main
+from gpfverify.contract import VERDICTS, ClaimRecord, from_json, read_claims, to_json
+from gpfverify.contract.sins_gps import PROFILES, FilterRun, Params, ParticleFilterRun, RunRecord, collapsed
 from gpfverify.errors import InputError
+from gpfverify.experiments import sins_gps
+from gpfverify.experiments.runner import run_experiment, without_timing
+from gpfverify.report.document import Figure, Paragraph, Section, Table
+from gpfverify.report.inputs import load_section
+from gpfverify.report.sections import sins_gps as sins_gps_section
 from gpfverify.filters.gpsr_upf import GPResidualModel, gpsr_upf_step, sr_ukf_proposal
 from gpfverify.filters.kalman import kf_step
 from gpfverify.filters.likelihoods import batched_gaussian_logpdf, gaussian_logpdf
@@ -195,3 +209,136 @@ def test_measurement_residual_in_the_gpsr_model():
     state_reader = fit_residual(x, z, x, outputs=(0,), state_inputs=(0,), restarts=1, seed=0)
     with pytest.raises(InputError, match="exogenous"):
         GPResidualModel(approx, measurement=state_reader)
+
+
+# ---- the experiment -----------------------------------------------------------------------------
+FIXTURE = Path(__file__).parent / "fixtures" / "sins_gps"
+TINY = Params(particles=4, duration=60.0, train_points=20)
+
+
+@pytest.fixture(scope="module")
+def tiny_run(tmp_path_factory):
+    out = tmp_path_factory.mktemp("sins-gps")
+    return run_experiment(sins_gps, TINY, 2, 4, out, show_progress=False), out
+
+
+def test_results_follow_the_contract(tiny_run):
+    r, _ = tiny_run
+    assert r["experiment"] == "sins-gps" and r["runs"] == 2 and r["runs_ok"] == 2 and r["seed"] == 4
+    for q in ("position", "velocity", "attitude"):
+        assert set(r[f"{q}_error"]) == {"UPF", "GPSR-UPF"}
+        assert all(len(v) == 60 for v in r[f"{q}_error"].values())
+        rms = r["rms"]
+        assert r["reduction"][q] == pytest.approx(1 - rms["GPSR-UPF"][q] / rms["UPF"][q])
+    assert set(r["time_per_run"]) == {"UPF", "GPSR-UPF", "SR-UKF", "GP-SR-UKF"}
+    assert Params.from_json(r["params"]) == TINY
+    json.dumps(r, allow_nan=False)
+
+
+def test_mean_ess_fraction_is_the_mean_over_runs_of_each_particle_filter(tiny_run):
+    r, out = tiny_run
+    saved = [from_json(RunRecord, json.loads(path.read_text())["result"])
+             for path in sorted((out / "runs").glob("run-*.json"))]
+    assert set(r["mean_ess_fraction"]) == {"UPF", "GPSR-UPF"}
+    for method, fraction in r["mean_ess_fraction"].items():
+        assert fraction == pytest.approx(np.mean([rec.particle_filters[method].ess_mean for rec in saved]))
+        assert 1 / TINY.particles - 1e-12 <= fraction <= 1.0  # N_eff lies in [1, N]
+    assert r["ess_fraction"] == r["mean_ess_fraction"]  # the older name, kept
+
+
+def test_params_and_run_records_round_trip(tiny_run):
+    for params in (TINY, Params(), *(s.params for p in PROFILES.values() for s in p.settings)):
+        assert from_json(Params, json.loads(json.dumps(to_json(params)))) == params
+    saved = json.loads((tiny_run[1] / "runs" / "run-000000.json").read_text())
+    record = from_json(RunRecord, saved["result"])
+    assert isinstance(record.particle_filters["GPSR-UPF"], ParticleFilterRun)
+    assert isinstance(record.references["SR-UKF"], FilterRun) and len(record.references["SR-UKF"].position) == 60
+    assert from_json(RunRecord, json.loads(json.dumps(to_json(record)))) == record
+
+
+def test_profiles():
+    assert PROFILES["quick"].runs == 2 and PROFILES["quick"].settings[0].params.particles == 20
+    assert PROFILES["full"].runs == sins_gps.DEFAULT_RUNS == 20 and PROFILES["full"].settings[0].params == Params()
+
+
+@pytest.mark.parametrize("changes, option", [
+    ({"particles": 1}, "--particles"),
+    ({"resample_threshold": 0.0}, "--resample-threshold"),
+    ({"resample_threshold": 1.5}, "--resample-threshold"),
+    ({"train_points": 5}, "--train-points"),
+    ({"train_headings": ()}, "--train-headings"),
+    ({"noise_floor": (0.0, -1.0, 0.0, 0.0, 0.0)}, "--noise-floor"),
+    ({"noise_floor": (0.0, 0.0)}, "--noise-floor"),
+    ({"duration": 0.5}, "--duration"),
+    ({"gps_position_sd": 0.0}, "--gps-position-sd"),
+])
+def test_invalid_params_name_the_option(changes, option):
+    with pytest.raises(InputError, match=option):
+        Params(**changes)
+
+
+def test_reproduce_offers_the_generated_options(capsys):
+    with pytest.raises(SystemExit) as exit_info:
+        main(["reproduce", "sins-gps", "--help"])
+    out = capsys.readouterr().out
+    assert exit_info.value.code == 0
+    for option in ("--particles", "--resample-threshold", "--train-headings", "--noise-floor", "--gps-position-sd"):
+        assert option in out
+
+
+def test_collapse_criterion():
+    assert collapsed(50, {"UPF": 0.02, "GPSR-UPF": 0.021})
+    assert not collapsed(50, {"UPF": 0.02, "GPSR-UPF": 0.3})  # one healthy filter: no collapse of both
+
+
+def test_claims_are_records_with_the_ess_and_the_collapse_caveat(tiny_run):
+    r, _ = tiny_run
+    records = read_claims(r)
+    by_id = {c.id: c for c in records}
+    ess = r["mean_ess_fraction"]
+    both_collapsed = all(v < 2 / TINY.particles for v in ess.values())
+    for q, claimed in (("position", 0.33), ("velocity", 0.33), ("attitude", 0.40)):
+        claim = by_id[f"sins-gps/reduction-{q}"]
+        assert claim.statistic == r["reduction"][q] and claim.threshold == pytest.approx(claimed - 0.10)
+        assert claim.verdict == ("held" if r["reduction"][q] >= claimed - 0.10 else "NOT held")
+        assert f"UPF {ess['UPF']:.4f}" in claim.evidence and f"GPSR-UPF {ess['GPSR-UPF']:.4f}" in claim.evidence
+        assert any("collapsed" in c for c in claim.caveats) == both_collapsed
+        assert claim.source.startswith("Meng et al. 2015") and claim.paper == "seed001" and claim.n == 2
+        assert any("rests on 2 runs" in c for c in claim.caveats)
+    for q in ("position", "velocity", "attitude"):
+        assert r["reference"]["reduction"][q] == by_id[f"sins-gps/single-filter-reduction-{q}"].statistic
+    assert by_id["sins-gps/factors-valid"].verdict == "held"  # every factor diagonal stayed positive
+    for c in records:
+        assert ClaimRecord.from_json(json.loads(json.dumps(c.to_json()))) == c
+
+
+def test_same_numbers_for_the_same_seed(tiny_run, tmp_path):
+    again = run_experiment(sins_gps, TINY, 2, 4, tmp_path, show_progress=False)
+    assert without_timing(again) == without_timing(tiny_run[0])
+
+
+def _cell_text(cell) -> str:
+    return str(getattr(cell, "verdict", cell)) + " " + " ".join(getattr(cell, "cautions", ()))
+
+
+def test_report_page_renders_from_a_stored_results_file(tmp_path):
+    shutil.copytree(FIXTURE, tmp_path / "sins-gps")
+    section = sins_gps_section.render_section(load_section(tmp_path, "sins-gps"))
+    assert isinstance(section, Section) and "Meng et al. 2015" in section.title
+    figures = [b for b in section.blocks if isinstance(b, Figure)]
+    assert len(figures) == 4 and all(f.path.exists() and f.path.parent == tmp_path / "sins-gps" for f in figures)
+    stored = json.loads((FIXTURE / "sins-gps-small" / "results.json").read_text())
+    (claims,) = [b for b in section.blocks if isinstance(b, Table) and b.caption.startswith("Claims")]
+    assert len(claims.rows) == len(stored["claims"]) == 7
+    verdicts = [next(v for v in VERDICTS if any(_cell_text(c).startswith(v + " ") for c in row)) for row in claims.rows]
+    assert verdicts == [c["verdict"] for c in stored["claims"]]
+    # the stored run has 6 particles whose weights collapsed: the page says so, with the numbers
+    text = " ".join(b.text for b in section.blocks if isinstance(b, Paragraph))
+    assert "Diagnosis" in text and f"{stored['mean_ess_fraction']['UPF']:.3g}" in text
+    assert "x_{" not in text and "^n" not in text  # Unicode maths, no pseudo-LaTeX
+
+
+def test_the_renderer_runs_no_experiment():
+    source = Path(sins_gps_section.__file__).read_text()
+    assert "gpfverify.experiments" not in source and "run_for_report" not in source
+    assert not hasattr(sins_gps_section, "build")

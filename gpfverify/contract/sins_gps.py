@@ -1,0 +1,118 @@
+"""Contract of the ``sins-gps`` experiment (Meng et al. 2015, seed 001 §3, Fig. 1–6 and Table 1):
+the basic UPF on an inaccurate SINS error model against GPSR-UPF (SR-UKF proposal + GP-learned
+residual) in SINS/GPS integrated navigation. Parameters, method names, the per-run record and the
+report profiles; the computation is :mod:`gpfverify.experiments.sins_gps`."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from gpfverify.contract.experiment import Profile, Setting
+from gpfverify.contract.methods import Method
+from gpfverify.contract.params import Params as BaseParams
+from gpfverify.contract.params import flag_name, option
+from gpfverify.errors import InputError
+
+NAME = "sins-gps"
+PAPER = "seed001"
+#: the paper states no run count; 20 runs is this project's full profile
+DEFAULT_RUNS = 20
+
+#: the particle filters compared by the paper, and the proposal filters run alone for reference
+#: (the names as the paper and results.json spell them, read as method values)
+UPF = Method.parse("UPF")
+GPSR_UPF = Method.parse("GPSR-UPF")
+SR_UKF = Method.parse("SR-UKF")
+GP_SR_UKF = Method.parse("GP-SR-UKF")
+PARTICLE_FILTERS: tuple[Method, ...] = (UPF, GPSR_UPF)
+REFERENCES: tuple[Method, ...] = (SR_UKF, GP_SR_UKF)
+#: error quantities, in the order of the paper's Table 1 claims, and their units
+QUANTITIES: tuple[str, ...] = ("position", "velocity", "attitude")
+UNITS: dict[str, str] = {"attitude": "arcmin", "velocity": "m/s", "position": "m"}
+#: the paper's headline reductions 1 − RMS(GPSR-UPF)/RMS(UPF) (§3, after Table 1: position and
+#: velocity "about 33 %", attitude "about 40 %")
+CLAIMED_REDUCTION: dict[str, float] = {"position": 0.33, "velocity": 0.33, "attitude": 0.40}
+#: a particle filter has collapsed when its mean N_eff/N is below this many times 1/N
+COLLAPSE_FACTOR = 2.0
+
+
+def collapsed(particles: int, mean_ess_fraction: dict[str, float]) -> bool:
+    """Both particle filters' importance weights collapsed: mean N_eff/N below COLLAPSE_FACTOR / N
+    for each (N_eff/N = 1/N is all weight on one particle)."""
+    return all(mean_ess_fraction[m.key] < COLLAPSE_FACTOR / particles for m in PARTICLE_FILTERS)
+
+
+@dataclass(frozen=True)
+class Params(BaseParams):
+    """Parameters of ``gpfverify reproduce sins-gps``; defaults are the paper's settings where it
+    gives them (1000 s flight, GPS position noise 10 m, initial errors 0.5 m/s and 10 m) and this
+    project's choices where it does not (particle count, GP training data)."""
+
+    particles: int = option(50, "particles per filter", minimum=2)
+    resample_threshold: float = option(0.5, "resample when N_eff < threshold · N", above=0.0, maximum=1.0)
+    duration: float = option(1000.0, "flight time in s", minimum=1.0)
+    dt: float = option(1.0, "filter step and GPS period in s", above=0.0)
+    train_points: int = option(200, "GP training points", minimum=10)
+    train_headings: tuple[float, ...] = option((15.0, 75.0), "initial headings (°) of the training flights "
+                                                             "(the test flight starts at 45°)")
+    train_seed: int = option(0, "seed of the training data and the GP fit", minimum=0)
+    restarts: int = option(1, "evidence-maximisation restarts of the GP fit", minimum=1)
+    noise_floor: tuple[float, float, float, float, float] = option(
+        (0.0, 0.0, 0.0, 0.0, 0.0), "process-noise floor added to both filters, standard deviation per step of "
+                                   "attitude (arcmin), velocity (m/s), position (m), gyro drift (°/h), "
+                                   "accelerometer bias (mg)", minimum=0.0)
+    gps_position_sd: float = option(10.0, "GPS position noise standard deviation (m)", above=0.0)
+    initial_velocity_sd: float = option(0.5, "initial velocity error standard deviation (m/s)", above=0.0)
+    initial_position_sd: float = option(10.0, "initial position error standard deviation (m)", above=0.0)
+
+    def check(self) -> None:
+        if not self.train_headings:
+            raise InputError(f"{flag_name('train_headings')} needs at least one heading")
+        if self.duration < self.dt:
+            raise InputError(f"{flag_name('duration')} must be at least one step {flag_name('dt')}, "
+                             f"got {self.duration:g} < {self.dt:g}")
+
+
+@dataclass(frozen=True)
+class FilterRun:
+    """One filter on one flight: CPU seconds and the error (estimate − truth of the error state)
+    per step and axis (E, N, U) of attitude (arcmin), velocity (m/s) and position (m)."""
+
+    seconds: float
+    attitude: tuple[tuple[float, float, float], ...]
+    velocity: tuple[tuple[float, float, float], ...]
+    position: tuple[tuple[float, float, float], ...]
+
+
+@dataclass(frozen=True)
+class ParticleFilterRun(FilterRun):
+    """A particle filter on one flight: :class:`FilterRun`'s fields and the importance-weight
+    health — the mean over steps of N_eff/N, the share of steps that resampled, and the smallest
+    diagonal entry of any particle's covariance factor."""
+
+    ess_mean: float
+    resample_rate: float
+    min_factor_diagonal: float
+
+
+@dataclass(frozen=True)
+class RunRecord:
+    """One Monte Carlo run: how well the GP knows this flight's velocity residual (RMS of the true
+    residual, RMS of the GP mean's miss), the GP fit's CPU seconds, and every filter keyed by
+    :attr:`Method.key` (``particle_filters``: UPF, GPSR-UPF; ``references``: SR-UKF, GP-SR-UKF)."""
+
+    residual_rms: float
+    gp_residual_error_rms: float
+    gp_fit_seconds: float
+    particle_filters: dict[str, ParticleFilterRun]
+    references: dict[str, FilterRun]
+
+
+#: the report's quick profile: 20 particles, 2 runs
+QUICK_PARAMS = Params(particles=20)
+QUICK_RUNS = 2
+
+PROFILES: dict[str, Profile] = {
+    "quick": Profile(QUICK_RUNS, (Setting("", "quick", QUICK_PARAMS),)),
+    "full": Profile(DEFAULT_RUNS, (Setting("", "paper", Params()),)),
+}
