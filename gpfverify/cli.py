@@ -86,11 +86,12 @@ positive_int.__name__ = "integer >= 1"
 
 
 def build_parser() -> argparse.ArgumentParser:
-    parser = OneLineParser(prog="gpfverify", description="Gaussian-process filters and multisensor fusion: implemented, verified, reproduced.")
+    parser = OneLineParser(prog="gpfverify", description="Gaussian-process filters and multisensor fusion: "
+                                                         "implemented, verified, reproduced.")
     parser.add_argument("--version", action="version", version=f"gpfverify {__version__}")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=OneLineParser)
     sub.required = True
-    for name, (module, help_text) in COMMANDS.items():
+    for name, (_module, help_text) in COMMANDS.items():
         sub.add_parser(name, help=help_text, add_help=False)
     return parser
 
