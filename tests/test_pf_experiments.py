@@ -143,3 +143,16 @@ def test_paired_comparison_decides_by_the_paired_t_test():
     d = np.subtract(better, worse)
     assert c.t == pytest.approx(d.mean() / (d.std(ddof=1) / np.sqrt(30)))
     assert c.critical == pytest.approx(2.0452, abs=1e-4)  # t₀.₉₇₅ with 29 degrees of freedom (tables)
+
+
+def test_the_command_line_keeps_the_grid_options():
+    import argparse
+
+    from gpfverify.contract.params import add_arguments, from_arguments
+
+    parser = argparse.ArgumentParser()
+    add_arguments(parser, pff1d.Params)
+    args = parser.parse_args(["--table-q", "0.1", "10", "--table-r", "1", "--dlambda", "0.1", "0.01",
+                              "--spacings", "exponential", "--gamma-r", "0.1"])
+    assert from_arguments(pff1d.Params, args) == pff1d.Params(table_q=(0.1, 10.0), table_r=(1.0,), dlambda=(0.1, 0.01),
+                                                              spacings=("exponential",), gamma_r=(0.1,))

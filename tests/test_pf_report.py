@@ -49,7 +49,7 @@ def test_render_from_the_stored_results(tmp_path):
     assert all(row[2].cautions for row in claims[0].rows)
     assert any("wall-clock" in c for row in claims[0].rows for c in row[2].cautions)
     text = _texts(page)
-    assert "Zhou et al. 2020" in page.title and "Journal of Computer Applications" in text
+    assert "Zhou et al. 2020" in page.title and all(r.source.startswith("Zhou et al. 2020") for r in records)
     assert "the paper used 30" in text and "the paper used 200" in text
     divergences = ", ".join(f"{d['method']} Δλ = {d['dlambda']:g} {d['spacing']}: {d['diverged']}/{d['total']}"
                             for d in pff["divergences"])

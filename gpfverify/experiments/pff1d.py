@@ -36,7 +36,7 @@ SIGNIFICANCE_LEVEL = 0.05
 
 
 def _with_prior(model: StateSpaceModel, prior: Prior) -> StateSpaceModel:
-    return dataclasses.replace(model, prior_mean=[prior.mean], prior_cov=[[prior.var]])
+    return dataclasses.replace(model, prior_mean=np.array([prior.mean]), prior_cov=np.array([[prior.var]]))
 
 
 def _cases(params: Params) -> Iterator[tuple[Case, float, float, StateSpaceModel, tuple[Method, ...],

@@ -32,7 +32,6 @@ def render_section(data: SectionInput) -> Section:
     """The page from the section's ``pff1d`` and ``bearing`` runs (the first of each, if several)."""
     pff, brg = data.of(pff_contract.NAME), data.of(bearing_contract.NAME)
     section = Section(SLUG, TITLE)
-    section.add(Paragraph(f"{PAPERS[PAPER].citation}"))
     section.add(_methods_paragraph())
     records = []
     if pff:
