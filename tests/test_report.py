@@ -3,7 +3,7 @@
 import re
 
 from gpfverify.contract import SectionRuns
-from gpfverify.report import ReportContext, build_report
+from gpfverify.report import build_report
 from gpfverify.report.document import (Cell, Claim, Details, Link, Paragraph, Section, Table, VerdictCell,
                                        claims_table)
 from gpfverify.report.inputs import write_runs
@@ -59,9 +59,9 @@ def test_only_updates_its_sections_and_keeps_the_rest_of_the_index(monkeypatch, 
     _fake_sections(monkeypatch, tmp_path, rendered)
     for slug in ("first", "second", "third"):
         write_runs(tmp_path, SectionRuns(slug, "quick", 1, ()))
-    build_report(ReportContext(tmp_path, "quick", seed=1), progress=lambda _: None)
+    build_report(tmp_path, progress=lambda _: None)
     write_runs(tmp_path, SectionRuns("second", "quick", 2, ()))
-    build_report(ReportContext(tmp_path, "quick", seed=2), only=["second"], progress=lambda _: None)
+    build_report(tmp_path, only=["second"], progress=lambda _: None)
     assert rendered == ["first", "second", "third", "second"]
     index = (tmp_path / "README.md").read_text()
     links = re.findall(r"^- \[(.*?)\]\((.*?)/README.md\)", index, re.M)

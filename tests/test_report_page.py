@@ -117,7 +117,7 @@ def report(monkeypatch, tmp_path):
     sections["proofs"] = "gpfverify.report.sections.proofs"
     monkeypatch.setattr(report, "SECTIONS", sections)
     lines: list[str] = []
-    html_path = report.build_report(report.ReportContext(out, "quick", seed=1), progress=lines.append)
+    html_path = report.build_report(out, progress=lines.append)
     assert lines[-1].startswith("writing the report pages")
     records = [c for slug in ("alpha", "beta") for r in load_section(out, slug).results for c in read_claims(r)]
     return out, parse(html_path.read_text(encoding="utf-8")), records
@@ -275,14 +275,14 @@ def test_markdown_pages_and_index(report):
     page = (out / "alpha" / "README.md").read_text(encoding="utf-8")
     assert "| NOT held |" in page and "held ⚠ rests on 5 runs; the paper used 100" in page
     assert "DMF equals CMF (xₖ₊₁ = F xₖ)" in page  # pseudo-LaTeX in a claim rendered as Unicode
+    assert "About 40 runs would decide it" in page  # the undecided claim's runs_to_decide
 
 
 def test_only_keeps_the_summary_of_sections_not_rebuilt(report, monkeypatch):
     import gpfverify.report as report_package
 
     out, page, records = report
-    html_path = report_package.build_report(report_package.ReportContext(out, "quick", seed=1), only=["beta"],
-                                            progress=lambda _: None)
+    html_path = report_package.build_report(out, only=["beta"], progress=lambda _: None)
     again = parse(html_path.read_text(encoding="utf-8"))
     (table,) = again.find_all("table", cls="summary")
     assert len(table.find_all("a", cls="chip")) == len(records) + 3

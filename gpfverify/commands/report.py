@@ -18,12 +18,13 @@ import sys
 import threading
 import time
 from collections.abc import Callable
+from dataclasses import dataclass
 from pathlib import Path
 from typing import TextIO
 
 from gpfverify.cli import non_negative_int, positive_int
 from gpfverify.contract.experiment import RunEntry, SectionRuns
-from gpfverify.report import SECTIONS, ReportContext, build_report
+from gpfverify.report import SECTIONS, build_report
 from gpfverify.report.inputs import counts_line, verdict_counts, write_runs
 from gpfverify.report.render import read_summaries
 
@@ -111,9 +112,19 @@ class Progress:
             self._thread.join()
 
 
-def _module_renders(slug: str) -> bool:
-    """The section renders from files (``render_section``) rather than running its own experiment."""
-    return hasattr(importlib.import_module(SECTIONS[slug]), "render_section")
+@dataclass(frozen=True)
+class ReportContext:
+    """What the command runs: where to write, which profile ("quick": minutes, few runs; "full":
+    the papers' run counts), the root seed and the worker processes."""
+
+    out_dir: Path
+    profile: str
+    seed: int = 1
+    workers: int = 1
+
+    @property
+    def quick(self) -> bool:
+        return self.profile == "quick"
 
 
 def run_section(ctx: ReportContext, slug: str, progress: Callable[[str], None]) -> SectionRuns:
@@ -205,16 +216,20 @@ def build(ctx: ReportContext, only: list[str] | None, progress: Progress) -> Pat
     selected = [s for s in SECTIONS if not only or s in only]
     for number, slug in enumerate(selected, 1):
         progress(f"section {number} of {len(selected)}: {slug}")
-        if slug == PROOFS and _module_renders(slug):
+        if slug == PROOFS:
             run_proofs(ctx, progress)
-        elif slug in SECTION_EXPERIMENTS and _module_renders(slug):
+        else:
             run_section(ctx, slug, progress)
-    return build_report(ctx, only, progress)
+    return build_report(ctx.out_dir, only, progress)
 
 
 def run(args: argparse.Namespace) -> int:
+    from gpfverify.errors import InputError
+
     profile = "full" if args.full else "quick"
     out = args.out or Path("reports") / profile
+    if out.exists() and not out.is_dir():  # before running anything
+        raise InputError(f"--out {out} exists and is not a folder")
     if out.exists() and not out.is_dir():  # before any section runs (and prints progress)
         from gpfverify.errors import InputError
 

@@ -2,14 +2,13 @@
 
 Sections are modules listed in :data:`SECTIONS`; each defines
 ``render_section(data: SectionInput) -> Section``, rendering from the files the command layer
-wrote (:mod:`gpfverify.report.inputs`). A section that still defines only ``build(ctx)`` runs its
-own experiment (being phased out).
+(:mod:`gpfverify.commands.report`) wrote (:mod:`gpfverify.report.inputs`). This package reads and
+renders; it never runs an experiment and imports nothing from :mod:`gpfverify.experiments`.
 """
 
 from __future__ import annotations
 
 import importlib
-from dataclasses import dataclass
 from pathlib import Path
 
 from gpfverify.report.document import Section
@@ -31,6 +30,7 @@ SECTIONS: dict[str, str] = {
 #: the papers each section reproduces (added to the papers its claim records name)
 SECTION_PAPERS: dict[str, tuple[str, ...]] = {
     "moments": ("seed000",),
+    "gpadf-scalar": ("deisenroth2009",),
     "ungm1d": ("seed000",),
     "ct2d": ("seed000",),
     "tbd": ("seed004",),
@@ -44,79 +44,31 @@ PREAMBLE = ("Each section reruns one paper's experiments (or checks its algebra)
             "is typed in by hand. The summary counts them; each section opens with the runs it rests on.")
 
 
-@dataclass(frozen=True)
-class ReportContext:
-    """What a section needs: where to write, how big a run to make, a seed."""
+def build_report(out_dir: Path, only: list[str] | None = None, progress=print) -> Path:
+    """Render the sections (all, or ``only``) from the files the command layer wrote in ``out_dir``
+    and write the report there (:func:`~gpfverify.report.render.write_report`); returns the HTML
+    page's path. Sections not in ``only`` keep the pages already in ``out_dir``."""
+    from gpfverify.errors import InputError
 
-    out_dir: Path
-    profile: str  # "quick" (minutes, few runs) or "full" (the papers' run counts)
-    seed: int = 1
-    workers: int = 1
-
-    @property
-    def quick(self) -> bool:
-        return self.profile == "quick"
-
-    def section_dir(self, slug: str) -> Path:
-        path = self.out_dir / slug
-        path.mkdir(parents=True, exist_ok=True)
-        return path
-
-
-def build_report(ctx: ReportContext, only: list[str] | None = None, progress=print) -> Path:
-    """Render the sections (all, or ``only``) from the files in ``ctx.out_dir`` and write the
-    report there (:func:`~gpfverify.report.render.write_report`); returns the HTML page's path."""
     unknown = sorted(set(only or []) - set(SECTIONS))
     if unknown:
-        from gpfverify.errors import InputError
-
         raise InputError(f"unknown section(s) {unknown}; choose from {list(SECTIONS)}")
     from gpfverify import provenance
-    from gpfverify.report.inputs import SectionSummary, load_section, summarize_section
+    from gpfverify.report.inputs import load_section, summarize_section
 
-    if ctx.out_dir.exists() and not ctx.out_dir.is_dir():
-        from gpfverify.errors import InputError
-
-        raise InputError(f"--out {ctx.out_dir} exists and is not a folder")
+    out_dir = Path(out_dir)
+    if out_dir.exists() and not out_dir.is_dir():
+        raise InputError(f"--out {out_dir} exists and is not a folder")
     sections: list[Section] = []
     summaries = {}
     for slug, module in SECTIONS.items():
         if only and slug not in only:
             continue
         progress(f"{slug}: rendering the page")
-        section_module = importlib.import_module(module)
-        if hasattr(section_module, "render_section"):
-            data = load_section(ctx.out_dir, slug)
-            section = section_module.render_section(data)
-            summaries[slug] = summarize_section(data, section.title, SECTION_PAPERS.get(slug, ()))
-        else:  # legacy: the section runs its own experiment
-            section = section_module.build(ctx)
-            summaries[slug] = SectionSummary(slug, section.title, ctx.profile, ctx.seed, SECTION_PAPERS.get(slug, ()))
+        data = load_section(out_dir, slug)
+        section = importlib.import_module(module).render_section(data)
+        summaries[slug] = summarize_section(data, section.title, SECTION_PAPERS.get(slug, ()))
         sections.append(section)
     progress("writing the report pages (Markdown and one HTML file)")
-    # --only rebuilds its sections and keeps the others already in the folder
-    return write_report(sections, ctx.out_dir, TITLE, PREAMBLE, order=list(SECTIONS),
+    return write_report(sections, out_dir, TITLE, PREAMBLE, order=list(SECTIONS),
                         provenance=provenance.current(), summaries=summaries)
-
-
-def run_for_report(ctx: ReportContext, slug: str, module, params: dict, runs: int) -> dict:
-    """Run an experiment for a report section into ``<out>/<slug>/run``, reusing the runs saved
-    there when they were made with the same settings, and return its results."""
-    import json
-    import shutil
-
-    from gpfverify.experiments.runner import make_executor, run_experiment
-
-    run_dir = ctx.section_dir(slug) / "run"
-    manifest = run_dir / "manifest.json"
-    if manifest.exists():
-        try:
-            old = json.loads(manifest.read_text(encoding="utf-8"))
-            same = (old.get("seed"), old.get("runs"), old.get("params")) == \
-                (ctx.seed, runs, json.loads(json.dumps(params)))
-        except (ValueError, AttributeError, RecursionError):  # damaged: start this run afresh
-            same = False
-        if not same:
-            shutil.rmtree(run_dir)
-    with make_executor(ctx.workers) as executor:
-        return run_experiment(module, params, runs, ctx.seed, run_dir, resume=True, executor=executor)

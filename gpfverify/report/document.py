@@ -127,8 +127,12 @@ def claim_records_table(records, caption: str = "Claims checked") -> Table:
     are anchored by the record's ``id`` so that the summary links to them."""
     rows, ids = [], []
     for r in records:
+        evidence = r.evidence
+        if r.verdict == "undecided" and r.runs_to_decide:
+            evidence += (f" About {r.runs_to_decide} runs would decide it, were the mean and spread seen "
+                         "here the true ones.")
         rows.append([r.claim + (f" ({r.setting})" if r.setting else ""), r.source,
-                     VerdictCell(r.verdict, tuple(r.cautions)), r.evidence, "; ".join(r.caveats)])
+                     VerdictCell(r.verdict, tuple(r.cautions)), evidence, "; ".join(r.caveats)])
         ids.append(claim_anchor(r))
     return Table(["claim", "source", "verdict", "evidence", "caveats"], rows, caption, tuple(ids), "claims")
 
