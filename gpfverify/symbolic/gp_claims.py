@@ -255,11 +255,11 @@ def _gp_instances() -> list[tuple]:
     return out
 
 
-def _c_lemma() -> Rule:
+def _c_lemma() -> tuple[Rule, wa.Proof]:
     """CΣ⁻¹Λ = Λ − C: CΣ⁻¹Λ = Λ − (I − CΣ⁻¹)Λ... by one chain: Λ − CΛ⁻¹Λ ← C_DEF, then Λ⁻¹Λ = I."""
     proof = wa.prove_by_chain([(Cc * Sig_i * Lam, None), (Lam - Cc * Lam_i * Lam, C_DEF.name),
                                (Lam - Cc, "Λ⁻¹Λ=I")], INVERSES + [C_DEF], "CΣ⁻¹Λ = Λ − C")
-    return wa.lemma("CΣ⁻¹Λ=Λ−C", proof, Cc * Sig_i * Lam, Lam - Cc)
+    return wa.lemma("CΣ⁻¹Λ=Λ−C", proof, Cc * Sig_i * Lam, Lam - Cc), proof
 
 
 def _s_lemma() -> tuple[Rule, list]:
@@ -288,15 +288,14 @@ def _quad(v, m, w=None):
 
 def dimension_free_route() -> tuple[list, list, bool, list]:
     """(proofs, rules, every rule holds on exact instances, negative controls)."""
-    c_lemma = _c_lemma()
+    c_lemma, c_proof = _c_lemma()
     s_lemma, s_proofs = _s_lemma()
     m_lemma, m_proof = _m_lemma()
     base = INVERSES + [C_DEF, c_lemma, s_lemma]
     c = Cc * (Lam_i * av + Sig_i * bv)
     product_lhs = _quad(xv - av, Lam_i) + _quad(xv - bv, Sig_i)
     product_rhs = _quad(xv - c, Lam_i + Sig_i) + _quad(av - bv, Sm)
-    proofs: list[wa.Proof] = []
-    proofs += s_proofs + [m_proof]
+    proofs: list[wa.Proof] = [c_proof, *s_proofs, m_proof]
     proofs.append(wa.prove_by_normal_form(
         product_lhs, product_rhs, base,
         "Gaussian product: (x−x_i)ᵀΛ⁻¹(x−x_i) + (x−μ)ᵀΣ⁻¹(x−μ) = (x−c)ᵀ(Λ⁻¹+Σ⁻¹)(x−c) + ν_iᵀ(Λ+Σ)⁻¹ν_i, "
