@@ -61,7 +61,7 @@ def test_results_and_manifest_carry_provenance(monkeypatch, tmp_path):
     manifest = json.loads((tmp_path / "manifest.json").read_text())
     check_record(results["provenance"], ["gpfverify", *args])
     check_record(manifest["provenance"], ["gpfverify", *args])
-    assert results["timing_keys"] == ["machine_load", "time_per_run"]
+    assert results["timing_keys"] == ["machine_load", "time_per_run", "timing_claims"]
     resumed = [*args, "--resume"]  # resuming records the command that finished the run
     assert cli.main(resumed) == 0
     check_record(json.loads((tmp_path / "results.json").read_text())["provenance"], ["gpfverify", *resumed])

@@ -99,8 +99,10 @@ class ClaimRecord:
 
 
 def read_claims(results: dict) -> list[ClaimRecord]:
-    """The claim records of a ``results.json`` (an empty list when it has none)."""
-    return [ClaimRecord.from_json(c) for c in results.get("claims", [])]
+    """The claim records of a ``results.json``: ``"claims"`` and then ``"timing_claims"`` (those
+    resting on wall-clock times, kept apart because they differ between executions); an empty
+    list when it has none."""
+    return [ClaimRecord.from_json(c) for key in ("claims", "timing_claims") for c in results.get(key, [])]
 
 
 @dataclass(frozen=True)

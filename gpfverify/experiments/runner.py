@@ -47,7 +47,7 @@ from gpfverify.errors import InputError
 from gpfverify.runtime import BLAS_THREAD_VARS
 
 #: a key of ``results.json`` (at any depth) whose value is a measured time, not a result
-TIMING_KEY = re.compile(r"time_per|seconds|machine_load")
+TIMING_KEY = re.compile(r"time_per|seconds|machine_load|timing_claims")
 #: how often a local worker checks that its parent is still alive
 PARENT_POLL_SECONDS = 0.2
 
@@ -380,6 +380,19 @@ def without_timing(results: dict) -> dict:
     return strip(results)
 
 
+def _separate_timing_claims(body: dict) -> None:
+    """Claims that compare wall-clock times (``"timing": true``) differ between executions like the
+    times they rest on: they go to ``"timing_claims"``, a timing field, and ``"claims"`` keeps the
+    rest (:func:`gpfverify.contract.claims.read_claims` reads both)."""
+    claims = body.get("claims")
+    if not claims:
+        return
+    body["claims"] = [c for c in claims if not c.get("timing")]
+    timed = [c for c in claims if c.get("timing")]
+    if timed:
+        body["timing_claims"] = timed
+
+
 def write_results(module: ModuleType, out_dir: Path, manifest: dict) -> dict:
     """``results.json`` from the saved runs, in run order."""
     records = load_runs(out_dir, manifest["runs"])
@@ -392,6 +405,7 @@ def write_results(module: ModuleType, out_dir: Path, manifest: dict) -> dict:
     body = to_json(module.summarize(_typed_params(module, manifest["params"]),
                                     [_typed_record(module, r["result"]) for r in ok]))
     body["machine_load"] = machine_load()
+    _separate_timing_claims(body)
     results = {"experiment": manifest["experiment"], "runs": manifest["runs"], "seed": manifest["seed"],
                "params": manifest["params"], "runs_ok": len(ok), "failed_runs": failed, **body,
                "timing_keys": timing_keys(module, body), "provenance": provenance.current()}

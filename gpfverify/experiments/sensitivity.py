@@ -37,7 +37,7 @@ def select(module: ModuleType, wanted: str) -> tuple[InterpretationSpec, ...]:
 
 
 def merge(main: dict, tried: Sequence[tuple[InterpretationSpec, dict]]) -> dict:
-    """``main`` results with each claim's ``interpretations`` set from the results of each
+    """``main`` results with each claim's ``interpretations`` (not the timing claims') set from the results of each
     interpretation (a claim absent under an interpretation gets no entry for it)."""
     claims = []
     for raw in main.get("claims", []):
