@@ -1,11 +1,7 @@
-"""Monte Carlo experiments. Each experiment is a module listed in :data:`EXPERIMENTS` that defines
-
-* ``DEFAULT_RUNS`` — the paper's run count;
-* ``add_arguments(parser)`` — its own options (defaults are the paper's settings);
-* ``params_from_args(args) -> dict`` — every parameter, JSON-able, recorded in ``results.json``;
-* ``run_one(params, seed_sequence) -> dict`` — one independent run (a picklable top-level function);
-* ``summarize(params, results) -> dict`` — the ``results.json`` body from the successful runs,
-  in run order.
+"""Monte Carlo experiments, one module per experiment listed in :data:`EXPERIMENTS`. What a
+module defines (``Params``, ``PROFILES``, ``RunRecord``, ``run_one``, ``summarize`` with its claim
+records) is specified in :mod:`gpfverify.contract.experiment`; its contract types live in
+``gpfverify/contract/<name>.py``.
 
 :func:`gpfverify.experiments.runner.run_experiment` does seeding, parallelism, saving and resuming.
 """
