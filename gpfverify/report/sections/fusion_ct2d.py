@@ -7,7 +7,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from gpfverify.contract.claims import read_claims
+from gpfverify.contract.claims import ClaimRecord, read_claims
 from gpfverify.contract.ct2d import NAME, Params, omega_label
 from gpfverify.contract.fusion import FUSION_METHODS, PAPER
 from gpfverify.contract.papers import PAPERS
@@ -69,7 +69,8 @@ def render(results: dict, folder: Path, command: str | None = None) -> Section:
             f"RCC-CI enlarged on {sum(r['rcc_ci_enlarged_steps'].values())} steps" for k, r in results.items())
         + failed_runs_note(results) + "."))
     for key, r in results.items():
-        section.add(claim_records_table(read_claims(r), f"Claims of {paper.short} checked — {key}"))
+        timing = [ClaimRecord.from_json(c) for c in r.get("timing_claims", [])]
+        section.add(claim_records_table([*read_claims(r), *timing], f"Claims of {paper.short} checked — {key}"))
     section.add(equivalence_table(results))
     probe = first["rounding_sensitivity"]["GP-ADF"]["probe"]
     section.add(Paragraph(
