@@ -26,14 +26,34 @@ def whitened_gaussian_logpdf(white: np.ndarray, log_det: np.ndarray | float) -> 
     return -0.5 * (np.sum(white * white, axis=-1) + log_det + white.shape[-1] * LOG_2PI)
 
 
+#: Cholesky factors of the covariances seen by :func:`gaussian_logpdf`, keyed by their contents
+#: (a model's Q and R are the same at every step: factorised once, never stale)
+_FACTORS: dict[tuple, tuple[np.ndarray, float]] = {}
+_FACTORS_MAX = 64
+
+
+def _factor(cov: np.ndarray) -> tuple[np.ndarray, float]:
+    """(L, log|C|) of C = L Lᵀ (:func:`~gpfverify.linalg.cholesky`, jitter as there)."""
+    cov = np.ascontiguousarray(cov, dtype=float)
+    key = (cov.shape, cov.tobytes())
+    found = _FACTORS.get(key)
+    if found is None:
+        chol = cholesky(cov, "covariance")
+        found = (chol.factor, chol.logdet())
+        if len(_FACTORS) >= _FACTORS_MAX:
+            _FACTORS.clear()
+        _FACTORS[key] = found
+    return found
+
+
 def gaussian_logpdf(residuals: np.ndarray, cov: np.ndarray) -> np.ndarray:
     """log N(r; 0, C) for residuals (..., L) and one covariance C (L, L)."""
-    chol = cholesky(cov, "covariance")
+    factor, logdet = _factor(cov)
     flat = residuals.reshape(-1, residuals.shape[-1])
     # L⁻¹ r; numpy's small dense solve (scipy's solve_triangular is orders of magnitude slower
     # for an L × N right-hand side when threaded BLAS competes for the cores)
-    white = np.linalg.solve(chol.factor, flat.T).T
-    return whitened_gaussian_logpdf(white, chol.logdet()).reshape(residuals.shape[:-1])
+    white = np.linalg.solve(factor, flat.T).T
+    return whitened_gaussian_logpdf(white, logdet).reshape(residuals.shape[:-1])
 
 
 def batched_gaussian_logpdf(residuals: np.ndarray, covs: np.ndarray, name: str) -> np.ndarray:

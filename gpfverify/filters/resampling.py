@@ -67,7 +67,11 @@ def systematic_resample(log_weights: np.ndarray, rng: np.random.Generator, size:
     """Indices (n,) of the systematic resample of M particles with these (log) weights to
     n = ``size`` draws (default n = M). Two guards against rounding: the last cumulative weight
     is set to 1 (no position falls past it) and the indices are clipped to M − 1."""
-    w = np.exp(normalize_log_weights(log_weights))
+    return resample_from_weights(np.exp(normalize_log_weights(log_weights)), rng, size)
+
+
+def resample_from_weights(w: np.ndarray, rng: np.random.Generator, size: int | None = None) -> np.ndarray:
+    """:func:`systematic_resample` from normalised weights w (M,) (Σ w = 1) already formed."""
     n = w.size if size is None else int(size)
     if n < 1:
         raise InputError(f"size must be at least 1, got {size}")
@@ -168,12 +172,13 @@ def reweight_and_resample(particles: np.ndarray, log_weights: np.ndarray, rng: n
     only adds noise)."""
     log_weights = normalize_log_weights(log_weights)
     weighted = Particles(particles, log_weights, sqrt_covs)
-    mean, cov = weighted.moments()
-    ess = effective_sample_size(log_weights)
-    resample = needs_resampling(log_weights, resample_threshold)
+    w = np.exp(log_weights)  # formed once for the estimate, N_eff and the resample
+    mean, cov = moments_from_weights(particles, w)
+    ess = float(1.0 / np.sum(w * w))
+    resample = resample_threshold >= 1.0 or ess < resample_threshold * w.size
     posterior = weighted
     if resample:
-        idx = systematic_resample(log_weights, rng)
+        idx = resample_from_weights(w, rng)
         posterior = Particles(particles[idx], equal_log_weights(particles.shape[0]),
                               None if sqrt_covs is None else sqrt_covs[idx])
     return ParticleStep(posterior, weighted, mean, cov, ess, resample)

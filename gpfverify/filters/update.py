@@ -20,7 +20,7 @@ import numpy as np
 from gpfverify.angles import difference, wrap_components
 from gpfverify.errors import InputError
 from gpfverify.filters.records import Gaussian, MeasurementMoments, StepRecord
-from gpfverify.linalg import cholesky_batched, symmetrize
+from gpfverify.linalg import cholesky_batched, solve_lower, symmetrize
 from gpfverify.validate import as_array
 
 
@@ -34,12 +34,21 @@ def gaussian_update(prediction: Gaussian, moments: MeasurementMoments, y,
     raises :class:`NumericalError` naming C_y instead of producing NaN or a silently changed gain.
     """
     mu_y = np.asarray(moments.mu_y, dtype=float)
-    y = as_array(y, "y")
+    y = np.asarray(y, dtype=float)
     if y.shape[-1:] != mu_y.shape[-1:]:
         raise InputError(f"y must have {mu_y.shape[-1]} entries in its last axis, got shape {y.shape}")
+    if not np.isfinite(y).all():
+        raise InputError("y contains NaN or inf")
     chol = cholesky_batched(np.asarray(moments.C_y, dtype=float), "C_y")
-    w = np.linalg.solve(chol, np.swapaxes(moments.C_xy, -1, -2))  # L⁻¹ C_xyᵀ, (..., L, D)
-    white = np.linalg.solve(chol, difference(y, mu_y, circular)[..., None])[..., 0]  # L⁻¹ (y ⊖ μ_y)
+    innovation = difference(y, mu_y, circular)
+    cross_t = np.swapaxes(moments.C_xy, -1, -2)
+    if innovation.shape == chol.shape[:-1] and cross_t.shape[:-2] == chol.shape[:-2]:
+        # one solve for both right-hand sides [C_xyᵀ | y ⊖ μ_y] (each column is solved on its own)
+        solved = solve_lower(chol, np.concatenate([cross_t, innovation[..., None]], axis=-1))
+        w, white = solved[..., :-1], solved[..., -1]
+    else:  # y carries more batch axes than the moments: broadcast the solves
+        w = np.linalg.solve(chol, cross_t)  # L⁻¹ C_xyᵀ, (..., L, D)
+        white = np.linalg.solve(chol, innovation[..., None])[..., 0]  # L⁻¹ (y ⊖ μ_y)
     mu_e = prediction.mean + np.einsum("...ld,...l->...d", w, white)
     if len(circular_state):
         mu_e = wrap_components(mu_e, circular_state)
@@ -51,9 +60,14 @@ def gaussian_update(prediction: Gaussian, moments: MeasurementMoments, y,
 def check_belief(belief: Gaussian, dim: int, name: str = "belief") -> Gaussian:
     """``belief`` as float arrays with mean (..., dim) and cov (..., dim, dim), finite;
     :class:`InputError` naming ``name`` otherwise."""
-    mean = as_array(belief.mean, f"{name}.mean")
-    cov = as_array(belief.cov, f"{name}.cov")
+    mean, cov = belief.mean, belief.cov
+    if not (type(mean) is np.ndarray and mean.dtype == np.float64 and type(cov) is np.ndarray
+            and cov.dtype == np.float64):
+        mean, cov = as_array(mean, f"{name}.mean"), as_array(cov, f"{name}.cov")
     if mean.shape[-1:] != (dim,) or cov.shape != mean.shape + (dim,):
         raise InputError(f"{name} must have mean (..., {dim}) and cov (..., {dim}, {dim}), "
                          f"got {mean.shape} and {cov.shape}")
-    return Gaussian(mean, cov)
+    if not (np.isfinite(mean).all() and np.isfinite(cov).all()):
+        name_bad = f"{name}.mean" if not np.isfinite(mean).all() else f"{name}.cov"
+        raise InputError(f"{name_bad} contains NaN or inf")
+    return belief if mean is belief.mean and cov is belief.cov else Gaussian(mean, cov)
