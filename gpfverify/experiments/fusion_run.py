@@ -154,8 +154,6 @@ def run_family(family: str, models: GPModel, data: FusionData, local_starts: Seq
     clock = _Clock(steps, names)
     online = {k: np.zeros(steps) for k in (cmf_key, dmf_key)}
     local_step = gaussian_family(family, sigma).step
-    # fusion.model_fusion checks the model kind against lower-case family names
-    engine = family.lower()
     sensor_models = [models.sensor_model(m) for m in range(len(models.sensors))]
     locals_ = list(local_starts)
     cmf_belief, dmf_belief = fused_start, fused_start
@@ -172,9 +170,9 @@ def run_family(family: str, models: GPModel, data: FusionData, local_starts: Seq
             clock.run(key, k, local_step, belief, sensor_model, ys_local[m][k], k=k + 1)
             for m, (key, belief, sensor_model) in enumerate(zip(sensor_keys, locals_, sensor_models))]
         locals_ = [r.posterior for r in records]
-        cmf = clock.run(cmf_key, k, cmf_step, cmf_belief, models, ys[k], k=k + 1, family=engine, params=sigma)
+        cmf = clock.run(cmf_key, k, cmf_step, cmf_belief, models, ys[k], k=k + 1, family=family, params=sigma)
         dmf = clock.run(dmf_key, k, dmf_step, dmf_belief, models, ys[k], local_records=records, k=k + 1,
-                        family=engine, params=sigma, rank_tol=rank_tol)
+                        family=family, params=sigma, rank_tol=rank_tol)
         cmf_belief, dmf_belief = cmf.posterior, dmf.record.posterior
         cw = clock.run(cw_key, k, convex_combination, locals_)
         rcc, enlarged = clock.run(rcc_key, k, _rcc_ci, locals_, rcc_size, rcc_on_empty)
@@ -241,10 +239,9 @@ def rounding_sensitivity(family: str, models: GPModel, belief: Gaussian, y: np.n
     rounding-level differences between two mathematically equal beliefs (DMF's and CMF's) are
     amplified by one filter step. Large values explain a recursive DMF − CMF drift that the
     one-step gap (zero to rounding) does not."""
-    engine = family.lower()  # as in run_family
-    base = cmf_step(belief, models, y, family=engine, params=sigma)
+    base = cmf_step(belief, models, y, family=family, params=sigma)
     shift = ROUNDING_PROBE * (np.abs(belief.mean) + np.sqrt(np.diag(belief.cov)))
-    nudged = cmf_step(Gaussian(belief.mean + shift, belief.cov), models, y, family=engine, params=sigma)
+    nudged = cmf_step(Gaussian(belief.mean + shift, belief.cov), models, y, family=family, params=sigma)
     return float(np.linalg.norm(nudged.mu_e - base.mu_e))
 
 

@@ -390,7 +390,7 @@ def _separate_timing_claims(body: dict) -> None:
     body["claims"] = [c for c in claims if not c.get("timing")]
     timed = [c for c in claims if c.get("timing")]
     if timed:
-        body["timing_claims"] = timed
+        body["timing_claims"] = [*body.get("timing_claims", []), *timed]
 
 
 def write_results(module: ModuleType, out_dir: Path, manifest: dict) -> dict:

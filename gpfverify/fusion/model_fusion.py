@@ -58,8 +58,8 @@ BASELINES: tuple[str, ...] = ("cw", "ci", "rcc-ci")
 
 def model_family(name: str, model, params: SigmaParams = SigmaParams()) -> GaussianFamily:
     """The family ``name`` after checking that ``model`` is the kind it filters (InputError)."""
-    family = gaussian_family(name, params)
-    require_model(model, GPModel if name in GP_FAMILIES else StateSpaceModel, f"the {name} family")
+    family = gaussian_family(name, params)  # any case; family.name is the lower-case key
+    require_model(model, GPModel if family.name in GP_FAMILIES else StateSpaceModel, f"the {name} family")
     return family
 
 
