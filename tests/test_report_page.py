@@ -153,14 +153,15 @@ def test_summary_table_counts_every_verdict_per_section(report):
     kinds = ["held", "NOT held", "undecided", "not decidable", "proved", "refuted", "checked"]
     assert headers[2:9] == kinds
     rows = {r.find_all("td")[1].text: r for r in table.find_all("tbody")[0].find_all("tr")}
-    assert set(rows) == {"Toy fusion — Liao et al. 2019", "Toy detection — Chen et al. 2015",
-                         "Symbolic proofs and a second implementation", "every section"}
+    assert set(rows) == {"Toy fusion", "Toy detection", "Symbolic proofs and a second implementation",
+                         "every section"}
+    assert [r.find_all("td")[0].text for r in rows.values()] == [
+        "Liao et al. 2019", "Chen et al. 2015", "the toolkit's own algebra", "all"]
 
     def counts(row: Node) -> list[int]:
         return [int(td.text) for td in row.find_all("td")[2:9]]
 
-    by_section = {"alpha": counts(rows["Toy fusion — Liao et al. 2019"]),
-                  "beta": counts(rows["Toy detection — Chen et al. 2015"])}
+    by_section = {"alpha": counts(rows["Toy fusion"]), "beta": counts(rows["Toy detection"])}
     for slug, found in by_section.items():
         verdicts = [c.verdict for c in records if c.id.startswith("toy-a" if slug == "alpha" else "toy-b")]
         assert found == [verdicts.count(k) for k in kinds[:4]] + [0, 0, 0]
@@ -168,9 +169,9 @@ def test_summary_table_counts_every_verdict_per_section(report):
     total = counts(rows["every section"])
     assert total == [sum(c.verdict == k for c in records) for k in kinds[:4]] + [1, 1, 1]
     # colour: a non-zero count carries its verdict's class, a zero none
-    held_cell = rows["Toy fusion — Liao et al. 2019"].find_all("td")[2]
+    held_cell = rows["Toy fusion"].find_all("td")[2]
     assert "v-held" in held_cell.classes
-    assert "zero" in rows["Toy fusion — Liao et al. 2019"].find_all("td")[6].classes
+    assert "zero" in rows["Toy fusion"].find_all("td")[6].classes
     # each row links to its section
     links = [a.attrs["href"] for a in table.find_all("a") if "chip" not in a.classes]
     assert links == ["#alpha", "#beta", "#proofs"]
@@ -270,7 +271,8 @@ def test_markdown_pages_and_index(report):
     index = (out / "README.md").read_text(encoding="utf-8")
     held = sum(c.verdict == "held" for c in records)
     assert f"{held} held" in index and "1 proved, 1 refuted, 1 checked" in index
-    assert "[Toy fusion — Liao et al. 2019](alpha/README.md)" in index
+    assert "[Toy fusion — Liao et al. 2019](alpha/README.md)" in index  # the section list
+    assert "[Toy fusion](alpha/README.md)" in index  # the summary table
     assert PAPERS["seed001"].citation in index
     page = (out / "alpha" / "README.md").read_text(encoding="utf-8")
     assert "| NOT held |" in page and "held ⚠ rests on 5 runs; the paper used 100" in page
@@ -296,6 +298,7 @@ def test_unicode_math():
         "xₖ₊₁ = F x_k, C⁻¹, Aᵀ, σ² ≤ Σᵢⱼ"
     assert unicode_math("results_json and run_for_report") == "results_json and run_for_report"
     assert unicode_math(r"C_{xy} \in \mathbb{R}^{n}") == "C_(xy) ∈ ℝⁿ"
+    assert unicode_math("(C_y^m)^{-1} and 10^20") == "(C_yᵐ)⁻¹ and 10^20"
 
 
 # ---- the command layer -------------------------------------------------------------------------------

@@ -134,7 +134,10 @@ def claim_records_table(records, caption: str = "Claims checked") -> Table:
         rows.append([r.claim + (f" ({r.setting})" if r.setting else ""), r.source,
                      VerdictCell(r.verdict, tuple(r.cautions)), evidence, "; ".join(r.caveats)])
         ids.append(claim_anchor(r))
-    return Table(["claim", "source", "verdict", "evidence", "caveats"], rows, caption, tuple(ids), "claims")
+    headers = ["claim", "source", "verdict", "evidence", "caveats"]
+    if not any(r.caveats for r in records):  # no empty column
+        headers, rows = headers[:-1], [row[:-1] for row in rows]
+    return Table(headers, rows, caption, tuple(ids), "claims")
 
 
 def claim_anchor(record) -> str:
@@ -186,7 +189,8 @@ def integer_ranges(values, dash: str = "–") -> str:
 # ---- maths as Unicode ------------------------------------------------------------------------------
 
 _SUB = dict(zip("0123456789+-=()aehijklmnoprstuvx", "₀₁₂₃₄₅₆₇₈₉₊₋₌₍₎ₐₑₕᵢⱼₖₗₘₙₒₚᵣₛₜᵤᵥₓ"))
-_SUP = dict(zip("0123456789+-=()inTt", "⁰¹²³⁴⁵⁶⁷⁸⁹⁺⁻⁼⁽⁾ⁱⁿᵀᵗ"))
+_SUP = dict(zip("0123456789+-=()T", "⁰¹²³⁴⁵⁶⁷⁸⁹⁺⁻⁼⁽⁾ᵀ"))
+_SUP.update(zip("abcdefghijklmnoprstuvwxyz", "ᵃᵇᶜᵈᵉᶠᵍʰⁱʲᵏˡᵐⁿᵒᵖʳˢᵗᵘᵛʷˣʸᶻ"))
 _SUP["−"] = "⁻"
 _SUB["−"] = "₋"
 _COMMANDS = {
@@ -212,8 +216,8 @@ def _script(text: str, table: dict[str, str], marker: str) -> str:
 def unicode_math(text: str) -> str:
     """Pseudo-LaTeX in report text as Unicode, legible offline without a maths renderer:
     ``x_{k+1}`` → xₖ₊₁, ``C^{-1}`` → C⁻¹, ``A^T`` → Aᵀ, ``\\sigma^2`` → σ², ``\\Sigma`` → Σ,
-    ``\\le`` → ≤, ``\\mathbb{R}`` → ℝ. Only braced scripts (``_{...}``, ``^{...}``), single-digit or
-    ``T`` superscripts and backslash commands are converted, so identifiers such as
+    ``\\le`` → ≤, ``\\mathbb{R}`` → ℝ, ``C_y^m`` → C_yᵐ. Only braced scripts (``_{...}``,
+    ``^{...}``), one-character superscripts and backslash commands are converted, so identifiers such as
     ``results_json`` (and the readable ``P_m``) are left alone; a script with a character that
     Unicode has no sub/superscript for stays readable as ``C_(xy)``."""
     if "\\" not in text and "_{" not in text and "^" not in text:
@@ -223,4 +227,4 @@ def unicode_math(text: str) -> str:
     text = re.sub(r"\\([A-Za-z]+|\|)", lambda m: _COMMANDS.get(m.group(1), m.group(0)), text)
     text = re.sub(r"_\{([^{}]*)\}", lambda m: _script(m.group(1).replace(" ", ""), _SUB, "_"), text)
     text = re.sub(r"\^\{([^{}]*)\}", lambda m: _script(m.group(1).replace(" ", ""), _SUP, "^"), text)
-    return re.sub(r"\^([0-9T])(?![0-9A-Za-z])", lambda m: _SUP[m.group(1)], text)
+    return re.sub(r"\^([0-9Ta-pr-z])(?![0-9A-Za-z])", lambda m: _SUP[m.group(1)], text)

@@ -174,6 +174,8 @@ td.chips{min-width:12rem}
 font-size:.7rem;line-height:1rem;text-align:center;text-decoration:none;color:#7a4b00;vertical-align:middle}
 .chip.cautioned{border:1px solid #b7791f;box-shadow:inset 0 0 0 1px #fff7e6}
 table.summary td,table.summary th{padding:.3rem .55rem}
+table.summary td:nth-child(2){min-width:15rem}table.summary td.paper{white-space:nowrap;font-weight:600}
+td.controls{font-size:.82rem}
 .totals{display:flex;flex-wrap:wrap;gap:.4rem;margin:.6rem 0}
 .badge{padding:.3rem .6rem;border-radius:6px;font-weight:600;border:1px solid #0001}
 .badge.caution-badge{background:#fff7e6;color:#7a4b00;border-color:#b7791f}
@@ -291,6 +293,7 @@ def summary_table(summaries: Iterable[SectionSummary]) -> Table:
     """Every verdict of the report per paper and section: counts in colour, one mark per verdict
     (⚠ on those with a caution) linking to its row, and the totals."""
     ordered = sorted(summaries, key=_paper_order)  # stable: report order within a paper
+    previous = None
     kinds = [*VERDICTS, *STATUSES]
     rows: list[list] = []
     total, cautioned = verdict_counts(ordered), 0
@@ -305,7 +308,8 @@ def summary_table(summaries: Iterable[SectionSummary]) -> Table:
         chips += [(c.status, f"{c.claim}: {c.status}", certificate_anchor(c.claim), False) for c in s.certificates]
         cautioned += s.cautioned
         papers = ", ".join(paper_name(k) for k in s.papers) or ("the toolkit's own algebra" if s.certificates else "—")
-        rows.append([Cell(papers, title="; ".join(PAPERS[k].citation for k in s.papers if k in PAPERS)),
+        shown, previous = ("" if papers == previous else papers), papers  # a paper once for its sections
+        rows.append([Cell(shown, "paper", "; ".join(PAPERS[k].citation for k in s.papers if k in PAPERS)),
                      Link(s.title, s.slug),
                      *[_count_cell(counts[k], k) for k in kinds],
                      Cell(f"{CAUTION_MARK} {s.cautioned}" if s.cautioned else 0, "count" if s.cautioned else "zero"),
@@ -409,8 +413,6 @@ def write_report(sections: list[Section], out_dir: Path, title: str, preamble: s
         except (OSError, ValueError, KeyError, TypeError):
             continue  # never built here (or damaged): not listed
     shown = [summaries[slug] for slug in listed if slug in summaries]
-    shown = [SectionSummary(s.slug, listed[s.slug][0], s.profile, s.seed, s.papers, s.claims, s.certificates,
-                            s.runs) for s in shown]
     (out_dir / "README.md").write_text(_index_markdown(title, preamble, listed, shown, provenance, out_dir),
                                        encoding="utf-8")
     html_path = out_dir / "report.html"

@@ -25,7 +25,8 @@ def _controls(c: CertificateInfo) -> Cell:
     accepted = [m.mutant for m in c.negative_controls if not m.rejected]
     if accepted:
         return Cell(f"ACCEPTED {len(accepted)} of {len(c.negative_controls)}: " + "; ".join(accepted), "v-not-held")
-    return Cell(f"all {len(c.negative_controls)} rejected: " + "; ".join(m.mutant for m in c.negative_controls))
+    return Cell(f"all {len(c.negative_controls)} rejected: " + "; ".join(m.mutant for m in c.negative_controls),
+                "controls")
 
 
 def render(certificates: list[dict], out_dir: Path | None = None) -> Section:
