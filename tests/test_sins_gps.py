@@ -329,9 +329,9 @@ def test_report_page_renders_from_a_stored_results_file(tmp_path):
     assert len(figures) == 4 and all(f.path.exists() and f.path.parent == tmp_path / "sins-gps" for f in figures)
     stored = json.loads((FIXTURE / "sins-gps-small" / "results.json").read_text())
     (claims,) = [b for b in section.blocks if isinstance(b, Table) and b.caption.startswith("Claims")]
-    assert len(claims.rows) == len(stored["claims"]) == 7
+    assert len(claims.rows) == len(read_claims(stored)) == 7
     verdicts = [next(v for v in VERDICTS if any(_cell_text(c).startswith(v + " ") for c in row)) for row in claims.rows]
-    assert verdicts == [c["verdict"] for c in stored["claims"]]
+    assert verdicts == [c.verdict for c in read_claims(stored)]
     # the stored run has 6 particles whose weights collapsed: the page says so, with the numbers
     text = " ".join(b.text for b in section.blocks if isinstance(b, Paragraph))
     assert "Diagnosis" in text and f"{stored['mean_ess_fraction']['UPF']:.3g}" in text

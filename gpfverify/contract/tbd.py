@@ -34,7 +34,7 @@ SnrConvention = Literal["peak", "intensity"]
 INTERPRETATIONS: dict[str, str] = {
     "SNR": "SNR = 10 log₁₀(a² / σ²) with a = I₀ / (2πΣ²) the peak pixel of the blurred target "
            "(convention “peak”); the convention “intensity” uses I₀ in place of a. The SNR is set "
-           "through σ (seed 004 §3).",
+           "through σ (§3 of the paper).",
     "scenario": "the target appears at [4.2, 0.45, 7.2, 0.25, 20] in frame 7 and follows the model's "
                 "near-constant-velocity dynamics with process noise Q (Ristic et al. 2004, ch. 11).",
     "birth": "N_b = N_c = N/2; birth cells drawn with probability (1 − ε)/n_bright on cells brighter than "

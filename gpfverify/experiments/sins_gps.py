@@ -237,8 +237,9 @@ def claims(params: Params, body: dict, n: int) -> list[ClaimRecord]:
                 f"(1/N = {1 / params.particles:.4f})")
     few = (f"rests on {n} run{'s' if n != 1 else ''}; the full profile runs {DEFAULT_RUNS} (the paper states no "
            "run count)",) if n < DEFAULT_RUNS else ()
-    collapse = (f"both particle filters' importance weights collapsed ({ess_text}): each follows about one "
-                "particle, so this compares two degenerate filters rather than the methods",) \
+    collapse = ("both particle filters' importance weights collapsed (mean N_eff/N about 1/N, numbers in the "
+                "evidence): each follows about one particle, so this compares two degenerate filters rather than "
+                "the methods",) \
         if collapsed(params.particles, ess) else ()
 
     def record(claim: str, source: str, verdict: Verdict, statistic: float | None, threshold: float | None,

@@ -42,7 +42,6 @@ def render(results: dict, out_dir: Path) -> Section:
     p = Params.from_json(results["params"])
     upf, gpsr, sr, gp_sr = UPF.key, GPSR_UPF.key, SR_UKF.key, GP_SR_UKF.key
     section = Section(SLUG, _title())
-    section.add(Paragraph(f"Source: {PAPERS[PAPER].citation}"))
     floor = "none" if not any(p.noise_floor) else ", ".join(fmt(v, 3) for v in p.noise_floor)
     section.add(Paragraph(
         "Scenario (gpfverify.scenarios.sins_gps): the 15-state φ-angle SINS error model in east-north-up "

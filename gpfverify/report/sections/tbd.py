@@ -43,7 +43,6 @@ def render(results: dict, out_dir: Path) -> Section:
     p = Params.from_json(results["params"])
     pfa = fmt(p.pfa)
     section = Section(SLUG, _title())
-    section.add(Paragraph(f"Source: {PAPERS[PAPER].citation}"))
     section.add(Paragraph(
         f"Rutten's scenario: {p.grid_size}×{p.grid_size} cells of size Δ = {fmt(p.cell_size)}, blur Σ = {fmt(p.blur)}, "
         f"q₁ = {fmt(p.q1)}, q₂ = {fmt(p.q2)}, T = {fmt(p.period)}, birth and death probabilities "
@@ -54,7 +53,8 @@ def render(results: dict, out_dir: Path) -> Section:
         f"N = {_values(p.tpf_particles)} and ζ = {fmt(p.zeta)}. The paper used {PAPER_RUNS} runs at each SNR "
         f"from 1 to 9 dB and N = 2000 (PF-TBD), 2000 and 1000 (TPFTBD)." + _reduced_note(results, p)))
     section.add(Table(["what", "how this implementation does it"], [[k, v] for k, v in INTERPRETATIONS.items()],
-                      "Interpretations (seed 004's parameter table and equations were lost in extraction)"))
+                      f"Interpretations ({PAPERS[PAPER].short}: the parameter table and equations were lost in "
+                      "extraction)"))
     focus = fmt(results["focus_snr_db"])
     section.add(Figure(_main_figure(results, p, out_dir / "tbd_fig1_4.png"),
                        f"The paper's figures 1–4: existence probability (solid: target present, dashed: absent), "
