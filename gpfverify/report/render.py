@@ -130,7 +130,7 @@ _STYLE = """
 *{box-sizing:border-box}
 body{font-family:system-ui,-apple-system,"Segoe UI",Roboto,"Noto Sans","DejaVu Sans",sans-serif;margin:0;
 line-height:1.45;color:#1d232b;background:#fff}
-.layout{display:grid;grid-template-columns:17rem minmax(0,1fr)}
+.layout{display:grid;grid-template-columns:15rem minmax(0,1fr)}
 nav.toc{position:sticky;top:0;align-self:start;height:100vh;overflow-y:auto;padding:1rem .9rem;
 background:#f5f6f8;border-right:1px solid var(--line);font-size:.88rem}
 nav.toc h2{font-size:.95rem;margin:.2rem 0 .6rem}
@@ -169,12 +169,12 @@ td.zero{color:#b0b5bc;text-align:center}
 td.count{text-align:center;font-weight:600}
 td.total{font-weight:700}
 td.runs-low{background:#fff7e6}
-td.chips{min-width:12rem}
+td.chips{min-width:9rem}
 .chip{display:inline-block;width:1.05rem;height:1.05rem;margin:1px;border-radius:3px;border:1px solid #0002;
 font-size:.7rem;line-height:1rem;text-align:center;text-decoration:none;color:#7a4b00;vertical-align:middle}
 .chip.cautioned{border:1px solid #b7791f;box-shadow:inset 0 0 0 1px #fff7e6}
-table.summary td,table.summary th{padding:.3rem .55rem}
-table.summary td:nth-child(2){min-width:15rem}table.summary td.paper{white-space:nowrap;font-weight:600}
+table.summary td,table.summary th{padding:.3rem .4rem}table.summary th{font-size:.82rem}
+table.summary td:nth-child(2){min-width:11rem}table.summary td.paper{min-width:7rem;font-weight:600}
 td.controls{font-size:.82rem}
 .totals{display:flex;flex-wrap:wrap;gap:.4rem;margin:.6rem 0}
 .badge{padding:.3rem .6rem;border-radius:6px;font-weight:600;border:1px solid #0001}
@@ -317,7 +317,7 @@ def summary_table(summaries: Iterable[SectionSummary]) -> Table:
     rows.append([Cell("all", "total"), Cell("every section", "total"),
                  *[_count_cell(total[k], k, "total") for k in kinds],
                  Cell(f"{CAUTION_MARK} {cautioned}" if cautioned else 0, "count total"), ""])
-    return Table(["paper", "section", *kinds, f"{CAUTION_MARK} caution", "each verdict (hover: claim; click: row)"],
+    return Table(["paper", "section", *kinds, f"{CAUTION_MARK} caution", "each verdict (hover, click)"],
                  rows, "Verdicts per paper and section", css="summary")
 
 
