@@ -340,14 +340,19 @@ def test_report_command_runs_a_toy_section_with_progress(monkeypatch, tmp_path, 
     out = capsys.readouterr().out
     lines = out.splitlines()
     assert lines[0].startswith("[report  0:00] building the quick report in")
-    assert any("toy: toy-typed, small (setting 1 of 2): 3 runs" in line for line in lines)
-    assert any("toy: toy-typed, large (setting 2 of 2): run 3 of 3 saved" in line for line in lines)
+    assert any("toy/toy-typed, small (setting 1 of 2): 3 runs" in line for line in lines)
+    assert any("toy/toy-typed, large (setting 2 of 2): run 3 of 3 saved" in line for line in lines)
     assert any("toy: rendering the page" in line for line in lines)
     assert f"The report: {tmp_path / 'report.html'}" in out
     records = [c for r in load_section(tmp_path, "toy").results for c in read_claims(r)]
     held = sum(c.verdict == "held" for c in records)
     assert f"Verdicts:   {held} held, {len(records) - held} NOT held, 0 undecided" in out
     assert (tmp_path / "toy" / "toy-typed-small" / "run" / "results.json").is_file()
+    # a second build reuses the saved runs and says so
+    assert cli.main(["report", "--out", str(tmp_path), "--seed", "2"]) == 0
+    again = capsys.readouterr().out
+    assert "toy/toy-typed, small (setting 1 of 2): every run saved by an earlier build" in again
+    assert "saved\n" not in again
 
 
 # ---- the report package only reads and renders --------------------------------------------------------

@@ -142,16 +142,17 @@ def run_section(ctx: ReportContext, slug: str, progress: Callable[[str], None]) 
             folder = f"{name}-{setting.tag}"
             run_dir = ctx.out_dir / slug / folder / "run"
             _discard_other_settings(run_dir, ctx.seed, profile.runs, setting.params.to_json())
-            where = f"{slug}: " + (name if name != slug else "experiment")
+            where = slug if name == slug else f"{slug}/{name}"
             where += f", {setting.label}" if setting.label else ""
             if len(profile.settings) > 1:
                 where += f" (setting {i} of {len(profile.settings)})"
             progress(f"{where}: {profile.runs} run{'s' if profile.runs != 1 else ''}")
             step = max(1, profile.runs // 10)
-            last = [time.monotonic()]
+            last = [time.monotonic(), 0.0]  # time of the last line, runs saved now
 
             def on_run(done: int, total: int, where: str = where, step: int = step, last: list = last) -> None:
                 now = time.monotonic()
+                last[1] += 1
                 if done == total or done % step == 0 or now - last[0] >= RUN_LINE_SECONDS:
                     progress(f"{where}: run {done} of {total} saved")
                     last[0] = now
@@ -159,6 +160,8 @@ def run_section(ctx: ReportContext, slug: str, progress: Callable[[str], None]) 
             with make_executor(ctx.workers) as executor:
                 run_experiment(module, setting.params, profile.runs, ctx.seed, run_dir, resume=True,
                                executor=executor, show_progress=False, on_run=on_run)
+            if not last[1]:
+                progress(f"{where}: every run saved by an earlier build with the same settings, reused")
             entries.append(RunEntry(name, setting.label, setting.tag, f"{folder}/run/results.json"))
     runs = SectionRuns(slug, ctx.profile, ctx.seed, tuple(entries))
     write_runs(ctx.out_dir, runs)
