@@ -34,11 +34,18 @@ def moment_match_batched(gp, belief: Gaussian, name: str = "belief") -> tuple[np
     belief = check_belief(belief, gp.input_dim, name)
     batch = belief.mean.shape[:-1]
     d, e = gp.input_dim, gp.output_dim
-    mean, cov, cross = np.empty(batch + (e,)), np.empty(batch + (e, e)), np.empty(batch + (d, e))
-    for index in np.ndindex(batch):
-        mm = gp.predict_uncertain(belief.mean[index], belief.cov[index])
-        mean[index], cov[index], cross[index] = mm.mean, mm.cov, mm.cross_cov
-    return mean, cov, cross
+    if not batch:
+        mm = gp.predict_uncertain(belief.mean, belief.cov)
+        return mm.mean, mm.cov, mm.cross_cov
+    if not hasattr(gp, "predict_uncertain_batch"):  # a user's duck-typed GP: one call per belief
+        mean, cov, cross = np.empty(batch + (e,)), np.empty(batch + (e, e)), np.empty(batch + (d, e))
+        for index in np.ndindex(batch):
+            one = gp.predict_uncertain(belief.mean[index], belief.cov[index])
+            mean[index], cov[index], cross[index] = one.mean, one.cov, one.cross_cov
+        return mean, cov, cross
+    mm = gp.predict_uncertain_batch(belief.mean.reshape(-1, d), belief.cov.reshape(-1, d, d))
+    return (mm.mean.reshape(batch + (e,)), mm.cov.reshape(batch + (e, e)),
+            mm.cross_cov.reshape(batch + (d, e)))
 
 
 def gp_adf_predict(belief: Gaussian, model, *, k: int = 1) -> Gaussian:

@@ -117,6 +117,13 @@ def _per_output(value, name: str, shape: tuple[int, ...]) -> np.ndarray:
     return as_positive(arr, name, shape=shape)
 
 
+def checked_batch(mus, Sigmas, dim: int) -> tuple[np.ndarray, np.ndarray]:
+    """Means (B, D) and covariances (B, D, D) of a batch of Gaussian inputs, each checked."""
+    m = as_array(mus, "mus", shape=(None, dim))
+    s = as_array(Sigmas, "Sigmas", shape=(m.shape[0], dim, dim))
+    return m, np.stack([as_covariance(c, f"Sigmas[{b}]", dim) for b, c in enumerate(s)]) if len(s) else s
+
+
 class GaussianProcess:
     """Independent SE-ARD GPs, one per output column of ``Y``, with fixed hyperparameters.
 
@@ -229,3 +236,12 @@ class GaussianProcess:
         m = as_vector(mu, "mu", self.input_dim)
         s = as_covariance(Sigma, "Sigma", self.input_dim)
         return moment_match(self, m, s)
+
+    def predict_uncertain_batch(self, mus, Sigmas):
+        """:meth:`predict_uncertain` at many inputs N(mus[b], Sigmas[b]) in one call: mus (B, D),
+        Sigmas (B, D, D); the moments carry a leading batch axis (mean (B, E), cov (B, E, E),
+        cross_cov (B, D, E)) and equal the single calls to rounding, at a lower cost per input."""
+        from gpfverify.gp.moments import moment_match_batch
+
+        m, s = checked_batch(mus, Sigmas, self.input_dim)
+        return moment_match_batch(self, m, s)

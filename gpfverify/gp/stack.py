@@ -11,7 +11,8 @@ from __future__ import annotations
 import numpy as np
 
 from gpfverify.errors import InputError
-from gpfverify.gp.moments import MomentMatch, moment_match_stack
+from gpfverify.gp.moments import MomentMatch, moment_match_stack, moment_match_stack_batch
+from gpfverify.gp.regression import checked_batch
 from gpfverify.validate import as_covariance, as_vector
 
 
@@ -59,3 +60,9 @@ class GaussianProcessStack:
         m = as_vector(mu, "mu", self.input_dim)
         s = as_covariance(Sigma, "Sigma", self.input_dim)
         return moment_match_stack(self.gps, m, s)
+
+    def predict_uncertain_batch(self, mus, Sigmas) -> MomentMatch:
+        """Joint moments at many Gaussian inputs (see
+        :meth:`GaussianProcess.predict_uncertain_batch`)."""
+        m, s = checked_batch(mus, Sigmas, self.input_dim)
+        return moment_match_stack_batch(self.gps, m, s)
