@@ -38,23 +38,16 @@ def add_common_arguments(parser: argparse.ArgumentParser, default_runs: int) -> 
 
 def run(args: argparse.Namespace) -> int:
     from gpfverify.cli import OneLineParser
+    from gpfverify.contract.params import add_arguments as add_params_arguments
+    from gpfverify.contract.params import from_arguments
     from gpfverify.experiments.runner import make_executor, run_experiment
 
     module = importlib.import_module(EXPERIMENTS[args.experiment])
     sub = OneLineParser(prog=f"gpfverify reproduce {args.experiment}", description=module.__doc__)
     add_common_arguments(sub, module.DEFAULT_RUNS)
-    typed = getattr(module, "Params", None)
-    if typed is not None:  # options generated from the experiment's Params
-        from gpfverify.contract.params import add_arguments as add_params_arguments
-        from gpfverify.contract.params import from_arguments
-
-        add_params_arguments(sub, typed)
-        opts = sub.parse_args(args.rest)
-        params = from_arguments(typed, opts)
-    else:
-        module.add_arguments(sub)
-        opts = sub.parse_args(args.rest)
-        params = module.params_from_args(opts)
+    add_params_arguments(sub, module.Params)  # the options are generated from the experiment's Params
+    opts = sub.parse_args(args.rest)
+    params = from_arguments(module.Params, opts)
     if opts.out.exists() and not opts.out.is_dir():
         raise InputError(f"--out {opts.out} exists and is not a folder")
     specs = None

@@ -157,7 +157,7 @@ def _in_flight_limit(executor: Executor) -> int:
     return 2 * workers if workers else 1024
 
 
-def _execute(module_name: str, params: Params | dict, seed: np.random.SeedSequence, index: int) -> dict:
+def _execute(module_name: str, params: Params, seed: np.random.SeedSequence, index: int) -> dict:
     """One run, never raising: the record saved under ``runs/``."""
     module = importlib.import_module(module_name)
     start = time.perf_counter()
@@ -240,7 +240,7 @@ def _progress(enabled: bool):
                     transient=False)
 
 
-def run_experiment(module: ModuleType | str, params: Params | dict, runs: int, seed: int, out_dir: Path,
+def run_experiment(module: ModuleType | str, params: Params, runs: int, seed: int, out_dir: Path,
                    resume: bool = False, executor: Executor | None = None,
                    show_progress: bool | None = None,
                    on_run: Callable[[int, int], None] | None = None) -> dict:
@@ -257,8 +257,9 @@ def run_experiment(module: ModuleType | str, params: Params | dict, runs: int, s
     for folder in (out_dir, out_dir / "runs"):
         if folder.exists() and not folder.is_dir():
             raise InputError(f"--out {folder} exists and is not a folder")
-    params_json = params.to_json() if isinstance(params, Params) else params
-    manifest = {"experiment": name, "seed": seed, "runs": runs, "params": params_json}
+    if not isinstance(params, module.Params):
+        raise InputError(f"{name} takes its own Params, got {type(params).__name__}")
+    manifest = {"experiment": name, "seed": seed, "runs": runs, "params": params.to_json()}
     manifest = json.loads(json.dumps(manifest))  # exactly what a resumed run reads back
     run_params = _typed_params(module, manifest["params"])
     if out_dir.exists():  # check before writing anything: a refused run leaves no trace
@@ -305,16 +306,14 @@ def run_experiment(module: ModuleType | str, params: Params | dict, runs: int, s
     return write_results(module, out_dir, manifest)
 
 
-def _typed_params(module: ModuleType, params: dict) -> Params | dict:
+def _typed_params(module: ModuleType, params: dict) -> Params:
     """The recorded parameters read back through the experiment's ``Params`` type (so a resumed
     run uses exactly what was recorded)."""
-    typed = getattr(module, "Params", None)
-    return typed.from_json(params) if typed is not None else params
+    return module.Params.from_json(params)
 
 
 def _typed_record(module: ModuleType, result):
-    typed = getattr(module, "RunRecord", None)
-    return from_json(typed, result, "run record") if typed is not None else result
+    return from_json(module.RunRecord, result, "run record")
 
 
 def machine_load() -> dict:
