@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import ast
 import io
+import json
 import shutil
 import sys
 import types
@@ -291,6 +292,13 @@ def test_only_keeps_the_summary_of_sections_not_rebuilt(report, monkeypatch):
     from gpfverify.report.render import read_summaries
 
     assert [s.slug for s in read_summaries(out, ["alpha", "beta", "proofs", "nowhere"])] == ["alpha", "beta", "proofs"]
+    # a summary this version cannot read (written by another version): the page is kept, uncounted
+    meta = json.loads((out / "alpha" / "section.json").read_text())
+    meta["summary"]["claims"][0]["from_the_future"] = 1
+    (out / "alpha" / "section.json").write_text(json.dumps(meta))
+    assert [s.slug for s in read_summaries(out, ["alpha", "beta", "proofs"])] == ["beta", "proofs"]
+    page = parse(report_package.build_report(out, only=["beta"], progress=lambda _: None).read_text())
+    assert page.find_all("section", id="alpha") and len(page.find_all("a", cls="chip")) == 2 + 3
 
 
 def test_unicode_math():

@@ -408,10 +408,11 @@ def write_report(sections: list[Section], out_dir: Path, title: str, preamble: s
         try:
             meta = json.loads((out_dir / slug / SECTION_META).read_text(encoding="utf-8"))
             listed[slug] = (str(meta["title"]), (out_dir / slug / SECTION_HTML).read_text(encoding="utf-8"))
-            if meta.get("summary") is not None:
-                summaries[slug] = SectionSummary.from_json(meta["summary"])
         except (OSError, ValueError, KeyError, TypeError):
             continue  # never built here (or damaged): not listed
+        summary = _summary_of(meta)
+        if summary is not None:
+            summaries[slug] = summary
     shown = [summaries[slug] for slug in listed if slug in summaries]
     (out_dir / "README.md").write_text(_index_markdown(title, preamble, listed, shown, provenance, out_dir),
                                        encoding="utf-8")
@@ -497,6 +498,20 @@ def read_summaries(out_dir: Path, order: list[str]) -> list[SectionSummary]:
             meta = json.loads((Path(out_dir) / slug / SECTION_META).read_text(encoding="utf-8"))
         except (OSError, ValueError):
             continue
-        if isinstance(meta, dict) and meta.get("summary") is not None:
-            out.append(SectionSummary.from_json(meta["summary"]))
+        summary = _summary_of(meta)
+        if summary is not None:
+            out.append(summary)
     return out
+
+
+def _summary_of(meta: object) -> SectionSummary | None:
+    """The summary kept in a ``section.json`` (None when it has none or one this version cannot
+    read: the page is then listed without it)."""
+    from gpfverify.errors import InputError
+
+    if not isinstance(meta, dict) or meta.get("summary") is None:
+        return None
+    try:
+        return SectionSummary.from_json(meta["summary"])
+    except InputError:
+        return None
