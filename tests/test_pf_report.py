@@ -69,16 +69,47 @@ def test_report_section_imports_no_experiment():
     assert not hasattr(section, "build")
 
 
+def test_render_shows_health_checks_and_the_verdict_under_each_interpretation(tmp_path):
+    pff, brg = json.loads(PFF1D.read_text()), json.loads(BEARING.read_text())
+    page = section.render_section(_section_input(tmp_path, pff, brg))
+    text = _texts(page)
+    assert "pff1d health checks:" in text and "bearing health checks:" in text
+    failed = [c for c in pff["health"] if not c["passed"]]
+    tables = {b.caption: b for b in page.blocks if isinstance(b, Table)}
+    if failed:
+        assert len(tables["pff1d: the health checks that failed"].rows) == len(failed)
+    sensitivity = next(b for caption, b in tables.items() if caption.startswith("Sensitivity"))
+    records = [r for r in read_claims(pff) + read_claims(brg) if r.interpretations]
+    assert records and len(sensitivity.rows) == len(records)
+    for row, record in zip(sensitivity.rows, records):
+        assert row[1] == record.verdict and all(i.name in row[2] for i in record.interpretations)
+        assert row[3].startswith(("depends on the interpretation", f"{record.verdict} under all"))
+    declared = tables["Interpretations tried"]
+    assert {row[1] for row in declared.rows} >= {"exponential-1.2", "li-coates-29", "noise-as-std"}
+    assert all(row[3] for row in declared.rows)  # every interpretation says why
+
+
+def test_render_of_results_without_health_or_interpretations(tmp_path):
+    pff = {k: v for k, v in json.loads(PFF1D.read_text()).items() if k != "health"}
+    pff["claims"] = [{**c, "interpretations": []} for c in pff["claims"]]
+    page = section.render_section(_section_input(tmp_path, pff, None))
+    assert "pff1d: this run recorded no health checks." in _texts(page)
+
+
 def regenerate(work: Path) -> None:
-    """Write the fixtures from tiny runs (3 runs each; two gamma R so every claim is decided)."""
+    """Write the fixtures from tiny runs (3 runs each; two gamma R so every claim is decided),
+    with every declared interpretation tried."""
     from gpfverify.experiments import bearing, pff1d
-    from gpfverify.experiments.runner import run_experiment
+    from gpfverify.experiments.runner import make_executor, run_experiment
+    from gpfverify.experiments.sensitivity import run_interpretations
 
     pff = pff1d.Params(steps=6, particles=20, table_q=(0.1, 10.0), table_r=(1.0,), dlambda=(0.1,),
                        gamma_r=(0.1, 1.0), gamma_dlambda=0.1)
     for name, module, params in (("pff1d", pff1d, pff), ("bearing", bearing, bearing.Params(duration=10))):
         shutil.rmtree(work / name, ignore_errors=True)
         run_experiment(module, params, 3, 1, work / name, show_progress=False)
+        with make_executor(1) as executor:
+            run_interpretations(module, params, module.INTERPRETATIONS, 3, 1, work / name, executor)
         (FIXTURES / name).mkdir(parents=True, exist_ok=True)
         shutil.copyfile(work / name / "results.json", FIXTURES / name / "results.json")
 

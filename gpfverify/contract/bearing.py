@@ -3,14 +3,23 @@ profiles, the filters it compares and the per-run record.
 
 ``results.json`` (CONTRACT.md): ``"rmse"``, ``"time_per_run"``, ``"mean_rmse"``, ``"diverged"``,
 ``"run_rmse"``: {filter key} with the keys of :attr:`Params.filters` ("PF-N50", "PF-N200",
-"IE-PFF-N50" at the paper's particle counts); ``"significance_level"``; ``"claims"``.
+"IE-PFF-N50" at the paper's particle counts); ``"health"``: a list of
+:class:`~gpfverify.health.HealthCheck` (divergence of every filter, weight collapse of the PFs);
+``"significance_level"``; ``"claims"``.
+
+``INTERPRETATIONS``: the flow's λ schedule (exponential spacing with its ratio and number of
+steps, a finer Δλ) and the lost noise settings (bearing noise σ, r1 and r2 read as standard
+deviations).
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
 
+from typing import Literal
+
 from gpfverify.contract.experiment import Profile, Setting
+from gpfverify.contract.interpretations import InterpretationSpec
 from gpfverify.contract.methods import Method
 from gpfverify.contract.params import Params as ParamsBase
 from gpfverify.contract.params import option
@@ -54,12 +63,25 @@ class Params(ParamsBase):
     dlambda: float = option(0.05, "pseudo-time step Δλ of the flow", above=0.0, maximum=1.0)
     spacing: Spacing = option("uniform", "λ-step schedule of the flow (uniform: the paper's)")
     exponential_ratio: float = option(1.2, "ratio of consecutive λ-steps of the exponential schedule", above=0.0)
+    exponential_steps: int = option(0, "number of λ-steps of the exponential schedule whatever Δλ (0: round(1/Δλ), "
+                                       "as many as the uniform schedule)", minimum=0)
+    noise_values: Literal["variance", "std"] = option(
+        "variance", "how r1 (--q-pos) and r2 (--q-vel) are read: variances, or standard deviations (variance = value²)")
+    divergence_bound: float = option(1e4, "health check: a position error above this (m) at any step counts the run "
+                                          "as diverged (as does a non-finite estimate)", above=0.0)
     pf_small: int = option(50, "particles of the smaller bootstrap PF", minimum=2)
     pf_large: int = option(200, "particles of the larger bootstrap PF", minimum=2)
     flow_particles: int = option(50, "particles of the IE-PFF", minimum=2)
     initial_state: tuple[float, float, float, float] = option(
         INITIAL_STATE, "the target's initial state x₀ = [x, ẋ, y, ẏ] (m, m/s), the filters' prior mean",
         cli=False)
+
+    @property
+    def process_variances(self) -> tuple[float, float]:
+        """(position, velocity) process-noise variances under :attr:`noise_values`."""
+        if self.noise_values == "variance":
+            return self.q_pos, self.q_vel
+        return self.q_pos ** 2, self.q_vel ** 2
 
     def check(self) -> None:
         if self.pf_small == self.pf_large:
@@ -77,6 +99,21 @@ PROFILES: dict[str, Profile] = {
     "full": Profile(PAPER_RUNS, (Setting("", "paper", Params()),)),
 }
 
+INTERPRETATIONS: tuple[InterpretationSpec, ...] = (
+    InterpretationSpec("exponential-1.2", {"spacing": "exponential"},
+                       "λ-steps growing by 1.2 as in the particle-flow literature (Daum & Huang; Li & Coates 2017), "
+                       "as many as Δλ gives"),
+    InterpretationSpec("li-coates-29", {"spacing": "exponential", "exponential_steps": 29},
+                       "Li & Coates (2017): 29 exponentially spaced λ-steps, ratio 1.2"),
+    InterpretationSpec("dlambda-0.01", {"dlambda": 0.01},
+                       "a five times finer uniform Euler step (the paper's Δλ for this example is not stated)"),
+    InterpretationSpec("bearing-std-0.005", {"bearing_std": 0.005},
+                       "the lost bearing noise at Gordon, Salmond & Smith's (1993) bearings-only value, 0.005 rad"),
+    InterpretationSpec("bearing-std-0.05", {"bearing_std": 0.05}, "a coarse bearing sensor, 0.05 rad (about 3°)"),
+    InterpretationSpec("noise-as-std", {"noise_values": "std"},
+                       "r1 = 0.05, r2 = 0.1 read as process-noise standard deviations (variances 0.0025, 0.01)"),
+)
+
 
 @dataclass(frozen=True)
 class FilterRun:
@@ -84,6 +121,8 @@ class FilterRun:
 
     sq_pos_err: tuple[float, ...] | None
     seconds: float
+    #: N_eff/N of the weighted set per step (PFs; None for the flow and when diverged)
+    ess_fraction: tuple[float, ...] | None = None
 
 
 @dataclass(frozen=True)

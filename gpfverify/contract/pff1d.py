@@ -4,7 +4,14 @@ profiles, the per-run record and the summary records the report reads back.
 ``results.json`` (CONTRACT.md): ``"rmse"``, ``"time_per_run"``, ``"diverged"``: {"PF", "UPF",
 "EDH", "IE-PFF"} at the gamma case's main R (``"main_case"``); ``"table1"``: a list of
 :class:`Table1Row`; ``"gamma"``: {R: {variant label: :class:`GammaEntry`}}; ``"divergences"``: a
-list of :class:`DivergenceCount`; ``"significance_level"`` of the paired tests; ``"claims"``.
+list of :class:`DivergenceCount`; ``"health"``: a list of :class:`~gpfverify.health.HealthCheck`
+(divergence of every filter, weight collapse of PF and UPF, per cell); ``"significance_level"`` of
+the paired tests; ``"claims"``.
+
+``INTERPRETATIONS`` are the readings the sensitivity study tries (issue "Verdicts that survive
+scrutiny"): the λ schedule of the flows (uniform, the paper's explicit Euler; exponentially spaced
+as in the particle-flow literature, with its ratio and number of steps), the Δλ of the gamma case
+and the unstated noise settings (the grid's Q and R read as standard deviations).
 """
 
 from __future__ import annotations
@@ -13,6 +20,7 @@ from dataclasses import dataclass
 from typing import Literal
 
 from gpfverify.contract.experiment import Profile, Setting
+from gpfverify.contract.interpretations import InterpretationSpec
 from gpfverify.contract.methods import Method
 from gpfverify.contract.params import Params as ParamsBase
 from gpfverify.contract.params import option
@@ -27,6 +35,8 @@ TABLE_METHODS: tuple[Method, ...] = (PF, EDH, IE_PFF)
 GAMMA_METHODS: tuple[Method, ...] = (PF, UPF, EDH, IE_PFF)
 
 Case = Literal["ungm", "gamma"]
+#: how the grid's noise values are read: as variances (the default) or as standard deviations
+NoiseReading = Literal["variance", "std"]
 
 
 @dataclass(frozen=True)
@@ -53,6 +63,12 @@ class Params(ParamsBase):
     spacings: tuple[Spacing, ...] = option(("uniform", "exponential"),
                                            "λ-step schedules of the flows; the first is the main one")
     exponential_ratio: float = option(1.2, "ratio of consecutive λ-steps of the exponential schedule", above=0.0)
+    exponential_steps: int = option(0, "number of λ-steps of the exponential schedule whatever Δλ (0: round(1/Δλ), "
+                                       "as many as the uniform schedule)", minimum=0)
+    noise_values: NoiseReading = option("variance", "how the Q and R values of the grid and of the gamma case's R are "
+                                                    "read: variances, or standard deviations (variance = value²)")
+    divergence_bound: float = option(1e3, "health check: an absolute state error above this at any step counts the "
+                                          "run as diverged (as does a non-finite estimate)", above=0.0)
     gamma_r: tuple[float, ...] = option((0.01, 0.1, 1.0), "measurement-noise variances R of the gamma case (Fig. 2)",
                                         above=0.0)
     gamma_main_r: float = option(0.1, "R of the gamma case reported under the 'rmse' key", above=0.0)
@@ -79,6 +95,10 @@ class Params(ParamsBase):
     def main_spacing(self) -> Spacing:
         return self.spacings[0]
 
+    def variance(self, value: float) -> float:
+        """The noise variance a grid value stands for under :attr:`noise_values`."""
+        return value if self.noise_values == "variance" else value * value
+
 
 #: quick profile: the grid's extreme process noises at one R, two Δλ, the gamma case at its main R
 QUICK_PARAMS = Params(table_q=(0.1, 10.0), table_r=(1.0,), dlambda=(0.1, 0.01), gamma_r=(0.1,))
@@ -86,6 +106,30 @@ PROFILES: dict[str, Profile] = {
     "quick": Profile(2, (Setting("reduced grid", "reduced", QUICK_PARAMS),)),
     "full": Profile(PAPER_RUNS, (Setting("the paper's grid", "paper", Params()),)),
 }
+
+#: Δλ of the interpretation runs: the coarse grid value at which the uniform schedule diverged in
+#: 176 of 180 cell-runs (the issue's question); finer Δλ cost 10–100 times more per run
+_COARSE = (0.1,)
+INTERPRETATIONS: tuple[InterpretationSpec, ...] = (
+    InterpretationSpec(
+        "exponential-1.2", {"spacings": ("exponential",), "dlambda": _COARSE},
+        "particle flows in the literature integrate λ in exponentially growing steps (ratio 1.2: Daum & Huang; "
+        "Li & Coates 2017), small where the flow is stiff (λ ≈ 0); as many steps as Δλ gives"),
+    InterpretationSpec(
+        "exponential-1.5", {"spacings": ("exponential",), "dlambda": _COARSE, "exponential_ratio": 1.5},
+        "a steeper geometric schedule: first steps far smaller than 1/count"),
+    InterpretationSpec(
+        "li-coates-29", {"spacings": ("exponential",), "dlambda": (0.1,), "exponential_steps": 29},
+        "the schedule of Li & Coates (2017) after Daum & Huang: 29 exponentially spaced λ-steps, ratio 1.2, "
+        "in place of the Δλ = 0.1 grid (and of the gamma case's Δλ)"),
+    InterpretationSpec(
+        "noise-as-std", {"noise_values": "std", "dlambda": _COARSE, "spacings": ("uniform",)},
+        "the lost model listing may give Q and R as standard deviations: variances Q ∈ {0.01, 1, 100}, "
+        "R ∈ {0.01, 1} (gamma case R ∈ {1e-4, 0.01, 1}); uniform λ-steps"),
+    InterpretationSpec(
+        "noise-as-std-exponential", {"noise_values": "std", "dlambda": _COARSE, "spacings": ("exponential",)},
+        "noise values as standard deviations, exponential λ-steps (ratio 1.2)"),
+)
 
 
 # ----------------------------------------------------------------------------- per run
@@ -101,6 +145,8 @@ class VariantRun:
     variant: Variant
     sq_err: tuple[float, ...] | None
     seconds: float
+    #: N_eff/N of the weighted set per step (PF and UPF; None for the flows and when diverged)
+    ess_fraction: tuple[float, ...] | None = None
 
 
 @dataclass(frozen=True)

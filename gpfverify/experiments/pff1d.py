@@ -7,6 +7,13 @@ Each run draws one trajectory per (model, Q, R) and filters it with every method
 once per (Δλ, spacing): ``uniform`` is the paper's Euler scheme, ``exponential`` the same number of
 geometrically growing steps. The truth and every filter start from the same prior.
 A filter that breaks down is counted as diverged and left out of its RMSE (the count is reported).
+
+Health checks (:mod:`gpfverify.health`, results.json ``"health"``): every filter in every cell is
+checked for divergence (a non-finite estimate or an error above ``divergence_bound``) and the PF and
+UPF for weight collapse (median N_eff/N). A claim whose compared filters fail a check is "not
+decidable" — except when the flow diverged in that cell under *every* λ schedule the run tried
+(every Δλ and spacing): then the divergence is the method's failure there, not one schedule's, and
+the comparison stands (a divergence loses it), with a caveat saying so.
 """
 
 from __future__ import annotations
@@ -18,17 +25,20 @@ from typing import Any
 import numpy as np
 
 from gpfverify.contract.claims import ClaimRecord, Verdict, combine
+from gpfverify.health import HealthCheck, decide
 from gpfverify.contract.methods import Method
 from gpfverify.contract.papers import PAPERS
 from gpfverify.contract.particle_flow import EDH, FLOWS, IE_PFF, PAPER, PF, UPF, Variant
-from gpfverify.contract.pff1d import (GAMMA_METHODS, NAME, PAPER_RUNS, PROFILES, TABLE_METHODS, Case,
+from gpfverify.contract.pff1d import (GAMMA_METHODS, INTERPRETATIONS, NAME, PAPER_RUNS, PROFILES, TABLE_METHODS, Case,
                                       DivergenceCount, GammaEntry, Params, Prior, RunRecord, Table1Row,
                                       VariantRun)
-from gpfverify.experiments.particle_methods import Comparison, child_rng, flow_steps, paired_comparison, run_method
+from gpfverify.experiments.particle_methods import (Comparison, child_rng, divergence_health, ess_health, flow_steps,
+                                                    paired_comparison, run_method, schedule_words)
 from gpfverify.models import StateSpaceModel
 from gpfverify.scenarios.growth import gamma_benchmark_model, ungm_model
 
-__all__ = ["DEFAULT_RUNS", "NAME", "PAPER", "PROFILES", "Params", "RunRecord", "run_one", "summarize"]
+__all__ = ["DEFAULT_RUNS", "INTERPRETATIONS", "NAME", "PAPER", "PROFILES", "Params", "RunRecord", "run_one",
+           "summarize"]
 
 DEFAULT_RUNS = PAPER_RUNS
 #: two-sided level of the paired t-test that decides a claimed ordering
@@ -41,13 +51,16 @@ def _with_prior(model: StateSpaceModel, prior: Prior) -> StateSpaceModel:
 
 def _cases(params: Params) -> Iterator[tuple[Case, float, float, StateSpaceModel, tuple[Method, ...],
                                              tuple[float, ...]]]:
-    """(case, Q, R, model, methods, Δλ values) in a fixed order; the truth's x₀ and every filter's
-    initial particles come from the model's prior (an interpretation, see the report)."""
+    """(case, Q, R, model, methods, Δλ values) in a fixed order (Q, R as the grid states them; the
+    model's variances follow ``noise_values``); the truth's x₀ and every filter's initial particles
+    come from the model's prior (an interpretation, see the report)."""
     for q in params.table_q:
         for r in params.table_r:
-            yield "ungm", q, r, _with_prior(ungm_model(q, r), params.ungm_prior), TABLE_METHODS, params.dlambda
+            model = _with_prior(ungm_model(params.variance(q), params.variance(r)), params.ungm_prior)
+            yield "ungm", q, r, model, TABLE_METHODS, params.dlambda
     for r in params.gamma_r:
-        model = _with_prior(gamma_benchmark_model(r, params.gamma_shape, params.gamma_rate), params.gamma_prior)
+        model = _with_prior(gamma_benchmark_model(params.variance(r), params.gamma_shape, params.gamma_rate),
+                            params.gamma_prior)
         yield "gamma", float(np.asarray(model.process_cov)[0, 0]), r, model, GAMMA_METHODS, (params.gamma_dlambda,)
 
 
@@ -65,10 +78,11 @@ def run_one(params: Params, seed_seq: np.random.SeedSequence) -> RunRecord:
         for v, variant in enumerate(_variants(methods, dlambdas, params)):
             steps = None
             if variant.dlambda is not None and variant.spacing is not None:
-                steps = flow_steps(variant.dlambda, variant.spacing, params.exponential_ratio)
+                steps = flow_steps(variant.dlambda, variant.spacing, params.exponential_ratio, params.exponential_steps)
             out = run_method(variant.method, model, ys, params.particles, child_rng(seed_seq, c, 1 + v), steps)
             sq = None if out.estimates is None else tuple(((out.estimates - xs)[:, 0] ** 2).tolist())
-            records.append(VariantRun(case, q, r, variant, sq, out.seconds))
+            ess = None if out.ess_fraction is None else tuple(out.ess_fraction.tolist())
+            records.append(VariantRun(case, q, r, variant, sq, out.seconds, ess))
     return RunRecord(tuple(records))
 
 
@@ -80,6 +94,9 @@ class _Aggregate:
     diverged: int
     seconds: float
     run_rmse: tuple[float | None, ...]
+    #: per run |error| per step (None where the filter broke down) and N_eff/N per step
+    run_errors: tuple[tuple[float, ...] | None, ...] = ()
+    run_ess: tuple[tuple[float, ...] | None, ...] = ()
 
     @property
     def mean_rmse(self) -> float:
@@ -98,12 +115,35 @@ def _aggregate(records: list[RunRecord], steps: int) -> dict[tuple[Case, float, 
         sq = [r.sq_err for r in recs if r.sq_err is not None]
         rmse = np.sqrt(np.mean(sq, axis=0)) if sq else np.full(steps, np.nan)
         out[key] = _Aggregate(tuple(rmse.tolist()), len(recs) - len(sq), float(np.mean([r.seconds for r in recs])),
-                              tuple(None if r.sq_err is None else float(np.sqrt(np.mean(r.sq_err))) for r in recs))
+                              tuple(None if r.sq_err is None else float(np.sqrt(np.mean(r.sq_err))) for r in recs),
+                              tuple(None if r.sq_err is None else tuple(np.sqrt(r.sq_err).tolist()) for r in recs),
+                              tuple(r.ess_fraction for r in recs))
+    return out
+
+
+def _subject(case: Case, q: float, r: float, variant: Variant) -> str:
+    where = f"UNGM Q = {q:g}, R = {r:g}" if case == "ungm" else f"gamma case R = {r:g}"
+    return f"{variant.label} ({where})"
+
+
+def _health(params: Params, agg: dict[tuple[Case, float, float, Variant], _Aggregate]
+            ) -> dict[tuple[Case, float, float, Variant], list[HealthCheck]]:
+    """Every filter's checks per cell: divergence; weight collapse for the PF and the UPF."""
+    out: dict[tuple[Case, float, float, Variant], list[HealthCheck]] = {}
+    for key, g in agg.items():
+        subject = _subject(*key)
+        checks = [divergence_health(subject, list(g.run_errors), params.steps, params.divergence_bound)]
+        if not key[3].is_flow:
+            ess = ess_health(subject, list(g.run_ess), params.particles)
+            if ess is not None:
+                checks.append(ess)
+        out[key] = checks
     return out
 
 
 def summarize(params: Params, records: list[RunRecord]) -> dict[str, Any]:
     agg = _aggregate(records, params.steps)
+    health = _health(params, agg)
     runs = len(records)
     table = [Table1Row(q, r, v.method.key, v.dlambda, v.spacing, g.mean_rmse, g.diverged, runs, g.seconds,
                        g.rmse, g.run_rmse)
@@ -124,8 +164,9 @@ def summarize(params: Params, records: list[RunRecord]) -> dict[str, Any]:
         "table1": table,
         "gamma": gamma,
         "divergences": _divergences(params, table),
+        "health": [c for checks in health.values() for c in checks],
         "significance_level": SIGNIFICANCE_LEVEL,
-        "claims": claims(params, table, gamma, runs),
+        "claims": claims(params, table, gamma, runs, health),
     }
 
 
@@ -150,20 +191,54 @@ STATISTIC = ("statistic: the largest paired t statistic of the comparisons (mean
              "Student quantile at level {level:g}")
 
 
-def _record(slug: str, claim: str, source: str, setting: str, parts: list[tuple[str, Comparison]],
-            runs: int) -> ClaimRecord:
+Key = tuple[Case, float, float, Variant]
+Health = dict[Key, list[HealthCheck]]
+
+
+@dataclasses.dataclass(frozen=True)
+class _Part:
+    """One paired comparison of a claim and the cells of the two filters it compares."""
+
+    name: str
+    comparison: Comparison
+    keys: tuple[Key, Key]
+
+
+def _schedules_failed(health: Health, key: Key) -> bool:
+    """Did the flow of ``key`` fail its divergence check in that cell under every λ schedule the
+    run tried (every Δλ and spacing of that method)?"""
+    case, q, r, variant = key
+    same = [checks for (c, q2, r2, v), checks in health.items()
+            if (c, q2, r2) == (case, q, r) and v.method == variant.method]
+    return bool(same) and all(not ch.passed for checks in same for ch in checks if ch.name == "divergence")
+
+
+def _record(slug: str, claim: str, source: str, setting: str, parts: list[_Part], runs: int,
+            health: Health) -> ClaimRecord:
     """A claim made of paired comparisons: NOT held if any part is (a divergence where the other
-    filter stayed finite loses the part), held if all are, undecided otherwise."""
-    verdict: Verdict = combine([c.verdict for _, c in parts])
-    decided = [c for _, c in parts if c.t is not None and c.critical is not None]
+    filter stayed finite loses the part), held if all are, undecided otherwise — then the health
+    checks of the filters compared: any failed check makes it "not decidable", except a flow's
+    divergence under every λ schedule tried in the run (the method's failure, which stands)."""
+    verdict: Verdict = combine([p.comparison.verdict for p in parts])
+    decided = [p.comparison for p in parts if p.comparison.t is not None and p.comparison.critical is not None]
     worst = max(decided, key=lambda c: c.t if c.t is not None else -np.inf) if decided else None
+    keys = list(dict.fromkeys(k for p in parts for k in p.keys))
+    everywhere = [k for k in keys if k[3].is_flow and _schedules_failed(health, k)]
+    checks = [c for k in keys for c in health[k] if not (k in everywhere and c.name == "divergence")]
+    verdict, caveats = decide(verdict, checks)
+    if everywhere:
+        caveats += tuple(f"{_subject(*k)} diverged under every λ schedule this run tried at this cell: the "
+                         "method's failure here (a divergence loses the comparison), not one schedule's"
+                         for k in everywhere)
+    undecided = [p.comparison.runs_to_decide for p in parts if p.comparison.verdict == "undecided"]
+    to_decide = max((n for n in undecided if n is not None), default=None) if verdict == "undecided" else None
     return ClaimRecord(
         claim=claim, source=source, verdict=verdict,
         statistic=None if worst is None else worst.t,
         threshold=None if worst is None or worst.critical is None else -worst.critical,
-        n=runs, evidence="; ".join(f"{name}: {c.evidence}" for name, c in parts),
-        caveats=(STATISTIC.format(level=SIGNIFICANCE_LEVEL),),
-        id=f"{NAME}/{slug}", paper=PAPER, setting=setting, paper_n=PAPER_RUNS)
+        n=runs, evidence="; ".join(f"{p.name}: {p.comparison.evidence}" for p in parts),
+        caveats=(*caveats, STATISTIC.format(level=SIGNIFICANCE_LEVEL)),
+        id=f"{NAME}/{slug}", paper=PAPER, setting=setting, paper_n=PAPER_RUNS, runs_to_decide=to_decide)
 
 
 def _undecidable(slug: str, claim: str, source: str, why: str, runs: int) -> ClaimRecord:
@@ -172,32 +247,44 @@ def _undecidable(slug: str, claim: str, source: str, why: str, runs: int) -> Cla
 
 
 def claims(params: Params, table: list[Table1Row], gamma: dict[str, dict[str, GammaEntry]],
-           runs: int) -> list[ClaimRecord]:
+           runs: int, health: Health) -> list[ClaimRecord]:
     level = SIGNIFICANCE_LEVEL
     out = []
     q_max, spacing = max(params.table_q), params.main_spacing
     cells = {(row.Q, row.R, row.variant): row for row in table}
+    ratio, count = params.exponential_ratio, params.exponential_steps
+    noise = "" if params.noise_values == "variance" else ", Q and R read as standard deviations"
     for dlam in params.dlambda:
         parts = []
         for r in params.table_r:
-            ie = cells[(q_max, r, Variant(IE_PFF, dlam, spacing))]
+            ie = Variant(IE_PFF, dlam, spacing)
             for other in (Variant(PF), Variant(EDH, dlam, spacing)):
-                parts.append((f"R = {r:g} vs {other.method.key}",
-                              paired_comparison(ie.run_rmse, cells[(q_max, r, other)].run_rmse, level)))
+                parts.append(_Part(f"R = {r:g} vs {other.method.key}",
+                                   paired_comparison(cells[(q_max, r, ie)].run_rmse,
+                                                     cells[(q_max, r, other)].run_rmse, level),
+                                   (("ungm", q_max, r, ie), ("ungm", q_max, r, other))))
         out.append(_record(f"ie-pff-beats-pf-and-edh-at-large-q/dlambda={dlam:g}",
                            "IE-PFF is more accurate than PF and PFF (EDH) at large process noise, at every R",
-                           SOURCE_TABLE1, f"UNGM, Q = {q_max:g}, Δλ = {dlam:g}, {spacing} λ-steps", parts, runs))
+                           SOURCE_TABLE1, f"UNGM, Q = {q_max:g}, {schedule_words(dlam, spacing, ratio, count)}{noise}",
+                           parts, runs, health))
 
-    def entry(r: str, method: Method) -> GammaEntry:
+    def variant(method: Method) -> Variant:
         flow = method in FLOWS
-        return gamma[r][Variant(method, params.gamma_dlambda if flow else None, spacing if flow else None).label]
+        return Variant(method, params.gamma_dlambda if flow else None, spacing if flow else None)
 
-    parts = [(f"R = {r}: {m.key} vs EDH", paired_comparison(entry(r, m).run_rmse, entry(r, EDH).run_rmse, level))
-             for r in gamma for m in (PF, UPF, IE_PFF)]
+    def key(r: str, v: Variant) -> Key:
+        return next(k for k in health if k[0] == "gamma" and f"{k[2]:g}" == r and k[3] == v)
+
+    def part(r: str, a: Method, b: Method, name: str) -> _Part:
+        va, vb = variant(a), variant(b)
+        return _Part(name, paired_comparison(gamma[r][va.label].run_rmse, gamma[r][vb.label].run_rmse, level),
+                     (key(r, va), key(r, vb)))
+
+    parts = [part(r, m, EDH, f"R = {r}: {m.key} vs EDH") for r in gamma for m in (PF, UPF, IE_PFF)]
     gamma_setting = (f"Γ({params.gamma_shape:g}, {params.gamma_rate:g}) process noise, "
-                     f"Δλ = {params.gamma_dlambda:g}, {spacing} λ-steps")
+                     f"{schedule_words(params.gamma_dlambda, spacing, ratio, count)}{noise}")
     out.append(_record("gamma-edh-worst", "With gamma process noise the PFF (EDH) estimates worst of the four",
-                       SOURCE_FIG2, f"{gamma_setting}, every R", parts, runs))
+                       SOURCE_FIG2, f"{gamma_setting}, every R", parts, runs, health))
     r_small, r_large = min(gamma, key=float), max(gamma, key=float)
     small_claim = "Gamma noise, small R: UPF and IE-PFF are the most accurate"
     large_claim = "Gamma noise, large R: IE-PFF is the most accurate"
@@ -206,12 +293,10 @@ def claims(params: Params, table: list[Table1Row], gamma: dict[str, dict[str, Ga
         out.append(_undecidable("gamma-small-r-upf-and-ie-pff-best", small_claim, SOURCE_FIG2, why, runs))
         out.append(_undecidable("gamma-large-r-ie-pff-best", large_claim, SOURCE_FIG2, why, runs))
         return out
-    parts = [(f"{a.key} vs {b.key}", paired_comparison(entry(r_small, a).run_rmse, entry(r_small, b).run_rmse, level))
-             for a in (UPF, IE_PFF) for b in (PF, EDH)]
+    parts = [part(r_small, a, b, f"{a.key} vs {b.key}") for a in (UPF, IE_PFF) for b in (PF, EDH)]
     out.append(_record("gamma-small-r-upf-and-ie-pff-best", small_claim, SOURCE_FIG2,
-                       f"{gamma_setting}, R = {r_small}", parts, runs))
-    parts = [(f"vs {b.key}", paired_comparison(entry(r_large, IE_PFF).run_rmse, entry(r_large, b).run_rmse, level))
-             for b in (PF, UPF, EDH)]
+                       f"{gamma_setting}, R = {r_small}", parts, runs, health))
+    parts = [part(r_large, IE_PFF, b, f"vs {b.key}") for b in (PF, UPF, EDH)]
     out.append(_record("gamma-large-r-ie-pff-best", large_claim, SOURCE_FIG2,
-                       f"{gamma_setting}, R = {r_large}", parts, runs))
+                       f"{gamma_setting}, R = {r_large}", parts, runs, health))
     return out

@@ -2,35 +2,67 @@
 
     python reports/reference/make_particle_flow.py RUNS_DIR
 
-RUNS_DIR holds the ``gpfverify reproduce`` output folders named as in COMMANDS. Each
-``results.json`` is recomputed from the saved runs with the current summaries, copied (with its
+RUNS_DIR holds the ``gpfverify reproduce`` output folders named as in COMMANDS (each with its
+``interpretations/<name>/`` runs). Each ``results.json`` — the main one and every
+interpretation's — is recomputed from the saved runs with the current summaries, the claims'
+verdicts under each interpretation are merged into the main one, which is copied (with its
 manifest) to ``reports/reference/particle-flow/<experiment>/``, and the page is written to
 ``reports/reference/particle-flow/README.md`` with its figures. The per-run files are not committed.
 """
 
 from __future__ import annotations
 
+import json
+import shutil
 import sys
 from pathlib import Path
 
-from reference_pages import recompute_into, write_page
+from reference_pages import write_page
 
+from gpfverify.contract.experiment import RunEntry, SectionRuns
 from gpfverify.experiments import bearing, pff1d
+from gpfverify.experiments.runner import rewrite_results
+from gpfverify.experiments.sensitivity import merge
+from gpfverify.report.document import Paragraph
+from gpfverify.report.inputs import SectionInput
 from gpfverify.report.sections import particle_flow
 
 HERE = Path(__file__).resolve().parent / particle_flow.SLUG
 #: folder name -> the exact command that made it (run from the repository root, OUT = RUNS_DIR)
 COMMANDS = {
-    "pff1d": "gpfverify reproduce pff1d --runs 30 --seed 1 --spacings uniform --workers 2 --out OUT/pff1d",
-    "bearing": "gpfverify reproduce bearing --runs 200 --seed 1 --workers 2 --out OUT/bearing",
+    "pff1d": "gpfverify reproduce pff1d --runs 8 --seed 1 --table-q 10 --dlambda 0.1 --interpretations all "
+             "--out OUT/pff1d",
+    "bearing": "gpfverify reproduce bearing --runs 100 --seed 1 --interpretations all --out OUT/bearing",
 }
 MODULES = {"pff1d": pff1d, "bearing": bearing}
 
 
+def recompute_with_interpretations(run_dir: Path, module, target: Path) -> dict:
+    """The main ``results.json`` and every interpretation's recomputed from the saved runs, the
+    interpretations merged into the main claims; written to ``run_dir`` and copied with the
+    manifest to ``target``."""
+    main = rewrite_results(run_dir, module)
+    tried = []
+    for spec in module.INTERPRETATIONS:
+        folder = run_dir / "interpretations" / spec.name
+        if (folder / "manifest.json").is_file():
+            tried.append((spec, rewrite_results(folder, module)))
+    merged = merge(main, tried) if tried else main
+    (run_dir / "results.json").write_text(json.dumps(merged, indent=1), encoding="utf-8")
+    target.mkdir(parents=True, exist_ok=True)
+    for name in ("results.json", "manifest.json"):
+        shutil.copy(run_dir / name, target / name)
+    return merged
+
+
 def main(runs_dir: Path) -> None:
-    results = {name: recompute_into(runs_dir / name, MODULES[name], HERE / name) for name in COMMANDS}
+    results = {name: recompute_with_interpretations(runs_dir / name, MODULES[name], HERE / name) for name in COMMANDS}
+    entries = tuple(RunEntry(name, "", name, f"{name}/results.json") for name in COMMANDS)
+    data = SectionInput(particle_flow.SLUG, HERE, SectionRuns(particle_flow.SLUG, "reference", 1, entries),
+                        tuple(results[name] for name in COMMANDS))
+    section = particle_flow.render_section(data)
     command = "; ".join(COMMANDS.values()) + "; then python reports/reference/make_particle_flow.py OUT"
-    section = particle_flow.render(results, HERE, command=command)
+    section.blocks.insert(0, Paragraph(f"Made by: {command}"))
     write_page(section, HERE)
 
 

@@ -12,11 +12,13 @@ import numpy as np
 
 from gpfverify.contract import bearing as bearing_contract
 from gpfverify.contract import pff1d as pff_contract
-from gpfverify.contract.claims import read_claims
+from gpfverify.contract.claims import ClaimRecord, read_claims
+from gpfverify.contract.interpretations import InterpretationSpec, robustness
 from gpfverify.contract.methods import Method
 from gpfverify.contract.papers import PAPERS
 from gpfverify.contract.particle_flow import EDH, FLOWS, IE_PFF, PAPER, PF, UPF, Variant
 from gpfverify.contract.serial import from_json
+from gpfverify.health import HealthCheck
 from gpfverify.report.document import Figure, Paragraph, Section, Table, claim_records_table, fmt
 from gpfverify.report.figures import new_figure, save
 from gpfverify.report.inputs import SectionInput
@@ -48,7 +50,9 @@ def render_section(data: SectionInput) -> Section:
     levels = sorted({r["significance_level"] for _, r in (*pff, *brg)})
     section.add(claim_records_table(records, f"Claims of {PAPERS[PAPER].short} (paired t-test over runs at level "
                                              f"{' / '.join(f'{v:g}' for v in levels)}; ±: one standard error; "
-                                             "a divergence where the other filter stayed finite loses the comparison)"))
+                                             "a divergence where the other filter stayed finite loses the comparison; "
+                                             "a verdict whose filters failed a health check is 'not decidable')"))
+    section.add(*_sensitivity(records))
     section.add(Paragraph(
         "Run times are CPU seconds (process time) of this Python implementation on the machine that wrote the "
         "page (numpy, one process); the PF's cost is dominated by per-step overhead, not by N, so time ratios "
@@ -98,6 +102,7 @@ def _render_pff1d(section: Section, results: dict, folder: Path, setting: str) -
                       f"benchmark), N = {p.particles}, Δλ = {p.gamma_dlambda:g}"))
     section.add(Figure(_fig2(p, gamma, runs, folder / "pff_fig2_gamma.png"),
                        f"Fig. 2: RMSE per step under gamma process noise for each R ({p.main_spacing} λ-steps)"))
+    section.add(*_health_blocks("pff1d", results))
 
 
 def _divergence_summary(results: dict) -> str:
@@ -193,6 +198,7 @@ def _render_bearing(section: Section, results: dict, folder: Path) -> None:
                       f"(Δλ = {b.dlambda:g}, {b.spacing} λ-steps)"))
     section.add(Figure(_fig3(results, keys, b.switch_time, folder / "pff_fig3_bearing.png"),
                        "Fig. 3: position RMSE per step, bearing-only tracking (the turn starts at the dashed line)"))
+    section.add(*_health_blocks("bearing", results))
 
 
 def _bearing_interpretations(b: bearing_contract.Params) -> list[list[str]]:
@@ -220,3 +226,72 @@ def _fig3(results: dict, keys: list[str], switch_time: float, path: Path) -> Pat
     ax.set_ylabel("position RMSE (m)")
     ax.legend(fontsize=8)
     return save(fig, path)
+
+
+# ----------------------------------------------------------------------------- health and sensitivity
+
+def _health_blocks(name: str, results: dict) -> list:
+    """The health checks of a run (results.json "health"): the failed ones in full, the passed
+    ones counted; nothing for results written before the checks existed."""
+    if "health" not in results:
+        return [Paragraph(f"{name}: this run recorded no health checks.")]
+    checks = from_json(list[HealthCheck], results["health"], "health")
+    failed = [c for c in checks if not c.passed]
+    kinds = sorted({c.name for c in checks})
+    text = (f"{name} health checks: {len(checks) - len(failed)} of {len(checks)} passed ({', '.join(kinds)}; "
+            "divergence: a non-finite estimate or an error above the run's bound in any run fails it; weight "
+            "collapse: median N_eff/N over runs and steps at or below the threshold). NEES is not checked: the "
+            "flows' and PFs' posteriors on these models are far from Gaussian (the UNGM's is bimodal), so NEES "
+            "bounds would not measure health.")
+    blocks: list = [Paragraph(text)]
+    if failed:
+        blocks.append(Table(["filter (cell)", "check", "statistic", "threshold", "detail"],
+                            [[c.subject, c.name, c.statistic, c.threshold, c.detail] for c in failed],
+                            f"{name}: the health checks that failed"))
+    passed_ess = [c for c in checks if c.passed and c.name == "weight collapse"]
+    if passed_ess:
+        low = min(passed_ess, key=lambda c: c.statistic)
+        blocks.append(Paragraph(f"Lowest median N_eff/N of a particle filter that passed: {low.statistic:.3g} "
+                                f"({low.subject})."))
+    return blocks
+
+
+def _declared() -> dict[tuple[str, str], InterpretationSpec]:
+    """(experiment, interpretation name) -> its declaration in the contract."""
+    return {(contract.NAME, s.name): s for contract in (pff_contract, bearing_contract)
+            for s in contract.INTERPRETATIONS}
+
+
+def _sensitivity(records: list[ClaimRecord]) -> list:
+    """Per claim, its verdict as run and under every interpretation tried, and the robustness
+    sentence; then what each interpretation changes and why."""
+    tried = [r for r in records if r.interpretations]
+    if not tried:
+        return [Paragraph("No interpretation was tried for these runs (gpfverify reproduce NAME "
+                          "--interpretations all runs them).")]
+    rows = []
+    for r in tried:
+        under = "; ".join(f"{i.name}: {i.verdict}" + ("" if i.statistic is None else f" (t = {i.statistic:.3g})")
+                          for i in r.interpretations)
+        rows.append([r.claim + (f" ({r.setting})" if r.setting else ""), r.verdict, under, robustness(r)])
+    blocks: list = [Table(["claim (as run)", "verdict as run", "verdict under each interpretation", "robustness"],
+                          rows, "Sensitivity: every claim's verdict under each interpretation tried (same seed and "
+                                "run count; an interpretation that does not run a claim's setting has no entry)")]
+    declared = _declared()
+    names = list(dict.fromkeys((r.id.split("/")[0], i.name) for r in tried for i in r.interpretations))
+    spec_rows = []
+    for experiment, name in names:
+        changes = next(i.params for r in tried for i in r.interpretations
+                       if i.name == name and r.id.split("/")[0] == experiment)
+        spec = declared.get((experiment, name))
+        spec_rows.append([experiment, name, ", ".join(f"{k} = {_value(v)}" for k, v in changes.items()),
+                          spec.why if spec else ""])
+    blocks.append(Table(["experiment", "interpretation", "parameters changed", "why"], spec_rows,
+                        "Interpretations tried"))
+    return blocks
+
+
+def _value(v) -> str:
+    if isinstance(v, (list, tuple)):
+        return "(" + ", ".join(_value(x) for x in v) + ")"
+    return f"{v:g}" if isinstance(v, float) else str(v)
