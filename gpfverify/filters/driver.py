@@ -5,6 +5,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, fields
 from collections.abc import Callable
+from typing import Any
 
 import numpy as np
 
@@ -41,5 +42,7 @@ def run_filter(step: Callable, model, belief0, ys, *, first_k: int = 1, **params
         belief = record.posterior
     if not all(type(r) is StepRecord for r in records):
         return records
-    return FilterRun(**{f.name: np.stack([np.asarray(getattr(r, f.name), dtype=float) for r in records])
-                        for f in fields(FilterRun)})
+    # every field stacked over time, jitter included (a (T,) array, not StepRecord's float)
+    stacked: dict[str, Any] = {f.name: np.stack([np.asarray(getattr(r, f.name), dtype=float) for r in records])
+                               for f in fields(FilterRun)}
+    return FilterRun(**stacked)

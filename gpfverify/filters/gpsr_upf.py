@@ -41,6 +41,9 @@ def sr_ukf_proposal(belief: Particles, model, y: np.ndarray, *, k: int = 1, proc
     factors (N, D, D)). ``process_sqrt(particles, k) -> (N, D, D)`` gives per-particle square roots
     of a state-dependent Q; without it √Q of ``model.Q`` is shared. Angle outputs and state
     components of the model are handled as in the SR-UKF."""
+    if belief.sqrt_covs is None:
+        raise InputError("belief.sqrt_covs: the SR-UKF proposal needs each particle's covariance factor "
+                         "(Particles.from_gaussian gives the prior's)")
     sqrt_q = noise_sqrt(model.Q) if process_sqrt is None else process_sqrt(belief.particles, k)
     prior, _ = sr_ukf_predict(SqrtGaussian(belief.particles, belief.sqrt_covs), model.f, sqrt_q, k, params,
                               model.circular_state)

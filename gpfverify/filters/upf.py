@@ -42,6 +42,9 @@ def ukf_proposal(belief: Particles, model, y: np.ndarray, *, k: int = 1,
                  params: SigmaParams = SigmaParams()) -> tuple[np.ndarray, np.ndarray]:
     """One UKF step per particle from N(x^i, S^i S^iᵀ) with measurement y: the posterior means and
     Cholesky factors (van der Merwe et al. 2000, Alg. UPF step 2)."""
+    if belief.sqrt_covs is None:
+        raise InputError("belief.sqrt_covs: the UKF proposal needs each particle's covariance factor "
+                         "(Particles.from_gaussian gives the prior's)")
     covs = belief.sqrt_covs @ np.swapaxes(belief.sqrt_covs, -1, -2)
     record = ukf_step(Gaussian(belief.particles, covs), model, y, k=k, params=params)
     return record.mu_e, cholesky_batched(record.C_e, "UKF proposal covariance")

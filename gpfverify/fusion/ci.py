@@ -36,6 +36,7 @@ import cvxpy as cp
 import numpy as np
 
 from gpfverify.errors import InputError, SolverError
+from gpfverify.filters.records import Gaussian
 from gpfverify.fusion.estimates import (FusedEstimate, Information, checked_estimates,
                                         information_form, weighted_information_fusion)
 from gpfverify.fusion.pairwise import (criterion_derivative, joint_diagonalise,
@@ -136,6 +137,8 @@ def covariance_intersection(estimates: Sequence, criterion: str = "trace",
     candidates = _ci_weights_cvxpy(info, criterion) + list(np.eye(len(checked)))
     fused = [weighted_information_fusion(info, w) for w in candidates]
     best = min(fused, key=lambda f: criterion_value(f.cov, criterion))
+    if best.weights is None:  # weighted_information_fusion always records its weights
+        raise SolverError("CI: the fused estimate carries no weights")
     violation = kkt_violation(info, best.weights, criterion)
     if violation > KKT_REJECT_TOL:
         raise SolverError(f"CI weights not optimal: the best candidate violates the {criterion} "
@@ -163,9 +166,11 @@ def inverse_covariance_intersection(estimates: Sequence, criterion: str = "trace
     """ICI of N local estimates, pairwise in order; ``weights`` holds each pair's ω (N − 1,)."""
     _check_criterion(criterion)
     checked = checked_estimates(estimates)
-    fused, omegas = checked[0], []
+    fused: Gaussian | FusedEstimate = checked[0]
+    omegas = []
     for nxt in checked[1:]:
         step = _two_sensor_ici(fused, nxt, criterion)
+        assert step.weights is not None  # the pairwise ICI always records [ω, 1 − ω]
         omegas.append(step.weights[0])
         fused = step
     weights = np.array(omegas) if omegas else None

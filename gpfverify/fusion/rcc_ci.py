@@ -190,6 +190,8 @@ def smallest_intersecting_size(estimates: Sequence) -> float:
     status = _solve(cp.Problem(cp.Minimize(t), cons), cp.CLARABEL, "smallest intersecting size")
     if status not in SOLVED:
         raise SolverError(f"smallest intersecting size: solver status {status}")
+    if t.value is None:
+        raise SolverError("smallest intersecting size: the solver returned no value")
     return float(t.value)
 
 

@@ -134,8 +134,11 @@ class NumpyFunction(ModelFunction):
     def _user_jacobian_at(self, xi: np.ndarray, k: int) -> np.ndarray:
         """The user's Jacobian at one state (D,), checked: (E, D), finite."""
         shape = (self.out_dim, self.in_dim)
+        user_jacobian = self.user_jacobian
+        if user_jacobian is None:  # only called when the user gave one
+            raise InputError(f"{self.name} has no user Jacobian")
         try:
-            value = self.user_jacobian(xi, k) if self.jacobian_takes_k else self.user_jacobian(xi)
+            value = user_jacobian(xi, k) if self.jacobian_takes_k else user_jacobian(xi)
             value = np.asarray(value, dtype=float)
         except GpfverifyError:
             raise

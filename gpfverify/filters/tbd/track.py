@@ -7,6 +7,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from gpfverify.errors import InputError
+from gpfverify.filters.resampling import ParticleStep
 from gpfverify.filters.tbd.model import STATE_DIM, TbdModel
 from gpfverify.filters.tbd.pf import TbdConfig, initial_belief, pf_tbd_step
 from gpfverify.filters.tbd.two_stage import tpf_tbd_step
@@ -43,6 +44,7 @@ def filter_sequence(images, model: TbdModel, config: TbdConfig, rng, second_rng=
     existence = np.empty(images.shape[0])
     estimates = np.empty((images.shape[0], STATE_DIM))
     for k, image in enumerate(images):
+        step: ParticleStep
         if config.two_stage:
             step = tpf_tbd_step(belief, model, image, k=k + 1, rng=rng, config=config, second_rng=second_rng)
         else:

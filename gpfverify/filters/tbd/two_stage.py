@@ -90,7 +90,7 @@ def transfer_particles(particles: np.ndarray, posterior_mean: np.ndarray, poster
                        zeta: float, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
     """Eq. 21: particle i becomes a draw from N(mean, cov) when e_i > ζ, e_i ~ U[0, 1).
     Returns (new particles, boolean mask of the replaced ones)."""
-    replaced = rng.random(particles.shape[0]) > zeta
+    replaced = np.asarray(rng.random(particles.shape[0]) > zeta)
     out = particles.copy()
     n = int(replaced.sum())
     if n:
