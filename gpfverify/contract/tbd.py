@@ -3,7 +3,10 @@ TPFTBD in Rutten's scenario. Parameters, the methods as values, the per-run reco
 profiles; the computation is :mod:`gpfverify.experiments.tbd`.
 
 Seed 004's parameter table was lost in extraction; the fields that stand in for it are the
-interpretations listed in :data:`INTERPRETATIONS` (what the code does, for the report page).
+choices listed in :data:`READINGS` (what the code does, for the report page). The sensitivity study
+(issue "Verdicts that survive scrutiny") tries the other plausible readings of the lost details —
+the SNR convention, the patch sizes and the particle counts — listed in :data:`INTERPRETATIONS`
+(``gpfverify reproduce tbd --interpretations all``).
 """
 
 from __future__ import annotations
@@ -14,6 +17,7 @@ from dataclasses import dataclass
 from typing import Literal
 
 from gpfverify.contract.experiment import Profile, Setting
+from gpfverify.contract.interpretations import InterpretationSpec
 from gpfverify.contract.params import Params as BaseParams
 from gpfverify.contract.params import flag_name, option
 from gpfverify.errors import InputError
@@ -28,13 +32,16 @@ PAPER_FOCUS_SNR = 6.0
 #: the state s = [x, ẋ, y, ẏ, I] has five entries
 STATE_DIM = 5
 
-SnrConvention = Literal["peak", "intensity"]
+SnrConvention = Literal["peak", "intensity", "energy"]
+#: the SNR conventions, as :func:`gpfverify.scenarios.tbd.noise_std_for_snr` applies them
+SNR_CONVENTIONS: tuple[str, ...] = ("peak", "intensity", "energy")
 
 #: how this implementation fills in what seed 004 does not state (shown on the report page)
-INTERPRETATIONS: dict[str, str] = {
-    "SNR": "SNR = 10 log₁₀(a² / σ²) with a = I₀ / (2πΣ²) the peak pixel of the blurred target "
-           "(convention “peak”); the convention “intensity” uses I₀ in place of a. The SNR is set "
-           "through σ (§3 of the paper).",
+READINGS: dict[str, str] = {
+    "SNR": "SNR = 10 log₁₀(a² / σ²) with a = Δ²I₀ / (2πΣ²) the peak pixel of the blurred target "
+           "(convention “peak”); “intensity” uses I₀ in place of a, “energy” the target's energy "
+           "Σ_c h_c² summed over the cells (a target centred on a cell, the point spread not "
+           "truncated) in place of a². The SNR is set through σ (§3 of the paper).",
     "scenario": "the target appears at [4.2, 0.45, 7.2, 0.25, 20] in frame 7 and follows the model's "
                 "near-constant-velocity dynamics with process noise Q (Ristic et al. 2004, ch. 11).",
     "birth": "N_b = N_c = N/2; birth cells drawn with probability (1 − ε)/n_bright on cells brighter than "
@@ -65,9 +72,11 @@ class Params(BaseParams):
     snr: tuple[float, ...] = option(PAPER_SNRS, "SNR values in dB")
     focus_snr: float | None = option(
         None, "SNR (dB) of the existence, RMSE and ROC curves and of the ζ sweep; none: 6 dB when it is "
-              "among --snr, else the median of --snr")
-    snr_convention: SnrConvention = option("peak", "SNR convention: 'peak' (peak pixel of the blurred "
-                                                   "target) or 'intensity' (total intensity I₀)")
+              "among --snr, else the median of --snr (the lower middle value of an even count)")
+    snr_convention: SnrConvention = option(
+        "peak", "SNR convention: 'peak' 10 log10(a²/σ²), a = Δ²I₀/(2πΣ²) the peak pixel of the blurred target; "
+                "'intensity' 10 log10(I₀²/σ²); 'energy' 10 log10(Σ_c h_c²/σ²), the target's energy over the "
+                "cells")
     particles: int = option(2000, "PF-TBD particles N (even)", minimum=2)
     tpf_particles: tuple[int, ...] = option((2000, 1000), "TPFTBD particle counts (even)", minimum=2)
     zeta: float = option(0.6, "transfer parameter ζ of the TPFTBD methods", minimum=0.0, maximum=1.0)
@@ -95,6 +104,10 @@ class Params(BaseParams):
     last_frame: int = option(22, "last frame with the target (1-based, inclusive)", minimum=1)
     initial_state: tuple[float, ...] = option((4.2, 0.45, 7.2, 0.25, 20.0),
                                               "target state [x, ẋ, y, ẏ, I₀] in its first frame")
+    bootstrap: int = option(1000, "bootstrap resamples of whole runs for the Monte Carlo interval of the SNR gain",
+                            minimum=2)
+    track_loss_distance: float = option(2.0, "health report: a run lost the track when its position error in the "
+                                             "target's last frame exceeds this many cells", above=0.0)
 
     def check(self) -> None:
         for name in ("pfa", "p_birth", "p_death"):
@@ -130,7 +143,7 @@ class Params(BaseParams):
         """The SNR of the single-SNR curves and the ζ sweep (``focus_snr`` resolved)."""
         if self.focus_snr is not None:
             return self.focus_snr
-        return PAPER_FOCUS_SNR if PAPER_FOCUS_SNR in self.snr else float(statistics.median(self.snr))
+        return PAPER_FOCUS_SNR if PAPER_FOCUS_SNR in self.snr else float(statistics.median_low(self.snr))
 
     @property
     def focus_index(self) -> int:
@@ -187,11 +200,15 @@ def sweep_methods(params: Params) -> tuple[TbdMethod, ...]:
 @dataclass(frozen=True)
 class MethodRun:
     """One method on one SNR's pair of sequences: the existence probability per frame with the
-    target present and absent, and the squared position error in each frame the target exists."""
+    target present and absent, the squared position error in each frame the target exists, and
+    the filter's N_eff/N per frame of the target-present sequence."""
 
     present: tuple[float, ...]
     absent: tuple[float, ...]
     sq_error: tuple[float, ...]
+    #: N_eff/N of the merged weighted set (step ④) in each frame of the target-present sequence
+    #: (empty in records written before it was recorded)
+    ess: tuple[float, ...] = ()
 
 
 @dataclass(frozen=True)
@@ -221,3 +238,30 @@ PROFILES: dict[str, Profile] = {
     "quick": Profile(QUICK_RUNS, (Setting("", "quick", QUICK_PARAMS),)),
     "full": Profile(PAPER_RUNS, (Setting("", "paper", Params()),)),
 }
+
+
+#: the readings of what seed 004 leaves unstated or lost, tried next to the defaults
+#: (``gpfverify reproduce tbd --interpretations all``)
+INTERPRETATIONS: tuple[InterpretationSpec, ...] = (
+    InterpretationSpec(
+        "snr-intensity", {"snr_convention": "intensity"},
+        "the TBD literature writes the SNR as 10 log₁₀(I²/σ²); read with I the target's total intensity I₀ "
+        "rather than the peak pixel a = Δ²I₀/(2πΣ²) of its point spread, σ is 2πΣ²/Δ² ≈ 3.1× larger "
+        "(9.8 dB harder at Σ = 0.7) at the same nominal SNR"),
+    InterpretationSpec(
+        "snr-energy", {"snr_convention": "energy"},
+        "an energy-based SNR (matched-filter detection): the target's energy Σ_c h_c² over the cells against "
+        "σ², 2.0 dB above the peak convention's a² at Σ = 0.7, so σ is 1.26× larger at the same nominal SNR"),
+    InterpretationSpec(
+        "likelihood-patch-3x3", {"patch_radius": 1},
+        "the point-spread patch C(s) of the likelihood is in the lost parameter table: 3 × 3 cells (p = 1) "
+        "instead of 5 × 5"),
+    InterpretationSpec(
+        "second-stage-3x3", {"second_stage_radius": 1},
+        "the image patch of TPFTBD's second-stage (Kalman-type) measurement is in the lost table: 3 × 3 cells "
+        "(r = 1) around the PF estimate instead of 5 × 5"),
+    InterpretationSpec(
+        "particles-4000", {"particles": 4000, "tpf_particles": (4000, 2000), "zeta_sweep_particles": 2000},
+        "twice the paper's particle counts everywhere (the 2:1 ratio of the claims kept): whether PF-TBD's "
+        "deficit is a matter of too few particles"),
+)

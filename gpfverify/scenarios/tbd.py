@@ -9,12 +9,16 @@ extraction; the remaining values are interpretations, each a named field:
   model's own near-constant-velocity dynamics (process noise Q drawn per run);
 * the SNR is set, as in seed 004, through the noise variance σ², with a stated convention:
   ``"peak"`` — SNR = 10 log10(a² / σ²), a = Δ² I₀ / (2πΣ²) the peak pixel of the blurred target
-  (Ristic et al.); ``"intensity"`` — SNR = 10 log10(I₀² / σ²) (total intensity);
+  (Ristic et al.); ``"intensity"`` — SNR = 10 log10(I₀² / σ²) (total intensity: the literature's
+  10 log10(I²/σ²) with I read as the integrated intensity); ``"energy"`` — SNR = 10 log10(E / σ²),
+  E = Σ_c h_c² the target's energy over the cells (matched-filter detection theory), for a target
+  centred on a cell with the point spread not truncated: E = a² (Σ_{i ∈ ℤ} exp(−i²Δ²/Σ²))²;
 * the birth density's intensity range is [I₀/2, 3I₀/2] and its velocity range ±1 cell/frame.
 """
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -22,7 +26,7 @@ import numpy as np
 from gpfverify.errors import InputError
 from gpfverify.filters.tbd.model import INTENSITY, STATE_DIM, TbdModel
 
-SNR_CONVENTIONS = ("peak", "intensity")
+SNR_CONVENTIONS = ("peak", "intensity", "energy")
 
 
 @dataclass(frozen=True)
@@ -65,8 +69,21 @@ def noise_std_for_snr(snr_db: float, intensity: float, model: TbdModel, conventi
     """σ such that the target of ``intensity`` has the given SNR under ``convention``."""
     if convention not in SNR_CONVENTIONS:
         raise InputError(f"snr convention must be one of {SNR_CONVENTIONS}, got {convention!r}")
-    signal = float(model.amplitude(intensity)) if convention == "peak" else float(intensity)
+    if convention == "intensity":
+        signal = float(intensity)
+    else:
+        signal = float(model.amplitude(intensity))
+        if convention == "energy":
+            signal *= math.sqrt(energy_factor(model))
     return signal / 10.0 ** (float(snr_db) / 20.0)
+
+
+def energy_factor(model: TbdModel) -> float:
+    """E / a²: the energy Σ_c h_c² of a target centred on a cell over its peak pixel squared, the
+    point spread not truncated, (Σ_{i ∈ ℤ} exp(−i²Δ²/Σ²))² (the sum taken to |i|Δ ≤ 10Σ)."""
+    reach = math.ceil(10.0 * model.blur / model.cell_size)
+    i = np.arange(-reach, reach + 1)
+    return float(np.sum(np.exp(-((i * model.cell_size / model.blur) ** 2)))) ** 2
 
 
 def scenario_model(snr_db: float, scenario: TbdScenario = TbdScenario(), convention: str = "peak",
