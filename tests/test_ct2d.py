@@ -77,7 +77,8 @@ def test_claims_are_records_of_every_paper_claim(cli_results):
             assert f"ct2d/{name}/{family}" in ids
     assert "ct2d/gp-ukf-loses-full-rank" in ids  # κ = 12 < 300
     assert all(c.n == 2 and c.paper_n == 1000 and c.setting == "κ = 12, Ω = 2π/90" for c in claims)
-    assert {c.id.split("/")[1] for c in claims if c.timing} == {"dmf-cheaper-than-cmf", "rcc-ci-costs-most"}
+    assert {c.id.split("/")[1] for c in claims if c.timing} == {"dmf-cheaper-than-cmf", "dmf-update-cheaper-than-cmf",
+                                                                "rcc-ci-costs-most"}
     equivalence = [c for c in claims if c.id.startswith("ct2d/dmf-equals-cmf/")]
     for c in equivalence:
         family = c.id.rsplit("/", 1)[1]
@@ -188,6 +189,13 @@ def test_page_renders_from_stored_results(tmp_path):
     forced = json.loads((FIXTURES / "forced-rank-failure.json").read_text())
     assert len(audit_rows) == forced["runs_ok"] * len(FAMILIES) * forced["params"]["test_steps"]
     assert "GP-ADF: DMF = CMF when the rank condition holds" in page
+    # the verdicts under each interpretation tried, with the robustness sentence; health; both timings
+    assert "Verdicts under each interpretation tried — κ = 12, Ω = 2π/90" in page
+    table = page.split("Verdicts under each interpretation tried")[1]
+    assert all(f"| {name} |" in table for name in ("canonical-rank", "initial-cov-wide", "sensors-z1-below"))
+    assert "interpretations tried" in page  # robustness(): "... under all 4 interpretations tried" or "depends"
+    assert "Health of the filters compared" in page and "CMF-GP-UKF" in page
+    assert "(the update alone)" in page and "(whole fusion step)" in page
     assert "rests on 2 runs; the paper used 1000" in page or "⚠" in page
     # Unicode maths, no pseudo-LaTeX
     assert "x_{k+1}" not in page and "xₖ₊₁" in page

@@ -5,7 +5,8 @@ Model (eq. 46–47): xₖ₊₁ = F(Ω)xₖ + w, w ~ N(0, 5 I); two range–bear
 yᵐ = [‖x − zₘ‖, arctan((x₂ − zₘ₂)/(x₁ − zₘ₁))] + vᵐ, vᵐ ~ N(0, diag(5, (0.1π/180)²)); κ training
 samples from x ~ N(0, I), then 50 test steps.
 
-Interpretations (each a parameter): sensor positions z₁ = [−200, 200], z₂ = [200, 200] (a minus
+Interpretations (each a parameter; :data:`INTERPRETATIONS` lists the readings tried besides the
+defaults): sensor positions z₁ = [−200, 200], z₂ = [200, 200] (a minus
 sign was lost in the text); each sensor's filter starts at the polar→Cartesian conversion of its
 first test observation plus a per-coordinate N(b, 1) perturbation (b = 10 for κ = 300, 20 for κ =
 30, 60, as the paper states) with initial covariance (b² + 1) I — the perturbation's second moment,
@@ -21,6 +22,7 @@ from typing import Literal
 
 from gpfverify.contract.experiment import Profile, Setting
 from gpfverify.contract.fusion import SENSORS, FusionParams, FusionRun
+from gpfverify.contract.interpretations import InterpretationSpec
 from gpfverify.contract.params import option
 from gpfverify.errors import InputError
 
@@ -80,7 +82,12 @@ class Params(FusionParams):
     fused_start: Literal["mean-of-sensor-starts"] = option(
         "mean-of-sensor-starts", "the fused filters start at the mean of the sensors' starts, same covariance")
 
+    divergence_bound: float = option(1000.0, "health check: a run diverged when a filter's position error exceeds "
+                                     "this many metres (or is not finite) at some step (the sensors are 200–300 m "
+                                     "from the origin)", above=0)
+
     def check(self) -> None:
+        super().check()
         if len(self.sensor_positions) != SENSORS:
             raise InputError(f"sensor_positions must hold {SENSORS} positions, got {len(self.sensor_positions)}")
 
@@ -124,3 +131,29 @@ PROFILES: dict[str, Profile] = {
     "quick": Profile(3, (setting(300, OMEGA_SMALL), setting(30, OMEGA_SMALL))),
     "full": Profile(DEFAULT_RUNS, tuple(setting(k, w) for k, w in PAPER_SETTINGS)),
 }
+
+
+#: the readings of what the paper leaves unstated or lost, tried next to the defaults
+#: (``gpfverify reproduce ct2d --interpretations all``)
+INTERPRETATIONS: tuple[InterpretationSpec, ...] = (
+    InterpretationSpec(
+        "canonical-rank", {"rank_rule": "canonical"},
+        "the paper does not say how rank(Cₓᵧᵐ) is decided; numpy's/MATLAB's rule depends on units (a bearing "
+        "column in m·rad is ≈ 1/280 of the range column), the canonical-correlation rule (τ = √eps) does not"),
+    InterpretationSpec(
+        "initial-cov-perturbation", {"initial_cov_scale": 1.0},
+        "the paper gives no initial covariance; the filters may be told only the perturbation's spread, "
+        "N(b, 1) → I, ignoring its bias b (over-confident start)"),
+    InterpretationSpec(
+        "initial-cov-wide", {"initial_cov_scale": 1000.0},
+        "the paper gives no initial covariance; a vague start, 1000 I (≈ 10× the perturbation's second moment at "
+        "κ = 300, 2.5× at κ = 30, 60)"),
+    InterpretationSpec(
+        "sensors-z1-below", {"sensor_positions": ((200.0, -200.0), (200.0, 200.0))},
+        "the text prints z₁ = [200, 200]ᵀ = z₂: the lost minus sign may belong to z₁'s second coordinate "
+        "(sensors at [200, −200] and [200, 200]) instead of its first"),
+    InterpretationSpec(
+        "sensors-as-printed", {"sensor_positions": ((200.0, 200.0), (200.0, 200.0))},
+        "the sensor positions exactly as printed: both sensors at [200, 200] (the same geometry, independent "
+        "noise)"),
+)

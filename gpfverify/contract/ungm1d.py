@@ -18,6 +18,7 @@ from typing import Literal
 
 from gpfverify.contract.experiment import Profile, Setting
 from gpfverify.contract.fusion import SENSORS, FusionParams, FusionRun
+from gpfverify.contract.interpretations import InterpretationSpec
 from gpfverify.contract.params import option
 from gpfverify.errors import InputError
 
@@ -56,7 +57,12 @@ class Params(FusionParams):
     mahalanobis: Literal["squared"] = option(
         "squared", "the metric of eq. 44 as written: the squared form (x − x̂)ᵀC⁻¹(x − x̂), averaged over runs")
 
+    divergence_bound: float = option(100.0, "health check: a run diverged when a filter's error |x − x̂| exceeds "
+                                     "this (or is not finite) at some step (the state stays within about ±30)",
+                                     above=0)
+
     def check(self) -> None:
+        super().check()
         if len(self.sensor_phases) != SENSORS:
             raise InputError(f"sensor_phases must hold {SENSORS} phases, got {len(self.sensor_phases)}")
 
@@ -83,3 +89,17 @@ PROFILES: dict[str, Profile] = {
     "quick": Profile(4, (_setting(Params(sweep=(2.0,))),)),
     "full": Profile(DEFAULT_RUNS, (_setting(Params()),)),
 }
+
+
+#: the readings of what the paper leaves unstated or lost, tried next to the defaults
+#: (``gpfverify reproduce ungm1d --interpretations all``)
+INTERPRETATIONS: tuple[InterpretationSpec, ...] = (
+    InterpretationSpec(
+        "canonical-rank", {"rank_rule": "canonical"},
+        "the paper does not say how rank(Cₓᵧᵐ) is decided; with a 1 × 1 cross term numpy's/MATLAB's rule calls any "
+        "nonzero value full rank, however small against the state's and the output's spreads; the "
+        "canonical-correlation rule (τ = √eps) is unit-free"),
+    InterpretationSpec(
+        "measurement-noise-0.1", {"measurement_noise_var": 0.1},
+        "the text's measurement noise shows as '0.1²' with symbols lost: variance 0.01 (default) or 0.1"),
+)

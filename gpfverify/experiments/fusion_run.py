@@ -32,6 +32,7 @@ O(fit_points³) per evaluation (measured in
 
 from __future__ import annotations
 
+import dataclasses
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
@@ -40,8 +41,9 @@ from typing import Any, Literal
 import numpy as np
 
 from gpfverify.audit import audit_case
-from gpfverify.contract.claims import ClaimRecord, PairedDifference, combine, verdict_of
-from gpfverify.contract.fusion import (FAMILIES, FUSION_RULES, LOCAL_FILTERS, METHODS, PAPER, AuditEntry, FamilyRun,
+from gpfverify.contract.claims import ClaimRecord, PairedDifference, Verdict, combine, verdict_of
+from gpfverify.contract.fusion import (FAMILIES, FUSION_RULES, LOCAL_FILTERS, METHODS, NEES_POLICY, PAPER, AuditEntry,
+                                       FamilyRun,
                                        FittedModels, FusionRun, GPHyperparameters, SensorAuditRecord,
                                        family_methods)
 from gpfverify.contract.methods import Method
@@ -51,8 +53,10 @@ from gpfverify.filters.sigma_points import SigmaParams
 from gpfverify.fusion.centralized import cmf_update
 from gpfverify.fusion.convex import convex_combination
 from gpfverify.fusion.distributed import dmf_update
+from gpfverify.fusion.exactness import parse_rank_rule
 from gpfverify.fusion.model_fusion import cmf_step, dmf_step
 from gpfverify.fusion.rcc_ci import rcc_ci
+from gpfverify.health import HealthCheck, decide, divergence_check
 from gpfverify.linalg import solve_spd
 from gpfverify.models import GPModel, fit_gp_model
 from gpfverify.scenarios.fusion_models import FusionData
@@ -64,6 +68,13 @@ __all__ = ["FAMILIES", "LOCAL_FILTERS", "METHODS"]
 #: reported, to show how a "ratio of full column rank" figure depends on the tolerance chosen
 RELATIVE_RANK_TOLS: tuple[float, ...] = (1e-12, 1e-10, 1e-8, 1e-6, 1e-4, 3e-4, 1e-3, 3e-3, 1e-2)
 RANK_RULE = "numpy/MATLAB rank rule: sigma_max * max(D, l_m) * eps (absolute, per matrix)"
+
+
+def rank_rule_text(spec: str) -> str:
+    """The rank rule of a run in words (:meth:`FusionParams.rank_rule_spec` → text); the numpy rule
+    keeps :data:`RANK_RULE`, the wording of the reference results."""
+    rule = parse_rank_rule(spec)
+    return RANK_RULE if rule.name == "numpy" else rule.describe()
 #: audit entries kept verbatim in results.json (all are counted)
 AUDIT_ENTRIES_KEPT = 200
 #: the method keys of results.json, in figure order
@@ -111,8 +122,8 @@ def _rcc_ci(estimates, size: float | None, on_empty: str) -> tuple[Gaussian, boo
     return Gaussian(result.mean, result.cov), result.enlarged
 
 
-def _audit_entry(step: int, family: str, case) -> AuditEntry:
-    audit = audit_case(case, rank_rule=None if case.rank_tol is not None else "numpy")  # eq. 35's rule
+def _audit_entry(step: int, family: str, case, rule) -> AuditEntry:
+    audit = audit_case(case, rank_rule=rule)  # eq. 35's rule
     gap, predicted = audit.gap, audit.predicted_gap
     if gap is None or predicted is None:  # audit_case computes both when the case has measurements
         raise ValueError("the audit of a rank-failure step needs the measurements")
@@ -141,9 +152,10 @@ def _floats(values) -> tuple[float, ...]:
 
 def run_family(family: str, models: GPModel, data: FusionData, local_starts: Sequence[Gaussian],
                fused_start: Gaussian, sigma: SigmaParams, rcc_size: float | None,
-               rank_tol: float | None, rcc_on_empty: str = "enlarge") -> FamilyRun:
+               rank_tol: float | None, rcc_on_empty: str = "enlarge", rank_rule: str = "numpy") -> FamilyRun:
     """Filter the test segment with the six methods of one family; per-step records (see module
-    docstring)."""
+    docstring). ``rank_rule``: "numpy" (with ``rank_tol``: absolute) or "canonical"."""
+    rule = None if rank_rule == "numpy" else rank_rule  # None: dmf_step's numpy rule, or rank_tol
     ys_local = data.test_measurements
     ys = data.stacked_test_measurements()
     steps = ys.shape[0]
@@ -172,7 +184,7 @@ def run_family(family: str, models: GPModel, data: FusionData, local_starts: Seq
         locals_ = [r.posterior for r in records]
         cmf = clock.run(cmf_key, k, cmf_step, cmf_belief, models, ys[k], k=k + 1, family=family, params=sigma)
         dmf = clock.run(dmf_key, k, dmf_step, dmf_belief, models, ys[k], local_records=records, k=k + 1,
-                        family=family, params=sigma, rank_tol=rank_tol)
+                        family=family, params=sigma, rank_tol=rank_tol, rank_rule=rule)
         cmf_belief, dmf_belief = cmf.posterior, dmf.record.posterior
         cw = clock.run(cw_key, k, convex_combination, locals_)
         rcc, enlarged = clock.run(rcc_key, k, _rcc_ci, locals_, rcc_size, rcc_on_empty)
@@ -206,7 +218,7 @@ def run_family(family: str, models: GPModel, data: FusionData, local_starts: Seq
         gap_scale.append(float(np.linalg.norm(dmf.case.central.mu_p)) + correction)
         conditions.append(gap_condition(dmf.case))
         if not dmf.result.condition_holds:
-            audit.append(_audit_entry(k, family, dmf.case))
+            audit.append(_audit_entry(k, family, dmf.case, dmf.result.rank_rule))
     return FamilyRun(
         sq_err={n: tuple(v) for n, v in sq_err.items()}, maha={n: tuple(v) for n, v in maha.items()},
         singular_values={n: tuple(v) for n, v in singular_values.items()},
@@ -221,10 +233,11 @@ def run_family(family: str, models: GPModel, data: FusionData, local_starts: Seq
 
 def run_setting(data: FusionData, models: GPModel, local_starts: Sequence[Gaussian],
                 fused_start: Gaussian, sigma: SigmaParams, rcc_size: float | None,
-                rank_tol: float | None, training_seconds: float, rcc_on_empty: str = "enlarge") -> FusionRun:
+                rank_tol: float | None, training_seconds: float, rcc_on_empty: str = "enlarge",
+                rank_rule: str = "numpy") -> FusionRun:
     """Both families on one run's data."""
     return FusionRun({family: run_family(family, models, data, local_starts, fused_start, sigma, rcc_size,
-                                         rank_tol, rcc_on_empty) for family in FAMILIES},
+                                         rank_tol, rcc_on_empty, rank_rule) for family in FAMILIES},
                      training_seconds, hyperparameters(models))
 
 
@@ -276,7 +289,7 @@ def full_rank_ratio_at(results: Sequence[FusionRun], rtol: float) -> dict[str, l
     return out
 
 
-def _audit_summary(results: Sequence[FusionRun]) -> dict:
+def _audit_summary(results: Sequence[FusionRun], rule_text: str = RANK_RULE) -> dict:
     entries = [{**to_dict(e), "run": i} for i, r in enumerate(results) for f in FAMILIES
                for e in r.families[f].audit]
     by_family = {}
@@ -288,7 +301,7 @@ def _audit_summary(results: Sequence[FusionRun]) -> dict:
             "max_gap_error": max((e["gap_error"] for e in mine), default=0.0),
             "max_relative_gap": max((e["gap_norm"] / e["correction_norm"] for e in mine
                                      if e["correction_norm"] > 0), default=0.0)}
-    return {"rank_rule": RANK_RULE, "by_family": by_family, "entries": entries[:AUDIT_ENTRIES_KEPT],
+    return {"rank_rule": rule_text, "by_family": by_family, "entries": entries[:AUDIT_ENTRIES_KEPT],
             "entries_total": len(entries)}
 
 
@@ -298,8 +311,10 @@ def to_dict(entry: AuditEntry) -> dict:
     return to_json(entry)
 
 
-def summarize_setting(results: Sequence[FusionRun]) -> dict:
-    """Per-step and per-method summaries of one setting over runs (see module docstring)."""
+def summarize_setting(results: Sequence[FusionRun], rank_rule: str = "numpy") -> dict:
+    """Per-step and per-method summaries of one setting over runs (see module docstring);
+    ``rank_rule`` the rule's spec (:meth:`FusionParams.rank_rule_spec`), named in the summary."""
+    rule_text = rank_rule_text(rank_rule)
     sq_err = _per_method(results, "sq_err")
     maha = _per_method(results, "maha")
     seconds = _per_method(results, "seconds")
@@ -309,7 +324,7 @@ def summarize_setting(results: Sequence[FusionRun]) -> dict:
         "rmse": {m: np.sqrt(np.mean(sq_err[m], axis=0)).tolist() for m in METHOD_KEYS},
         "average_mahalanobis": {m: np.mean(maha[m], axis=0).tolist() for m in METHOD_KEYS},
         "full_rank_ratio": {m: np.mean(full_rank[m], axis=0).tolist() for m in LOCAL_KEYS},
-        "rank_tolerance": RANK_RULE,
+        "rank_tolerance": rule_text,
         "full_rank_ratio_by_relative_tolerance": {f"{t:g}": full_rank_ratio_at(results, t)
                                                   for t in RELATIVE_RANK_TOLS},
         "time_per_step": {m: float(np.mean(seconds[m])) for m in METHOD_KEYS},
@@ -350,10 +365,58 @@ def summarize_setting(results: Sequence[FusionRun]) -> dict:
         "median": float(np.median([r.families[f].rounding_sensitivity for r in results])),
         "max": float(np.max([r.families[f].rounding_sensitivity for r in results]))}
         for f in FAMILIES}
-    out["rank_failure_audit"] = _audit_summary(results)
+    out["rank_failure_audit"] = _audit_summary(results, rule_text)
     out["rcc_ci_enlarged_steps"] = {f: int(sum(r.families[f].rcc_enlarged for r in results)) for f in FAMILIES}
     out["training_time_per_run"] = float(np.mean([r.training_seconds for r in results]))
     return out
+
+
+# -- health ----------------------------------------------------------------------------------------
+
+def nees_health(subject: str, nees: np.ndarray, dim: int, level: float) -> HealthCheck:
+    """The NEES check of :func:`gpfverify.health.nees_check` from recorded NEES values (R, T) —
+    the squared Mahalanobis distances a run records — instead of truth, means and covariances."""
+    from gpfverify.consistency import Consistency
+
+    values = np.asarray(nees, dtype=float)
+    if not np.all(np.isfinite(values)):
+        bad = int(np.sum(~np.all(np.isfinite(values), axis=1)))
+        return HealthCheck("NEES", subject, False, float("inf"), float(dim), f"NEES not finite in {bad} run(s)")
+    test = Consistency("NEES", values, dim).average_over_runs(level)
+    verdict = test.verdict()
+    return HealthCheck("NEES", subject, verdict == "consistent", float(np.mean(test.values)), float(dim),
+                       f"{verdict}: {test.summary()}")
+
+
+def health_checks(results: Sequence[FusionRun], dim: int, divergence_bound: float,
+                  level: float) -> list[HealthCheck]:
+    """Per method: divergence (‖x − x̂‖ above ``divergence_bound`` or not finite in some run) and
+    the ANEES per step against its χ² interval at ``level``."""
+    sq_err, maha = _per_method(results, "sq_err"), _per_method(results, "maha")
+    out = []
+    for m in METHOD_KEYS:
+        out.append(divergence_check(m, np.sqrt(sq_err[m]), bound=divergence_bound))
+        out.append(nees_health(m, maha[m], dim, level))
+    return out
+
+
+def checks_of(health: Sequence[dict], methods: Sequence[Method]) -> list[HealthCheck]:
+    """The health checks (as stored in results.json) of ``methods``."""
+    keys = {m.key for m in methods}
+    return [HealthCheck(**h) for h in health if h["subject"] in keys]
+
+
+def apply_health(verdict: Verdict, checks: Sequence[HealthCheck]) -> tuple[Verdict, tuple[str, ...]]:
+    """Divergence withholds the verdict (:func:`gpfverify.health.decide`); a failed NEES check of
+    the paper's filters leaves it standing with a caveat (:data:`NEES_POLICY`)."""
+    diverged = [c for c in checks if c.name == "divergence"]
+    verdict, caveats = decide(verdict, diverged)
+    nees = [c for c in checks if c.name == "NEES" and not c.passed]
+    if nees:
+        worst = max(nees, key=lambda c: c.statistic)
+        caveats = (*caveats, f"{len(nees)} of the compared filters fail the NEES check (largest mean ANEES "
+                   f"{worst.statistic:.3g} for {worst.subject}, {worst.threshold:g} expected): {NEES_POLICY}")
+    return verdict, caveats
 
 
 # -- claims ----------------------------------------------------------------------------------------
@@ -390,6 +453,7 @@ def paired_claim(ctx: ClaimContext, name: str, claim: str, source: str, per_run:
     favourable pair's mean difference (largest against its tolerance) and the threshold that
     pair's tolerance."""
     results = [(a, b, PairedDifference.of(per_run[a.key], per_run[b.key])) for a, b in pairs]
+    health = kwargs.pop("health", None)
 
     def standing(d: PairedDifference) -> float:
         return d.mean / d.atol if d.atol else (np.inf if d.mean > 0 else -np.inf if d.mean < 0 else 0.0)
@@ -399,8 +463,14 @@ def paired_claim(ctx: ClaimContext, name: str, claim: str, source: str, per_run:
     parts = [f"{a.key} − {b.key}: {_num(d.mean)} ± {_num(d.atol, 2)}{unit_text}" for a, b, d in results]
     evidence = ("; ".join(parts) + " (mean paired difference of per-run means over runs ± 5 standard errors; "
                 "held when every difference is below minus its tolerance, NOT held when one is above it)")
-    return ctx.record(name, claim, source, combine([d.verdict for _, _, d in results]), worst.mean, worst.atol,
-                      evidence, **kwargs)
+    verdict = combine([d.verdict for _, _, d in results])
+    undecided = [d.runs_to_decide for _, _, d in results if d.verdict == "undecided" and d.runs_to_decide]
+    if health is not None:
+        verdict, caveats = apply_health(verdict, checks_of(health, [m for pair in pairs for m in pair[:2]]))
+        kwargs["caveats"] = (*kwargs.get("caveats", ()), *caveats)
+    runs_to_decide = max(undecided) if verdict == "undecided" and undecided else None
+    record = ctx.record(name, claim, source, verdict, worst.mean, worst.atol, evidence, **kwargs)
+    return dataclasses.replace(record, runs_to_decide=runs_to_decide)
 
 
 def fusion_beats_sensors(ctx: ClaimContext, results: dict, family: str, per_run_key: str, unit: str,

@@ -17,20 +17,24 @@ import numpy as np
 from gpfverify.contract.claims import ClaimRecord, verdict_of
 from gpfverify.contract.fusion import FAMILIES, METHODS, PAPER
 from gpfverify.contract.methods import Method
-from gpfverify.contract.ungm1d import (DEFAULT_RUNS, FIGURE_NOISES, NAME, PROFILES, Params, RunRecord,
+from gpfverify.contract.ungm1d import (DEFAULT_RUNS, FIGURE_NOISES, INTERPRETATIONS, NAME, PROFILES, Params, RunRecord,
                                       noise_key)
+from gpfverify.contract.serial import to_json
 from gpfverify.experiments.fusion_run import (ClaimContext, _num, equivalence_claim, fusion_beats_baselines,
-                                              fusion_beats_sensors, paired_claim, run_setting, summarize_setting,
-                                              train_models)
+                                              fusion_beats_sensors, health_checks, paired_claim, run_setting,
+                                              summarize_setting, train_models)
 from gpfverify.filters.records import Gaussian
 from gpfverify.filters.sigma_points import SigmaParams
 from gpfverify.rng import generator
 from gpfverify.scenarios.fusion_models import simulate_data, ungm_scenario
 
-__all__ = ["DEFAULT_RUNS", "NAME", "PAPER", "PROFILES", "Params", "RunRecord", "run_one", "summarize"]
+__all__ = ["DEFAULT_RUNS", "INTERPRETATIONS", "NAME", "PAPER", "PROFILES", "Params", "RunRecord", "run_one",
+           "summarize"]
 
 #: the per-σ² fields repeated under "sweep" for σ² other than the main one
-SWEEP_FIELDS = ("rmse", "max_equivalence_gap", "one_step_gap", "full_rank_ratio", "time_per_step")
+SWEEP_FIELDS = ("rmse", "max_equivalence_gap", "one_step_gap", "full_rank_ratio", "time_per_step", "health")
+#: the state dimension D (the NEES of a consistent filter has mean D)
+STATE_DIM = 1
 
 
 def run_one(params: Params, seed_sequence: np.random.SeedSequence) -> RunRecord:
@@ -48,7 +52,8 @@ def run_one(params: Params, seed_sequence: np.random.SeedSequence) -> RunRecord:
         models = train_models(data, params.restarts, params.fit_points, rng)
         training = time.perf_counter() - started
         settings[noise_key(noise_var)] = run_setting(data, models, [prior, prior], prior, sigma, params.rcc_size,
-                                                     params.rank_tol, training, params.rcc_on_empty)
+                                                     params.rank_tol, training, params.rcc_on_empty,
+                                                     params.rank_rule)
     return RunRecord(settings)
 
 
@@ -58,8 +63,13 @@ def summarize(params: Params, results: list[RunRecord]) -> dict:
     :func:`~gpfverify.experiments.fusion_run.summarize_setting`); ``"per_noise"`` the full summaries of
     the *other* σ² values; ``"sweep"`` the per-step curves of every σ² except the main one's (which are
     the top-level ones); ``"average_mahalanobis_by_noise"`` the step-mean of every σ²."""
-    per_noise = {noise_key(v): summarize_setting([r.settings[noise_key(v)] for r in results])
-                 for v in params.noise_vars}
+    per_noise = {}
+    for v in params.noise_vars:
+        runs = [r.settings[noise_key(v)] for r in results]
+        summary = summarize_setting(runs, params.rank_rule_spec)
+        summary["health"] = [to_json(c) for c in health_checks(runs, STATE_DIM, params.divergence_bound,
+                                                                params.nees_level)]
+        per_noise[noise_key(v)] = summary
     main_key = noise_key(params.system_noise_var)
     main = per_noise[main_key]
     others = {k: v for k, v in per_noise.items() if k != main_key}
@@ -95,18 +105,20 @@ def setting_claims(ctx: ClaimContext, r: dict, noise: float, in_figure: bool) ->
     for family in FAMILIES:
         out += [equivalence_claim(ctx, r, family, "average_mahalanobis", "Proposition 1 and eq. 35; " + source,
                                   caveats=caveats),
-                fusion_beats_sensors(ctx, r, family, "run_mean_mahalanobis", "", source, caveats=caveats),
-                fusion_beats_baselines(ctx, r, family, "run_mean_mahalanobis", "", source, caveats=caveats),
+                fusion_beats_sensors(ctx, r, family, "run_mean_mahalanobis", "", source, caveats=caveats,
+                                     health=r["health"]),
+                fusion_beats_baselines(ctx, r, family, "run_mean_mahalanobis", "", source, caveats=caveats,
+                                       health=r["health"]),
                 paired_claim(ctx, f"sensor2-beats-sensor1/{family}", f"{family}: Sensor 2 performs better than "
                              "Sensor 1", source, r["run_mean_mahalanobis"],
                              [(Method.sensor_filter(2, family), Method.sensor_filter(1, family))], "",
-                             caveats=caveats)]
+                             caveats=caveats, health=r["health"])]
     if noise in FIGURE_NOISES:
         better, worse = ("GP-ADF", "GP-UKF") if noise == FIGURE_NOISES[0] else ("GP-UKF", "GP-ADF")
         out.append(paired_claim(ctx, f"fusion-{better.lower()}-beats-{worse.lower()}",
                                 f"σ² = {noise:g}: fusion with {better} beats fusion with {worse}",
                                 "§4.1, Figs. 2, 3", r["run_mean_mahalanobis"],
-                                [(Method("CMF", better), Method("CMF", worse))], ""))
+                                [(Method("CMF", better), Method("CMF", worse))], "", health=r["health"]))
     return out
 
 

@@ -10,9 +10,11 @@ from pathlib import Path
 
 import numpy as np
 
+from gpfverify.contract.claims import ClaimRecord
 from gpfverify.contract.fusion import FAMILIES, LOCAL_FILTERS, METHODS
+from gpfverify.contract.interpretations import robustness
 from gpfverify.contract.methods import Method
-from gpfverify.report.document import Table, fmt
+from gpfverify.report.document import Cell, Paragraph, Table, VerdictCell, fmt
 from gpfverify.report.figures import new_figure, save
 
 #: each family its own colour family and line style (GP-ADF: solid, blues and greens; GP-UKF:
@@ -75,6 +77,71 @@ def audit_table(results_by_label: dict, limit: int = 20) -> Table:
     return Table(["setting", "run", "step", "family", "ranks and singular values of Cₓᵧᵐ", "‖gap‖",
                   "‖predicted gap‖", "‖gap − predicted‖", "exact"], rows,
                  f"Rank-failure audit (the first {limit} steps per setting; totals in the table above)")
+
+
+def interpretations_table(claims: Sequence[ClaimRecord], caption: str) -> Table | None:
+    """Per claim: the verdict as run and under each interpretation tried (with its statistic), the
+    robustness sentence and, for undecided verdicts, the runs that would decide; None when no claim
+    was run under an interpretation."""
+    tried = [c for c in claims if c.interpretations]
+    if not tried:
+        return None
+    names = list(dict.fromkeys(i.name for c in tried for i in c.interpretations))
+    rows = []
+    for c in tried:
+        by_name = {i.name: i for i in c.interpretations}
+        cells: list = [c.claim + (f" ({c.setting})" if c.setting else ""),
+                       VerdictCell(c.verdict, tuple(c.cautions))]
+        for name in names:
+            i = by_name.get(name)
+            cells.append("—" if i is None else Cell(f"{i.verdict} ({fmt(i.statistic, 3)})", "", str(i.params)))
+        cells += [robustness(c), c.runs_to_decide if c.runs_to_decide else ""]
+        rows.append(cells)
+    return Table(["claim", "as run", *names, "robustness", "runs that would decide (as run)"], rows, caption)
+
+
+def health_table(results_by_label: dict) -> Table | None:
+    """The health checks of every setting (divergence and NEES per method), None without any."""
+    rows = []
+    for label, r in results_by_label.items():
+        checks = {(h["subject"], h["name"]): h for h in r.get("health", [])}
+        for m in METHODS:
+            div, nees = checks.get((m.key, "divergence")), checks.get((m.key, "NEES"))
+            if div is None or nees is None:
+                continue
+            rows.append([label, m.key, Cell("passed" if div["passed"] else "FAILED", "v-held" if div["passed"]
+                                            else "v-not-held", div["detail"]),
+                         Cell("consistent" if nees["passed"] else nees["detail"].split(":")[0],
+                              "v-held" if nees["passed"] else "v-undecided", nees["detail"]),
+                         fmt(nees["statistic"], 3), fmt(nees["threshold"])])
+    if not rows:
+        return None
+    return Table(["setting", "method", "divergence", "NEES (ANEES per step against its χ² interval)",
+                  "mean ANEES", "expected (D)"], rows,
+                 "Health of the filters compared: divergence of any run, and NEES consistency where the truth is "
+                 "known")
+
+
+def health_paragraph(policy: str) -> Paragraph:
+    """How the health checks enter the verdicts (the policy the claims applied)."""
+    return Paragraph(
+        "Health checks before a verdict stands: a filter that diverged in some run (error above the bound or not "
+        "finite) makes every comparison it is part of 'not decidable'. " + policy + ". The NEES of a "
+        "consistent Gaussian filter has mean D; 'optimistic' means over-confident (errors large against the "
+        "filter's own covariance).")
+
+
+def rank_rule_paragraph(results_by_label: dict) -> Paragraph:
+    """Which rank rule decided eq. 35 in the runs shown, and the unit-free alternative."""
+    rules = sorted({r["rank_tolerance"] for r in results_by_label.values()})
+    return Paragraph(
+        "Rank rule of eq. 35 in the runs shown: " + "; ".join(rules) + ". The paper does not say how it "
+        "decides rank(Cₓᵧᵐ); numpy's/MATLAB's rule depends on units and calls any nonzero scalar cross term full "
+        "rank. The interpretation 'canonical-rank' re-decides every claim with the unit-free rule — canonical "
+        "correlations of state and sensor output under the sensor's predicted joint above τ = √eps "
+        "(gpfverify.fusion.exactness) — which also changes DMF itself where a correlation is dropped. The default "
+        "stays numpy's rule, the paper's likely one (MATLAB's rank()), so that the default numbers do not move; "
+        "both are shown.")
 
 
 def method_table(results: dict, metric: str, unit: str, caption: str = "") -> Table:

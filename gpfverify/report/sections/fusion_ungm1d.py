@@ -7,15 +7,17 @@ from __future__ import annotations
 from pathlib import Path
 
 from gpfverify.contract.claims import read_claims
-from gpfverify.contract.fusion import METHODS, PAPER
+from gpfverify.contract.fusion import METHODS, NEES_POLICY, PAPER
 from gpfverify.contract.methods import Method
 from gpfverify.contract.papers import PAPERS
-from gpfverify.contract.ungm1d import FIGURE_NOISES, NAME, Params, noise_key
+from gpfverify.contract.ungm1d import FIGURE_NOISES, INTERPRETATIONS, NAME, Params, noise_key
 from gpfverify.report.document import Figure, Paragraph, Section, Table, claim_records_table, fmt
 from gpfverify.report.figures import new_figure, save
 from gpfverify.report.inputs import SectionInput
 from gpfverify.report.sections.fusion_paper import (audit_table, equivalence_table, failed_runs_note,
-                                                    method_style, method_table, plot_per_step)
+                                                    health_paragraph, health_table, interpretations_table,
+                                                    method_style, method_table, plot_per_step,
+                                                    rank_rule_paragraph)
 
 SLUG = "ungm1d"
 TITLE = "Fusion paper: 1-D two-sensor example (Figs. 2–4)"
@@ -59,6 +61,11 @@ def render(results: dict, folder: Path, command: str | None = None) -> Section:
         "Reading the metric: for a calibrated Gaussian posterior the squared Mahalanobis distance has mean D = 1; "
         "values far above 1 mean an over-confident filter (error large against its own covariance). The paper "
         "reads lower as better, and the claims below follow the paper's reading."))
+    section.add(Paragraph(
+        "Interpretations tried besides the defaults (each a set of parameter changes, run with the same seeds "
+        "and run count; `--interpretations NAMES`): "
+        + "; ".join(f"**{spec.name}** ({', '.join(f'{k} = {v}' for k, v in spec.changes.items())}): {spec.why}"
+                    for spec in INTERPRETATIONS) + "."))
     if command:
         section.add(Paragraph(f"Made by: `{command}`"))
     claims = read_claims(results)
@@ -68,7 +75,18 @@ def render(results: dict, folder: Path, command: str | None = None) -> Section:
         caption = f"Claims of {paper.short} checked — {setting}" if setting else \
             f"Claim of {paper.short} across σ² (Fig. 4)"
         section.add(claim_records_table(mine, caption))
+        table = interpretations_table(mine, "Verdicts under each interpretation tried"
+                                      + (f" — {setting}" if setting else "") + " (the statistic in brackets)")
+        if table is not None:
+            section.add(table)
     noises = by_noise(results)
+    section.add(health_paragraph(NEES_POLICY + "; the claims here compare the paper's metric, the average squared "
+                                 "Mahalanobis distance, which is the NEES itself: an over-confident filter scores "
+                                 "worse on it, as the paper reads it"))
+    health = health_table({f"σ² = {fmt(float(k))}": r for k, r in noises.items()})
+    if health is not None:
+        section.add(health)
+    section.add(rank_rule_paragraph(noises))
     section.add(equivalence_table({f"σ² = {fmt(float(k))}": r for k, r in noises.items()}))
     main = f"σ² = {fmt(p.system_noise_var)}"
     if results["rank_failure_audit"]["entries"]:

@@ -1,0 +1,181 @@
+"""Sensitivity parameters and health checks of the fusion paper's experiments (tiny runs): every
+interpretation is a valid set of Params changes; the rank rule, the initial covariance and the sensor
+positions change what they say; a diverged filter makes a comparison not decidable, an over-confident
+one leaves it standing with a caveat; undecided paired claims state the runs that would decide; the
+two timing readings of "DMF costs less than CMF" are separate claims."""
+
+import dataclasses
+
+import numpy as np
+import pytest
+
+from gpfverify.contract import ClaimRecord, to_json
+from gpfverify.contract import ct2d as ct2d_contract
+from gpfverify.contract import ungm1d as ungm1d_contract
+from gpfverify.contract.methods import Method
+from gpfverify.errors import InputError
+from gpfverify.experiments import ct2d, ungm1d
+from gpfverify.experiments.fusion_run import health_checks, nees_health
+from gpfverify.tolerances import CANONICAL_RANK_TOL, numpy_rank_tol
+
+TINY = {"kappa": 12, "test_steps": 3, "fit_points": 12}
+
+
+@pytest.mark.parametrize("contract", [ct2d_contract, ungm1d_contract], ids=["ct2d", "ungm1d"])
+def test_interpretations_are_valid_params_changes(contract):
+    names = [spec.name for spec in contract.INTERPRETATIONS]
+    assert len(names) == len(set(names)) and "canonical-rank" in names
+    for spec in contract.INTERPRETATIONS:
+        base = contract.Params()
+        changed = base.replace(**spec.changes)  # validates
+        assert changed != base and spec.why
+        for field, value in spec.changes.items():
+            assert changed.to_json()[field] == to_json(value)
+
+
+def test_experiment_modules_export_the_interpretations():
+    assert ct2d.INTERPRETATIONS is ct2d_contract.INTERPRETATIONS
+    assert ungm1d.INTERPRETATIONS is ungm1d_contract.INTERPRETATIONS
+
+
+def test_canonical_rule_takes_no_absolute_tolerance():
+    with pytest.raises(InputError, match="--rank-tol"):
+        ct2d.Params(rank_rule="canonical", rank_tol=1e-6)
+    with pytest.raises(InputError, match="--rank-rule"):
+        ct2d.Params(rank_rule="svd")
+    assert ct2d.Params().rank_rule_spec == "numpy"
+    assert ct2d.Params(rank_tol=1e-3).rank_rule_spec == "absolute:0.001"
+    assert ungm1d.Params(rank_rule="canonical").rank_rule_spec == "canonical"
+
+
+@pytest.fixture(scope="module")
+def numpy_and_canonical():
+    seed = np.random.SeedSequence(4)
+    return (ct2d.run_one(ct2d.Params(**TINY), seed),
+            ct2d.run_one(ct2d.Params(**TINY, rank_rule="canonical"), seed))
+
+
+def test_rank_rule_decides_with_its_own_tolerance(numpy_and_canonical):
+    numpy_run, canonical_run = numpy_and_canonical
+    for family in ("GP-ADF", "GP-UKF"):
+        key = Method.sensor_filter(1, family).key
+        a, b = numpy_run.families[family], canonical_run.families[family]
+        # the same data and GP fit: the same singular values of C_xy^m on the first step
+        np.testing.assert_array_equal(a.singular_values[key][0], b.singular_values[key][0])
+        sv = np.array(a.singular_values[key])
+        expected = [numpy_rank_tol(s, (2, 2)) for s in sv]
+        np.testing.assert_allclose(a.rank_tol[key], expected, rtol=1e-12)
+        assert all(t == CANONICAL_RANK_TOL for t in b.rank_tol[key])  # τ = √eps on the correlations
+    numpy_summary = ct2d.summarize(ct2d.Params(**TINY), [numpy_run])
+    canonical_summary = ct2d.summarize(ct2d.Params(**TINY, rank_rule="canonical"), [canonical_run])
+    assert "eps" in numpy_summary["rank_tolerance"] and "canonical" in canonical_summary["rank_tolerance"]
+    assert "canonical" in canonical_summary["rank_failure_audit"]["rank_rule"]
+
+
+def test_ungm1d_takes_the_rank_rule():
+    params = ungm1d.Params(train=10, test_steps=2, fit_points=10, sweep=(), rank_rule="canonical")
+    record = ungm1d.run_one(params, np.random.SeedSequence(3))
+    tols = record.settings["1.0"].families["GP-UKF"].rank_tol["Sensor1-GP-UKF"]
+    assert all(t == CANONICAL_RANK_TOL for t in tols)
+
+
+def test_initial_covariance_is_what_the_parameter_says():
+    obs = [np.array([250.0, 0.3]), np.array([260.0, -0.2])]
+    for scale, expected in ((None, 101.0), (1.0, 1.0), (1000.0, 1000.0)):
+        params = ct2d.Params(initial_cov_scale=scale)
+        local, fused = ct2d.starts(params, obs, np.random.default_rng(0))
+        for belief in (*local, fused):
+            np.testing.assert_array_equal(belief.cov, expected * np.eye(2))
+    # κ < 300: b = 20, second moment 401
+    assert ct2d.Params(kappa=30).start_cov_scale == 401.0
+
+
+@pytest.mark.parametrize("positions", [((200.0, -200.0), (200.0, 200.0)), ((200.0, 200.0), (200.0, 200.0))])
+def test_sensor_positions_move_the_sensors(positions):
+    model = ct2d.scenario(ct2d.Params(sensor_positions=positions)).model
+    x = np.array([10.0, -30.0])
+    for z, sensor in zip(positions, model.sensors):
+        y = np.asarray(sensor.measure(x[None, :]))[0]
+        assert y[0] == pytest.approx(np.hypot(x[0] - z[0], x[1] - z[1]))
+        assert y[1] == pytest.approx(np.arctan((x[1] - z[1]) / (x[0] - z[0])))
+
+
+def test_nees_health_passes_a_calibrated_filter_and_flags_an_overconfident_one():
+    rng = np.random.default_rng(0)
+    nees = rng.chisquare(2, size=(400, 20))
+    assert nees_health("calibrated", nees, 2, 0.95).passed
+    flagged = nees_health("over-confident", 10 * nees, 2, 0.95)
+    assert not flagged.passed and flagged.detail.startswith("optimistic") and flagged.statistic > 10
+    assert not nees_health("broken", np.full((3, 2), np.inf), 2, 0.95).passed
+
+
+def _doctored(record, family, method, **fields):
+    """``record`` with ``fields`` (per-step series) of one method of one family replaced."""
+    fam = record.families[family]
+    changes = {name: {**getattr(fam, name), method: values} for name, values in fields.items()}
+    return dataclasses.replace(record, families={**record.families,
+                                                 family: dataclasses.replace(fam, **changes)})
+
+
+def _claim(body, ident) -> ClaimRecord:
+    return next(ClaimRecord.from_json(c) if isinstance(c, dict) else c for c in body["claims"]
+                if (c["id"] if isinstance(c, dict) else c.id) == ident)
+
+
+def test_a_diverged_fused_filter_makes_the_comparison_not_decidable():
+    params = ct2d.Params(**TINY)
+    runs = [ct2d.run_one(params, np.random.SeedSequence(s)) for s in (1, 2, 3)]
+    steps = TINY["test_steps"]
+    # CMF-GP-UKF "diverges" in one run: its error far beyond the bound
+    runs[1] = _doctored(runs[1], "GP-UKF", "CMF-GP-UKF", sq_err=(1.0,) * (steps - 1) + (1e8,))
+    body = ct2d.summarize(params, runs)
+    health = {(h["subject"], h["name"]): h for h in body["health"]}
+    assert not health[("CMF-GP-UKF", "divergence")]["passed"]
+    assert health[("CMF-GP-ADF", "divergence")]["passed"]
+    claim = _claim(body, "ct2d/fusion-beats-sensors/GP-UKF")
+    assert claim.verdict == "not decidable"
+    assert any("CMF-GP-UKF: divergence" in c for c in claim.caveats)
+    assert _claim(body, "ct2d/fusion-beats-sensors/GP-ADF").verdict != "not decidable"
+
+
+def test_an_overconfident_filter_leaves_the_verdict_with_a_caveat():
+    params = ct2d.Params(**TINY)
+    runs = [ct2d.run_one(params, np.random.SeedSequence(s)) for s in (1, 2, 3)]
+    plain = _claim(ct2d.summarize(params, runs), "ct2d/fusion-beats-baselines/GP-ADF")
+    steps = TINY["test_steps"]
+    runs = [_doctored(r, "GP-ADF", "DMF-GP-ADF", maha=(500.0,) * steps) for r in runs]
+    body = ct2d.summarize(params, runs)
+    claim = _claim(body, "ct2d/fusion-beats-baselines/GP-ADF")
+    assert claim.verdict == plain.verdict != "not decidable"
+    assert any("NEES" in c and "DMF-GP-ADF" in c for c in claim.caveats)
+
+
+def test_health_checks_cover_every_method():
+    params = ct2d.Params(**TINY)
+    record = ct2d.run_one(params, np.random.SeedSequence(1))
+    checks = health_checks([record, record], 2, params.divergence_bound, params.nees_level)
+    from gpfverify.contract.fusion import METHODS
+
+    assert {(c.subject, c.name) for c in checks} == {(m.key, n) for m in METHODS for n in ("divergence", "NEES")}
+    assert all(c.passed for c in checks if c.name == "divergence")
+
+
+def test_undecided_paired_claims_state_the_runs_that_would_decide_and_timing_is_two_claims():
+    params = ct2d.Params(**TINY)
+    runs = [ct2d.run_one(params, np.random.SeedSequence(s)) for s in (1, 2, 3)]
+    body = ct2d.summarize(params, runs)
+    claims = [ClaimRecord.from_json(c) if isinstance(c, dict) else c for c in body["claims"]]
+    for c in claims:
+        if "beats" in c.id:
+            assert (c.runs_to_decide is not None) == (c.verdict == "undecided")
+            if c.runs_to_decide is not None:
+                assert c.runs_to_decide > c.n
+    timing = {c.id: c for c in body["timing_claims"]}
+    for family in ("GP-ADF", "GP-UKF"):
+        whole = timing[f"ct2d/dmf-cheaper-than-cmf/{family}"]
+        update = timing[f"ct2d/dmf-update-cheaper-than-cmf/{family}"]
+        assert "whole fusion step" in whole.claim and "update alone" in update.claim
+        cmf, dmf = Method("CMF", family).key, Method("DMF", family).key
+        assert whole.statistic == pytest.approx(body["time_per_step"][dmf] / body["time_per_step"][cmf])
+        assert update.statistic == pytest.approx(body["online_time_per_step"][dmf]
+                                                 / body["online_time_per_step"][cmf])
