@@ -25,7 +25,8 @@ from reference_pages import write_page  # type: ignore[import-not-found]  # noqa
 from gpfverify.experiments import tbd  # noqa: E402
 from gpfverify.experiments.runner import _atomic_write_json, rewrite_results  # noqa: E402
 from gpfverify.experiments.sensitivity import merge  # noqa: E402
-from gpfverify.report.document import Paragraph  # noqa: E402
+from gpfverify.contract.claims import read_claims  # noqa: E402
+from gpfverify.report.document import Paragraph, Table  # noqa: E402
 from gpfverify.report.sections.tbd import render  # noqa: E402
 
 
@@ -40,9 +41,33 @@ def main(run_dir: Path, command: str) -> None:
     for name in ("results.json", "manifest.json"):
         shutil.copy(run_dir / name, target / name)
     section = render(results, HERE)
+    section.add(_runs_to_decide_table(results, tried))
     section.add(Paragraph(f"Made by `{command}`, then `python reports/reference/tbd/make_page.py RUN_DIR "
                           "\"COMMAND\"`."))
     write_page(section, HERE)
+
+
+def _runs_to_decide_table(results: dict, tried: list) -> Table:
+    """Per claim, the runs that would decide it as run and under each interpretation (from each
+    interpretation's own results.json; blank where the verdict is decided)."""
+    def cell(claim) -> str:
+        if claim is None:
+            return "—"
+        if claim.verdict != "undecided":
+            return claim.verdict
+        return f"undecided: about {claim.runs_to_decide} runs" if claim.runs_to_decide else "undecided"
+
+    rows = []
+    for claim in read_claims(results):
+        if claim.timing:
+            continue
+        row = [claim.claim, cell(claim)]
+        for _, other in tried:
+            row.append(cell(next((c for c in read_claims(other) if c.id == claim.id), None)))
+        rows.append(row)
+    return Table(["claim", "as run", *(spec.name for spec, _ in tried)], rows,
+                 "Runs that would decide each undecided verdict, as run and under each interpretation (were the "
+                 "mean and spread seen here the true ones; the paper used 3000 runs per SNR)")
 
 
 if __name__ == "__main__":
