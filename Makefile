@@ -14,14 +14,14 @@ $(BIN)/python:
 # Stamps re-run the install whenever pyproject.toml changes.
 $(VENV)/.runtime-installed: pyproject.toml | $(BIN)/python
 	@echo "installing gpfverify and its dependencies (numpy, scipy, sympy, casadi, cvxpy, matplotlib) into $(VENV):"
-	@echo "about a minute on a fresh machine, quiet until done..."
-	$(BIN)/python -m pip install --quiet -e .
+	@echo "about a minute on a fresh machine; pip lists each package as it goes..."
+	$(BIN)/python -m pip install --progress-bar off -e .
 	@echo "installed."
 	touch $@
 
 $(VENV)/.test-installed: pyproject.toml | $(BIN)/python
-	@echo "installing gpfverify with its test extras into $(VENV): about a minute on a fresh machine, quiet until done..."
-	$(BIN)/python -m pip install --quiet -e '.[test]'
+	@echo "installing gpfverify with its test extras into $(VENV): about a minute on a fresh machine..."
+	$(BIN)/python -m pip install --progress-bar off -e '.[test]'
 	touch $@ $(VENV)/.runtime-installed
 
 install: $(VENV)/.runtime-installed
