@@ -147,7 +147,7 @@ def test_an_overconfident_filter_leaves_the_verdict_with_a_caveat():
     body = ct2d.summarize(params, runs)
     claim = _claim(body, "ct2d/fusion-beats-baselines/GP-ADF")
     assert claim.verdict == plain.verdict != "not decidable"
-    assert any("NEES" in c and "DMF-GP-ADF" in c for c in claim.caveats)
+    assert any("NEES check failed" in c and "DMF-GP-ADF optimistic" in c for c in claim.caveats)
 
 
 def test_health_checks_cover_every_method():

@@ -413,9 +413,17 @@ def apply_health(verdict: Verdict, checks: Sequence[HealthCheck]) -> tuple[Verdi
     verdict, caveats = decide(verdict, diverged)
     nees = [c for c in checks if c.name == "NEES" and not c.passed]
     if nees:
-        worst = max(nees, key=lambda c: c.statistic)
-        caveats = (*caveats, f"{len(nees)} of the compared filters fail the NEES check (largest mean ANEES "
-                   f"{worst.statistic:.3g} for {worst.subject}, {worst.threshold:g} expected): {NEES_POLICY}")
+        failed = ", ".join(f"{c.subject} {c.detail.split(':')[0]} (mean ANEES {c.statistic:.3g}, {c.threshold:g} "
+                           "expected)" for c in nees)
+        words = {c.detail.split(":")[0] for c in nees}
+        why = []
+        if "optimistic" in words or any(w.startswith("NEES not finite") for w in words):
+            why.append(NEES_POLICY)
+        if "pessimistic" in words:
+            why.append("a pessimistic (conservative) filter claims more uncertainty than its errors show — by "
+                       "design for covariance intersection (RCC-CI) and the convex combination; its errors are "
+                       "what the claim compares")
+        caveats = (*caveats, f"NEES check failed: {failed}. " + "; ".join(why))
     return verdict, caveats
 
 

@@ -177,7 +177,9 @@ def plot_full_rank(results: dict, title: str, path: Path) -> Path:
     ax.set_ylim(-5, 105)
     ax.set_xlabel("time step")
     ax.set_ylabel("full column rank of Cₓᵧᵐ (%)")
-    ax.set_title(f"{title}\n(tolerance: σ_max · max(D, l) · eps)", fontsize=9)
+    rule = ("canonical correlations > √eps" if "canonical" in results.get("rank_tolerance", "")
+            else "σ_max · max(D, l) · eps")
+    ax.set_title(f"{title}\n(rank rule: {rule})", fontsize=9)
     ax.legend(fontsize=7)
     ax = axes[0, 1]
     by_tol = results["full_rank_ratio_by_relative_tolerance"]
