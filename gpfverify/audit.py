@@ -19,8 +19,9 @@ matrix), "covariance"} and ``"canonical_correlations"`` (reported under every ru
 whitening succeeds, else null).
 
 With y: CMF, the observed gap DMF − CMF, the closed-form gap, each sensor's repair message
-k_m = (I − P_m)(C_y^m)⁻¹(y^m − μ_y^m) (an l_m-vector, basis-free), the repaired DMF, and how far each logged local posterior is from
-the local update with that y (when it is not, the observed and predicted gaps may differ).
+k_m = (I − P_m)(C_y^m)⁻¹(y^m − μ_y^m) (an l_m-vector, basis-free), the repaired DMF, and how far
+each logged local posterior is from the local update with that y (when it is not, the observed and
+predicted gaps may differ).
 Without y the gap cannot be evaluated: μ_e^m − μ_p^m = C_xy^m w_m fixes w_m = (C_y^m)⁻¹(y^m − μ_y^m)
 only on range(P_m); the kernel component (I − P_m) w_m = N_m Ñ_mᵀ w_m is lost, and the gap is
 −Σ_m G_m C_y^m N_m Ñ_mᵀ w_m (so ``gap_gain_norm`` is the largest gap per unit of lost component).
@@ -43,6 +44,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from collections.abc import Iterable, Sequence
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -56,6 +58,9 @@ from gpfverify.fusion.exactness import (COVARIANCE_CENTRAL, COVARIANCE_LOCAL, DE
                                         resolve_rank_rule, sensor_gap, sensor_prior_covariance,
                                         whitened_innovation)
 from gpfverify.tolerances import algebra_rtol
+
+if TYPE_CHECKING:  # casadi is imported only when sensitivities are asked for
+    from gpfverify.symbolic.sensitivity import SensorSensitivity
 
 RANK_RULE_DEFAULT = DEFAULT_RANK_RULE.describe() + "; a case's rank_tol means the absolute rule"
 
@@ -85,7 +90,7 @@ class SensorAudit:
     local_consistency_residual: float | None = None
     consistency_tol: float | None = None
     gap_contribution: np.ndarray | None = None
-    sensitivity: object | None = None  # gpfverify.symbolic.sensitivity.SensorSensitivity
+    sensitivity: SensorSensitivity | None = None
     branch_offsets: np.ndarray | None = None
     rank_rule: RankRule | None = None
     canonical_correlations: np.ndarray | None = None
@@ -133,7 +138,7 @@ class CaseAudit:
             notes.append("the rank condition of Proposition 1 fails but DMF is exact: every lost "
                          "kernel direction lies in ker G_m C_y^m")
         bad = [s.index for s in self.sensors if s.local_consistency_residual is not None
-               and s.local_consistency_residual > s.consistency_tol]
+               and s.consistency_tol is not None and s.local_consistency_residual > s.consistency_tol]
         if bad:
             notes.append(f"the logged local posterior of sensor(s) {bad} is not the local update with "
                          f"the logged y: the observed gap need not equal the predicted gap")
@@ -152,7 +157,7 @@ def _consistency_tol(case: FusionCase, m: int) -> float:
     local = case.locals[m]
     eig = np.linalg.eigvalsh(local.C_y)
     scale = np.linalg.norm(local.mu_e - local.mu_p) + np.linalg.norm(local.mu_e) + np.linalg.norm(local.mu_p)
-    return algebra_rtol(eig[-1] / eig[0]) * scale
+    return float(algebra_rtol(eig[-1] / eig[0]) * scale)
 
 
 def _correlations(case: FusionCase, m: int, split) -> tuple[np.ndarray | None, str | None]:
@@ -183,21 +188,24 @@ def audit_case(case: FusionCase, rank_tol: float | None = None, sensitivity: boo
     rule = resolve_rank_rule(case, rank_rule, rank_tol)
     dmf = dmf_update(case, rank_rule=rule)
     has_y = case.y is not None
-    jacobians = [None] * len(dmf.sensors)
+    jacobians: list[SensorSensitivity | None] = [None] * len(dmf.sensors)
     if sensitivity:
         from gpfverify.symbolic.sensitivity import dmf_sensitivity
 
         jacobians = list(dmf_sensitivity(case, rule.tol if rule.name == "absolute" else None))
-    offsets = branch_offsets(case) if has_y else [None] * len(dmf.sensors)
-    sensors = []
+    offsets = branch_offsets(case) if has_y else []
+    sensors, messages = [], []
     for s in dmf.sensors:
         rank = s.split.rank
-        message = residual = contribution = None
+        message = contribution = offset = None
+        residual = None
         if has_y:
             y_m = case.local_measurement(s.index)
             message = s.split.kernel_component(whitened_innovation(case.locals[s.index], y_m))
+            messages.append(message)
             residual = float(np.linalg.norm(local_consistency_residual(case, s.index)))
-            contribution = sensor_gap(case, s, dmf.gain, offsets[s.index])
+            offset = offsets[s.index]
+            contribution = sensor_gap(case, s, dmf.gain, offset)
         rho, covariance = _correlations(case, s.index, s.split)
         sensors.append(SensorAudit(
             index=s.index, rows=rank.shape[0], cols=rank.shape[1], rank=rank.rank,
@@ -207,12 +215,12 @@ def audit_case(case: FusionCase, rank_tol: float | None = None, sensitivity: boo
             local_consistency_residual=residual,
             consistency_tol=_consistency_tol(case, s.index) if has_y else None,
             gap_contribution=contribution, sensitivity=jacobians[s.index],
-            branch_offsets=offsets[s.index], rank_rule=rule, canonical_correlations=rho,
+            branch_offsets=offset, rank_rule=rule, canonical_correlations=rho,
             covariance=covariance))
-    if not has_y:
+    if case.y is None:
         return CaseAudit(tuple(sensors), rule, dmf.condition_holds, dmf.exact, dmf.mean)
     cmf = cmf_update(case.central, case.y, dmf.gain)
-    repaired = dmf_update(case, [s.repair_message for s in sensors], rank_rule=rule)
+    repaired = dmf_update(case, messages, rank_rule=rule)
     return CaseAudit(tuple(sensors), rule, dmf.condition_holds, dmf.exact, dmf.mean, cmf.mean,
                      dmf.mean - cmf.mean,
                      predicted_gap(case, dmf.sensors, dmf.gain), repaired.mean)
@@ -225,6 +233,24 @@ def rank_rule_to_dict(rule: RankRule, covariance: str | None = None, tol: float 
 
 def _finite_or_none(x: float):
     return float(x) if np.isfinite(x) else None
+
+
+def _measured(audit: CaseAudit) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray] | None:
+    """(CMF mean, gap, predicted gap, repaired DMF mean) of an audit with the measurement y, else None."""
+    if (audit.cmf_mean is None or audit.gap is None or audit.predicted_gap is None
+            or audit.repaired_dmf_mean is None):
+        return None
+    return audit.cmf_mean, audit.gap, audit.predicted_gap, audit.repaired_dmf_mean
+
+
+def _measurement_fields(s: SensorAudit) -> dict:
+    """A sensor's fields that need the measurement y (empty without it)."""
+    if s.repair_message is None or s.gap_contribution is None or s.branch_offsets is None:
+        return {}
+    return {"repair_message": s.repair_message.tolist(),
+            "local_consistency_residual": s.local_consistency_residual,
+            "gap_contribution": s.gap_contribution.tolist(),
+            "branch_offsets": s.branch_offsets.tolist()}
 
 
 def audit_to_dict(audit: CaseAudit) -> dict:
@@ -240,11 +266,7 @@ def audit_to_dict(audit: CaseAudit) -> dict:
             "condition_number": _finite_or_none(s.condition_number),
             "gap_gain_norm": s.gap_gain_norm, "exactness_tol": s.exactness_tol,
             "repair_basis": s.repair_basis.tolist(),
-            **({} if s.repair_message is None else {
-                "repair_message": s.repair_message.tolist(),
-                "local_consistency_residual": s.local_consistency_residual,
-                "gap_contribution": s.gap_contribution.tolist(),
-                "branch_offsets": s.branch_offsets.tolist()}),
+            **_measurement_fields(s),
             **({} if s.sensitivity is None else {"sensitivity": {
                 "jacobian_norms": s.sensitivity.jacobian_norms, "sigma_r": s.sensitivity.sigma_r,
                 "mu_e_bound": _finite_or_none(s.sensitivity.mu_e_bound),
@@ -256,12 +278,14 @@ def audit_to_dict(audit: CaseAudit) -> dict:
         "exact": audit.exact,
         "dmf_mean": audit.dmf_mean.tolist(),
     }
-    if audit.cmf_mean is not None:
-        out.update({"cmf_mean": audit.cmf_mean.tolist(), "gap": audit.gap.tolist(),
-                    "predicted_gap": audit.predicted_gap.tolist(),
-                    "gap_norm": float(np.linalg.norm(audit.gap)),
-                    "gap_residual": float(np.linalg.norm(audit.gap - audit.predicted_gap)),
-                    "repaired_dmf_mean": audit.repaired_dmf_mean.tolist()})
+    measured = _measured(audit)
+    if measured is not None:
+        cmf_mean, gap, predicted, repaired = measured
+        out.update({"cmf_mean": cmf_mean.tolist(), "gap": gap.tolist(),
+                    "predicted_gap": predicted.tolist(),
+                    "gap_norm": float(np.linalg.norm(gap)),
+                    "gap_residual": float(np.linalg.norm(gap - predicted)),
+                    "repaired_dmf_mean": repaired.tolist()})
     out["notes"] = audit.notes
     return out
 
@@ -292,12 +316,14 @@ def format_audit(audit: CaseAudit) -> str:
     lines += ["", f"Proposition 1 condition (every C_xy^m full column rank): {audit.condition_holds}",
               f"DMF exact for every measurement (ker C_xy^m in ker G_m C_y^m): {audit.exact}",
               f"DMF mean: {_vec(audit.dmf_mean)}"]
-    if audit.cmf_mean is not None:
-        lines += [f"CMF mean: {_vec(audit.cmf_mean)}",
-                  f"gap DMF - CMF: {_vec(audit.gap)} (norm {np.linalg.norm(audit.gap):.3g})",
-                  f"predicted gap: {_vec(audit.predicted_gap)} "
-                  f"(|observed - predicted| = {np.linalg.norm(audit.gap - audit.predicted_gap):.3g})",
-                  f"repaired DMF mean: {_vec(audit.repaired_dmf_mean)}"]
+    measured = _measured(audit)
+    if measured is not None:
+        cmf_mean, gap, predicted, repaired = measured
+        lines += [f"CMF mean: {_vec(cmf_mean)}",
+                  f"gap DMF - CMF: {_vec(gap)} (norm {np.linalg.norm(gap):.3g})",
+                  f"predicted gap: {_vec(predicted)} "
+                  f"(|observed - predicted| = {np.linalg.norm(gap - predicted):.3g})",
+                  f"repaired DMF mean: {_vec(repaired)}"]
         for s in audit.sensors:
             if s.repair_dim:
                 lines.append(f"sensor {s.index} repair message (kernel component of w_m, {s.repair_dim} "

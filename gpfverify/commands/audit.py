@@ -138,7 +138,8 @@ def format_run(steps: list[dict], summary: dict) -> str:
                      f"({summary['steps_with_y']} step(s) with y)")
     for s in summary["sensors"]:
         if s["rank_lost_steps"]:
-            lines.append(f"sensor {s['index']}: lost full column rank at k = {integer_ranges(s['rank_lost_steps'], '-')}; "
+            lost = integer_ranges(s["rank_lost_steps"], "-")
+            lines.append(f"sensor {s['index']}: lost full column rank at k = {lost}; "
                          f"not exact at " + (f"k = {integer_ranges(s['rank_lost_not_exact_steps'], '-')}"
                                              if s["rank_lost_not_exact_steps"] else "none of them"))
         else:
