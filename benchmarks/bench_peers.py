@@ -212,6 +212,57 @@ def kf_row(table: Table, repeats: int) -> None:
                 diff, "≤ 1.0")
 
 
+def call_counts(fn) -> tuple[int, int]:
+    """(Python-level calls, C-level calls) made by one call of ``fn`` (sys.setprofile events):
+    a repeatable measure of per-step overhead, independent of the machine's load."""
+    counts = {"call": 0, "c_call": 0}
+
+    def hook(frame, event, arg):
+        if event in counts:
+            counts[event] += 1
+
+    fn()  # warm (first-call caches)
+    sys.setprofile(hook)
+    try:
+        fn()
+    finally:
+        sys.setprofile(None)
+    return counts["call"], counts["c_call"]
+
+
+def kf_profile(repeats: int) -> list[list[str]]:
+    """Where the KF step's time goes, next to filterpy's predict and update."""
+    from filterpy.kalman import KalmanFilter
+
+    from gpfverify.filters import Gaussian, kf_step
+    from gpfverify.filters.kalman import _measurement, _predict
+    from gpfverify.filters.update import check_belief, gaussian_update
+    from gpfverify.models import linear_model
+
+    F, Q, m0, P0 = cv_model()
+    H, R = np.eye(2, 4), 4.0 * np.eye(2)
+    model = linear_model(F, H, Q, R, m0, P0)
+    y = np.array([1.0, -38.0])
+    belief = Gaussian(m0, P0)
+    prediction = _predict(belief, F, Q)
+    moments = _measurement(prediction, H, R)
+    kf = KalmanFilter(dim_x=4, dim_z=2)
+    kf.F, kf.H, kf.Q, kf.R, kf.x, kf.P = F, H, Q, R, m0.copy(), P0.copy()
+    parts = [("gpfverify: whole step", lambda: kf_step(belief, model, y)),
+             ("  belief check", lambda: check_belief(belief, 4)),
+             ("  predict (F μ, sym(F C Fᵀ + Q))", lambda: _predict(belief, F, Q)),
+             ("  measurement moments (H μ, sym(H C Hᵀ + R), C Hᵀ)", lambda: _measurement(prediction, H, R)),
+             ("  update (checks, Cholesky, one triangular solve, sym(C − WᵀW), record)",
+              lambda: gaussian_update(prediction, moments, y)),
+             ("filterpy: predict()", kf.predict),
+             ("filterpy: update(z) (no checks, no symmetrisation)", lambda: kf.update(y))]
+    rows = []
+    for name, fn in parts:
+        py, c = call_counts(fn)
+        rows.append([name, fmt(alone(fn, repeats)), str(py), str(c)])
+    return rows
+
+
 # -- UKF against filterpy and Stone Soup --------------------------------------------------------------
 SENSOR = np.array([-100.0, 0.0])  # bearings stay far from ±π: both sides average them linearly there
 R_RB = np.diag([1.0, 0.02**2])
@@ -434,6 +485,35 @@ class Gp0Port:
         return M, S - np.outer(M, M), s @ V
 
 
+def moments_profile(repeats: int) -> list[list[str]]:
+    """Where predict_uncertain's time goes (n = 300, D = 2, E = 4), next to the floor."""
+    import gpfverify.gp.moments as mm
+    from gpfverify.gp import GaussianProcess
+
+    rng = np.random.default_rng(0)
+    n, d, e = 300, 2, 4
+    X = rng.uniform(-3, 3, (n, d))
+    Y = np.sin(X @ rng.normal(size=(d, e)))
+    gp = GaussianProcess(X, Y, rng.uniform(0.5, 2, (e, d)), rng.uniform(0.5, 2, e), np.full(e, 0.01))
+    mu, sigma = np.array([0.2, -0.1]), np.array([[0.3, 0.1], [0.1, 0.2]])
+    pairs = e * (e + 1) // 2
+    mm.moment_match(gp, mu, sigma)
+    exponents = np.log1p(mm._WORKSPACE.buffer[:pairs * n * n])  # the d_ij of that call (timing only)
+    uniform = rng.uniform(-2.0, 0.0, exponents.size)
+    out = np.empty_like(exponents)
+    left, right = rng.normal(size=(1, pairs, n, d + 2)), rng.normal(size=(1, pairs, n, d + 2))
+    ratio = out.reshape(1, pairs, n, n)
+    weights = rng.normal(size=(1, pairs, 1, n))
+    parts = [("whole call", lambda: mm.moment_match(gp, mu, sigma)),
+             ("numpy exp over the same count (the floor)", lambda: np.exp(uniform, out=out)),
+             ("numpy exp over this call's exponents d_ij", lambda: np.exp(exponents, out=out)),
+             ("numpy expm1 over this call's exponents d_ij", lambda: np.expm1(exponents, out=out)),
+             ("exponent matrices by one batched matmul",
+              lambda: np.matmul(left, np.swapaxes(right, -1, -2), out=ratio)),
+             ("weighted sums β_aᵀ(…)β_b (matrix–vector)", lambda: weights @ np.swapaxes(ratio, -1, -2))]
+    return [[name, fmt(alone(fn, repeats))] for name, fn in parts]
+
+
 def moments_rows(table: Table, repeats: int) -> dict:
     from gpfverify.gp import GaussianProcess
     from gpfverify.gp.moments import moment_match, moment_match_batch
@@ -575,7 +655,7 @@ def own_rows(repeats: int, ct2d_runs: int) -> list[list[str]]:
     if ct2d_runs:
         from gpfverify.experiments import ct2d
 
-        params = ct2d.default_params(kappa=300)
+        params = ct2d.Params(kappa=300)
         cpu = []
         for seed in np.random.SeedSequence(1).spawn(ct2d_runs):
             start = time.process_time()
@@ -603,11 +683,11 @@ def main() -> None:
     parser.add_argument("--ct2d-runs", type=int, default=3)
     parser.add_argument("--quick", action="store_true", help="few repeats, no ct2d run")
     parser.add_argument("--only", nargs="*", default=None,
-                        help="sections: pf kf ukf gp moments audit own (default: all)")
+                        help="sections: pf kf ukf gp moments audit own profile (default: all)")
     parser.add_argument("--out", type=Path)
     args = parser.parse_args()
     repeats = 7 if args.quick else args.repeats
-    only = set(args.only or ("pf", "kf", "ukf", "gp", "moments", "audit", "own"))
+    only = set(args.only or ("pf", "kf", "ukf", "gp", "moments", "audit", "own", "profile"))
     load_before = os.getloadavg()
     table = Table()
     floor = {}
@@ -624,6 +704,12 @@ def main() -> None:
     if "audit" in only:
         audit_row(table, repeats)
     own = own_rows(repeats, 0 if args.quick else args.ct2d_runs) if "own" in only else []
+    profiles = []
+    if "profile" in only:
+        profiles = [("KF step, D = 4, L = 2", ["part", "CPU per call", "Python calls", "C calls"],
+                     kf_profile(repeats)),
+                    ("`predict_uncertain`, n = 300, D = 2, E = 4", ["part", "CPU per call"],
+                     moments_profile(repeats))]
     load_after = os.getloadavg()
     lines = [
         f"Machine: {platform.machine()}, {os.cpu_count()} cores, Python {platform.python_version()}; "
@@ -639,6 +725,10 @@ def main() -> None:
     if own:
         lines += ["Rows no library publishes (process CPU time per call, median):", "",
                   "| operation | gpfverify |", "|---|---|"] + [f"| {a} | {b} |" for a, b in own] + [""]
+    for title, head, rows in profiles:
+        lines += [f"Profile: {title} (median CPU per call)", "",
+                  "| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
+        lines += ["| " + " | ".join(r) + " |" for r in rows] + [""]
     text = "\n".join(lines)
     print(text)
     if args.out:

@@ -15,7 +15,12 @@ from gpfverify.tolerances import JITTER_STEPS, numpy_rank_tol
 def symmetrize(a: np.ndarray) -> np.ndarray:
     """(A + Aᵀ)/2 over the last two axes."""
     a = np.asarray(a)
-    return 0.5 * (a + a.swapaxes(-1, -2))
+    return 0.5 * (a + (a.T if a.ndim == 2 else a.swapaxes(-1, -2)))
+
+
+def all_finite(a: np.ndarray) -> bool:
+    """Whether every entry of ``a`` is finite (the ndarray method: no dispatch through np.all)."""
+    return bool(np.isfinite(a).all())
 
 
 @dataclass(frozen=True)
@@ -73,7 +78,7 @@ def cholesky_batched(a: np.ndarray, name: str) -> np.ndarray:
     goes to LAPACK ``potrf`` directly (numpy's wrapper costs more than the factorisation at the
     sizes of a filter step).
     """
-    if not np.isfinite(a).all():
+    if not all_finite(a):
         raise NumericalError(f"{name} contains NaN or inf")
     sym = symmetrize(a)
     if sym.ndim == 2:
@@ -95,12 +100,9 @@ def cholesky_batched(a: np.ndarray, name: str) -> np.ndarray:
 
 def solve_lower(factor: np.ndarray, b: np.ndarray) -> np.ndarray:
     """L⁻¹ b for lower-triangular factors L (..., n, n) and right-hand sides b (..., n, m) with the
-    same batch axes: LAPACK ``trtrs`` for a single matrix, numpy's batched solve otherwise."""
-    if factor.ndim == 2 and b.ndim == 2:
-        x, info = sla.lapack.dtrtrs(factor, b, lower=1)
-        if info == 0:
-            return x
-        raise NumericalError(f"triangular solve failed (trtrs info={info}): singular factor")
+    same batch axes, by numpy's dense solve. Not scipy's ``trtrs``/``solve_triangular``: with
+    threaded BLAS on a busy machine its triangular solve of a few columns wakes BLAS threads and
+    took 0.8 ms on average (p99 40 ms) against numpy's 0.1 ms for a 2 × 5 right-hand side."""
     return np.linalg.solve(factor, b)
 
 
