@@ -8,8 +8,9 @@ imported.
 
 Peers (``pip install -e .[bench]``): filterpy, scikit-learn, Stone Soup; ``particles`` (nchopin)
 pins ``numpy<2`` in its metadata although it runs on numpy 2, so it is installed apart:
-``pip install --no-deps particles``. GPy (1.13) pins ``numpy<2`` and ``scipy<=1.12`` and really
-needs them: it cannot share an environment with this package's numpy 2, so it has no row.
+``pip install --no-deps particles`` (then its dependencies numba and joblib). GPy (1.13) pins
+``numpy<2`` and ``scipy<=1.12`` and really needs them: it cannot share an environment with this
+package's numpy 2, so it has no row.
 
     .venv/bin/python benchmarks/bench_peers.py [--quick] [--out benchmarks/results/peers.md]
 
