@@ -95,10 +95,10 @@ def main() -> None:
         belief = Gaussian(rng.uniform(1, 3, (n, 4)), np.broadcast_to(0.05 * np.eye(4), (n, 4, 4)).copy())
         ys = model.h(belief.mean, 0) + 0.1 * rng.normal(size=(n, 2))
 
-        def ours():
+        def ours(belief=belief, ys=ys):
             return ukf_step(belief, model, ys, k=0, params=params)
 
-        def ref():
+        def ref(belief=belief, ys=ys, n=n):
             return [reference_ukf(belief.mean[i], belief.cov[i], ys[i], f1, h1, model.Q, model.R, params)
                     for i in range(n)]
 

@@ -82,7 +82,8 @@ def ref_ici_pair(e1, e2, w):
 def ref_ici(ests):
     fused = ests[0]
     for nxt in ests[1:]:
-        res = minimize_scalar(lambda w: np.trace(ref_ici_pair(fused, nxt, w).cov), bounds=(0, 1), method="bounded")
+        res = minimize_scalar(lambda w, a=fused, b=nxt: np.trace(ref_ici_pair(a, b, w).cov), bounds=(0, 1),
+                              method="bounded")
         fused = ref_ici_pair(fused, nxt, res.x)
     return fused.mean
 

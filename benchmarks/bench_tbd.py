@@ -125,8 +125,8 @@ def main() -> None:
     rows = []
     for name, config in (("PF-TBD", TbdConfig(args.particles)),
                          ("TPFTBD (ζ = 0.6)", TbdConfig(args.particles, two_stage=True, zeta=0.6))):
-        fast = median_seconds(lambda: run_vectorised(images, model, config, 1, 2), args.repeats, 1) / len(images)
-        slow = median_seconds(lambda: run_loop(ref_images, model, config, 1, 2), 1, 0) / len(ref_images)
+        fast = median_seconds(lambda c=config: run_vectorised(images, model, c, 1, 2), args.repeats, 1) / len(images)
+        slow = median_seconds(lambda c=config: run_loop(ref_images, model, c, 1, 2), 1, 0) / len(ref_images)
         a = run_vectorised(ref_images, model, config, 1, 2)
         b = run_loop(ref_images, model, config, 1, 2)
         d_exist = max(abs(x[0] - y[0]) for x, y in zip(a, b))
