@@ -213,6 +213,13 @@ def _schedules_failed(health: Health, key: Key) -> bool:
     return bool(same) and all(not ch.passed for checks in same for ch in checks if ch.name == "divergence")
 
 
+def _schedules_tried(health: Health, key: Key) -> list[str]:
+    """The Δλ and spacing of every variant of ``key``'s method the run tried at ``key``'s cell."""
+    case, q, r, variant = key
+    return [f"Δλ = {v.dlambda:g} {v.spacing}" for (c, q2, r2, v) in health
+            if (c, q2, r2) == (case, q, r) and v.method == variant.method]
+
+
 def _record(slug: str, claim: str, source: str, setting: str, parts: list[_Part], runs: int,
             health: Health) -> ClaimRecord:
     """A claim made of paired comparisons: NOT held if any part is (a divergence where the other
@@ -227,9 +234,9 @@ def _record(slug: str, claim: str, source: str, setting: str, parts: list[_Part]
     checks = [c for k in keys for c in health[k] if not (k in everywhere and c.name == "divergence")]
     verdict, caveats = decide(verdict, checks)
     if everywhere:
-        caveats += tuple(f"{_subject(*k)} diverged under every λ schedule this run tried at this cell: the "
-                         "method's failure here (a divergence loses the comparison), not one schedule's"
-                         for k in everywhere)
+        caveats += tuple(f"{_subject(*k)} diverged under every λ schedule this run tried at this cell "
+                         f"({', '.join(_schedules_tried(health, k))}): the method's failure here (a divergence "
+                         "loses the comparison), not one schedule's" for k in everywhere)
     undecided = [p.comparison.runs_to_decide for p in parts if p.comparison.verdict == "undecided"]
     to_decide = max((n for n in undecided if n is not None), default=None) if verdict == "undecided" else None
     return ClaimRecord(
