@@ -346,6 +346,8 @@ def claims(params: Params, body: dict, n: int, per_run: dict[str, np.ndarray]) -
     def record(claim: str, source: str, verdict: Verdict, statistic: float | None, threshold: float,
                evidence: str, slug: str, caveats: tuple[str, ...] = (), timing: bool = False,
                checks: list[HealthCheck] | None = None, runs_to_decide: int | None = None) -> ClaimRecord:
+        if verdict == "undecided" and runs_to_decide is None and n >= 2 and statistic is not None:
+            caveats = (*caveats, "no run count can be stated: a compared difference is exactly zero in these runs")
         if checks:
             verdict, withheld = decide(verdict, checks)
             caveats = (*withheld, *caveats)
