@@ -58,15 +58,15 @@ def test_cmf_and_dmf_equal_the_kalman_filter_on_a_linear_system(tmp_path, family
     path.write_text(LINEAR_SYSTEM)
     params = check.params_for(f"{path}:system", filter=family, steps=25, methods=("cmf", "dmf"))
     record = check.run_one(params, np.random.SeedSequence(4))
-    system = check.load_system(params["system"])
+    system = check.load_system(params.system)
     data_stream = np.random.SeedSequence(4).spawn(2)[0]  # the run draws its measurements from this child
     _, ys = system.simulate(25, np.random.default_rng(data_stream))
     exact = _hand_kalman(system, ys)
     rtol = algebra_rtol(1e4)
     for name in ("cmf", "dmf"):
-        means = np.array([e["means"][name] for e in record["steps"]])
+        means = np.array([e["means"][name] for e in record.steps])
         np.testing.assert_allclose(means, exact, rtol=0, atol=rtol * np.abs(exact).max())
-    assert all(e["condition_holds"] and e["exact"] for e in record["steps"])
+    assert all(e["condition_holds"] and e["exact"] for e in record.steps)
 
 
 def test_a_sensor_with_more_outputs_than_states_is_found_and_repaired():
@@ -75,7 +75,7 @@ def test_a_sensor_with_more_outputs_than_states_is_found_and_repaired():
     results = check.summarize(params, records)
     assert results["sensors"][1]["more_outputs_than_states"] and not results["sensors"][0]["more_outputs_than_states"]
     assert results["condition_held_steps"] == 0                      # l = 3 > D = 2: never full column rank
-    inexact = [e for r in records for e in r["steps"] if not e["exact"]]
+    inexact = [e for r in records for e in r.steps if not e["exact"]]
     assert inexact and results["exact_steps"] == results["total_steps"] - len(inexact)
     for e in inexact:
         assert e["gap_norm"] > e["gap_bound"]                       # a real gap, not rounding

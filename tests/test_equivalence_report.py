@@ -25,7 +25,7 @@ def _check_results(system: str, steps: int = 8) -> dict:
     params = params_for(str(ROOT / "examples" / system), steps=steps)
     runs = [run_one(params, seed) for seed in np.random.SeedSequence(1).spawn(2)]
     # what the runner adds around summarize (gpfverify.experiments.runner.write_results)
-    return json.loads(json.dumps({"experiment": "check", "runs": 2, "seed": 1, "params": params, "runs_ok": 2,
+    return json.loads(json.dumps({"experiment": "check", "runs": 2, "seed": 1, "params": params.to_json(), "runs_ok": 2,
                                   "failed_runs": [], **summarize(params, runs)}))
 
 

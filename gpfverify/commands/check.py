@@ -83,11 +83,11 @@ def run(args: argparse.Namespace) -> int:
 
     params = check.params_for(args.system, args.filter, args.steps, args.measurements, args.training,
                               args.train, args.fit_points, args.restarts, args.methods, args.rank_rule)
-    model = load_system(params["system"])  # fail before anything is written
-    if params["measurements"] is not None:
+    model = load_system(params.system)  # fail before anything is written
+    if params.measurements is not None:
         if args.runs != 1:
             raise InputError("--measurements filters one logged run: --runs must be 1")
-        check.logged_measurements(params["measurements"], model)
+        check.logged_measurements(params.measurements, model)
     if args.workers < 1:
         raise InputError(f"--workers must be at least 1, got {args.workers}")
     if args.out is None and not args.json:

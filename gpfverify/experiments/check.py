@@ -25,12 +25,13 @@ import numpy as np
 
 from gpfverify.angles import difference
 from gpfverify.consistency import Consistency
+from gpfverify.contract.check import Params, RunRecord
 from gpfverify.errors import InputError
 from gpfverify.filters.families import FAMILY_NAMES, GP_FAMILIES
 from gpfverify.filters.records import Gaussian
 from gpfverify.audit import rank_rule_to_dict
 from gpfverify.fusion.exactness import equivalence_tolerance, parse_rank_rule
-from gpfverify.fusion.model_fusion import METHODS, run_fusion
+from gpfverify.fusion.model_fusion import run_fusion
 from gpfverify.models import fit_gp_model, learn_gp_model
 from gpfverify.rng import generator
 from gpfverify.systems import load_system, split_spec
@@ -46,29 +47,19 @@ CONSISTENCY_LEVEL = 0.95
 
 def params_for(system: str, filter: str = "ukf", steps: int = 50, measurements: str | None = None,
                training: str | None = None, train: int = 200, fit_points: int | None = 200,
-               restarts: int = 2, methods=("cmf", "dmf", "cw", "ci"), rank_rule: str = "canonical") -> dict:
-    """The JSON-able parameters of a check, validated (paths made absolute). ``rank_rule`` is a
-    :func:`~gpfverify.fusion.exactness.parse_rank_rule` string: the unit-free canonical-correlation
-    rule by default (``"canonical[:TAU]"``), ``"absolute:TOL"`` or ``"numpy"``."""
+               restarts: int = 2, methods=("cmf", "dmf", "cw", "ci"), rank_rule: str = "canonical") -> Params:
+    """The parameters of a check, validated, with the paths made absolute and the rank rule in its
+    canonical spelling. ``rank_rule`` is a :func:`~gpfverify.fusion.exactness.parse_rank_rule`
+    string: the unit-free canonical-correlation rule by default (``"canonical[:TAU]"``),
+    ``"absolute:TOL"`` or ``"numpy"``."""
     path, name = split_spec(system)
     if filter not in FAMILY_NAMES:
         raise InputError(f"--filter must be one of {', '.join(FAMILY_NAMES)}, got {filter!r}")
-    methods = tuple(methods)
-    unknown = [m for m in methods if m not in METHODS]
-    if unknown or "cmf" not in methods or "dmf" not in methods:
-        raise InputError(f"--methods must include cmf and dmf and be among {', '.join(METHODS)}, got "
-                         f"{','.join(methods)}")
-    for label, value, low in (("--steps", steps, 1), ("--train", train, 2), ("--restarts", restarts, 1)):
-        if isinstance(value, bool) or not isinstance(value, int) or value < low:
-            raise InputError(f"{label} must be an integer >= {low}, got {value!r}")
-    if fit_points is not None and fit_points < 2:
-        raise InputError(f"--fit-points must be at least 2, got {fit_points}")
-    rule = parse_rank_rule(rank_rule)
-    return {"system": f"{path}:{name}", "filter": filter, "steps": steps,
-            "measurements": None if measurements is None else str(Path(measurements).resolve()),
-            "training": None if training is None else str(Path(training).resolve()),
-            "train": train, "fit_points": fit_points, "restarts": restarts, "methods": list(methods),
-            "rank_rule": rule.spec}
+    return Params(system=f"{path}:{name}", filter=filter, steps=steps,
+                  measurements=None if measurements is None else str(Path(measurements).resolve()),
+                  training=None if training is None else str(Path(training).resolve()),
+                  train=train, fit_points=fit_points, restarts=restarts, methods=tuple(methods),
+                  rank_rule=parse_rank_rule(rank_rule).spec)
 
 
 def _load_npz(path: str, what: str) -> dict[str, np.ndarray]:
@@ -91,35 +82,35 @@ def logged_measurements(path: str, model) -> tuple[np.ndarray | None, np.ndarray
     return truth, ys
 
 
-def _gp_model(model, params: dict, rng: np.random.Generator):
+def _gp_model(model, params: Params, rng: np.random.Generator):
     """The system learned as GPs from the user's training file or from samples of the system."""
-    if params["training"] is None:
-        return learn_gp_model(model, params["train"], rng, restarts=params["restarts"],
-                              fit_points=params["fit_points"])
-    data = _load_npz(params["training"], "training data")
-    name = Path(params["training"]).name
+    if params.training is None:
+        return learn_gp_model(model, params.train, rng, restarts=params.restarts,
+                              fit_points=params.fit_points)
+    data = _load_npz(params.training, "training data")
+    name = Path(params.training).name
     if "x" not in data or "y" not in data:
         raise InputError(f"{name} needs arrays 'x' (n, D) and 'y' (n, L)")
     x = as_array(data["x"], f"{name}: x", shape=(None, model.state_dim))
     y = as_array(data["y"], f"{name}: y", shape=(x.shape[0], model.measurement_dim))
-    return fit_gp_model(x[:-1], x[1:], x, [y[:, b] for b in model.blocks], rng, restarts=params["restarts"],
-                        fit_points=params["fit_points"], sensor_circular=model.sensor_circular,
+    return fit_gp_model(x[:-1], x[1:], x, [y[:, b] for b in model.blocks], rng, restarts=params.restarts,
+                        fit_points=params.fit_points, sensor_circular=model.sensor_circular,
                         circular_state=model.circular_state)
 
 
-def run_one(params: dict, seed: np.random.SeedSequence) -> dict:
+def run_one(params: Params, seed: np.random.SeedSequence) -> RunRecord:
     """One run of the check (module docstring)."""
-    model = load_system(params["system"])
+    model = load_system(params.system)
     data_rng, train_rng = (generator(s) for s in seed.spawn(2))
     truth: np.ndarray | None
-    if params["measurements"] is None:
-        truth, ys = model.simulate(params["steps"], data_rng)
+    if params.measurements is None:
+        truth, ys = model.simulate(params.steps, data_rng)
     else:
-        truth, ys = logged_measurements(params["measurements"], model)
+        truth, ys = logged_measurements(params.measurements, model)
     prior = Gaussian(model.prior_mean, model.prior_cov)
-    fusion_model = _gp_model(model, params, train_rng) if params["filter"] in GP_FAMILIES else model
-    fused = run_fusion(fusion_model, ys, family=params["filter"], methods=params["methods"],
-                       rank_rule=params["rank_rule"], local_priors=[prior] * len(model.sensors),
+    fusion_model = _gp_model(model, params, train_rng) if params.filter in GP_FAMILIES else model
+    fused = run_fusion(fusion_model, ys, family=params.filter, methods=params.methods,
+                       rank_rule=params.rank_rule, local_priors=[prior] * len(model.sensors),
                        fused_prior=prior)
     return _record(model, fused, ys, truth)
 
@@ -140,7 +131,7 @@ def _normalised_errors(model, fused, ys: np.ndarray, truth: np.ndarray | None) -
     return out
 
 
-def _record(model, fused, ys: np.ndarray, truth: np.ndarray | None) -> dict:
+def _record(model, fused, ys: np.ndarray, truth: np.ndarray | None) -> RunRecord:
     errors = _normalised_errors(model, fused, ys, truth)
     steps = []
     for t, step in enumerate(fused.steps):
@@ -178,7 +169,7 @@ def _record(model, fused, ys: np.ndarray, truth: np.ndarray | None) -> dict:
                                      for r in step.local]
             entry["local_nees"] = [float(v[t]) for v in errors["local_nees"]]
         steps.append(entry)
-    return {"truth_known": truth is not None, "steps": steps}
+    return RunRecord(truth is not None, tuple(steps))
 
 
 # -- results.json ----------------------------------------------------------------------------------
@@ -201,16 +192,16 @@ def _average(kind: str, values: np.ndarray, dof: int) -> dict:
             "level": test.level, "fraction_inside": test.fraction_inside, "verdict": test.verdict()}
 
 
-def summarize(params: dict, results: list[dict]) -> dict:
+def summarize(params: Params, results: list[RunRecord]) -> dict:
     """The results.json body (CONTRACT "Checking a user's own system" keys first)."""
-    model = load_system(params["system"])
-    rule = parse_rank_rule(params["rank_rule"])
-    steps_by_run = [r["steps"] for r in results]
+    model = load_system(params.system)
+    rule = parse_rank_rule(params.rank_rule)
+    steps_by_run = [r.steps for r in results]
     first = steps_by_run[0]
     every = [e for steps in steps_by_run for e in steps]
-    methods = list(params["methods"])
+    methods = list(params.methods)
     out = {
-        "steps": len(first), "filter": params["filter"],
+        "steps": len(first), "filter": params.filter,
         "per_step": [{"k": e["k"], "cmf_mean": e["cmf_mean"], "dmf_mean": e["dmf_mean"], "gap": e["gap"],
                       "sensors": [{key: s[key] for key in ("index", "rank", "full_column_rank", "exact")}
                                   for s in e["sensors"]]} for e in first],
@@ -221,7 +212,7 @@ def summarize(params: dict, results: list[dict]) -> dict:
         "reproduced_steps": sum(bool(e["gap_norm"] <= e["gap_bound"]) for e in every),
         "branch_offset_steps": sum(any(s["branch_offset_count"] for s in e["sensors"]) for e in every),
         "total_steps": len(every),
-        "system": params["system"], "state_dim": model.state_dim, "sensors": _sensor_table(model),
+        "system": params.system, "state_dim": model.state_dim, "sensors": _sensor_table(model),
         "rank_rule": {**rank_rule_to_dict(rule), "description": rule.describe()},
         "k": [e["k"] for e in first],
         "gap_norm": [[e["gap_norm"] for e in steps] for steps in steps_by_run],
@@ -233,7 +224,7 @@ def summarize(params: dict, results: list[dict]) -> dict:
         "time_per_step": {**{m: float(np.mean([e["seconds"][m] for e in every])) for m in methods},
                           "local": float(np.mean([sum(e["seconds"]["local"]) for e in every]))},
         "timing_keys": list(TIMING_KEYS),
-        "truth_known": all(r["truth_known"] for r in results),
+        "truth_known": all(r.truth_known for r in results),
     }
     nis = np.array([[e["nis"]["cmf"] for e in steps] for steps in steps_by_run])
     out["nis"] = {"cmf": _average("NIS", nis, model.measurement_dim),

@@ -1,0 +1,50 @@
+"""Contract of ``gpfverify check SYSTEM.py:NAME`` (a user's own system, SPEC §6): its parameters
+and the record of one run. The command line is ``gpfverify check``'s own (commands/check.py);
+these parameters are what it records in ``results.json``."""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass
+from typing import Any, Literal
+
+from gpfverify.contract.params import Params as ParamsBase
+from gpfverify.contract.params import option
+from gpfverify.errors import InputError
+
+#: the fusion rules a check can run (gpfverify.fusion.model_fusion.METHODS); cmf and dmf always
+RULES: tuple[str, ...] = ("cmf", "dmf", "cw", "ci", "rcc-ci")
+
+
+@dataclass(frozen=True)
+class Params(ParamsBase):
+    """What a check ran: the system, the filter family, the data and the rank rule."""
+
+    system: str = dataclasses.field(default="", metadata={
+        "help": "SYSTEM.py:NAME, the file (absolute path) and the StateSpaceModel it defines"})
+    filter: Literal["kf", "ekf", "ukf", "gp-adf", "gp-ukf"] = option(
+        "ukf", "the Gaussian family of every local filter and of the centre")
+    steps: int = option(50, "steps per simulated run", minimum=1)
+    measurements: str | None = option(None, "logged measurements RUN.npz (absolute path) instead of simulating")
+    training: str | None = option(None, "GP families: training file TRAIN.npz (absolute path)")
+    train: int = option(200, "GP families: samples drawn from the system to learn from", minimum=2)
+    fit_points: int | None = option(200, "GP families: at most this many samples for the evidence maximisation",
+                                    minimum=2)
+    restarts: int = option(2, "GP families: optimiser starts", minimum=1)
+    methods: tuple[str, ...] = option(("cmf", "dmf", "cw", "ci"), "fusion rules run (cmf and dmf always)")
+    rank_rule: str = option("canonical", "rank rule of eq. 35: canonical[:TAU], absolute:TOL or numpy")
+
+    def check(self) -> None:
+        unknown = [m for m in self.methods if m not in RULES]
+        if unknown or "cmf" not in self.methods or "dmf" not in self.methods:
+            raise InputError(f"--methods must include cmf and dmf and be among {', '.join(RULES)}, got "
+                             f"{','.join(self.methods)}")
+
+
+@dataclass(frozen=True)
+class RunRecord:
+    """One run: whether the truth was known, and one audit entry per step (the fields the
+    equivalence report reads; see :func:`gpfverify.experiments.check.run_one`)."""
+
+    truth_known: bool
+    steps: tuple[dict[str, Any], ...]
