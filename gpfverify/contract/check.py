@@ -12,6 +12,8 @@ from gpfverify.contract.params import Params as ParamsBase
 from gpfverify.contract.params import option
 from gpfverify.errors import InputError
 
+#: the Gaussian families a check can run (gpfverify.filters.families.FAMILY_NAMES)
+FilterName = Literal["kf", "ekf", "ukf", "gp-adf", "gp-ukf"]
 #: the fusion rules a check can run (gpfverify.fusion.model_fusion.METHODS); cmf and dmf always
 RULES: tuple[str, ...] = ("cmf", "dmf", "cw", "ci", "rcc-ci")
 
@@ -22,7 +24,7 @@ class Params(ParamsBase):
 
     system: str = dataclasses.field(default="", metadata={
         "help": "SYSTEM.py:NAME, the file (absolute path) and the StateSpaceModel it defines"})
-    filter: Literal["kf", "ekf", "ukf", "gp-adf", "gp-ukf"] = option(
+    filter: FilterName = option(
         "ukf", "the Gaussian family of every local filter and of the centre")
     steps: int = option(50, "steps per simulated run", minimum=1)
     measurements: str | None = option(None, "logged measurements RUN.npz (absolute path) instead of simulating")
