@@ -31,6 +31,8 @@ report: $(VENV)/.runtime-installed
 	$(BIN)/gpfverify report
 
 test: $(VENV)/.test-installed
+	$(BIN)/ruff check gpfverify
+	$(BIN)/mypy
 	MPLBACKEND=Agg $(BIN)/python -m pytest -p no:cacheprovider --hypothesis-profile=ci
 
 clean:

@@ -184,7 +184,8 @@ def generate_flight(config: SinsGpsConfig = SinsGpsConfig()) -> Flight:
     pitch = np.radians(np.interp(t, *_schedule(p.pitch_deg)))
     turn_rate = np.radians(np.interp(t, *_schedule(p.turn_rate_deg)))
     speed = np.concatenate([[0.0], np.cumsum(0.5 * (accel[1:] + accel[:-1]) * fine_dt)])
-    yaw = np.radians(p.heading0_deg) + np.concatenate([[0.0], np.cumsum(0.5 * (turn_rate[1:] + turn_rate[:-1]) * fine_dt)])
+    yaw = np.radians(p.heading0_deg) + np.concatenate(
+        [[0.0], np.cumsum(0.5 * (turn_rate[1:] + turn_rate[:-1]) * fine_dt)])
     vel = np.stack([speed * np.cos(pitch) * np.sin(yaw), speed * np.cos(pitch) * np.cos(yaw),
                     speed * np.sin(pitch)], -1)
     lat, lon, h = (np.empty_like(t) for _ in range(3))
