@@ -10,7 +10,6 @@ drawn from the prior; both routes use the same random numbers and are checked to
 from __future__ import annotations
 
 import argparse
-import sys
 from functools import partial
 from pathlib import Path
 
@@ -36,9 +35,7 @@ def looped(proposal):
 
 
 def _setup(particles: int):
-    parser = argparse.ArgumentParser()
-    sins_gps.add_arguments(parser)
-    params = sins_gps.params_from_args(parser.parse_args(["--particles", str(particles)]))
+    params = sins_gps.Params(particles=particles)
     config, models, upf_model, gpsr_model, _ = sins_gps.setup(params)
     rng = np.random.default_rng(0)
     _, ys = models.true.simulate(STEP, rng, x0=np.zeros(15))
@@ -96,4 +93,4 @@ def main() -> None:
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    main()

@@ -15,6 +15,7 @@ import pytest
 
 from gpfverify.cli import main
 from gpfverify.contract import VERDICTS, ClaimRecord, from_json, read_claims, to_json
+from gpfverify.contract.claims import PairedDifference
 from gpfverify.contract.sins_gps import PROFILES, FilterRun, Params, ParticleFilterRun, RunRecord, collapsed
 from gpfverify.errors import InputError
 from gpfverify.experiments import sins_gps
@@ -271,6 +272,9 @@ def test_profiles():
     ({"noise_floor": (0.0, 0.0)}, "--noise-floor"),
     ({"duration": 0.5}, "--duration"),
     ({"gps_position_sd": 0.0}, "--gps-position-sd"),
+    ({"q_inflation": 0.5}, "--q-inflation"),
+    ({"particle_covariance": "shrunk"}, "--particle-covariance"),
+    ({"jitter": "kernel"}, "--jitter"),
 ])
 def test_invalid_params_name_the_option(changes, option):
     with pytest.raises(InputError, match=option):
@@ -282,7 +286,8 @@ def test_reproduce_offers_the_generated_options(capsys):
         main(["reproduce", "sins-gps", "--help"])
     out = capsys.readouterr().out
     assert exit_info.value.code == 0
-    for option in ("--particles", "--resample-threshold", "--train-headings", "--noise-floor", "--gps-position-sd"):
+    for option in ("--particles", "--resample-threshold", "--train-headings", "--noise-floor", "--gps-position-sd",
+                   "--q-inflation", "--particle-covariance", "--jitter"):
         assert option in out
 
 
@@ -291,20 +296,28 @@ def test_collapse_criterion():
     assert not collapsed(50, {"UPF": 0.02, "GPSR-UPF": 0.3})  # one healthy filter: no collapse of both
 
 
-def test_claims_are_records_with_the_ess_and_the_collapse_caveat(tiny_run):
+def test_claims_are_records_with_the_ess_and_the_health_checks(tiny_run):
     r, _ = tiny_run
     records = read_claims(r)
     by_id = {c.id: c for c in records}
     ess = r["mean_ess_fraction"]
-    both_collapsed = all(v < 2 / TINY.particles for v in ess.values())
+    health = r["health"]
+    assert {c["subject"] for c in health} == {"UPF", "GPSR-UPF"} | {f"{m} {q}" for m in ("UPF", "GPSR-UPF")
+                                                                      for q in ("position", "velocity", "attitude")}
+    failed = [c for c in health if not c["passed"]]
     for q, claimed in (("position", 0.33), ("velocity", 0.33), ("attitude", 0.40)):
         claim = by_id[f"sins-gps/reduction-{q}"]
-        assert claim.statistic == r["reduction"][q] and claim.threshold == pytest.approx(claimed - 0.10)
-        assert claim.verdict == ("held" if r["reduction"][q] >= claimed - 0.10 else "NOT held")
+        per_run = 1 - np.asarray(r["per_run_rms"]["GPSR-UPF"][q]) / np.asarray(r["per_run_rms"]["UPF"][q])
+        assert claim.statistic == pytest.approx(per_run.mean()) and claim.threshold == pytest.approx(claimed - 0.10)
+        test = PairedDifference.of(np.full(per_run.size, claimed - 0.10), per_run)
+        assert claim.verdict == ("not decidable" if failed else test.verdict)
         assert f"UPF {ess['UPF']:.4f}" in claim.evidence and f"GPSR-UPF {ess['GPSR-UPF']:.4f}" in claim.evidence
-        assert any("collapsed" in c for c in claim.caveats) == both_collapsed
+        assert any("verdict withheld" in c for c in claim.caveats) == bool(failed)
+        assert all(any(c["subject"] in caveat and c["name"] in caveat for caveat in claim.caveats) for c in failed)
         assert claim.source.startswith("Meng et al. 2015") and claim.paper == "seed001" and claim.n == 2
         assert any("rests on 2 runs" in c for c in claim.caveats)
+    # with 4 particles the weights collapse onto one particle: the comparison is withheld
+    assert not next(c for c in health if c["subject"] == "UPF")["passed"]
     for q in ("position", "velocity", "attitude"):
         assert r["reference"]["reduction"][q] == by_id[f"sins-gps/single-filter-reduction-{q}"].statistic
     assert by_id["sins-gps/factors-valid"].verdict == "held"  # every factor diagonal stayed positive
@@ -335,6 +348,15 @@ def test_report_page_renders_from_a_stored_results_file(tmp_path):
     # the stored run has 6 particles whose weights collapsed: the page says so, with the numbers
     text = " ".join(b.text for b in section.blocks if isinstance(b, Paragraph))
     assert "Diagnosis" in text and f"{stored['mean_ess_fraction']['UPF']:.3g}" in text
+    (health,) = [b for b in section.blocks if isinstance(b, Table) and b.caption.startswith("Health checks")]
+    assert len(health.rows) == len(stored["health"]) and any(row[2] == "NO" for row in health.rows)
+    # the verdict under each interpretation tried, with the robustness sentence
+    (tried,) = [b for b in section.blocks if isinstance(b, Table) and b.caption.startswith("Verdict (statistic)")]
+    assert tried.headers[:4] == ["claim", "as run", "q-x100", "point-proposal-q-x100"]
+    position = next(row for row in tried.rows if "position error by" in row[0] and "Supplementary" not in row[0])
+    assert position[1].startswith("not decidable") and position[2].startswith("not decidable")
+    assert position[-1].startswith("depends on the interpretation")
+    assert "First configuration in which both particle filters pass their health checks: point-proposal-q-x100" in text
     assert "x_{" not in text and "^n" not in text  # Unicode maths, no pseudo-LaTeX
 
 

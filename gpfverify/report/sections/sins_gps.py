@@ -9,10 +9,12 @@ from pathlib import Path
 
 import numpy as np
 
-from gpfverify.contract.claims import read_claims
+from gpfverify.contract.claims import ClaimRecord, read_claims
+from gpfverify.contract.interpretations import robustness
 from gpfverify.contract.papers import PAPERS
-from gpfverify.contract.sins_gps import (COLLAPSE_FACTOR, GP_SR_UKF, GPSR_UPF, NAME, PAPER, PARTICLE_FILTERS,
-                                        QUANTITIES, REFERENCES, SR_UKF, UNITS, UPF, Params, collapsed)
+from gpfverify.contract.sins_gps import (COLLAPSE_FACTOR, GP_SR_UKF, GPSR_UPF, INTERPRETATIONS, NAME, PAPER,
+                                        PARTICLE_FILTERS, QUANTITIES, REFERENCES, SR_UKF, UNITS, UPF, Params,
+                                        collapsed)
 from gpfverify.report.document import Figure, Paragraph, Section, Table, claim_records_table, fmt
 from gpfverify.report.figures import new_figure, save
 from gpfverify.report.inputs import SectionInput
@@ -57,7 +59,9 @@ def render(results: dict, out_dir: Path) -> Section:
         "its predictive variance as the velocity process noise."))
     section.add(Paragraph(
         f"Both particle filters: N = {p.particles} particles, systematic resampling when the effective sample "
-        f"size N_eff falls below {fmt(p.resample_threshold)} N, prior N(0, P₀), process-noise floor {floor}. "
+        f"size N_eff falls below {fmt(p.resample_threshold)} N, prior N(0, P₀), process-noise floor {floor}, "
+        f"filter-design Q = {fmt(p.q_inflation)} × the true Q, each particle's covariance {p.particle_covariance}"
+        f", move after resampling: {p.jitter}. "
         "UPF: per-particle UKF proposal on the inaccurate model; GPSR-UPF: per-particle square-root UKF "
         f"proposal on the inaccurate model plus the learned residual. {results['runs_ok']} of {results['runs']} "
         f"runs finished (root seed {results['seed']})" + _failed(results) + ". Errors are estimate − truth of "
@@ -81,6 +85,14 @@ def render(results: dict, out_dir: Path) -> Section:
                        for m in PARTICLE_FILTERS]
                       + [[m.key, "—", "—", per_run[m.key], 1e3 * per_step[m.key]] for m in REFERENCES],
                       "Importance-weight health (N_eff/N = 1/N: all weight on one particle) and CPU time"))
+    health = results.get("health", [])
+    if health:
+        section.add(Table(["filter", "check", "passed", "statistic", "healthy side of", "detail"],
+                          [[c["subject"], c["name"], "yes" if c["passed"] else "NO", c["statistic"], c["threshold"],
+                            c["detail"]] for c in health],
+                          "Health checks of the particle filters in this configuration (gpfverify.health): a claim "
+                          "comparing them is 'not decidable' when one fails"))
+    _add_interpretations(section, read_claims(results))
     if collapsed(p.particles, ess):
         section.add(Paragraph(
             f"Diagnosis: the importance weights of both particle filters collapse (mean N_eff/N below "
@@ -108,6 +120,51 @@ def render(results: dict, out_dir: Path) -> Section:
                        "RMS error norm over runs against time: the two particle filters and, dashed, the "
                        "single SR-UKF on the inaccurate and on the GP-corrected model."))
     return section
+
+
+def _add_interpretations(section: Section, records: list[ClaimRecord]) -> None:
+    """Per claim, the verdict (and statistic) under each interpretation tried, the robustness
+    sentence, and the first configuration in which the particle filters passed their health checks."""
+    tried = [r for r in records if r.interpretations]
+    if not tried:
+        return
+    names = [i.name for i in tried[0].interpretations]
+    why = {spec.name: spec for spec in INTERPRETATIONS}
+    section.add(Paragraph(
+        "Interpretations tried (the paper does not report how its filters were tuned): "
+        + "; ".join(f"{n} ({', '.join(f'{k} = {v}' for k, v in why[n].changes.items())}: {why[n].why})"
+                    if n in why else n for n in names) + "."))
+
+    def cell(verdict: str, statistic) -> str:
+        return verdict + ("" if statistic is None else f" ({fmt(statistic, 3)})")
+
+    rows = []
+    for r in tried:
+        by_name = {i.name: i for i in r.interpretations}
+        rows.append([r.claim, cell(r.verdict, r.statistic),
+                     *(cell(by_name[n].verdict, by_name[n].statistic) if n in by_name else "—" for n in names),
+                     robustness(r)])
+    section.add(Table(["claim", "as run", *names, "robustness"], rows,
+                      "Verdict (statistic) of each claim under each interpretation; 'not decidable' = a particle "
+                      "filter failed its health checks there"))
+    comparisons = [r for r in tried if r.id.startswith(f"{NAME}/reduction-")]
+    if comparisons:
+        healthy = ["as run"] if comparisons[0].verdict != "not decidable" else []
+        healthy += [i.name for i in comparisons[0].interpretations if i.verdict != "not decidable"]
+        if not healthy:
+            section.add(Paragraph("In none of the configurations tried did both particle filters pass their "
+                                  "health checks: the paper's comparison is not decidable with these filters."))
+        else:
+            first = healthy[0]
+            faithful = "; ".join(f"{r.id.rsplit('-', 1)[-1]}: {r.verdict}" for r in comparisons)
+            verdicts = "; ".join(
+                f"{r.id.rsplit('-', 1)[-1]}: " + (r.verdict if first == "as run" else
+                                                  next(i.verdict for i in r.interpretations if i.name == first))
+                for r in comparisons)
+            section.add(Paragraph(
+                f"First configuration in which both particle filters pass their health checks: {first} "
+                f"(healthy: {', '.join(healthy)}). There the paper's reductions are {verdicts} — next to the "
+                f"faithful configuration's {faithful}."))
 
 
 def _failed(results: dict) -> str:
