@@ -120,3 +120,26 @@ def test_divergence_is_flagged():
     assert not checks[("UPF position", "divergence")].passed
     assert checks[("UPF position", "divergence")].statistic == 0.5
     assert checks[("GPSR-UPF position", "divergence")].passed
+
+
+def test_page_lists_each_configuration_with_its_health(tmp_path):
+    """The reference page's results.json carries the interpretations' health and errors
+    (``interpretation_summaries``); the page shows them per configuration and filter."""
+    import json
+    from pathlib import Path
+
+    from gpfverify.report.document import Table
+    from gpfverify.report.sections import sins_gps as section
+
+    stored = Path(__file__).parent / "fixtures" / "sins_gps" / "sins-gps-small" / "results.json"
+    results = json.loads(stored.read_text())
+    healthy = [dict(c, passed=True) for c in results["health"]]
+    results["interpretation_summaries"] = {"point-proposal-q-x100": {
+        "changes": {"particle_covariance": "reset", "q_inflation": 100.0}, "runs_ok": 2, "health": healthy,
+        "mean_ess_fraction": {"UPF": 0.6, "GPSR-UPF": 0.5}, "rms": results["rms"], "reduction": results["reduction"],
+        "reference_rms": results["reference"]["rms"]}}
+    page = section.render(results, tmp_path)
+    (table,) = [b for b in page.blocks if isinstance(b, Table) and b.caption.startswith("Each configuration")]
+    assert [row[0] for row in table.rows] == ["as run", "as run", "point-proposal-q-x100", "point-proposal-q-x100"]
+    assert table.rows[0][4].startswith("FAILED: weight collapse") and table.rows[2][4] == "passed"
+    assert table.rows[2][3] == 0.6

@@ -1,0 +1,59 @@
+"""Render the committed sins-gps reference page from a run with interpretations.
+
+    python reports/reference/sins-gps/make_page.py RUN_DIR "COMMAND"
+
+RUN_DIR is the output folder of COMMAND (``gpfverify reproduce sins-gps ... --interpretations ...``).
+Its ``results.json`` (claims with the verdict under each interpretation, as the runner merged
+them) is copied with its manifest to ``reports/reference/sins-gps/run/``, with one addition:
+``"interpretation_summaries"`` — for each interpretation folder, its parameter changes, health
+checks, mean N_eff/N and RMS errors, read from ``RUN_DIR/interpretations/<name>/results.json``
+(the per-configuration results are 1 MB each and are not committed). The page is then rendered from
+that file by :func:`gpfverify.report.sections.sins_gps.render`.
+"""
+
+from __future__ import annotations
+
+import json
+import shutil
+import sys
+from pathlib import Path
+
+HERE = Path(__file__).resolve().parent
+sys.path.insert(0, str(HERE.parent))
+
+from reference_pages import write_page  # type: ignore[import-not-found]  # noqa: E402
+
+from gpfverify.contract.sins_gps import INTERPRETATIONS  # noqa: E402
+from gpfverify.report.document import Paragraph  # noqa: E402
+from gpfverify.report.sections import sins_gps as section_module  # noqa: E402
+
+
+def summaries(run_dir: Path) -> dict:
+    out = {}
+    for spec in INTERPRETATIONS:
+        path = run_dir / "interpretations" / spec.name / "results.json"
+        if not path.is_file():
+            continue
+        r = json.loads(path.read_text(encoding="utf-8"))
+        out[spec.name] = {"changes": spec.changes, "runs_ok": r["runs_ok"], "health": r["health"],
+                          "mean_ess_fraction": r["mean_ess_fraction"], "rms": r["rms"],
+                          "reduction": r["reduction"], "reference_rms": r["reference"]["rms"]}
+    return out
+
+
+def main(run_dir: Path, command: str) -> None:
+    results = json.loads((run_dir / "results.json").read_text(encoding="utf-8"))
+    results["interpretation_summaries"] = summaries(run_dir)
+    target = HERE / "run"
+    target.mkdir(parents=True, exist_ok=True)
+    (target / "results.json").write_text(json.dumps(results, allow_nan=False), encoding="utf-8")
+    shutil.copy(run_dir / "manifest.json", target / "manifest.json")
+    section = section_module.render(results, HERE)
+    section.add(Paragraph(f"Made by `{command}`, then `python reports/reference/sins-gps/make_page.py RUN_DIR "
+                          "\"COMMAND\"` (which adds the interpretations' health and errors to the committed "
+                          "results.json)."))
+    write_page(section, HERE)
+
+
+if __name__ == "__main__":
+    main(Path(sys.argv[1]), sys.argv[2])
