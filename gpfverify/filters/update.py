@@ -20,7 +20,7 @@ import numpy as np
 from gpfverify.angles import difference, wrap_components
 from gpfverify.errors import InputError
 from gpfverify.filters.records import Gaussian, MeasurementMoments, StepRecord
-from gpfverify.linalg import cholesky_batched, solve_lower, symmetrize
+from gpfverify.linalg import all_finite, cholesky_batched, solve_lower, symmetrize
 from gpfverify.validate import as_array
 
 
@@ -37,7 +37,7 @@ def gaussian_update(prediction: Gaussian, moments: MeasurementMoments, y,
     y = np.asarray(y, dtype=float)
     if y.shape[-1:] != mu_y.shape[-1:]:
         raise InputError(f"y must have {mu_y.shape[-1]} entries in its last axis, got shape {y.shape}")
-    if not np.isfinite(y).all():
+    if not all_finite(y):
         raise InputError("y contains NaN or inf")
     chol = cholesky_batched(np.asarray(moments.C_y, dtype=float), "C_y")
     innovation = difference(y, mu_y, circular)
@@ -67,7 +67,6 @@ def check_belief(belief: Gaussian, dim: int, name: str = "belief") -> Gaussian:
     if mean.shape[-1:] != (dim,) or cov.shape != mean.shape + (dim,):
         raise InputError(f"{name} must have mean (..., {dim}) and cov (..., {dim}, {dim}), "
                          f"got {mean.shape} and {cov.shape}")
-    if not (np.isfinite(mean).all() and np.isfinite(cov).all()):
-        name_bad = f"{name}.mean" if not np.isfinite(mean).all() else f"{name}.cov"
-        raise InputError(f"{name_bad} contains NaN or inf")
+    if not (all_finite(mean) and all_finite(cov)):
+        raise InputError(f"{name}.{'mean' if not all_finite(mean) else 'cov'} contains NaN or inf")
     return belief if mean is belief.mean and cov is belief.cov else Gaussian(mean, cov)
