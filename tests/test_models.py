@@ -551,3 +551,14 @@ def test_simulate_wraps_angle_outputs_and_state_components():
     assert np.all(np.abs(wrapped(ys[:, 2] - states[:, 1])) <= MONTE_CARLO_SIGMAS * sigma[2])
     with pytest.raises(InputError, match="steps must be at least 1"):
         model.simulate(0, np.random.default_rng(0))
+
+
+def test_transition_draws_are_numpys_multivariate_normal_draws():
+    from gpfverify.scenarios.three_sensor import three_sensor_model
+
+    model = three_sensor_model()
+    x = np.random.default_rng(0).normal(size=(200, model.state_dim))
+    drawn = model.sample_transition(x, 1, np.random.default_rng(5))
+    noise = np.random.default_rng(5).multivariate_normal(np.zeros(model.state_dim), model.Q, size=200,
+                                                         method="cholesky")
+    np.testing.assert_array_equal(drawn, model.f(x, 1) + noise)

@@ -327,9 +327,15 @@ class StateSpaceModel(StackedMeasurement):
         """Draws x_k ~ p(x_k | x_{k−1}) for states x_prev (N, D)."""
         if self.transition_sampler is not None:
             return np.asarray(self.transition_sampler(x_prev, k, rng), dtype=float)
-        noise = rng.multivariate_normal(np.zeros(self.state_dim), self.Q, size=x_prev.shape[0],
-                                        method="cholesky")
+        # the draws of rng.multivariate_normal(0, Q, N, method="cholesky"), bit for bit, without
+        # factorising Q at every call
+        noise = rng.standard_normal((x_prev.shape[0], self.state_dim)) @ self._process_factor.T
         return self.f(x_prev, k) + noise
+
+    @cached_property
+    def _process_factor(self) -> np.ndarray:
+        """The lower Cholesky factor of Q (numpy's, as rng.multivariate_normal uses)."""
+        return np.linalg.cholesky(self.Q)
 
     def simulate(self, steps: int, rng: np.random.Generator, x0=None) -> tuple[np.ndarray, np.ndarray]:
         """States x_1..x_T (T, D) and stacked measurements y_1..y_T (T, L), from x_0 = ``x0`` or a
