@@ -172,7 +172,7 @@ def _sensitivity_blocks(claims: list[ClaimRecord]) -> list:
                                                                            for i in c.interpretations
                                                                            if i.name == name).items()),
                             why.get(name, "")] for name in names],
-                          "Interpretations tried (each a full run with the same seed and run count)")]
+                          "Interpretations tried (each a full run of the experiment with the same seed)")]
     rows = []
     for c in tried:
         by_name = {i.name: i for i in c.interpretations}

@@ -65,7 +65,8 @@ def _runs_to_decide_table(results: dict, tried: list) -> Table:
         for _, other in tried:
             row.append(cell(next((c for c in read_claims(other) if c.id == claim.id), None)))
         rows.append(row)
-    return Table(["claim", "as run", *(spec.name for spec, _ in tried)], rows,
+    return Table(["claim", f"as run ({results['runs_ok']} runs)",
+                  *(f"{spec.name} ({other['runs_ok']} runs)" for spec, other in tried)], rows,
                  "Runs that would decide each undecided verdict, as run and under each interpretation (were the "
                  "mean and spread seen here the true ones; the paper used 3000 runs per SNR)")
 
