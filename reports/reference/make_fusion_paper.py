@@ -14,7 +14,9 @@ self-contained ``reports/reference/fusion-paper.html``. The per-run files are no
 
 from __future__ import annotations
 
+import dataclasses
 import json
+import math
 import shutil
 import sys
 from pathlib import Path
@@ -22,10 +24,11 @@ from pathlib import Path
 from reference_pages import write_page
 
 from gpfverify.contract.ct2d import Params as CT2DParams
+from gpfverify.contract.serial import to_json
 from gpfverify.experiments import ct2d, ungm1d
+from gpfverify.experiments.fusion_run import ClaimContext
 from gpfverify.experiments.runner import rewrite_results
 from gpfverify.experiments.sensitivity import merge
-from gpfverify.report.document import Paragraph
 from gpfverify.report.render import to_html
 from gpfverify.report.sections import fusion_ct2d, fusion_ungm1d
 
@@ -43,17 +46,33 @@ COMMANDS = {
     "ungm1d-sweep": "gpfverify reproduce ungm1d --runs 10 --seed 1 --interpretations canonical-rank "
                     "--out OUT/ungm1d-sweep",
 }
-#: the earlier reference run of the setting not re-run here (1000 runs, numpy's rank rule, before
-#: the claims became typed records; commit ae10113), summarised on the page
-EARLIER_K300 = (
-    "Not re-run here: κ = 300, Ω = 2π/90. The earlier reference run (1000 runs, seed 1, numpy's rank rule; "
-    "reports/reference/ct2d/k300-w0.0698/results.json, before the claims became typed records) found: fusion "
-    "beats each sensor (held, e.g. CMF-GP-ADF − Sensor1-GP-ADF −3.86 ± 0.34 m²); CMF/DMF against RCC-CI and CW "
-    "undecided (GP-ADF: CMF − RCC-CI −0.0255 ± 0.049 m², CMF − CW −0.0232 ± 0.037 m²; GP-UKF: −0.0238 ± 0.048 and "
-    "−0.0217 ± 0.037 m²) — were those means and spreads the true ones, about 3700 (GP-ADF) and 4100 (GP-UKF) "
-    "runs would decide it; DMF = CMF on all 50000 full-rank steps (held, both families); DMF slower than CMF "
-    "both for the whole fusion step (GP-ADF 8.84 vs 8.31 ms) and for the update alone (eq. 35 0.398 vs 0.0883 "
-    "ms): NOT held under either timing.")
+#: the earlier reference run of κ = 300, Ω = 2π/90 (1000 runs, numpy's rank rule; commit ae10113),
+#: committed before the claims became records and not re-run here: its claims are recomputed from the
+#: per-run summaries it stores (:func:`earlier_k300`)
+EARLIER_K300 = HERE / "ct2d" / "k300-w0.0698" / "results.json"
+EARLIER_K300_COMMAND = ("gpfverify reproduce ct2d --kappa 300 --omega 0.0698 --runs 1000 --seed 1 --out OUT "
+                        "(an earlier release, commit ae10113; claims recomputed from its stored summaries)")
+EARLIER_CAVEAT = ("an earlier 1000-run result whose per-run records were not kept: its claims are recomputed from "
+                  "the per-run means it stores; the filters' health checks (divergence, NEES) need the per-run "
+                  "records and are not available for it")
+
+
+def earlier_k300() -> dict | None:
+    """The earlier κ = 300, Ω = 2π/90 result with its claims recomputed by today's claim functions
+    from the summaries it stores (its parameters were the defaults of today's Params at that κ, Ω)."""
+    if not EARLIER_K300.exists():
+        return None
+    old = json.loads(EARLIER_K300.read_text(encoding="utf-8"))
+    if "claims" in old:  # already in today's format
+        return old
+    params = CT2DParams(kappa=old["params"]["kappa"], omega=2 * math.pi / 90)
+    body = {**old, "params": params.to_json(), "health": [],
+            "start_perturbation": {"mean": params.start_mean, "std": params.perturbation_std,
+                                   "initial_cov_scale": params.start_cov_scale}}
+    ctx = ClaimContext(ct2d.NAME, params.label, "", old["runs_ok"], ct2d.DEFAULT_RUNS)
+    claims = [dataclasses.replace(c, caveats=(*c.caveats, EARLIER_CAVEAT))
+              for c in ct2d.claims(params, body, ctx)]
+    return to_json({**body, "claims": claims, "timing_claims": ct2d.time_claims(ctx, body)})
 
 
 def target(name: str) -> Path:
@@ -103,11 +122,14 @@ def main(runs_dir: Path | None) -> None:
             found[name] = results
     made = "python reports/reference/make_fusion_paper.py OUT (or --committed: from the committed results.json)"
     sections = []
+    commands = [command(n, r) for n, r in found.items() if n.startswith("ct2d")]
+    earlier = earlier_k300()
+    if earlier is not None:
+        found = {"ct2d-k300-w0.0698": earlier, **found}
+        commands.insert(0, EARLIER_K300_COMMAND)
     ct = {CT2DParams.from_json(r["params"]).label: r for n, r in found.items() if n.startswith("ct2d")}
     if ct:
-        made_by = "; ".join(command(n, r) for n, r in found.items() if n.startswith("ct2d"))
-        section = fusion_ct2d.render(ct, HERE / "ct2d", command=f"{made_by}; then {made}")
-        section.add(Paragraph(EARLIER_K300))
+        section = fusion_ct2d.render(ct, HERE / "ct2d", command=f"{'; '.join(commands)}; then {made}")
         sections.append(section)
     if "ungm1d-sweep" in found:
         r = found["ungm1d-sweep"]
