@@ -159,6 +159,9 @@ INTERPRETATIONS: tuple[InterpretationSpec, ...] = (
                        "the point proposal with roughening, which keeps the particles diverse under the true Q"),
     InterpretationSpec("point-proposal-q-x100", {"particle_covariance": "reset", "q_inflation": 100.0},
                        "the point proposal with Q inflated 100×, which keeps the particles diverse by tuning"),
+    InterpretationSpec("point-proposal-q-x1000", {"particle_covariance": "reset", "q_inflation": 1000.0},
+                       "the point proposal with Q inflated 1000× (at 100× the 50 particles still lose the "
+                       "position in some runs)"),
 )
 
 PROFILES: dict[str, Profile] = {
