@@ -92,7 +92,7 @@ def render(results: dict, out_dir: Path) -> Section:
                             c["detail"]] for c in health],
                           "Health checks of the particle filters in this configuration (gpfverify.health): a claim "
                           "comparing them is 'not decidable' when one fails"))
-    _add_interpretations(section, read_claims(results))
+    _add_interpretations(section, read_claims(results), results.get("interpretation_summaries") or {})
     _add_configurations(section, results)
     if collapsed(p.particles, ess):
         section.add(Paragraph(
@@ -132,7 +132,7 @@ def render(results: dict, out_dir: Path) -> Section:
     return section
 
 
-def _add_interpretations(section: Section, records: list[ClaimRecord]) -> None:
+def _add_interpretations(section: Section, records: list[ClaimRecord], stored: dict) -> None:
     """Per claim, the verdict (and statistic) under each interpretation tried, the robustness
     sentence, and the first configuration in which the particle filters passed their health checks."""
     tried = [r for r in records if r.interpretations]
@@ -167,10 +167,14 @@ def _add_interpretations(section: Section, records: list[ClaimRecord]) -> None:
         else:
             first = healthy[0]
             faithful = "; ".join(f"{r.id.rsplit('-', 1)[-1]}: {r.verdict}" for r in comparisons)
-            verdicts = "; ".join(
-                f"{r.id.rsplit('-', 1)[-1]}: " + (r.verdict if first == "as run" else
-                                                  next(i.verdict for i in r.interpretations if i.name == first))
-                for r in comparisons)
+            def there(r: ClaimRecord) -> str:
+                if first == "as run":
+                    return r.verdict
+                verdict = next(i.verdict for i in r.interpretations if i.name == first)
+                runs = stored.get(first, {}).get("claims", {}).get(r.id, {}).get("runs_to_decide")
+                return verdict + (f" (about {runs} runs would decide it)" if verdict == "undecided" and runs else "")
+
+            verdicts = "; ".join(f"{r.id.rsplit('-', 1)[-1]}: {there(r)}" for r in comparisons)
             section.add(Paragraph(
                 f"First configuration in which both particle filters pass their health checks: {first} "
                 f"(healthy: {', '.join(healthy)}). There the paper's reductions are {verdicts} — next to the "
@@ -200,6 +204,18 @@ def _add_configurations(section: Section, results: dict) -> None:
             rows.append([name, runs, m.key, ess[m.key], _health_words(health, m.key),
                          *(rms[m.key][q] for q in QUANTITIES),
                          *((_pct(reduction[q]) if m == GPSR_UPF else "") for q in QUANTITIES)])
+    confirm = results.get("confirmation")
+    if confirm:
+        claims = [confirm["claims"][f"{NAME}/reduction-{q}"] for q in QUANTITIES]
+        section.add(Paragraph(
+            f"Confirmation at more runs of {confirm['interpretation'] or 'one configuration'} "
+            f"(`{confirm['command']}`, {confirm['runs_ok']} runs; health: "
+            + ", ".join(f"{m.key} {_health_words(confirm['health'], m.key)} (mean N_eff/N "
+                        f"{fmt(confirm['mean_ess_fraction'][m.key], 3)})" for m in PARTICLE_FILTERS)
+            + "): " + "; ".join(
+                f"{q}: {c['verdict']}" + (f" (about {c['runs_to_decide']} runs would decide it)"
+                                          if c.get("runs_to_decide") else "") + f" — {c['evidence'].split('; over')[0]}"
+                for q, c in zip(QUANTITIES, claims)) + "."))
     section.add(Table(["configuration", "runs", "filter", "mean N_eff / N", "health",
                        *(f"RMS {q} ({UNITS[q]})" for q in QUANTITIES), *(f"reduction {q}" for q in QUANTITIES)],
                       rows, "Each configuration tried: the particle filters' weight health and RMS errors over runs "

@@ -1,6 +1,6 @@
 """Render the committed sins-gps reference page from a run with interpretations.
 
-    python reports/reference/sins-gps/make_page.py RUN_DIR "COMMAND"
+    python reports/reference/sins-gps/make_page.py RUN_DIR "COMMAND" [CONFIRM_DIR "CONFIRM_COMMAND"]
 
 RUN_DIR is the output folder of COMMAND (``gpfverify reproduce sins-gps ... --interpretations ...``).
 Its ``results.json`` (claims with the verdict under each interpretation, as the runner merged
@@ -9,6 +9,9 @@ them) is copied with its manifest to ``reports/reference/sins-gps/run/``, with o
 checks, mean N_eff/N and RMS errors, read from ``RUN_DIR/interpretations/<name>/results.json``
 (the per-configuration results are 1 MB each and are not committed). The page is then rendered from
 that file by :func:`gpfverify.report.sections.sins_gps.render`.
+
+CONFIRM_DIR (optional) is a separate run of one interpretation at more runs (its own main run, made
+by CONFIRM_COMMAND); its health and claims are added as ``"confirmation"``.
 """
 
 from __future__ import annotations
@@ -37,13 +40,29 @@ def summaries(run_dir: Path) -> dict:
         r = json.loads(path.read_text(encoding="utf-8"))
         out[spec.name] = {"changes": spec.changes, "runs_ok": r["runs_ok"], "health": r["health"],
                           "mean_ess_fraction": r["mean_ess_fraction"], "rms": r["rms"],
-                          "reduction": r["reduction"], "reference_rms": r["reference"]["rms"]}
+                          "reduction": r["reduction"], "reference_rms": r["reference"]["rms"],
+                          "claims": _claims(r)}
     return out
 
 
-def main(run_dir: Path, command: str) -> None:
+def _claims(results: dict) -> dict:
+    return {c["id"]: {k: c[k] for k in ("verdict", "statistic", "runs_to_decide", "evidence")}
+            for c in results["claims"]}
+
+
+def confirmation(run_dir: Path, command: str) -> dict:
+    r = json.loads((run_dir / "results.json").read_text(encoding="utf-8"))
+    name = next((spec.name for spec in INTERPRETATIONS
+                 if all(r["params"].get(k) == v for k, v in spec.changes.items())), "")
+    return {"interpretation": name, "command": command, "runs_ok": r["runs_ok"], "health": r["health"],
+            "mean_ess_fraction": r["mean_ess_fraction"], "rms": r["rms"], "claims": _claims(r)}
+
+
+def main(run_dir: Path, command: str, confirm: tuple[Path, str] | None = None) -> None:
     results = json.loads((run_dir / "results.json").read_text(encoding="utf-8"))
     results["interpretation_summaries"] = summaries(run_dir)
+    if confirm is not None:
+        results["confirmation"] = confirmation(*confirm)
     target = HERE / "run"
     target.mkdir(parents=True, exist_ok=True)
     (target / "results.json").write_text(json.dumps(results, allow_nan=False), encoding="utf-8")
@@ -56,4 +75,4 @@ def main(run_dir: Path, command: str) -> None:
 
 
 if __name__ == "__main__":
-    main(Path(sys.argv[1]), sys.argv[2])
+    main(Path(sys.argv[1]), sys.argv[2], (Path(sys.argv[3]), sys.argv[4]) if len(sys.argv) > 4 else None)
