@@ -138,7 +138,16 @@ def test_page_lists_each_configuration_with_its_health(tmp_path):
         "changes": {"particle_covariance": "reset", "q_inflation": 100.0}, "runs_ok": 2, "health": healthy,
         "mean_ess_fraction": {"UPF": 0.6, "GPSR-UPF": 0.5}, "rms": results["rms"], "reduction": results["reduction"],
         "reference_rms": results["reference"]["rms"]}}
+    claims = {c["id"]: {k: c[k] for k in ("verdict", "statistic", "runs_to_decide", "evidence")}
+              for c in results["claims"]}
+    results["confirmation"] = {"interpretation": "point-proposal-q-x1000", "command": "gpfverify reproduce X",
+                               "runs_ok": 10, "health": healthy, "mean_ess_fraction": {"UPF": 0.5, "GPSR-UPF": 0.5},
+                               "rms": results["rms"], "claims": claims}
     page = section.render(results, tmp_path)
+    from gpfverify.report.document import Paragraph
+    text = " ".join(b.text for b in page.blocks if isinstance(b, Paragraph))
+    assert "Confirmation at more runs of point-proposal-q-x1000 (`gpfverify reproduce X`, 10 runs" in text
+    assert f"position: {claims['sins-gps/reduction-position']['verdict']}" in text
     (table,) = [b for b in page.blocks if isinstance(b, Table) and b.caption.startswith("Each configuration")]
     assert [row[0] for row in table.rows] == ["as run", "as run", "point-proposal-q-x100", "point-proposal-q-x100"]
     assert table.rows[0][4].startswith("FAILED: weight collapse") and table.rows[2][4] == "passed"
