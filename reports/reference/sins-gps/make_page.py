@@ -26,7 +26,7 @@ sys.path.insert(0, str(HERE.parent))
 
 from reference_pages import write_page  # type: ignore[import-not-found]  # noqa: E402
 
-from gpfverify.contract.sins_gps import INTERPRETATIONS  # noqa: E402
+from gpfverify.contract.sins_gps import INTERPRETATIONS, Params  # noqa: E402
 from gpfverify.report.document import Paragraph  # noqa: E402
 from gpfverify.report.sections import sins_gps as section_module  # noqa: E402
 
@@ -52,8 +52,8 @@ def _claims(results: dict) -> dict:
 
 def confirmation(run_dir: Path, command: str) -> dict:
     r = json.loads((run_dir / "results.json").read_text(encoding="utf-8"))
-    name = next((spec.name for spec in INTERPRETATIONS
-                 if all(r["params"].get(k) == v for k, v in spec.changes.items())), "")
+    params = Params.from_json(r["params"])
+    name = next((spec.name for spec in INTERPRETATIONS if Params().replace(**spec.changes) == params), "")
     return {"interpretation": name, "command": command, "runs_ok": r["runs_ok"], "health": r["health"],
             "mean_ess_fraction": r["mean_ess_fraction"], "rms": r["rms"], "claims": _claims(r)}
 
@@ -68,9 +68,11 @@ def main(run_dir: Path, command: str, confirm: tuple[Path, str] | None = None) -
     (target / "results.json").write_text(json.dumps(results, allow_nan=False), encoding="utf-8")
     shutil.copy(run_dir / "manifest.json", target / "manifest.json")
     section = section_module.render(results, HERE)
-    section.add(Paragraph(f"Made by `{command}`, then `python reports/reference/sins-gps/make_page.py RUN_DIR "
-                          "\"COMMAND\"` (which adds the interpretations' health and errors to the committed "
-                          "results.json)."))
+    also = "" if confirm is None else f" and `{confirm[1]}`"
+    extra = "" if confirm is None else " CONFIRM_DIR \"CONFIRM_COMMAND\""
+    section.add(Paragraph(f"Made by `{command}`{also}, then `python reports/reference/sins-gps/make_page.py RUN_DIR "
+                          f"\"COMMAND\"{extra}` (which adds the interpretations' health and errors, and the "
+                          "confirmation run's, to the committed results.json)."))
     write_page(section, HERE)
 
 
