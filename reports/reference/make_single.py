@@ -19,10 +19,10 @@ from gpfverify.experiments import EXPERIMENTS
 from gpfverify.report.document import Paragraph
 
 HERE = Path(__file__).resolve().parent
-#: experiment -> report section module rendering it
+#: experiment -> report section module rendering it (sins-gps has its own script,
+#: reports/reference/sins-gps/make_page.py, which keeps the interpretations' verdicts and health)
 PAGES = {"gpadf-scalar": "gpfverify.report.sections.gpadf_scalar",
-         "tbd": "gpfverify.report.sections.tbd",
-         "sins-gps": "gpfverify.report.sections.sins_gps"}
+         "tbd": "gpfverify.report.sections.tbd"}
 
 
 def main(experiment: str, run_dir: Path, command: str) -> None:
