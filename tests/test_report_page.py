@@ -380,3 +380,22 @@ def test_the_report_package_imports_nothing_from_the_experiments():
             offenders += [f"{path.relative_to(ROOT)}:{node.lineno} imports {n}" for n in names
                           if n == "gpfverify.experiments" or n.startswith("gpfverify.experiments.")]
     assert not offenders, "\n".join(offenders)
+
+
+def test_summary_says_which_verdicts_survive_every_interpretation():
+    from gpfverify.contract import ClaimRecord, Interpretation
+    from gpfverify.report.inputs import SectionSummary
+    from gpfverify.report.render import summary_table
+
+    def claim(name: str, verdict: str, *others: str) -> ClaimRecord:
+        return ClaimRecord(name, "s", verdict, 1.0, 0.0, 10, "e", id=f"x/{name}", paper="seed000",
+                           interpretations=tuple(Interpretation(f"i{k}", {}, v, 1.0) for k, v in enumerate(others)))
+
+    claims = (claim("robust", "NOT held", "NOT held", "NOT held"), claim("fragile", "NOT held", "held"),
+              claim("untried", "held"))
+    table = summary_table([SectionSummary("x", "X", "quick", 1, ("seed000",), claims)])
+    column = table.headers.index("same verdict under every interpretation tried")
+    assert [row[column].value for row in table.rows] == ["1 of 2", "1 of 2"]
+    tips = [chip[1] for chip in table.rows[0][-1].chips]
+    assert "NOT held under all 3 interpretations tried" in tips[0]
+    assert "depends on the interpretation" in tips[1] and "interpretation" not in tips[2]

@@ -16,7 +16,8 @@ import os
 from collections.abc import Iterable
 from pathlib import Path
 
-from gpfverify.contract.claims import VERDICTS
+from gpfverify.contract.claims import VERDICTS, ClaimRecord
+from gpfverify.contract.interpretations import robustness
 from gpfverify.contract.papers import PAPERS
 from gpfverify.report.document import (CAUTION_MARK, VERDICT_CLASSES, Cell, Chips, Code, Details, Figure, Link,
                                        Paragraph, Section, Table, VerdictCell, anchor_id, claim_anchor, fmt,
@@ -297,6 +298,7 @@ def summary_table(summaries: Iterable[SectionSummary]) -> Table:
     kinds = [*VERDICTS, *STATUSES]
     rows: list[list] = []
     total, cautioned = verdict_counts(ordered), 0
+    robust_total = tried_total = 0
     for s in ordered:
         counts = s.counts
         chips: list[tuple[str, str, str, bool]] = []
@@ -304,21 +306,35 @@ def summary_table(summaries: Iterable[SectionSummary]) -> Table:
             tip = f"{c.claim}" + (f" ({c.setting})" if c.setting else "") + f": {c.verdict}"
             if c.cautions:
                 tip += f" — {CAUTION_MARK} " + "; ".join(c.cautions)
+            if c.interpretations:
+                tip += f" — {robustness(c)}"
             chips.append((c.verdict, tip, claim_anchor(c), bool(c.cautions)))
         chips += [(c.status, f"{c.claim}: {c.status}", certificate_anchor(c.claim), False) for c in s.certificates]
         cautioned += s.cautioned
+        tried = [c for c in s.claims if c.interpretations]
+        robust = sum(_robust(c) for c in tried)
+        robust_total += robust
+        tried_total += len(tried)
         papers = ", ".join(paper_name(k) for k in s.papers) or ("the toolkit's own algebra" if s.certificates else "—")
         shown, previous = ("" if papers == previous else papers), papers  # a paper once for its sections
         rows.append([Cell(shown, "paper", "; ".join(PAPERS[k].citation for k in s.papers if k in PAPERS)),
                      Link(s.title, s.slug),
                      *[_count_cell(counts[k], k) for k in kinds],
                      Cell(f"{CAUTION_MARK} {s.cautioned}" if s.cautioned else 0, "count" if s.cautioned else "zero"),
+                     Cell(f"{robust} of {len(tried)}" if tried else "—", "count" if tried else "zero"),
                      Chips(tuple(chips), f"{len(chips)} verdicts")])
     rows.append([Cell("all", "total"), Cell("every section", "total"),
                  *[_count_cell(total[k], k, "total") for k in kinds],
-                 Cell(f"{CAUTION_MARK} {cautioned}" if cautioned else 0, "count total"), ""])
-    return Table(["paper", "section", *kinds, f"{CAUTION_MARK} caution", "each verdict (hover, click)"],
+                 Cell(f"{CAUTION_MARK} {cautioned}" if cautioned else 0, "count total"),
+                 Cell(f"{robust_total} of {tried_total}" if tried_total else "—", "count total"), ""])
+    return Table(["paper", "section", *kinds, f"{CAUTION_MARK} caution",
+                  "same verdict under every interpretation tried", "each verdict (hover, click)"],
                  rows, "Verdicts per paper and section", css="summary")
+
+
+def _robust(claim: ClaimRecord) -> bool:
+    """The verdict is the same as run and under every interpretation tried."""
+    return all(i.verdict == claim.verdict for i in claim.interpretations)
 
 
 def _count_cell(n: int, kind: str, extra: str = "") -> Cell:
