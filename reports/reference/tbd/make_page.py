@@ -41,6 +41,13 @@ def main(run_dir: Path, command: str) -> None:
     for name in ("results.json", "manifest.json"):
         shutil.copy(run_dir / name, target / name)
     section = render(results, HERE)
+    counts = sorted({other["runs_ok"] for _, other in tried})
+    if counts and counts != [results["runs_ok"]]:
+        section.add(Paragraph(
+            f"Run counts differ: the main run has {results['runs_ok']} runs, the interpretations "
+            f"{', '.join(str(c) for c in counts)}; a verdict that differs between them (in the robustness column "
+            "above) may reflect the run count rather than the interpretation. The table below states, for each, "
+            "about how many runs would decide what stays undecided."))
     section.add(_runs_to_decide_table(results, tried))
     section.add(Paragraph(f"Made by `{command}`, then `python reports/reference/tbd/make_page.py RUN_DIR "
                           "\"COMMAND\"`."))
