@@ -7,8 +7,12 @@ templates with numbers pasted in.
 from __future__ import annotations
 
 import re
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
+
+from gpfverify.contract.claims import ClaimRecord
+from gpfverify.contract.interpretations import robustness
 
 
 @dataclass(frozen=True)
@@ -228,3 +232,25 @@ def unicode_math(text: str) -> str:
     text = re.sub(r"_\{([^{}]*)\}", lambda m: _script(m.group(1).replace(" ", ""), _SUB, "_"), text)
     text = re.sub(r"\^\{([^{}]*)\}", lambda m: _script(m.group(1).replace(" ", ""), _SUP, "^"), text)
     return re.sub(r"\^([0-9Ta-pr-z])(?![0-9A-Za-z])", lambda m: _SUP[m.group(1)], text)
+
+
+def interpretations_table(claims: Sequence[ClaimRecord], caption: str) -> Table | None:
+    """Per claim: the verdict as run and under each interpretation tried (with its statistic), the
+    robustness sentence and, for undecided verdicts, the runs that would decide; None when no claim
+    was run under an interpretation."""
+    tried = [c for c in claims if c.interpretations]
+    if not tried:
+        return None
+    names = list(dict.fromkeys(i.name for c in tried for i in c.interpretations))
+    rows = []
+    for c in tried:
+        by_name = {i.name: i for i in c.interpretations}
+        cells: list = [c.claim + (f" ({c.setting})" if c.setting else ""),
+                       VerdictCell(c.verdict, tuple(c.cautions))]
+        for name in names:
+            i = by_name.get(name)
+            shown = "—" if i is None else i.verdict + ("" if i.statistic is None else f" ({fmt(i.statistic, 3)})")
+            cells.append(shown if i is None else Cell(shown, "", str(i.params)))
+        cells += [robustness(c), c.runs_to_decide if c.runs_to_decide else ""]
+        rows.append(cells)
+    return Table(["claim", "as run", *names, "robustness", "runs that would decide (as run)"], rows, caption)

@@ -11,10 +11,11 @@ from gpfverify.contract.claims import read_claims
 from gpfverify.contract.ct2d import INTERPRETATIONS, NAME, Params, omega_label
 from gpfverify.contract.fusion import FUSION_METHODS, NEES_POLICY, PAPER
 from gpfverify.contract.papers import PAPERS
-from gpfverify.report.document import Figure, Paragraph, Section, claim_records_table, fmt
+from gpfverify.report.document import (Figure, Paragraph, Section, claim_records_table, fmt,
+                                       interpretations_table)
 from gpfverify.report.inputs import SectionInput
 from gpfverify.report.sections.fusion_paper import (audit_table, equivalence_table, failed_runs_note,
-                                                    health_paragraph, health_table, interpretations_table,
+                                                    health_paragraph, health_table,
                                                     method_table, plot_full_rank, plot_per_step,
                                                     rank_rule_paragraph)
 

@@ -10,11 +10,9 @@ from pathlib import Path
 
 import numpy as np
 
-from gpfverify.contract.claims import ClaimRecord
 from gpfverify.contract.fusion import FAMILIES, LOCAL_FILTERS, METHODS
-from gpfverify.contract.interpretations import robustness
 from gpfverify.contract.methods import Method
-from gpfverify.report.document import Cell, Paragraph, Table, VerdictCell, fmt
+from gpfverify.report.document import Cell, Paragraph, Table, fmt
 from gpfverify.report.figures import new_figure, save
 
 #: each family its own colour family and line style (GP-ADF: solid, blues and greens; GP-UKF:
@@ -77,27 +75,6 @@ def audit_table(results_by_label: dict, limit: int = 20) -> Table:
     return Table(["setting", "run", "step", "family", "ranks and singular values of Cₓᵧᵐ", "‖gap‖",
                   "‖predicted gap‖", "‖gap − predicted‖", "exact"], rows,
                  f"Rank-failure audit (the first {limit} steps per setting; totals in the table above)")
-
-
-def interpretations_table(claims: Sequence[ClaimRecord], caption: str) -> Table | None:
-    """Per claim: the verdict as run and under each interpretation tried (with its statistic), the
-    robustness sentence and, for undecided verdicts, the runs that would decide; None when no claim
-    was run under an interpretation."""
-    tried = [c for c in claims if c.interpretations]
-    if not tried:
-        return None
-    names = list(dict.fromkeys(i.name for c in tried for i in c.interpretations))
-    rows = []
-    for c in tried:
-        by_name = {i.name: i for i in c.interpretations}
-        cells: list = [c.claim + (f" ({c.setting})" if c.setting else ""),
-                       VerdictCell(c.verdict, tuple(c.cautions))]
-        for name in names:
-            i = by_name.get(name)
-            cells.append("—" if i is None else Cell(f"{i.verdict} ({fmt(i.statistic, 3)})", "", str(i.params)))
-        cells += [robustness(c), c.runs_to_decide if c.runs_to_decide else ""]
-        rows.append(cells)
-    return Table(["claim", "as run", *names, "robustness", "runs that would decide (as run)"], rows, caption)
 
 
 def health_table(results_by_label: dict) -> Table | None:

@@ -11,11 +11,12 @@ from gpfverify.contract.fusion import METHODS, NEES_POLICY, PAPER
 from gpfverify.contract.methods import Method
 from gpfverify.contract.papers import PAPERS
 from gpfverify.contract.ungm1d import FIGURE_NOISES, INTERPRETATIONS, NAME, Params, noise_key
-from gpfverify.report.document import Figure, Paragraph, Section, Table, claim_records_table, fmt
+from gpfverify.report.document import (Figure, Paragraph, Section, Table, claim_records_table, fmt,
+                                       interpretations_table)
 from gpfverify.report.figures import new_figure, save
 from gpfverify.report.inputs import SectionInput
 from gpfverify.report.sections.fusion_paper import (audit_table, equivalence_table, failed_runs_note,
-                                                    health_paragraph, health_table, interpretations_table,
+                                                    health_paragraph, health_table,
                                                     method_style, method_table, plot_per_step,
                                                     rank_rule_paragraph)
 

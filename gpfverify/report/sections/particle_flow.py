@@ -13,13 +13,14 @@ import numpy as np
 from gpfverify.contract import bearing as bearing_contract
 from gpfverify.contract import pff1d as pff_contract
 from gpfverify.contract.claims import ClaimRecord, read_claims
-from gpfverify.contract.interpretations import InterpretationSpec, robustness
+from gpfverify.contract.interpretations import InterpretationSpec
 from gpfverify.contract.methods import Method
 from gpfverify.contract.papers import PAPERS
 from gpfverify.contract.particle_flow import EDH, FLOWS, IE_PFF, PAPER, PF, UPF, Variant
 from gpfverify.contract.serial import from_json
 from gpfverify.health import HealthCheck
-from gpfverify.report.document import Figure, Paragraph, Section, Table, claim_records_table, fmt
+from gpfverify.report.document import (Figure, Paragraph, Section, Table, claim_records_table, fmt,
+                                       interpretations_table)
 from gpfverify.report.figures import new_figure, save
 from gpfverify.report.inputs import SectionInput
 
@@ -278,14 +279,9 @@ def _sensitivity(records: list[ClaimRecord]) -> list:
     if not tried:
         return [Paragraph("No interpretation was tried for these runs (gpfverify reproduce NAME "
                           "--interpretations all runs them).")]
-    rows = []
-    for r in tried:
-        under = "; ".join(f"{i.name}: {i.verdict}" + ("" if i.statistic is None else f" (t = {i.statistic:.3g})")
-                          for i in r.interpretations)
-        rows.append([r.claim + (f" ({r.setting})" if r.setting else ""), r.verdict, under, robustness(r)])
-    blocks: list = [Table(["claim (as run)", "verdict as run", "verdict under each interpretation", "robustness"],
-                          rows, "Sensitivity: every claim's verdict under each interpretation tried (same seed and "
-                                "run count; an interpretation that does not run a claim's setting has no entry)")]
+    blocks: list = [interpretations_table(tried, "Sensitivity: every claim's verdict (statistic) under each "
+                                                 "interpretation tried (same seed and run count; '—': the "
+                                                 "interpretation does not run that claim's setting)")]
     declared = _declared()
     names = list(dict.fromkeys((r.id.split("/")[0], i.name) for r in tried for i in r.interpretations))
     spec_rows = []

@@ -10,12 +10,12 @@ from pathlib import Path
 import numpy as np
 
 from gpfverify.contract.claims import ClaimRecord, read_claims
-from gpfverify.contract.interpretations import robustness
 from gpfverify.contract.papers import PAPERS
 from gpfverify.contract.sins_gps import (COLLAPSE_FACTOR, GP_SR_UKF, GPSR_UPF, INTERPRETATIONS, NAME, PAPER,
                                         PARTICLE_FILTERS, QUANTITIES, REFERENCES, SR_UKF, UNITS, UPF, Params,
                                         collapsed)
-from gpfverify.report.document import Figure, Paragraph, Section, Table, claim_records_table, fmt
+from gpfverify.report.document import (Figure, Paragraph, Section, Table, claim_records_table, fmt,
+                                       interpretations_table)
 from gpfverify.report.figures import new_figure, save
 from gpfverify.report.inputs import SectionInput
 
@@ -145,18 +145,8 @@ def _add_interpretations(section: Section, records: list[ClaimRecord], stored: d
         + "; ".join(f"{n} ({', '.join(f'{k} = {v}' for k, v in why[n].changes.items())}: {why[n].why})"
                     if n in why else n for n in names) + "."))
 
-    def cell(verdict: str, statistic) -> str:
-        return verdict + ("" if statistic is None else f" ({fmt(statistic, 3)})")
-
-    rows = []
-    for r in tried:
-        by_name = {i.name: i for i in r.interpretations}
-        rows.append([r.claim, cell(r.verdict, r.statistic),
-                     *(cell(by_name[n].verdict, by_name[n].statistic) if n in by_name else "—" for n in names),
-                     robustness(r)])
-    section.add(Table(["claim", "as run", *names, "robustness"], rows,
-                      "Verdict (statistic) of each claim under each interpretation; 'not decidable' = a particle "
-                      "filter failed its health checks there"))
+    section.add(interpretations_table(tried, "Verdict (statistic) of each claim under each interpretation; 'not "
+                                             "decidable' = a particle filter failed its health checks there"))
     comparisons = [r for r in tried if r.id.startswith(f"{NAME}/reduction-")]
     if comparisons:
         healthy = ["as run"] if comparisons[0].verdict != "not decidable" else []

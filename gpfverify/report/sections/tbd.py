@@ -10,12 +10,12 @@ from pathlib import Path
 import numpy as np
 
 from gpfverify.contract.claims import ClaimRecord, read_claims
-from gpfverify.contract.interpretations import robustness
 from gpfverify.contract.papers import PAPERS
 from gpfverify.contract.tbd import INTERPRETATIONS, NAME, PAPER, PAPER_RUNS, READINGS, Params, TbdMethod
 from gpfverify.health import MIN_ESS_FRACTION
 from gpfverify.tolerances import MONTE_CARLO_SIGMAS
-from gpfverify.report.document import Figure, Paragraph, Section, Table, claim_records_table, fmt
+from gpfverify.report.document import (Figure, Paragraph, Section, Table, claim_records_table, fmt,
+                                       interpretations_table)
 from gpfverify.report.figures import new_figure, save
 from gpfverify.report.inputs import SectionInput
 
@@ -173,19 +173,9 @@ def _sensitivity_blocks(claims: list[ClaimRecord]) -> list:
                                                                            if i.name == name).items()),
                             why.get(name, "")] for name in names],
                           "Interpretations tried (each a full run of the experiment with the same seed)")]
-    rows = []
-    for c in tried:
-        by_name = {i.name: i for i in c.interpretations}
-        cells = [f"{c.verdict} ({_stat(c.statistic)})"]
-        cells += [f"{by_name[n].verdict} ({_stat(by_name[n].statistic)})" if n in by_name else "—" for n in names]
-        rows.append([c.claim, *cells, robustness(c), c.runs_to_decide if c.runs_to_decide else ""])
-    blocks.append(Table(["claim", "as run", *names, "robustness", "runs that would decide (as run)"], rows,
-                        "Verdicts (statistic) under each interpretation tried, as the claims table states them"))
+    blocks.append(interpretations_table(tried, "Verdicts (statistic) under each interpretation tried, as the "
+                                               "claims table states them"))
     return blocks
-
-
-def _stat(value: float | None) -> str:
-    return "—" if value is None else fmt(value, 3)
 
 
 def _reduced_note(results: dict, p: Params) -> str:
