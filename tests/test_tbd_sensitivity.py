@@ -16,7 +16,7 @@ from gpfverify.contract.tbd import (INTERPRETATIONS, SNR_CONVENTIONS, MethodRun,
                                    TbdMethod, main_methods, sweep_methods)
 from gpfverify.experiments import tbd
 from gpfverify.experiments.runner import run_experiment
-from gpfverify.filters.tbd import TbdModel, filter_sequence, tpf_tbd_step
+from gpfverify.filters.tbd import TbdModel, filter_sequence, pf_tbd_step, tpf_tbd_step
 from gpfverify.filters.tbd.pf import initial_belief
 from gpfverify.health import MIN_ESS_FRACTION
 from gpfverify.scenarios.tbd import energy_factor, noise_std_for_snr, simulate
@@ -94,18 +94,24 @@ def test_the_particle_interpretation_doubles_every_count():
     assert tbd._config(p, main_methods(p)[0]).n_particles == 4000
 
 
-def test_the_experiment_filters_as_filter_sequence_does_and_records_n_eff():
-    """The default numbers do not move: the experiment's loop (which also records N_eff/N) gives
-    filter_sequence's existence and estimates exactly."""
+def test_filter_sequence_records_n_eff_of_every_frame():
+    """N_eff/N per frame, 1 / Σ w² / N of the weighted set, recomputed from the step functions."""
     p = Params(particles=60)
     model = tbd.model_of(p, 6.0)
     seq = simulate(model, tbd.scenario_of(p), np.random.default_rng(3), True)
     for method in (TbdMethod("PFTBD", 60), TbdMethod("TPFTBD", 60)):
         config = tbd._config(p, method)
-        ref = filter_sequence(seq.images, model, config, np.random.default_rng(1), np.random.default_rng(2))
-        got, ess = tbd.track(seq.images, model, config, np.random.default_rng(1), np.random.default_rng(2))
-        assert np.array_equal(ref.existence, got.existence) and np.array_equal(ref.estimates, got.estimates)
-        assert ess.shape == (p.frames,) and np.all((ess > 0) & (ess <= 1))
+        got = filter_sequence(seq.images, model, config, np.random.default_rng(1), np.random.default_rng(2))
+        rng, second = np.random.default_rng(1), np.random.default_rng(2)
+        belief, expected = initial_belief(model, config, rng), []
+        for k, image in enumerate(seq.images):
+            step = (tpf_tbd_step(belief, model, image, k=k + 1, rng=rng, config=config, second_rng=second)
+                    if config.two_stage else pf_tbd_step(belief, model, image, k=k + 1, rng=rng, config=config))
+            w = np.exp(step.weighted.log_weights - np.max(step.weighted.log_weights))
+            expected.append(1.0 / np.sum((w / w.sum()) ** 2) / w.size)
+            belief = step.posterior
+        np.testing.assert_allclose(got.ess_fraction, expected, rtol=1e-12)
+        assert got.ess_fraction.shape == (p.frames,)
 
 
 # ---- health -------------------------------------------------------------------------------------

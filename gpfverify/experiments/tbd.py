@@ -32,14 +32,13 @@ from gpfverify.contract.papers import PAPERS
 from gpfverify.contract.serial import to_json
 from gpfverify.contract.tbd import (INTERPRETATIONS, NAME, PAPER, PAPER_RUNS, PROFILES, MethodRun, Params, RunRecord,
                                    SnrRun, TbdMethod, main_methods, sweep_methods)
-from gpfverify.filters.resampling import ParticleStep
-from gpfverify.filters.tbd import TbdConfig, TbdModel, TbdTrack, initial_belief, pf_tbd_step, tpf_tbd_step
+from gpfverify.filters.tbd import TbdConfig, TbdModel, filter_sequence
 from gpfverify.health import HealthCheck, decide, divergence_check, ess_check
 from gpfverify.scenarios.tbd import TbdScenario, scenario_model, simulate
 from gpfverify.tolerances import MONTE_CARLO_SIGMAS
 
 __all__ = ["DEFAULT_RUNS", "INTERPRETATIONS", "NAME", "PAPER", "PROFILES", "Params", "RunRecord", "gain_interval",
-           "health_checks", "pd_at_pfa", "per_run_pd", "roc_curve", "run_one", "snr_gain", "summarize", "track"]
+           "health_checks", "pd_at_pfa", "per_run_pd", "roc_curve", "run_one", "snr_gain", "summarize"]
 
 DEFAULT_RUNS = PAPER_RUNS
 ROC_POINTS = 201
@@ -80,28 +79,6 @@ def model_of(params: Params, snr_db: float) -> TbdModel:
     return scenario_model(snr_db, scenario_of(params), params.snr_convention, base)
 
 
-def track(images: np.ndarray, model: TbdModel, config: TbdConfig, rng: np.random.Generator,
-          second_rng: np.random.Generator) -> tuple[TbdTrack, np.ndarray]:
-    """:func:`gpfverify.filters.tbd.filter_sequence` through the same public step functions, in
-    the same order of random draws (the same numbers), also returning N_eff/N of the merged
-    weighted set in every frame (K,)."""
-    belief = initial_belief(model, config, rng)
-    existence = np.empty(images.shape[0])
-    estimates = np.empty((images.shape[0], belief.particles.shape[1]))
-    ess = np.empty(images.shape[0])
-    for k, image in enumerate(images):
-        step: ParticleStep
-        if config.two_stage:
-            step = tpf_tbd_step(belief, model, image, k=k + 1, rng=rng, config=config, second_rng=second_rng)
-        else:
-            step = pf_tbd_step(belief, model, image, k=k + 1, rng=rng, config=config)
-        belief = step.posterior
-        existence[k] = belief.existence
-        estimates[k] = step.mean
-        ess[k] = step.ess / step.weighted.size
-    return TbdTrack(existence, estimates), ess
-
-
 def run_one(params: Params, seed: np.random.SeedSequence) -> RunRecord:
     main, sweep = main_methods(params), sweep_methods(params)
     scenario = scenario_of(params)
@@ -123,13 +100,13 @@ def run_one(params: Params, seed: np.random.SeedSequence) -> RunRecord:
                     pf_rng = _stream(seed, s_index, 1, c_index, config.n_particles, 0)
                     second_rng = _stream(seed, s_index, 1, c_index, config.n_particles, 1)
                     start = time.process_time()
-                    result, ess_fraction = track(seq.images, model, config, pf_rng, second_rng)
+                    result = filter_sequence(seq.images, model, config, pf_rng, second_rng)
                     seconds.setdefault(config, []).append(time.process_time() - start)
                     existence[case] = tuple(result.existence.tolist())
                     if case == "present":
                         err = result.estimates[seq.present][:, [0, 2]] - seq.truth[seq.present][:, [0, 2]]
                         sq_error = tuple(np.sum(err**2, axis=1).tolist())
-                        ess = tuple(ess_fraction.tolist())
+                        ess = tuple(result.ess_fraction.tolist())
                 done[config] = MethodRun(existence["present"], existence["absent"], sq_error, ess)
             out[method.key] = done[config]
         cases.append(SnrRun(snr, out))

@@ -16,10 +16,12 @@ from gpfverify.rng import generator
 
 @dataclass(frozen=True)
 class TbdTrack:
-    """Per frame: existence probability P_k (K,) and estimate ŝ_k (K, 5) (conditional on existence)."""
+    """Per frame: existence probability P_k (K,), estimate ŝ_k (K, 5) (conditional on existence)
+    and the effective sample size of the weighted set as a fraction of its size, N_eff/N (K,)."""
 
     existence: np.ndarray
     estimates: np.ndarray
+    ess_fraction: np.ndarray
 
 
 def filter_sequence(images, model: TbdModel, config: TbdConfig, rng, second_rng=None) -> TbdTrack:
@@ -43,6 +45,7 @@ def filter_sequence(images, model: TbdModel, config: TbdConfig, rng, second_rng=
     belief = initial_belief(model, config, rng)
     existence = np.empty(images.shape[0])
     estimates = np.empty((images.shape[0], STATE_DIM))
+    ess_fraction = np.empty(images.shape[0])
     for k, image in enumerate(images):
         step: ParticleStep
         if config.two_stage:
@@ -52,4 +55,5 @@ def filter_sequence(images, model: TbdModel, config: TbdConfig, rng, second_rng=
         belief = step.posterior
         existence[k] = belief.existence
         estimates[k] = step.mean
-    return TbdTrack(existence, estimates)
+        ess_fraction[k] = step.ess / step.weighted.size
+    return TbdTrack(existence, estimates, ess_fraction)
