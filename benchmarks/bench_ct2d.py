@@ -30,10 +30,12 @@ import numpy as np
 
 from _timing import markdown_table, median_cpu_seconds
 from bench_gp import reference_moments
+from gpfverify.contract.fusion import FusionRun
+from gpfverify.contract.methods import Method
 from gpfverify.experiments import ct2d
 from gpfverify.experiments.fusion_run import train_models
 from gpfverify.gp import GaussianProcess
-from gpfverify.scenarios.fusion_models import ct_scenario, simulate_data
+from gpfverify.scenarios.fusion_models import simulate_data
 
 FILTERING = ("Sensor1", "Sensor2")
 FUSION = ("CMF", "DMF", "CW", "RCC-CI")
@@ -45,12 +47,13 @@ def timed(fn):
     return out, time.perf_counter() - wall, time.process_time() - cpu
 
 
-def breakdown(record: dict) -> dict[str, float]:
+def breakdown(record: FusionRun) -> dict[str, float]:
     """Seconds per component of one run record."""
-    out = {"training": record["training_seconds"], "filtering": 0.0, "fusion": 0.0, "GP-ADF methods": 0.0}
-    for family, rec in record["families"].items():
-        for method, per_step in rec["seconds"].items():
-            rule = method.rsplit("-GP-", 1)[0]
+    out = {"training": record.training_seconds, "filtering": 0.0, "fusion": 0.0, "GP-ADF methods": 0.0}
+    for family, rec in record.families.items():
+        for key, per_step in rec.seconds.items():
+            method = Method.parse(key)
+            rule = f"Sensor{method.sensor}" if method.is_sensor else method.rule
             spent = float(np.sum(per_step))
             out["filtering" if rule in FILTERING else "fusion"] += spent
             if family == "GP-ADF" and rule in ("Sensor1", "Sensor2", "CMF", "DMF"):
@@ -63,7 +66,7 @@ def main() -> None:
     parser.add_argument("--runs", type=int, default=3, help="runs of ours timed (median)")
     parser.add_argument("--out", type=Path)
     args = parser.parse_args()
-    params = ct2d.default_params(kappa=300)
+    params = ct2d.Params(kappa=300)
     seeds = np.random.SeedSequence(1).spawn(args.runs)
     runs = [timed(lambda s=s: ct2d.run_one(params, s)) for s in seeds]
     parts = [breakdown(r) for r, _, _ in runs]
@@ -73,7 +76,7 @@ def main() -> None:
     rest = wall - part["training"] - part["filtering"] - part["fusion"]
 
     rng = np.random.default_rng(0)
-    data = simulate_data(ct_scenario(params["omega"], 300), rng)
+    data = simulate_data(ct2d.scenario(params), rng)
     _, ours_train, ours_train_cpu = timed(lambda: train_models(data, 1, 100, np.random.default_rng(1)))
 
     def reference_training():
