@@ -40,9 +40,11 @@ COMMANDS = {
     "ct2d-k300-w0.5": "gpfverify reproduce ct2d --kappa 300 --omega 0.5 --runs 1000 --seed 1 --out OUT/ct2d-k300-w0.5 "
                       "(stopped for time after RUNS runs, then summarised with --runs RUNS --resume)",
     "ct2d-k30-w0.0698": "gpfverify reproduce ct2d --kappa 30 --omega 0.0698 --runs 20 --seed 1 --interpretations all "
-                        "--out OUT/ct2d-k30-w0.0698",
+                        "--out OUT/ct2d-k30-w0.0698, then the main run extended with --runs RUNS --resume "
+                        "(the interpretations keep 20 runs)",
     "ct2d-k60-w0.0698": "gpfverify reproduce ct2d --kappa 60 --omega 0.0698 --runs 20 --seed 1 --interpretations "
-                        "canonical-rank --out OUT/ct2d-k60-w0.0698",
+                        "canonical-rank --out OUT/ct2d-k60-w0.0698, then the main run extended with --runs RUNS "
+                        "--resume (the interpretation keeps 20 runs)",
     "ungm1d-sweep": "gpfverify reproduce ungm1d --runs 10 --seed 1 --interpretations canonical-rank "
                     "--out OUT/ungm1d-sweep",
 }
