@@ -399,3 +399,16 @@ def test_summary_says_which_verdicts_survive_every_interpretation():
     tips = [chip[1] for chip in table.rows[0][-1].chips]
     assert "NOT held under all 3 interpretations tried" in tips[0]
     assert "depends on the interpretation" in tips[1] and "interpretation" not in tips[2]
+
+
+def test_a_one_experiment_section_without_its_run_says_so(tmp_path):
+    from gpfverify.contract import SectionRuns
+    from gpfverify.report.document import Paragraph
+    from gpfverify.report.inputs import SectionInput
+    from gpfverify.report.sections import gpadf_scalar, tbd
+
+    empty = SectionInput("tbd", tmp_path, SectionRuns("tbd", "quick", 1, ()), ())
+    for module, name in ((tbd, "tbd"), (gpadf_scalar, "gpadf-scalar")):
+        page = module.render_section(empty)
+        assert [b.text for b in page.blocks if isinstance(b, Paragraph)] == [
+            f"No {name} run was found in this report folder."]

@@ -6,15 +6,18 @@ from __future__ import annotations
 
 import json
 from collections import Counter
-from collections.abc import Iterable
+from collections.abc import Callable, Iterable
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from gpfverify.contract.claims import VERDICTS, ClaimRecord, read_claims
 from gpfverify.contract.experiment import RunEntry, SectionRuns
 from gpfverify.contract.serial import from_json, to_json
 from gpfverify.errors import InputError
+
+if TYPE_CHECKING:
+    from gpfverify.report.document import Section
 
 RUNS_FILE = "runs.json"
 
@@ -33,6 +36,17 @@ class SectionInput:
     def of(self, experiment: str) -> list[tuple[RunEntry, dict]]:
         """(entry, results) of one experiment, in run order."""
         return [(e, r) for e, r in zip(self.runs.entries, self.results) if e.experiment == experiment]
+
+    def render_single(self, experiment: str, title: str,
+                      render: Callable[[dict, Path], Section]) -> Section:
+        """The page of a one-experiment section: ``render(results, folder)`` of its first run, or
+        a page saying that the report folder holds no run of ``experiment``."""
+        from gpfverify.report.document import Paragraph, Section
+
+        runs = self.of(experiment)
+        if not runs:
+            return Section(self.slug, title, [Paragraph(f"No {experiment} run was found in this report folder.")])
+        return render(runs[0][1], self.folder)
 
     def by_setting(self, experiment: str) -> dict[str, dict]:
         """``{setting label: results}`` of one experiment, in run order."""

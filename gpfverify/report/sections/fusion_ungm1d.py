@@ -26,10 +26,7 @@ TITLE = "Fusion paper: 1-D two-sensor example (Figs. 2–4)"
 
 def render_section(data: SectionInput) -> Section:
     """The page from the section's ``ungm1d`` run (the first one, if several)."""
-    runs = data.of(NAME)
-    if not runs:
-        return Section(SLUG, TITLE, [Paragraph("No ungm1d run was found in this report folder.")])
-    return render(runs[0][1], data.folder)
+    return data.render_single(NAME, TITLE, render)
 
 
 def by_noise(results: dict) -> dict[str, dict]:

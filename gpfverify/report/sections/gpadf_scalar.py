@@ -23,11 +23,7 @@ FIGURE_YLIM = 30.0
 
 def render_section(data: SectionInput) -> Section:
     """The page from the section's ``gpadf-scalar`` run (the first one, if several)."""
-    runs = data.of(NAME)
-    if not runs:
-        return Section(SLUG, "GP-ADF scalar benchmark (Deisenroth et al. 2009)", [
-            Paragraph("No gpadf-scalar run was found in this report folder.")])
-    return render(runs[0][1], data.folder)
+    return data.render_single(NAME, "GP-ADF scalar benchmark (Deisenroth et al. 2009)", render)
 
 
 def _pm(value: float, se: float) -> str:

@@ -23,10 +23,7 @@ TITLE = "GP moment matching at uncertain inputs"
 
 def render_section(data: SectionInput) -> Section:
     """The page from the section's ``moments`` run (the first one, if several)."""
-    runs = data.of(NAME)
-    if not runs:
-        return Section(SLUG, TITLE, [Paragraph("No moments run was found in this report folder.")])
-    return render(runs[0][1], data.folder)
+    return data.render_single(NAME, TITLE, render)
 
 
 def render(results: dict, out_dir: Path) -> Section:

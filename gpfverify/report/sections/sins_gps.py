@@ -24,11 +24,7 @@ AXES = ("E", "N", "U")
 
 
 def render_section(data: SectionInput) -> Section:
-    entries = data.of(NAME)
-    if not entries:
-        return Section(SLUG, _title()).add(Paragraph("No sins-gps run was recorded for this section."))
-    _, results = entries[0]
-    return render(results, data.folder)
+    return data.render_single(NAME, _title(), render)
 
 
 def _title() -> str:

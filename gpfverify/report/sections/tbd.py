@@ -26,11 +26,7 @@ REDUCIBLE = {"particles": "PF-TBD particles", "tpf_particles": "TPFTBD particles
 
 
 def render_section(data: SectionInput) -> Section:
-    entries = data.of(NAME)
-    if not entries:
-        return Section(SLUG, _title()).add(Paragraph("No tbd run was recorded for this section."))
-    _, results = entries[0]
-    return render(results, data.folder)
+    return data.render_single(NAME, _title(), render)
 
 
 def _title() -> str:
