@@ -33,6 +33,9 @@ from gpfverify.errors import InputError
 
 #: median N_eff / N at or below which a particle filter counts as collapsed
 MIN_ESS_FRACTION = 0.05
+#: ... or, with so few particles that 1/N exceeds that fraction, this many particles' worth
+#: (capped at half the set), so that a total collapse is flagged at any N
+MIN_EFFECTIVE_PARTICLES = 2.0
 
 
 @dataclass(frozen=True)
@@ -50,7 +53,8 @@ class HealthCheck:
 
 def ess_check(subject: str, ess_fraction, n_particles: int, *,
               min_fraction: float = MIN_ESS_FRACTION) -> HealthCheck:
-    """Weight collapse from N_eff/N per step (any shape: runs × steps or steps), N particles."""
+    """Weight collapse from N_eff/N per step (any shape: runs × steps or steps), N particles: the
+    median at or below max(``min_fraction``, :data:`MIN_EFFECTIVE_PARTICLES` / N) (at most ½)."""
     fractions = np.asarray(ess_fraction, dtype=float)
     if fractions.size == 0 or not np.all(np.isfinite(fractions)):
         raise InputError(f"{subject}: N_eff/N must be a non-empty array of finite numbers")
@@ -58,14 +62,15 @@ def ess_check(subject: str, ess_fraction, n_particles: int, *,
         raise InputError(f"{subject}: N_eff/N must lie in (0, 1]")
     if not 0 < min_fraction < 1:
         raise InputError(f"min_fraction must lie in (0, 1), got {min_fraction}")
+    threshold = min(max(min_fraction, MIN_EFFECTIVE_PARTICLES / n_particles), 0.5)
     median = float(np.median(fractions))
-    passed = median > min_fraction
+    passed = median > threshold
     total = median <= 1.5 / n_particles
     detail = (f"median N_eff/N {median:.3g} over {fractions.size} step(s) at N = {n_particles}"
               + (" — collapsed to about one particle" if total and not passed else
                  " — collapsed" if not passed else "")
-              + f" (healthy above {min_fraction:g})")
-    return HealthCheck("weight collapse", subject, passed, median, min_fraction, detail)
+              + f" (healthy above {threshold:.3g})")
+    return HealthCheck("weight collapse", subject, passed, median, threshold, detail)
 
 
 def divergence_check(subject: str, errors, *, bound: float, max_fraction: float = 0.0) -> HealthCheck:

@@ -31,6 +31,10 @@ def test_a_bootstrap_filter_with_a_far_too_narrow_likelihood_is_flagged_as_colla
     assert healthy.passed and healthy.statistic > MIN_ESS_FRACTION
     total = ess_check("one particle", np.full(30, 1 / n), n)
     assert not total.passed and "about one particle" in total.detail
+    # with so few particles that 1/N exceeds MIN_ESS_FRACTION, total collapse is still flagged
+    few = ess_check("ten particles", np.full(30, 1 / 10), 10)
+    assert not few.passed and few.threshold == pytest.approx(0.2)
+    assert ess_check("ten particles", np.full(30, 0.6), 10).passed
 
 
 def test_divergence_counts_runs_with_non_finite_or_huge_errors():

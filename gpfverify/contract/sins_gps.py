@@ -14,6 +14,7 @@ from gpfverify.contract.methods import Method
 from gpfverify.contract.params import Params as BaseParams
 from gpfverify.contract.params import flag_name, option
 from gpfverify.errors import InputError
+from gpfverify.health import MIN_EFFECTIVE_PARTICLES
 
 NAME = "sins-gps"
 PAPER = "seed001"
@@ -34,8 +35,9 @@ UNITS: dict[str, str] = {"attitude": "arcmin", "velocity": "m/s", "position": "m
 #: the paper's headline reductions 1 − RMS(GPSR-UPF)/RMS(UPF) (§3, after Table 1: position and
 #: velocity "about 33 %", attitude "about 40 %")
 CLAIMED_REDUCTION: dict[str, float] = {"position": 0.33, "velocity": 0.33, "attitude": 0.40}
-#: a particle filter has collapsed when its mean N_eff/N is below this many times 1/N
-COLLAPSE_FACTOR = 2.0
+#: a particle filter has collapsed when its mean N_eff/N is below this many times 1/N (the health
+#: check's floor)
+COLLAPSE_FACTOR = MIN_EFFECTIVE_PARTICLES
 #: a run of a filter diverged when its position error norm exceeds this many GPS position standard
 #: deviations at some step (the divergence health check)
 DIVERGENCE_GPS_SDS = 10.0

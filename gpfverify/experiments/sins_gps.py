@@ -48,7 +48,7 @@ import numpy as np
 
 from gpfverify.contract.claims import ClaimRecord, PairedDifference, Verdict, verdict_of
 from gpfverify.contract.papers import PAPERS
-from gpfverify.contract.sins_gps import (CLAIMED_REDUCTION, COLLAPSE_FACTOR, DEFAULT_RUNS, DIVERGENCE_GPS_SDS,
+from gpfverify.contract.sins_gps import (CLAIMED_REDUCTION, DEFAULT_RUNS, DIVERGENCE_GPS_SDS,
                                         GP_SR_UKF, GPSR_UPF, INTERPRETATIONS, NAME, PAPER, PARTICLE_FILTERS, PROFILES,
                                         QUANTITIES, REFERENCES, RESET_FACTOR_SCALE, ROUGHENING_CONSTANT, SR_UKF, UNITS,
                                         UPF, FilterRun, Params, ParticleFilterRun, RunRecord)
@@ -57,7 +57,7 @@ from gpfverify.filters.gpsr_upf import GPResidualModel, gpsr_upf_step, sr_ukf_pr
 from gpfverify.filters.resampling import Particles, ParticleStep
 from gpfverify.filters.upf import upf_step
 from gpfverify.gp.residual import fit_residual
-from gpfverify.health import MIN_ESS_FRACTION, HealthCheck, decide, divergence_check, ess_check
+from gpfverify.health import HealthCheck, decide, divergence_check, ess_check
 from gpfverify.rng import generator
 from gpfverify.scenarios.sins_gps import (ATTITUDE, POSITION, STATE_DIM, VELOCITY, SinsGpsConfig, build_models,
                                           generate_flight, training_set)
@@ -286,13 +286,6 @@ def divergence_bounds(params: Params) -> dict[str, float]:
             "attitude": DIVERGENCE_GPS_SDS * attitude}
 
 
-def collapse_threshold(particles: int) -> float:
-    """Median N_eff/N at or below which a filter counts as collapsed: the library's
-    MIN_ESS_FRACTION, or COLLAPSE_FACTOR particles' worth when N is so small that 1/N exceeds it
-    (capped at ½)."""
-    return min(max(MIN_ESS_FRACTION, COLLAPSE_FACTOR / particles), 0.5)
-
-
 def health_checks(params: Params, records: list[RunRecord]) -> list[HealthCheck]:
     """Weight collapse (N_eff/N per step over all runs; the per-run means for records that lack the
     per-step values) and divergence (an error norm above :func:`divergence_bounds` at some step, per
@@ -303,8 +296,7 @@ def health_checks(params: Params, records: list[RunRecord]) -> list[HealthCheck]
         runs = [r.particle_filters[method] for r in records]
         fractions = [f for run in runs for f in (run.ess_fraction or (run.ess_mean,))]
         # N_eff ≥ 1 exactly; the clip keeps a rounding of 1/N − ε inside ess_check's (0, 1]
-        out.append(ess_check(method, np.clip(fractions, 1e-12, 1.0), params.particles,
-                             min_fraction=collapse_threshold(params.particles)))
+        out.append(ess_check(method, np.clip(fractions, 1e-12, 1.0), params.particles))
         for q in QUANTITIES:
             errors = np.array([getattr(run, q) for run in runs], dtype=float)
             out.append(divergence_check(f"{method} {q}", errors, bound=bounds[q]))
