@@ -96,9 +96,23 @@ def nees_check(subject: str, truth, means, covs, *, circular_state: Sequence[int
     """NEES consistency over Monte Carlo runs (truth, means (R, T, D), covs (R, T, D, D))."""
     from gpfverify.consistency import Consistency
 
-    test = Consistency.from_estimates(truth, means, covs, circular_state=circular_state).average_over_runs(level)
+    nees = Consistency.from_estimates(truth, means, covs, circular_state=circular_state)
+    return nees_values_check(subject, nees.values, nees.dim, level)
+
+
+def nees_values_check(subject: str, nees, dim: int, level: float = 0.95) -> HealthCheck:
+    """NEES consistency from normalised errors already computed (R, T) — e.g. the squared
+    Mahalanobis distances a run records — in state dimension ``dim``: the ANEES per step against
+    its two-sided χ² interval; a run with a non-finite NEES fails it."""
+    from gpfverify.consistency import Consistency
+
+    values = np.asarray(nees, dtype=float)
+    if not np.all(np.isfinite(values)):
+        bad = int(np.sum(~np.all(np.isfinite(values), axis=1)))
+        return HealthCheck("NEES", subject, False, float("inf"), float(dim), f"NEES not finite in {bad} run(s)")
+    test = Consistency("NEES", values, dim).average_over_runs(level)
     verdict = test.verdict()
-    return HealthCheck("NEES", subject, verdict == "consistent", float(np.mean(test.values)), float(test.dim),
+    return HealthCheck("NEES", subject, verdict == "consistent", float(np.mean(test.values)), float(dim),
                        f"{verdict}: {test.summary()}")
 
 

@@ -15,7 +15,8 @@ from gpfverify.contract import ungm1d as ungm1d_contract
 from gpfverify.contract.methods import Method
 from gpfverify.errors import InputError
 from gpfverify.experiments import ct2d, ungm1d
-from gpfverify.experiments.fusion_run import health_checks, nees_health
+from gpfverify.experiments.fusion_run import health_checks
+from gpfverify.health import nees_values_check
 from gpfverify.tolerances import CANONICAL_RANK_TOL, numpy_rank_tol
 
 TINY = {"kappa": 12, "test_steps": 3, "fit_points": 12}
@@ -103,10 +104,10 @@ def test_sensor_positions_move_the_sensors(positions):
 def test_nees_health_passes_a_calibrated_filter_and_flags_an_overconfident_one():
     rng = np.random.default_rng(0)
     nees = rng.chisquare(2, size=(400, 20))
-    assert nees_health("calibrated", nees, 2, 0.95).passed
-    flagged = nees_health("over-confident", 10 * nees, 2, 0.95)
+    assert nees_values_check("calibrated", nees, 2, 0.95).passed
+    flagged = nees_values_check("over-confident", 10 * nees, 2, 0.95)
     assert not flagged.passed and flagged.detail.startswith("optimistic") and flagged.statistic > 10
-    assert not nees_health("broken", np.full((3, 2), np.inf), 2, 0.95).passed
+    assert not nees_values_check("broken", np.full((3, 2), np.inf), 2, 0.95).passed
 
 
 def _doctored(record, family, method, **fields):

@@ -56,7 +56,7 @@ from gpfverify.fusion.distributed import dmf_update
 from gpfverify.fusion.exactness import parse_rank_rule
 from gpfverify.fusion.model_fusion import cmf_step, dmf_step
 from gpfverify.fusion.rcc_ci import rcc_ci
-from gpfverify.health import HealthCheck, decide, divergence_check
+from gpfverify.health import HealthCheck, decide, divergence_check, nees_values_check
 from gpfverify.linalg import solve_spd
 from gpfverify.models import GPModel, fit_gp_model
 from gpfverify.scenarios.fusion_models import FusionData
@@ -373,21 +373,6 @@ def summarize_setting(results: Sequence[FusionRun], rank_rule: str = "numpy") ->
 
 # -- health ----------------------------------------------------------------------------------------
 
-def nees_health(subject: str, nees: np.ndarray, dim: int, level: float) -> HealthCheck:
-    """The NEES check of :func:`gpfverify.health.nees_check` from recorded NEES values (R, T) —
-    the squared Mahalanobis distances a run records — instead of truth, means and covariances."""
-    from gpfverify.consistency import Consistency
-
-    values = np.asarray(nees, dtype=float)
-    if not np.all(np.isfinite(values)):
-        bad = int(np.sum(~np.all(np.isfinite(values), axis=1)))
-        return HealthCheck("NEES", subject, False, float("inf"), float(dim), f"NEES not finite in {bad} run(s)")
-    test = Consistency("NEES", values, dim).average_over_runs(level)
-    verdict = test.verdict()
-    return HealthCheck("NEES", subject, verdict == "consistent", float(np.mean(test.values)), float(dim),
-                       f"{verdict}: {test.summary()}")
-
-
 def health_checks(results: Sequence[FusionRun], dim: int, divergence_bound: float,
                   level: float) -> list[HealthCheck]:
     """Per method: divergence (‖x − x̂‖ above ``divergence_bound`` or not finite in some run) and
@@ -396,7 +381,7 @@ def health_checks(results: Sequence[FusionRun], dim: int, divergence_bound: floa
     out = []
     for m in METHOD_KEYS:
         out.append(divergence_check(m, np.sqrt(sq_err[m]), bound=divergence_bound))
-        out.append(nees_health(m, maha[m], dim, level))
+        out.append(nees_values_check(m, maha[m], dim, level))
     return out
 
 
