@@ -1,7 +1,9 @@
 """RCC-CI: primal against the explicitly solved dual, the bound against optimal CI, the centre in
 the intersection, closed-form cases (symmetric configurations, the smallest intersecting size),
-equivariance, the empty-intersection error/fallback, and bitwise independence of earlier solves."""
+equivariance, the empty-intersection error/fallback, the SCS fallback, and bitwise independence of
+earlier solves (the direct Clarabel route against cvxpy's is tested in test_fusion_conic.py)."""
 
+import cvxpy as cp
 import numpy as np
 import pytest
 from hypothesis import given, settings
@@ -9,6 +11,7 @@ from hypothesis import strategies as st
 
 from gpfverify.errors import InputError, SolverError
 from gpfverify.filters.records import Gaussian
+from gpfverify.fusion import conic
 from gpfverify.fusion import rcc_ci as rcc
 from gpfverify.fusion.ci import covariance_intersection, criterion_value
 from gpfverify.fusion.synthetic import random_spd
@@ -99,13 +102,27 @@ def test_empty_intersection_is_a_clear_error_or_a_documented_enlargement():
     np.testing.assert_allclose(res.mean, [5.0, 0.0], atol=ARGMAX_TOL * 10)
 
 
-def test_problem_is_built_once_and_re_solved():
+def test_problem_is_compiled_once_and_re_solved():
     rcc.rcc_ci(_estimates(0, 2, 5))
-    before = rcc._primal_problem.cache_info()
+    before = rcc._clarabel_program.cache_info()
     for seed in range(3):
         rcc.rcc_ci(_estimates(seed, 2, 5))
-    after = rcc._primal_problem.cache_info()
+    after = rcc._clarabel_program.cache_info()
     assert after.hits == before.hits + 3 and after.misses == before.misses
+
+
+def _fail(*args):
+    raise SolverError("the solver failed (status solver_error)")
+
+
+def test_a_clarabel_failure_falls_back_to_scs_and_a_double_failure_is_reported(monkeypatch):
+    ests = _estimates(2, 3, 2)
+    scs = _bits(rcc.rcc_ci(ests, solver=cp.SCS))
+    monkeypatch.setattr(conic.ClarabelProgram, "solve", _fail)
+    assert _bits(rcc.rcc_ci(ests)) == scs
+    monkeypatch.setattr(rcc, "solve_with_cvxpy", _fail)
+    with pytest.raises(SolverError, match=r"RCC-CI primal failed: .*solver_error"):
+        rcc.rcc_ci(ests)
 
 
 def test_bad_arguments():
@@ -131,6 +148,7 @@ def test_a_solve_is_bitwise_independent_of_earlier_solves(target, earlier):
     ests = list(target.estimates)
     n, d = len(ests), ests[0].mean.shape[0]
     rcc._primal_problem.cache_clear()
+    rcc._clarabel_program.cache_clear()  # the first solve is the first of a newly compiled program
     first = _bits(rcc.rcc_ci(ests, on_empty="enlarge"))
     for seed in earlier:  # other problems of the same size, through the same cached problem
         rcc.rcc_ci(_estimates(seed, n, d), on_empty="enlarge")

@@ -26,8 +26,11 @@ uses c = :data:`EMPTY_GROWTH` · c_min and records it.
 Numerics. The RCC is equivariant under translations and isotropic scalings, so the problem is
 solved in coordinates ξ = (x − x̄)/s with x̄ the mean of the x_m and s² = c · max_m λ_max(P_m): every
 ellipsoid then has semi-axes ≤ 1. The problems are DPP (parameters A_m, b_m, d_m), built once per
-(N, D, solver) and re-solved with new values; Clarabel by default, SCS when Clarabel raises.
-Every solve is a function of its inputs alone (no warm start from the previous solve), so a Monte
+(N, D, solver) and re-solved with new values; Clarabel by default, SCS when Clarabel fails. For
+Clarabel the problem is compiled once into its conic data as an affine map of the parameters and
+each solve calls Clarabel directly (:mod:`gpfverify.fusion.conic`: the same data and results as
+cvxpy's route, bit for bit, without its per-solve overhead). Every solve is a function of its
+inputs alone (a new solver object each time, no warm start from the previous solve), so a Monte
 Carlo run gives the same bits whichever runs its process solved before (CONTRACT.md, Provenance).
 """
 
@@ -42,6 +45,7 @@ import numpy as np
 from scipy.stats import chi2
 
 from gpfverify.errors import InputError, SolverError
+from gpfverify.fusion.conic import ClarabelProgram, ConicSolution, Parametrised, solve_with_cvxpy
 from gpfverify.fusion.estimates import (FusedEstimate, checked_estimates, information_form,
                                         weighted_information_fusion)
 from gpfverify.validate import as_positive
@@ -53,8 +57,9 @@ EMPTY_GROWTH = 2.0
 SOLVED = ("optimal", "optimal_inaccurate")
 
 
+@lru_cache(maxsize=64)
 def default_size(dim: int) -> float:
-    """χ²_D quantile at :data:`DEFAULT_CONFIDENCE`."""
+    """χ²_D quantile at :data:`DEFAULT_CONFIDENCE` (cached: scipy's ppf costs as much as a solve)."""
     return float(chi2.ppf(DEFAULT_CONFIDENCE, dim))
 
 
@@ -104,9 +109,11 @@ def _normalise(estimates, info, c: float) -> _Normalised:
 
 
 @lru_cache(maxsize=32)
-def _primal_problem(n: int, dim: int, solver: str = cp.CLARABEL):
+def _primal_problem(n: int, dim: int, solver: str = cp.CLARABEL) -> Parametrised:
     """The DPP primal for N ellipsoids in D dimensions, built once per (N, D, solver): a problem is
-    only ever solved by one solver, so switching solvers never recompiles a shared object."""
+    only ever solved (or compiled, for Clarabel) by one solver, so switching solvers never
+    recompiles a shared object. Parameters A_1..A_N, b_1..b_N, d_1..d_N; returns x and the duals of
+    the N ellipsoid constraints."""
     A = [cp.Parameter((dim, dim)) for _ in range(n)]  # symmetric by construction; unchecked is cheaper
     b = [cp.Parameter(dim) for _ in range(n)]
     d = [cp.Parameter() for _ in range(n)]
@@ -114,12 +121,14 @@ def _primal_problem(n: int, dim: int, solver: str = cp.CLARABEL):
     delta, x = z[:dim, :dim], z[:dim, dim]
     ellipsoids = [cp.trace(A[m] @ delta) + 2 * b[m] @ x + d[m] <= 0 for m in range(n)]
     problem = cp.Problem(cp.Maximize(cp.trace(delta) - cp.sum_squares(x)), [z[dim, dim] == 1] + ellipsoids)
-    return problem, (A, b, d), x, ellipsoids
+    return Parametrised(problem, (*A, *b, *d), (x,), tuple(ellipsoids))
 
 
 @lru_cache(maxsize=32)
-def _dual_problem(n: int, dim: int, solver: str = cp.CLARABEL):
-    A = [cp.Parameter((dim, dim), symmetric=True) for _ in range(n)]
+def _dual_problem(n: int, dim: int, solver: str = cp.CLARABEL) -> Parametrised:
+    """The DPP dual, as :func:`_primal_problem`; parameters A_1..A_N, b_1..b_N, d; returns α."""
+    # symmetric by construction; symmetric=True would make cvxpy rewrite them, which compiling refuses
+    A = [cp.Parameter((dim, dim)) for _ in range(n)]
     b = [cp.Parameter(dim) for _ in range(n)]
     d = cp.Parameter(n)
     alpha = cp.Variable(n, nonneg=True)
@@ -128,35 +137,36 @@ def _dual_problem(n: int, dim: int, solver: str = cp.CLARABEL):
     b_alpha = cp.reshape(sum(alpha[m] * b[m] for m in range(n)), (dim, 1), order="F")
     schur = cp.bmat([[a_alpha, b_alpha], [b_alpha.T, cp.reshape(t, (1, 1), order="F")]])
     problem = cp.Problem(cp.Minimize(t - d @ alpha), [schur >> 0, a_alpha >> np.eye(dim)])
-    return problem, (A, b, d), alpha
+    return Parametrised(problem, (*A, *b, d), (alpha,), ())
 
 
-def _solve(problem, solver: str, what: str) -> str:
-    """One solve that depends on this problem's parameter values alone: ``warm_start=False`` makes
-    cvxpy build a new solver object instead of updating the one cached by the previous solve (an
-    updated Clarabel solver gives results differing in the last bits from a fresh one, so a run's
-    numbers depended on what the process had solved before)."""
-    try:
-        problem.solve(solver=solver, warm_start=False)
-    except cp.SolverError as exc:
-        raise SolverError(f"{what} failed: {exc}") from None
-    return problem.status
+@lru_cache(maxsize=32)
+def _clarabel_program(build, n: int, dim: int) -> ClarabelProgram:
+    """``build(n, dim)`` compiled once for direct Clarabel solves (:mod:`gpfverify.fusion.conic`)."""
+    return ClarabelProgram.compile(build(n, dim, cp.CLARABEL))
 
 
-def _solve_parametrised(build, size: tuple[int, int], set_values, solver: str, what: str):
-    """Solve the cached parametrised problem ``build(*size, solver)``; if the solver raises, the
-    same with SCS. Each attempt is a function of the parameter values alone (no warm start, one
-    solver per cached problem), so the path taken and the numbers returned do not depend on
-    earlier solves in this process. Returns (status, problem, variables) of the solve used."""
-    attempts = [solver] + ([cp.SCS] if solver != cp.SCS else [])
-    for k, use in enumerate(attempts):
-        problem, params, *variables = build(*size, use)
-        set_values(params)
+def _solve_once(build, size: tuple[int, int], values: list, solver: str) -> ConicSolution:
+    """One solve that depends on the parameter values alone: Clarabel through the compiled program
+    (a new solver object each time), any other solver through cvxpy with ``warm_start=False`` (a new
+    solver object instead of one updated from the previous solve; an updated Clarabel solver gave
+    results differing in the last bits from a fresh one, so a run's numbers depended on what the
+    process had solved before)."""
+    if solver == cp.CLARABEL:
+        return _clarabel_program(build, *size).solve(values)
+    return solve_with_cvxpy(build(*size, solver), values, solver)
+
+
+def _solve_parametrised(build, size: tuple[int, int], values: list, solver: str, what: str) -> ConicSolution:
+    """Solve the parametrised problem ``build(*size, solver)`` with parameter ``values``; if the
+    solver fails, the same with SCS. Each attempt is a function of the values alone, so the path
+    taken and the numbers returned do not depend on earlier solves in this process."""
+    for use in [solver] + ([cp.SCS] if solver != cp.SCS else []):
         try:
-            return _solve(problem, use, what), problem, variables
-        except SolverError:
-            if k == len(attempts) - 1:
-                raise
+            return _solve_once(build, size, values, use)
+        except SolverError as exc:
+            failure = exc
+    raise SolverError(f"{what} failed: {failure}")
 
 
 #: relative slack allowed when checking that an inaccurate solution lies in every ellipsoid
@@ -187,12 +197,13 @@ def smallest_intersecting_size(estimates: Sequence) -> float:
         cov, mean = e.cov / scale**2, (e.mean - centre) / scale
         whiten = np.linalg.solve(np.linalg.cholesky(cov), np.eye(e.mean.shape[0]))  # L⁻¹, P⁻¹ = L⁻ᵀL⁻¹
         cons.append(cp.sum_squares(whiten @ (x - mean)) <= t)
-    status = _solve(cp.Problem(cp.Minimize(t), cons), cp.CLARABEL, "smallest intersecting size")
-    if status not in SOLVED:
-        raise SolverError(f"smallest intersecting size: solver status {status}")
-    if t.value is None:
-        raise SolverError("smallest intersecting size: the solver returned no value")
-    return float(t.value)
+    try:
+        solution = solve_with_cvxpy(Parametrised(cp.Problem(cp.Minimize(t), cons), (), (t,), ()), (), cp.CLARABEL)
+    except SolverError as exc:
+        raise SolverError(f"smallest intersecting size failed: {exc}") from None
+    if solution.status not in SOLVED:
+        raise SolverError(f"smallest intersecting size: solver status {solution.status}")
+    return float(solution.values[0])
 
 
 def rcc_ci(estimates: Sequence, c: float | None = None, on_empty: str = "error",
@@ -208,15 +219,10 @@ def rcc_ci(estimates: Sequence, c: float | None = None, on_empty: str = "error",
     enlarged = False
     while True:
         norm = _normalise(checked, info, c)
-
-        def set_values(params, norm=norm):
-            A, b, d = params
-            for m in range(len(checked)):
-                A[m].value, b[m].value, d[m].value = norm.A[m], norm.b[m], float(norm.d[m])
-
-        status, problem, (x, ellipsoids) = _solve_parametrised(
-            _primal_problem, (len(checked), dim), set_values, solver, "RCC-CI primal")
-        if status == "optimal_inaccurate" and not _in_every_ellipsoid(norm, x.value):
+        solution = _solve_parametrised(_primal_problem, (len(checked), dim), [*norm.A, *norm.b, *norm.d],
+                                       solver, "RCC-CI primal")
+        status = solution.status
+        if status == "optimal_inaccurate" and not _in_every_ellipsoid(norm, solution.values[0]):
             status = "infeasible_inaccurate"  # a badly scaled empty intersection, not a centre
         if status in SOLVED:
             break
@@ -227,14 +233,14 @@ def rcc_ci(estimates: Sequence, c: float | None = None, on_empty: str = "error",
             raise SolverError(f"RCC-CI: the local ellipsoids do not intersect at size c = {c:.6g}; "
                               f"they do for c >= {c_min:.6g}")
         c, enlarged = EMPTY_GROWTH * c_min, True
-    alpha = np.clip(np.array([con.dual_value for con in ellipsoids], dtype=float), 0.0, None)
+    alpha = np.clip(np.array(solution.duals, dtype=float), 0.0, None)
     if not alpha.sum() > 0:
         raise SolverError("RCC-CI: the dual multipliers are all zero")
     weights = alpha / alpha.sum()
     fused = weighted_information_fusion(info, weights)
     return RccCiResult(mean=fused.mean, cov=fused.cov, weights=weights, alpha=alpha, c=c,
-                       primal_mean=norm.centre + norm.scale * x.value,
-                       primal_value=float(problem.value) * norm.scale**2, enlarged=enlarged)
+                       primal_mean=norm.centre + norm.scale * solution.values[0],
+                       primal_value=solution.value * norm.scale**2, enlarged=enlarged)
 
 
 @dataclass(frozen=True)
@@ -254,16 +260,10 @@ def rcc_ci_dual(estimates: Sequence, c: float | None = None, solver: str = cp.CL
     c = default_size(dim) if c is None else float(as_positive(c, "c", shape=()))
     info = information_form(checked)
     norm = _normalise(checked, info, c)
-    def set_values(params):
-        A, b, d = params
-        for m in range(len(checked)):
-            A[m].value, b[m].value = norm.A[m], norm.b[m]
-        d.value = norm.d
-
-    status, problem, (alpha,) = _solve_parametrised(_dual_problem, (len(checked), dim), set_values,
-                                                    solver, "RCC-CI dual")
-    if status not in SOLVED:
-        raise SolverError(f"RCC-CI dual ended with status {status}")
-    a = np.clip(alpha.value, 0.0, None)
+    solution = _solve_parametrised(_dual_problem, (len(checked), dim), [*norm.A, *norm.b, norm.d],
+                                   solver, "RCC-CI dual")
+    if solution.status not in SOLVED:
+        raise SolverError(f"RCC-CI dual ended with status {solution.status}")
+    a = np.clip(solution.values[0], 0.0, None)
     fused = weighted_information_fusion(info, a / a.sum())
-    return RccCiDual(a, float(problem.value) * norm.scale**2, fused.mean)
+    return RccCiDual(a, solution.value * norm.scale**2, fused.mean)
