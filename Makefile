@@ -13,9 +13,9 @@ $(BIN)/python:
 
 # Stamps re-run the install whenever pyproject.toml changes.
 $(VENV)/.runtime-installed: pyproject.toml | $(BIN)/python
-	@echo "installing gpfverify and its dependencies (numpy, scipy, sympy, casadi, cvxpy, matplotlib) into $(VENV):"
-	@echo "about a minute on a fresh machine; pip lists each package as it goes..."
-	$(BIN)/python -m pip install --progress-bar off -e .
+	@echo "installing gpfverify and its dependencies (numpy, scipy, sympy, casadi, cvxpy, matplotlib, and numba"
+	@echo "for the compiled moment kernel) into $(VENV): about a minute on a fresh machine; pip lists each package..."
+	$(BIN)/python -m pip install --progress-bar off -e '.[fast]'
 	@echo "installed."
 	touch $@
 

@@ -13,3 +13,22 @@ default_single_blas_thread()  # before numpy loads its BLAS (see gpfverify.runti
 from gpfverify.strategies.profiles import load_profile  # noqa: E402
 
 load_profile()
+
+
+import pytest  # noqa: E402
+
+from gpfverify.gp import fused  # noqa: E402
+
+#: the moment-matching paths a test can ask for: the fused kernel (when numba is installed) and
+#: the numpy reference
+MOMENT_PATHS = ("fused", "numpy") if fused.numba is not None else ("numpy",)
+
+
+@pytest.fixture(scope="module", params=MOMENT_PATHS)
+def moment_path(request):
+    """Run a module's tests once per moment-matching path (module scope, so that hypothesis tests
+    may use it): ``pytestmark = pytest.mark.usefixtures("moment_path")``."""
+    saved = fused.enabled
+    fused.enabled = request.param == "fused"
+    yield request.param
+    fused.enabled = saved

@@ -22,7 +22,7 @@ from pathlib import Path
 
 #: the libraries whose versions can change a result
 KEY_PACKAGES = ("numpy", "scipy", "cvxpy", "clarabel", "scs", "sympy", "casadi", "matplotlib",
-                "hypothesis")
+                "hypothesis", "numba")
 #: program name recorded as the first element of ``command``
 PROGRAM = "gpfverify"
 

@@ -14,6 +14,7 @@ import json
 from pathlib import Path
 
 import numpy as np
+import pytest
 from hypothesis import example, given, settings
 from hypothesis import strategies as st
 
@@ -23,6 +24,9 @@ from gpfverify.strategies import gaussian_inputs, gaussian_processes
 from gpfverify.strategies.matrices import float_arrays
 from gpfverify.strategies.profiles import scaled_examples
 from gpfverify.tolerances import QUADRATURE_RTOL, algebra_rtol
+
+#: every test here runs on the fused kernel (numba) and on the numpy reference path
+pytestmark = pytest.mark.usefixtures("moment_path")
 
 REGRESSIONS = Path(__file__).parent / "regressions"
 

@@ -20,6 +20,7 @@ Oracles, independent of :mod:`gpfverify.gp.moments` (no shared code beyond β an
 """
 
 import numpy as np
+import pytest
 from hypothesis import event, given, settings
 from hypothesis import strategies as st
 
@@ -27,6 +28,9 @@ from gpfverify.gp.moments import moment_match_stack
 from gpfverify.strategies import gp_stacks
 from gpfverify.strategies.profiles import scaled_examples
 from gpfverify.tolerances import algebra_rtol
+
+#: every test here runs on the fused kernel (numba) and on the numpy reference path
+pytestmark = pytest.mark.usefixtures("moment_path")
 
 #: smallest normal double: below it (subnormals) relative precision is lost, errors are absolute
 TINY = float(np.finfo(float).tiny)

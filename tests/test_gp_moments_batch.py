@@ -11,6 +11,9 @@ from gpfverify.errors import InputError
 from gpfverify.gp import GaussianProcess, GaussianProcessStack
 from gpfverify.tolerances import algebra_rtol
 
+#: every test here runs on the fused kernel (numba) and on the numpy reference path
+pytestmark = pytest.mark.usefixtures("moment_path")
+
 
 def _gp(seed, d, e, n=40, x=None):
     rng = np.random.default_rng(seed)

@@ -36,6 +36,7 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.linalg as sla
 
+from gpfverify.gp.fused import EXPM1_SAFE, centred_sums
 from gpfverify.linalg import symmetrize
 
 
@@ -47,10 +48,6 @@ class MomentMatch:
     mean: np.ndarray
     cov: np.ndarray
     cross_cov: np.ndarray
-
-
-#: Largest exponent d_ij for which expm1(d) is formed directly (exp(709.8) overflows).
-_EXPM1_SAFE = 700.0
 
 
 def _shifted(scaled: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -94,20 +91,10 @@ def _first_moments(gp, mu: np.ndarray, sigma: np.ndarray) -> _FirstMoments:
     return _FirstMoments(mean, sigma @ solved.T, log_q, t, b_logdet)
 
 
-@dataclass(frozen=True)
-class _Centred:
-    """Q − q_a q_bᵀ = diag(left) ratio diag(right), (B, P, n_a, n_b) with (B, P, n) scalings.
-    ``ratio`` may be the per-thread workspace: consumed before the next second-moment call."""
-
-    ratio: np.ndarray
-    left: np.ndarray
-    right: np.ndarray
-
-
 class _Workspace(threading.local):
-    """Per-thread scratch array for the (B, P, n_a, n_b) exponent matrices, reused across calls:
-    a fresh array of that size (7 MB at n = 300, E = 4) costs page faults on every call, about
-    half the time of its exponentials."""
+    """Per-thread scratch array for the (B, P, n_a, n_b) exponent matrices of the numpy path,
+    reused across calls: a fresh array of that size (7 MB at n = 300, E = 4) costs page faults on
+    every call, about half the time of its exponentials."""
 
     buffer: np.ndarray = np.empty(0)
 
@@ -136,16 +123,18 @@ def _batch_part(first: _FirstMoments, part: slice) -> _FirstMoments:
 
 
 def _centred_second_moments(gp_a, gp_b, ia: np.ndarray, ib: np.ndarray, first_a: _FirstMoments,
-                            first_b: _FirstMoments, mu: np.ndarray, sigma: np.ndarray
-                            ) -> tuple[np.ndarray, _Centred]:
+                            first_b: _FirstMoments, mu: np.ndarray, sigma: np.ndarray, diagonal: np.ndarray
+                            ) -> tuple[np.ndarray, np.ndarray]:
     """Cov[m_a, m_b] = β_aᵀ (Q^{ab} − q_a q_bᵀ) β_b (B, P) for the output pairs (ia[p] of gp_a,
     ib[p] of gp_b) at a batch of inputs N(mu[b], sigma[b]) (mu (B, D), sigma (B, D, D), first
-    moments with a leading batch axis), and the centred matrices Q − q_a q_bᵀ (B, P, n_a, n_b)
-    for the trace terms (eq. 10–11).
+    moments with a leading batch axis), and the trace terms tr(K_a⁻¹(Q^{aa} − q_a q_aᵀ)) (B, P) of
+    the pairs p with ``diagonal[p]`` = a ≥ 0 (the pair (a, a) of one GP; zero elsewhere) (eq. 10–11).
 
     Q_ij = q_ai q_bj exp(d_ij) with the small exponent
     d_ij = −½t_ai − ½t_bj + ½ z_ijᵀR⁻¹Σz_ij − ½log|R| + ½log|B_a + I| + ½log|B_b + I|,
-    so Q − q_a q_bᵀ = q_ai q_bj expm1(d_ij) without cancellation."""
+    so Q − q_a q_bᵀ = q_ai q_bj expm1(d_ij) without cancellation. The n_a × n_b sums go through
+    the fused kernel (:mod:`gpfverify.gp.fused`) when it is enabled, else through numpy (the
+    reference: the same sums to rounding)."""
     nu_a, nu_b = gp_a.X - mu[:, None, :], gp_b.X - mu[:, None, :]  # (B, n, D)
     inv_l2_a = 1.0 / gp_a.lengthscales[ia] ** 2  # (P, D)
     inv_l2_b = 1.0 / gp_b.lengthscales[ib] ** 2
@@ -159,44 +148,62 @@ def _centred_second_moments(gp_a, gp_b, ia: np.ndarray, ib: np.ndarray, first_a:
     const = 0.5 * (first_a.b_logdet[:, ia] + first_b.b_logdet[:, ib] - r_logdet)  # (B, P)
     row = -0.5 * first_a.t[:, ia] + 0.5 * np.sum(za_a * za, axis=-1) + const[..., None]
     col = -0.5 * first_b.t[:, ib] + 0.5 * np.einsum("bpnd,bpdk,bpnk->bpn", zb, a_mat, zb)
+    q_a, q_b = np.exp(first_a.log_q[:, ia]), np.exp(first_b.log_q[:, ib])  # (B, P, n)
+    u, v = gp_a.beta[ia] * q_a, gp_b.beta[ib] * q_b
+    fused = centred_sums(za_a, row, np.swapaxes(zb, -1, -2), col, u, v, q_a, gp_a.K_inv, diagonal)
+    if fused is not None:
+        return fused
     # d_ij by one matmul of augmented factors [z_a A, row, 1] · [z_b, 1, col]ᵀ (one pass over n²)
     left = np.concatenate([za_a, row[..., None], np.ones_like(row)[..., None]], axis=-1)
     right = np.concatenate([zb, np.ones_like(col)[..., None], col[..., None]], axis=-1)
     exponent = np.matmul(left, np.swapaxes(right, -1, -2),
                          out=_WORKSPACE.take(left.shape[:-1] + right.shape[-2:-1]))
-    q_a, q_b = np.exp(first_a.log_q[:, ia]), np.exp(first_b.log_q[:, ib])  # (B, P, n)
-    if exponent.max() <= _EXPM1_SAFE:
+    if exponent.max() <= EXPM1_SAFE:
         # Q − q_a q_bᵀ = diag(q_a) E diag(q_b), E = expm1(d): q folded into the weights
-        ratio = np.expm1(exponent, out=exponent)
-        weighted_b = ((gp_b.beta[ib] * q_b)[..., None, :] @ np.swapaxes(ratio, -1, -2))[..., 0, :]
-        return np.sum(gp_a.beta[ia] * q_a * weighted_b, axis=-1), _Centred(ratio, q_a, q_b)
-    # exp(d) would overflow where q_a q_b underflows (input far wider than the lengthscales):
-    # form the entries explicitly, in log space where needed
-    log_base = first_a.log_q[:, ia][..., :, None] + first_b.log_q[:, ib][..., None, :]
-    centred = np.where(exponent > _EXPM1_SAFE, np.exp(np.minimum(log_base + exponent, _EXPM1_SAFE)),
-                       np.exp(log_base) * np.expm1(np.minimum(exponent, _EXPM1_SAFE)))
-    weighted_b = (gp_b.beta[ib][:, None, :] @ np.swapaxes(centred, -1, -2))[..., 0, :]
-    return np.sum(gp_a.beta[ia] * weighted_b, axis=-1), _Centred(centred, np.ones_like(q_a), np.ones_like(q_b))
+        centred = np.expm1(exponent, out=exponent)
+        left_scale, right_scale = q_a, q_b
+    else:
+        centred = _log_space_centred(first_a.log_q[:, ia], first_b.log_q[:, ib], exponent)
+        left_scale, right_scale = np.ones_like(q_a), np.ones_like(q_b)
+    weighted_b = ((gp_b.beta[ib] * right_scale)[..., None, :] @ np.swapaxes(centred, -1, -2))[..., 0, :]
+    cov = np.sum(gp_a.beta[ia] * left_scale * weighted_b, axis=-1)
+    return cov, _traces(gp_a.K_inv, centred, left_scale, right_scale, diagonal)
 
 
-def _model_uncertainty(gp, log_q: np.ndarray, centred: _Centred, pairs: np.ndarray) -> np.ndarray:
-    """E_x[σ_a²(x)] = α_a² − tr(K_a⁻¹Q^{aa}) = (α_a² − ‖L_a⁻¹q_a‖²) − tr(K_a⁻¹(Q^{aa} − q_a q_aᵀ))
-    for every output a at a batch of inputs: (B, E). ``log_q`` is (B, E, n); ``pairs[a]`` is the
-    index of the pair (a, a) in ``centred``. Both matrices are symmetric, so the trace is
-    Σ_ij (K_a⁻¹)_ij q_i E_ij q_j: one elementwise product (into a scratch array) and one
+def _log_space_centred(log_q_a: np.ndarray, log_q_b: np.ndarray, exponent: np.ndarray) -> np.ndarray:
+    """Q − q_a q_bᵀ entry by entry (B, P, n_a, n_b) where exp(d) would overflow and q_a q_b
+    underflows (an input far wider than the lengthscales): q_ai q_bj exp(d_ij) in log space above
+    :data:`EXPM1_SAFE`, q_ai q_bj expm1(d_ij) below."""
+    log_base = log_q_a[..., :, None] + log_q_b[..., None, :]
+    return np.where(exponent > EXPM1_SAFE, np.exp(np.minimum(log_base + exponent, EXPM1_SAFE)),
+                    np.exp(log_base) * np.expm1(np.minimum(exponent, EXPM1_SAFE)))
+
+
+def _traces(k_inv: np.ndarray, centred: np.ndarray, left: np.ndarray, right: np.ndarray,
+            diagonal: np.ndarray) -> np.ndarray:
+    """tr(K_a⁻¹ diag(left) C diag(right)) (B, P) for the pairs p with diagonal[p] = a ≥ 0, zero
+    elsewhere; C = ``centred`` (B, P, n, n). K_a⁻¹ and C are symmetric there, so the trace is
+    Σ_ij (K_a⁻¹)_ij left_i C_ij right_j: one elementwise product (into a scratch array) and one
     matrix–vector product."""
-    batch, e, n = log_q.shape
+    batch, pairs, n, _ = centred.shape
+    trace = np.zeros((batch, pairs))
+    scratch = np.empty((n, n))
+    for p in np.flatnonzero(diagonal >= 0):
+        for b in range(batch):
+            np.multiply(k_inv[diagonal[p]], centred[b, p], out=scratch)
+            trace[b, p] = left[b, p] @ (scratch @ right[b, p])
+    return trace
+
+
+def _model_uncertainty(gp, log_q: np.ndarray, traces: np.ndarray) -> np.ndarray:
+    """E_x[σ_a²(x)] = α_a² − tr(K_a⁻¹Q^{aa}) = (α_a² − ‖L_a⁻¹q_a‖²) − tr(K_a⁻¹(Q^{aa} − q_a q_aᵀ))
+    for every output a at a batch of inputs: (B, E), from ``log_q`` (B, E, n) and the traces
+    (B, E) of :func:`_centred_second_moments`."""
     q = np.exp(log_q)
     # L_a⁻¹ q_a for the whole batch in one triangular solve per output
     whitened_sq = np.stack([np.sum(sla.solve_triangular(factor, q[:, a].T, lower=True, check_finite=False) ** 2,
                                    axis=0) for a, factor in enumerate(gp.cholesky_factors)], axis=1)  # (B, E)
-    trace = np.empty((batch, e))
-    scratch = np.empty((n, n))
-    for b in range(batch):
-        for a, p in enumerate(pairs):
-            np.multiply(gp.K_inv[a], centred.ratio[b, p], out=scratch)
-            trace[b, a] = centred.left[b, p] @ (scratch @ centred.right[b, p])
-    return gp.signal_var - whitened_sq - trace
+    return gp.signal_var - whitened_sq - traces
 
 
 def _chunks(batch: int, entries_per_input: int) -> list[slice]:
@@ -224,15 +231,17 @@ def moment_match_stack_batch(gps, mu: np.ndarray, sigma: np.ndarray) -> MomentMa
                 ia, ib = np.triu_indices(gp_a.output_dim)
             else:
                 ia, ib = (idx.ravel() for idx in np.indices((gp_a.output_dim, gp_b.output_dim)))
+            # the output a of each pair (a, a) of one GP, whose covariance adds E_x[σ_a²(x)]; −1 elsewhere
+            diagonal = np.where(ia == ib, ia, -1) if g == h else np.full(ia.size, -1)
             blocks = np.empty((ia.size, batch))  # Cov[f_a, f_b] per output pair and input
             for part in _chunks(batch, ia.size * gp_a.X.shape[0] * gp_b.X.shape[0]):
                 first_a, first_b = _batch_part(firsts[g], part), _batch_part(firsts[h], part)
-                pair_cov, centred = _centred_second_moments(gp_a, gp_b, ia, ib, first_a, first_b, mu[part],
-                                                            sigma[part])
+                pair_cov, traces = _centred_second_moments(gp_a, gp_b, ia, ib, first_a, first_b, mu[part],
+                                                           sigma[part], diagonal)
                 block = pair_cov.T  # (P, B)
                 if g == h:
-                    diag = ia == ib
-                    block[diag] += _model_uncertainty(gp_a, first_a.log_q, centred, np.flatnonzero(diag)).T
+                    on_diagonal = diagonal >= 0
+                    block[on_diagonal] += _model_uncertainty(gp_a, first_a.log_q, traces[:, on_diagonal]).T
                 blocks[:, part] = block
             rows, cols = offsets[g] + ia, offsets[h] + ib
             cov[:, rows, cols] = blocks.T

@@ -1,0 +1,97 @@
+"""The fused moment kernel (gpfverify.gp.fused) against independent routes: its expm1 against
+mpmath at 40 digits and, bit for bit, against the same algorithm in numpy; its sums against the
+numpy reference path of moment matching on drawn GP stacks in every regime."""
+
+import mpmath
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from gpfverify.gp import fused
+from gpfverify.gp.moments import moment_match_stack
+from gpfverify.strategies import gp_stacks
+from gpfverify.tolerances import algebra_rtol
+
+needs_numba = pytest.mark.skipif(fused.numba is None, reason="the fused kernel needs numba (the fast extra)")
+
+EPS = np.finfo(float).eps
+#: the reduction's boundaries ±½ ln 2 and their neighbours, zeros, the clamp and the largest argument
+EDGES = np.array([0.0, -0.0, 5e-324, -5e-324, 1e-300, 1e-17, -1e-17, 0.5 * np.log(2), -0.5 * np.log(2),
+                  np.nextafter(0.5 * np.log(2), 1), np.nextafter(-0.5 * np.log(2), -1), np.log(2), -np.log(2),
+                  1.0, -1.0, 36.0, -36.0, -60.0, -61.0, -1000.0, 700.0, fused.EXPM1_SAFE])
+
+
+def _arguments(seed: int = 0) -> np.ndarray:
+    rng = np.random.default_rng(seed)
+    magnitudes = 10.0 ** rng.uniform(-300, np.log10(fused.EXPM1_SAFE), 20_000)
+    return np.concatenate([EDGES, magnitudes * rng.choice([-1.0, 1.0], magnitudes.size),
+                           rng.normal(0.0, 0.5, 5_000)])
+
+
+def _ulps(got: np.ndarray, exact: np.ndarray) -> np.ndarray:
+    return np.abs(got - exact) / np.spacing(np.abs(exact))
+
+
+def test_reference_expm1_is_within_two_ulp_of_mpmath():
+    x = _arguments()[::7]
+    mpmath.mp.dps = 40
+    exact = np.array([float(mpmath.expm1(mpmath.mpf(float(v)))) for v in x])
+    ulps = _ulps(fused.expm1_reference(x), exact)
+    assert np.all(ulps <= 2.0), (x[np.argmax(ulps)], ulps.max())
+
+
+def test_reference_expm1_keeps_every_digit_near_zero():
+    """expm1(x) = x(1 + x/2 + …): for |x| below eps the result is x itself, where exp(x) − 1 is 0."""
+    x = np.array([1e-20, -3e-18, 2.5e-300])
+    np.testing.assert_array_equal(fused.expm1_reference(x), x)
+
+
+@needs_numba
+def test_compiled_expm1_equals_the_numpy_algorithm_bit_for_bit():
+    x = _arguments(1)
+    np.testing.assert_array_equal(fused.expm1_compiled(x), fused.expm1_reference(x))
+
+
+def _both_paths(case):
+    saved = fused.enabled
+    try:
+        fused.enabled = True
+        got = moment_match_stack(list(case.gps), case.mu, case.sigma)
+        fused.enabled = False
+        ref = moment_match_stack(list(case.gps), case.mu, case.sigma)
+    finally:
+        fused.enabled = saved
+    return got, ref
+
+
+@needs_numba
+@settings(max_examples=40)
+@given(case=gp_stacks(regime=st.sampled_from(("ordinary", "near-linear", "wide", "far"))))
+def test_fused_moments_equal_the_numpy_path(case):
+    """Same algebra, different rounding (summation order, expm1): equal to the rounding of the
+    centred sums, whose size is bounded by Σ|β_a q_a||E||β_b q_b| ≤ the moments' scale below."""
+    got, ref = _both_paths(case)
+    kappa = max(np.linalg.cond(k) for gp in case.gps for k in gp.K_inv)
+    tol = algebra_rtol(kappa)
+    np.testing.assert_array_equal(got.mean, ref.mean)  # first moments do not go through the kernel
+    np.testing.assert_array_equal(got.cross_cov, ref.cross_cov)
+    scale = np.sqrt(np.outer(np.diag(np.abs(ref.cov)), np.diag(np.abs(ref.cov)))) + np.abs(ref.cov)
+    assert np.all(np.abs(got.cov - ref.cov) <= tol * scale + 1e-300), np.max(np.abs(got.cov - ref.cov) / scale)
+
+
+@needs_numba
+def test_an_exponent_beyond_the_limit_takes_the_numpy_path(monkeypatch):
+    """Where the Cauchy–Schwarz bound admits an exponent above EXPM1_SAFE the kernel is not called."""
+    rng = np.random.default_rng(9)
+    from gpfverify.gp import GaussianProcess
+
+    x = np.concatenate([rng.uniform(-10, 10, size=(30, 1)), rng.uniform(250, 400, size=(30, 1))])
+    gp = GaussianProcess(x, np.sin(3 * x[:, 0]), lengthscales=[[0.5]], signal_var=[1.0], noise_var=[0.01])
+    calls = []
+    monkeypatch.setattr(fused, "_centred_sums", lambda *a: calls.append(a))
+    monkeypatch.setattr(fused, "enabled", True)
+    gp.predict_uncertain(np.array([0.5]), np.array([[30.0]]))
+    assert calls == []
+    gp.predict_uncertain(np.array([0.5]), np.array([[1e-4]]))
+    assert len(calls) == 1
