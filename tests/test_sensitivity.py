@@ -60,3 +60,51 @@ def test_timing_claims_are_kept_apart_as_a_timing_field(toy, tmp_path):
     assert "timing_claims" in results["timing_keys"] and "timing_claims" not in without_timing(results)
     assert [c.id for c in read_claims(results)] == ["toy/mean-below-1", "toy/time"]
     assert [c["id"] for c in results["claims"]] == ["toy/mean-below-1"]
+
+
+def test_interpretations_on_fewer_runs_are_compared_with_the_main_run_on_as_many(toy, tmp_path):
+    """Main run extended after its interpretations: merge_saved adds the verdict as run on the
+    interpretations' run count (the same first runs), and robustness compares like with like."""
+    from gpfverify.contract.claims import AS_RUN
+    from gpfverify.experiments.runner import results_of, read_manifest
+    from gpfverify.experiments.sensitivity import merge_saved
+
+    import toy_experiment
+
+    out = tmp_path / "run"
+    assert cli.main(["reproduce", "toy", "--runs", "3", "--seed", "2", "--out", str(out),
+                     "--interpretations", "wide"]) == 0
+    assert cli.main(["reproduce", "toy", "--runs", "30", "--seed", "2", "--out", str(out), "--resume"]) == 0
+    merged = merge_saved(out, toy_experiment)
+    claim = next(c for c in read_claims(merged) if c.id == "toy/mean-below-1")
+    assert claim.n == 30
+    wide = next(i for i in claim.interpretations if i.name == "wide")
+    baseline = next(i for i in claim.interpretations if i.name == AS_RUN)
+    assert wide.n == baseline.n == 3
+    first3 = read_claims(results_of(toy_experiment, out, read_manifest(out), 3))
+    assert baseline.statistic == next(c for c in first3 if c.id == claim.id).statistic != claim.statistic
+    # the stored file is the merged one
+    assert json.loads((out / "results.json").read_text())["claims"] == merged["claims"]
+
+
+def test_robustness_compares_verdicts_on_equal_run_counts():
+    from gpfverify.contract.claims import AS_RUN
+    from gpfverify.contract.interpretations import is_robust
+
+    def claim(*entries):
+        return ClaimRecord("c", "s", "held", 1.0, 0.0, 1000, "e", interpretations=entries)
+
+    at_60 = [Interpretation(f"i{k}", {"k": k}, "undecided", 0.1, 60) for k in range(3)]
+    matched = claim(Interpretation(AS_RUN, {}, "undecided", 0.1, 60), *at_60)
+    assert robustness(matched) == "at 60 runs each: undecided under all 4 interpretations tried; as run at 1000 " \
+                                  "runs: held"
+    assert is_robust(matched)
+    flipped = claim(Interpretation(AS_RUN, {}, "held", 0.1, 60), *at_60)
+    assert not is_robust(flipped)
+    assert robustness(flipped).startswith("at 60 runs each: depends on the interpretation: held under as run; "
+                                          "undecided under i0, i1, i2")
+    unmatched = claim(*at_60)  # no verdict as run at 60 runs: compared with the 1000-run one, and said so
+    assert not is_robust(unmatched)
+    assert robustness(unmatched).endswith("(the interpretations at 60 runs, as run at 1000)")
+    same_count = claim(*(Interpretation(f"i{k}", {}, "held", 0.1, 1000) for k in range(2)))
+    assert robustness(same_count) == "held under all 3 interpretations tried" and is_robust(same_count)

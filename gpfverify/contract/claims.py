@@ -42,14 +42,23 @@ def combine(verdicts: list[Verdict]) -> Verdict:
     return "held" if verdicts and all(v == "held" for v in verdicts) else "undecided"
 
 
+#: the name of the entry holding the claim's verdict as run on the interpretations' run count
+#: (its first n runs, the same seeds), when the main run has more runs than they do
+AS_RUN = "as run"
+
+
 @dataclass(frozen=True)
 class Interpretation:
-    """The claim's verdict under one interpretation of an unstated or lost detail."""
+    """The claim's verdict under one interpretation of an unstated or lost detail, on ``n`` runs
+    (None: as many as the main run). The entry named :data:`AS_RUN` (``params`` empty) is no
+    interpretation: it is the verdict as run on the first ``n`` runs, what the interpretations run
+    on fewer runs than the main run are compared with."""
 
     name: str
     params: dict[str, Any]
     verdict: Verdict
     statistic: float | None
+    n: int | None = None
 
 
 @dataclass(frozen=True)

@@ -15,7 +15,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any
 
-from gpfverify.contract.claims import ClaimRecord
+from gpfverify.contract.claims import AS_RUN, ClaimRecord, Interpretation, Verdict
 
 
 @dataclass(frozen=True)
@@ -27,17 +27,44 @@ class InterpretationSpec:
     why: str
 
 
+def _groups(claim: ClaimRecord) -> list[tuple[int | None, Verdict, list[Interpretation]]]:
+    """The interpretations tried, grouped by run count, each with the verdict as run on the same
+    count (the claim's own when the counts agree, else its :data:`AS_RUN` entry at that count, else
+    the claim's own at its larger count)."""
+    tried = [i for i in claim.interpretations if i.name != AS_RUN]
+    baselines = {i.n: i.verdict for i in claim.interpretations if i.name == AS_RUN}
+    by_count: dict[int | None, list[Interpretation]] = {}
+    for i in tried:
+        by_count.setdefault(None if i.n in (None, claim.n) else i.n, []).append(i)
+    return [(n, claim.verdict if n is None else baselines.get(n, claim.verdict), entries)
+            for n, entries in by_count.items()]
+
+
+def is_robust(claim: ClaimRecord) -> bool:
+    """The verdict is the same as run and under every interpretation tried, each compared on the
+    same number of runs (see :func:`robustness`)."""
+    return all(all(i.verdict == baseline for i in entries) for _, baseline, entries in _groups(claim))
+
+
 def robustness(claim: ClaimRecord) -> str:
     """The verdict across the main run and the interpretations tried, in words ("" when none was
-    tried)."""
-    if not claim.interpretations:
-        return ""
-    verdicts = [claim.verdict, *(i.verdict for i in claim.interpretations)]
-    tried = len(verdicts)
-    if len(set(verdicts)) == 1:
-        return f"{claim.verdict} under all {tried} interpretations tried"
-    groups: dict[str, list[str]] = {}
-    for name, verdict in (("as run", claim.verdict), *((i.name, i.verdict) for i in claim.interpretations)):
-        groups.setdefault(verdict, []).append(name)
-    return "depends on the interpretation: " + "; ".join(
-        f"{verdict} under {', '.join(names)}" for verdict, names in groups.items())
+    tried). Interpretations run on fewer runs than the main run are compared with the verdict as run
+    on that many runs (their :data:`AS_RUN` entry): "at 60 runs each: undecided under all 6 readings;
+    as run at 1000 runs: held" — not with a verdict that more runs decided."""
+    parts = []
+    for n, baseline, entries in _groups(claim):
+        readings = [("as run", baseline), *((i.name, i.verdict) for i in entries)]
+        if len({v for _, v in readings}) == 1:
+            said = f"{baseline} under all {len(readings)} interpretations tried"
+        else:
+            groups: dict[str, list[str]] = {}
+            for name, verdict in readings:
+                groups.setdefault(verdict, []).append(name)
+            said = "depends on the interpretation: " + "; ".join(
+                f"{verdict} under {', '.join(names)}" for verdict, names in groups.items())
+        if n is not None:
+            matched = any(i.name == AS_RUN and i.n == n for i in claim.interpretations)
+            said = (f"at {n} runs each: {said}; as run at {claim.n} runs: {claim.verdict}" if matched else
+                    f"{said} (the interpretations at {n} runs, as run at {claim.n})")
+        parts.append(said)
+    return "; ".join(parts)

@@ -394,7 +394,15 @@ def _separate_timing_claims(body: dict) -> None:
 
 def write_results(module: ModuleType, out_dir: Path, manifest: dict) -> dict:
     """``results.json`` from the saved runs, in run order."""
-    records = load_runs(out_dir, manifest["runs"])
+    results = results_of(module, out_dir, manifest)
+    _atomic_write_json(out_dir / "results.json", results)
+    return results
+
+
+def results_of(module: ModuleType, out_dir: Path, manifest: dict, runs: int | None = None) -> dict:
+    """The ``results.json`` body of the first ``runs`` runs saved in ``out_dir`` (default: all
+    that the manifest counts), without writing it."""
+    records = load_runs(out_dir, manifest["runs"] if runs is None else min(runs, manifest["runs"]))
     ok = [r for r in records if r["status"] == "ok"]
     failed = [{"index": r["index"], "error": r["error"], "spawn_key": r["spawn_key"]}
               for r in records if r["status"] != "ok"]
@@ -408,7 +416,8 @@ def write_results(module: ModuleType, out_dir: Path, manifest: dict) -> dict:
     results = {"experiment": manifest["experiment"], "runs": manifest["runs"], "seed": manifest["seed"],
                "params": manifest["params"], "runs_ok": len(ok), "failed_runs": failed, **body,
                "timing_keys": timing_keys(module, body), "provenance": provenance.current()}
-    _atomic_write_json(out_dir / "results.json", results)
+    if runs is not None:
+        results["runs"] = len(records)
     return results
 
 

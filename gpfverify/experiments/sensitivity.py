@@ -13,7 +13,7 @@ from concurrent.futures import Executor
 from pathlib import Path
 from types import ModuleType
 
-from gpfverify.contract.claims import ClaimRecord, Interpretation
+from gpfverify.contract.claims import AS_RUN, ClaimRecord, Interpretation
 from gpfverify.contract.interpretations import InterpretationSpec
 from gpfverify.contract.params import Params
 from gpfverify.contract.serial import to_json
@@ -36,20 +36,46 @@ def select(module: ModuleType, wanted: str) -> tuple[InterpretationSpec, ...]:
     return tuple(by_name[n] for n in chosen)
 
 
-def merge(main: dict, tried: Sequence[tuple[InterpretationSpec, dict]]) -> dict:
-    """``main`` results with each claim's ``interpretations`` (not the timing claims') set from the results of each
-    interpretation (a claim absent under an interpretation gets no entry for it)."""
+def merge(main: dict, tried: Sequence[tuple[InterpretationSpec, dict]], as_run: Sequence[dict] = ()) -> dict:
+    """``main`` results with each claim's ``interpretations`` (not the timing claims') set from the
+    results of each interpretation, with its run count (a claim absent under an interpretation gets
+    no entry for it). ``as_run``: the main run's results on fewer runs (its first n, the count the
+    interpretations ran), each added as the claim's :data:`~gpfverify.contract.claims.AS_RUN` entry
+    at that count, so that verdicts are compared on equal run counts."""
+    def entry(claim: ClaimRecord, name: str, params: dict, results: dict) -> Interpretation | None:
+        other = next((ClaimRecord.from_json(c) for c in results.get("claims", [])
+                      if c.get("id") == claim.id and claim.id), None)
+        return None if other is None else Interpretation(name, params, other.verdict, other.statistic, other.n)
+
+    counts = {results.get("runs") for _, results in tried} - {main.get("runs")}
     claims = []
     for raw in main.get("claims", []):
         claim = ClaimRecord.from_json(raw)
-        entries = []
-        for spec, results in tried:
-            other = next((ClaimRecord.from_json(c) for c in results.get("claims", [])
-                          if c.get("id") == claim.id and claim.id), None)
-            if other is not None:
-                entries.append(Interpretation(spec.name, to_json(spec.changes), other.verdict, other.statistic))
-        claims.append(to_json(dataclasses.replace(claim, interpretations=tuple(entries))))
+        entries = [entry(claim, spec.name, to_json(spec.changes), results) for spec, results in tried]
+        entries += [entry(claim, AS_RUN, {}, results) for results in as_run if results.get("runs") in counts]
+        claims.append(to_json(dataclasses.replace(claim, interpretations=tuple(e for e in entries if e))))
     return {**main, "claims": claims}
+
+
+def merge_saved(run_dir: Path, module: ModuleType) -> dict:
+    """``run_dir/results.json`` recomputed from its saved runs with the verdicts under every
+    interpretation saved in ``run_dir/interpretations/<name>/`` (each recomputed too) merged into
+    its claims, and — where the interpretations ran fewer runs than the main run — the verdicts as
+    run on that many runs; written back and returned (for extending a main run after its
+    interpretations, e.g. a reference page)."""
+    from gpfverify.experiments.runner import _atomic_write_json, read_manifest, results_of, rewrite_results
+
+    main = rewrite_results(run_dir, module)
+    tried = []
+    for spec in getattr(module, "INTERPRETATIONS", ()):
+        folder = Path(run_dir) / "interpretations" / spec.name
+        if (folder / "manifest.json").exists():
+            tried.append((spec, rewrite_results(folder, module)))
+    manifest = read_manifest(Path(run_dir))
+    fewer = sorted({r["runs"] for _, r in tried if r["runs"] < main["runs"]})
+    merged = merge(main, tried, [results_of(module, Path(run_dir), manifest, n) for n in fewer])
+    _atomic_write_json(Path(run_dir) / "results.json", merged)
+    return merged
 
 
 def run_interpretations(module: ModuleType, params: Params, specs: Sequence[InterpretationSpec], runs: int,

@@ -11,7 +11,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from gpfverify.contract.claims import ClaimRecord
+from gpfverify.contract.claims import AS_RUN, ClaimRecord
 from gpfverify.contract.interpretations import robustness
 
 
@@ -242,6 +242,8 @@ def interpretations_table(claims: Sequence[ClaimRecord], caption: str) -> Table 
     if not tried:
         return None
     names = list(dict.fromkeys(i.name for c in tried for i in c.interpretations))
+    if AS_RUN in names:  # the verdict as run on the interpretations' run count, next to the main one
+        names.insert(0, names.pop(names.index(AS_RUN)))
     rows = []
     for c in tried:
         by_name = {i.name: i for i in c.interpretations}
@@ -253,4 +255,15 @@ def interpretations_table(claims: Sequence[ClaimRecord], caption: str) -> Table 
             cells.append(shown if i is None else Cell(shown, "", str(i.params)))
         cells += [robustness(c), c.runs_to_decide if c.runs_to_decide else ""]
         rows.append(cells)
-    return Table(["claim", "as run", *names, "robustness", "runs that would decide (as run)"], rows, caption)
+    return Table(["claim", "as run", *(_column(name, tried) for name in names), "robustness",
+                  "runs that would decide (as run)"], rows, caption)
+
+
+def _column(name: str, claims: Sequence[ClaimRecord]) -> str:
+    """A column of the interpretations table: the interpretation's name, with its run count when it
+    ran fewer runs than the main run ("as run" there: the main run's first runs)."""
+    counts = {i.n for c in claims for i in c.interpretations if i.name == name and i.n is not None and i.n != c.n}
+    if not counts:
+        return name
+    runs = ", ".join(str(n) for n in sorted(counts))
+    return f"as run, first {runs} runs" if name == AS_RUN else f"{name} ({runs} runs)"

@@ -16,8 +16,8 @@ import os
 from collections.abc import Iterable
 from pathlib import Path
 
-from gpfverify.contract.claims import VERDICTS, ClaimRecord
-from gpfverify.contract.interpretations import robustness
+from gpfverify.contract.claims import VERDICTS
+from gpfverify.contract.interpretations import is_robust, robustness
 from gpfverify.contract.papers import PAPERS
 from gpfverify.report.document import (CAUTION_MARK, VERDICT_CLASSES, Cell, Chips, Code, Details, Figure, Link,
                                        Paragraph, Section, Table, VerdictCell, anchor_id, claim_anchor, fmt,
@@ -312,7 +312,7 @@ def summary_table(summaries: Iterable[SectionSummary]) -> Table:
         chips += [(c.status, f"{c.claim}: {c.status}", certificate_anchor(c.claim), False) for c in s.certificates]
         cautioned += s.cautioned
         tried = [c for c in s.claims if c.interpretations]
-        robust = sum(_robust(c) for c in tried)
+        robust = sum(is_robust(c) for c in tried)
         robust_total += robust
         tried_total += len(tried)
         papers = ", ".join(paper_name(k) for k in s.papers) or ("the toolkit's own algebra" if s.certificates else "—")
@@ -330,11 +330,6 @@ def summary_table(summaries: Iterable[SectionSummary]) -> Table:
     return Table(["paper", "section", *kinds, f"{CAUTION_MARK} caution",
                   "same verdict under every interpretation tried", "each verdict (hover, click)"],
                  rows, "Verdicts per paper and section", css="summary")
-
-
-def _robust(claim: ClaimRecord) -> bool:
-    """The verdict is the same as run and under every interpretation tried."""
-    return all(i.verdict == claim.verdict for i in claim.interpretations)
 
 
 def _count_cell(n: int, kind: str, extra: str = "") -> Cell:

@@ -17,18 +17,15 @@ from __future__ import annotations
 import dataclasses
 import json
 import math
-import shutil
 import sys
 from pathlib import Path
 
-from reference_pages import write_page
+from reference_pages import recompute_into, write_page
 
 from gpfverify.contract.ct2d import Params as CT2DParams
 from gpfverify.contract.serial import to_json
 from gpfverify.experiments import ct2d, ungm1d
 from gpfverify.experiments.fusion_run import ClaimContext
-from gpfverify.experiments.runner import rewrite_results
-from gpfverify.experiments.sensitivity import merge
 from gpfverify.report.render import to_html
 from gpfverify.report.sections import fusion_ct2d, fusion_ungm1d
 
@@ -88,24 +85,6 @@ def command(name: str, results: dict) -> str:
     return COMMANDS[name].replace("RUNS", str(results["runs"]))
 
 
-def recompute(run_dir: Path, module, name: str) -> dict:
-    """``results.json`` of ``run_dir`` recomputed from its runs, the interpretations' verdicts merged
-    into its claims, written back and copied with the manifest to :func:`target`."""
-    main = rewrite_results(run_dir, module)
-    tried = []
-    for spec in getattr(module, "INTERPRETATIONS", ()):
-        folder = run_dir / "interpretations" / spec.name
-        if (folder / "manifest.json").exists():
-            tried.append((spec, rewrite_results(folder, module)))
-    merged = merge(main, tried)
-    (run_dir / "results.json").write_text(json.dumps(merged, indent=1, ensure_ascii=False), encoding="utf-8")
-    out = target(name)
-    out.mkdir(parents=True, exist_ok=True)
-    for file in ("results.json", "manifest.json"):
-        shutil.copy(run_dir / file, out / file)
-    return merged
-
-
 def committed(name: str) -> dict | None:
     path = target(name) / "results.json"
     if not path.exists():
@@ -119,7 +98,7 @@ def main(runs_dir: Path | None) -> None:
     for name in COMMANDS:
         module = ct2d if name.startswith("ct2d") else ungm1d
         if runs_dir is not None and (runs_dir / name / "manifest.json").exists():
-            found[name] = recompute(runs_dir / name, module, name)
+            found[name] = recompute_into(runs_dir / name, module, target(name))
         elif (results := committed(name)) is not None:
             found[name] = results
     made = "python reports/reference/make_fusion_paper.py OUT (or --committed: from the committed results.json)"

@@ -12,17 +12,13 @@ manifest) to ``reports/reference/particle-flow/<experiment>/``, and the page is 
 
 from __future__ import annotations
 
-import json
-import shutil
 import sys
 from pathlib import Path
 
-from reference_pages import write_page
+from reference_pages import recompute_into, write_page
 
 from gpfverify.contract.experiment import RunEntry, SectionRuns
 from gpfverify.experiments import bearing, pff1d
-from gpfverify.experiments.runner import rewrite_results
-from gpfverify.experiments.sensitivity import merge
 from gpfverify.report.document import Paragraph
 from gpfverify.report.inputs import SectionInput
 from gpfverify.report.sections import particle_flow
@@ -37,26 +33,8 @@ COMMANDS = {
 MODULES = {"pff1d": pff1d, "bearing": bearing}
 
 
-def recompute_with_interpretations(run_dir: Path, module, target: Path) -> dict:
-    """The main ``results.json`` and every interpretation's recomputed from the saved runs, the
-    interpretations merged into the main claims; written to ``run_dir`` and copied with the
-    manifest to ``target``."""
-    main = rewrite_results(run_dir, module)
-    tried = []
-    for spec in module.INTERPRETATIONS:
-        folder = run_dir / "interpretations" / spec.name
-        if (folder / "manifest.json").is_file():
-            tried.append((spec, rewrite_results(folder, module)))
-    merged = merge(main, tried) if tried else main
-    (run_dir / "results.json").write_text(json.dumps(merged, indent=1), encoding="utf-8")
-    target.mkdir(parents=True, exist_ok=True)
-    for name in ("results.json", "manifest.json"):
-        shutil.copy(run_dir / name, target / name)
-    return merged
-
-
 def main(runs_dir: Path) -> None:
-    results = {name: recompute_with_interpretations(runs_dir / name, MODULES[name], HERE / name) for name in COMMANDS}
+    results = {name: recompute_into(runs_dir / name, MODULES[name], HERE / name) for name in COMMANDS}
     entries = tuple(RunEntry(name, "", name, f"{name}/results.json") for name in COMMANDS)
     data = SectionInput(particle_flow.SLUG, HERE, SectionRuns(particle_flow.SLUG, "reference", 1, entries),
                         tuple(results[name] for name in COMMANDS))

@@ -9,15 +9,17 @@ from __future__ import annotations
 import shutil
 from pathlib import Path
 
-from gpfverify.experiments.runner import rewrite_results
+from gpfverify.experiments.sensitivity import merge_saved
 from gpfverify.report.document import Section
 from gpfverify.report.render import to_markdown
 
 
 def recompute_into(run_dir: Path, module, target: Path) -> dict:
-    """``results.json`` recomputed from the runs in ``run_dir``, copied with its manifest to
-    ``target``; returns it."""
-    results = rewrite_results(run_dir, module)
+    """``results.json`` recomputed from the runs in ``run_dir`` with the verdicts under the
+    interpretations saved there merged into its claims (compared on equal run counts:
+    :func:`gpfverify.experiments.sensitivity.merge_saved`), copied with its manifest to ``target``;
+    returns it."""
+    results = merge_saved(run_dir, module)
     target.mkdir(parents=True, exist_ok=True)
     for name in ("results.json", "manifest.json"):
         shutil.copy(run_dir / name, target / name)

@@ -12,7 +12,7 @@ import numpy as np
 
 from gpfverify.contract import bearing as bearing_contract
 from gpfverify.contract import pff1d as pff_contract
-from gpfverify.contract.claims import ClaimRecord, read_claims
+from gpfverify.contract.claims import AS_RUN, ClaimRecord, read_claims
 from gpfverify.contract.interpretations import InterpretationSpec
 from gpfverify.contract.methods import Method
 from gpfverify.contract.papers import PAPERS
@@ -283,7 +283,8 @@ def _sensitivity(records: list[ClaimRecord]) -> list:
                                                  "interpretation tried (same seed and run count; '—': the "
                                                  "interpretation does not run that claim's setting)")]
     declared = _declared()
-    names = list(dict.fromkeys((r.id.split("/")[0], i.name) for r in tried for i in r.interpretations))
+    names = list(dict.fromkeys((r.id.split("/")[0], i.name) for r in tried for i in r.interpretations
+                               if i.name != AS_RUN))
     spec_rows = []
     for experiment, name in names:
         changes = next(i.params for r in tried for i in r.interpretations

@@ -9,7 +9,7 @@ from pathlib import Path
 
 import numpy as np
 
-from gpfverify.contract.claims import ClaimRecord, read_claims
+from gpfverify.contract.claims import AS_RUN, ClaimRecord, read_claims
 from gpfverify.contract.papers import PAPERS
 from gpfverify.contract.sins_gps import (COLLAPSE_FACTOR, GP_SR_UKF, GPSR_UPF, INTERPRETATIONS, NAME, PAPER,
                                         PARTICLE_FILTERS, QUANTITIES, REFERENCES, SR_UKF, UNITS, UPF, Params,
@@ -134,7 +134,7 @@ def _add_interpretations(section: Section, records: list[ClaimRecord], stored: d
     tried = [r for r in records if r.interpretations]
     if not tried:
         return
-    names = [i.name for i in tried[0].interpretations]
+    names = [i.name for i in tried[0].interpretations if i.name != AS_RUN]
     why = {spec.name: spec for spec in INTERPRETATIONS}
     section.add(Paragraph(
         "Interpretations tried (the paper does not report how its filters were tuned): "
@@ -146,7 +146,8 @@ def _add_interpretations(section: Section, records: list[ClaimRecord], stored: d
     comparisons = [r for r in tried if r.id.startswith(f"{NAME}/reduction-")]
     if comparisons:
         healthy = ["as run"] if comparisons[0].verdict != "not decidable" else []
-        healthy += [i.name for i in comparisons[0].interpretations if i.verdict != "not decidable"]
+        healthy += [i.name for i in comparisons[0].interpretations
+                    if i.name != AS_RUN and i.verdict != "not decidable"]
         if not healthy:
             section.add(Paragraph("In none of the configurations tried did both particle filters pass their "
                                   "health checks: the paper's comparison is not decidable with these filters."))

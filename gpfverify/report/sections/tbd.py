@@ -9,7 +9,7 @@ from pathlib import Path
 
 import numpy as np
 
-from gpfverify.contract.claims import ClaimRecord, read_claims
+from gpfverify.contract.claims import AS_RUN, ClaimRecord, read_claims
 from gpfverify.contract.papers import PAPERS
 from gpfverify.contract.tbd import INTERPRETATIONS, NAME, PAPER, PAPER_RUNS, READINGS, Params, TbdMethod
 from gpfverify.health import MIN_ESS_FRACTION
@@ -161,7 +161,7 @@ def _sensitivity_blocks(claims: list[ClaimRecord]) -> list:
     if not tried:
         return [Paragraph("No interpretation was tried for this run (`gpfverify reproduce tbd --interpretations "
                           "all` tries " + ", ".join(s.name for s in INTERPRETATIONS) + ").")]
-    names = list(dict.fromkeys(i.name for c in tried for i in c.interpretations))
+    names = list(dict.fromkeys(i.name for c in tried for i in c.interpretations if i.name != AS_RUN))
     why = {s.name: s.why for s in INTERPRETATIONS}
     blocks: list = [Table(["interpretation", "parameters changed", "why it is plausible"],
                           [[name, ", ".join(f"{k} = {v}" for k, v in next(i.params for c in tried

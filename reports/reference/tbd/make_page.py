@@ -13,41 +13,26 @@ and drop the interpretations.)
 
 from __future__ import annotations
 
-import shutil
+import json
 import sys
 from pathlib import Path
 
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE.parent))
 
-from reference_pages import write_page  # type: ignore[import-not-found]  # noqa: E402
+from reference_pages import recompute_into, write_page  # type: ignore[import-not-found]  # noqa: E402
 
 from gpfverify.experiments import tbd  # noqa: E402
-from gpfverify.experiments.runner import _atomic_write_json, rewrite_results  # noqa: E402
-from gpfverify.experiments.sensitivity import merge  # noqa: E402
 from gpfverify.contract.claims import read_claims  # noqa: E402
 from gpfverify.report.document import Paragraph, Table  # noqa: E402
 from gpfverify.report.sections.tbd import render  # noqa: E402
 
 
 def main(run_dir: Path, command: str) -> None:
-    results = rewrite_results(run_dir, tbd)
-    tried = [(spec, rewrite_results(run_dir / "interpretations" / spec.name, tbd)) for spec in tbd.INTERPRETATIONS
-             if (run_dir / "interpretations" / spec.name / "manifest.json").is_file()]
-    results = merge(results, tried)
-    _atomic_write_json(run_dir / "results.json", results)
-    target = HERE / "run"
-    target.mkdir(parents=True, exist_ok=True)
-    for name in ("results.json", "manifest.json"):
-        shutil.copy(run_dir / name, target / name)
+    results = recompute_into(run_dir, tbd, HERE / "run")
+    tried = [(spec, json.loads((run_dir / "interpretations" / spec.name / "results.json").read_text("utf-8")))
+             for spec in tbd.INTERPRETATIONS if (run_dir / "interpretations" / spec.name / "manifest.json").is_file()]
     section = render(results, HERE)
-    counts = sorted({other["runs_ok"] for _, other in tried})
-    if counts and counts != [results["runs_ok"]]:
-        section.add(Paragraph(
-            f"Run counts differ: the main run has {results['runs_ok']} runs, the interpretations "
-            f"{', '.join(str(c) for c in counts)}; a verdict that differs between them (in the robustness column "
-            "above) may reflect the run count rather than the interpretation. The table below states, for each, "
-            "about how many runs would decide what stays undecided."))
     section.add(_runs_to_decide_table(results, tried))
     section.add(Paragraph(f"Made by `{command}`, then `python reports/reference/tbd/make_page.py RUN_DIR "
                           "\"COMMAND\"`."))
