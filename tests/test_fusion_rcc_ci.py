@@ -111,6 +111,27 @@ def test_problem_is_compiled_once_and_re_solved():
     assert after.hits == before.hits + 3 and after.misses == before.misses
 
 
+def test_a_cvxpy_the_compiler_cannot_reproduce_falls_back_to_cvxpy_with_the_same_bits(monkeypatch):
+    """compile refuses what it cannot reproduce exactly (e.g. another cvxpy's internals): the solve
+    then goes through cvxpy's own Clarabel route, whose numbers the compiled route equals."""
+    estimates = _estimates(4, 3, 4)
+    compiled = rcc.rcc_ci(estimates)
+
+    def refuse(program):
+        raise ValueError("the compiled map does not reproduce cvxpy's conic data")
+
+    rcc._clarabel_program.cache_clear()
+    monkeypatch.setattr(conic.ClarabelProgram, "compile", refuse)
+    try:
+        fallback = rcc.rcc_ci(estimates)
+        assert rcc._clarabel_program(rcc._primal_problem, 3, 4) is None  # the fallback was taken
+    finally:
+        rcc._clarabel_program.cache_clear()
+    for name in ("mean", "cov", "weights", "alpha", "primal_mean"):
+        np.testing.assert_array_equal(getattr(fallback, name), getattr(compiled, name), err_msg=name)
+    assert fallback.primal_value == compiled.primal_value
+
+
 def _fail(*args):
     raise SolverError("the solver failed (status solver_error)")
 

@@ -141,9 +141,14 @@ def _dual_problem(n: int, dim: int, solver: str = cp.CLARABEL) -> Parametrised:
 
 
 @lru_cache(maxsize=32)
-def _clarabel_program(build, n: int, dim: int) -> ClarabelProgram:
-    """``build(n, dim)`` compiled once for direct Clarabel solves (:mod:`gpfverify.fusion.conic`)."""
-    return ClarabelProgram.compile(build(n, dim, cp.CLARABEL))
+def _clarabel_program(build, n: int, dim: int) -> ClarabelProgram | None:
+    """``build(n, dim)`` compiled once for direct Clarabel solves (:mod:`gpfverify.fusion.conic`), or
+    None when this cvxpy's internals differ from those the compiler knows (it refuses whatever it
+    cannot reproduce bit for bit): then Clarabel is called through cvxpy, the same numbers, slower."""
+    try:
+        return ClarabelProgram.compile(build(n, dim, cp.CLARABEL))
+    except ValueError:
+        return None
 
 
 def _solve_once(build, size: tuple[int, int], values: list, solver: str) -> ConicSolution:
@@ -152,8 +157,9 @@ def _solve_once(build, size: tuple[int, int], values: list, solver: str) -> Coni
     solver object instead of one updated from the previous solve; an updated Clarabel solver gave
     results differing in the last bits from a fresh one, so a run's numbers depended on what the
     process had solved before)."""
-    if solver == cp.CLARABEL:
-        return _clarabel_program(build, *size).solve(values)
+    program = _clarabel_program(build, *size) if solver == cp.CLARABEL else None
+    if program is not None:
+        return program.solve(values)
     return solve_with_cvxpy(build(*size, solver), values, solver)
 
 
