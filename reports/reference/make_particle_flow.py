@@ -26,9 +26,9 @@ from gpfverify.report.sections import particle_flow
 HERE = Path(__file__).resolve().parent / particle_flow.SLUG
 #: folder name -> the exact command that made it (run from the repository root, OUT = RUNS_DIR)
 COMMANDS = {
-    "pff1d": "gpfverify reproduce pff1d --runs 8 --seed 1 --table-q 10 --dlambda 0.1 --interpretations all "
+    "pff1d": "gpfverify reproduce pff1d --runs 30 --seed 1 --table-q 10 --dlambda 0.1 --interpretations all "
              "--out OUT/pff1d",
-    "bearing": "gpfverify reproduce bearing --runs 100 --seed 1 --interpretations all --out OUT/bearing",
+    "bearing": "gpfverify reproduce bearing --runs 200 --seed 1 --interpretations all --out OUT/bearing",
 }
 MODULES = {"pff1d": pff1d, "bearing": bearing}
 
@@ -45,12 +45,13 @@ def main(runs_dir: Path) -> None:
     undecided = [f"{c.id}: about {c.runs_to_decide}" for r in results.values() for c in read_claims(r)
                  if c.verdict == "undecided" and c.runs_to_decide]
     section.blocks.insert(0, Paragraph(f"Made by: {command}"))
+    runs = {name: results[name]["runs"] for name in COMMANDS}
     section.blocks.insert(1, Paragraph(
-        "Scale: the machine was shared (load average 12–17 on 2 cores), so pff1d ran 8 runs (the paper: 30) on the "
-        "claim's own cells only (Q = 10, Δλ = 0.1 for the UNGM claim; the gamma case at every R) and bearing 100 "
-        "runs (the paper: 200), each interpretation at the same count. Runs that would decide the undecided "
+        f"Scale: pff1d ran {runs['pff1d']} runs (the paper: {pff1d.PAPER_RUNS}) on the claim's own cells only "
+        f"(Q = 10, Δλ = 0.1 for the UNGM claim; the gamma case at every R) and bearing {runs['bearing']} runs (the "
+        f"paper: {bearing.PAPER_RUNS}), each interpretation at the same count. Runs that would decide the undecided "
         "verdicts as run, were the observed mean and spread the true ones: " + ("; ".join(undecided) or "none")
-        + ". The paper's whole grid (Δλ ∈ {0.1, 0.01, 0.001}, every Q) at 30 runs is `gpfverify reproduce pff1d "
+        + ". The paper's whole grid (Δλ ∈ {0.1, 0.01, 0.001}, every Q) is `gpfverify reproduce pff1d "
         "--interpretations all` (Δλ = 0.001 costs about 90 % of it)."))
     write_page(section, HERE)
 
