@@ -3,6 +3,8 @@ solves instead of inverses, numerical rank. Ground floor: imports only errors an
 
 from __future__ import annotations
 
+import math
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -11,16 +13,38 @@ import scipy.linalg as sla
 from gpfverify.errors import NumericalError
 from gpfverify.tolerances import JITTER_STEPS, numpy_rank_tol
 
+_ddot = sla.blas.ddot
+
 
 def symmetrize(a: np.ndarray) -> np.ndarray:
-    """(A + Aᵀ)/2 over the last two axes."""
+    """(A + Aᵀ)/2 over the last two axes (a new array; exactly symmetric)."""
     a = np.asarray(a)
-    return 0.5 * (a + (a.T if a.ndim == 2 else a.swapaxes(-1, -2)))
+    return 0.5 * (a + a.swapaxes(-1, -2))
 
 
-def all_finite(a: np.ndarray) -> bool:
-    """Whether every entry of ``a`` is finite (the ndarray method: no dispatch through np.all)."""
-    return bool(np.isfinite(a).all())
+def matmul_for(a: np.ndarray) -> Callable[[np.ndarray, np.ndarray], np.ndarray]:
+    """The matrix product for operands stacked like ``a``: ``ndarray.dot`` when ``a`` is one
+    matrix or vector (the left operand must then be an ndarray), ``np.matmul`` for a stack. For
+    single matrices they make the same BLAS call (the same bits), but ``@`` first sets up a
+    generalized-ufunc iterator, and ``np.dot`` a Python-level dispatch, each costing more than the
+    product of the small matrices of a filter step."""
+    return np.ndarray.dot if a.ndim <= 2 else np.matmul
+
+
+def all_finite(*arrays: np.ndarray) -> bool:
+    """Whether every entry of every (real) array is finite.
+
+    One sum of squares per array (BLAS ``ddot`` over its memory, in whatever order it is laid out)
+    decides the common case: a NaN or ±inf entry makes it NaN or +inf, so a finite total proves
+    every entry finite. Only a non-finite total (a non-finite entry, or finite entries whose
+    squares overflow, |a| ≳ 1e154) is checked entry by entry, so the answer is exact either way.
+    scipy's ``ddot``, not ``ndarray.dot``: it is cheaper and raises no overflow warning."""
+    total = 0.0
+    for a in arrays:
+        flat = a.ravel("K")  # a view of any contiguous array, C or Fortran order
+        if flat.size:
+            total += _ddot(flat, flat)
+    return math.isfinite(total) or all(bool(np.isfinite(a).all()) for a in arrays)
 
 
 @dataclass(frozen=True)
@@ -80,7 +104,14 @@ def cholesky_batched(a: np.ndarray, name: str) -> np.ndarray:
     """
     if not all_finite(a):
         raise NumericalError(f"{name} contains NaN or inf")
-    sym = symmetrize(a)
+    return cholesky_symmetric(symmetrize(a), name)
+
+
+def cholesky_symmetric(sym: np.ndarray, name: str) -> np.ndarray:
+    """:func:`cholesky_batched` of matrices the caller has already symmetrised (LAPACK reads only
+    the lower triangle), without the finiteness check in front: a NaN or ±inf entry either fails
+    the factorisation (then the error says so) or comes out in the factor, which the caller checks
+    instead (the factor of a finite matrix is finite, |L_ij| ≤ √A_ii)."""
     if sym.ndim == 2:
         factor, info = sla.lapack.dpotrf(sym, lower=1, clean=1)
         if info == 0:
@@ -90,6 +121,8 @@ def cholesky_batched(a: np.ndarray, name: str) -> np.ndarray:
             return np.linalg.cholesky(sym)
         except np.linalg.LinAlgError:
             pass
+    if not all_finite(sym):
+        raise NumericalError(f"{name} contains NaN or inf")
     flat = sym.reshape((-1,) + sym.shape[-2:])
     lowest = np.linalg.eigvalsh(flat)[:, 0]
     first = int(np.argmin(lowest))
@@ -100,9 +133,16 @@ def cholesky_batched(a: np.ndarray, name: str) -> np.ndarray:
 
 def solve_lower(factor: np.ndarray, b: np.ndarray) -> np.ndarray:
     """L⁻¹ b for lower-triangular factors L (..., n, n) and right-hand sides b (..., n, m) with the
-    same batch axes, by numpy's dense solve. Not scipy's ``trtrs``/``solve_triangular``: with
-    threaded BLAS on a busy machine its triangular solve of a few columns wakes BLAS threads, and
-    its mean time was orders of magnitude above numpy's solve for a 2 × 5 right-hand side."""
+    same batch axes, by LU with partial pivoting (LAPACK ``gesv``): numpy's dense solve for a
+    stack, and for a single factor the same ``gesv`` called directly (numpy's wrapper costs more
+    than the solve at the sizes of a filter step; the numbers are the same bits). Not scipy's
+    ``trtrs``/``solve_triangular``: with threaded BLAS on a busy machine its triangular solve of a
+    few columns wakes BLAS threads, and its mean time was orders of magnitude above numpy's solve
+    for a 2 × 5 right-hand side."""
+    if factor.ndim == 2:
+        _, _, x, info = sla.lapack.dgesv(factor, b)
+        if info == 0:
+            return x
     return np.linalg.solve(factor, b)
 
 

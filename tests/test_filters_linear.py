@@ -4,7 +4,9 @@
 * UKF and EKF against the KF on random linear-Gaussian models (any valid α, β, κ);
 * the UKF on a nonlinear model against a separately written scalar UKF;
 * batched calls against per-element calls; step-record identities; errors on bad input;
-* the EKF without user Jacobians (central differences) against the KF on a linear model.
+* the EKF without user Jacobians (central differences) against the KF on a linear model;
+* the KF step (predicted joint, halved symmetrisation, one solve) against the textbook KF in plain
+  numpy and against its own predict/measurement/update parts; its errors on a bad belief or y.
 """
 
 import numpy as np
@@ -15,11 +17,12 @@ from hypothesis import strategies as st
 from gpfverify.errors import InputError, NumericalError
 from gpfverify.filters.driver import run_filter
 from gpfverify.filters.ekf import ekf_step
-from gpfverify.filters.kalman import kf_step
+from gpfverify.filters.kalman import kf_measurement, kf_predict, kf_step
 from gpfverify.filters.records import Gaussian, MeasurementMoments
 from gpfverify.filters.sigma_points import SigmaParams
 from gpfverify.filters.ukf import ukf_step
 from gpfverify.filters.update import gaussian_update
+from gpfverify.linalg import all_finite, symmetrize
 from gpfverify.models import Sensor, StateSpaceModel, linear_model
 from gpfverify.models.functions import FD_STEP
 from gpfverify.scenarios.scalar_benchmark import ScalarSetting
@@ -107,6 +110,88 @@ def test_kf_posterior_matches_information_form():
     rtol = _rtol(r)
     np.testing.assert_allclose(np.linalg.inv(info), r.C_e, rtol=rtol, atol=rtol)
     np.testing.assert_allclose(np.linalg.solve(info, info_mean), r.mu_e, rtol=rtol, atol=rtol)
+
+
+# --- the KF step against the textbook KF and against its parts ----------------------------------
+
+def _textbook_kf(F, H, Q, R, mean, cov, y):
+    """One textbook KF cycle in plain numpy: an explicit gain from a dense solve and the Joseph form
+    of the covariance update (another route to the same numbers). Returns μ_e, C_e, C_p, C_y."""
+    x, P = F @ mean, F @ cov @ F.T + Q
+    S = H @ P @ H.T + R
+    K = np.linalg.solve(S, H @ P).T  # P Hᵀ S⁻¹ (P and S symmetric)
+    I_KH = np.eye(len(x)) - K @ H
+    return x + K @ (y - H @ x), I_KH @ P @ I_KH.T + K @ R @ K.T, P, S
+
+
+@pytest.mark.parametrize("seed, d, l, batch, scale", [(40, 1, 1, (), 1.0), (41, 4, 2, (), 1.0), (42, 3, 3, (), 1.0),
+                                                      (43, 5, 2, (3,), 1.0), (44, 2, 1, (2, 3), 1.0),
+                                                      (45, 4, 2, (), 1e150)])
+def test_kf_step_equals_the_textbook_kf(seed, d, l, batch, scale):
+    """Every record field against the textbook cycle, per batch element; C_p, C_y, C_e exactly
+    symmetric. ``scale`` 1e150 makes the sums of squares of the finiteness check overflow: the
+    belief is still finite and must be accepted."""
+    F, H, Q, R, prior, y = _linear_problem(seed, d, l, batch)
+    prior, y = Gaussian(scale * prior.mean, scale**2 * prior.cov), scale * y
+    record = kf_step(prior, linear_model(F, H, Q, R), y, k=1)
+    for index in np.ndindex(batch):
+        mean, cov, C_p, C_y = _textbook_kf(F, H, Q, R, prior.mean[index], prior.cov[index], y[index])
+        rtol = algebra_rtol(np.linalg.cond(C_y) * np.linalg.cond(C_p))
+        for name, want in (("mu_p", F @ prior.mean[index]), ("C_p", C_p), ("mu_y", H @ F @ prior.mean[index]),
+                           ("C_y", C_y), ("C_xy", C_p @ H.T), ("mu_e", mean), ("C_e", cov)):
+            np.testing.assert_allclose(getattr(record, name)[index], want, rtol=rtol,
+                                       atol=rtol * np.abs(want).max(), err_msg=name)
+    for name in ("C_p", "C_y", "C_e"):
+        cov = getattr(record, name)
+        assert np.array_equal(cov, np.swapaxes(cov, -1, -2)), name
+
+
+@pytest.mark.parametrize("batch", [(), (4,)])
+def test_kf_step_equals_predict_measurement_update(batch):
+    """The step's predicted joint N(A μ, A C Aᵀ + B) against kf_predict, kf_measurement and
+    gaussian_update in turn (to rounding), and its halved symmetrisation bit for bit against
+    (M + Mᵀ)/2 of M = A C Aᵀ + B formed in plain numpy."""
+    F, H, Q, R, prior, y = _linear_problem(46, 4, 2, batch)
+    model = linear_model(F, H, Q, R)
+    step = kf_step(prior, model, y, k=1)
+    prediction = kf_predict(prior, model, k=1)
+    parts = gaussian_update(prediction, kf_measurement(prediction, model, k=1), y)
+    _assert_records_equal(step, parts, _rtol(parts))
+    A = np.vstack([F, H @ F])
+    B = symmetrize(np.block([[Q, Q @ H.T], [H @ Q, H @ Q @ H.T + R]]))
+    joint = symmetrize(A @ prior.cov @ A.T + B)
+    for name, block in (("C_p", joint[..., :4, :4]), ("C_y", joint[..., 4:, 4:]), ("C_xy", joint[..., :4, 4:])):
+        assert np.array_equal(getattr(step, name), block), name
+
+
+@pytest.mark.parametrize("mean, cov, y, pattern", [
+    (np.zeros(2), np.eye(2), np.ones(3), "y must have 1 entries"),
+    (np.zeros(2), np.eye(2), np.array([np.nan]), "y contains NaN or inf"),
+    (np.zeros(2), np.eye(2), np.array([-np.inf]), "y contains NaN or inf"),
+    (np.array([0.0, np.nan]), np.eye(2), np.ones(1), "belief.mean contains NaN or inf"),
+    (np.zeros(2), np.diag([1.0, np.inf]), np.ones(1), "belief.cov contains NaN or inf"),
+    (np.zeros((3, 2)), np.stack([np.eye(2), np.eye(2), np.full((2, 2), np.nan)]), np.ones((3, 1)),
+     "belief.cov contains NaN or inf"),
+    (np.zeros(3), np.eye(3), np.ones(1), "belief must have mean"),
+    (np.zeros(2), np.eye(3), np.ones(1), "belief must have mean"),
+    (["a", "b"], np.eye(2), np.ones(1), "belief.mean must be numeric"),
+])
+def test_kf_step_rejects_a_bad_belief_or_y(mean, cov, y, pattern):
+    F, H, Q, R, _, _ = _linear_problem(47, 2, 1)
+    with pytest.raises(InputError, match=pattern):
+        kf_step(Gaussian(mean, cov), linear_model(F, H, Q, R), y, k=1)
+
+
+def test_all_finite_is_exact_where_its_sum_of_squares_overflows():
+    """The check behind the step's: finite entries whose squares overflow are still finite; any NaN
+    or ±inf is found, in C- and Fortran-ordered and strided arrays, alone or among others."""
+    big = np.array([[1e200, -1e200], [3e300, 0.0]])
+    assert all_finite(big) and all_finite(np.asfortranarray(big), big[:, 0], np.zeros(0))
+    for bad in (np.nan, np.inf, -np.inf):
+        for layout in (lambda a: a, np.asfortranarray, lambda a: a[:, ::2]):
+            a = np.ones((3, 4))
+            a[1, 2] = bad
+            assert not all_finite(layout(a)) and not all_finite(np.ones(2), layout(a))
 
 
 # --- UKF and EKF reduce to the KF on linear models -----------------------------------------------

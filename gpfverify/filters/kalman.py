@@ -7,16 +7,31 @@ C_y = H C_p Hᵀ + R, C_xy = C_p Hᵀ; update by :func:`~gpfverify.filters.updat
 (seed 000 eq. 15–16 are exactly these formulas with the moments computed exactly). The exact
 oracle of every other Gaussian filter on linear models. The model is a
 :class:`~gpfverify.models.StateSpaceModel` whose functions are matrices
-(:func:`~gpfverify.models.linear_model`); Q and R were validated when it was built.
+(:func:`~gpfverify.models.linear_model`); F, H, Q and R were validated when it was built and are
+not checked again here. A step checks what it is given: the belief and y (shape, NaN or inf),
+with an :class:`~gpfverify.errors.InputError` naming it.
+
+:func:`kf_step` forms the predicted joint of (x_k, y_k) in one product instead of prediction then
+moments: with A = [F; H F] and B = [[Q, Q Hᵀ], [H Q, H Q Hᵀ + R]] it is
+
+    N(A μ_e, A C_e Aᵀ + B),   blocks μ_p, μ_y and C_p, C_xy, C_y,
+
+the same numbers to rounding. The covariance is symmetrised, (M + Mᵀ)/2, as G + Gᵀ with
+G = A C_e (Aᵀ/2) + B/2: halving is exact in binary floating point (barring subnormals), so this is
+exactly (M + Mᵀ)/2 with one operation fewer. A, Aᵀ/2 and B/2 are formed once per model
+(:class:`PredictedJoint`).
 """
 
 from __future__ import annotations
 
+import weakref
+from dataclasses import dataclass
+
 import numpy as np
 
 from gpfverify.filters.records import Gaussian, MeasurementMoments, StepRecord
-from gpfverify.filters.update import check_belief, gaussian_update
-from gpfverify.linalg import symmetrize
+from gpfverify.filters.update import check_belief, condition
+from gpfverify.linalg import matmul_for, symmetrize
 from gpfverify.models.system import StateSpaceModel, require_model
 
 
@@ -43,11 +58,50 @@ def kf_measurement(prediction: Gaussian, model, *, k: int = 1) -> MeasurementMom
     return _measurement(check_belief(prediction, model.state_dim, "prediction"), H, model.R)
 
 
+@dataclass(frozen=True)
+class PredictedJoint:
+    """The predicted joint of (x_k, y_k) as a map of the belief (module docstring): A (D + L, D),
+    Aᵀ, Aᵀ/2 (views), B/2 (D + L, D + L); ``state_dim`` D splits the blocks."""
+
+    A: np.ndarray
+    A_T: np.ndarray
+    half_A_T: np.ndarray
+    half_B: np.ndarray
+    state_dim: int
+
+    @classmethod
+    def of(cls, F: np.ndarray, H: np.ndarray, Q: np.ndarray, R: np.ndarray) -> PredictedJoint:
+        A = np.concatenate([F, H @ F])
+        QH_T = Q @ H.T
+        B = symmetrize(np.block([[Q, QH_T], [QH_T.T, H @ QH_T + R]]))
+        return cls(A, A.T, (0.5 * A).T, 0.5 * B, F.shape[0])
+
+
+# formed once per model (a model is immutable once built); entries go with their models
+_JOINTS: weakref.WeakKeyDictionary[StateSpaceModel, PredictedJoint] = weakref.WeakKeyDictionary()
+
+
+def _joint(model) -> PredictedJoint:
+    """The :class:`PredictedJoint` of ``model``; InputError unless it is a linear StateSpaceModel."""
+    found = _JOINTS.get(model) if isinstance(model, StateSpaceModel) else None
+    if found is None:
+        require_model(model, StateSpaceModel, "the Kalman filter")
+        F, H = model.linear_matrices()
+        found = _JOINTS[model] = PredictedJoint.of(F, H, model.Q, model.R)
+    return found
+
+
 def kf_step(belief: Gaussian, model, y, *, k: int = 1) -> StepRecord:
-    """One Kalman predict–update cycle (the belief is checked once; the prediction made here is
-    not checked again)."""
-    require_model(model, StateSpaceModel, "the Kalman filter")
-    F, H = model.linear_matrices()
-    prediction = _predict(check_belief(belief, model.state_dim), F, model.Q)
-    return gaussian_update(prediction, _measurement(prediction, H, model.R), y, model.circular,
-                           model.circular_state)
+    """One Kalman predict–update cycle: the predicted joint (module docstring), then the update of
+    :func:`~gpfverify.filters.update.gaussian_update`; the belief and y are checked once and no
+    intermediate record is built. Equals :func:`kf_predict`, :func:`kf_measurement` and
+    ``gaussian_update`` in turn to rounding."""
+    joint = _joint(model)
+    belief = check_belief(belief, joint.state_dim)
+    mul = matmul_for(belief.cov)
+    half = mul(mul(joint.A, belief.cov), joint.half_A_T) + joint.half_B
+    cov = half + half.swapaxes(-1, -2)
+    mean = mul(belief.mean, joint.A_T)
+    d = joint.state_dim
+    return condition(mean[..., :d], cov[..., :d, :d], mean[..., d:], cov[..., d:, d:], cov[..., :d, d:], y,
+                     model.circular, model.circular_state)
