@@ -38,7 +38,7 @@ def gaussian_update(prediction: Gaussian, moments: MeasurementMoments, y,
     :class:`NumericalError` naming C_y instead of producing NaN or a silently changed gain.
     """
     return condition(prediction.mean, symmetrize(prediction.cov), moments.mu_y, symmetrize(moments.C_y),
-                     moments.C_xy, y, circular, circular_state)
+                     np.asarray(moments.C_xy, dtype=float), y, circular, circular_state)
 
 
 def condition(mu_p: np.ndarray, C_p: np.ndarray, mu_y, C_y: np.ndarray, C_xy: np.ndarray, y,
