@@ -21,7 +21,7 @@ from gpfverify.gp import fused  # noqa: E402
 
 #: the moment-matching paths a test can ask for: the fused kernel (when numba is installed) and
 #: the numpy reference
-MOMENT_PATHS = ("fused", "numpy") if fused.numba is not None else ("numpy",)
+MOMENT_PATHS = ("fused", "numpy") if fused.AVAILABLE else ("numpy",)
 
 
 @pytest.fixture(scope="module", params=MOMENT_PATHS)

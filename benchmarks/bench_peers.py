@@ -236,8 +236,8 @@ def kf_profile(repeats: int) -> list[list[str]]:
     from filterpy.kalman import KalmanFilter
 
     from gpfverify.filters import Gaussian, kf_step
-    from gpfverify.filters.kalman import _measurement, _predict
-    from gpfverify.filters.update import check_belief, gaussian_update
+    from gpfverify.filters.kalman import _joint
+    from gpfverify.filters.update import check_belief, condition
     from gpfverify.models import linear_model
 
     F, Q, m0, P0 = cv_model()
@@ -245,16 +245,21 @@ def kf_profile(repeats: int) -> list[list[str]]:
     model = linear_model(F, H, Q, R, m0, P0)
     y = np.array([1.0, -38.0])
     belief = Gaussian(m0, P0)
-    prediction = _predict(belief, F, Q)
-    moments = _measurement(prediction, H, R)
+    joint = _joint(model)
+
+    def joint_product():
+        half = joint.A.dot(belief.cov).dot(joint.half_A_T) + joint.half_B
+        return belief.mean.dot(joint.A_T), half + half.T
+
+    mean, cov = joint_product()
     kf = KalmanFilter(dim_x=4, dim_z=2)
     kf.F, kf.H, kf.Q, kf.R, kf.x, kf.P = F, H, Q, R, m0.copy(), P0.copy()
     parts = [("gpfverify: whole step", lambda: kf_step(belief, model, y)),
+             ("  the model's joint map A, Aᵀ/2, B/2 (cached per model)", lambda: _joint(model)),
              ("  belief check", lambda: check_belief(belief, 4)),
-             ("  predict (F μ, sym(F C Fᵀ + Q))", lambda: _predict(belief, F, Q)),
-             ("  measurement moments (H μ, sym(H C Hᵀ + R), C Hᵀ)", lambda: _measurement(prediction, H, R)),
-             ("  update (checks, Cholesky, one triangular solve, sym(C − WᵀW), record)",
-              lambda: gaussian_update(prediction, moments, y)),
+             ("  predicted joint N(Aμ, ACAᵀ + B), symmetric", joint_product),
+             ("  update (y check, Cholesky, one solve, one Gram product, record)",
+              lambda: condition(mean[:4], cov[:4, :4], mean[4:], cov[4:, 4:], cov[:4, 4:], y)),
              ("filterpy: predict()", kf.predict),
              ("filterpy: update(z) (no checks, no symmetrisation)", lambda: kf.update(y))]
     rows = []
@@ -487,7 +492,10 @@ class Gp0Port:
 
 
 def moments_profile(repeats: int) -> list[list[str]]:
-    """Where predict_uncertain's time goes (n = 300, D = 2, E = 4), next to the floor."""
+    """Where predict_uncertain's time goes (n = 300, D = 2, E = 4), next to the floor: the whole
+    call on the fused kernel and on the numpy reference path, the kernel alone, and numpy's
+    exp / expm1 over the call's own exponents."""
+    import gpfverify.gp.fused as fused
     import gpfverify.gp.moments as mm
     from gpfverify.gp import GaussianProcess
 
@@ -498,21 +506,81 @@ def moments_profile(repeats: int) -> list[list[str]]:
     gp = GaussianProcess(X, Y, rng.uniform(0.5, 2, (e, d)), rng.uniform(0.5, 2, e), np.full(e, 0.01))
     mu, sigma = np.array([0.2, -0.1]), np.array([[0.3, 0.1], [0.1, 0.2]])
     pairs = e * (e + 1) // 2
-    mm.moment_match(gp, mu, sigma)
+    saved = fused.enabled
+    fused.enabled = False
+    mm.moment_match(gp, mu, sigma)  # the numpy path leaves expm1(d_ij) in its workspace
     exponents = np.log1p(mm._WORKSPACE.buffer[:pairs * n * n])  # the d_ij of that call (timing only)
+    fused.enabled = saved
+    kernel_args = []
+    if fused.AVAILABLE:
+        from gpfverify.gp import fused_kernels
+
+        real = fused_kernels.centred_sums
+        fused_kernels.centred_sums = lambda *a: (kernel_args.append(a), real(*a))[1]
+        mm.moment_match(gp, mu, sigma)
+        fused_kernels.centred_sums = real
     uniform = rng.uniform(-2.0, 0.0, exponents.size)
     out = np.empty_like(exponents)
-    left, right = rng.normal(size=(1, pairs, n, d + 2)), rng.normal(size=(1, pairs, n, d + 2))
-    ratio = out.reshape(1, pairs, n, n)
-    weights = rng.normal(size=(1, pairs, 1, n))
-    parts = [("whole call", lambda: mm.moment_match(gp, mu, sigma)),
-             ("numpy exp over the same count (the floor)", lambda: np.exp(uniform, out=out)),
-             ("numpy exp over this call's exponents d_ij", lambda: np.exp(exponents, out=out)),
-             ("numpy expm1 over this call's exponents d_ij", lambda: np.expm1(exponents, out=out)),
-             ("exponent matrices by one batched matmul",
-              lambda: np.matmul(left, np.swapaxes(right, -1, -2), out=ratio)),
-             ("weighted sums β_aᵀ(…)β_b (matrix–vector)", lambda: weights @ np.swapaxes(ratio, -1, -2))]
+
+    def numpy_path():
+        fused.enabled = False
+        try:
+            mm.moment_match(gp, mu, sigma)
+        finally:
+            fused.enabled = saved
+
+    parts = [("whole call (fused kernel)" if saved else "whole call (numpy path: numba not installed)",
+              lambda: mm.moment_match(gp, mu, sigma)),
+             ("whole call on the numpy reference path", numpy_path)]
+    parts += [("  the fused kernel alone (all n² work: exponents, expm1, sums, traces)",
+               lambda a=a: real(*a)) for a in kernel_args[:1]]
+    parts += [("numpy exp over the same count (the floor)", lambda: np.exp(uniform, out=out)),
+              ("numpy exp over this call's exponents d_ij", lambda: np.exp(exponents, out=out)),
+              ("numpy expm1 over this call's exponents d_ij", lambda: np.expm1(exponents, out=out))]
     return [[name, fmt(alone(fn, repeats))] for name, fn in parts]
+
+
+#: function → the part of a ct2d run it stands for (cumulative CPU under cProfile)
+CT2D_PARTS = (("GP moment matching (GP-ADF predict and update, CMF/DMF central prediction)",
+               "moments.py", "moment_match_stack_batch"),
+              ("  of which the fused n² kernel", "fused.py", "_centred_sums"),
+              ("GP-UKF (sigma points through the GP means and variances)", "gp_ukf.py", "gp_ukf_measurement"),
+              ("", "gp_ukf.py", "gp_ukf_predict"),
+              ("RCC-CI solves (Clarabel)", "rcc_ci.py", "rcc_ci"),
+              ("DMF update (eq. 35)", "distributed.py", "dmf_update"),
+              ("rank analysis of every sensor (exactness)", "exactness.py", "analyse_sensors"),
+              ("GP training (evidence maximisation)", "learned.py", "fit_gp_model"))
+
+
+def ct2d_profile(runs: int, kappa: int = 300) -> list[list[str]]:
+    """Where one ct2d run's time goes: the cumulative time of the functions in
+    :data:`CT2D_PARTS` as a share of the whole run, under cProfile (which inflates the many small
+    calls, so the shares matter, not the seconds)."""
+    import cProfile
+    import pstats
+
+    from gpfverify.experiments import ct2d
+
+    params = ct2d.Params(kappa=kappa)
+    ct2d.run_one(params, np.random.SeedSequence(0))  # warm: compiled kernels, caches
+    profile = cProfile.Profile()
+    profile.enable()
+    for seed in np.random.SeedSequence(1).spawn(runs):
+        ct2d.run_one(params, seed)
+    profile.disable()
+    stats = pstats.Stats(profile).stats  # type: ignore[attr-defined]
+    total = max(v[3] for (path, _, name), v in stats.items() if name == "run_one" and path.endswith("ct2d.py"))
+    shares: dict[str, float] = {}
+    label = ""
+    for part, path, name in CT2D_PARTS:
+        label = part or label
+        cumulative = sum(v[3] for (p, _, n), v in stats.items() if n == name and p.endswith(path))
+        shares[label] = shares.get(label, 0.0) + cumulative
+    rows = [[label, f"{100 * t / total:.0f} %"] for label, t in shares.items()]
+    counted = sum(t for label, t in shares.items() if not label.startswith("  "))
+    rows.append(["everything else (filter bookkeeping, records, sensor simulation, CW, metrics)",
+                 f"{100 * (total - counted) / total:.0f} %"])
+    return rows
 
 
 def moments_rows(table: Table, repeats: int) -> dict:
@@ -534,6 +602,24 @@ def moments_rows(table: Table, repeats: int) -> dict:
     t_ours, t_peer = paired(lambda: moment_match(gp, mu, sigma), lambda: port(mu, sigma), repeats)
     table.ratio(f"`predict_uncertain`, n = {n}, D = {d}, E = {e}", "vectorised port of gp-adf's gp0", t_ours, t_peer,
                 diff, "≤ 0.5")
+
+    # the accelerator against the numpy reference path of the same call
+    import gpfverify.gp.fused as fused
+
+    if fused.AVAILABLE:
+        def reference_path():
+            fused.enabled = False
+            try:
+                return moment_match(gp, mu, sigma)
+            finally:
+                fused.enabled = True
+
+        ref_np = reference_path()
+        diff_np = max(agree("fused vs numpy cov", ours.cov, ref_np.cov, 1e-12, 1e-14),
+                      agree("fused vs numpy mean", ours.mean, ref_np.mean, 0.0, 0.0))
+        t_fused, t_numpy = paired(lambda: moment_match(gp, mu, sigma), reference_path, repeats)
+        table.ratio(f"`predict_uncertain`, n = {n}, D = {d}, E = {e} (fused kernel)",
+                    "its own numpy reference path", t_fused, t_numpy, diff_np, "")
 
     # the floor: E(E+1)/2 · n² exponentials, numpy exp, same process
     count = e * (e + 1) // 2 * n * n
@@ -707,10 +793,13 @@ def main() -> None:
     own = own_rows(repeats, 0 if args.quick else args.ct2d_runs) if "own" in only else []
     profiles = []
     if "profile" in only:
-        profiles = [("KF step, D = 4, L = 2", ["part", "CPU per call", "Python calls", "C calls"],
+        profiles = [("KF step, D = 4, L = 2 (median CPU per call)", ["part", "CPU per call", "Python calls", "C calls"],
                      kf_profile(repeats)),
-                    ("`predict_uncertain`, n = 300, D = 2, E = 4", ["part", "CPU per call"],
+                    ("`predict_uncertain`, n = 300, D = 2, E = 4 (median CPU per call)", ["part", "CPU per call"],
                      moments_profile(repeats))]
+        if not args.quick and args.ct2d_runs:
+            profiles.append(("one ct2d run, κ = 300 (share of the run's CPU under cProfile)", ["part", "share"],
+                             ct2d_profile(args.ct2d_runs)))
     load_after = os.getloadavg()
     lines = [
         f"Machine: {platform.machine()}, {os.cpu_count()} cores, Python {platform.python_version()}; "
@@ -727,7 +816,7 @@ def main() -> None:
         lines += ["Rows no library publishes (process CPU time per call, median):", "",
                   "| operation | gpfverify |", "|---|---|"] + [f"| {a} | {b} |" for a, b in own] + [""]
     for title, head, rows in profiles:
-        lines += [f"Profile: {title} (median CPU per call)", "",
+        lines += [f"Profile: {title}", "",
                   "| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
         lines += ["| " + " | ".join(r) + " |" for r in rows] + [""]
     text = "\n".join(lines)

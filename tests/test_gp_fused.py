@@ -13,7 +13,7 @@ from gpfverify.gp.moments import moment_match_stack
 from gpfverify.strategies import gp_stacks
 from gpfverify.tolerances import algebra_rtol
 
-needs_numba = pytest.mark.skipif(fused.numba is None, reason="the fused kernel needs numba (the fast extra)")
+needs_numba = pytest.mark.skipif(not fused.AVAILABLE, reason="the fused kernel needs numba (the fast extra)")
 
 EPS = np.finfo(float).eps
 #: the reduction's boundaries ±½ ln 2 and their neighbours, zeros, the clamp and the largest argument
@@ -50,7 +50,9 @@ def test_reference_expm1_keeps_every_digit_near_zero():
 @needs_numba
 def test_compiled_expm1_equals_the_numpy_algorithm_bit_for_bit():
     x = _arguments(1)
-    np.testing.assert_array_equal(fused.expm1_compiled(x), fused.expm1_reference(x))
+    from gpfverify.gp.fused_kernels import expm1_compiled
+
+    np.testing.assert_array_equal(expm1_compiled(x), fused.expm1_reference(x))
 
 
 def _both_paths(case):
@@ -88,10 +90,22 @@ def test_an_exponent_beyond_the_limit_takes_the_numpy_path(monkeypatch):
 
     x = np.concatenate([rng.uniform(-10, 10, size=(30, 1)), rng.uniform(250, 400, size=(30, 1))])
     gp = GaussianProcess(x, np.sin(3 * x[:, 0]), lengthscales=[[0.5]], signal_var=[1.0], noise_var=[0.01])
+    from gpfverify.gp import fused_kernels
+
     calls = []
-    monkeypatch.setattr(fused, "_centred_sums", lambda *a: calls.append(a))
+    monkeypatch.setattr(fused_kernels, "centred_sums", lambda *a: calls.append(a))
     monkeypatch.setattr(fused, "enabled", True)
     gp.predict_uncertain(np.array([0.5]), np.array([[30.0]]))
     assert calls == []
     gp.predict_uncertain(np.array([0.5]), np.array([[1e-4]]))
     assert len(calls) == 1
+
+
+def test_importing_the_package_does_not_import_numba():
+    """numba costs about half a second to import: only the first moment-matching call loads it."""
+    import subprocess
+    import sys
+
+    code = "import sys, gpfverify.cli, gpfverify.models, gpfverify.gp; print('numba' in sys.modules)"
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
+    assert out.strip() == "False"

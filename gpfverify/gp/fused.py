@@ -27,10 +27,8 @@ is a single IEEE operation (no fused multiply–add, no reassociation), so the c
 
 from __future__ import annotations
 
-import importlib
 import importlib.util
 import math
-from types import ModuleType
 
 import numpy as np
 
@@ -72,109 +70,27 @@ def expm1_reference(x: np.ndarray) -> np.ndarray:
     return scale * p + (scale - 1.0)
 
 
-#: the optional accelerator (the ``fast`` extra); absent, moments.py uses its numpy path
-numba: ModuleType | None = importlib.import_module("numba") if importlib.util.find_spec("numba") else None
-
-#: whether :func:`centred_sums` uses the compiled kernel (numba installed); set False to take the
-#: numpy reference path everywhere (tests run both)
-enabled = numba is not None
+#: whether numba (the optional ``fast`` extra) is installed; it is imported only when the kernel is
+#: first used (:mod:`gpfverify.gp.fused_kernels`), not with the package
+AVAILABLE = importlib.util.find_spec("numba") is not None
+#: whether :func:`centred_sums` uses the compiled kernel; set False to take the numpy reference path
+#: everywhere (tests run both)
+enabled = AVAILABLE
 #: exponents above this are left to the caller's log-space path (exp(709.8) overflows)
 EXPM1_SAFE = 700.0
-#: the row loops' unroll width: four partial sums per reduction, combined at the end of each row
-_LANES = 4
-
-if numba is not None:
-    _jit = numba.njit(cache=True, nogil=True, boundscheck=False, error_model="numpy")
-    _expm1_reduced_compiled = _jit(_expm1_reduced)
-
-    @_jit
-    def _expm1_row(d: np.ndarray, scale_bits: np.ndarray, scale: np.ndarray) -> None:
-        """d ← expm1(d) in place (d ≤ 700); ``scale_bits``/``scale`` are one buffer's int64 and
-        float64 views, as long as d."""
-        n = d.size
-        for j in range(n):
-            x = max(d[j], LOWEST)
-            t = x * INV_LN2 + SHIFTER
-            k = t - SHIFTER
-            r = (x - k * LN2_HI) - k * LN2_LO
-            d[j] = _expm1_reduced_compiled(r)
-            scale[j] = t
-        for j in range(n):
-            scale_bits[j] = (scale_bits[j] - _SHIFTER_BITS + 1023) << 52
-        for j in range(n):
-            s = scale[j]
-            d[j] = s * d[j] + (s - 1.0)
-
-    @_jit
-    def _dot(x: np.ndarray, y: np.ndarray) -> float:
-        """Σ_j x_j y_j with :data:`_LANES` partial sums (a fixed order: the same bits every call)."""
-        n = x.size
-        s0 = s1 = s2 = s3 = 0.0
-        end = n - n % _LANES
-        for j in range(0, end, _LANES):
-            s0 += x[j] * y[j]
-            s1 += x[j + 1] * y[j + 1]
-            s2 += x[j + 2] * y[j + 2]
-            s3 += x[j + 3] * y[j + 3]
-        for j in range(end, n):
-            s0 += x[j] * y[j]
-        return (s0 + s1) + (s2 + s3)
-
-    @_jit
-    def _centred_sums(z_a: np.ndarray, row: np.ndarray, z_b_t: np.ndarray, col: np.ndarray, u: np.ndarray,
-                      v: np.ndarray, q_a: np.ndarray, k_inv: np.ndarray, diagonal: np.ndarray,
-                      cov: np.ndarray, trace: np.ndarray) -> None:
-        """Both sums of the module docstring for a batch of inputs b and output pairs p:
-        z_a (B, P, n_a, D), row (B, P, n_a), z_b_t (B, P, D, n_b), col (B, P, n_b), u (B, P, n_a),
-        v (B, P, n_b), q_a (B, P, n_a); k_inv (E, n_a, n_a) and diagonal (P,) the output a of a
-        diagonal pair (−1 otherwise). Writes cov (B, P) and trace (B, P) (zero off the diagonal
-        pairs). Every exponent must be at most :data:`EXPM1_SAFE` (see :func:`centred_sums`)."""
-        batch, pairs, n_a, dim = z_a.shape
-        n_b = z_b_t.shape[3]
-        d = np.empty(n_b)
-        scale = np.empty(n_b)
-        scale_bits = scale.view(np.int64)
-        weighted = np.empty(n_b)
-        for b in range(batch):
-            for p in range(pairs):
-                a = diagonal[p]
-                total = 0.0
-                total_trace = 0.0
-                for i in range(n_a):
-                    r_i = row[b, p, i]
-                    for j in range(n_b):
-                        d[j] = col[b, p, j] + r_i
-                    for k in range(dim):
-                        z = z_a[b, p, i, k]
-                        for j in range(n_b):
-                            d[j] += z * z_b_t[b, p, k, j]
-                    _expm1_row(d, scale_bits, scale)
-                    total += u[b, p, i] * _dot(d, v[b, p])
-                    if a >= 0:
-                        for j in range(n_b):
-                            weighted[j] = k_inv[a, i, j] * q_a[b, p, j]
-                        total_trace += q_a[b, p, i] * _dot(d, weighted)
-                cov[b, p] = total
-                trace[b, p] = total_trace
-
-    @_jit
-    def expm1_compiled(x: np.ndarray) -> np.ndarray:
-        """The compiled expm1 of a 1-D array (x ≤ 700), for testing the kernel's arithmetic."""
-        out = x.copy()
-        scale = np.empty(x.size)
-        _expm1_row(out, scale.view(np.int64), scale)
-        return out
 
 
 def centred_sums(z_a: np.ndarray, row: np.ndarray, z_b_t: np.ndarray, col: np.ndarray, u: np.ndarray,
                  v: np.ndarray, q_a: np.ndarray, k_inv: np.ndarray, diagonal: np.ndarray
                  ) -> tuple[np.ndarray, np.ndarray] | None:
-    """(Cov (B, P), trace (B, P)) by the fused kernel (shapes as in ``_centred_sums``), or None when
+    """(Cov (B, P), trace (B, P)) by the fused kernel (shapes as in
+    :func:`gpfverify.gp.fused_kernels.centred_sums`), or None when
     numba is not installed or an exponent may exceed :data:`EXPM1_SAFE` (the caller's numpy path
     handles both). The bound d_ij ≤ max_i r_i + max_j c_j + max_i ‖z_i‖ · max_j ‖w_j‖ (Cauchy–Schwarz)
     decides, before any exponent is formed; the same inputs always take the same path."""
     if not enabled:
         return None
+    from gpfverify.gp import fused_kernels
     bound = (row.max(axis=-1) + col.max(axis=-1) + np.sqrt(np.einsum("bpnd,bpnd->bpn", z_a, z_a).max(axis=-1)
                                                            * np.einsum("bpdn,bpdn->bpn", z_b_t, z_b_t).max(axis=-1)))
     if not np.all(bound <= EXPM1_SAFE):
@@ -182,5 +98,5 @@ def centred_sums(z_a: np.ndarray, row: np.ndarray, z_b_t: np.ndarray, col: np.nd
     shape = row.shape[:2]
     cov, trace = np.empty(shape), np.empty(shape)
     arrays = [np.ascontiguousarray(x, dtype=float) for x in (z_a, row, z_b_t, col, u, v, q_a, k_inv)]
-    _centred_sums(*arrays, np.ascontiguousarray(diagonal, dtype=np.int64), cov, trace)
+    fused_kernels.centred_sums(*arrays, np.ascontiguousarray(diagonal, dtype=np.int64), cov, trace)
     return cov, trace
