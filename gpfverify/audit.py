@@ -57,6 +57,7 @@ from gpfverify.fusion.exactness import (COVARIANCE_CENTRAL, COVARIANCE_LOCAL, DE
                                         local_consistency_residual, parse_rank_rule, predicted_gap,
                                         resolve_rank_rule, sensor_gap, sensor_prior_covariance,
                                         whitened_innovation)
+from gpfverify.linalg import correlation_condition
 from gpfverify.tolerances import algebra_rtol
 
 if TYPE_CHECKING:  # casadi is imported only when sensitivities are asked for
@@ -153,11 +154,12 @@ class CaseAudit:
 
 
 def _consistency_tol(case: FusionCase, m: int) -> float:
-    """Rounding level of μ_e^m − μ_p^m − C_xy^m w_m for a consistent record."""
+    """Rounding level of μ_e^m − μ_p^m − C_xy^m w_m for a consistent record: w_m = (C_y^m)⁻¹(…) is
+    a Cholesky solve, whose rounding follows the condition of C_y^m's correlation matrix (units do
+    not change it)."""
     local = case.locals[m]
-    eig = np.linalg.eigvalsh(local.C_y)
     scale = np.linalg.norm(local.mu_e - local.mu_p) + np.linalg.norm(local.mu_e) + np.linalg.norm(local.mu_p)
-    return float(algebra_rtol(eig[-1] / eig[0]) * scale)
+    return float(algebra_rtol(correlation_condition(local.C_y)) * scale)
 
 
 def _correlations(case: FusionCase, m: int, split) -> tuple[np.ndarray | None, str | None]:

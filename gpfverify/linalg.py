@@ -259,3 +259,19 @@ def canonical_correlations(cov_x: np.ndarray, cov_y: np.ndarray, cross: np.ndarr
     k = sla.solve_triangular(ly, left.T, lower=True, check_finite=False).T           # … L_yc⁻ᵀ
     u, s, vt = np.linalg.svd(k, full_matrices=True)
     return CanonicalCorrelations(s, u, vt.T, dx, lx, dy, ly)
+
+
+def spd_condition(matrix: np.ndarray) -> float:
+    """λ_max / λ_min of a symmetric positive (semi)definite matrix; ∞ when the computed smallest
+    eigenvalue is not positive (numerically singular: no finite condition number describes it)."""
+    eig = np.linalg.eigvalsh(matrix)
+    return float(eig[-1] / eig[0]) if eig[0] > 0 else float("inf")
+
+
+def correlation_condition(cov: np.ndarray) -> float:
+    """:func:`spd_condition` of the correlation matrix of ``cov`` (D^{-½} cov D^{-½}, D its diagonal;
+    zero variances left unscaled): invariant under a change of units of each component, and what
+    governs the rounding of a Cholesky solve with ``cov`` (van der Sluis)."""
+    diag = np.diag(cov)
+    d = np.sqrt(np.where(diag > 0, diag, 1.0))
+    return spd_condition(cov / np.outer(d, d))

@@ -18,10 +18,11 @@ correlation matrices (invariant under the scaling).
 """
 
 import numpy as np
-from hypothesis import event, given
+from hypothesis import event, example, given
 from hypothesis import strategies as st
 
 from gpfverify.audit import audit_case
+from gpfverify.fusion.case import CentralPrediction, FusionCase, LocalReport
 from gpfverify.fusion.centralized import fusion_gain
 from gpfverify.fusion.distributed import dmf_update
 from gpfverify.fusion.exactness import range_condition_number, rescaled_case
@@ -85,6 +86,23 @@ def check_unit_invariance(case, s_x, s_y) -> None:
           != [s.rank for s in numpy_moved.sensors] else "numpy rule kept its rank verdicts")
 
 
+def _found_case() -> tuple[FusionCase, np.ndarray, np.ndarray]:
+    """A case the property found: three 1-D sensors (one with C_xy = 1e-7), rescaled so that the
+    central C_y spans 1e-14 … 1e11 and its computed smallest eigenvalue is 0 — a condition number
+    formed as λ_max/λ_min divided by zero there (now ∞, or the unit-free correlation condition)."""
+    def local(c_y, c_xy, c_e):
+        return LocalReport(np.zeros(1), np.zeros(1), np.array([[c_y]]), np.array([[c_xy]]), np.zeros(1),
+                           np.array([[c_e]]))
+
+    c_y = np.array([[0.11, 1e-7, 0.1], [1e-7, 0.01, 1e-7], [0.1, 1e-7, 0.11]])
+    central = CentralPrediction(np.zeros(1), np.array([[0.1]]), np.zeros(3), c_y, np.array([[0.1, 1e-7, 0.1]]),
+                                (1, 1, 1))
+    case = FusionCase(central, (local(0.11, 0.1, 0.1 / 11), local(0.01, 1e-7, 0.1), local(0.11, 0.1, 0.1 / 11)),
+                      np.zeros(3))
+    return case, np.array([1e-6]), np.array([1e-6, 1e-6, 1e6])
+
+
+@example(scaled=_found_case())
 @given(scaled=scaled_cases())
 def test_canonical_rank_exactness_and_gap_do_not_depend_on_units(scaled):
     check_unit_invariance(*scaled)

@@ -19,14 +19,14 @@ import numpy as np
 from gpfverify.filters.records import Gaussian
 from gpfverify.fusion.estimates import FusedEstimate, checked_estimates
 from gpfverify.fusion.pairwise import joint_diagonalise
+from gpfverify.linalg import spd_condition
 from gpfverify.tolerances import algebra_rtol
 
 
 def _two_sensor_ei(first, second) -> FusedEstimate:
     jd = joint_diagonalise(first, second)
     mu = jd.ratios
-    eig = np.linalg.eigvalsh(first.cov)
-    tie = np.abs(mu - 1.0) <= algebra_rtol(eig[-1] / eig[0])
+    tie = np.abs(mu - 1.0) <= algebra_rtol(spd_condition(first.cov))
     a1 = np.where(tie, 0.5, (mu > 1.0).astype(float))
     q = 1.0 / np.minimum(1.0, mu)
     # mean B diag(1/q)(a1 u1 + a2 u2) with q absorbed: fuse() divides by q, so pre-multiply

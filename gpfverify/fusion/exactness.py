@@ -118,8 +118,8 @@ from gpfverify.angles import TWO_PI, difference, wrap
 from gpfverify.errors import InputError, NumericalError
 from gpfverify.fusion.case import CentralPrediction, FusionCase, LocalReport
 from gpfverify.fusion.centralized import fusion_gain
-from gpfverify.linalg import (CanonicalCorrelations, RankReport, canonical_correlations, right_solve_spd,
-                              solve_spd, symmetrize)
+from gpfverify.linalg import (CanonicalCorrelations, RankReport, canonical_correlations, correlation_condition,
+                              right_solve_spd, solve_spd, spd_condition, symmetrize)
 from gpfverify.tolerances import CANONICAL_RANK_TOL, algebra_rtol, numpy_rank_tol
 
 #: the rank rules :class:`RankRule` knows
@@ -351,14 +351,6 @@ class SensorExactness:
         return self.split.kernel_basis.shape[1]
 
 
-def _correlation_condition(cov: np.ndarray) -> float:
-    """Condition number of the correlation matrix of ``cov`` (invariant under diagonal scaling)."""
-    diag = np.diag(cov)
-    d = np.sqrt(np.where(diag > 0, diag, 1.0))
-    eig = np.linalg.eigvalsh(cov / np.outer(d, d))
-    return float(eig[-1] / eig[0]) if eig[0] > 0 else float("inf")
-
-
 def analyse_sensors(case: FusionCase, gain: np.ndarray, rank_tol: float | None = None,
                     rank_rule=None) -> tuple[SensorExactness, ...]:
     """Kernel split and gap gain of every sensor under the rule :func:`resolve_rank_rule` picks
@@ -367,7 +359,7 @@ def analyse_sensors(case: FusionCase, gain: np.ndarray, rank_tol: float | None =
     central = case.central
     out = []
     if rule.name == "canonical":
-        central_cond = _correlation_condition(central.C_y)
+        central_cond = correlation_condition(central.C_y)
         for m, (block, local) in enumerate(zip(central.blocks, case.locals)):
             split = sensor_split(local, rule, central.C_p)
             g_m = gain[:, block]
@@ -379,8 +371,7 @@ def analyse_sensors(case: FusionCase, gain: np.ndarray, rank_tol: float | None =
             kappa = max(central_cond, cc.whitening_condition ** 2)
             out.append(SensorExactness(m, split, gap_gain, residual, algebra_rtol(kappa) * scale))
         return tuple(out)
-    eig = np.linalg.eigvalsh(central.C_y)
-    rtol = algebra_rtol(eig[-1] / eig[0])
+    rtol = algebra_rtol(spd_condition(central.C_y))
     for m, (block, local) in enumerate(zip(central.blocks, case.locals)):
         split = sensor_split(local, rule)
         g_m = gain[:, block]
@@ -480,11 +471,9 @@ def equivalence_tolerance(case: FusionCase, gain: np.ndarray, sensors: tuple[Sen
     ‖A_m‖. Norms are BLAS nrm2 (scipy.linalg.norm), which does not underflow for tiny entries.
     Needs ``case.y``."""
     c = case.central
-    eig = np.linalg.eigvalsh(c.C_y)
-    cond, terms = eig[-1] / eig[0], 0.0
+    cond, terms = spd_condition(c.C_y), 0.0
     for s, block, local in zip(sensors, c.blocks, case.locals):
-        eig_m = np.linalg.eigvalsh(local.C_y)
-        cond = max(cond, range_condition_number(s.split) * eig_m[-1] / eig_m[0])
+        cond = max(cond, range_condition_number(s.split) * spd_condition(local.C_y))
         terms += (sla.norm(local.C_y, 2) * sla.norm(s.split.pinv, 2) * (sla.norm(local.mu_e) + sla.norm(local.mu_p))
                   + sla.norm(local.mu_y) + sla.norm(c.mu_y[block])
                   + sla.norm(case.local_measurement(s.index)))
