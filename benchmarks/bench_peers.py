@@ -543,7 +543,7 @@ def moments_profile(repeats: int) -> list[list[str]]:
 #: function → the part of a ct2d run it stands for (cumulative CPU under cProfile)
 CT2D_PARTS = (("GP moment matching (GP-ADF predict and update, CMF/DMF central prediction)",
                "moments.py", "moment_match_stack_batch"),
-              ("  of which the fused n² kernel", "fused.py", "_centred_sums"),
+              ("  of which the fused n² kernel", "fused_kernels.py", "centred_sums"),
               ("GP-UKF (sigma points through the GP means and variances)", "gp_ukf.py", "gp_ukf_measurement"),
               ("", "gp_ukf.py", "gp_ukf_predict"),
               ("RCC-CI solves (Clarabel)", "rcc_ci.py", "rcc_ci"),
