@@ -14,64 +14,31 @@ self-contained ``reports/reference/fusion-paper.html``. The per-run files are no
 
 from __future__ import annotations
 
-import dataclasses
 import json
-import math
 import sys
 from pathlib import Path
 
 from reference_pages import recompute_into, write_page
 
+from gpfverify.contract.claims import AS_RUN, read_claims
 from gpfverify.contract.ct2d import Params as CT2DParams
-from gpfverify.contract.serial import to_json
 from gpfverify.experiments import ct2d, ungm1d
-from gpfverify.experiments.fusion_run import ClaimContext
 from gpfverify.report.render import to_html
 from gpfverify.report.sections import fusion_ct2d, fusion_ungm1d
 
 HERE = Path(__file__).resolve().parent
-#: folder name -> the exact command that made it (run from the repository root, OUT = RUNS_DIR).
-#: On a shared 2-core machine under heavy load (≈ 50 s wall per κ = 300 run) these run counts are
-#: what fitted; the pages state, per undecided claim, the run count that would decide it.
-COMMANDS = {
-    "ct2d-k300-w0.5": "gpfverify reproduce ct2d --kappa 300 --omega 0.5 --runs 1000 --seed 1 --out OUT/ct2d-k300-w0.5 "
-                      "(stopped for time after RUNS runs, then summarised with --runs RUNS --resume)",
-    "ct2d-k30-w0.0698": "gpfverify reproduce ct2d --kappa 30 --omega 0.0698 --runs 20 --seed 1 --interpretations all "
-                        "--out OUT/ct2d-k30-w0.0698, then the main run extended with --runs RUNS --resume "
-                        "(the interpretations keep 20 runs)",
-    "ct2d-k60-w0.0698": "gpfverify reproduce ct2d --kappa 60 --omega 0.0698 --runs 20 --seed 1 --interpretations "
-                        "canonical-rank --out OUT/ct2d-k60-w0.0698, then the main run extended with --runs RUNS "
-                        "--resume (the interpretation keeps 20 runs)",
-    "ungm1d-sweep": "gpfverify reproduce ungm1d --runs 10 --seed 1 --interpretations canonical-rank "
-                    "--out OUT/ungm1d-sweep",
-}
-#: the earlier reference run of κ = 300, Ω = 2π/90 (1000 runs, numpy's rank rule; commit ae10113),
-#: committed before the claims became records and not re-run here: its claims are recomputed from the
-#: per-run summaries it stores (:func:`earlier_k300`)
-EARLIER_K300 = HERE / "ct2d" / "k300-w0.0698" / "results.json"
-EARLIER_K300_COMMAND = ("gpfverify reproduce ct2d --kappa 300 --omega 0.0698 --runs 1000 --seed 1 --out OUT "
-                        "(an earlier release, commit ae10113; claims recomputed from its stored summaries)")
-EARLIER_CAVEAT = ("an earlier 1000-run result whose per-run records were not kept: its claims are recomputed from "
-                  "the per-run means it stores; the filters' health checks (divergence, NEES) need the per-run "
-                  "records and are not available for it")
-
-
-def earlier_k300() -> dict | None:
-    """The earlier κ = 300, Ω = 2π/90 result with its claims recomputed by today's claim functions
-    from the summaries it stores (its parameters were the defaults of today's Params at that κ, Ω)."""
-    if not EARLIER_K300.exists():
-        return None
-    old = json.loads(EARLIER_K300.read_text(encoding="utf-8"))
-    if "claims" in old:  # already in today's format
-        return old
-    params = CT2DParams(kappa=old["params"]["kappa"], omega=2 * math.pi / 90)
-    body = {**old, "params": params.to_json(), "health": [],
-            "start_perturbation": {"mean": params.start_mean, "std": params.perturbation_std,
-                                   "initial_cov_scale": params.start_cov_scale}}
-    ctx = ClaimContext(ct2d.NAME, params.label, "", old["runs_ok"], ct2d.DEFAULT_RUNS)
-    claims = [dataclasses.replace(c, caveats=(*c.caveats, EARLIER_CAVEAT))
-              for c in ct2d.claims(params, body, ctx)]
-    return to_json({**body, "claims": claims, "timing_claims": ct2d.time_claims(ctx, body)})
+#: folder name -> the commands that made it (run from the repository root, OUT = RUNS_DIR): each
+#: main run was first made next to its interpretations (INTERPRETED runs each, the same seed), then
+#: extended alone with ``--resume`` to RUNS runs; both counts are read from the results.
+MADE = ("gpfverify reproduce {experiment} {options}--runs INTERPRETED --seed 1 --interpretations WHICH "
+        "--out OUT/{name}, then gpfverify reproduce {experiment} {options}--runs RUNS --seed 1 --resume "
+        "--out OUT/{name}")
+#: folder name -> the experiment's options besides the run counts and the seed
+OPTIONS = {"ct2d-k300-w0.0698": "--kappa 300 --omega 0.0698 ", "ct2d-k300-w0.5": "--kappa 300 --omega 0.5 ",
+           "ct2d-k30-w0.0698": "--kappa 30 --omega 0.0698 ", "ct2d-k60-w0.0698": "--kappa 60 --omega 0.0698 ",
+           "ungm1d-sweep": ""}
+COMMANDS = {name: MADE.format(experiment=name.split("-")[0], options=options, name=name)
+            for name, options in OPTIONS.items()}
 
 
 def target(name: str) -> Path:
@@ -82,7 +49,15 @@ def target(name: str) -> Path:
 
 
 def command(name: str, results: dict) -> str:
-    return COMMANDS[name].replace("RUNS", str(results["runs"]))
+    """The commands that made ``results``: the interpretations tried and their run count read from
+    its claims, the main run's count from its ``runs``."""
+    module = ct2d if name.startswith("ct2d") else ungm1d
+    tried = [i for c in read_claims(results) for i in c.interpretations if i.name != AS_RUN]
+    names = list(dict.fromkeys(i.name for i in tried))
+    which = "all" if set(names) == {s.name for s in module.INTERPRETATIONS} else ",".join(names)
+    counts = ", ".join(str(n) for n in sorted({i.n for i in tried if i.n})) or str(results["runs"])
+    return (COMMANDS[name].replace("INTERPRETED", counts).replace("WHICH", which)
+            .replace("RUNS", str(results["runs"])))
 
 
 def committed(name: str) -> dict | None:
@@ -104,10 +79,6 @@ def main(runs_dir: Path | None) -> None:
     made = "python reports/reference/make_fusion_paper.py OUT (or --committed: from the committed results.json)"
     sections = []
     commands = [command(n, r) for n, r in found.items() if n.startswith("ct2d")]
-    earlier = earlier_k300()
-    if earlier is not None:
-        found = {"ct2d-k300-w0.0698": earlier, **found}
-        commands.insert(0, EARLIER_K300_COMMAND)
     ct = {CT2DParams.from_json(r["params"]).label: r for n, r in found.items() if n.startswith("ct2d")}
     if ct:
         section = fusion_ct2d.render(ct, HERE / "ct2d", command=f"{'; '.join(commands)}; then {made}")
