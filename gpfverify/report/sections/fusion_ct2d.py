@@ -69,7 +69,7 @@ def render(results: dict, folder: Path, command: str | None = None) -> Section:
     section.add(Paragraph(
         "Interpretations tried besides the defaults (each a set of parameter changes, run with the same seeds "
         "and run count; `--interpretations all`): "
-        + "; ".join(f"**{spec.name}** ({', '.join(f'{k} = {v}' for k, v in spec.changes.items())}): {spec.why}"
+        + "; ".join(f"{spec.name} ({', '.join(f'{k} = {v}' for k, v in spec.changes.items())}): {spec.why}"
                     for spec in INTERPRETATIONS) + "."))
     if command:
         section.add(Paragraph(f"Made by: `{command}`"))
