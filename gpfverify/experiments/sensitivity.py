@@ -65,13 +65,13 @@ def merge_saved(run_dir: Path, module: ModuleType) -> dict:
     interpretations, e.g. a reference page)."""
     from gpfverify.experiments.runner import _atomic_write_json, read_manifest, results_of, rewrite_results
 
-    main = rewrite_results(run_dir, module)
+    manifest = read_manifest(Path(run_dir))
+    main = results_of(module, Path(run_dir), manifest)  # written once, merged, below
     tried = []
     for spec in getattr(module, "INTERPRETATIONS", ()):
         folder = Path(run_dir) / "interpretations" / spec.name
         if (folder / "manifest.json").exists():
             tried.append((spec, rewrite_results(folder, module)))
-    manifest = read_manifest(Path(run_dir))
     fewer = sorted({r["runs"] for _, r in tried if r["runs"] < main["runs"]})
     merged = merge(main, tried, [results_of(module, Path(run_dir), manifest, n) for n in fewer])
     _atomic_write_json(Path(run_dir) / "results.json", merged)
