@@ -36,6 +36,24 @@ INTENSITY = 4
 
 
 @dataclass(frozen=True)
+class PatchSpread:
+    """The truncated point spread (eq. 9) of N particles on their own patches, in separable form:
+
+        h^{(c_x + a, c_y + b)}(s) = amplitude · along_x[p + a] · along_y[p + b],   |a|, |b| ≤ p,
+
+    with (c_x, c_y) = (``centre_x``, ``centre_y``) the particle's nearest cell; a factor is zero
+    where its cell is off the image. Computed once per particle set by
+    :meth:`TbdModel.patch_spread` and shared by the likelihood and the second-stage measurement.
+    """
+
+    centre_x: np.ndarray  # (N,) int
+    centre_y: np.ndarray  # (N,) int
+    along_x: np.ndarray  # (2p+1, N): particles last, so numpy's inner loops run over N
+    along_y: np.ndarray  # (2p+1, N)
+    amplitude: np.ndarray  # (N,)
+
+
+@dataclass(frozen=True)
 class TbdModel:
     """All model constants of the TBD problem (units: cells, frames).
 
@@ -131,6 +149,15 @@ class TbdModel:
         """Index of the cell whose centre is nearest (integers, possibly outside 0 … n−1)."""
         return np.rint(np.asarray(coordinate) / self.cell_size).astype(np.int64)
 
+    def spread_factor(self, coordinate: np.ndarray, cells: np.ndarray) -> np.ndarray:
+        """exp(−(cΔ − x)² / (2Σ²)) for coordinates x and integer cells c broadcast against each
+        other, with no truncation (the one evaluation every other method uses)."""
+        factor = cells * self.cell_size - coordinate
+        factor /= self.blur
+        np.square(factor, out=factor)
+        factor *= -0.5
+        return np.exp(factor, out=factor)
+
     def axis_spread(self, coordinate: np.ndarray, cells: np.ndarray) -> np.ndarray:
         """Separable factor exp(−(cΔ − x)² / (2Σ²)) of the point spread for each (particle, cell),
         zero where the cell is off the image or outside the particle's patch.
@@ -141,13 +168,29 @@ class TbdModel:
         cells = np.broadcast_to(cells, (coordinate.shape[0], np.shape(cells)[-1]))
         inside = (cells >= 0) & (cells < self.grid_size)
         in_patch = np.abs(cells - self.nearest_cell(coordinate)) <= self.patch_radius
-        spread = np.exp(-0.5 * ((cells * self.cell_size - coordinate) / self.blur) ** 2)
-        return np.where(inside & in_patch, spread, 0.0)
+        return np.where(inside & in_patch, self.spread_factor(coordinate, cells), 0.0)
+
+    @cached_property
+    def patch_offsets(self) -> np.ndarray:
+        """−p … p, the cells of a patch relative to its centre along one axis."""
+        return np.arange(-self.patch_radius, self.patch_radius + 1)
 
     def patch_cells(self, coordinate: np.ndarray) -> np.ndarray:
         """Cell indices of each particle's patch along one axis, (N, 2p+1) (may leave the image)."""
-        offsets = np.arange(-self.patch_radius, self.patch_radius + 1)
-        return self.nearest_cell(coordinate)[:, None] + offsets
+        return self.nearest_cell(coordinate)[:, None] + self.patch_offsets
+
+    def patch_spread(self, states: np.ndarray) -> PatchSpread:
+        """The point spread of every particle (N, 5) on its own patch (see :class:`PatchSpread`)."""
+        centres, factors = [], []
+        for axis in POS:
+            coordinate = states[:, axis]
+            centre = self.nearest_cell(coordinate)
+            cells = self.patch_offsets[:, None] + centre
+            factor = self.spread_factor(coordinate, cells)
+            factor[cells.view(np.uint64) >= self.grid_size] = 0.0  # negative cells wrap to huge
+            centres.append(centre)
+            factors.append(factor)
+        return PatchSpread(centres[0], centres[1], factors[0], factors[1], self.amplitude(states[:, INTENSITY]))
 
     def expected_image(self, state: np.ndarray) -> np.ndarray:
         """h(s) over the whole image, (n, n) indexed [i_x, i_y], for one state (5,)."""
@@ -156,27 +199,56 @@ class TbdModel:
         gy = self.axis_spread(state[POS[1]:POS[1] + 1], cells)[0]
         return float(self.amplitude(state[INTENSITY])) * np.outer(gx, gy)
 
-    def measurement_on_patch(self, states: np.ndarray, axis_x: np.ndarray, axis_y: np.ndarray) -> np.ndarray:
-        """h^{(i,j)}(s) for every particle on the fixed patch axis_x × axis_y (cells, row-major),
-        (N, len(axis_x) · len(axis_y)). Used by the second-stage update."""
-        gx = self.axis_spread(states[:, POS[0]], axis_x)
-        gy = self.axis_spread(states[:, POS[1]], axis_y)
-        h = self.amplitude(states[:, INTENSITY])[:, None, None] * gx[:, :, None] * gy[:, None, :]
-        return h.reshape(states.shape[0], -1)
+    def measurement_on_patch(self, states: np.ndarray, axis_x: np.ndarray, axis_y: np.ndarray,
+                             spread: PatchSpread | None = None, out: np.ndarray | None = None) -> np.ndarray:
+        """h^{(i,j)}(s) for every cell of the fixed patch axis_x × axis_y (cells on the image,
+        row-major) and every particle, (len(axis_x) · len(axis_y), N) — particles last. Used by the
+        second-stage update; ``spread``, when given, is ``patch_spread(states)`` (its factors are
+        read, not recomputed); ``out``, when given, receives the result."""
+        spread = self.patch_spread(states) if spread is None else spread
+        gx = self._on_cells(spread.centre_x, spread.along_x, axis_x)
+        gy = self._on_cells(spread.centre_y, spread.along_y, axis_y)
+        gx *= spread.amplitude
+        shape = (len(axis_x), len(axis_y), states.shape[0])
+        if out is None:
+            out = np.empty((shape[0] * shape[1], shape[2]))
+        np.multiply(gx[:, None, :], gy[None, :, :], out=out.reshape(shape))
+        return out
 
-    def log_likelihood_ratio(self, states: np.ndarray, image: np.ndarray) -> np.ndarray:
+    def _on_cells(self, centre: np.ndarray, along: np.ndarray, cells: np.ndarray) -> np.ndarray:
+        """Particles' patch factors ``along`` (2p+1, N) read at fixed image cells c (W,): the
+        factor of cell c is along[c − centre + p] when |c − centre| ≤ p, else 0, (W, N)."""
+        count = along.shape[1]
+        index = cells[:, None] - centre
+        index += self.patch_radius
+        outside = index.view(np.uint64) >= along.shape[0]  # below 0 wraps to huge
+        index *= count
+        index += np.arange(count)
+        values = np.take(along, index, mode="clip")
+        values[outside] = 0.0
+        return values
+
+    def log_likelihood_ratio(self, states: np.ndarray, image: np.ndarray,
+                             spread: PatchSpread | None = None) -> np.ndarray:
         """log L(z | s) for every particle, summed over its own (2p+1)² patch, (N,).
 
         log L = Σ_{(i,j) ∈ C(s)} (h z − h²/2) / σ², with h = a g_x(i) g_y(j) separable, so the
         quadratic term is a² (Σ_i g_x²)(Σ_j g_y²) / 2 and the linear one a g_xᵀ Z_patch g_y.
+        ``spread``, when given, is ``patch_spread(states)``.
+
+        The linear term is summed one patch row i at a time (arrays of (2p+1) × N, not (2p+1)² × N).
+        Z_patch is read at the flat index (c_x + i) n + (c_y + j) clipped to the image: a cell off
+        the image has a zero factor, so whichever (finite) pixel that index reads adds nothing.
         """
-        ix = self.patch_cells(states[:, POS[0]])
-        iy = self.patch_cells(states[:, POS[1]])
-        gx = self.axis_spread(states[:, POS[0]], ix)
-        gy = self.axis_spread(states[:, POS[1]], iy)
-        last = self.grid_size - 1
-        patch = image[np.clip(ix, 0, last)[:, :, None], np.clip(iy, 0, last)[:, None, :]]
-        amp = self.amplitude(states[:, INTENSITY])
-        linear = amp * np.einsum("ni,nij,nj->n", gx, patch, gy)
-        quadratic = 0.5 * amp**2 * np.sum(gx**2, axis=1) * np.sum(gy**2, axis=1)
+        spread = self.patch_spread(states) if spread is None else spread
+        gx, gy, amp = spread.along_x, spread.along_y, spread.amplitude
+        n = self.grid_size
+        row_start = spread.centre_x * n + spread.centre_y
+        columns = self.patch_offsets[:, None] + row_start
+        linear = np.zeros(row_start.shape)
+        for i, offset in enumerate(self.patch_offsets):
+            row = np.take(image, columns + offset * n, mode="clip")
+            linear += gx[i] * np.einsum("jn,jn->n", row, gy)
+        linear *= amp
+        quadratic = 0.5 * amp**2 * np.einsum("in,in->n", gx, gx) * np.einsum("jn,jn->n", gy, gy)
         return (linear - quadratic) / self.noise_std**2

@@ -30,7 +30,7 @@ from scipy.special import expit
 from gpfverify.errors import InputError
 from gpfverify.filters.resampling import (Particles, ParticleStep, effective_sample_size, log_sum_exp,
                                           moments_from_weights, normalize_log_weights, systematic_resample)
-from gpfverify.filters.tbd.model import TbdModel
+from gpfverify.filters.tbd.model import PatchSpread, TbdModel
 
 
 @dataclass(frozen=True)
@@ -125,13 +125,21 @@ def pf_tbd_step(belief: Particles, model: TbdModel, image: np.ndarray, *, k: int
     """Steps ①–⑥ above for one frame ``image`` (n, n); ``k`` is unused (the model is
     time-invariant). The record's ``weighted`` is the merged set of ④ (normalised log weights),
     its ``posterior`` the N_c resampled particles with the existence probability P_k."""
+    return pf_tbd_stage(belief, model, image, rng=rng, config=config)[0]
+
+
+def pf_tbd_stage(belief: Particles, model: TbdModel, image: np.ndarray, *, rng: np.random.Generator,
+                 config: TbdConfig) -> tuple[ParticleStep, PatchSpread]:
+    """:func:`pf_tbd_step` and the point spread of its merged set (``model.patch_spread`` of
+    ``weighted.particles``), which the second stage of TPFTBD reuses."""
     if belief.existence is None:
         raise InputError("belief.existence: PF-TBD needs the existence probability (see initial_belief)")
     prev = belief.existence
     births, log_ratio = birth_proposal(model, config, image, rng)
     continuing = model.propagate(belief.particles, rng)
     merged = np.concatenate([births, continuing])
-    log_w = model.log_likelihood_ratio(merged, image)
+    spread = model.patch_spread(merged)
+    log_w = model.log_likelihood_ratio(merged, image, spread)
     log_w[:config.n_birth] += log_ratio + _log(model.p_birth * (1.0 - prev) / config.n_birth)
     # log(N_c w^i_{k−1}) is exactly 0 for the equally weighted set Rutten's filter carries
     n_prev = belief.size
@@ -143,6 +151,7 @@ def pf_tbd_step(belief: Particles, model: TbdModel, image: np.ndarray, *, k: int
     log_w -= log_mass
     mean, cov = moments_from_weights(merged, np.exp(log_w))
     resampled = merged[systematic_resample(log_w, rng, size=config.n_continuing)]
-    return ParticleStep(Particles.equally_weighted(resampled, existence=existence),
+    step = ParticleStep(Particles.equally_weighted(resampled, existence=existence),
                         Particles(merged, log_w, existence=existence), mean, cov,
                         effective_sample_size(log_w), True)
+    return step, spread

@@ -30,8 +30,8 @@ import numpy as np
 
 from gpfverify.filters.records import StepRecord
 from gpfverify.filters.resampling import Particles, ParticleStep
-from gpfverify.filters.tbd.model import POS, TbdModel
-from gpfverify.filters.tbd.pf import TbdConfig, pf_tbd_step
+from gpfverify.filters.tbd.model import POS, PatchSpread, TbdModel
+from gpfverify.filters.tbd.pf import TbdConfig, pf_tbd_stage
 from gpfverify.linalg import cholesky, right_solve_spd, symmetrize
 
 
@@ -58,25 +58,29 @@ def second_stage_axes(model: TbdModel, config: TbdConfig, estimate: np.ndarray):
 
 
 def second_stage_update(merged: np.ndarray, log_weights: np.ndarray, model: TbdModel, config: TbdConfig,
-                        image: np.ndarray, estimate: np.ndarray) -> tuple[StepRecord, np.ndarray, np.ndarray]:
+                        image: np.ndarray, estimate: np.ndarray,
+                        spread: PatchSpread | None = None) -> tuple[StepRecord, np.ndarray, np.ndarray]:
     """Eq. 11–20 on the patch around ``estimate``; returns (record, cells_x, cells_y), the patch's
-    cells flattened row-major (the order of μ_y).
+    cells flattened row-major (the order of μ_y). ``spread``, when given, is
+    ``model.patch_spread(merged)`` (the PF stage's, reused).
 
-    The weighted moments of the joint sample [s^i, h_C(s^i)] give ŝ, ẑ, P, P_xz and Cov(h_C).
-    They are summed with ``einsum`` rather than a BLAS product: with thousands of particles BLAS
-    goes multi-threaded for this small (5 + 25)² result and, on a loaded machine, the thread
-    hand-off costs several times the arithmetic (see benchmarks/bench_tbd.py).
+    The weighted moments of the joint sample [s^i, h_C(s^i)] give ŝ, ẑ, P, P_xz and Cov(h_C):
+    with the deviations scaled by √w^i in place, the covariance is one Gram product DᵀD (BLAS
+    ``syrk``, exactly symmetric). The product is BLAS's: the command line and the Monte Carlo
+    workers run BLAS on one thread (:mod:`gpfverify.runtime`), as it should be at these sizes.
     """
     axis_x, axis_y = second_stage_axes(model, config, estimate)
     cells_x, cells_y = (c.ravel() for c in np.meshgrid(axis_x, axis_y, indexing="ij"))
     z = image[cells_x, cells_y]
-    H = model.measurement_on_patch(merged, axis_x, axis_y)
     weights = np.exp(log_weights)
-    joint = np.hstack([merged, H])
-    joint_mean = np.einsum("n,ni->i", weights, joint)
-    dev = joint - joint_mean
-    joint_cov = symmetrize(np.einsum("ni,nj->ij", dev * weights[:, None], dev))
     d = merged.shape[1]
+    joint = np.empty((d + z.size, merged.shape[0]))  # particles last: rows [s; h_C]
+    joint[:d] = merged.T
+    model.measurement_on_patch(merged, axis_x, axis_y, spread, out=joint[d:])
+    joint_mean = joint @ weights
+    joint -= joint_mean[:, None]
+    joint *= np.sqrt(weights)
+    joint_cov = joint @ joint.T
     s_hat, z_hat = joint_mean[:d], joint_mean[d:]
     P, P_xz = joint_cov[:d, :d], joint_cov[:d, d:]
     S = joint_cov[d:, d:] + model.noise_std**2 * np.eye(z.size)
@@ -112,9 +116,9 @@ def tpf_tbd_step(belief: Particles, model: TbdModel, image: np.ndarray, *, k: in
                  rng: np.random.Generator, config: TbdConfig, second_rng: np.random.Generator) -> TwoStageStep:
     """PF-TBD with ``rng``, then the second stage and the transfer with ``second_rng`` (separate
     streams: with ζ = 1 the step reproduces PF-TBD exactly for the same ``rng``)."""
-    step = pf_tbd_step(belief, model, image, k=k, rng=rng, config=config)
+    step, spread = pf_tbd_stage(belief, model, image, rng=rng, config=config)
     record, cells_x, cells_y = second_stage_update(step.weighted.particles, step.weighted.log_weights, model,
-                                                   config, image, step.mean)
+                                                   config, image, step.mean, spread)
     particles, replaced = transfer_particles(step.posterior.particles, record.mu_e, record.C_e,
                                              config.zeta, second_rng)
     zeta, gap = config.zeta, step.mean - record.mu_e
