@@ -52,13 +52,16 @@ def _dot(x: np.ndarray, y: np.ndarray) -> float:
 
 @_jit
 def centred_sums(z_a: np.ndarray, row: np.ndarray, z_b_t: np.ndarray, col: np.ndarray, u: np.ndarray,
-                  v: np.ndarray, q_a: np.ndarray, k_inv: np.ndarray, diagonal: np.ndarray,
-                  cov: np.ndarray, trace: np.ndarray) -> None:
+                 v: np.ndarray, q_a: np.ndarray, k_inv: np.ndarray, diagonal: np.ndarray,
+                 cov: np.ndarray, trace: np.ndarray) -> None:
     """Both sums of the module docstring for a batch of inputs b and output pairs p:
     z_a (B, P, n_a, D), row (B, P, n_a), z_b_t (B, P, D, n_b), col (B, P, n_b), u (B, P, n_a),
     v (B, P, n_b), q_a (B, P, n_a); k_inv (E, n_a, n_a) and diagonal (P,) the output a of a
     diagonal pair (−1 otherwise). Writes cov (B, P) and trace (B, P) (zero off the diagonal
-    pairs). Every exponent must be at most :data:`EXPM1_SAFE` (see :func:`gpfverify.gp.fused.centred_sums`)."""
+    pairs). Every exponent must be at most :data:`EXPM1_SAFE` (see :func:`gpfverify.gp.fused.centred_sums`).
+
+    A diagonal pair is the pair (a, a) of one GP: its exponents are symmetric (d_ij = d_ji), as are
+    u = v and K_a⁻¹, so only j ≥ i is formed and the terms off the main diagonal count twice."""
     batch, pairs, n_a, dim = z_a.shape
     n_b = z_b_t.shape[3]
     d = np.empty(n_b)
@@ -71,19 +74,24 @@ def centred_sums(z_a: np.ndarray, row: np.ndarray, z_b_t: np.ndarray, col: np.nd
             total = 0.0
             total_trace = 0.0
             for i in range(n_a):
+                start = i if a >= 0 else 0  # a diagonal pair: the upper triangle j ≥ i
+                width = n_b - start
+                row_d = d[:width]
                 r_i = row[b, p, i]
-                for j in range(n_b):
-                    d[j] = col[b, p, j] + r_i
+                for j in range(width):
+                    row_d[j] = col[b, p, start + j] + r_i
                 for k in range(dim):
                     z = z_a[b, p, i, k]
-                    for j in range(n_b):
-                        d[j] += z * z_b_t[b, p, k, j]
-                _expm1_row(d, scale_bits, scale)
-                total += u[b, p, i] * _dot(d, v[b, p])
-                if a >= 0:
-                    for j in range(n_b):
-                        weighted[j] = k_inv[a, i, j] * q_a[b, p, j]
-                    total_trace += q_a[b, p, i] * _dot(d, weighted)
+                    for j in range(width):
+                        row_d[j] += z * z_b_t[b, p, k, start + j]
+                _expm1_row(row_d, scale_bits[:width], scale[:width])
+                if a < 0:
+                    total += u[b, p, i] * _dot(row_d, v[b, p])
+                    continue
+                total += u[b, p, i] * (row_d[0] * v[b, p, i] + 2.0 * _dot(row_d[1:], v[b, p, i + 1:]))
+                for j in range(width):
+                    weighted[j] = k_inv[a, i, start + j] * q_a[b, p, start + j]
+                total_trace += q_a[b, p, i] * (row_d[0] * weighted[0] + 2.0 * _dot(row_d[1:], weighted[1:width]))
             cov[b, p] = total
             trace[b, p] = total_trace
 

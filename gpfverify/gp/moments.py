@@ -30,6 +30,7 @@ eigenvalues.
 
 from __future__ import annotations
 
+import functools
 import threading
 from dataclasses import dataclass
 
@@ -51,16 +52,16 @@ class MomentMatch:
 
 
 def _shifted(scaled: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """For symmetric PSD ``scaled`` = S (…, D, D): ((S + I)⁻¹, (S + I)⁻¹S, log|S + I|), batched.
-
-    (S + I)⁻¹S is solved for directly and log|S + I| = Σ log1p(eig S): when S is tiny (input
-    variance far below the lengthscales) neither is formed as a difference of numbers near 1."""
-    d = scaled.shape[-1]
-    shifted = scaled + np.eye(d)
-    inv = symmetrize(np.linalg.solve(shifted, np.broadcast_to(np.eye(d), shifted.shape)))
-    ratio = symmetrize(np.linalg.solve(shifted, scaled))
-    logdet = np.sum(np.log1p(np.clip(np.linalg.eigvalsh(scaled), 0.0, None)), axis=-1)
-    return inv, ratio, logdet
+    """For symmetric PSD ``scaled`` = S (…, D, D): ((S + I)⁻¹, (S + I)⁻¹S, log|S + I|), batched,
+    from one eigendecomposition S = V diag(λ) Vᵀ: (S + I)⁻¹ = V diag(1/(1 + λ)) Vᵀ,
+    (S + I)⁻¹S = V diag(λ/(1 + λ)) Vᵀ and log|S + I| = Σ log1p(λ). When S is tiny (input variance
+    far below the lengthscales) none of them is formed as a difference of numbers near 1."""
+    eigval, eigvec = np.linalg.eigh(scaled)
+    eigval = np.clip(eigval, 0.0, None)  # S is PSD: negative eigenvalues are rounding
+    eigvec_t = np.swapaxes(eigvec, -1, -2)
+    inv = symmetrize((eigvec / (1.0 + eigval)[..., None, :]) @ eigvec_t)
+    ratio = symmetrize((eigvec * (eigval / (1.0 + eigval))[..., None, :]) @ eigvec_t)
+    return inv, ratio, np.sum(np.log1p(eigval), axis=-1)
 
 
 @dataclass(frozen=True)
@@ -81,8 +82,8 @@ def _first_moments(gp, mu: np.ndarray, sigma: np.ndarray) -> _FirstMoments:
     inv_ell = 1.0 / gp.lengthscales  # (E, D)
     b_inv, b_ratio, b_logdet = _shifted(sigma * inv_ell[:, :, None] * inv_ell[:, None, :])
     nu_scaled = nu[None, :, :] * inv_ell[:, None, :]  # Λ^{-½}ν, (E, n, D)
-    maha = np.einsum("eid,edk,eik->ei", nu_scaled, b_inv, nu_scaled)  # νᵀ(Σ+Λ)⁻¹ν
-    t = np.einsum("eid,edk,eik->ei", nu_scaled, b_ratio, nu_scaled)  # νᵀ(Λ⁻¹ − (Σ+Λ)⁻¹)ν
+    maha = np.sum((nu_scaled @ b_inv) * nu_scaled, axis=-1)  # νᵀ(Σ+Λ)⁻¹ν, (E, n)
+    t = np.sum((nu_scaled @ b_ratio) * nu_scaled, axis=-1)  # νᵀ(Λ⁻¹ − (Σ+Λ)⁻¹)ν
     log_q = np.log(gp.signal_var)[:, None] - 0.5 * b_logdet[:, None] - 0.5 * maha  # (E, n)
     q = np.exp(log_q)
     mean = np.einsum("en,en->e", gp.beta, q)
@@ -147,7 +148,7 @@ def _centred_second_moments(gp_a, gp_b, ia: np.ndarray, ib: np.ndarray, first_a:
     za_a = za @ a_mat
     const = 0.5 * (first_a.b_logdet[:, ia] + first_b.b_logdet[:, ib] - r_logdet)  # (B, P)
     row = -0.5 * first_a.t[:, ia] + 0.5 * np.sum(za_a * za, axis=-1) + const[..., None]
-    col = -0.5 * first_b.t[:, ib] + 0.5 * np.einsum("bpnd,bpdk,bpnk->bpn", zb, a_mat, zb)
+    col = -0.5 * first_b.t[:, ib] + 0.5 * np.sum((zb @ a_mat) * zb, axis=-1)
     q_a, q_b = np.exp(first_a.log_q[:, ia]), np.exp(first_b.log_q[:, ib])  # (B, P, n)
     u, v = gp_a.beta[ia] * q_a, gp_b.beta[ib] * q_b
     fused = centred_sums(za_a, row, np.swapaxes(zb, -1, -2), col, u, v, q_a, gp_a.K_inv, diagonal)
@@ -200,9 +201,12 @@ def _model_uncertainty(gp, log_q: np.ndarray, traces: np.ndarray) -> np.ndarray:
     for every output a at a batch of inputs: (B, E), from ``log_q`` (B, E, n) and the traces
     (B, E) of :func:`_centred_second_moments`."""
     q = np.exp(log_q)
-    # L_a⁻¹ q_a for the whole batch in one triangular solve per output
-    whitened_sq = np.stack([np.sum(sla.solve_triangular(factor, q[:, a].T, lower=True, check_finite=False) ** 2,
-                                   axis=0) for a, factor in enumerate(gp.cholesky_factors)], axis=1)  # (B, E)
+    whitened_sq = np.empty(q.shape[:2])  # ‖L_a⁻¹q_a‖², (B, E)
+    for a, factor in enumerate(gp.cholesky_factors):
+        upper = factor.T  # Lᵀ, Fortran-ordered: BLAS solves Lx = q as (Lᵀ)ᵀx = q without a copy
+        for b in range(q.shape[0]):
+            whitened = sla.blas.dtrsv(upper, q[b, a], lower=0, trans=1)
+            whitened_sq[b, a] = whitened @ whitened
     return gp.signal_var - whitened_sq - traces
 
 
@@ -210,6 +214,22 @@ def _chunks(batch: int, entries_per_input: int) -> list[slice]:
     """Slices of the batch axis so that each chunk forms at most :data:`_CHUNK_ENTRIES` entries."""
     step = max(1, _CHUNK_ENTRIES // max(1, entries_per_input))
     return [slice(i, min(i + step, batch)) for i in range(0, batch, step)]
+
+
+@functools.lru_cache(maxsize=64)
+def _block_pairs(outputs_a: int, outputs_b: int, same_gp: bool) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The output pairs (ia[p], ib[p]) of one block of the joint covariance — the upper triangle
+    within one GP, every pair across two — and ``diagonal[p]``: the output a of each pair (a, a) of
+    one GP, whose covariance adds E_x[σ_a²(x)], −1 elsewhere (read-only arrays, shared by calls)."""
+    if same_gp:
+        ia, ib = np.triu_indices(outputs_a)
+        diagonal = np.where(ia == ib, ia, -1)
+    else:
+        ia, ib = (idx.ravel() for idx in np.indices((outputs_a, outputs_b)))
+        diagonal = np.full(ia.size, -1)
+    for array in (ia, ib, diagonal):
+        array.flags.writeable = False
+    return ia, ib, diagonal
 
 
 def moment_match_stack_batch(gps, mu: np.ndarray, sigma: np.ndarray) -> MomentMatch:
@@ -222,25 +242,24 @@ def moment_match_stack_batch(gps, mu: np.ndarray, sigma: np.ndarray) -> MomentMa
     firsts = [_stack_firsts([_first_moments(gp, mu[b], sigma[b]) for b in range(batch)]) for gp in gps]
     mean = np.concatenate([f.mean for f in firsts], axis=-1)
     cross_cov = np.concatenate([f.cross_cov for f in firsts], axis=-1)
-    offsets = np.cumsum([0] + [gp.output_dim for gp in gps])
+    offsets = [0]
+    for gp in gps:
+        offsets.append(offsets[-1] + gp.output_dim)
     cov = np.empty((batch, offsets[-1], offsets[-1]))
     for g, gp_a in enumerate(gps):
         for h in range(g, len(gps)):
             gp_b = gps[h]
-            if g == h:
-                ia, ib = np.triu_indices(gp_a.output_dim)
-            else:
-                ia, ib = (idx.ravel() for idx in np.indices((gp_a.output_dim, gp_b.output_dim)))
-            # the output a of each pair (a, a) of one GP, whose covariance adds E_x[σ_a²(x)]; −1 elsewhere
-            diagonal = np.where(ia == ib, ia, -1) if g == h else np.full(ia.size, -1)
+            ia, ib, diagonal = _block_pairs(gp_a.output_dim, gp_b.output_dim, g == h)
+            on_diagonal = diagonal >= 0
             blocks = np.empty((ia.size, batch))  # Cov[f_a, f_b] per output pair and input
-            for part in _chunks(batch, ia.size * gp_a.X.shape[0] * gp_b.X.shape[0]):
-                first_a, first_b = _batch_part(firsts[g], part), _batch_part(firsts[h], part)
+            parts = _chunks(batch, ia.size * gp_a.X.shape[0] * gp_b.X.shape[0])
+            for part in parts:
+                first_a, first_b = ((firsts[g], firsts[h]) if len(parts) == 1 else
+                                    (_batch_part(firsts[g], part), _batch_part(firsts[h], part)))
                 pair_cov, traces = _centred_second_moments(gp_a, gp_b, ia, ib, first_a, first_b, mu[part],
                                                            sigma[part], diagonal)
                 block = pair_cov.T  # (P, B)
-                if g == h:
-                    on_diagonal = diagonal >= 0
+                if on_diagonal.any():
                     block[on_diagonal] += _model_uncertainty(gp_a, first_a.log_q, traces[:, on_diagonal]).T
                 blocks[:, part] = block
             rows, cols = offsets[g] + ia, offsets[h] + ib
