@@ -199,31 +199,24 @@ class TbdModel:
         gy = self.axis_spread(state[POS[1]:POS[1] + 1], cells)[0]
         return float(self.amplitude(state[INTENSITY])) * np.outer(gx, gy)
 
-    def measurement_on_patch(self, states: np.ndarray, axis_x: np.ndarray, axis_y: np.ndarray,
-                             spread: PatchSpread | None = None, out: np.ndarray | None = None) -> np.ndarray:
-        """h^{(i,j)}(s) for every cell of the fixed patch axis_x × axis_y (cells on the image,
-        row-major) and every particle, (len(axis_x) · len(axis_y), N) — particles last. Used by the
-        second-stage update; ``spread``, when given, is ``patch_spread(states)`` (its factors are
-        read, not recomputed); ``out``, when given, receives the result."""
-        spread = self.patch_spread(states) if spread is None else spread
-        gx = self._on_cells(spread.centre_x, spread.along_x, axis_x)
-        gy = self._on_cells(spread.centre_y, spread.along_y, axis_y)
-        gx *= spread.amplitude
-        shape = (len(axis_x), len(axis_y), states.shape[0])
-        if out is None:
-            out = np.empty((shape[0] * shape[1], shape[2]))
-        np.multiply(gx[:, None, :], gy[None, :, :], out=out.reshape(shape))
-        return out
+    def measurement_on_patch(self, spread: PatchSpread, axis_x: np.ndarray, axis_y: np.ndarray,
+                             particles: np.ndarray) -> np.ndarray:
+        """h^{(i,j)}(s) on the fixed patch axis_x × axis_y (cells on the image, row-major) for the
+        particles with indices ``particles`` (M,) of ``spread`` (:meth:`patch_spread`, whose
+        factors are read, not recomputed), (len(axis_x) · len(axis_y), M) — particles last."""
+        gx = self._on_cells(spread.centre_x, spread.along_x, axis_x, particles)
+        gy = self._on_cells(spread.centre_y, spread.along_y, axis_y, particles)
+        gx *= spread.amplitude[particles]
+        return (gx[:, None, :] * gy[None, :, :]).reshape(-1, particles.size)
 
-    def _on_cells(self, centre: np.ndarray, along: np.ndarray, cells: np.ndarray) -> np.ndarray:
-        """Particles' patch factors ``along`` (2p+1, N) read at fixed image cells c (W,): the
-        factor of cell c is along[c − centre + p] when |c − centre| ≤ p, else 0, (W, N)."""
-        count = along.shape[1]
-        index = cells[:, None] - centre
-        index += self.patch_radius
+    def _on_cells(self, centre: np.ndarray, along: np.ndarray, cells: np.ndarray, particles: np.ndarray) -> np.ndarray:
+        """Patch factors ``along`` (2p+1, N) of the particles ``particles`` (M,) read at fixed image
+        cells c (W,): the factor of cell c is along[c − centre + p] when |c − centre| ≤ p, else 0,
+        (W, M)."""
+        index = (cells + self.patch_radius)[:, None] - centre[particles]
         outside = index.view(np.uint64) >= along.shape[0]  # below 0 wraps to huge
-        index *= count
-        index += np.arange(count)
+        index *= along.shape[1]
+        index += particles
         values = np.take(along, index, mode="clip")
         values[outside] = 0.0
         return values

@@ -32,7 +32,8 @@ from gpfverify.filters.records import StepRecord
 from gpfverify.filters.resampling import Particles, ParticleStep
 from gpfverify.filters.tbd.model import POS, PatchSpread, TbdModel
 from gpfverify.filters.tbd.pf import TbdConfig, pf_tbd_stage
-from gpfverify.linalg import cholesky, right_solve_spd, symmetrize
+from gpfverify.filters.update import condition
+from gpfverify.linalg import cholesky, symmetrize
 
 
 @dataclass(frozen=True)
@@ -48,46 +49,67 @@ class SecondStage:
 
 def second_stage_axes(model: TbdModel, config: TbdConfig, estimate: np.ndarray):
     """Cells of the (2r+1)² patch around the cell nearest to the estimate, clipped to the image,
-    along x and along y."""
-    offsets = np.arange(-config.second_stage_radius, config.second_stage_radius + 1)
+    along x and along y (contiguous ranges, possibly empty)."""
+    r, last = config.second_stage_radius, model.grid_size - 1
     axes = []
     for coordinate in (estimate[POS[0]], estimate[POS[1]]):
-        cells = model.nearest_cell(coordinate) + offsets
-        axes.append(cells[(cells >= 0) & (cells < model.grid_size)])
+        centre = int(model.nearest_cell(coordinate))
+        axes.append(np.arange(max(centre - r, 0), min(centre + r, last) + 1))
     return axes[0], axes[1]
 
 
 def second_stage_update(merged: np.ndarray, log_weights: np.ndarray, model: TbdModel, config: TbdConfig,
                         image: np.ndarray, estimate: np.ndarray,
                         spread: PatchSpread | None = None) -> tuple[StepRecord, np.ndarray, np.ndarray]:
-    """Eq. 11–20 on the patch around ``estimate``; returns (record, cells_x, cells_y), the patch's
-    cells flattened row-major (the order of μ_y). ``spread``, when given, is
-    ``model.patch_spread(merged)`` (the PF stage's, reused).
+    """Eq. 11–20 on the patch C around ``estimate``; returns (record, cells_x, cells_y), the
+    patch's cells flattened row-major (the order of μ_y). ``log_weights`` are normalised;
+    ``spread``, when given, is ``model.patch_spread(merged)`` (the PF stage's, reused).
 
-    The weighted moments of the joint sample [s^i, h_C(s^i)] give ŝ, ẑ, P, P_xz and Cov(h_C):
-    with the deviations scaled by √w^i in place, the covariance is one Gram product DᵀD (BLAS
-    ``syrk``, exactly symmetric). The product is BLAS's: the command line and the Monte Carlo
-    workers run BLAS on one thread (:mod:`gpfverify.runtime`), as it should be at these sizes.
+    Only the particles whose own patch overlaps C (the set O) have h_C ≠ 0; every other particle
+    has h_C = 0, so with D = [√w^i (s^i − ŝ)] (all particles) and E = [√w^i (h_C(s^i) − ẑ)] (i ∈ O),
+    w_Ō = Σ_{i ∉ O} w^i and d_Ō = Σ_{i ∉ O} w^i (s^i − ŝ), the sums of the module docstring are
+
+        ẑ = Σ_{i ∈ O} w^i h_C(s^i),   P = D Dᵀ,   P_xz = D_O Eᵀ − d_Ō ẑᵀ,   Cov(h_C) = E Eᵀ + w_Ō ẑ ẑᵀ,
+
+    (on average under a third of the particles are in O). The Gram products are BLAS ``syrk``
+    (exactly symmetric), so the update is :func:`~gpfverify.filters.update.condition`'s. The
+    products are BLAS's: the command line and the Monte Carlo workers run BLAS on one thread
+    (:mod:`gpfverify.runtime`), as it should be at these sizes.
     """
     axis_x, axis_y = second_stage_axes(model, config, estimate)
-    cells_x, cells_y = (c.ravel() for c in np.meshgrid(axis_x, axis_y, indexing="ij"))
+    cells_x, cells_y = np.repeat(axis_x, axis_y.size), np.tile(axis_y, axis_x.size)
     z = image[cells_x, cells_y]
     weights = np.exp(log_weights)
-    d = merged.shape[1]
-    joint = np.empty((d + z.size, merged.shape[0]))  # particles last: rows [s; h_C]
-    joint[:d] = merged.T
-    model.measurement_on_patch(merged, axis_x, axis_y, spread, out=joint[d:])
-    joint_mean = joint @ weights
-    joint -= joint_mean[:, None]
-    joint *= np.sqrt(weights)
-    joint_cov = joint @ joint.T
-    s_hat, z_hat = joint_mean[:d], joint_mean[d:]
-    P, P_xz = joint_cov[:d, :d], joint_cov[:d, d:]
-    S = joint_cov[d:, d:] + model.noise_std**2 * np.eye(z.size)
-    K = right_solve_spd(P_xz, S, "second-stage innovation covariance S")
-    mean = s_hat + K @ (z - z_hat)
-    cov = symmetrize(P - K @ P_xz.T)
-    return StepRecord(s_hat, P, z_hat, S, P_xz, mean, cov), cells_x, cells_y
+    root_w = np.sqrt(weights)
+    s_hat = weights @ merged
+    dev = np.subtract(merged.T, s_hat[:, None], out=np.empty(merged.shape[::-1]))  # particles last
+    dev *= root_w
+    P = dev @ dev.T
+    if not z.size:  # the patch lies off the image: nothing is measured
+        empty = np.zeros((merged.shape[1], 0))
+        return StepRecord(s_hat, P, z, np.zeros((0, 0)), empty, s_hat, P), cells_x, cells_y
+    spread = model.patch_spread(merged) if spread is None else spread
+    inside = overlapping(model, spread, axis_x, axis_y)
+    H = model.measurement_on_patch(spread, axis_x, axis_y, inside)  # (|C|, |O|)
+    z_hat = H @ weights[inside]
+    H -= z_hat[:, None]
+    H *= root_w[inside]
+    dev_inside = dev[:, inside]
+    # the particles outside O: d_Ō = Σ_all − Σ_O, and w_Ō likewise
+    d_out = dev @ root_w - dev_inside @ root_w[inside]
+    w_out = float(weights.sum() - weights[inside].sum())
+    P_xz = dev_inside @ H.T - np.outer(d_out, z_hat)
+    S = H @ H.T + w_out * np.outer(z_hat, z_hat) + model.noise_std**2 * np.eye(z.size)
+    return condition(s_hat, P, z_hat, S, P_xz, z), cells_x, cells_y
+
+
+def overlapping(model: TbdModel, spread: PatchSpread, axis_x: np.ndarray, axis_y: np.ndarray) -> np.ndarray:
+    """Indices of the particles whose own patch (centre ± p) meets the cells axis_x × axis_y
+    (contiguous, non-empty ranges): the only ones whose h on those cells is not zero."""
+    p = model.patch_radius
+    meets = [(centre - (axis[0] - p)).view(np.uint64) <= axis[-1] - axis[0] + 2 * p  # below 0 wraps to huge
+             for centre, axis in ((spread.centre_x, axis_x), (spread.centre_y, axis_y))]
+    return np.flatnonzero(meets[0] & meets[1])
 
 
 def transfer_particles(particles: np.ndarray, posterior_mean: np.ndarray, posterior_cov: np.ndarray,
