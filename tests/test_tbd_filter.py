@@ -8,10 +8,10 @@ import numpy as np
 import pytest
 
 from gpfverify.errors import InputError
-from gpfverify.filters.resampling import Particles, systematic_resample
+from gpfverify.filters.resampling import Particles, effective_sample_size, systematic_resample
 from gpfverify.filters.tbd import TbdConfig, TbdModel, filter_sequence, pf_tbd_step, second_stage_update, tpf_tbd_step
-from gpfverify.filters.tbd.pf import birth_proposal
-from gpfverify.filters.tbd.two_stage import transfer_particles
+from gpfverify.filters.tbd.pf import birth_proposal, sample_birth_prior
+from gpfverify.filters.tbd.two_stage import overlapping, second_stage_axes, transfer_particles
 from gpfverify.scenarios.tbd import TbdScenario, noise_std_for_snr, scenario_model, simulate
 from gpfverify.tolerances import algebra_rtol, monte_carlo_atol
 
@@ -47,6 +47,59 @@ def test_patch_likelihood_ratio_equals_full_image_ratio():
     slow = np.array([_full_image_log_lr(model, s, image) for s in states])
     np.testing.assert_allclose(fast, slow, rtol=algebra_rtol(), atol=algebra_rtol() * np.abs(slow).max())
     assert np.any(slow == 0.0) and np.any(slow != 0.0)  # both the off-image and the on-image cases occur
+
+
+def _states_over_and_beyond_the_image(rng, model, n):
+    """Random states with positions up to p + 3 cells beyond each side of the image (patches
+    clipped at every edge and corner, and wholly off the image), plus a few exact corner cases."""
+    lo, hi = model.image_extent
+    margin = model.patch_radius + 3
+    states = np.column_stack([rng.uniform(lo - margin, hi + margin, n), rng.normal(size=n),
+                              rng.uniform(lo - margin, hi + margin, n), rng.normal(size=n), rng.uniform(5, 30, n)])
+    states[:4, [0, 2]] = [[lo, lo], [hi, hi], [lo - 2.4, 7.0], [0.49999, hi + 2.5]]
+    return states
+
+
+def _image_log_lr(model: TbdModel, state, image) -> float:
+    """Σ_c (h_c z_c − h_c²/2)/σ² over the whole image, h = ``expected_image`` (zero off the patch)."""
+    h = model.expected_image(state)
+    return float(np.sum(h * image - 0.5 * h * h) / model.noise_std**2)
+
+
+@pytest.mark.parametrize("radius", [0, 1, 2, 3])
+def test_patch_likelihood_ratio_equals_the_whole_image_sum_of_the_expected_image(radius):
+    """The patch-row evaluation against Σ_c over the image of ``expected_image`` (an independent
+    route: whole-image axis factors, no clipped indices), with patches clipped at the edges."""
+    rng = np.random.default_rng(30 + radius)
+    model = replace(scenario_model(6.0, SCENARIO), patch_radius=radius)
+    image = model.noise_std * rng.standard_normal((model.grid_size, model.grid_size))
+    image += model.expected_image(np.array([9.3, 0.0, 4.6, 0.0, 20.0]))
+    states = _states_over_and_beyond_the_image(rng, model, 300)
+    fast = model.log_likelihood_ratio(states, image)
+    slow = np.array([_image_log_lr(model, s, image) for s in states])
+    np.testing.assert_allclose(fast, slow, rtol=algebra_rtol(), atol=algebra_rtol() * np.abs(slow).max())
+    assert np.any(slow == 0.0) and np.any(slow != 0.0)
+    # the spread computed once and passed in gives the same bits
+    assert np.array_equal(model.log_likelihood_ratio(states, image, model.patch_spread(states)), fast)
+
+
+def test_measurement_on_patch_reads_the_expected_image():
+    """h on a fixed patch, read from each particle's own patch factors, equals ``expected_image``
+    at those cells; and the overlap set holds every particle with a non-zero h there."""
+    rng = np.random.default_rng(40)
+    model = scenario_model(6.0, SCENARIO)
+    states = _states_over_and_beyond_the_image(rng, model, 400)
+    spread = model.patch_spread(states)
+    for estimate in ([9.6, 0, 4.2, 0, 20.0], [0.2, 0, 19.4, 0, 20.0], [-1.4, 0, 10.0, 0, 20.0]):
+        axis_x, axis_y = second_stage_axes(model, TbdConfig(400, second_stage_radius=2), np.array(estimate))
+        everyone = np.arange(states.shape[0])
+        H = model.measurement_on_patch(spread, axis_x, axis_y, everyone)
+        expected = np.array([model.expected_image(s)[np.ix_(axis_x, axis_y)].ravel() for s in states]).T
+        np.testing.assert_allclose(H, expected, rtol=algebra_rtol(), atol=0.0)
+        inside = overlapping(model, spread, axis_x, axis_y)
+        assert 0 < inside.size < states.shape[0]
+        assert not np.any(np.delete(expected, inside, axis=1))
+        np.testing.assert_array_equal(model.measurement_on_patch(spread, axis_x, axis_y, inside), H[:, inside])
 
 
 def test_expected_image_is_the_truncated_point_spread():
@@ -124,6 +177,7 @@ def test_pf_tbd_resamples_the_merged_set_down_to_n_c_systematically():
     model.propagate(belief.particles, replay)
     idx = systematic_resample(step.weighted.log_weights, replay, size=config.n_continuing)
     np.testing.assert_array_equal(step.posterior.particles, step.weighted.particles[idx])
+    assert step.ess == effective_sample_size(step.weighted.log_weights)
     n, w = config.n_continuing, np.exp(step.weighted.log_weights)
     counts = np.bincount(idx, minlength=w.size)
     assert counts.sum() == n < w.size and step.resampled
@@ -170,6 +224,75 @@ def test_second_stage_equals_conditioning_of_the_joint_gaussian():
     np.testing.assert_allclose(record.mu_e, post_mean, rtol=rtol, atol=rtol * np.abs(post_mean).max())
     np.testing.assert_allclose(record.C_e, post_cov, rtol=rtol, atol=rtol * np.abs(post_cov).max())
     assert np.linalg.eigvalsh(record.C_e).min() >= -rtol * np.abs(post_cov).max()
+
+
+def _textbook_second_stage(merged, log_w, model, config, image, estimate):
+    """Eq. 11–20 as written: weighted sample moments of [s; h_C(s)] over every particle (h_C from
+    ``expected_image``), K = P_xz S⁻¹ by numpy's solve, ŝ⁺ = ŝ + K (z − ẑ), P⁺ = P − K S Kᵀ."""
+    axis_x, axis_y = second_stage_axes(model, config, estimate)
+    w = np.exp(log_w)
+    H = np.array([model.expected_image(s)[np.ix_(axis_x, axis_y)].ravel() for s in merged])
+    s_hat, z_hat = w @ merged, w @ H
+    ds, dh = merged - s_hat, H - z_hat
+    P, P_xz = (ds * w[:, None]).T @ ds, (ds * w[:, None]).T @ dh
+    S = (dh * w[:, None]).T @ dh + model.noise_std**2 * np.eye(H.shape[1])
+    K = np.linalg.solve(S, P_xz.T).T
+    z = image[np.ix_(axis_x, axis_y)].ravel()
+    return s_hat, P, z_hat, S, P_xz, s_hat + K @ (z - z_hat), P - K @ S @ K.T
+
+
+@pytest.mark.parametrize("case", ["some particles off the patch", "every particle on the patch",
+                                  "patch at the image corner"])
+def test_second_stage_equals_the_textbook_evaluation(case):
+    """Every branch of the overlap split (particles off the measured patch present or not, a patch
+    clipped by the image) against weighted sample moments over all particles and a plain solve."""
+    rng = np.random.default_rng(50)
+    model = scenario_model(6.0, SCENARIO)
+    spread_std = {"some particles off the patch": 3.0, "every particle on the patch": 0.3,
+                  "patch at the image corner": 1.5}[case]
+    centre = [0.6, 0.2, 18.7, -0.1, 20.0] if case == "patch at the image corner" else [8.2, 0.3, 11.6, -0.2, 20.0]
+    merged = np.array(centre) + np.array([spread_std, 0.2, spread_std, 0.2, 2.0]) * rng.standard_normal((300, 5))
+    log_w = rng.normal(size=300)
+    log_w -= np.log(np.exp(log_w).sum())
+    image = model.noise_std * rng.standard_normal((20, 20)) + model.expected_image(np.array(centre))
+    config = TbdConfig(300, two_stage=True)
+    estimate = np.exp(log_w) @ merged
+    inside = overlapping(model, model.patch_spread(merged), *second_stage_axes(model, config, estimate))
+    assert (inside.size == merged.shape[0]) == (case == "every particle on the patch")
+    record, _, _ = second_stage_update(merged, log_w, model, config, image, estimate)
+    expected = _textbook_second_stage(merged, log_w, model, config, image, estimate)
+    rtol = algebra_rtol(np.linalg.cond(expected[3]) * np.linalg.cond(expected[1]))
+    names = ("mu_p", "C_p", "mu_y", "C_y", "C_xy", "mu_e", "C_e")
+    for name, got, want in zip(names, (getattr(record, n) for n in names), expected):
+        np.testing.assert_allclose(got, want, rtol=rtol, atol=rtol * np.abs(want).max(), err_msg=name)
+    assert np.array_equal(record.C_e, record.C_e.T)
+    # the PF stage's spread passed in gives the same bits
+    again, _, _ = second_stage_update(merged, log_w, model, config, image, estimate, model.patch_spread(merged))
+    assert np.array_equal(again.mu_e, record.mu_e) and np.array_equal(again.C_e, record.C_e)
+
+
+def test_second_stage_with_the_patch_off_the_image_keeps_the_prediction():
+    rng = np.random.default_rng(51)
+    model = scenario_model(6.0, SCENARIO)
+    merged, log_w = _weighted_cloud(rng, model)
+    record, cells_x, cells_y = second_stage_update(merged, log_w, model, TbdConfig(400, two_stage=True),
+                                                   np.zeros((20, 20)), np.array([-9.0, 0.0, 5.0, 0.0, 20.0]))
+    w = np.exp(log_w)
+    assert cells_x.size == cells_y.size == 0 and record.C_y.shape == (0, 0) and record.C_xy.shape == (5, 0)
+    np.testing.assert_allclose(record.mu_e, w @ merged, rtol=algebra_rtol())
+    dev = merged - w @ merged
+    np.testing.assert_allclose(record.C_e, (dev * w[:, None]).T @ dev, rtol=algebra_rtol())
+
+
+def test_birth_prior_columns_are_the_uniform_maps_of_one_block_of_draws():
+    """Bitwise: position a + (b − a) u, velocity v_max (2u − 1), intensity i_lo + (i_hi − i_lo) u."""
+    model = TbdModel(velocity_max=0.7, intensity_range=(8.0, 25.0))
+    u = np.random.default_rng(60).random((50, 5))
+    states = sample_birth_prior(model, 50, np.random.default_rng(60))
+    lo, hi = model.image_extent
+    expected = np.column_stack([lo + (hi - lo) * u[:, 0], 0.7 * (2 * u[:, 1] - 1), lo + (hi - lo) * u[:, 2],
+                                0.7 * (2 * u[:, 3] - 1), 8.0 + (25.0 - 8.0) * u[:, 4]])
+    assert np.array_equal(states, expected)
 
 
 def test_transfer_with_zeta_zero_draws_every_particle_from_the_posterior():

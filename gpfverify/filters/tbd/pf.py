@@ -28,8 +28,8 @@ import numpy as np
 from scipy.special import expit
 
 from gpfverify.errors import InputError
-from gpfverify.filters.resampling import (Particles, ParticleStep, effective_sample_size, log_sum_exp,
-                                          moments_from_weights, normalize_log_weights, systematic_resample)
+from gpfverify.filters.resampling import (Particles, ParticleStep, log_sum_exp, moments_from_weights,
+                                          normalize_log_weights, resample_from_weights)
 from gpfverify.filters.tbd.model import PatchSpread, TbdModel
 
 
@@ -75,14 +75,18 @@ class TbdConfig:
 
 
 def sample_birth_prior(model: TbdModel, n: int, rng: np.random.Generator) -> np.ndarray:
-    """n draws from the birth density p_b (uniform position, velocity and intensity), (n, 5)."""
+    """n draws from the birth density p_b (uniform position, velocity and intensity), (n, 5):
+    each column (b − a) u + a, velocities v_max (2u − 1), from one block u ~ U[0, 1)^(n×5)."""
     lo, hi = model.image_extent
     vmax = model.velocity_max
     i_lo, i_hi = model.intensity_range
-    u = rng.random((n, 5))
-    return np.column_stack([lo + (hi - lo) * u[:, 0], vmax * (2 * u[:, 1] - 1),
-                            lo + (hi - lo) * u[:, 2], vmax * (2 * u[:, 3] - 1),
-                            i_lo + (i_hi - i_lo) * u[:, 4]])
+    states = rng.random((n, 5))
+    for column, (scale, shift) in enumerate(((hi - lo, lo), (2.0, -1.0), (hi - lo, lo), (2.0, -1.0),
+                                             (i_hi - i_lo, i_lo))):
+        states[:, column] *= scale
+        states[:, column] += shift
+    states[:, 1::2] *= vmax
+    return states
 
 
 def initial_belief(model: TbdModel, config: TbdConfig, rng: np.random.Generator) -> Particles:
@@ -150,8 +154,10 @@ def pf_tbd_stage(belief: Particles, model: TbdModel, image: np.ndarray, *, rng: 
     existence = float(expit(log_mass - log_absent))
     log_w -= log_mass
     mean, cov = moments_from_weights(merged, np.exp(log_w))
-    resampled = merged[systematic_resample(log_w, rng, size=config.n_continuing)]
+    # systematic_resample and effective_sample_size of log_w, from one normalisation
+    weights = np.exp(normalize_log_weights(log_w))
+    resampled = merged[resample_from_weights(weights, rng, size=config.n_continuing)]
     step = ParticleStep(Particles.equally_weighted(resampled, existence=existence),
                         Particles(merged, log_w, existence=existence), mean, cov,
-                        effective_sample_size(log_w), True)
+                        float(1.0 / np.sum(weights * weights)), True)
     return step, spread
