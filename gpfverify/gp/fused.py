@@ -80,23 +80,26 @@ enabled = AVAILABLE
 EXPM1_SAFE = 700.0
 
 
-def centred_sums(z_a: np.ndarray, row: np.ndarray, z_b_t: np.ndarray, col: np.ndarray, u: np.ndarray,
-                 v: np.ndarray, q_a: np.ndarray, k_inv: np.ndarray, diagonal: np.ndarray
+def centred_sums(x_a: np.ndarray, x_b: np.ndarray, mu: np.ndarray, inv_l2_a: np.ndarray, inv_l2_b: np.ndarray,
+                 a_mat: np.ndarray, const: np.ndarray, ia: np.ndarray, ib: np.ndarray, t_a: np.ndarray,
+                 t_b: np.ndarray, log_q_a: np.ndarray, log_q_b: np.ndarray, beta_a: np.ndarray,
+                 beta_b: np.ndarray, k_inv: np.ndarray, diagonal: np.ndarray
                  ) -> tuple[np.ndarray, np.ndarray] | None:
-    """(Cov (B, P), trace (B, P)) by the fused kernel (shapes as in
-    :func:`gpfverify.gp.fused_kernels.centred_sums`), or None when
-    numba is not installed or an exponent may exceed :data:`EXPM1_SAFE` (the caller's numpy path
-    handles both). The bound d_ij ≤ max_i r_i + max_j c_j + max_i ‖z_i‖ · max_j ‖w_j‖ (Cauchy–Schwarz)
-    decides, before any exponent is formed; the same inputs always take the same path."""
+    """(Cov (B, P), trace (B, P)) of the output pairs (ia[p], ib[p]) by the fused kernel, its
+    O(n) inputs formed by :func:`gpfverify.gp.fused_kernels.prepare` (arguments as there, with
+    k_inv (E_a, n_a, n_a) and ``diagonal`` as in :func:`gpfverify.gp.fused_kernels.centred_sums`),
+    or None when numba is not installed or an exponent may exceed :data:`EXPM1_SAFE` (the
+    caller's numpy path handles both). The bound d_ij ≤ max_i r_i + max_j c_j + max_i ‖z_i‖ ·
+    max_j ‖w_j‖ (Cauchy–Schwarz) decides, before any exponent is formed; the same inputs always
+    take the same path."""
     if not enabled:
         return None
     from gpfverify.gp import fused_kernels
-    bound = (row.max(axis=-1) + col.max(axis=-1) + np.sqrt(np.einsum("bpnd,bpnd->bpn", z_a, z_a).max(axis=-1)
-                                                           * np.einsum("bpdn,bpdn->bpn", z_b_t, z_b_t).max(axis=-1)))
-    if not np.all(bound <= EXPM1_SAFE):
+    *prepared, bound = fused_kernels.prepare(x_a, x_b, mu, inv_l2_a, inv_l2_b, a_mat, const, ia, ib, t_a, t_b,
+                                             log_q_a, log_q_b, beta_a, beta_b)
+    if not bound <= EXPM1_SAFE:
         return None
-    shape = row.shape[:2]
+    shape = const.shape
     cov, trace = np.empty(shape), np.empty(shape)
-    arrays = [np.ascontiguousarray(x, dtype=float) for x in (z_a, row, z_b_t, col, u, v, q_a, k_inv)]
-    fused_kernels.centred_sums(*arrays, np.ascontiguousarray(diagonal, dtype=np.int64), cov, trace)
+    fused_kernels.centred_sums(*prepared, k_inv, diagonal, cov, trace)
     return cov, trace

@@ -51,6 +51,67 @@ def _dot(x: np.ndarray, y: np.ndarray) -> float:
     return (s0 + s1) + (s2 + s3)
 
 @_jit
+def prepare(x_a: np.ndarray, x_b: np.ndarray, mu: np.ndarray, inv_l2_a: np.ndarray, inv_l2_b: np.ndarray,
+            a_mat: np.ndarray, const: np.ndarray, ia: np.ndarray, ib: np.ndarray, t_a: np.ndarray,
+            t_b: np.ndarray, log_q_a: np.ndarray, log_q_b: np.ndarray, beta_a: np.ndarray, beta_b: np.ndarray):
+    """The inputs of :func:`centred_sums` for the output pairs (ia[p], ib[p]) at the inputs
+    N(mu[b], ·) — the O(n) terms of :func:`gpfverify.gp.moments._centred_second_moments`:
+    z_a = Λ_a⁻¹ν_i A, row_i = −½t_ai + ½(Λ_a⁻¹ν_i)ᵀA(Λ_a⁻¹ν_i) + const, w_j = Λ_b⁻¹ν'_j,
+    col_j = −½t_bj + ½w_jᵀAw_j, q_a, u = β_a ∘ q_a, v = β_b ∘ q_b — and the largest bound
+    max_i row_i + max_j col_j + max_i ‖z_i‖ · max_j ‖w_j‖ (Cauchy–Schwarz) on any exponent.
+
+    x_a (n_a, D), x_b (n_b, D), mu (B, D), inv_l2_a/inv_l2_b (P, D) the pairs' 1/ℓ², a_mat
+    (B, P, D, D) = R⁻¹Σ, const (B, P), t_a/log_q_a (B, E_a, n_a), t_b/log_q_b (B, E_b, n_b),
+    beta_a (E_a, n_a), beta_b (E_b, n_b)."""
+    batch, dim = mu.shape
+    pairs = ia.size
+    n_a, n_b = x_a.shape[0], x_b.shape[0]
+    z_a = np.empty((batch, pairs, n_a, dim))
+    z_b_t = np.empty((batch, pairs, dim, n_b))
+    row, u, q_a = np.empty((batch, pairs, n_a)), np.empty((batch, pairs, n_a)), np.empty((batch, pairs, n_a))
+    col, v = np.empty((batch, pairs, n_b)), np.empty((batch, pairs, n_b))
+    scaled = np.empty(dim)
+    bound = -np.inf
+    for b in range(batch):
+        for p in range(pairs):
+            a, e = ia[p], ib[p]
+            a_bp = a_mat[b, p]
+            top_row, top_z = -np.inf, 0.0
+            for i in range(n_a):
+                for k in range(dim):
+                    scaled[k] = (x_a[i, k] - mu[b, k]) * inv_l2_a[p, k]
+                quadratic, norm = 0.0, 0.0
+                for k in range(dim):
+                    z = 0.0
+                    for m in range(dim):
+                        z += scaled[m] * a_bp[m, k]
+                    z_a[b, p, i, k] = z
+                    quadratic += z * scaled[k]
+                    norm += z * z
+                row[b, p, i] = -0.5 * t_a[b, a, i] + 0.5 * quadratic + const[b, p]
+                q = np.exp(log_q_a[b, a, i])
+                q_a[b, p, i] = q
+                u[b, p, i] = beta_a[a, i] * q
+                top_row, top_z = max(top_row, row[b, p, i]), max(top_z, norm)
+            top_col, top_w = -np.inf, 0.0
+            for j in range(n_b):
+                for k in range(dim):
+                    scaled[k] = (x_b[j, k] - mu[b, k]) * inv_l2_b[p, k]
+                    z_b_t[b, p, k, j] = scaled[k]
+                quadratic, norm = 0.0, 0.0
+                for k in range(dim):
+                    z = 0.0
+                    for m in range(dim):
+                        z += scaled[m] * a_bp[m, k]
+                    quadratic += z * scaled[k]
+                    norm += scaled[k] * scaled[k]
+                col[b, p, j] = -0.5 * t_b[b, e, j] + 0.5 * quadratic
+                v[b, p, j] = beta_b[e, j] * np.exp(log_q_b[b, e, j])
+                top_col, top_w = max(top_col, col[b, p, j]), max(top_w, norm)
+            bound = max(bound, top_row + top_col + np.sqrt(top_z * top_w))
+    return z_a, row, z_b_t, col, u, v, q_a, bound
+
+@_jit
 def centred_sums(z_a: np.ndarray, row: np.ndarray, z_b_t: np.ndarray, col: np.ndarray, u: np.ndarray,
                  v: np.ndarray, q_a: np.ndarray, k_inv: np.ndarray, diagonal: np.ndarray,
                  cov: np.ndarray, trace: np.ndarray) -> None:

@@ -136,24 +136,24 @@ def _centred_second_moments(gp_a, gp_b, ia: np.ndarray, ib: np.ndarray, first_a:
     so Q − q_a q_bᵀ = q_ai q_bj expm1(d_ij) without cancellation. The n_a × n_b sums go through
     the fused kernel (:mod:`gpfverify.gp.fused`) when it is enabled, else through numpy (the
     reference: the same sums to rounding)."""
-    nu_a, nu_b = gp_a.X - mu[:, None, :], gp_b.X - mu[:, None, :]  # (B, n, D)
     inv_l2_a = 1.0 / gp_a.lengthscales[ia] ** 2  # (P, D)
     inv_l2_b = 1.0 / gp_b.lengthscales[ib] ** 2
     xi_half = np.sqrt(inv_l2_a + inv_l2_b)  # Ξ^½ diagonal, (P, D)
     outer = xi_half[:, :, None] * xi_half[:, None, :]
     _, s_ratio, r_logdet = _shifted(sigma[:, None] * outer)  # (B, P, D, D), (B, P)
     a_mat = s_ratio / outer  # R⁻¹Σ = Ξ^{-½}(S + I)⁻¹SΞ^{-½}, (B, P, D, D)
+    const = 0.5 * (first_a.b_logdet[:, ia] + first_b.b_logdet[:, ib] - r_logdet)  # (B, P)
+    fused = centred_sums(gp_a.X, gp_b.X, mu, inv_l2_a, inv_l2_b, a_mat, const, ia, ib, first_a.t, first_b.t,
+                         first_a.log_q, first_b.log_q, gp_a.beta, gp_b.beta, gp_a.K_inv, diagonal)
+    if fused is not None:
+        return fused
+    nu_a, nu_b = gp_a.X - mu[:, None, :], gp_b.X - mu[:, None, :]  # (B, n, D)
     za = nu_a[:, None] * inv_l2_a[:, None, :]  # Λ_a⁻¹ν_i, (B, P, n_a, D)
     zb = nu_b[:, None] * inv_l2_b[:, None, :]
     za_a = za @ a_mat
-    const = 0.5 * (first_a.b_logdet[:, ia] + first_b.b_logdet[:, ib] - r_logdet)  # (B, P)
     row = -0.5 * first_a.t[:, ia] + 0.5 * np.sum(za_a * za, axis=-1) + const[..., None]
     col = -0.5 * first_b.t[:, ib] + 0.5 * np.sum((zb @ a_mat) * zb, axis=-1)
     q_a, q_b = np.exp(first_a.log_q[:, ia]), np.exp(first_b.log_q[:, ib])  # (B, P, n)
-    u, v = gp_a.beta[ia] * q_a, gp_b.beta[ib] * q_b
-    fused = centred_sums(za_a, row, np.swapaxes(zb, -1, -2), col, u, v, q_a, gp_a.K_inv, diagonal)
-    if fused is not None:
-        return fused
     # d_ij by one matmul of augmented factors [z_a A, row, 1] · [z_b, 1, col]ᵀ (one pass over n²)
     left = np.concatenate([za_a, row[..., None], np.ones_like(row)[..., None]], axis=-1)
     right = np.concatenate([zb, np.ones_like(col)[..., None], col[..., None]], axis=-1)
