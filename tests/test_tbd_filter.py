@@ -242,23 +242,28 @@ def _textbook_second_stage(merged, log_w, model, config, image, estimate):
 
 
 @pytest.mark.parametrize("case", ["some particles off the patch", "every particle on the patch",
-                                  "patch at the image corner"])
+                                  "no particle on the patch", "patch at the image corner"])
 def test_second_stage_equals_the_textbook_evaluation(case):
-    """Every branch of the overlap split (particles off the measured patch present or not, a patch
-    clipped by the image) against weighted sample moments over all particles and a plain solve."""
+    """Every branch of the overlap split (particles off the measured patch, none, or all of them;
+    a patch clipped by the image) against weighted sample moments over all particles and a plain
+    solve."""
     rng = np.random.default_rng(50)
     model = scenario_model(6.0, SCENARIO)
     spread_std = {"some particles off the patch": 3.0, "every particle on the patch": 0.3,
-                  "patch at the image corner": 1.5}[case]
+                  "no particle on the patch": 0.3, "patch at the image corner": 1.5}[case]
     centre = [0.6, 0.2, 18.7, -0.1, 20.0] if case == "patch at the image corner" else [8.2, 0.3, 11.6, -0.2, 20.0]
     merged = np.array(centre) + np.array([spread_std, 0.2, spread_std, 0.2, 2.0]) * rng.standard_normal((300, 5))
+    if case == "no particle on the patch":  # two clusters far either side of the patch
+        merged[::2, 0] -= 7.0
+        merged[1::2, 0] += 7.0
     log_w = rng.normal(size=300)
     log_w -= np.log(np.exp(log_w).sum())
     image = model.noise_std * rng.standard_normal((20, 20)) + model.expected_image(np.array(centre))
     config = TbdConfig(300, two_stage=True)
-    estimate = np.exp(log_w) @ merged
+    estimate = np.array(centre) if case == "no particle on the patch" else np.exp(log_w) @ merged
     inside = overlapping(model, model.patch_spread(merged), *second_stage_axes(model, config, estimate))
     assert (inside.size == merged.shape[0]) == (case == "every particle on the patch")
+    assert (inside.size == 0) == (case == "no particle on the patch")
     record, _, _ = second_stage_update(merged, log_w, model, config, image, estimate)
     expected = _textbook_second_stage(merged, log_w, model, config, image, estimate)
     rtol = algebra_rtol(np.linalg.cond(expected[3]) * np.linalg.cond(expected[1]))

@@ -207,7 +207,7 @@ class TbdModel:
         gx = self._on_cells(spread.centre_x, spread.along_x, axis_x, particles)
         gy = self._on_cells(spread.centre_y, spread.along_y, axis_y, particles)
         gx *= spread.amplitude[particles]
-        return (gx[:, None, :] * gy[None, :, :]).reshape(-1, particles.size)
+        return (gx[:, None, :] * gy[None, :, :]).reshape(axis_x.size * axis_y.size, particles.size)
 
     def _on_cells(self, centre: np.ndarray, along: np.ndarray, cells: np.ndarray, particles: np.ndarray) -> np.ndarray:
         """Patch factors ``along`` (2p+1, N) of the particles ``particles`` (M,) read at fixed image
