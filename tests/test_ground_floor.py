@@ -27,6 +27,19 @@ def test_cholesky_solve_and_inverse_agree_with_numpy():
     np.testing.assert_allclose(right_solve_spd(b.T, a), np.linalg.solve(a, b).T, rtol=tol, atol=tol)
 
 
+def test_solves_of_an_empty_system_are_empty():
+    """A second stage whose patch lies off the image solves a 0 × 0 system: the answer is empty."""
+    assert solve_spd(np.zeros((0, 0)), np.zeros(0)).shape == (0,)
+    assert right_solve_spd(np.zeros((3, 0)), np.zeros((0, 0))).shape == (3, 0)
+
+
+def test_cholesky_is_numpys_factor_bit_for_bit():
+    """The factor comes from LAPACK directly; it is the factor numpy computes, to the bit."""
+    for n in (1, 2, 5, 40):
+        a = _spd(n, n, cond=1e3)
+        np.testing.assert_array_equal(cholesky(a).factor, np.linalg.cholesky(a))
+
+
 def test_cholesky_reports_jitter_and_fails_clearly():
     v = np.array([1.0, 2.0, 3.0])
     singular = np.outer(v, v)  # rank one: needs jitter
