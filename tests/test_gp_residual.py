@@ -71,3 +71,22 @@ def test_subset_and_bad_input():
         fit_residual(x, targets, approx[:, :1], outputs=(0,), state_inputs=(0,))
     with pytest.raises(InputError, match="inputs"):
         fit_residual(x, targets, approx, outputs=(0,), inputs=np.ones((3, 1)))
+
+
+def test_distinct_rows_agree_with_numpy_unique():
+    """The same distinct rows as numpy's unique(axis=0), and an inverse that rebuilds the input,
+    with repeated rows, ±0.0 and the empty case."""
+    from gpfverify.gp.residual import distinct_rows
+
+    rng = np.random.default_rng(5)
+    rows = np.repeat(rng.normal(size=(20, 4)), 7, axis=0)
+    rows[::5, 1] += 1.0
+    rows[3], rows[4] = 0.0, -0.0
+    rng.shuffle(rows)
+    distinct, inverse = distinct_rows(rows)
+    np.testing.assert_array_equal(distinct[inverse], rows)
+    expected = np.unique(rows, axis=0)
+    assert distinct.shape == expected.shape
+    np.testing.assert_array_equal(distinct[np.lexsort(distinct.T[::-1])], expected)
+    empty, none = distinct_rows(np.zeros((0, 3)))
+    assert empty.shape == (0, 3) and none.shape == (0,)

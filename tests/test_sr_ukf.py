@@ -8,6 +8,7 @@ from gpfverify.errors import NumericalError
 from gpfverify.filters.kalman import kf_step
 from gpfverify.filters.records import Gaussian
 from gpfverify.filters.sigma_points import SigmaParams
+from gpfverify.filters import sr_ukf
 from gpfverify.filters.sr_ukf import (SqrtGaussian, cholupdate, noise_sqrt, qr_factor, rank_one_series,
                                       sr_ukf_step)
 from gpfverify.filters.ukf import ukf_step
@@ -44,6 +45,24 @@ def test_cholupdate_matches_explicit_factor_batched(sign):
     new, failed = cholupdate(lower, x, sign)
     assert not failed.any()
     _close(new, np.linalg.cholesky(target), np.linalg.cond(target).max())
+
+
+@pytest.mark.skipif(not sr_ukf.compiled, reason="the compiled loop needs numba (the fast extra)")
+@pytest.mark.parametrize("sign", [1.0, -1.0])
+def test_compiled_cholupdate_gives_the_numpy_loops_bits(sign, monkeypatch):
+    """Same operations in the same order: equal bit for bit, failed downdates' NaN/inf included,
+    for a batch, a single factor and a Fortran-ordered one."""
+    rng = np.random.default_rng(4)
+    lower = np.linalg.cholesky(_spd(rng, 6, (9,)))
+    x = 0.4 * rng.normal(size=(9, 6))
+    x[3] = 3.0 * lower[3] @ np.ones(6)  # a downdate of this one fails
+    for args in ((lower, x), (lower[0], x[0]), (np.asfortranarray(lower[1]), x[1])):
+        monkeypatch.setattr(sr_ukf, "compiled", True)
+        fast = cholupdate(*args, sign)
+        monkeypatch.setattr(sr_ukf, "compiled", False)
+        reference = cholupdate(*args, sign)
+        np.testing.assert_array_equal(fast[0], reference[0])
+        np.testing.assert_array_equal(fast[1], reference[1])
 
 
 def test_failed_downdate_is_flagged_not_kept():

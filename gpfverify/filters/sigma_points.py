@@ -60,6 +60,11 @@ def weighted_moments(points_x: np.ndarray, points_y: np.ndarray, wm: np.ndarray,
     mean_y = weighted_mean(points_y, wm, circular_y)
     dx = difference(points_x, mean_x[..., None, :], circular_x)
     dy = difference(points_y, mean_y[..., None, :], circular_y)
-    cov_y = np.einsum("s,...sl,...sk->...lk", wc, dy, dy)
-    cross = np.einsum("s,...sd,...sl->...dl", wc, dx, dy)
-    return mean_y, 0.5 * (cov_y + np.swapaxes(cov_y, -1, -2)), cross
+    cov_y = weighted_outer(wc, dy, dy)
+    return mean_y, 0.5 * (cov_y + np.swapaxes(cov_y, -1, -2)), weighted_outer(wc, dx, dy)
+
+
+def weighted_outer(weights: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Σ_s w_s a_s b_sᵀ for points a (..., S, D) and b (..., S, L): (..., D, L), one (batched)
+    matrix product (a three-operand einsum takes numpy's slow unoptimised path)."""
+    return np.swapaxes(a * weights[:, None], -1, -2) @ b

@@ -28,6 +28,7 @@ whose downdate fails in exact arithmetic (the UKF covariance itself is indefinit
 
 from __future__ import annotations
 
+import importlib.util
 from dataclasses import dataclass
 from collections.abc import Callable, Sequence
 
@@ -36,10 +37,14 @@ import numpy as np
 from gpfverify.angles import difference, weighted_mean, wrap_components
 from gpfverify.errors import InputError
 from gpfverify.filters.records import StepRecord
-from gpfverify.filters.sigma_points import SigmaParams
+from gpfverify.filters.sigma_points import SigmaParams, weighted_outer
 from gpfverify.filters.ukf import map_points
 from gpfverify.linalg import cholesky, symmetrize
 from gpfverify.models.system import StateSpaceModel, require_model
+
+#: whether :func:`cholupdate` runs its column loop compiled (numba, the optional ``fast`` extra,
+#: imported on first use); the same bits either way. Set False to take the numpy loop (tests run both).
+compiled = importlib.util.find_spec("numba") is not None
 
 #: f(points (M, D), k) -> (M, D'): a transition or measurement function vectorised over points.
 PointMap = Callable[[np.ndarray, int], np.ndarray]
@@ -109,8 +114,24 @@ def cholupdate(factor: np.ndarray, vector: np.ndarray, sign: float = 1.0) -> tup
     Column k: r = √(L_kk² + sign x_k²), c = r/L_kk, s = x_k/L_kk, L_kk ← r,
     L_{k+1:,k} ← (L_{k+1:,k} + sign s x_{k+1:})/c, x_{k+1:} ← c x_{k+1:} − s L_{k+1:,k}.
     """
-    lower = np.array(factor, dtype=float, copy=True)
-    x = np.array(vector, dtype=float, copy=True)
+    lower = np.array(factor, dtype=float, order="C", copy=True)  # C order: the reshapes below are views
+    x = np.array(vector, dtype=float, order="C", copy=True)
+    dim = lower.shape[-1]
+    if compiled and lower.shape[:-2] == x.shape[:-1]:
+        from gpfverify.filters.sr_ukf_kernels import cholupdate_in_place
+
+        cholupdate_in_place(lower.reshape(-1, dim, dim), x.reshape(-1, dim), float(sign))  # views: in place
+    else:
+        _cholupdate_loop(lower, x, sign)
+    # a non-positive pivot leaves a zero/NaN diagonal or inf/NaN entries below it
+    diagonal = np.diagonal(lower, axis1=-2, axis2=-1)
+    failed = ~(np.all(diagonal > 0, axis=-1) & np.all(np.isfinite(lower), axis=(-2, -1)))
+    return lower, failed
+
+
+def _cholupdate_loop(lower: np.ndarray, x: np.ndarray, sign: float) -> None:
+    """The column loop of :func:`cholupdate` in numpy, vectorised over the batch, in place (the
+    reference of the compiled loop, and the path without numba)."""
     dim = lower.shape[-1]
     with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
         for k in range(dim):
@@ -123,10 +144,6 @@ def cholupdate(factor: np.ndarray, vector: np.ndarray, sign: float = 1.0) -> tup
             column = (lower[..., k + 1:, k] + sign * s * x[..., k + 1:]) / c
             lower[..., k + 1:, k] = column
             x[..., k + 1:] = c * x[..., k + 1:] - s * column
-    # a non-positive pivot leaves a zero/NaN diagonal or inf/NaN entries below it
-    diagonal = np.diagonal(lower, axis1=-2, axis2=-1)
-    failed = ~(np.all(diagonal > 0, axis=-1) & np.all(np.isfinite(lower), axis=(-2, -1)))
-    return lower, failed
 
 
 def _recompute(cov: np.ndarray, lower: np.ndarray, failed: np.ndarray, what: str) -> tuple[np.ndarray, float]:
@@ -189,7 +206,7 @@ def unscented_sqrt_transform(points: np.ndarray, mapped: np.ndarray, noise_root:
     if wc[0] != 0.0:
         sqrt_cov, jitter = rank_one_series(sqrt_cov, np.sqrt(abs(wc[0])) * dev[..., 0, :, None],
                                            float(np.sign(wc[0])), what)
-    cross = np.einsum("s,...sd,...sl->...dl", wc, difference(points, mean_x[..., None, :], circular_in), dev)
+    cross = weighted_outer(wc, difference(points, mean_x[..., None, :], circular_in), dev)
     return mean, sqrt_cov, cross, jitter
 
 
