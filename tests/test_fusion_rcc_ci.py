@@ -111,17 +111,35 @@ def test_problem_is_compiled_once_and_re_solved():
     assert after.hits == before.hits + 3 and after.misses == before.misses
 
 
-def test_a_cvxpy_the_compiler_cannot_reproduce_falls_back_to_cvxpy_with_the_same_bits(monkeypatch):
-    """compile refuses what it cannot reproduce exactly (e.g. another cvxpy's internals): the solve
-    then goes through cvxpy's own Clarabel route, whose numbers the compiled route equals."""
-    estimates = _estimates(4, 3, 4)
-    compiled = rcc.rcc_ci(estimates)
+def test_this_cvxpy_is_compiled():
+    """On the cvxpy the project runs against, the compiled route is the one taken."""
+    assert conic._MISSING_INTERNALS is None
+    assert rcc._clarabel_program(rcc._primal_problem, 3, 4) is not None
 
+
+def _cannot_reproduce(monkeypatch):
     def refuse(program):
         raise ValueError("the compiled map does not reproduce cvxpy's conic data")
-
-    rcc._clarabel_program.cache_clear()
     monkeypatch.setattr(conic.ClarabelProgram, "compile", refuse)
+
+
+def _internals_moved(monkeypatch):
+    monkeypatch.setattr(conic, "_MISSING_INTERNALS", ImportError("No module named 'cvxpy.cvxcore.python'"))
+
+
+def _attribute_renamed(monkeypatch):
+    monkeypatch.setattr(conic, "CLARABEL", object())  # the compiler's view of the interface lost DIMS
+
+
+@pytest.mark.parametrize("change", [_cannot_reproduce, _internals_moved, _attribute_renamed])
+def test_a_cvxpy_the_compiler_cannot_reproduce_falls_back_to_cvxpy_with_the_same_bits(monkeypatch, change):
+    """compile refuses what it cannot reproduce exactly, a cvxpy without the modules it reads and
+    one whose internals lost an attribute: the solve then goes through cvxpy's own Clarabel route,
+    whose numbers the compiled route equals."""
+    estimates = _estimates(4, 3, 4)
+    compiled = rcc.rcc_ci(estimates)
+    rcc._clarabel_program.cache_clear()
+    change(monkeypatch)
     try:
         fallback = rcc.rcc_ci(estimates)
         assert rcc._clarabel_program(rcc._primal_problem, 3, 4) is None  # the fallback was taken

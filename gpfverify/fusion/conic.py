@@ -33,11 +33,20 @@ import cvxpy as cp
 import cvxpy.settings as cvxpy_status
 import numpy as np
 import scipy.sparse as sp
-from cvxpy.cvxcore.python.canonInterface import get_matrix_from_tensor, lo
-from cvxpy.reductions.cvx_attr2constr import SYMMETRIC_ATTRIBUTES, attributes_present, recover_value_for_leaf
-from cvxpy.reductions.solvers.conic_solvers.clarabel_conif import CLARABEL, dims_to_solver_cones
 
 from gpfverify.errors import SolverError
+
+# cvxpy's internals (run against cvxpy 1.9): a cvxpy that moved them makes compile refuse, and
+# callers solve through cvxpy's public route instead (the same numbers, slower)
+try:
+    from cvxpy.cvxcore.python.canonInterface import get_matrix_from_tensor, lo
+    from cvxpy.reductions.cvx_attr2constr import (SYMMETRIC_ATTRIBUTES, attributes_present,
+                                                  recover_value_for_leaf)
+    from cvxpy.reductions.solvers.conic_solvers.clarabel_conif import CLARABEL, dims_to_solver_cones
+except ImportError as missing:
+    _MISSING_INTERNALS: ImportError | None = missing
+else:
+    _MISSING_INTERNALS = None
 
 
 @dataclass(frozen=True)
@@ -145,6 +154,8 @@ class ClarabelProgram:
     def compile(cls, program: Parametrised) -> ClarabelProgram:
         """Compile through cvxpy once (this sets the parameters and writes probe results into the
         problem's variables: compile a problem object kept for this purpose)."""
+        if _MISSING_INTERNALS is not None:
+            raise ValueError(f"this cvxpy lacks internals the compiler reads ({_MISSING_INTERNALS})")
         problem = program.problem
         for parameter in program.parameters:
             parameter.value = _probe_value(parameter)

@@ -144,10 +144,12 @@ def _dual_problem(n: int, dim: int, solver: str = cp.CLARABEL) -> Parametrised:
 def _clarabel_program(build, n: int, dim: int) -> ClarabelProgram | None:
     """``build(n, dim)`` compiled once for direct Clarabel solves (:mod:`gpfverify.fusion.conic`), or
     None when this cvxpy's internals differ from those the compiler knows (it refuses whatever it
-    cannot reproduce bit for bit): then Clarabel is called through cvxpy, the same numbers, slower."""
+    cannot reproduce bit for bit, and modules it reads that are missing; an attribute they no
+    longer have raises AttributeError): then Clarabel is called through cvxpy, the same numbers,
+    slower."""
     try:
         return ClarabelProgram.compile(build(n, dim, cp.CLARABEL))
-    except ValueError:
+    except (ValueError, AttributeError):
         return None
 
 
