@@ -143,3 +143,25 @@ def test_results_list_their_timing_keys_at_any_depth():
     assert timing_keys(Module, body) == ["fit_time_per_run", "seconds", "time_per_run", "wall"]
     assert without_timing({**body, "timing_keys": timing_keys(Module, body), "provenance": {}}) == \
         {"rmse": [1.0], "groups": [{"rmse": 3.0}], "timing_keys": timing_keys(Module, body)}
+
+
+def test_machine_load_is_what_the_runs_met_not_the_load_at_recompute(toy, tmp_path, monkeypatch):
+    """Each run records the load average when it ends; results.json gives the median over the
+    runs, and a recomputation later (under another load) keeps it. Runs saved without a load give
+    an empty (unknown) average, never the load at recompute time."""
+    from gpfverify.experiments import runner
+
+    loads = iter([[1.0, 2.0, 3.0], [5.0, 6.0, 7.0], [3.0, 1.0, 2.0]])
+    monkeypatch.setattr(runner.os, "getloadavg", lambda: next(loads))
+    out = tmp_path / "run"
+    results = run_experiment(toy, toy.Params(scale=2.0), 3, 5, out)
+    assert results["machine_load"]["load_average"] == [3.0, 2.0, 3.0]
+    assert results["machine_load"]["runs_measured"] == 3
+    monkeypatch.setattr(runner.os, "getloadavg", lambda: (9.0, 9.0, 9.0))
+    assert runner.rewrite_results(out, toy)["machine_load"]["load_average"] == [3.0, 2.0, 3.0]
+    for path in (out / "runs").glob("*.json"):
+        record = json.loads(path.read_text())
+        del record["machine_load"]
+        path.write_text(json.dumps(record))
+    unknown = runner.rewrite_results(out, toy)["machine_load"]
+    assert unknown["load_average"] == [] and unknown["runs_measured"] == 0

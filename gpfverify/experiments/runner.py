@@ -175,6 +175,7 @@ def _execute(module_name: str, params: Params, seed: np.random.SeedSequence, ind
     if caught:
         record["warnings"] = sorted({f"{w.category.__name__}: {w.message}" for w in caught})
     record["seconds"] = time.perf_counter() - start
+    record["machine_load"] = machine_load()
     return record
 
 
@@ -317,13 +318,24 @@ def _typed_record(module: ModuleType, result):
 
 
 def machine_load() -> dict:
-    """The 1-, 5- and 15-minute load averages and the core count at the time of writing: timings in
-    ``results.json`` depend on them (a timing field, see :data:`TIMING_KEY`)."""
+    """The 1-, 5- and 15-minute load averages and the core count now (each run records them when
+    it ends): timings depend on them (a timing field, see :data:`TIMING_KEY`)."""
     try:
         load = [round(v, 2) for v in os.getloadavg()]
     except OSError:  # not available on this platform
         load = []
     return {"load_average": load, "cpus": os.cpu_count()}
+
+
+def runs_machine_load(records: list[dict]) -> dict:
+    """The load the runs met: the median of each load average over the runs that recorded one
+    (at their end), the largest core count among them and how many runs recorded a load. Runs
+    saved before runs recorded their load give an empty ``load_average`` (unknown), never the load
+    at the time ``results.json`` is recomputed."""
+    loads = [r["machine_load"] for r in records if len((r.get("machine_load") or {}).get("load_average") or []) == 3]
+    average = [round(float(v), 2) for v in np.median([m["load_average"] for m in loads], axis=0)] if loads else []
+    cpus = max((m["cpus"] for m in loads if isinstance(m.get("cpus"), int)), default=None)
+    return {"load_average": average, "cpus": cpus, "runs_measured": len(loads)}
 
 
 def _is_ok(path: Path) -> bool:
@@ -411,7 +423,7 @@ def results_of(module: ModuleType, out_dir: Path, manifest: dict, runs: int | No
         raise InputError(f"every run of {manifest['experiment']} failed; first error: {first}")
     body = to_json(module.summarize(_typed_params(module, manifest["params"]),
                                     [_typed_record(module, r["result"]) for r in ok]))
-    body["machine_load"] = machine_load()
+    body["machine_load"] = runs_machine_load(records)
     _separate_timing_claims(body)
     results = {"experiment": manifest["experiment"], "runs": manifest["runs"], "seed": manifest["seed"],
                "params": manifest["params"], "runs_ok": len(ok), "failed_runs": failed, **body,

@@ -258,7 +258,7 @@ def run_table(summary: SectionSummary) -> Table:
                      paper_n, "—" if run.seed is None else run.seed, _load(run),
                      " ".join(x for x in ((run.git_commit or "")[:12], run.created or "") if x) or "unknown"])
     return Table(["experiment", "setting", "runs", "paper's runs", "root seed",
-                  "machine load (1, 5, 15 min) at the end", "computed at (commit, UTC)"], rows,
+                  "machine load (1, 5, 15 min; median over the runs)", "computed at (commit, UTC)"], rows,
                  f"What was run ({summary.profile} profile)", css="runs")
 
 
@@ -370,7 +370,7 @@ def overview_line(summaries: list[SectionSummary]) -> str:
         loaded = [r for r in runs if r.load_average]
         if loaded:
             busiest = max(loaded, key=lambda r: r.load_average[0])
-            text += f"Highest 1-minute machine load when a setting finished: {_load(busiest)}."
+            text += f"Highest median 1-minute machine load a setting's runs met: {_load(busiest)}."
     return text
 
 
