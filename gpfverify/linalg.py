@@ -64,6 +64,14 @@ class Cholesky:
             raise NumericalError(f"solve with a Cholesky factor failed (potrs info={info})")
         return x
 
+    def whiten(self, b: np.ndarray) -> np.ndarray:
+        """L⁻¹ b for b (n,) or (n, m), by BLAS trsv / trsm on Lᵀ's Fortran-ordered view (L solved
+        as (Lᵀ)ᵀx = b: neither L nor a C-ordered b is copied)."""
+        upper = self.factor.T
+        if np.ndim(b) == 1:
+            return sla.blas.dtrsv(upper, b, lower=0, trans=1)
+        return sla.blas.dtrsm(1.0, upper, b, lower=0, trans_a=1)
+
     def logdet(self) -> float:
         return 2.0 * float(np.sum(np.log(np.diag(self.factor))))
 

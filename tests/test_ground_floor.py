@@ -41,6 +41,17 @@ def test_cholesky_is_numpys_factor_bit_for_bit():
         np.testing.assert_array_equal(cholesky(a).factor, np.linalg.cholesky(a))
 
 
+def test_whiten_is_the_triangular_solve():
+    """L⁻¹b for one right-hand side and for several, against scipy's triangular solve."""
+    import scipy.linalg as sla
+
+    chol = cholesky(_spd(7, 30, cond=1e4))
+    b = np.random.default_rng(7).normal(size=(30, 3))
+    for rhs in (b[:, 0], b):
+        expected = sla.solve_triangular(chol.factor, rhs, lower=True)
+        np.testing.assert_allclose(chol.whiten(rhs), expected, rtol=algebra_rtol(1e2), atol=0)
+
+
 def test_cholesky_reports_jitter_and_fails_clearly():
     v = np.array([1.0, 2.0, 3.0])
     singular = np.outer(v, v)  # rank one: needs jitter

@@ -35,7 +35,6 @@ import threading
 from dataclasses import dataclass
 
 import numpy as np
-import scipy.linalg as sla
 
 from gpfverify.gp.fused import EXPM1_SAFE, centred_sums
 from gpfverify.linalg import symmetrize
@@ -202,10 +201,9 @@ def _model_uncertainty(gp, log_q: np.ndarray, traces: np.ndarray) -> np.ndarray:
     (B, E) of :func:`_centred_second_moments`."""
     q = np.exp(log_q)
     whitened_sq = np.empty(q.shape[:2])  # ‖L_a⁻¹q_a‖², (B, E)
-    for a, factor in enumerate(gp.cholesky_factors):
-        upper = factor.T  # Lᵀ, Fortran-ordered: BLAS solves Lx = q as (Lᵀ)ᵀx = q without a copy
+    for a, chol in enumerate(gp.choleskys):
         for b in range(q.shape[0]):
-            whitened = sla.blas.dtrsv(upper, q[b, a], lower=0, trans=1)
+            whitened = chol.whiten(q[b, a])
             whitened_sq[b, a] = whitened @ whitened
     return gp.signal_var - whitened_sq - traces
 

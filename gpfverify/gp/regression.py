@@ -14,7 +14,6 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-import scipy.linalg as sla
 
 from gpfverify.errors import InputError
 from gpfverify.gp.kernels import se_ard
@@ -190,9 +189,9 @@ class GaussianProcess:
         return self.Y.shape[1]
 
     @property
-    def cholesky_factors(self) -> tuple[np.ndarray, ...]:
-        """Lower Cholesky factor L_a of each K_a (+ jitter), computed once at construction."""
-        return tuple(c.factor for c in self._chol)
+    def choleskys(self) -> tuple[Cholesky, ...]:
+        """The Cholesky factorisation L_a of each K_a (+ jitter), computed once at construction."""
+        return tuple(self._chol)
 
     @property
     def jitter(self) -> np.ndarray:
@@ -219,8 +218,7 @@ class GaussianProcess:
         mean = np.einsum("emn,en->me", ks, self.beta)
         var = np.empty_like(mean)
         for a, c in enumerate(self._chol):
-            # L⁻¹k*ᵀ by BLAS trsm on Fortran-ordered views (Lᵀ solved transposed): no copies
-            v = sla.blas.dtrsm(1.0, c.factor.T, ks[a].T, lower=0, trans_a=1)
+            v = c.whiten(ks[a].T)  # L⁻¹k*ᵀ
             var[:, a] = self.signal_var[a] - np.einsum("ij,ij->j", v, v)
         return mean, np.maximum(var, 0.0)
 
