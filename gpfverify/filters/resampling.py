@@ -59,8 +59,12 @@ def normalize_log_weights(log_weights: np.ndarray) -> np.ndarray:
 
 def effective_sample_size(log_weights: np.ndarray) -> float:
     """N_eff = 1 / Σ w_i² of the normalised weights."""
-    w = np.exp(normalize_log_weights(log_weights))
-    return float(1.0 / np.sum(w * w))
+    return ess_from_weights(np.exp(normalize_log_weights(log_weights)))
+
+
+def ess_from_weights(weights: np.ndarray) -> float:
+    """N_eff = 1 / Σ w_i² of weights already normalised (Σ w_i = 1)."""
+    return float(1.0 / np.sum(weights * weights))
 
 
 def systematic_resample(log_weights: np.ndarray, rng: np.random.Generator, size: int | None = None) -> np.ndarray:

@@ -28,8 +28,8 @@ import numpy as np
 from scipy.special import expit
 
 from gpfverify.errors import InputError
-from gpfverify.filters.resampling import (Particles, ParticleStep, log_sum_exp, moments_from_weights,
-                                          normalize_log_weights, resample_from_weights)
+from gpfverify.filters.resampling import (Particles, ParticleStep, ess_from_weights, log_sum_exp,
+                                          moments_from_weights, normalize_log_weights, resample_from_weights)
 from gpfverify.filters.tbd.model import PatchSpread, TbdModel
 
 
@@ -159,5 +159,5 @@ def pf_tbd_stage(belief: Particles, model: TbdModel, image: np.ndarray, *, rng: 
     resampled = merged[resample_from_weights(weights, rng, size=config.n_continuing)]
     step = ParticleStep(Particles.equally_weighted(resampled, existence=existence),
                         Particles(merged, log_w, existence=existence), mean, cov,
-                        float(1.0 / np.sum(weights * weights)), True)
+                        ess_from_weights(weights), True)
     return step, spread
