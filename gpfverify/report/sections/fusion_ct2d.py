@@ -15,7 +15,7 @@ from gpfverify.report.document import (Figure, Paragraph, Section, claim_records
                                        interpretations_table)
 from gpfverify.report.inputs import SectionInput
 from gpfverify.report.sections.fusion_paper import (audit_table, equivalence_table, failed_runs_note,
-                                                    health_paragraph, health_table,
+                                                    health_paragraph, health_table, interpretations_paragraph,
                                                     method_table, plot_full_rank, plot_per_step,
                                                     rank_rule_paragraph)
 
@@ -66,11 +66,7 @@ def render(results: dict, folder: Path, command: str | None = None) -> Section:
         "shared, loaded machine the absolute values are inflated. The paper does not say what it timed, so "
         "'DMF costs less than CMF' is checked twice: the whole fusion step, and the update alone once the "
         "measurements arrive (eq. 35 against CMF's update from the same central prediction)."))
-    section.add(Paragraph(
-        "Interpretations tried besides the defaults (each a set of parameter changes, run with the same seeds "
-        "and run count; `--interpretations all`): "
-        + "; ".join(f"{spec.name} ({', '.join(f'{k} = {v}' for k, v in spec.changes.items())}): {spec.why}"
-                    for spec in INTERPRETATIONS) + "."))
+    section.add(interpretations_paragraph(INTERPRETATIONS, "all"))
     if command:
         section.add(Paragraph(f"Made by: `{command}`"))
     section.add(Paragraph(

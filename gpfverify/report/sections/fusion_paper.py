@@ -11,6 +11,7 @@ from pathlib import Path
 import numpy as np
 
 from gpfverify.contract.fusion import FAMILIES, LOCAL_FILTERS, METHODS
+from gpfverify.contract.interpretations import InterpretationSpec
 from gpfverify.contract.methods import Method
 from gpfverify.report.document import Cell, Paragraph, Table, fmt
 from gpfverify.report.figures import new_figure, save
@@ -106,6 +107,16 @@ def health_paragraph(policy: str) -> Paragraph:
         "finite) makes every comparison it is part of 'not decidable'. " + policy + ". The NEES of a "
         "consistent Gaussian filter has mean D; 'optimistic' means over-confident (errors large against the "
         "filter's own covariance).")
+
+
+def interpretations_paragraph(specs: Sequence[InterpretationSpec], option: str) -> Paragraph:
+    """The interpretations an experiment tries besides its defaults, each with its parameter changes
+    and why; ``option`` is the ``--interpretations`` value the page's command uses."""
+    return Paragraph(
+        "Interpretations tried besides the defaults (each a set of parameter changes, run with the same seeds "
+        f"and run count; `--interpretations {option}`): "
+        + "; ".join(f"{spec.name} ({', '.join(f'{k} = {v}' for k, v in spec.changes.items())}): {spec.why}"
+                    for spec in specs) + ".")
 
 
 def rank_rule_paragraph(results_by_label: dict) -> Paragraph:

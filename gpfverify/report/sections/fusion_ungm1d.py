@@ -16,7 +16,7 @@ from gpfverify.report.document import (Figure, Paragraph, Section, Table, claim_
 from gpfverify.report.figures import new_figure, save
 from gpfverify.report.inputs import SectionInput
 from gpfverify.report.sections.fusion_paper import (audit_table, equivalence_table, failed_runs_note,
-                                                    health_paragraph, health_table,
+                                                    health_paragraph, health_table, interpretations_paragraph,
                                                     method_style, method_table, plot_per_step,
                                                     rank_rule_paragraph)
 
@@ -59,11 +59,7 @@ def render(results: dict, folder: Path, command: str | None = None) -> Section:
         "Reading the metric: for a calibrated Gaussian posterior the squared Mahalanobis distance has mean D = 1; "
         "values far above 1 mean an over-confident filter (error large against its own covariance). The paper "
         "reads lower as better, and the claims below follow the paper's reading."))
-    section.add(Paragraph(
-        "Interpretations tried besides the defaults (each a set of parameter changes, run with the same seeds "
-        "and run count; `--interpretations NAMES`): "
-        + "; ".join(f"{spec.name} ({', '.join(f'{k} = {v}' for k, v in spec.changes.items())}): {spec.why}"
-                    for spec in INTERPRETATIONS) + "."))
+    section.add(interpretations_paragraph(INTERPRETATIONS, "NAMES"))
     if command:
         section.add(Paragraph(f"Made by: `{command}`"))
     claims = read_claims(results)
