@@ -65,12 +65,16 @@ class Cholesky:
         return x
 
     def whiten(self, b: np.ndarray) -> np.ndarray:
-        """L⁻¹ b for b (n,) or (n, m), by BLAS trsv / trsm on Lᵀ's Fortran-ordered view (L solved
-        as (Lᵀ)ᵀx = b: neither L nor a C-ordered b is copied)."""
-        upper = self.factor.T
+        """L⁻¹ b for b (n,) or (n, m), by BLAS trsv / trsm on a Fortran-ordered view of the factor,
+        never a copy of it: L itself as LAPACK's ``potrf`` returns it (Fortran order), or, for a
+        C-ordered L, its transpose solved as (Lᵀ)ᵀx = b."""
+        if self.factor.flags.f_contiguous:
+            factor, lower, trans = self.factor, 1, 0
+        else:
+            factor, lower, trans = self.factor.T, 0, 1
         if np.ndim(b) == 1:
-            return sla.blas.dtrsv(upper, b, lower=0, trans=1)
-        return sla.blas.dtrsm(1.0, upper, b, lower=0, trans_a=1)
+            return sla.blas.dtrsv(factor, b, lower=lower, trans=trans)
+        return sla.blas.dtrsm(1.0, factor, b, lower=lower, trans_a=trans)
 
     def logdet(self) -> float:
         return 2.0 * float(np.sum(np.log(np.diag(self.factor))))
@@ -78,11 +82,13 @@ class Cholesky:
     def inverse(self) -> np.ndarray:
         """Explicit inverse from the factor (LAPACK potri), for caching outside a hot path
         (e.g. a GP's training matrix) or where the whole inverse is needed (evidence gradients)."""
-        # Lᵀ of a C-ordered L is Fortran-contiguous: hand it to LAPACK as the upper factor (no copy)
-        inv, info = sla.lapack.dpotri(self.factor.T, lower=False)
+        # hand LAPACK a Fortran-ordered view (no copy): L itself, or Lᵀ of a C-ordered L as the upper factor
+        lower = bool(self.factor.flags.f_contiguous)
+        inv, info = sla.lapack.dpotri(self.factor if lower else self.factor.T, lower=lower)
         if info != 0:
             raise NumericalError(f"inverse from Cholesky factor failed (potri info={info})")
-        return np.triu(inv) + np.triu(inv, 1).T
+        filled = inv if lower else inv.T  # its lower triangle holds the inverse
+        return np.tril(filled) + np.tril(filled, -1).T
 
 
 def cholesky(a: np.ndarray, name: str = "matrix", allow_jitter: bool = True) -> Cholesky:

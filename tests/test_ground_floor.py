@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from gpfverify.errors import InputError, NumericalError
-from gpfverify.linalg import cholesky, numerical_rank, right_solve_spd, solve_spd
+from gpfverify.linalg import Cholesky, cholesky, numerical_rank, right_solve_spd, solve_spd
 from gpfverify.tolerances import algebra_rtol, monte_carlo_atol
 from gpfverify.validate import as_covariance, as_matrix, as_vector
 
@@ -21,7 +21,10 @@ def test_cholesky_solve_and_inverse_agree_with_numpy():
     tol = algebra_rtol(1e4)
     assert chol.jitter == 0.0
     np.testing.assert_allclose(chol.solve(b), np.linalg.solve(a, b), rtol=tol, atol=tol)
-    np.testing.assert_allclose(chol.inverse(), np.linalg.inv(a), rtol=tol, atol=tol * 1e4)
+    for factor in (chol.factor, np.ascontiguousarray(chol.factor)):  # LAPACK's order and C order
+        inverse = Cholesky(factor, 0.0).inverse()
+        np.testing.assert_allclose(inverse, np.linalg.inv(a), rtol=tol, atol=tol * 1e4)
+        np.testing.assert_array_equal(inverse, inverse.T)
     assert chol.logdet() == pytest.approx(np.linalg.slogdet(a)[1], rel=tol)
     np.testing.assert_allclose(solve_spd(a, b), np.linalg.solve(a, b), rtol=tol, atol=tol)
     np.testing.assert_allclose(right_solve_spd(b.T, a), np.linalg.solve(a, b).T, rtol=tol, atol=tol)
@@ -42,14 +45,18 @@ def test_cholesky_is_numpys_factor_bit_for_bit():
 
 
 def test_whiten_is_the_triangular_solve():
-    """L⁻¹b for one right-hand side and for several, against scipy's triangular solve."""
+    """L⁻¹b for one right-hand side and for several, against scipy's triangular solve, with the
+    factor in LAPACK's Fortran order (as :func:`cholesky` returns it) and in C order."""
     import scipy.linalg as sla
 
     chol = cholesky(_spd(7, 30, cond=1e4))
+    assert chol.factor.flags.f_contiguous
     b = np.random.default_rng(7).normal(size=(30, 3))
-    for rhs in (b[:, 0], b):
-        expected = sla.solve_triangular(chol.factor, rhs, lower=True)
-        np.testing.assert_allclose(chol.whiten(rhs), expected, rtol=algebra_rtol(1e2), atol=0)
+    for factor in (chol.factor, np.ascontiguousarray(chol.factor)):
+        for rhs in (b[:, 0], b):
+            expected = sla.solve_triangular(factor, rhs, lower=True)
+            whitened = Cholesky(factor, chol.jitter).whiten(rhs)
+            np.testing.assert_allclose(whitened, expected, rtol=algebra_rtol(1e2), atol=0)
 
 
 def test_cholesky_reports_jitter_and_fails_clearly():
