@@ -13,7 +13,7 @@ import pytest
 
 from gpfverify.fusion.centralized import cmf_update, fusion_gain
 from gpfverify.fusion.distributed import dmf_update
-from gpfverify.fusion.exactness import (analyse_sensors, equivalence_tolerance, kernel_split,
+from gpfverify.fusion.exactness import (analyse_sensors, canonical_split, equivalence_tolerance, kernel_split,
                                         local_consistency_residual, predicted_gap,
                                         range_condition_number, repair_message)
 from gpfverify.fusion.synthetic import random_case
@@ -134,6 +134,20 @@ def test_kernel_split_against_numpy(rows, cols, rank):
     np.testing.assert_allclose(n.T @ n, np.eye(cols - rank), atol=tol)
     np.testing.assert_allclose(a @ n, 0.0, atol=tol * np.linalg.norm(a, 2))
     np.testing.assert_allclose(split.pinv @ a + n @ n.T, np.eye(cols), atol=tol)
+
+
+def test_every_rule_records_the_same_singular_values():
+    """σ(C_xy^m) recorded by the canonical split are the numpy/absolute split's bits: the rank rule
+    changes the decision, never the reported singular values (LAPACK's route without singular
+    vectors rounds differently, so the two splits must take the same one)."""
+    rng = np.random.default_rng(11)
+    for d, l in [(2, 2), (2, 3), (3, 2), (4, 4), (1, 3)] * 4:
+        cross = rng.normal(size=(d, l)) * 10.0 ** rng.uniform(-3, 3)
+        g = rng.normal(size=(d, 4 * d))
+        prior = g @ g.T / (4 * d)
+        cov_y = cross.T @ np.linalg.solve(prior, cross) + np.eye(l)  # ⪰ C_yx C_x⁻¹ C_xy: a valid joint
+        canonical = canonical_split(cross, prior, cov_y).rank.singular_values
+        np.testing.assert_array_equal(canonical, kernel_split(cross).rank.singular_values)
 
 
 def test_logged_locals_are_consistent_with_y():

@@ -286,7 +286,9 @@ def canonical_split(cross_cov: np.ndarray, prior_cov: np.ndarray, cov_y: np.ndar
     d, l = cross_cov.shape
     v_r, v_perp = cc.v[:, :r], cc.v[:, r:]
     pinv = cc.y_from_whitened(v_r / rho[:r]) @ cc.x_dual(cc.u[:, :r]).T if r else np.zeros((l, d))
-    s = np.linalg.svd(cross_cov, compute_uv=False)
+    # σ(C_xy^m) by the LAPACK route of kernel_split (with vectors): the recorded singular values are
+    # the same bits under every rule (without vectors LAPACK takes another path, rounding differently)
+    s = np.linalg.svd(cross_cov, full_matrices=True)[1]
     condition = (float(rho[0] / rho[r - 1]) if r else 1.0) * cc.whitening_condition
     return KernelSplit(RankReport(r, s, float(tol), cross_cov.shape), pinv, cc.y_from_whitened(v_perp),
                        cc.y_factor_times(v_perp), RankRule("canonical", float(tol)), rho, covariance,
