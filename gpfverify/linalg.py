@@ -64,17 +64,20 @@ class Cholesky:
             raise NumericalError(f"solve with a Cholesky factor failed (potrs info={info})")
         return x
 
-    def whiten(self, b: np.ndarray) -> np.ndarray:
-        """L⁻¹ b for b (n,) or (n, m), by BLAS trsv / trsm on a Fortran-ordered view of the factor,
-        never a copy of it: L itself as LAPACK's ``potrf`` returns it (Fortran order), or, for a
-        C-ordered L, its transpose solved as (Lᵀ)ᵀx = b."""
+    def _fortran_view(self) -> tuple[np.ndarray, bool]:
+        """A Fortran-ordered view of the factor that BLAS/LAPACK read without copying it, and whether
+        it is L (as ``potrf`` returns it) rather than Lᵀ (the transpose of a C-ordered L, an upper factor)."""
         if self.factor.flags.f_contiguous:
-            factor, lower, trans = self.factor, 1, 0
-        else:
-            factor, lower, trans = self.factor.T, 0, 1
+            return self.factor, True
+        return self.factor.T, False
+
+    def whiten(self, b: np.ndarray) -> np.ndarray:
+        """L⁻¹ b for b (n,) or (n, m), by BLAS trsv / trsm on :meth:`_fortran_view` (Lᵀ is solved as
+        (Lᵀ)ᵀx = b)."""
+        view, lower = self._fortran_view()
         if np.ndim(b) == 1:
-            return sla.blas.dtrsv(factor, b, lower=lower, trans=trans)
-        return sla.blas.dtrsm(1.0, factor, b, lower=lower, trans_a=trans)
+            return sla.blas.dtrsv(view, b, lower=int(lower), trans=int(not lower))
+        return sla.blas.dtrsm(1.0, view, b, lower=int(lower), trans_a=int(not lower))
 
     def logdet(self) -> float:
         return 2.0 * float(np.sum(np.log(np.diag(self.factor))))
@@ -82,9 +85,8 @@ class Cholesky:
     def inverse(self) -> np.ndarray:
         """Explicit inverse from the factor (LAPACK potri), for caching outside a hot path
         (e.g. a GP's training matrix) or where the whole inverse is needed (evidence gradients)."""
-        # hand LAPACK a Fortran-ordered view (no copy): L itself, or Lᵀ of a C-ordered L as the upper factor
-        lower = bool(self.factor.flags.f_contiguous)
-        inv, info = sla.lapack.dpotri(self.factor if lower else self.factor.T, lower=lower)
+        view, lower = self._fortran_view()
+        inv, info = sla.lapack.dpotri(view, lower=lower)
         if info != 0:
             raise NumericalError(f"inverse from Cholesky factor failed (potri info={info})")
         filled = inv if lower else inv.T  # its lower triangle holds the inverse

@@ -265,10 +265,17 @@ class KernelSplit:
         return self.kernel_basis @ (self.dual_basis.T @ w)
 
 
+def _cross_cov_svd(cross_cov: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The full SVD of C_xy^m, the one route every rank rule takes for σ(C_xy^m): the recorded
+    singular values are the same bits under every rule (LAPACK's route without singular vectors
+    rounds differently)."""
+    return np.linalg.svd(cross_cov, full_matrices=True)
+
+
 def kernel_split(cross_cov: np.ndarray, tol: float | None = None) -> KernelSplit:
     """Orthogonal SVD split of a sensor's cross covariance C_xy^m (D, l) with absolute tolerance
     ``tol`` (default numpy's matrix_rank rule): the ``absolute``/``numpy`` rules."""
-    u, s, vt = np.linalg.svd(cross_cov, full_matrices=True)
+    u, s, vt = _cross_cov_svd(cross_cov)
     used = numpy_rank_tol(s, cross_cov.shape) if tol is None else float(tol)
     r = int(np.sum(s > used))
     pinv = (vt[:r].T / s[:r]) @ u[:, :r].T
@@ -286,9 +293,7 @@ def canonical_split(cross_cov: np.ndarray, prior_cov: np.ndarray, cov_y: np.ndar
     d, l = cross_cov.shape
     v_r, v_perp = cc.v[:, :r], cc.v[:, r:]
     pinv = cc.y_from_whitened(v_r / rho[:r]) @ cc.x_dual(cc.u[:, :r]).T if r else np.zeros((l, d))
-    # σ(C_xy^m) by the LAPACK route of kernel_split (with vectors): the recorded singular values are
-    # the same bits under every rule (without vectors LAPACK takes another path, rounding differently)
-    s = np.linalg.svd(cross_cov, full_matrices=True)[1]
+    s = _cross_cov_svd(cross_cov)[1]
     condition = (float(rho[0] / rho[r - 1]) if r else 1.0) * cc.whitening_condition
     return KernelSplit(RankReport(r, s, float(tol), cross_cov.shape), pinv, cc.y_from_whitened(v_perp),
                        cc.y_factor_times(v_perp), RankRule("canonical", float(tol)), rho, covariance,
