@@ -73,10 +73,14 @@ class Cholesky:
 
     def whiten(self, b: np.ndarray) -> np.ndarray:
         """L⁻¹ b for b (n,) or (n, m), by BLAS trsv / trsm on :meth:`_fortran_view` (Lᵀ is solved as
-        (Lᵀ)ᵀx = b)."""
+        (Lᵀ)ᵀx = b). A single column (n, 1) goes to trsv as well: OpenBLAS's trsm takes 2.5 times
+        as long for it (54 against 21 µs at n = 300), and the GP-UKF asks for one column at
+        every prediction (the GP variance at the mean)."""
         view, lower = self._fortran_view()
         if np.ndim(b) == 1:
             return sla.blas.dtrsv(view, b, lower=int(lower), trans=int(not lower))
+        if np.shape(b)[1] == 1:
+            return sla.blas.dtrsv(view, b[:, 0], lower=int(lower), trans=int(not lower))[:, None]
         return sla.blas.dtrsm(1.0, view, b, lower=int(lower), trans_a=int(not lower))
 
     def logdet(self) -> float:

@@ -45,17 +45,19 @@ def test_cholesky_is_numpys_factor_bit_for_bit():
 
 
 def test_whiten_is_the_triangular_solve():
-    """L⁻¹b for one right-hand side and for several, against scipy's triangular solve, with the
-    factor in LAPACK's Fortran order (as :func:`cholesky` returns it) and in C order."""
+    """L⁻¹b for one right-hand side (as a vector and as one column) and for several, against
+    scipy's triangular solve, with the factor in LAPACK's Fortran order (as :func:`cholesky`
+    returns it) and in C order; a column comes back as a column."""
     import scipy.linalg as sla
 
     chol = cholesky(_spd(7, 30, cond=1e4))
     assert chol.factor.flags.f_contiguous
     b = np.random.default_rng(7).normal(size=(30, 3))
     for factor in (chol.factor, np.ascontiguousarray(chol.factor)):
-        for rhs in (b[:, 0], b):
+        for rhs in (b[:, 0], b[:, :1], b):
             expected = sla.solve_triangular(factor, rhs, lower=True)
             whitened = Cholesky(factor, chol.jitter).whiten(rhs)
+            assert whitened.shape == rhs.shape
             np.testing.assert_allclose(whitened, expected, rtol=algebra_rtol(1e2), atol=0)
 
 
