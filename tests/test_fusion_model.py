@@ -5,6 +5,7 @@ filter run on its own; wrong family/model pairings and missing priors are InputE
 
 import subprocess
 import sys
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -71,6 +72,9 @@ def test_run_parts_match_their_direct_computation():
         np.testing.assert_array_equal(step.estimate("cw").mean, convex_combination(posteriors).mean)
         np.testing.assert_array_equal(step.estimate("ci").cov, covariance_intersection(posteriors).cov)
         assert set(step.seconds) == {"local", "cmf", "dmf", "cw", "ci"} and len(step.local_seconds) == 3
+        # eq. 35's own time is part of the DMF step's, and a measurement: not compared
+        assert 0 < step.dmf.update_seconds < step.seconds["dmf"]
+        assert step.dmf == replace(step.dmf, update_seconds=step.dmf.update_seconds + 1.0)
     assert run.means("dmf").shape == (4, 4) and run.local_means(2).shape == (4, 4)
 
 

@@ -28,7 +28,7 @@ The convex-solver baselines (ci, rcc-ci: cvxpy) are imported only when requested
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
 from collections.abc import Callable, Sequence
 
@@ -83,11 +83,14 @@ def cmf_step(belief: Gaussian, model, y, *, k: int = 1, family: str = "ukf",
 @dataclass(frozen=True)
 class DMFStep:
     """The fused ``record`` (central prediction and moments, DMF posterior), the fusion ``case``
-    the centre saw and the eq. 35 ``result`` with per-sensor rank/exactness diagnostics."""
+    the centre saw, the eq. 35 ``result`` with per-sensor rank/exactness diagnostics and
+    ``update_seconds``, the wall-clock time of eq. 35 itself (:func:`dmf_update`: what is left to
+    do once the measurements arrive; a measurement, left out of comparisons)."""
 
     record: StepRecord
     case: FusionCase
     result: DMFResult
+    update_seconds: float = field(default=0.0, compare=False)
 
 
 def local_reports(local_records: Sequence[StepRecord], central: CentralPrediction) -> tuple[LocalReport, ...]:
@@ -118,10 +121,10 @@ def dmf_step(belief: Gaussian, model, y=None, *, local_records: Sequence[StepRec
     stacked = None if y is None else as_vector(y, "y", int(sum(central.sizes)))
     case = FusionCase(central, local_reports(local_records, central), stacked, rank_tol)
     rule = resolve_rank_rule(None, rank_rule, rank_tol, default=NUMPY_RANK_RULE)
-    result = dmf_update(case, rank_rule=rule)
+    result, seconds = _timed(dmf_update, case, rank_rule=rule)
     mean = wrap_components(result.mean, model.circular_state)
     record = StepRecord(central.mu_p, central.C_p, central.mu_y, central.C_y, central.C_xy, mean, result.cov)
-    return DMFStep(record, case, result)
+    return DMFStep(record, case, result, seconds)
 
 
 @dataclass(frozen=True)
