@@ -1,6 +1,9 @@
 """Fused kernel for the n_a × n_b part of exact moment matching (seed 000 eq. 10–11), compiled by
-numba when it is installed (the optional ``fast`` extra); :mod:`gpfverify.gp.moments` evaluates
-the same sums with numpy otherwise, and that path is the reference this one is tested against.
+numba when it is installed (the optional ``fast`` extra), with the O(n) and D × D algebra around it
+(the first moments, eq. 8–9 and 20, and each output pair's R⁻¹Σ and log-determinants) compiled
+too, so that one moment match is a few compiled calls rather than some hundred small numpy ones;
+:mod:`gpfverify.gp.moments` evaluates the same quantities with numpy otherwise, and that path is the
+reference this one is tested against.
 
 For one output pair (a, b) at one input, with d_ij = z_iᵀw_j + r_i + c_j the small exponent of
 :func:`gpfverify.gp.moments._centred_second_moments` and E_ij = expm1(d_ij):
@@ -80,10 +83,23 @@ enabled = AVAILABLE
 EXPM1_SAFE = 700.0
 
 
-def centred_sums(x_a: np.ndarray, x_b: np.ndarray, mu: np.ndarray, inv_l2_a: np.ndarray, inv_l2_b: np.ndarray,
-                 a_mat: np.ndarray, const: np.ndarray, ia: np.ndarray, ib: np.ndarray, t_a: np.ndarray,
-                 t_b: np.ndarray, log_q_a: np.ndarray, log_q_b: np.ndarray, beta_a: np.ndarray,
-                 beta_b: np.ndarray, k_inv: np.ndarray, diagonal: np.ndarray
+def first_moments(x: np.ndarray, lengthscales: np.ndarray, signal_var: np.ndarray, beta: np.ndarray,
+                  mu: np.ndarray, sigma: np.ndarray) -> tuple[np.ndarray, ...] | None:
+    """(mean (B, E), cross_cov (B, D, E), log q (B, E, n), t (B, E, n), log|B_a + I| (B, E)) of one
+    GP (training inputs x, lengthscales (E, D), signal variances (E,), β (E, n)) at the inputs
+    N(mu[b], sigma[b]) by :func:`gpfverify.gp.fused_kernels.first_moments`, or None when the
+    compiled path is off (the caller's numpy path, :func:`gpfverify.gp.moments._first_moments`,
+    computes the same to rounding)."""
+    if not enabled:
+        return None
+    from gpfverify.gp import fused_kernels
+    return fused_kernels.first_moments(x, 1.0 / lengthscales, np.log(signal_var), beta, mu, sigma)
+
+
+def centred_sums(x_a: np.ndarray, x_b: np.ndarray, mu: np.ndarray, sigma: np.ndarray, inv_l2_a: np.ndarray,
+                 inv_l2_b: np.ndarray, b_logdet_a: np.ndarray, b_logdet_b: np.ndarray, ia: np.ndarray,
+                 ib: np.ndarray, t_a: np.ndarray, t_b: np.ndarray, log_q_a: np.ndarray, log_q_b: np.ndarray,
+                 beta_a: np.ndarray, beta_b: np.ndarray, k_inv: np.ndarray, diagonal: np.ndarray
                  ) -> tuple[np.ndarray, np.ndarray] | None:
     """(Cov (B, P), trace (B, P)) of the output pairs (ia[p], ib[p]) by the fused kernel, its
     O(n) inputs formed by :func:`gpfverify.gp.fused_kernels.prepare` (arguments as there, with
@@ -95,11 +111,11 @@ def centred_sums(x_a: np.ndarray, x_b: np.ndarray, mu: np.ndarray, inv_l2_a: np.
     if not enabled:
         return None
     from gpfverify.gp import fused_kernels
-    *prepared, bound = fused_kernels.prepare(x_a, x_b, mu, inv_l2_a, inv_l2_b, a_mat, const, ia, ib, t_a, t_b,
-                                             log_q_a, log_q_b, beta_a, beta_b)
+    *prepared, bound = fused_kernels.prepare(x_a, x_b, mu, sigma, inv_l2_a, inv_l2_b, b_logdet_a, b_logdet_b,
+                                             ia, ib, t_a, t_b, log_q_a, log_q_b, beta_a, beta_b)
     if not bound <= EXPM1_SAFE:
         return None
-    shape = const.shape
+    shape = (mu.shape[0], ia.size)
     cov, trace = np.empty(shape), np.empty(shape)
     fused_kernels.centred_sums(*prepared, k_inv, diagonal, cov, trace)
     return cov, trace

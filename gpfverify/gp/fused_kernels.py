@@ -51,21 +51,120 @@ def _dot(x: np.ndarray, y: np.ndarray) -> float:
     return (s0 + s1) + (s2 + s3)
 
 @_jit
-def prepare(x_a: np.ndarray, x_b: np.ndarray, mu: np.ndarray, inv_l2_a: np.ndarray, inv_l2_b: np.ndarray,
-            a_mat: np.ndarray, const: np.ndarray, ia: np.ndarray, ib: np.ndarray, t_a: np.ndarray,
-            t_b: np.ndarray, log_q_a: np.ndarray, log_q_b: np.ndarray, beta_a: np.ndarray, beta_b: np.ndarray):
-    """The inputs of :func:`centred_sums` for the output pairs (ia[p], ib[p]) at the inputs
-    N(mu[b], ·) — the O(n) terms of :func:`gpfverify.gp.moments._centred_second_moments`:
-    z_a = Λ_a⁻¹ν_i A, row_i = −½t_ai + ½(Λ_a⁻¹ν_i)ᵀA(Λ_a⁻¹ν_i) + const, w_j = Λ_b⁻¹ν'_j,
-    col_j = −½t_bj + ½w_jᵀAw_j, q_a, u = β_a ∘ q_a, v = β_b ∘ q_b — and the largest bound
-    max_i row_i + max_j col_j + max_i ‖z_i‖ · max_j ‖w_j‖ (Cauchy–Schwarz) on any exponent.
+def _shifted(scaled: np.ndarray, inv: np.ndarray, ratio: np.ndarray) -> float:
+    """:func:`gpfverify.gp.moments._shifted` for one D × D matrix S: writes (S + I)⁻¹ into ``inv``
+    and (S + I)⁻¹S into ``ratio`` (each symmetrised, from S = V diag(λ) Vᵀ with λ clipped at 0) and
+    returns log|S + I| = Σ log1p(λ)."""
+    eigval, eigvec = np.linalg.eigh(scaled)
+    dim = eigval.size
+    logdet = 0.0
+    for k in range(dim):
+        eigval[k] = max(eigval[k], 0.0)
+        logdet += np.log1p(eigval[k])
+    for k in range(dim):
+        for m in range(dim):
+            s_inv, s_ratio = 0.0, 0.0
+            for r in range(dim):
+                vv = eigvec[k, r] * eigvec[m, r]
+                s_inv += vv / (1.0 + eigval[r])
+                s_ratio += vv * (eigval[r] / (1.0 + eigval[r]))
+            inv[k, m], ratio[k, m] = s_inv, s_ratio
+    for k in range(dim):
+        for m in range(k + 1, dim):
+            inv[k, m] = inv[m, k] = 0.5 * (inv[k, m] + inv[m, k])
+            ratio[k, m] = ratio[m, k] = 0.5 * (ratio[k, m] + ratio[m, k])
+    return logdet
 
-    x_a (n_a, D), x_b (n_b, D), mu (B, D), inv_l2_a/inv_l2_b (P, D) the pairs' 1/ℓ², a_mat
-    (B, P, D, D) = R⁻¹Σ, const (B, P), t_a/log_q_a (B, E_a, n_a), t_b/log_q_b (B, E_b, n_b),
+@_jit
+def first_moments(x: np.ndarray, inv_ell: np.ndarray, log_signal_var: np.ndarray, beta: np.ndarray,
+                  mu: np.ndarray, sigma: np.ndarray):
+    """Eq. 8–9 and 20 for every output a of one GP at every input N(mu[b], sigma[b]), as
+    :func:`gpfverify.gp.moments._first_moments` computes them: with B_a = Λ_a^{-½}ΣΛ_a^{-½} and
+    s_i = Λ_a^{-½}ν_i, log q_ai = log α_a² − ½log|B_a + I| − ½ s_iᵀ(B_a + I)⁻¹s_i,
+    t_ai = s_iᵀ(B_a + I)⁻¹B_a s_i, M_a = Σ_i β_ai q_ai and Cov[x, f_a] = ΣΛ_a^{-½}(B_a + I)⁻¹Λ_a^{-½}
+    Σ_i β_ai q_ai ν_i.
+
+    x (n, D), inv_ell (E, D) = 1/ℓ, log_signal_var (E,), beta (E, n), mu (B, D), sigma (B, D, D);
+    returns mean (B, E), cross_cov (B, D, E), log_q (B, E, n), t (B, E, n), b_logdet (B, E)."""
+    batch, dim = mu.shape
+    outputs, n = beta.shape
+    mean, cross = np.zeros((batch, outputs)), np.zeros((batch, dim, outputs))
+    log_q, t, b_logdet = np.empty((batch, outputs, n)), np.empty((batch, outputs, n)), np.empty((batch, outputs))
+    scaled_sigma, b_inv, b_ratio = np.empty((dim, dim)), np.empty((dim, dim)), np.empty((dim, dim))
+    s, weighted_nu, solved = np.empty(dim), np.empty(dim), np.empty(dim)
+    for b in range(batch):
+        for a in range(outputs):
+            for k in range(dim):
+                for m in range(dim):
+                    scaled_sigma[k, m] = sigma[b, k, m] * inv_ell[a, k] * inv_ell[a, m]
+            logdet = _shifted(scaled_sigma, b_inv, b_ratio)
+            b_logdet[b, a] = logdet
+            weighted_nu[:] = 0.0
+            total = 0.0
+            for i in range(n):
+                for k in range(dim):
+                    s[k] = (x[i, k] - mu[b, k]) * inv_ell[a, k]
+                maha, quad = 0.0, 0.0
+                for k in range(dim):
+                    row_inv, row_ratio = 0.0, 0.0
+                    for m in range(dim):
+                        row_inv += s[m] * b_inv[m, k]
+                        row_ratio += s[m] * b_ratio[m, k]
+                    maha += row_inv * s[k]
+                    quad += row_ratio * s[k]
+                value = log_signal_var[a] - 0.5 * logdet - 0.5 * maha
+                log_q[b, a, i], t[b, a, i] = value, quad
+                weight = beta[a, i] * np.exp(value)
+                total += weight
+                for k in range(dim):
+                    weighted_nu[k] += weight * (x[i, k] - mu[b, k])
+            mean[b, a] = total
+            for k in range(dim):
+                acc = 0.0
+                for m in range(dim):
+                    acc += b_inv[k, m] * (inv_ell[a, m] * weighted_nu[m])
+                solved[k] = inv_ell[a, k] * acc
+            for k in range(dim):
+                acc = 0.0
+                for m in range(dim):
+                    acc += sigma[b, k, m] * solved[m]
+                cross[b, k, a] = acc
+    return mean, cross, log_q, t, b_logdet
+
+@_jit
+def prepare(x_a: np.ndarray, x_b: np.ndarray, mu: np.ndarray, sigma: np.ndarray, inv_l2_a: np.ndarray,
+            inv_l2_b: np.ndarray, b_logdet_a: np.ndarray, b_logdet_b: np.ndarray, ia: np.ndarray, ib: np.ndarray,
+            t_a: np.ndarray, t_b: np.ndarray, log_q_a: np.ndarray, log_q_b: np.ndarray, beta_a: np.ndarray,
+            beta_b: np.ndarray):
+    """The inputs of :func:`centred_sums` for the output pairs (ia[p], ib[p]) at the inputs
+    N(mu[b], sigma[b]) — the O(n) terms of :func:`gpfverify.gp.moments._centred_second_moments`:
+    with Ξ = Λ_a⁻¹ + Λ_b⁻¹, S = Ξ^½ΣΞ^½, A = R⁻¹Σ = Ξ^{-½}(S + I)⁻¹SΞ^{-½} and
+    const = ½(log|B_a + I| + log|B_b + I| − log|S + I|): z_a = Λ_a⁻¹ν_i A,
+    row_i = −½t_ai + ½(Λ_a⁻¹ν_i)ᵀA(Λ_a⁻¹ν_i) + const, w_j = Λ_b⁻¹ν'_j, col_j = −½t_bj + ½w_jᵀAw_j,
+    q_a, u = β_a ∘ q_a, v = β_b ∘ q_b — and the largest bound max_i row_i + max_j col_j +
+    max_i ‖z_i‖ · max_j ‖w_j‖ (Cauchy–Schwarz) on any exponent.
+
+    x_a (n_a, D), x_b (n_b, D), mu (B, D), sigma (B, D, D), inv_l2_a/inv_l2_b (P, D) the pairs' 1/ℓ²,
+    b_logdet_a (B, E_a), b_logdet_b (B, E_b), t_a/log_q_a (B, E_a, n_a), t_b/log_q_b (B, E_b, n_b),
     beta_a (E_a, n_a), beta_b (E_b, n_b)."""
     batch, dim = mu.shape
     pairs = ia.size
     n_a, n_b = x_a.shape[0], x_b.shape[0]
+    a_mat, const = np.empty((batch, pairs, dim, dim)), np.empty((batch, pairs))
+    xi_half, scaled_sigma = np.empty(dim), np.empty((dim, dim))
+    s_inv, s_ratio = np.empty((dim, dim)), np.empty((dim, dim))
+    for b in range(batch):
+        for p in range(pairs):
+            for k in range(dim):
+                xi_half[k] = np.sqrt(inv_l2_a[p, k] + inv_l2_b[p, k])
+            for k in range(dim):
+                for m in range(dim):
+                    scaled_sigma[k, m] = sigma[b, k, m] * (xi_half[k] * xi_half[m])
+            r_logdet = _shifted(scaled_sigma, s_inv, s_ratio)
+            for k in range(dim):
+                for m in range(dim):
+                    a_mat[b, p, k, m] = s_ratio[k, m] / (xi_half[k] * xi_half[m])
+            const[b, p] = 0.5 * (b_logdet_a[b, ia[p]] + b_logdet_b[b, ib[p]] - r_logdet)
     z_a = np.empty((batch, pairs, n_a, dim))
     z_b_t = np.empty((batch, pairs, dim, n_b))
     row, u, q_a = np.empty((batch, pairs, n_a)), np.empty((batch, pairs, n_a)), np.empty((batch, pairs, n_a))

@@ -36,7 +36,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from gpfverify.gp.fused import EXPM1_SAFE, centred_sums
+from gpfverify.gp.fused import EXPM1_SAFE, centred_sums, first_moments as fused_first_moments
 from gpfverify.linalg import symmetrize
 
 
@@ -118,6 +118,16 @@ def _stack_firsts(firsts: list[_FirstMoments]) -> _FirstMoments:
     return _FirstMoments(*(np.stack([getattr(f, name) for f in firsts]) for name in _FIELDS))
 
 
+def _first_moments_batch(gp, mu: np.ndarray, sigma: np.ndarray) -> _FirstMoments:
+    """One GP's first moments at a batch of inputs N(mu[b], sigma[b]), each field with a leading
+    batch axis: by the compiled kernel when it is enabled, else input by input with
+    :func:`_first_moments` (the reference)."""
+    compiled = fused_first_moments(gp.X, gp.lengthscales, gp.signal_var, gp.beta, mu, sigma)
+    if compiled is not None:
+        return _FirstMoments(*compiled)
+    return _stack_firsts([_first_moments(gp, mu[b], sigma[b]) for b in range(mu.shape[0])])
+
+
 def _batch_part(first: _FirstMoments, part: slice) -> _FirstMoments:
     return _FirstMoments(*(getattr(first, name)[part] for name in _FIELDS))
 
@@ -137,15 +147,16 @@ def _centred_second_moments(gp_a, gp_b, ia: np.ndarray, ib: np.ndarray, first_a:
     reference: the same sums to rounding)."""
     inv_l2_a = 1.0 / gp_a.lengthscales[ia] ** 2  # (P, D)
     inv_l2_b = 1.0 / gp_b.lengthscales[ib] ** 2
+    fused = centred_sums(gp_a.X, gp_b.X, mu, sigma, inv_l2_a, inv_l2_b, first_a.b_logdet, first_b.b_logdet, ia, ib,
+                         first_a.t, first_b.t, first_a.log_q, first_b.log_q, gp_a.beta, gp_b.beta, gp_a.K_inv,
+                         diagonal)
+    if fused is not None:
+        return fused
     xi_half = np.sqrt(inv_l2_a + inv_l2_b)  # Ξ^½ diagonal, (P, D)
     outer = xi_half[:, :, None] * xi_half[:, None, :]
     _, s_ratio, r_logdet = _shifted(sigma[:, None] * outer)  # (B, P, D, D), (B, P)
     a_mat = s_ratio / outer  # R⁻¹Σ = Ξ^{-½}(S + I)⁻¹SΞ^{-½}, (B, P, D, D)
     const = 0.5 * (first_a.b_logdet[:, ia] + first_b.b_logdet[:, ib] - r_logdet)  # (B, P)
-    fused = centred_sums(gp_a.X, gp_b.X, mu, inv_l2_a, inv_l2_b, a_mat, const, ia, ib, first_a.t, first_b.t,
-                         first_a.log_q, first_b.log_q, gp_a.beta, gp_b.beta, gp_a.K_inv, diagonal)
-    if fused is not None:
-        return fused
     nu_a, nu_b = gp_a.X - mu[:, None, :], gp_b.X - mu[:, None, :]  # (B, n, D)
     za = nu_a[:, None] * inv_l2_a[:, None, :]  # Λ_a⁻¹ν_i, (B, P, n_a, D)
     zb = nu_b[:, None] * inv_l2_b[:, None, :]
@@ -237,7 +248,7 @@ def moment_match_stack_batch(gps, mu: np.ndarray, sigma: np.ndarray) -> MomentMa
     numbers as a call of its own (:func:`moment_match_stack`), to rounding; the small per-input
     algebra is done once for the whole batch."""
     batch = mu.shape[0]
-    firsts = [_stack_firsts([_first_moments(gp, mu[b], sigma[b]) for b in range(batch)]) for gp in gps]
+    firsts = [_first_moments_batch(gp, mu, sigma) for gp in gps]
     mean = np.concatenate([f.mean for f in firsts], axis=-1)
     cross_cov = np.concatenate([f.cross_cov for f in firsts], axis=-1)
     offsets = [0]
