@@ -16,10 +16,27 @@ from gpfverify.strategies import (KINDS, gp_stacks, correlated_estimates, fusion
                                   joint_gaussians, matrices_with_singular_values,
                                   orthonormal_matrices, psd_matrices, saving_case_on_failure,
                                   sigma_params, spd_matrices)
+from gpfverify.strategies.matrices import log_uniform
 from gpfverify.strategies.counterexamples import ENVIRONMENT_VARIABLE
 from gpfverify.tolerances import algebra_rtol
 
 FEW = settings(max_examples=40, deadline=None)
+
+
+@given(leak=log_uniform(1e-8, 1.0), data=st.data())
+def test_a_decoupling_leak_keeps_the_joint_definite_and_correlates_by_at_most_its_size(leak, data):
+    """With decoupled_leak ε a decoupled component keeps its zero cross column and its variance, and
+    correlates with every other measurement component by at most ε (R's entries in its row scaled
+    by ε, or ε² towards another decoupled component)."""
+    joint = data.draw(joint_gaussians(kinds=st.sampled_from(("full", "decoupled")), decoupled_leak=leak))
+    assert np.linalg.eigvalsh(joint.cov)[0] > 0
+    std = np.sqrt(np.diag(joint.cov_y))
+    correlation = joint.cov_y / np.outer(std, std)
+    for design, block in zip(joint.sensors, joint.blocks):
+        for j in design.decoupled:
+            np.testing.assert_array_equal(joint.cross_cov[:, block.start + j], 0.0)
+            others = np.delete(correlation[block.start + j], block.start + j)
+            assert np.all(np.abs(others) <= leak * (1 + algebra_rtol())), (leak, others)
 
 
 @FEW

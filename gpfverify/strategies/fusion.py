@@ -116,7 +116,7 @@ def fusion_cases(draw, state_dim=st.integers(1, 4), sensors=st.integers(1, 3),
                  kinds=st.sampled_from(KINDS), sizes=None, max_size: int | None = None,
                  prior=st.sampled_from(PRIORS), with_y: bool = True, cross_scale=None,
                  cross_condition: float = 1e2, sigma_min: float = 1e-6,
-                 correlated_noise=st.booleans(), max_condition: float = 1e3) -> DrawnCase:
+                 correlated_noise=st.booleans(), max_condition: float = 1e3, decoupled_leak=0.0) -> DrawnCase:
     """Consistent fusion cases with designed cross-term ranks, as :class:`DrawnCase`.
 
     ``prior`` is ``"shared"``, ``"independent"`` or a strategy of those; ``with_y`` includes the
@@ -127,7 +127,7 @@ def fusion_cases(draw, state_dim=st.integers(1, 4), sensors=st.integers(1, 3),
     update with the case's y.
     """
     central = draw(joint_gaussians(state_dim, sensors, kinds, sizes, max_size, cross_scale,
-                                   cross_condition, sigma_min, correlated_noise, max_condition))
+                                   cross_condition, sigma_min, correlated_noise, max_condition, decoupled_leak))
     return draw(cases_from_joint(central, draw(as_strategy(prior)), with_y, correlated_noise,
                                  max_condition))
 

@@ -27,7 +27,10 @@ kind           sizes allowed               C_xy^m
 =============  ==========================  ===============================================
 
 σ is ``cross_scale`` and κ is ``cross_condition``. ``decoupled`` is column-rank deficient yet
-DMF-exact (the kernel of C_xy^m lies in the kernel of G_m C_y^m).
+DMF-exact (the kernel of C_xy^m lies in the kernel of G_m C_y^m). With ``decoupled_leak`` ε > 0 a
+decoupled component's noise correlates with the others' (R's off-diagonal entries in its row and
+column scaled by ε instead of 0): C_xy^m keeps its zero column, but G_m C_y^m no longer vanishes on
+it — a designed, O(ε) departure from exactness (ε = 0: exact; ε = 1: R as drawn).
 """
 
 from __future__ import annotations
@@ -160,10 +163,13 @@ def cross_covariances(draw, state_dim: int, design: SensorDesign) -> np.ndarray:
 
 @st.composite
 def measurement_noise(draw, sizes: Sequence[int], correlated: bool, decoupled: Sequence[int],
-                      max_condition: float, scale: float) -> np.ndarray:
+                      max_condition: float, scale: float, leak: float = 0.0) -> np.ndarray:
     """R (L, L) SPD: full when ``correlated`` else block-diagonal per sensor; the stacked indices
     ``decoupled`` have zero rows/columns except the diagonal (a principal submatrix of an SPD
-    matrix is SPD, so R stays SPD)."""
+    matrix is SPD, so R stays SPD), or, with ``leak`` ε ∈ (0, 1], those off-diagonal entries scaled
+    by ε: R = S M S + (I − S²) diag(M) with S = diag(ε on the decoupled indices, 1 elsewhere), SPD
+    as the sum of a congruence of the drawn SPD M and a non-negative diagonal (entries between two
+    decoupled indices get ε²)."""
     total = sum(sizes)
     if correlated:
         noise = draw(spd_matrices(total, max_condition, scale))
@@ -175,6 +181,9 @@ def measurement_noise(draw, sizes: Sequence[int], correlated: bool, decoupled: S
             start += size
     isolated = np.zeros(total, dtype=bool)
     isolated[list(decoupled)] = True
+    if leak > 0:
+        scaling = np.where(isolated, leak, 1.0)
+        return symmetrize(scaling[:, None] * noise * scaling[None, :] + np.diag((1.0 - scaling ** 2) * np.diag(noise)))
     off_diagonal = (isolated[:, None] | isolated[None, :]) & ~np.eye(total, dtype=bool)
     return np.where(off_diagonal, 0.0, noise)
 
@@ -182,14 +191,14 @@ def measurement_noise(draw, sizes: Sequence[int], correlated: bool, decoupled: S
 @st.composite
 def joint_gaussians_of(draw, state_dim: int, designs: Sequence[SensorDesign],
                        correlated_noise: bool = True, max_condition: float = 1e3,
-                       mean_bound: float = 10.0) -> JointGaussian:
+                       mean_bound: float = 10.0, decoupled_leak: float = 0.0) -> JointGaussian:
     """A :class:`JointGaussian` for fixed per-sensor designs (see the module docstring)."""
     cov_x = draw(spd_matrices(state_dim, max_condition, draw(log_uniform(0.1, 10.0))))
     cross = np.concatenate([draw(cross_covariances(state_dim, d)) for d in designs], axis=1)
     offsets = np.cumsum((0,) + tuple(d.size for d in designs))
     decoupled = [int(offsets[m]) + j for m, d in enumerate(designs) for j in d.decoupled]
     noise = draw(measurement_noise([d.size for d in designs], correlated_noise, decoupled,
-                                   max_condition, draw(log_uniform(0.01, 1.0))))
+                                   max_condition, draw(log_uniform(0.01, 1.0)), decoupled_leak))
     whitened = np.linalg.solve(cholesky(cov_x, "cov_x", allow_jitter=False).factor, cross)
     cov_y = symmetrize(whitened.T @ whitened + noise)
     total = sum(d.size for d in designs)
@@ -229,7 +238,7 @@ def joint_gaussians(draw, state_dim=st.integers(1, 4), sensors=st.integers(1, 3)
                     kinds=st.sampled_from(KINDS), sizes: Sequence[int] | None = None,
                     max_size: int | None = None, cross_scale=None, cross_condition: float = 1e2,
                     sigma_min: float = 1e-6, correlated_noise=st.booleans(),
-                    max_condition: float = 1e3) -> JointGaussian:
+                    max_condition: float = 1e3, decoupled_leak=0.0) -> JointGaussian:
     """Joint Gaussians of (x, y¹, …, y^N) with designed cross-term ranks.
 
     Parameters (ints/floats or strategies where noted):
@@ -244,7 +253,9 @@ def joint_gaussians(draw, state_dim=st.integers(1, 4), sensors=st.integers(1, 3)
       ``deficient``; ``sigma_min`` — smallest singular value of a ``nearly`` term, relative to σ (float or
       strategy, drawn once per joint Gaussian);
     * ``correlated_noise`` — whether R couples the sensors (bool or strategy);
-    * ``max_condition`` — bound on the condition numbers of C_x and R.
+    * ``max_condition`` — bound on the condition numbers of C_x and R;
+    * ``decoupled_leak`` — ε of the module docstring (float or strategy, drawn once per joint
+      Gaussian; default 0, decoupled components exactly decoupled).
 
     Guarantees: the joint covariance is symmetric positive definite; every C_xy^m has exactly the
     designed singular values (to rounding); see the module docstring for each kind.
@@ -255,4 +266,5 @@ def joint_gaussians(draw, state_dim=st.integers(1, 4), sensors=st.integers(1, 3)
     smallest = float(draw(as_strategy(sigma_min)))
     designs = [draw(sensor_designs(kind, size, d, scale, cross_condition, smallest))
                for kind, size in layout]
-    return draw(joint_gaussians_of(d, designs, draw(as_strategy(correlated_noise)), max_condition))
+    return draw(joint_gaussians_of(d, designs, draw(as_strategy(correlated_noise)), max_condition,
+                                   decoupled_leak=float(draw(as_strategy(decoupled_leak)))))
