@@ -39,6 +39,14 @@ def test_a_decoupling_leak_keeps_the_joint_definite_and_correlates_by_at_most_it
             assert np.all(np.abs(others) <= leak * (1 + algebra_rtol())), (leak, others)
 
 
+@settings(max_examples=1, deadline=None)
+@given(data=st.data())
+def test_a_decoupling_leak_outside_zero_to_one_is_an_input_error(data):
+    for leak in (-0.1, 1.5, float("nan")):
+        with pytest.raises(InputError, match="decoupled_leak must lie in"):
+            data.draw(joint_gaussians(kinds="decoupled", decoupled_leak=leak))
+
+
 @FEW
 @given(q=orthonormal_matrices(4, 3))
 def test_orthonormal_columns(q):

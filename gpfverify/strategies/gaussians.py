@@ -192,7 +192,10 @@ def measurement_noise(draw, sizes: Sequence[int], correlated: bool, decoupled: S
 def joint_gaussians_of(draw, state_dim: int, designs: Sequence[SensorDesign],
                        correlated_noise: bool = True, max_condition: float = 1e3,
                        mean_bound: float = 10.0, decoupled_leak: float = 0.0) -> JointGaussian:
-    """A :class:`JointGaussian` for fixed per-sensor designs (see the module docstring)."""
+    """A :class:`JointGaussian` for fixed per-sensor designs (see the module docstring);
+    ``decoupled_leak`` must lie in [0, 1] (:class:`InputError` otherwise)."""
+    if not 0.0 <= decoupled_leak <= 1.0:
+        raise InputError(f"decoupled_leak must lie in [0, 1], got {decoupled_leak!r}")
     cov_x = draw(spd_matrices(state_dim, max_condition, draw(log_uniform(0.1, 10.0))))
     cross = np.concatenate([draw(cross_covariances(state_dim, d)) for d in designs], axis=1)
     offsets = np.cumsum((0,) + tuple(d.size for d in designs))
