@@ -25,9 +25,9 @@ FEW = settings(max_examples=40, deadline=None)
 
 @given(leak=log_uniform(1e-8, 1.0), data=st.data())
 def test_a_decoupling_leak_keeps_the_joint_definite_and_correlates_by_at_most_its_size(leak, data):
-    """With decoupled_leak ε a decoupled component keeps its zero cross column and its variance, and
-    correlates with every other measurement component by at most ε (R's entries in its row scaled
-    by ε, or ε² towards another decoupled component)."""
+    """With decoupled_leak ε the joint stays positive definite, a decoupled component keeps its zero
+    cross column, and it correlates with every other measurement component by at most ε (R's
+    entries in its row scaled by ε, or ε² towards another decoupled component)."""
     joint = data.draw(joint_gaussians(kinds=st.sampled_from(("full", "decoupled")), decoupled_leak=leak))
     assert np.linalg.eigvalsh(joint.cov)[0] > 0
     std = np.sqrt(np.diag(joint.cov_y))
