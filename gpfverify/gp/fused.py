@@ -11,8 +11,8 @@ For one output pair (a, b) at one input, with d_ij = z_iᵀw_j + r_i + c_j the s
 * Cov[m_a, m_b] = Σ_i u_i Σ_j E_ij v_j,          u = β_a ∘ q_a, v = β_b ∘ q_b         (eq. 10–11)
 * tr(K_a⁻¹(Q^{aa} − q_a q_aᵀ)) = Σ_i q_i Σ_j (K_a⁻¹)_ij q_j E_ij   (diagonal pairs only)
 
-One pass over (i, j) forms d_ij, its expm1 and both sums, row by row in a buffer that stays in
-cache: no n_a × n_b matrix is written, read back or multiplied. numpy's ``expm1`` is a scalar loop
+One pass over (i, j) forms d_ij and its expm1 and adds it into per-column sums, row by row in
+buffers that stay in cache: no n_a × n_b matrix is written, read back or multiplied. numpy's ``expm1`` is a scalar loop
 (about twice the cost of its vectorised ``exp``); here expm1 is evaluated by :func:`expm1_reference`'s
 algorithm, which the compiler vectorises:
 

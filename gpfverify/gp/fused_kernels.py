@@ -5,7 +5,9 @@ the package does not import numba). The formulas and the bit-for-bit contract wi
 from __future__ import annotations
 
 import numba
+import numba.extending
 import numpy as np
+from llvmlite import ir
 
 from gpfverify.gp.fused import (_SHIFTER_BITS, INV_LN2, LN2_HI, LN2_LO, LOWEST, SHIFTER,
                                 _expm1_reduced)
@@ -17,23 +19,32 @@ _jit = numba.njit(cache=True, nogil=True, boundscheck=False, error_model="numpy"
 #: the reduced-argument polynomial of :mod:`gpfverify.gp.fused`, compiled
 _expm1_reduced_compiled = _jit(_expm1_reduced)
 
+@numba.extending.intrinsic
+def _float_bits(typingctx, value):
+    """The IEEE bits of a float64 as an int64 (a register reinterpretation, which the loop
+    vectoriser keeps in vector registers)."""
+    def codegen(context, builder, signature, args):
+        return builder.bitcast(args[0], ir.IntType(64))
+    return numba.types.int64(numba.types.float64), codegen
+
+@numba.extending.intrinsic
+def _bits_float(typingctx, bits):
+    """The float64 whose IEEE bits are the int64 ``bits``."""
+    def codegen(context, builder, signature, args):
+        return builder.bitcast(args[0], ir.DoubleType())
+    return numba.types.float64(numba.types.int64), codegen
+
 @_jit
-def _expm1_row(d: np.ndarray, scale_bits: np.ndarray, scale: np.ndarray) -> None:
-    """d ← expm1(d) in place (d ≤ 700); ``scale_bits``/``scale`` are one buffer's int64 and
-    float64 views, as long as d."""
-    n = d.size
-    for j in range(n):
-        x = max(d[j], LOWEST)
-        t = x * INV_LN2 + SHIFTER
-        k = t - SHIFTER
-        r = (x - k * LN2_HI) - k * LN2_LO
-        d[j] = _expm1_reduced_compiled(r)
-        scale[j] = t
-    for j in range(n):
-        scale_bits[j] = (scale_bits[j] - _SHIFTER_BITS + 1023) << 52
-    for j in range(n):
-        s = scale[j]
-        d[j] = s * d[j] + (s - 1.0)
+def _expm1(value: float) -> float:
+    """expm1(value) for value ≤ 700 by :func:`gpfverify.gp.fused.expm1_reference`'s steps, one
+    IEEE operation each (the same bits); a scalar function that loops calling it vectorise whole."""
+    x = max(value, LOWEST)
+    t = x * INV_LN2 + SHIFTER
+    k = t - SHIFTER
+    r = (x - k * LN2_HI) - k * LN2_LO
+    p = _expm1_reduced_compiled(r)
+    scale = _bits_float((_float_bits(t) - _SHIFTER_BITS + 1023) << 52)  # 2ᵏ
+    return scale * p + (scale - 1.0)
 
 @_jit
 def _dot(x: np.ndarray, y: np.ndarray) -> float:
@@ -220,47 +231,61 @@ def centred_sums(z_a: np.ndarray, row: np.ndarray, z_b_t: np.ndarray, col: np.nd
     diagonal pair (−1 otherwise). Writes cov (B, P) and trace (B, P) (zero off the diagonal
     pairs). Every exponent must be at most :data:`EXPM1_SAFE` (see :func:`gpfverify.gp.fused.centred_sums`).
 
-    A diagonal pair is the pair (a, a) of one GP: its exponents are symmetric (d_ij = d_ji), as are
-    u = v and K_a⁻¹, so only j ≥ i is formed and the terms off the main diagonal count twice."""
+    The sums run column-wise: acc_j = Σ_i u_i E_ij over the rows, then Cov = Σ_j acc_j v_j (and
+    tr = Σ_j q_j Σ_i q_i E_ij (K_a⁻¹)_ij), so the pass that forms E_ij also accumulates it, with no
+    reduction inside a row. A diagonal pair is the pair (a, a) of one GP: its exponents are
+    symmetric (d_ij = d_ji), as are u = v and K_a⁻¹, so only j ≥ i is formed and the terms off the
+    main diagonal count twice."""
     batch, pairs, n_a, dim = z_a.shape
     n_b = z_b_t.shape[3]
     d = np.empty(n_b)
-    scale = np.empty(n_b)
-    scale_bits = scale.view(np.int64)
-    weighted = np.empty(n_b)
+    acc, acc_trace = np.empty(n_b), np.empty(n_b)
     for b in range(batch):
         for p in range(pairs):
             a = diagonal[p]
-            total = 0.0
-            total_trace = 0.0
+            acc[:] = 0.0
+            acc_trace[:] = 0.0
+            last = dim - 1
             for i in range(n_a):
                 start = i if a >= 0 else 0  # a diagonal pair: the upper triangle j ≥ i
                 width = n_b - start
                 row_d = d[:width]
                 r_i = row[b, p, i]
-                for j in range(width):
-                    row_d[j] = col[b, p, start + j] + r_i
-                for k in range(dim):
-                    z = z_a[b, p, i, k]
+                # row_d ← d_ij − z_i,last w_j,last = r_i + c_j + Σ_{k<last} z_ik w_jk
+                if last == 0:
                     for j in range(width):
-                        row_d[j] += z * z_b_t[b, p, k, start + j]
-                _expm1_row(row_d, scale_bits[:width], scale[:width])
-                if a < 0:
-                    total += u[b, p, i] * _dot(row_d, v[b, p])
+                        row_d[j] = col[b, p, start + j] + r_i
+                else:
+                    z = z_a[b, p, i, 0]
+                    for j in range(width):
+                        row_d[j] = (col[b, p, start + j] + r_i) + z * z_b_t[b, p, 0, start + j]
+                    for k in range(1, last):
+                        z = z_a[b, p, i, k]
+                        for j in range(width):
+                            row_d[j] += z * z_b_t[b, p, k, start + j]
+                z = z_a[b, p, i, last]
+                w_last = z_b_t[b, p, last]
+                if a < 0:  # acc_j += u_i E_ij
+                    weight = u[b, p, i]
+                    for j in range(width):
+                        acc[j] += weight * _expm1(row_d[j] + z * w_last[j])
                     continue
-                total += u[b, p, i] * (row_d[0] * v[b, p, i] + 2.0 * _dot(row_d[1:], v[b, p, i + 1:]))
-                for j in range(width):
-                    weighted[j] = k_inv[a, i, start + j] * q_a[b, p, start + j]
-                total_trace += q_a[b, p, i] * (row_d[0] * weighted[0] + 2.0 * _dot(row_d[1:], weighted[1:width]))
-            cov[b, p] = total
-            trace[b, p] = total_trace
+                # a diagonal pair: E_ii once, E_ij (j > i) twice
+                e = _expm1(row_d[0] + z * w_last[i])
+                acc[i] += u[b, p, i] * e
+                acc_trace[i] += q_a[b, p, i] * (e * k_inv[a, i, i])
+                weight, weight_trace = 2.0 * u[b, p, i], 2.0 * q_a[b, p, i]
+                for j in range(1, width):
+                    e = _expm1(row_d[j] + z * w_last[i + j])
+                    acc[i + j] += weight * e
+                    acc_trace[i + j] += weight_trace * (e * k_inv[a, i, i + j])
+            cov[b, p] = _dot(acc, v[b, p])
+            trace[b, p] = _dot(acc_trace, q_a[b, p]) if a >= 0 else 0.0
 
 @_jit
 def expm1_compiled(x: np.ndarray) -> np.ndarray:
     """The compiled expm1 of a 1-D array (x ≤ 700), for testing the kernel's arithmetic."""
-    out = x.copy()
-    scale = np.empty(x.size)
-    _expm1_row(out, scale.view(np.int64), scale)
+    out = np.empty_like(x)
+    for j in range(x.size):
+        out[j] = _expm1(x[j])
     return out
-
-
