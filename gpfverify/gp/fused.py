@@ -85,7 +85,7 @@ EXPM1_SAFE = 700.0
 
 def first_moments(x: np.ndarray, lengthscales: np.ndarray, signal_var: np.ndarray, beta: np.ndarray,
                   mu: np.ndarray, sigma: np.ndarray) -> tuple[np.ndarray, ...] | None:
-    """(mean (B, E), cross_cov (B, D, E), log q (B, E, n), t (B, E, n), log|B_a + I| (B, E)) of one
+    """(mean (B, E), cross_cov (B, D, E), log q (B, E, n), t (B, E, n), log|B_a + I| (B, E), q (B, E, n)) of one
     GP (training inputs x, lengthscales (E, D), signal variances (E,), β (E, n)) at the inputs
     N(mu[b], sigma[b]) by :func:`gpfverify.gp.fused_kernels.first_moments`, or None when the
     compiled path is off (the caller's numpy path, :func:`gpfverify.gp.moments._first_moments`,
@@ -98,7 +98,7 @@ def first_moments(x: np.ndarray, lengthscales: np.ndarray, signal_var: np.ndarra
 
 def centred_sums(x_a: np.ndarray, x_b: np.ndarray, mu: np.ndarray, sigma: np.ndarray, inv_l2_a: np.ndarray,
                  inv_l2_b: np.ndarray, b_logdet_a: np.ndarray, b_logdet_b: np.ndarray, ia: np.ndarray,
-                 ib: np.ndarray, t_a: np.ndarray, t_b: np.ndarray, log_q_a: np.ndarray, log_q_b: np.ndarray,
+                 ib: np.ndarray, t_a: np.ndarray, t_b: np.ndarray, q_a: np.ndarray, q_b: np.ndarray,
                  beta_a: np.ndarray, beta_b: np.ndarray, k_inv: np.ndarray, diagonal: np.ndarray
                  ) -> tuple[np.ndarray, np.ndarray] | None:
     """(Cov (B, P), trace (B, P)) of the output pairs (ia[p], ib[p]) by the fused kernel, its
@@ -112,7 +112,7 @@ def centred_sums(x_a: np.ndarray, x_b: np.ndarray, mu: np.ndarray, sigma: np.nda
         return None
     from gpfverify.gp import fused_kernels
     *prepared, bound = fused_kernels.prepare(x_a, x_b, mu, sigma, inv_l2_a, inv_l2_b, b_logdet_a, b_logdet_b,
-                                             ia, ib, t_a, t_b, log_q_a, log_q_b, beta_a, beta_b)
+                                             ia, ib, t_a, t_b, q_a, q_b, beta_a, beta_b)
     if not bound <= EXPM1_SAFE:
         return None
     shape = (mu.shape[0], ia.size)

@@ -12,7 +12,7 @@ from llvmlite import ir
 from gpfverify.gp.fused import (_SHIFTER_BITS, INV_LN2, LN2_HI, LN2_LO, LOWEST, SHIFTER,
                                 _expm1_reduced)
 
-#: the row loops' unroll width: four partial sums per reduction, combined at the end of each row
+#: the unroll width of :func:`_dot`: four partial sums, combined at the end (a fixed order)
 _LANES = 4
 
 _jit = numba.njit(cache=True, nogil=True, boundscheck=False, error_model="numpy")
@@ -96,11 +96,13 @@ def first_moments(x: np.ndarray, inv_ell: np.ndarray, log_signal_var: np.ndarray
     Σ_i β_ai q_ai ν_i.
 
     x (n, D), inv_ell (E, D) = 1/ℓ, log_signal_var (E,), beta (E, n), mu (B, D), sigma (B, D, D);
-    returns mean (B, E), cross_cov (B, D, E), log_q (B, E, n), t (B, E, n), b_logdet (B, E)."""
+    returns mean (B, E), cross_cov (B, D, E), log_q (B, E, n), t (B, E, n), b_logdet (B, E) and
+    q = exp(log q) (B, E, n)."""
     batch, dim = mu.shape
     outputs, n = beta.shape
     mean, cross = np.zeros((batch, outputs)), np.zeros((batch, dim, outputs))
     log_q, t, b_logdet = np.empty((batch, outputs, n)), np.empty((batch, outputs, n)), np.empty((batch, outputs))
+    q = np.empty((batch, outputs, n))
     scaled_sigma, b_inv, b_ratio = np.empty((dim, dim)), np.empty((dim, dim)), np.empty((dim, dim))
     s, weighted_nu, solved = np.empty(dim), np.empty(dim), np.empty(dim)
     for b in range(batch):
@@ -125,7 +127,8 @@ def first_moments(x: np.ndarray, inv_ell: np.ndarray, log_signal_var: np.ndarray
                     quad += row_ratio * s[k]
                 value = log_signal_var[a] - 0.5 * logdet - 0.5 * maha
                 log_q[b, a, i], t[b, a, i] = value, quad
-                weight = beta[a, i] * np.exp(value)
+                q[b, a, i] = np.exp(value)
+                weight = beta[a, i] * q[b, a, i]
                 total += weight
                 for k in range(dim):
                     weighted_nu[k] += weight * (x[i, k] - mu[b, k])
@@ -140,12 +143,12 @@ def first_moments(x: np.ndarray, inv_ell: np.ndarray, log_signal_var: np.ndarray
                 for m in range(dim):
                     acc += sigma[b, k, m] * solved[m]
                 cross[b, k, a] = acc
-    return mean, cross, log_q, t, b_logdet
+    return mean, cross, log_q, t, b_logdet, q
 
 @_jit
 def prepare(x_a: np.ndarray, x_b: np.ndarray, mu: np.ndarray, sigma: np.ndarray, inv_l2_a: np.ndarray,
             inv_l2_b: np.ndarray, b_logdet_a: np.ndarray, b_logdet_b: np.ndarray, ia: np.ndarray, ib: np.ndarray,
-            t_a: np.ndarray, t_b: np.ndarray, log_q_a: np.ndarray, log_q_b: np.ndarray, beta_a: np.ndarray,
+            t_a: np.ndarray, t_b: np.ndarray, first_q_a: np.ndarray, first_q_b: np.ndarray, beta_a: np.ndarray,
             beta_b: np.ndarray):
     """The inputs of :func:`centred_sums` for the output pairs (ia[p], ib[p]) at the inputs
     N(mu[b], sigma[b]) — the O(n) terms of :func:`gpfverify.gp.moments._centred_second_moments`:
@@ -156,8 +159,8 @@ def prepare(x_a: np.ndarray, x_b: np.ndarray, mu: np.ndarray, sigma: np.ndarray,
     max_i ‖z_i‖ · max_j ‖w_j‖ (Cauchy–Schwarz) on any exponent.
 
     x_a (n_a, D), x_b (n_b, D), mu (B, D), sigma (B, D, D), inv_l2_a/inv_l2_b (P, D) the pairs' 1/ℓ²,
-    b_logdet_a (B, E_a), b_logdet_b (B, E_b), t_a/log_q_a (B, E_a, n_a), t_b/log_q_b (B, E_b, n_b),
-    beta_a (E_a, n_a), beta_b (E_b, n_b)."""
+    b_logdet_a (B, E_a), b_logdet_b (B, E_b), t_a/first_q_a (B, E_a, n_a), t_b/first_q_b (B, E_b, n_b)
+    (the first moments' t and q), beta_a (E_a, n_a), beta_b (E_b, n_b)."""
     batch, dim = mu.shape
     pairs = ia.size
     n_a, n_b = x_a.shape[0], x_b.shape[0]
@@ -199,7 +202,7 @@ def prepare(x_a: np.ndarray, x_b: np.ndarray, mu: np.ndarray, sigma: np.ndarray,
                     quadratic += z * scaled[k]
                     norm += z * z
                 row[b, p, i] = -0.5 * t_a[b, a, i] + 0.5 * quadratic + const[b, p]
-                q = np.exp(log_q_a[b, a, i])
+                q = first_q_a[b, a, i]
                 q_a[b, p, i] = q
                 u[b, p, i] = beta_a[a, i] * q
                 top_row, top_z = max(top_row, row[b, p, i]), max(top_z, norm)
@@ -216,7 +219,7 @@ def prepare(x_a: np.ndarray, x_b: np.ndarray, mu: np.ndarray, sigma: np.ndarray,
                     quadratic += z * scaled[k]
                     norm += scaled[k] * scaled[k]
                 col[b, p, j] = -0.5 * t_b[b, e, j] + 0.5 * quadratic
-                v[b, p, j] = beta_b[e, j] * np.exp(log_q_b[b, e, j])
+                v[b, p, j] = beta_b[e, j] * first_q_b[b, e, j]
                 top_col, top_w = max(top_col, col[b, p, j]), max(top_w, norm)
             bound = max(bound, top_row + top_col + np.sqrt(top_z * top_w))
     return z_a, row, z_b_t, col, u, v, q_a, bound

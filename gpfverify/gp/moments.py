@@ -66,13 +66,15 @@ def _shifted(scaled: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
 @dataclass(frozen=True)
 class _FirstMoments:
     """One GP's mean (E,), cross-covariance (D, E), log q (E, n) and the per-point exponent
-    t_ai = ν_iᵀ(Λ_a⁻¹ − (Σ + Λ_a)⁻¹)ν_i (E, n) with log|B_a + I| (E,), reused by the second moments."""
+    t_ai = ν_iᵀ(Λ_a⁻¹ − (Σ + Λ_a)⁻¹)ν_i (E, n) with log|B_a + I| (E,) and q = exp(log q) (E, n),
+    reused by the second moments."""
 
     mean: np.ndarray
     cross_cov: np.ndarray
     log_q: np.ndarray
     t: np.ndarray
     b_logdet: np.ndarray
+    q: np.ndarray
 
 
 def _first_moments(gp, mu: np.ndarray, sigma: np.ndarray) -> _FirstMoments:
@@ -88,7 +90,7 @@ def _first_moments(gp, mu: np.ndarray, sigma: np.ndarray) -> _FirstMoments:
     mean = np.einsum("en,en->e", gp.beta, q)
     weighted_nu = (gp.beta * q) @ nu  # Σ_i β_ai q_ai ν_i, (E, D)
     solved = inv_ell * np.einsum("edk,ek->ed", b_inv, inv_ell * weighted_nu)  # (Σ+Λ_a)⁻¹ w
-    return _FirstMoments(mean, sigma @ solved.T, log_q, t, b_logdet)
+    return _FirstMoments(mean, sigma @ solved.T, log_q, t, b_logdet, q)
 
 
 class _Workspace(threading.local):
@@ -110,7 +112,7 @@ _WORKSPACE = _Workspace()
 _CHUNK_ENTRIES = 1 << 22
 
 
-_FIELDS = ("mean", "cross_cov", "log_q", "t", "b_logdet")
+_FIELDS = ("mean", "cross_cov", "log_q", "t", "b_logdet", "q")
 
 
 def _stack_firsts(firsts: list[_FirstMoments]) -> _FirstMoments:
@@ -148,7 +150,7 @@ def _centred_second_moments(gp_a, gp_b, ia: np.ndarray, ib: np.ndarray, first_a:
     inv_l2_a = 1.0 / gp_a.lengthscales[ia] ** 2  # (P, D)
     inv_l2_b = 1.0 / gp_b.lengthscales[ib] ** 2
     fused = centred_sums(gp_a.X, gp_b.X, mu, sigma, inv_l2_a, inv_l2_b, first_a.b_logdet, first_b.b_logdet, ia, ib,
-                         first_a.t, first_b.t, first_a.log_q, first_b.log_q, gp_a.beta, gp_b.beta, gp_a.K_inv,
+                         first_a.t, first_b.t, first_a.q, first_b.q, gp_a.beta, gp_b.beta, gp_a.K_inv,
                          diagonal)
     if fused is not None:
         return fused
@@ -213,9 +215,9 @@ def _model_uncertainty(gp, log_q: np.ndarray, traces: np.ndarray) -> np.ndarray:
     q = np.exp(log_q)
     whitened_sq = np.empty(q.shape[:2])  # ‖L_a⁻¹q_a‖², (B, E)
     for a, chol in enumerate(gp.choleskys):
+        whitened = chol.whiten(q[:, a].T)  # L_a⁻¹[q_a(1) … q_a(B)], one triangular solve for the batch
         for b in range(q.shape[0]):
-            whitened = chol.whiten(q[b, a])
-            whitened_sq[b, a] = whitened @ whitened
+            whitened_sq[b, a] = whitened[:, b] @ whitened[:, b]
     return gp.signal_var - whitened_sq - traces
 
 
