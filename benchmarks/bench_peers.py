@@ -768,6 +768,21 @@ def versions() -> str:
     return ", ".join(found)
 
 
+def cpu() -> str:
+    """The processor's model name and its widest vector unit (from /proc/cpuinfo where there is one):
+    numpy's exp and the compiled kernel use AVX-512 where the processor has it, so the same code
+    times differently on another processor."""
+    try:
+        info = Path("/proc/cpuinfo").read_text(encoding="utf-8")
+    except OSError:
+        return platform.processor() or "processor unknown"
+    model = next((line.split(":", 1)[1].strip() for line in info.splitlines() if line.startswith("model name")),
+                 "processor unknown")
+    flags = next((line.split(":", 1)[1].split() for line in info.splitlines() if line.startswith("flags")), [])
+    widest = "AVX-512" if "avx512f" in flags else "AVX2" if "avx2" in flags else "no AVX2"
+    return f"{model} ({widest})"
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--repeats", type=int, default=41, help="timed blocks per side (median)")
@@ -806,7 +821,7 @@ def main() -> None:
                              ct2d_profile(args.ct2d_runs)))
     load_after = os.getloadavg()
     lines = [
-        f"Machine: {platform.machine()}, {os.cpu_count()} cores, Python {platform.python_version()}; "
+        f"Machine: {platform.machine()}, {cpu()}, {os.cpu_count()} cores, Python {platform.python_version()}; "
         f"{versions()}; one BLAS thread.",
         f"Load average (1, 5, 15 min) before: {', '.join(f'{x:.2f}' for x in load_before)}; "
         f"after: {', '.join(f'{x:.2f}' for x in load_after)}.",
