@@ -243,12 +243,12 @@ def centred_sums(z_a: np.ndarray, row: np.ndarray, z_b_t: np.ndarray, col: np.nd
     n_b = z_b_t.shape[3]
     d = np.empty(n_b)
     acc, acc_trace = np.empty(n_b), np.empty(n_b)
+    last = dim - 1
     for b in range(batch):
         for p in range(pairs):
             a = diagonal[p]
             acc[:] = 0.0
             acc_trace[:] = 0.0
-            last = dim - 1
             for i in range(n_a):
                 start = i if a >= 0 else 0  # a diagonal pair: the upper triangle j ≥ i
                 width = n_b - start
