@@ -52,22 +52,39 @@ def as_covariance(value, name: str, dim: int | None = None, definite: bool = Fal
     """A symmetric positive semidefinite (``definite=True``: positive definite) matrix.
 
     Asymmetry up to :data:`SYMMETRY_RTOL` relative is accepted and removed; eigenvalues down to
-    ``-PSD_RTOL * lambda_max`` count as rounding of a PSD matrix.
+    ``-PSD_RTOL * lambda_max`` count as rounding of a PSD matrix (:func:`covariance_defects`).
     """
     arr = as_matrix(value, name, dim, dim)
     if arr.shape[0] != arr.shape[1]:
         raise InputError(f"{name} must be square, got shape {arr.shape}")
-    scale = max(float(np.abs(arr).max(initial=0.0)), np.finfo(float).tiny)
-    asym = float(np.abs(arr - arr.T).max(initial=0.0))
-    if asym > SYMMETRY_RTOL * scale:
-        raise InputError(f"{name} is not symmetric (max |A - A^T| = {asym:.3g})")
-    sym = 0.5 * (arr + arr.T)
-    if sym.size == 0:
-        return sym
+    sym, bad, why = covariance_defects(arr[None], definite)
+    if bad[0]:
+        raise InputError(f"{name} {why(0)}")
+    return sym[0]
+
+
+def covariance_defects(stack: np.ndarray, definite: bool = False):
+    """The rule of :func:`as_covariance` applied to a stack of square matrices (..., n, n) at once:
+    ``(symmetrised stack, bad (...,) bool, why)`` where ``why(index)`` says what is wrong with a
+    bad matrix (``is not symmetric (max |A - A^T| = ...)``)."""
+    swapped = np.swapaxes(stack, -1, -2)
+    scale = np.maximum(np.abs(stack).max(axis=(-2, -1), initial=0.0), np.finfo(float).tiny)
+    asym = np.abs(stack - swapped).max(axis=(-2, -1), initial=0.0)
+    not_symmetric = asym > SYMMETRY_RTOL * scale
+    sym = 0.5 * (stack + swapped)
+    if stack.shape[-1] == 0:
+        return sym, not_symmetric, lambda i: f"is not symmetric (max |A - A^T| = {asym[i]:.3g})"
     eig = np.linalg.eigvalsh(sym)
-    floor = PSD_RTOL * max(abs(eig[-1]), EPS)
-    if eig[0] < -floor:
-        raise InputError(f"{name} is not positive semidefinite (min eigenvalue {eig[0]:.3g})")
-    if definite and eig[0] <= max(floor, eig[-1] * sym.shape[0] * EPS):
-        raise InputError(f"{name} is not positive definite (min eigenvalue {eig[0]:.3g})")
-    return sym
+    lo, hi = eig[..., 0], eig[..., -1]
+    floor = PSD_RTOL * np.maximum(np.abs(hi), EPS)
+    not_psd = lo < -floor
+    not_pd = (lo <= np.maximum(floor, hi * stack.shape[-1] * EPS)) if definite else np.zeros_like(not_psd)
+
+    def why(i) -> str:
+        if not_symmetric[i]:
+            return f"is not symmetric (max |A - A^T| = {asym[i]:.3g})"
+        if not_psd[i]:
+            return f"is not positive semidefinite (min eigenvalue {lo[i]:.3g})"
+        return f"is not positive definite (min eigenvalue {lo[i]:.3g})"
+
+    return sym, not_symmetric | not_psd | not_pd, why

@@ -176,7 +176,7 @@ BAD_CIRCULAR = {
     "float index": (_set(["locals", 1, "circular"], [1.0]), "locals[1].circular"),
     "bool index": (_set(["central", "circular"], [True]), "central.circular"),
     "out of range": (_set(["locals", 1, "circular"], [2]), "locals[1].circular index 2"),
-    "negative": (_set(["locals", 0, "circular"], [-1]), "locals[0].circular index -1"),
+    "negative": (_set(["locals", 0, "circular"], [-1]), "locals[0].circular[0] must be an integer >= 0"),
     "central out of range": (_set(["central", "circular"], [3]), "central.circular index 3"),
     "duplicate": (_set(["locals", 1, "circular"], [1, 1]), "locals[1].circular lists an index twice"),
     "disagree": (_set(["central", "circular"], [1]), "locals[1].circular"),

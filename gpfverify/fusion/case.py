@@ -17,28 +17,31 @@ A fusion case holds what the fusion centre knows at time k (seed 000 §3):
 
 Every check raises :class:`~gpfverify.errors.CaseFileError` naming the offending entry.
 
-Numbers are strict JSON numbers: a string (``"1.0"``), a boolean, ``NaN``/``Infinity`` or a
-null inside an array is refused, and so is any magnitude above :data:`MAX_MAGNITUDE` = 1e100
-(an integer of any length included). Within that range the squares and quadratic forms the
-fusion rules build stay inside the float range (checked for every method and the audit with
-each entry, and each field scaled, at the bound: tests/test_error_boundary.py). Tiny entries are
-accepted (a computed covariance holds rounding-sized ones); a case whose covariances are so
-small that an inverse overflows is refused by the command line (``audit`` and ``fuse`` run with
-floating-point overflow as an error). The file must be UTF-8 text and nested no deeper than the
-format needs.
+Reading (:func:`load_case`, :func:`case_from_dict`) goes through the typed JSON records of
+:mod:`gpfverify.fusion.caseformat` (strict numbers of magnitude at most :data:`MAX_MAGNITUDE`
+= 1e100, no unknown or duplicate keys, nesting fixed by the types) and the checks of
+:mod:`gpfverify.fusion.caseblock` (shapes, symmetry, definiteness), the same route as every
+step of a run file. Within the magnitude bound the squares and quadratic forms the fusion rules
+build stay inside the float range (checked for every method and the audit with each entry, and
+each field scaled, at the bound: tests/test_error_boundary.py). Tiny entries are accepted (a
+computed covariance holds rounding-sized ones); a case whose covariances are so small that an
+inverse overflows is refused by the command line (``audit`` and ``fuse`` run with
+floating-point overflow as an error). A case file must be a regular file of UTF-8 text.
 """
 
 from __future__ import annotations
 
-import json
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 from typing import Any
-from pathlib import Path
 
 import numpy as np
 
 from gpfverify.errors import CaseFileError, InputError
-from gpfverify.validate import as_covariance, as_matrix, as_vector
+from gpfverify.fusion.caseformat import MAX_MAGNITUDE, decode, from_python
+from gpfverify.userfiles import read_regular
+
+__all__ = ["MAX_MAGNITUDE", "CentralPrediction", "LocalReport", "FusionCase", "case_from_dict", "load_case",
+           "case_to_dict", "case_from_records", "sensor_blocks", "stack_circular", "split_circular"]
 
 
 def sensor_blocks(sizes) -> list[slice]:
@@ -120,215 +123,28 @@ class FusionCase:
         return self.y[self.central.blocks[m]]
 
 
-#: largest magnitude accepted for a number in a case file
-MAX_MAGNITUDE = 1e100
-
-
-def strict_numbers(value, where: str, depth: int = 2):
-    """``value`` unchanged after checking it is a JSON number or nested lists (at most ``depth``
-    levels) of JSON numbers, each finite, not a boolean, and of magnitude at most MAX_MAGNITUDE;
-    CaseFileError naming ``where`` otherwise."""
-    if isinstance(value, np.ndarray):  # arrays from a .npz run file: the same rules, vectorised
-        if value.dtype.kind not in "iuf":
-            raise CaseFileError(f"{where} must hold numbers, got an array of {value.dtype}")
-        if value.ndim > depth:
-            raise CaseFileError(f"{where} is nested too deeply")
-        if value.size and not np.all(np.abs(value.astype(float)) <= MAX_MAGNITUDE):
-            raise CaseFileError(f"{where} holds a NaN, an inf or a magnitude above {MAX_MAGNITUDE:g}")
-        return value
-    if isinstance(value, list):
-        if depth == 0:
-            raise CaseFileError(f"{where} is nested too deeply")
-        for i, item in enumerate(value):
-            strict_numbers(item, f"{where}[{i}]", depth - 1)
-        return value
-    if isinstance(value, (np.integer, np.floating)):
-        value = value.item()
-    if isinstance(value, bool) or not isinstance(value, (int, float)):
-        shown = json.dumps(value)[:40] if isinstance(value, (str, list, dict, type(None))) else type(value).__name__
-        raise CaseFileError(f"{where} must be a number, got {shown}")
-    if isinstance(value, float) and not np.isfinite(value):
-        raise CaseFileError(f"{where} must be finite, got {value}")
-    if abs(value) > MAX_MAGNITUDE:
-        shown = f"{value:.3g}" if isinstance(value, float) else f"an integer of {len(str(abs(value)))} digits"
-        raise CaseFileError(f"{where} = {shown} is outside the accepted range: magnitudes up to "
-                            f"{MAX_MAGNITUDE:g}")
-    return value
-
-
-def _checked(build, what: str):
-    try:
-        return build()
-    except CaseFileError:
-        raise
-    except InputError as exc:
-        raise CaseFileError(str(exc)) from None
-    except (TypeError, KeyError, AttributeError) as exc:
-        raise CaseFileError(f"{what} is malformed ({type(exc).__name__}: {exc})") from None
-
-
-def _field(obj, key: str, where: str):
-    if not isinstance(obj, dict):
-        raise CaseFileError(f"{where} must be a JSON object")
-    if key not in obj:
-        raise CaseFileError(f"{where} lacks the key '{key}'")
-    return obj[key]
-
-
-def _sizes(value) -> tuple[int, ...]:
-    if not isinstance(value, list) or not value:
-        raise CaseFileError("central.sizes must be a non-empty list of positive integers")
-    if not all(isinstance(s, int) and not isinstance(s, bool) and s > 0 for s in value):
-        raise CaseFileError(f"central.sizes must be positive integers, got {value}")
-    return tuple(value)
-
-
-def _circular_entry(obj, count: int, where: str) -> tuple[int, ...] | None:
-    """The optional ``circular`` list of ``obj`` (None when absent): distinct integers in
-    [0, count), returned sorted."""
-    value = obj.get("circular") if isinstance(obj, dict) else None
-    if value is None:
-        return None
-    if not isinstance(value, list):
-        raise CaseFileError(f"{where} must be a list of 0-based output indices, got {value!r}")
-    for i in value:
-        if isinstance(i, bool) or not isinstance(i, int):
-            raise CaseFileError(f"{where} must hold integers, got {i!r}")
-        if not 0 <= i < count:
-            raise CaseFileError(f"{where} index {i} is out of range for {count} output(s)")
-    if len(set(value)) != len(value):
-        raise CaseFileError(f"{where} lists an index twice: {value}")
-    return tuple(sorted(value))
-
-
-def _agreed_circular(central, per_sensor, sizes) -> tuple[int, ...]:
-    """The stacked angle outputs from ``central.circular`` and the ``locals[m].circular`` (None
-    where absent); when both kinds are present, an absent local entry means no angles and every
-    sensor's block must agree."""
-    if central is None:
-        return stack_circular([c or () for c in per_sensor], sizes)
-    if all(c is None for c in per_sensor):
-        return central
-    for m, (expected, given) in enumerate(zip(split_circular(central, sizes), per_sensor)):
-        if expected != (given or ()):
-            raise CaseFileError(f"locals[{m}].circular {list(given or ())} disagrees with "
-                                f"central.circular {list(central)} (sensor {m}'s outputs there: "
-                                f"{list(expected)})")
-    return central
-
-
-def _numeric_field(obj, key: str, where: str, depth: int):
-    return strict_numbers(_field(obj, key, where), f"{where}.{key}", depth)
-
-
-def central_from_dict(data) -> CentralPrediction:
-    where = "central"
-    sizes = _sizes(_field(data, "sizes", where))
-    mu_p = _checked(lambda: as_vector(_numeric_field(data, "mu_p", where, 1), "central.mu_p"), "central.mu_p")
-    d, total = mu_p.shape[0], sum(sizes)
-    if d == 0:
-        raise CaseFileError("central.mu_p must not be empty")
-    return CentralPrediction(
-        mu_p=mu_p,
-        C_p=_checked(lambda: as_covariance(_numeric_field(data, "C_p", where, 2), "central.C_p", d), "central.C_p"),
-        mu_y=_checked(lambda: as_vector(_numeric_field(data, "mu_y", where, 1), "central.mu_y", total),
-                      "central.mu_y"),
-        C_y=_checked(lambda: as_covariance(_numeric_field(data, "C_y", where, 2), "central.C_y", total,
-                                           definite=True), "central.C_y"),
-        C_xy=_checked(lambda: as_matrix(_numeric_field(data, "C_xy", where, 2), "central.C_xy", d, total),
-                      "central.C_xy"),
-        sizes=sizes,
-    )
-
-
-def local_from_dict(data, m: int, d: int, size: int) -> LocalReport:
-    where = f"locals[{m}]"
-
-    def get(key, check):
-        depth = 2 if key.startswith("C_") else 1
-        return _checked(lambda: check(_numeric_field(data, key, where, depth), f"{where}.{key}"),
-                        f"{where}.{key}")
-
-    c_e = None
-    if isinstance(data, dict) and data.get("C_e") is not None:
-        c_e = get("C_e", lambda v, n: as_covariance(v, n, d))
-    return LocalReport(
-        mu_p=get("mu_p", lambda v, n: as_vector(v, n, d)),
-        mu_y=get("mu_y", lambda v, n: as_vector(v, n, size)),
-        C_y=get("C_y", lambda v, n: as_covariance(v, n, size, definite=True)),
-        C_xy=get("C_xy", lambda v, n: as_matrix(v, n, d, size)),
-        mu_e=get("mu_e", lambda v, n: as_vector(v, n, d)),
-        C_e=c_e,
-    )
-
-
 def case_from_dict(data) -> FusionCase:
-    """Validate a decoded case file; raises :class:`CaseFileError` naming what is wrong."""
-    if not isinstance(data, dict):
-        raise CaseFileError("a fusion case must be a JSON object")
-    central = central_from_dict(_field(data, "central", "the case"))
-    reports = _field(data, "locals", "the case")
-    if not isinstance(reports, list):
-        raise CaseFileError("locals must be a list of objects")
-    if len(reports) != len(central.sizes):
-        raise CaseFileError(f"locals has {len(reports)} entries but central.sizes lists "
-                            f"{len(central.sizes)} sensors")
-    d = central.mu_p.shape[0]
-    local = tuple(local_from_dict(r, m, d, s) for m, (r, s) in enumerate(zip(reports, central.sizes)))
-    circular = _agreed_circular(
-        _circular_entry(data["central"], sum(central.sizes), "central.circular"),
-        [_circular_entry(r, s, f"locals[{m}].circular") for m, (r, s) in enumerate(zip(reports, central.sizes))],
-        central.sizes)
-    central = replace(central, circular=circular)
-    local = tuple(replace(r, circular=c) for r, c in zip(local, split_circular(circular, central.sizes)))
-    y = None
-    if data.get("y") is not None:
-        y = _checked(lambda: as_vector(strict_numbers(data["y"], "y", 1), "y", sum(central.sizes)), "y")
-    rank_tol = data.get("rank_tol")
-    if rank_tol is not None:
-        if isinstance(rank_tol, bool) or not isinstance(rank_tol, (int, float)) \
-                or not np.isfinite(rank_tol) or rank_tol < 0:
-            raise CaseFileError(f"rank_tol must be a finite number >= 0, got {json.dumps(rank_tol)[:40]}")
-        rank_tol = float(strict_numbers(rank_tol, "rank_tol", 0))
-    return FusionCase(central, local, y, rank_tol)
+    """Validate a decoded case (dicts and lists, as ``json.loads`` gives them) by the rules of the
+    case format (module docstring); raises :class:`CaseFileError` naming what is wrong."""
+    from gpfverify.fusion.caseblock import block_from_records, layout
 
-
-def _refuse_constant(name: str):
-    raise CaseFileError(f"{name} is not a JSON number (NaN and Infinity are refused)")
-
-
-def parse_json_text(text: str, where: str):
-    """Strict JSON: NaN/Infinity refused, integers of any size parsed as text first (so an
-    out-of-range one is reported, not overflowed), deep nesting reported; CaseFileError naming
-    ``where`` (a file, or a file and line) for every failure."""
-    try:
-        return json.loads(text, parse_constant=_refuse_constant)
-    except CaseFileError as exc:
-        raise CaseFileError(f"{where}: {exc}") from None
-    except json.JSONDecodeError as exc:
-        raise CaseFileError(f"{where} is not valid JSON: {exc.msg} at line {exc.lineno}") from None
-    except RecursionError:
-        raise CaseFileError(f"{where} is nested too deeply to be a fusion case") from None
-    except ValueError as exc:  # e.g. an integer longer than Python's digit limit
-        raise CaseFileError(f"{where} is not valid JSON: {' '.join(str(exc).split())[:120]}") from None
-
-
-def read_text_file(path) -> str:
-    """The UTF-8 text of ``path``; CaseFileError when it cannot be read or is not UTF-8."""
-    path = Path(path)
-    try:
-        raw = path.read_bytes()
-    except OSError as exc:
-        raise CaseFileError(f"cannot read {path}: {exc.strerror or exc}") from None
-    try:
-        return raw.decode("utf-8")
-    except UnicodeDecodeError as exc:
-        raise CaseFileError(f"{path} is not UTF-8 text (invalid byte at offset {exc.start})") from None
+    record = from_python(data)
+    layout(record)
+    return block_from_records([record]).case(0)
 
 
 def load_case(path) -> FusionCase:
-    """Read and validate a fusion-case JSON file (strict numbers: module docstring)."""
-    return case_from_dict(parse_json_text(read_text_file(path), str(path)))
+    """Read and validate a fusion-case JSON file (a regular file, strict JSON: module docstring);
+    CaseFileError naming the file and the entry."""
+    from gpfverify.fusion.caseblock import block_from_records, layout
+
+    raw = read_regular(path)
+    try:
+        record = decode(raw)
+        layout(record)
+        return block_from_records([record]).case(0)
+    except CaseFileError as exc:
+        raise CaseFileError(f"{path}: {exc}") from None
 
 
 def case_to_dict(case: FusionCase) -> dict:

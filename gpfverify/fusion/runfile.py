@@ -1,197 +1,78 @@
 """Run files: many fusion steps in one file (CONTRACT.md, "Run files"; for users:
-docs/run-file-format.md).
+docs/run-file-format.md), read as a stream of validated blocks of steps.
 
 Three forms, chosen by the file's suffix (case-insensitive):
 
 * ``.jsonl`` (or ``.ndjson``): JSON Lines, one fusion case per line as in the case format
-  (docs/fusion-case-format.md) plus an optional integer ``"k"`` (the step index). Every line is
-  checked against :data:`RUN_LINE_SCHEMA` (docs/schemas/run-line.schema.json) and then by
-  :func:`~gpfverify.fusion.case.case_from_dict`; blank lines are refused.
+  (docs/fusion-case-format.md) plus an optional integer ``"k"`` (the step index), decoded as
+  :class:`~gpfverify.fusion.caseformat.RunLine` (the type docs/schemas/run-line.schema.json is
+  generated from); blank lines are refused.
 * ``.npz``: the same quantities as arrays stacked over the T steps (``central_mu_p`` (T, D), …,
   ``local{m}_C_xy`` (T, D, l_m), ``sizes`` (N,), optional ``y``, ``k``, ``rank_tol``,
-  ``circular{m}``); see :data:`NPZ_ARRAYS` and docs/run-file-format.md.
-* anything else: one fusion case (``.json``), read by :func:`~gpfverify.fusion.case.load_case`
-  exactly as before, as a run of one step.
+  ``circular{m}``); see :data:`NPZ_ARRAYS`. Every array's header is checked before any data is
+  read (:mod:`gpfverify.userfiles`), and the stacked arrays are read a block of rows at a time.
+* anything else: one fusion case (``.json``), as a run of one step.
+
+:func:`open_run` gives a :class:`RunReader` whose :meth:`~RunReader.blocks` yields
+:class:`RunBlock` s of at most :data:`BLOCK_STEPS` steps — never the whole run — each checked by
+:mod:`gpfverify.fusion.caseblock` (the same rules as a single case). :func:`iter_steps` yields
+(k, FusionCase) pairs from them; :func:`load_run` collects a whole (small) run.
 
 Every problem raises :class:`~gpfverify.errors.CaseFileError` with one line that names the file
-and the line (jsonl) or the array and step (npz). :func:`write_run` writes the jsonl and npz
-forms. This module imports numpy and the case reader only.
+and the line (jsonl) or the array and step (npz); a file's first problem is the one reported.
+:func:`write_run` writes the jsonl and npz forms.
 """
 
 from __future__ import annotations
 
 import json
-import math
 import os
 import re
 import tempfile
-import zipfile
 from dataclasses import dataclass
-from typing import Any
 from pathlib import Path
-from collections.abc import Iterable, Sequence
+from collections.abc import Iterable, Iterator, Sequence
 
 import numpy as np
 
 from gpfverify.errors import CaseFileError, InputError
-from gpfverify.fusion.case import FusionCase, case_from_dict, case_to_dict, load_case
+from gpfverify.fusion.case import FusionCase, case_to_dict
+from gpfverify.fusion.caseblock import (CaseBlock, StepError, agreed_circular, block_from_arrays, block_from_records,
+                                        checked_indices, layout)
+from gpfverify.fusion.caseformat import (CASE_DECODER, RUN_LINE_DECODER, RunLine, case_schema, decode, given,
+                                         run_line_schema)
+from gpfverify.userfiles import NpzArchive, human_bytes, memory_budget, open_regular
 
 JSONL_SUFFIXES = (".jsonl", ".ndjson")
 NPZ_SUFFIXES = (".npz",)
+#: steps per block: the unit of reading, checking, auditing and spreading over workers (fixed,
+#: so that results never depend on the number of workers)
+BLOCK_STEPS = 256
+#: bytes read from a JSON Lines file at a time
+CHUNK_BYTES = 1 << 22
 
-# --------------------------------------------------------------------------------------------
-# JSON Schemas (the source of docs/schemas/*.json; tests check that the files equal these)
-# --------------------------------------------------------------------------------------------
-
-_SCHEMA_URI = "https://json-schema.org/draft/2020-12/schema"
-
-_DEFS = {
-    "number": {"type": "number", "description": "a finite number (NaN and Infinity are not JSON)"},
-    "vector": {"type": "array", "minItems": 1, "items": {"$ref": "#/$defs/number"}},
-    "matrix": {"type": "array", "minItems": 1, "items": {"$ref": "#/$defs/vector"},
-               "description": "list of rows"},
-    "indices": {"type": ["array", "null"], "uniqueItems": True,
-                "items": {"type": "integer", "minimum": 0},
-                "description": "0-based output indices of angle outputs (radians)"},
-    "central": {
-        "type": "object",
-        "required": ["mu_p", "C_p", "mu_y", "C_y", "C_xy", "sizes"],
-        "properties": {
-            "mu_p": {"$ref": "#/$defs/vector", "description": "(D,)"},
-            "C_p": {"$ref": "#/$defs/matrix", "description": "(D, D)"},
-            "mu_y": {"$ref": "#/$defs/vector", "description": "(L,), stacked in sensor order"},
-            "C_y": {"$ref": "#/$defs/matrix", "description": "(L, L), positive definite"},
-            "C_xy": {"$ref": "#/$defs/matrix", "description": "(D, L)"},
-            "sizes": {"type": "array", "minItems": 1, "items": {"type": "integer", "minimum": 1},
-                      "description": "l_1, ..., l_N (sum L)"},
-            "circular": {"$ref": "#/$defs/indices", "description": "indices into the stacked measurement"},
-        },
-    },
-    "local": {
-        "type": "object",
-        "required": ["mu_p", "mu_y", "C_y", "C_xy", "mu_e"],
-        "properties": {
-            "mu_p": {"$ref": "#/$defs/vector", "description": "(D,)"},
-            "mu_y": {"$ref": "#/$defs/vector", "description": "(l_m,)"},
-            "C_y": {"$ref": "#/$defs/matrix", "description": "(l_m, l_m), positive definite"},
-            "C_xy": {"$ref": "#/$defs/matrix", "description": "(D, l_m)"},
-            "mu_e": {"$ref": "#/$defs/vector", "description": "(D,), the sensor's posterior mean"},
-            "C_e": {"type": ["array", "null"], "minItems": 1, "items": {"$ref": "#/$defs/vector"},
-                    "description": "(D, D), optional posterior covariance"},
-            "circular": {"$ref": "#/$defs/indices", "description": "indices into the sensor's own outputs"},
-        },
-    },
-}
-
-_CASE_PROPERTIES = {
-    "central": {"$ref": "#/$defs/central"},
-    "locals": {"type": "array", "minItems": 1, "items": {"$ref": "#/$defs/local"},
-               "description": "one entry per sensor, in the order of central.sizes"},
-    "y": {"type": ["array", "null"], "minItems": 1, "items": {"$ref": "#/$defs/number"},
-          "description": "(L,), optional stacked raw measurement"},
-    "rank_tol": {"type": ["number", "null"], "minimum": 0,
-                 "description": "optional absolute singular-value tolerance for rank(C_xy^m)"},
-}
-
-_SHAPES_NOTE = ("Structure only: the shapes implied by D and central.sizes, symmetry and positive "
-                "(semi)definiteness, finiteness and the agreement of central/locals circular are "
-                "checked by gpfverify.fusion.case_from_dict. Keys not listed here are ignored.")
-
-#: JSON Schema of one fusion case (docs/schemas/fusion-case.schema.json).
-CASE_SCHEMA = {
-    "$schema": _SCHEMA_URI,
-    "title": "gpfverify fusion case",
-    "description": "One fusion step (docs/fusion-case-format.md). " + _SHAPES_NOTE,
-    "type": "object",
-    "required": ["central", "locals"],
-    "properties": _CASE_PROPERTIES,
-    "$defs": _DEFS,
-}
-
-#: JSON Schema of one line of a .jsonl run file (docs/schemas/run-line.schema.json).
-RUN_LINE_SCHEMA = {
-    "$schema": _SCHEMA_URI,
-    "title": "gpfverify run-file line",
-    "description": ("One line of a JSON Lines run file (docs/run-file-format.md): a fusion case plus an "
-                    "optional step index k. " + _SHAPES_NOTE),
-    "type": "object",
-    "required": ["central", "locals"],
-    "properties": {**_CASE_PROPERTIES,
-                   "k": {"type": "integer", "minimum": 0,
-                         "description": "step index; given on every line or on none, strictly increasing"}},
-    "$defs": _DEFS,
-}
-
-_ANNOTATIONS = {"$schema", "$id", "title", "description", "$comment", "$defs"}
-_SUPPORTED = _ANNOTATIONS | {"$ref", "type", "properties", "required", "items", "minItems", "minimum",
-                             "uniqueItems"}
-_TYPE_NAMES = {dict: "an object", list: "an array", str: "a string", bool: "a boolean",
-               type(None): "null", int: "an integer", float: "a number"}
+#: JSON Schema of one fusion case (docs/schemas/fusion-case.schema.json), generated from the reader's types
+CASE_SCHEMA = case_schema()
+#: JSON Schema of one line of a .jsonl run file (docs/schemas/run-line.schema.json)
+RUN_LINE_SCHEMA = run_line_schema()
 
 
-def _is_type(value, name: str) -> bool:
-    if name == "number":
-        return isinstance(value, (int, float)) and not isinstance(value, bool)
-    if name == "integer":  # stricter than JSON Schema (1.0 is refused), as case_from_dict is
-        return isinstance(value, int) and not isinstance(value, bool)
-    return isinstance(value, {"object": dict, "array": list, "string": str, "boolean": bool,
-                              "null": type(None)}[name])
+@dataclass(frozen=True)
+class RunBlock:
+    """Consecutive steps of a run: ``ks`` (B,) their step indices, ``block`` the checked arrays,
+    ``first`` the 0-based position of the block's first step in the run."""
 
+    ks: np.ndarray
+    block: CaseBlock
+    first: int
 
-def _resolve(root: dict, ref: str) -> dict:
-    if not ref.startswith("#/$defs/"):
-        raise ValueError(f"unsupported $ref {ref!r}")
-    return root["$defs"][ref[len("#/$defs/"):]]
+    def __len__(self) -> int:
+        return len(self.ks)
 
+    def steps(self) -> Iterator[tuple[int, FusionCase]]:
+        for t, k in enumerate(self.ks):
+            yield int(k), self.block.case(t)
 
-def _validate(value, schema: dict, root: dict, where: str) -> None:
-    unknown = set(schema) - _SUPPORTED
-    if unknown:
-        raise ValueError(f"schema keyword(s) {sorted(unknown)} not supported by this validator")
-    if "$ref" in schema:
-        _validate(value, _resolve(root, schema["$ref"]), root, where)
-    if "type" in schema:
-        types = schema["type"] if isinstance(schema["type"], list) else [schema["type"]]
-        if not any(_is_type(value, t) for t in types):
-            want = " or ".join({"number": "a number", "integer": "an integer", "object": "an object",
-                                "array": "a list", "null": "null", "string": "a string",
-                                "boolean": "a boolean"}[t] for t in types)
-            got = _TYPE_NAMES.get(type(value), type(value).__name__)
-            shown = "" if isinstance(value, (dict, list)) else f" {json.dumps(value)[:40]}"
-            raise CaseFileError(f"{where} must be {want}, got {got}{shown}")
-    if isinstance(value, dict):
-        for key in schema.get("required", ()):
-            if key not in value:
-                raise CaseFileError(f"{where} lacks the key '{key}'")
-        for key, sub in schema.get("properties", {}).items():
-            if key in value:
-                _validate(value[key], sub, root, f"{where}.{key}" if where != "the line" else key)
-    elif isinstance(value, list):
-        if len(value) < schema.get("minItems", 0):
-            raise CaseFileError(f"{where} must have at least {schema['minItems']} entr"
-                                f"{'y' if schema['minItems'] == 1 else 'ies'}, got {len(value)}")
-        if schema.get("uniqueItems") and len({json.dumps(v) for v in value}) != len(value):
-            raise CaseFileError(f"{where} lists an entry twice: {json.dumps(value)[:60]}")
-        if "items" in schema:
-            for i, v in enumerate(value):
-                _validate(v, schema["items"], root, f"{where}[{i}]")
-    elif _is_type(value, "number") and "minimum" in schema and value < schema["minimum"]:
-        raise CaseFileError(f"{where} must be >= {schema['minimum']}, got {value!r}")
-
-
-def validate_against_schema(data, schema: dict = RUN_LINE_SCHEMA) -> None:
-    """Check decoded JSON against one of this module's schemas; raises :class:`CaseFileError`
-    naming the entry (``locals[1].C_y[0][1] must be a number, got a string "a"``).
-
-    A small validator for the keywords these schemas use ($ref into $defs, type, properties,
-    required, items, minItems, minimum, uniqueItems); it refuses a schema with any other keyword.
-    Unlike JSON Schema, an integer must be written without a fraction (``2``, not ``2.0``)."""
-    _validate(data, schema, schema, "the line")
-
-
-# --------------------------------------------------------------------------------------------
-# The loaded run
-# --------------------------------------------------------------------------------------------
 
 @dataclass(frozen=True)
 class RunFile:
@@ -226,117 +107,125 @@ def run_format(path) -> str:
     return "json"
 
 
+class RunReader:
+    """An opened run file (module docstring). ``steps`` is T when the file declares it (npz, a
+    single case), else None; ``explicit_k`` whether the file gives step indices (known for a
+    JSON Lines file once its first line is read)."""
+
+    def __init__(self, path):
+        self.path = Path(path)
+        self.format = run_format(path)
+        self.explicit_k = False
+        self.steps: int | None = 1 if self.format == "json" else None
+        self._npz: _NpzLayout | None = None
+        if self.format == "npz":
+            self._npz = _NpzLayout(self.path)
+            self.steps, self.explicit_k = self._npz.T, self._npz.explicit_k
+
+    def __enter__(self) -> RunReader:
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+    def close(self) -> None:
+        if self._npz is not None:
+            self._npz.close()
+
+    def blocks(self, size: int = BLOCK_STEPS) -> Iterator[RunBlock]:
+        """The run's steps, checked, in blocks of ``size`` (the last may be shorter)."""
+        if self.format == "jsonl":
+            yield from self._jsonl_blocks(size)
+        elif self.format == "npz":
+            assert self._npz is not None
+            yield from self._npz.blocks(size)
+        else:
+            yield RunBlock(np.zeros(1, dtype=np.int64), _single_case_block(self.path), 0)
+
+    def _jsonl_blocks(self, size: int) -> Iterator[RunBlock]:
+        state = _JsonlState(self.path)
+        pending: list[RunLine] = []
+        numbers: list[int] = []
+        for number, raw in _lines(self.path):
+            record = state.accept(number, raw, pending, numbers)
+            self.explicit_k = bool(state.has_k)
+            pending.append(record)
+            numbers.append(number)
+            if len(pending) == size:
+                yield state.block(pending, numbers)
+                pending, numbers = [], []
+        if pending:
+            yield state.block(pending, numbers)
+        elif state.count == 0:
+            raise CaseFileError(f"{self.path} is empty: a run file holds one fusion case (a JSON object) per line")
+
+
+def open_run(path) -> RunReader:
+    """Open a run file (or a single case file, as a run of one step) for reading in blocks.
+    Raises :class:`CaseFileError` with one line naming the file."""
+    return RunReader(path)
+
+
+def iter_steps(path, size: int = BLOCK_STEPS) -> Iterator[tuple[int, FusionCase]]:
+    """(k, case) for every step of a run file, read a block at a time."""
+    with open_run(path) as reader:
+        for block in reader.blocks(size):
+            yield from block.steps()
+
+
 def load_run(path) -> RunFile:
-    """Read a run file (or a single case file, as a run of one step); see the module docstring.
-    Raises :class:`CaseFileError` with one line naming the file and the line or array."""
-    fmt = run_format(path)
-    if fmt == "jsonl":
-        return _load_jsonl(Path(path))
-    if fmt == "npz":
-        return _load_npz(Path(path))
-    return RunFile(str(path), "json", ((0, load_case(path)),), False)
+    """Read a whole run file (or a single case file, as a run of one step); see the module
+    docstring. For long runs prefer :func:`open_run` / :func:`iter_steps`, which never hold the
+    whole run. Raises :class:`CaseFileError` with one line naming the file and the line or array."""
+    with open_run(path) as reader:
+        steps = tuple(step for block in reader.blocks() for step in block.steps())
+        return RunFile(str(path), reader.format, steps, reader.explicit_k)
 
 
 def _one_line(message: object) -> str:
     return " ".join(str(message).split())
 
 
-def _read_bytes(path: Path) -> bytes:
+def _single_case_block(path: Path) -> CaseBlock:
+    from gpfverify.userfiles import read_regular
+
+    raw = read_regular(path)
     try:
-        return path.read_bytes()
-    except OSError as exc:
-        raise CaseFileError(f"cannot read {path}: {exc.strerror or exc}") from None
-
-
-def _check_ks(ks: Sequence[int], name) -> None:
-    for i in range(1, len(ks)):
-        if ks[i] <= ks[i - 1]:
-            raise CaseFileError(f"{name(i)}: k = {ks[i]} does not increase (previous k = {ks[i - 1]}); "
-                                f"step indices must be strictly increasing")
+        record = decode(raw, CASE_DECODER)
+        layout(record)
+        return block_from_records([record])
+    except CaseFileError as exc:
+        raise CaseFileError(f"{path}: {exc}") from None
 
 
 # ------------------------------------------------------------------------------- JSON Lines
 
-def _finite_float(text: str) -> float:
-    value = float(text)
-    if not math.isfinite(value):
-        raise ValueError(f"the number {text} is outside the float range")
-    return value
-
-
-def _float_int(text: str) -> int:
-    value = int(text)
-    try:
-        float(value)
-    except OverflowError:
-        raise ValueError(f"the integer {text[:20]}... is outside the float range") from None
-    return value
-
-
-def _no_constant(text: str):
-    raise ValueError(f"{text} is not valid JSON (numbers must be finite)")
-
-
-def _decode_line(raw: bytes):
-    """One line as JSON: strict UTF-8, finite numbers only."""
-    text = raw.decode("utf-8")  # UnicodeDecodeError handled by the caller
-    return json.loads(text, parse_float=_finite_float, parse_int=_float_int, parse_constant=_no_constant)
-
-
-def _shape_signature(case: FusionCase) -> tuple:
-    return case.state_dim, tuple(case.central.sizes), tuple(case.central.circular)
-
-
-def _load_jsonl(path: Path) -> RunFile:
-    data = _read_bytes(path)
-    if not data.strip():
-        raise CaseFileError(f"{path} is empty: a run file holds one fusion case (a JSON object) per line")
-    lines = data.split(b"\n")
-    if lines[-1] == b"":  # the final line's terminator, not a blank line
-        lines.pop()
-    steps, first_sig, has_k = [], None, None
-    for n, raw in enumerate(lines, start=1):
-        where = f"{path} line {n}"
-        if not raw.strip():
-            raise CaseFileError(f"{where}: blank line (blank lines are not allowed in a run file)")
-        try:
-            obj = _decode_line(raw)
-        except UnicodeDecodeError as exc:
-            raise CaseFileError(f"{where}: not valid UTF-8 (byte 0x{raw[exc.start]:02x} at column "
-                                f"{exc.start + 1})") from None
-        except json.JSONDecodeError as exc:
-            raise CaseFileError(f"{where}: not valid JSON: {exc.msg} at column {exc.colno}") from None
-        except (ValueError, RecursionError) as exc:
-            raise CaseFileError(f"{where}: {_one_line(exc) if isinstance(exc, ValueError) else 'nested too deeply'}") \
-                from None
-        if not isinstance(obj, dict):
-            got = _TYPE_NAMES.get(type(obj), type(obj).__name__)
-            raise CaseFileError(f"{where}: must be a JSON object (one fusion case), got {got}")
-        try:
-            validate_against_schema(obj, RUN_LINE_SCHEMA)
-            case = case_from_dict(obj)
-        except InputError as exc:
-            raise CaseFileError(f"{where}: {_one_line(exc)}") from None
-        line_has_k = "k" in obj
-        if has_k is None:
-            has_k = line_has_k
-        elif line_has_k != has_k:
-            raise CaseFileError(f"{where}: " + ("has \"k\" but line 1 does not" if line_has_k else
-                                                 "lacks \"k\" but line 1 has it")
-                                + " (give the step index on every line or on none)")
-        sig = _shape_signature(case)
-        if first_sig is None:
-            first_sig = sig
-        elif sig != first_sig:
-            raise CaseFileError(f"{where}: {_signature_difference(sig, first_sig)} (every step of a "
-                                f"run has the same dimensions and angle outputs)")
-        steps.append((obj["k"] if has_k else n - 1, case))
-    _check_ks([k for k, _ in steps], lambda i: f"{path} line {i + 1}")
-    return RunFile(str(path), "jsonl", tuple(steps), bool(has_k))
+def _lines(path: Path) -> Iterator[tuple[int, bytes]]:
+    """(1-based line number, line without its end) of a regular file, read in chunks; a line
+    longer than the memory budget allows is refused."""
+    limit = max(CHUNK_BYTES, memory_budget() // 8)
+    number = 0
+    rest = b""
+    with open_regular(path) as fh:
+        while True:
+            chunk = fh.read(CHUNK_BYTES)
+            if not chunk:
+                break
+            parts = (rest + chunk).split(b"\n") if rest else chunk.split(b"\n")
+            rest = parts.pop()
+            if len(rest) > limit:
+                raise CaseFileError(f"{path} line {number + len(parts) + 1} is longer than "
+                                    f"{human_bytes(limit)}, more than this machine can decode now")
+            for line in parts:
+                number += 1
+                yield number, line[:-1] if line.endswith(b"\r") else line
+    if rest:
+        yield number + 1, rest[:-1] if rest.endswith(b"\r") else rest
 
 
 def _signature_difference(sig, first) -> str:
     names = ("state dimension D", "central.sizes", "angle outputs (central.circular)")
+
     def shown(v):
         return list(v) if isinstance(v, tuple) else v
 
@@ -344,6 +233,79 @@ def _signature_difference(sig, first) -> str:
         if a != b:
             return f"{name} {shown(a)} differs from line 1's {shown(b)}"
     return "the layout differs from line 1's"  # pragma: no cover
+
+
+class _JsonlState:
+    """The run-level rules of a JSON Lines file, line by line: no blank lines, "k" on every line
+    or none and strictly increasing, every line with line 1's layout."""
+
+    def __init__(self, path: Path):
+        self.path = path
+        self.count = 0
+        self.has_k: bool | None = None
+        self.last_k: int | None = None
+        self.first_layout: tuple | None = None
+        self._raw_layout: tuple | None = None
+
+    def _layout(self, record: RunLine):
+        """(D, sizes, circular) of a record; the first line's computed once and reused for lines
+        that write the same sizes and angle lists."""
+        raw = (len(record.central.mu_p), record.central.sizes, given(record.central.circular),
+               [given(r.circular) for r in record.locals])
+        if raw == self._raw_layout:
+            return self.first_layout
+        return layout(record)
+
+    def accept(self, number: int, raw: bytes, pending, numbers) -> RunLine:
+        """The decoded line, after the run-level rules; a problem found here is reported after the
+        earlier pending lines are checked (the file's first problem wins)."""
+        where = f"{self.path} line {number}"
+
+        def refuse(message: str, record: RunLine | None = None):
+            if pending:
+                self._checked(pending, numbers)  # an earlier line's problem first
+            if record is not None:
+                self._checked([record], [number])  # then this line's own case problems
+            raise CaseFileError(f"{where}: {message}")
+
+        self.count += 1
+        if not raw.strip():
+            refuse("blank line (blank lines are not allowed in a run file)")
+        try:
+            record = decode(raw, RUN_LINE_DECODER)
+            sig = self._layout(record)
+        except CaseFileError as exc:
+            refuse(_one_line(exc))
+        line_has_k = given(record.k) is not None
+        if self.has_k is None:
+            self.has_k = line_has_k
+        elif line_has_k != self.has_k:
+            refuse(("has \"k\" but line 1 does not" if line_has_k else "lacks \"k\" but line 1 has it")
+                   + " (give the step index on every line or on none)", record)
+        if self.first_layout is None:
+            self.first_layout = sig
+            self._raw_layout = (len(record.central.mu_p), record.central.sizes, given(record.central.circular),
+                                [given(r.circular) for r in record.locals])
+        elif sig != self.first_layout:
+            refuse(f"{_signature_difference(sig, self.first_layout)} (every step of a run has the same "
+                   f"dimensions and angle outputs)", record)
+        k = record.k if line_has_k else number - 1
+        if self.last_k is not None and k <= self.last_k:
+            refuse(f"k = {k} does not increase (previous k = {self.last_k}); step indices must be strictly "
+                   f"increasing", record)
+        self.last_k = k
+        return record
+
+    def _checked(self, records: list[RunLine], numbers: list[int]) -> CaseBlock:
+        try:
+            return block_from_records(records)
+        except StepError as exc:
+            raise CaseFileError(f"{self.path} line {numbers[exc.step]}: {_one_line(exc)}") from None
+
+    def block(self, records: list[RunLine], numbers: list[int]) -> RunBlock:
+        block = self._checked(records, numbers)
+        ks = np.array([r.k if self.has_k else n - 1 for r, n in zip(records, numbers)], dtype=np.int64)
+        return RunBlock(ks, block, numbers[0] - 1)
 
 
 # ------------------------------------------------------------------------------------- npz
@@ -371,132 +333,144 @@ NPZ_ARRAYS = {
 }
 
 _LOCAL_KEYS = ("mu_p", "mu_y", "C_y", "C_xy", "mu_e", "C_e")
+_CENTRAL_KEYS = ("mu_p", "C_p", "mu_y", "C_y", "C_xy")
 
 
 def _npz_name(message: str) -> str:
-    """case_from_dict's entry names as npz array names."""
+    """The case format's entry names as npz array names."""
     message = re.sub(r"locals\[(\d+)\]\.circular", r"circular\1", message)
     message = re.sub(r"locals\[(\d+)\]\.(\w+)", r"local\1_\2", message)
     message = message.replace("central.sizes", "sizes")
     return re.sub(r"central\.(\w+)", r"central_\1", message)
 
 
-def _read_npz(path: Path) -> dict[str, np.ndarray]:
-    if not path.is_file():
-        _read_bytes(path)  # the OS's reason
-        raise CaseFileError(f"cannot read {path}")
-    if not zipfile.is_zipfile(path):
-        raise CaseFileError(f"{path} is not an npz archive (numpy.savez / numpy.savez_compressed)")
-    try:
-        archive = np.load(path, allow_pickle=False)
-    except (OSError, ValueError, EOFError, zipfile.BadZipFile) as exc:
-        raise CaseFileError(f"{path} is not a readable npz archive: {_one_line(exc)}") from None
-    if not isinstance(archive, np.lib.npyio.NpzFile):
-        raise CaseFileError(f"{path} is not an npz archive (numpy.savez / numpy.savez_compressed)")
-    arrays = {}
-    with archive:
-        for name in archive.files:
-            try:
-                arrays[name] = archive[name]
-            except (OSError, ValueError, EOFError, KeyError, zipfile.BadZipFile, NotImplementedError) as exc:
-                raise CaseFileError(f"{path}: array {name} cannot be read: {_one_line(exc)}") from None
-    return arrays
+class _NpzLayout:
+    """An npz run file whose layout (names, dtypes, shapes from T, D, L and ``sizes``) is checked
+    from the array headers alone; the small arrays are read, the stacked ones streamed."""
 
-
-def _numeric(path, name: str, arr: np.ndarray, integer: bool = False) -> np.ndarray:
-    kinds = "iu" if integer else "fiu"
-    if arr.dtype.kind not in kinds:
-        want = "integers" if integer else "real numbers"
-        raise CaseFileError(f"{path}: array {name} must hold {want}, got dtype {arr.dtype}")
-    return arr
-
-
-def _shaped(path, name: str, arr: np.ndarray, shape: tuple, what: str) -> np.ndarray:
-    _numeric(path, name, arr)
-    if arr.shape != shape:
-        raise CaseFileError(f"{path}: array {name} has shape {arr.shape}, expected {what} = {shape}")
-    return arr
-
-
-def _load_npz(path: Path) -> RunFile:
-    arrays = _read_npz(path)
-    for name in ("sizes", "central_mu_p"):
-        if name not in arrays:
-            raise CaseFileError(f"{path}: missing array {name} (layout in docs/run-file-format.md)")
-    sizes_arr = _numeric(path, "sizes", arrays["sizes"], integer=True)
-    if sizes_arr.ndim != 1 or sizes_arr.size == 0 or np.any(sizes_arr <= 0):
-        raise CaseFileError(f"{path}: array sizes must be (N,) positive integers, got {sizes_arr.tolist()}")
-    sizes = [int(s) for s in sizes_arr]
-    mu_p = _numeric(path, "central_mu_p", arrays["central_mu_p"])
-    if mu_p.ndim != 2 or 0 in mu_p.shape:
-        raise CaseFileError(f"{path}: array central_mu_p has shape {mu_p.shape}, expected (T, D) with "
-                            f"T, D >= 1")
-    T, D = mu_p.shape
-    L = sum(sizes)
-    expected = {"central_mu_p": ((T, D), "(T, D)"), "central_C_p": ((T, D, D), "(T, D, D)"),
-                "central_mu_y": ((T, L), "(T, L)"), "central_C_y": ((T, L, L), "(T, L, L)"),
-                "central_C_xy": ((T, D, L), "(T, D, L)")}
-    optional = {"y": ((T, L), "(T, L)"), "k": ((T,), "(T,)")}
-    for m, l in enumerate(sizes):
-        expected.update({f"local{m}_mu_p": ((T, D), "(T, D)"), f"local{m}_mu_y": ((T, l), f"(T, l_{m})"),
-                         f"local{m}_C_y": ((T, l, l), f"(T, l_{m}, l_{m})"),
-                         f"local{m}_C_xy": ((T, D, l), f"(T, D, l_{m})"), f"local{m}_mu_e": ((T, D), "(T, D)")})
-        optional[f"local{m}_C_e"] = ((T, D, D), "(T, D, D)")
-    known = set(expected) | set(optional) | {"sizes", "rank_tol", "central_circular"} \
-        | {f"circular{m}" for m in range(len(sizes))}
-    unknown = sorted(set(arrays) - known)
-    if unknown:
-        raise CaseFileError(f"{path}: unknown array(s) {', '.join(unknown)} (N = {len(sizes)} sensors from "
-                            f"sizes; layout in docs/run-file-format.md)")
-    for name, (shape, what) in expected.items():
-        if name not in arrays:
-            raise CaseFileError(f"{path}: missing array {name} {what} (layout in docs/run-file-format.md)")
-        _shaped(path, name, arrays[name], shape, what)
-    for name, (shape, what) in optional.items():
-        if name in arrays:
-            _shaped(path, name, arrays[name], shape, what)
-    ks, explicit = list(range(T)), "k" in arrays
-    if explicit:
-        k = _numeric(path, "k", arrays["k"], integer=True)
-        if np.any(k < 0):
-            raise CaseFileError(f"{path}: array k must hold step indices >= 0, got {int(k.min())}")
-        ks = [int(v) for v in k]
-        _check_ks(ks, lambda i: f"{path}: array k entry {i}")
-    rank_tol: list[float | None] = [None] * T
-    if "rank_tol" in arrays:
-        tol = _numeric(path, "rank_tol", arrays["rank_tol"]).astype(float)
-        if tol.shape not in ((), (T,)):
-            raise CaseFileError(f"{path}: array rank_tol has shape {tol.shape}, expected () or (T,) = ({T},)")
-        rank_tol = [None if np.isnan(v) else float(v) for v in np.broadcast_to(tol, (T,))]
-    circular = {}
-    for name in ["central_circular"] + [f"circular{m}" for m in range(len(sizes))]:
-        if name in arrays:
-            arr = _numeric(path, name, arrays[name], integer=True)
-            if arr.ndim != 1:
-                raise CaseFileError(f"{path}: array {name} must be one-dimensional, got shape {arr.shape}")
-            circular[name] = [int(i) for i in arr]
-    steps = []
-    for t in range(T):
-        central = {key: arrays[f"central_{key}"][t] for key in ("mu_p", "C_p", "mu_y", "C_y", "C_xy")}
-        data: dict[str, Any] = {"central": central, "locals": [], "rank_tol": rank_tol[t]}
-        data["central"]["sizes"] = list(sizes)
-        if "central_circular" in circular:
-            data["central"]["circular"] = circular["central_circular"]
-        for m in range(len(sizes)):
-            local = {key: arrays[f"local{m}_{key}"][t] for key in _LOCAL_KEYS if f"local{m}_{key}" in arrays}
-            if f"circular{m}" in circular:
-                local["circular"] = circular[f"circular{m}"]
-            data["locals"].append(local)
-        if "y" in arrays:
-            row = arrays["y"][t]
-            if not np.all(np.isnan(row)):
-                data["y"] = row
+    def __init__(self, path: Path):
+        self.path = path
+        self.archive = NpzArchive(path)
         try:
-            case = case_from_dict(data)
-        except InputError as exc:
-            raise CaseFileError(f"{path} step {t} (k = {ks[t]}): {_npz_name(_one_line(exc))}") from None
-        steps.append((ks[t], case))
-    return RunFile(str(path), "npz", tuple(steps), explicit)
+            self._check()
+        except BaseException:
+            self.archive.close()
+            raise
+
+    def close(self) -> None:
+        self.archive.close()
+
+    def _kind(self, name: str, integer: bool = False) -> None:
+        dtype = self.archive.headers[name].dtype
+        if dtype.kind not in ("iu" if integer else "fiu"):
+            want = "integers" if integer else "real numbers"
+            raise CaseFileError(f"{self.path}: array {name} must hold {want}, got dtype {dtype}")
+
+    def _small(self, name: str, integer: bool = True) -> np.ndarray:
+        self._kind(name, integer)
+        return self.archive.read(name)
+
+    def _check(self) -> None:
+        path, headers = self.path, self.archive.headers
+        for name in ("sizes", "central_mu_p"):
+            if name not in headers:
+                raise CaseFileError(f"{path}: missing array {name} (layout in docs/run-file-format.md)")
+        if len(headers["sizes"].shape) != 1 or headers["sizes"].shape[0] > 1 << 20:
+            raise CaseFileError(f"{path}: array sizes must be (N,) positive integers, got shape "
+                                f"{headers['sizes'].shape}")
+        sizes_arr = self._small("sizes")
+        if sizes_arr.size == 0 or np.any(sizes_arr <= 0):
+            raise CaseFileError(f"{path}: array sizes must be (N,) positive integers, got {sizes_arr.tolist()}")
+        self.sizes = [int(s) for s in sizes_arr]
+        self._kind("central_mu_p")
+        shape = headers["central_mu_p"].shape
+        if len(shape) != 2 or 0 in shape:
+            raise CaseFileError(f"{path}: array central_mu_p has shape {shape}, expected (T, D) with T, D >= 1")
+        T, D = shape
+        L = sum(self.sizes)
+        expected = {"central_mu_p": ((T, D), "(T, D)"), "central_C_p": ((T, D, D), "(T, D, D)"),
+                    "central_mu_y": ((T, L), "(T, L)"), "central_C_y": ((T, L, L), "(T, L, L)"),
+                    "central_C_xy": ((T, D, L), "(T, D, L)")}
+        optional = {"y": ((T, L), "(T, L)"), "k": ((T,), "(T,)")}
+        for m, l in enumerate(self.sizes):
+            expected.update({f"local{m}_mu_p": ((T, D), "(T, D)"), f"local{m}_mu_y": ((T, l), f"(T, l_{m})"),
+                             f"local{m}_C_y": ((T, l, l), f"(T, l_{m}, l_{m})"),
+                             f"local{m}_C_xy": ((T, D, l), f"(T, D, l_{m})"), f"local{m}_mu_e": ((T, D), "(T, D)")})
+            optional[f"local{m}_C_e"] = ((T, D, D), "(T, D, D)")
+        circular_names = ["central_circular"] + [f"circular{m}" for m in range(len(self.sizes))]
+        known = set(expected) | set(optional) | {"sizes", "rank_tol"} | set(circular_names)
+        unknown = sorted(set(headers) - known)
+        if unknown:
+            raise CaseFileError(f"{path}: unknown array(s) {', '.join(unknown)} (N = {len(self.sizes)} sensors "
+                                f"from sizes; layout in docs/run-file-format.md)")
+        for name, (_, what) in expected.items():
+            if name not in headers:
+                raise CaseFileError(f"{path}: missing array {name} {what} (layout in docs/run-file-format.md)")
+        for name, (want, what) in {**expected, **{k: v for k, v in optional.items() if k in headers}}.items():
+            self._kind(name, integer=name == "k")
+            if headers[name].shape != want:
+                raise CaseFileError(f"{path}: array {name} has shape {headers[name].shape}, expected {what} = "
+                                    f"{want}")
+        self.T, self.explicit_k = T, "k" in headers
+        self.ks = np.arange(T, dtype=np.int64)
+        if self.explicit_k:
+            k = self._small("k")
+            if np.any(k < 0):
+                raise CaseFileError(f"{path}: array k must hold step indices >= 0, got {int(k.min())}")
+            down = np.flatnonzero(np.diff(k) <= 0)
+            if down.size:
+                i = int(down[0]) + 1
+                raise CaseFileError(f"{path}: array k entry {i}: k = {int(k[i])} does not increase (previous "
+                                    f"k = {int(k[i - 1])}); step indices must be strictly increasing")
+            self.ks = k.astype(np.int64)
+        self.rank_tol = np.full(T, np.nan)
+        if "rank_tol" in headers:
+            self._kind("rank_tol")
+            if headers["rank_tol"].shape not in ((), (T,)):
+                raise CaseFileError(f"{path}: array rank_tol has shape {headers['rank_tol'].shape}, expected () "
+                                    f"or (T,) = ({T},)")
+            self.rank_tol = np.broadcast_to(self.archive.read("rank_tol").astype(float), (T,))
+        given_circular = {}
+        for name in circular_names:
+            if name in headers:
+                if len(headers[name].shape) != 1 or headers[name].shape[0] > L:
+                    raise CaseFileError(f"{path}: array {name} must be a list of at most {L} output indices, "
+                                        f"got shape {headers[name].shape}")
+                given_circular[name] = [int(i) for i in self._small(name)]
+        try:
+            self.circular = _npz_circular(given_circular, self.sizes)
+        except CaseFileError as exc:
+            raise CaseFileError(f"{path}: {_npz_name(_one_line(exc))}") from None
+        self.streamed = [n for n in headers if n in expected or (n in optional and n != "k")]
+
+    def blocks(self, size: int) -> Iterator[RunBlock]:
+        readers = {n: self.archive.row_reader(n) for n in self.streamed}
+        try:
+            for start in range(0, self.T, size):
+                rows = {n: r.take(size) for n, r in readers.items()}
+                stop = start + len(rows["central_mu_p"])
+                central = {key: rows[f"central_{key}"] for key in _CENTRAL_KEYS}
+                local = [{key: rows.get(f"local{m}_{key}") for key in _LOCAL_KEYS} for m in range(len(self.sizes))]
+                try:
+                    block = block_from_arrays(self.sizes, self.circular, central, local, rows.get("y"),
+                                              self.rank_tol[start:stop])
+                except StepError as exc:
+                    t = start + exc.step
+                    raise CaseFileError(f"{self.path} step {t} (k = {int(self.ks[t])}): "
+                                        f"{_npz_name(_one_line(exc))}") from None
+                yield RunBlock(self.ks[start:stop], block, start)
+        finally:
+            for r in readers.values():
+                r.close()
+
+
+def _npz_circular(given_circular: dict[str, list[int]], sizes: list[int]) -> tuple[int, ...]:
+    central = given_circular.get("central_circular")
+    central_t = None if central is None else checked_indices(central, sum(sizes), "central.circular")
+    per_sensor = [None if f"circular{m}" not in given_circular else
+                  checked_indices(given_circular[f"circular{m}"], s, f"locals[{m}].circular")
+                  for m, s in enumerate(sizes)]
+    return agreed_circular(central_t, per_sensor, sizes)
 
 
 # ----------------------------------------------------------------------------------- writing
@@ -559,6 +533,10 @@ def write_run(path, cases: Iterable[FusionCase], ks: Sequence[int] | None = None
         raise InputError(f"write_run writes .jsonl, .ndjson or .npz files, not {path.name}")
     _atomic_write(path, write)
     return path
+
+
+def _shape_signature(case: FusionCase) -> tuple:
+    return case.state_dim, tuple(case.central.sizes), tuple(case.central.circular)
 
 
 def _npz_arrays(cases: list[FusionCase], ks) -> dict[str, np.ndarray]:
