@@ -285,8 +285,10 @@ def read_npz(path, shapes: dict[str, tuple[int | None, ...]] | None = None) -> d
     memory. For ``check --measurements`` / ``--training`` and other small archives."""
     with NpzArchive(path) as archive:
         wanted = [n for n in archive.files if shapes is None or n in shapes]
-        for name in wanted if shapes is not None else ():
-            declared, want = archive.headers[name].shape, shapes[name]
+        for name, want in (shapes or {}).items():
+            if name not in archive.headers:
+                continue
+            declared = archive.headers[name].shape
             if len(declared) != len(want) or any(w is not None and d != w for d, w in zip(declared, want)):
                 shown = str(tuple("?" if w is None else w for w in want)).replace("'", "")
                 raise CaseFileError(f"{archive.path}: array {name} has shape {declared}, expected {shown}")
