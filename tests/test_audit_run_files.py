@@ -4,6 +4,7 @@ reader validates against, and every malformed run file exits 2 with one line nam
 array, writing nothing. An audit never imports cvxpy."""
 
 import dataclasses
+import io
 import json
 import subprocess
 import sys
@@ -347,3 +348,50 @@ def test_out_writes_the_run_report_with_the_json_it_renders(tmp_path, capsys, th
     (tmp_path / "one.json").write_text(json.dumps(case_to_dict(cases[0])))
     code, out, err = _cli(["audit", str(tmp_path / "one.json"), "--out", str(tmp_path / "x")], capsys)
     assert code == 2 and err.count("\n") == 1 and "run file" in err and not (tmp_path / "x").exists()
+
+
+def _long_run(tmp_path, steps: int, bad_last: bool = False):
+    """A run of ``steps`` lines (the synthetic cases repeated), the last one broken on request."""
+    lines = [json.dumps({"k": k, **case_to_dict(_synthetic_cases()[k % 4])}) for k in range(steps)]
+    if bad_last:
+        lines[-1] = _edit(lines[-1], _not_pd)
+    path = tmp_path / "long.jsonl"
+    path.write_text("\n".join(lines) + "\n")
+    return path
+
+
+def test_stream_gives_the_same_bytes_for_any_blocks_and_workers(tmp_path):
+    from gpfverify.experiments.runner import make_executor
+    from gpfverify.runaudit import stream_audit
+
+    path = _long_run(tmp_path, 24)
+    outputs = []
+    for block_steps, workers in ((256, 1), (5, 1), (5, 2)):
+        out = io.BytesIO()
+        with make_executor(workers) as executor:
+            stream_audit(path, out, executor=executor if workers > 1 else None, in_flight=4,
+                         block_steps=block_steps)
+        outputs.append(out.getvalue())
+    assert outputs[0] == outputs[1] == outputs[2]
+    data = json.loads(outputs[0])
+    assert [s["k"] for s in data["steps"]] == list(range(24))
+    assert data["steps"][:4] == [_expected(c, k) for k, c in enumerate(_synthetic_cases())]
+    assert data["summary"] == audit_run_file(path)[2]
+
+
+def test_cli_workers_give_the_output_of_one_process(tmp_path):
+    path = _long_run(tmp_path, 6)
+    runs = [subprocess.run([sys.executable, "-m", "gpfverify", "audit", str(path), "--json", *extra],
+                           capture_output=True, cwd=tmp_path) for extra in ([], ["--workers", "2"])]
+    assert [r.returncode for r in runs] == [0, 0] and runs[0].stdout == runs[1].stdout
+    assert len(json.loads(runs[0].stdout)["steps"]) == 6
+
+
+def test_a_bad_line_after_the_first_blocks_leaves_stdout_empty(tmp_path, capsys):
+    from gpfverify.fusion.runfile import BLOCK_STEPS
+
+    path = _long_run(tmp_path, BLOCK_STEPS + 3, bad_last=True)
+    for extra in ([], ["--json"]):
+        code, out, err = _cli(["audit", str(path), *extra], capsys)
+        assert code == 2 and out == "" and err.count("\n") == 1
+        assert f"line {BLOCK_STEPS + 3}: locals[1].C_y is not positive" in err

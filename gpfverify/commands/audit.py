@@ -8,16 +8,18 @@ callers that render them otherwise (e.g. a report).
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
+import sys
 from pathlib import Path
-
-import numpy as np
 
 from gpfverify.audit import (RANK_RULE_DEFAULT, RunAudit, audit_case, audit_to_dict, format_audit,
                              parse_rank_rule)
+from gpfverify.cli import positive_int
 from gpfverify.errors import InputError
-from gpfverify.fusion.runfile import load_run, run_format
+from gpfverify.fusion.runfile import run_format
 from gpfverify.report.document import integer_ranges
+from gpfverify.runaudit import copy_out, spool, stream_audit, table_header, table_row
 
 EPILOG = ("FILE formats: a single fusion case (.json) is described in docs/fusion-case-format.md; "
           "a run of cases, one per step (.jsonl: one case per line with an optional integer \"k\"; "
@@ -42,6 +44,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--out", type=Path, default=None, metavar="DIR",
                         help="run files: write the report (DIR/report.html, DIR/README.md, figures, "
                              "DIR/audit.json)")
+    parser.add_argument("--workers", type=positive_int, default=1, metavar="N",
+                        help="run files: audit blocks of steps in N processes (same output for any N)")
+    parser.add_argument("--scheduler", default=None, metavar="ADDRESS",
+                        help="run files: audit blocks on a dask.distributed cluster at ADDRESS")
     parser.add_argument("--sensitivity", action="store_true",
                         help="add each sensor's Jacobian norms of the fused mean (casadi AD) and the "
                              "|G_m C_y^m| / sigma_r bound")
@@ -57,80 +63,27 @@ def _audit(case, rank_tol, rank_rule, sensitivity):
     return audit_case(case, rank_tol, sensitivity=sensitivity, rank_rule=rank_rule)
 
 
-def _run_rank_rule(steps: list[dict]):
-    """The run's ``rank_rule``: the steps' common top-level object; with ``"covariance":
-    "mixed"`` when only the whitening covariance differs; else the list of distinct objects
-    (steps decided by different rules, e.g. per-line ``rank_tol``)."""
-    rules = [s["rank_rule"] for s in steps]
-    if all(r == rules[0] for r in rules):
-        return rules[0]
-    if isinstance(rules[0], dict):
-        bare = [{k: v for k, v in r.items() if k != "covariance"} for r in rules]
-        if all(b == bare[0] for b in bare):
-            return {**rules[0], "covariance": "mixed"}
-    distinct = []
-    for r in rules:
-        if r not in distinct:
-            distinct.append(r)
-    return distinct
-
-
-def run_summary(run: RunAudit, ks, steps: list[dict]) -> dict:
-    """The ``summary`` object of a run audit (docs/run-file-format.md)."""
-    gap = run.gap_norm
-    with_y = ~np.isnan(gap)
-    summary = {
-        "steps": len(run.steps),
-        "condition_held_steps": int(sum(s.condition_holds for s in run.steps)),
-        "exact_steps": int(sum(s.exact for s in run.steps)),
-        "steps_with_y": int(with_y.sum()),
-        "max_gap_norm": float(gap[with_y].max()) if with_y.any() else None,
-        "max_gap_k": int(ks[int(np.nanargmax(gap))]) if with_y.any() else None,
-        "sensors": [],
-        "rank_rule": _run_rank_rule(steps),
-    }
-    full, exact = run.full_column_rank, run.exact
-    for m in range(full.shape[1]):
-        summary["sensors"].append({
-            "index": m,
-            "rank_lost_steps": [int(ks[t]) for t in np.flatnonzero(~full[:, m])],
-            "rank_lost_not_exact_steps": [int(ks[t]) for t in np.flatnonzero(~full[:, m] & ~exact[:, m])],
-        })
-    return summary
-
-
 def audit_run_file(path, rank_rule=None, rank_tol: float | None = None, sensitivity: bool = False):
     """Audit every step of a run file (or a single case file, as one step):
     ``(RunAudit, steps, summary)`` with ``steps[t]`` the ``audit --json`` object of step t plus
     its ``"k"`` and ``summary`` as printed by ``audit --json``. ``rank_rule`` is a rule object or a
     string for ``parse_rank_rule``; ``rank_tol`` (absolute) overrides every case's ``rank_tol``;
-    without either, each case's ``rank_tol`` or the audit's default rule decides.
+    without either, each case's ``rank_tol`` or the audit's default rule decides. Holds the whole
+    run: for long runs use :func:`gpfverify.runaudit.stream_audit`.
     Raises :class:`~gpfverify.errors.CaseFileError` for a malformed file."""
-    rule = _resolve_rank_rule(rank_rule)
-    run_file = load_run(path)
-    audits = tuple(_audit(case, rank_tol, rule, sensitivity) for _, case in run_file.steps)
-    steps = [{"k": k, **audit_to_dict(a)} for (k, _), a in zip(run_file.steps, audits)]
-    run = RunAudit(audits)
-    return run, steps, run_summary(run, run_file.ks, steps)
+    summary, steps, audits = stream_audit(path, None, form="none", rank_rule=_resolve_rank_rule(rank_rule),
+                                          rank_tol=rank_tol, sensitivity=sensitivity, keep=True)
+    return RunAudit(tuple(audits)), steps, summary
 
 
-def format_run(steps: list[dict], summary: dict) -> str:
-    """Per-step table and summary of a run audit (text output)."""
+def format_summary(summary: dict) -> str:
+    """The summary of a run audit as text (after the per-step table)."""
     rule = summary["rank_rule"]
     rules = [rule] if not isinstance(rule, list) else rule
     text = [r.get("description", str(r)) if isinstance(r, dict) else str(r) for r in rules]
-    lines = [f"rank rule: {'; '.join(text)}", "",
-             f"{'k':>6} {'condition':>9} {'exact':>5}  {'rank/cols per sensor':<24} {'|gap|':>10} "
-             f"{'|predicted|':>11}"]
-    for s in steps:
-        ranks = " ".join(f"{x['rank']}/{x['cols']}" + ("" if x["exact"] else "!") for x in s["sensors"])
-        gap = f"{s['gap_norm']:.3g}" if "gap_norm" in s else "-"
-        pred = f"{float(np.linalg.norm(s['predicted_gap'])):.3g}" if "predicted_gap" in s else "-"
-        lines.append(f"{s['k']:>6} {str(s['condition_holds']):>9} {str(s['exact']):>5}  {ranks:<24} "
-                     f"{gap:>10} {pred:>11}")
-    lines += ["", "(r/l! : sensor not exact at that step)", "",
-              f"steps: {summary['steps']}; Proposition 1 condition held at {summary['condition_held_steps']}; "
-              f"DMF exact at {summary['exact_steps']}"]
+    lines = ["(r/l! : sensor not exact at that step)", "", f"rank rule: {'; '.join(text)}",
+             f"steps: {summary['steps']}; Proposition 1 condition held at {summary['condition_held_steps']}; "
+             f"DMF exact at {summary['exact_steps']}"]
     if summary["max_gap_norm"] is None:
         lines.append("no step has y: gaps not evaluated")
     else:
@@ -147,6 +100,51 @@ def format_run(steps: list[dict], summary: dict) -> str:
     return "\n".join(lines)
 
 
+def format_run(steps: list[dict], summary: dict) -> str:
+    """Per-step table and summary of a run audit (text output)."""
+    return "\n".join([table_header(), *(table_row(s) for s in steps), "", format_summary(summary)])
+
+
+def _progress(show: bool):
+    """A progress bar on stderr (``show``), called as ``update(done, total)``."""
+    if not show:
+        return contextlib.nullcontext(None)
+    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
+
+    return Progress(TextColumn("audit"), BarColumn(), MofNCompleteColumn(), TextColumn("steps"),
+                    TimeElapsedColumn(), transient=True)
+
+
+def _audit_run(args: argparse.Namespace) -> None:
+    from gpfverify.experiments.runner import check_workers, make_executor
+
+    check_workers(args.workers)
+    rule = _resolve_rank_rule(args.rank_rule)
+    form = "json" if args.json else "text"
+    parallel = args.workers > 1 or args.scheduler is not None
+    with contextlib.ExitStack() as stack:
+        out = stack.enter_context(spool())
+        executor = stack.enter_context(make_executor(args.workers, args.scheduler)) if parallel else None
+        progress = stack.enter_context(_progress(sys.stderr.isatty()))
+        task = progress.add_task("audit", total=None) if progress is not None else None
+
+        def on_block(done: int, total: int | None) -> None:
+            if progress is not None:
+                progress.update(task, completed=done, total=total)
+
+        in_flight = 2 * args.workers if args.scheduler is None else 64
+        summary, steps, _ = stream_audit(args.case, out, form, rule, args.rank_tol, args.sensitivity, executor,
+                                         in_flight, on_block, keep=args.out is not None)
+        if form == "text":
+            out.write(("\n" + format_summary(summary) + "\n").encode())
+        if args.out is not None:
+            from gpfverify.report.equivalence import write_run_audit_report
+
+            write_run_audit_report({"steps": steps, "summary": summary, "rank_rule": summary["rank_rule"]},
+                                   args.out)
+        copy_out(out)
+
+
 def run(args: argparse.Namespace) -> int:
     if args.rank_tol is not None and not args.rank_tol >= 0:
         raise InputError(f"--rank-tol must be >= 0, got {args.rank_tol}")
@@ -161,13 +159,5 @@ def run(args: argparse.Namespace) -> int:
                        args.sensitivity)
         print(json.dumps(audit_to_dict(audit)) if args.json else format_audit(audit))
         return 0
-    _, steps, summary = audit_run_file(args.case, args.rank_rule, args.rank_tol, args.sensitivity)
-    if args.out is not None:
-        from gpfverify.report.equivalence import write_run_audit_report
-
-        write_run_audit_report({"steps": steps, "summary": summary, "rank_rule": summary["rank_rule"]}, args.out)
-    if args.json:
-        print(json.dumps({"steps": steps, "summary": summary, "rank_rule": summary["rank_rule"]}))
-    else:
-        print(format_run(steps, summary))
+    _audit_run(args)
     return 0
