@@ -191,13 +191,13 @@ def _explain_decode(error: msgspec.DecodeError, raw: bytes) -> str:
     return f"not valid JSON: {text}"
 
 
-def _field_count(value) -> int:
+def _present(record: Struct) -> int:
+    return sum(v is not UNSET for v in msgspec.structs.astuple(record))
+
+
+def _key_count(record: Case) -> int:
     """How many keys the decoded record had in its text (every field given, null included)."""
-    if isinstance(value, Struct):
-        return sum(1 + _field_count(v) for v in msgspec.structs.astuple(value) if v is not UNSET)
-    if isinstance(value, list) and value and isinstance(value[0], Struct):
-        return sum(_field_count(v) for v in value)
-    return 0
+    return _present(record) + _present(record.central) + sum(_present(r) for r in record.locals)
 
 
 def _duplicate_key(raw: bytes) -> str:
@@ -232,7 +232,7 @@ def decode(raw: bytes, decoder: msgspec.json.Decoder = CASE_DECODER):
                 column = bad.start - (raw.rfind(b"\n", 0, bad.start) + 1) + 1
                 raise CaseFileError(f"not valid UTF-8 (byte 0x{raw[bad.start]:02x} at column {column})") from None
         raise CaseFileError(_explain_decode(exc, raw)) from None
-    if raw.count(b'"') != 2 * _field_count(value):
+    if raw.count(b'"') != 2 * _key_count(value):
         raise CaseFileError(f"the key '{_duplicate_key(raw)}' appears twice in one object (duplicate keys are "
                             f"refused: JSON readers disagree on which one counts)")
     return value
