@@ -1,18 +1,36 @@
-"""Process-level settings, applied before numpy is imported.
+"""Process-level settings, and one BLAS thread inside gpfverify's own calls.
 
 gpfverify's matrices are small (tens to a thousand rows); multithreaded BLAS on them costs more in
 thread start-up and contention than it gains — measured up to 80× slower GP fitting on a loaded
-2-core machine. Processes started by the command line and the Monte Carlo workers therefore use
-one BLAS thread unless the user has set these variables; parallelism comes from running Monte
-Carlo runs in separate processes instead.
+2-core machine (learning the README's tracker: 28 s with OpenBLAS's two threads while one other
+process keeps a core busy, 9.3 s with one thread). So:
+
+* processes started by the command line and the Monte Carlo workers use one BLAS thread unless
+  the user has set the thread variables (:func:`default_single_blas_thread`);
+* in the Python API, where the user's process and its BLAS are the user's, the hot entry points
+  (filter steps and runs, model learning, GP fitting, fusion runs) are decorated with
+  :func:`one_blas_thread`: BLAS is limited to one thread for the duration of the call (with
+  threadpoolctl) and restored afterwards, so the user's settings outside gpfverify's calls are
+  untouched. Nested calls pay nothing; a user who set a thread variable is obeyed.
 """
 
 from __future__ import annotations
 
+import contextlib
+import functools
 import os
+import sys
+import threading
+from collections.abc import Callable, Iterator
+from typing import Any, TypeVar
 
 BLAS_THREAD_VARS = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS",
                     "VECLIB_MAXIMUM_THREADS", "NUMEXPR_NUM_THREADS")
+
+F = TypeVar("F", bound=Callable[..., Any])
+_state = threading.local()
+_controller: Any = None
+_controller_modules = -1
 
 
 def default_single_blas_thread() -> None:
@@ -20,3 +38,45 @@ def default_single_blas_thread() -> None:
     loads its BLAS, and for child processes started afterwards)."""
     for var in BLAS_THREAD_VARS:
         os.environ.setdefault(var, "1")
+
+
+def _blas_controller():
+    """A threadpoolctl controller of the BLAS libraries loaded now (rebuilt when modules were
+    imported since, which may have loaded another BLAS, e.g. scipy's)."""
+    global _controller, _controller_modules
+    if _controller is None or len(sys.modules) != _controller_modules:
+        from threadpoolctl import ThreadpoolController
+
+        _controller, _controller_modules = ThreadpoolController(), len(sys.modules)
+    return _controller
+
+
+@contextlib.contextmanager
+def blas_limited() -> Iterator[None]:
+    """BLAS limited to one thread inside the block (module docstring); a no-op when nested, when
+    the user set a BLAS thread variable (the command line sets them to 1 itself) or when
+    threadpoolctl is missing."""
+    if getattr(_state, "depth", 0) or any(var in os.environ for var in BLAS_THREAD_VARS):
+        yield
+        return
+    try:
+        limit = _blas_controller().limit(limits=1, user_api="blas")
+    except ImportError:  # pragma: no cover - threadpoolctl is a dependency
+        limit = contextlib.nullcontext()
+    _state.depth = 1
+    try:
+        with limit:
+            yield
+    finally:
+        _state.depth = 0
+
+
+def one_blas_thread(fn: F) -> F:
+    """Decorator: ``fn`` runs with BLAS limited to one thread (:func:`blas_limited`)."""
+
+    @functools.wraps(fn)
+    def limited(*args, **kwargs):
+        with blas_limited():
+            return fn(*args, **kwargs)
+
+    return limited  # type: ignore[return-value]

@@ -11,6 +11,7 @@ import numpy as np
 
 from gpfverify.errors import InputError
 from gpfverify.filters.records import StepRecord
+from gpfverify.runtime import one_blas_thread
 
 
 @dataclass(frozen=True)
@@ -27,6 +28,7 @@ class FilterRun(StepRecord):
         return StepRecord(**{f.name: getattr(self, f.name)[t] for f in fields(self)})
 
 
+@one_blas_thread
 def run_filter(step: Callable, model, belief0, ys, *, first_k: int = 1, **params):
     """Run ``step`` over the measurements ``ys`` (T, ..., L) from the prior ``belief0``: step t is
     ``step(belief, model, ys[t], k=first_k + t, **params)`` and its record's ``posterior`` is the

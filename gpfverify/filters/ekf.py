@@ -21,6 +21,7 @@ from gpfverify.filters.ukf import map_points
 from gpfverify.filters.update import check_belief, gaussian_update
 from gpfverify.linalg import symmetrize
 from gpfverify.models.system import StateSpaceModel, require_model
+from gpfverify.runtime import one_blas_thread
 
 
 def ekf_predict(belief: Gaussian, model, *, k: int = 1) -> Gaussian:
@@ -42,6 +43,7 @@ def ekf_measurement(prediction: Gaussian, model, *, k: int = 1) -> MeasurementMo
     return MeasurementMoments(mu_y, symmetrize(J @ C_xy + model.R), C_xy)
 
 
+@one_blas_thread
 def ekf_step(belief: Gaussian, model, y, *, k: int = 1) -> StepRecord:
     """One EKF predict–update cycle on a :class:`~gpfverify.models.StateSpaceModel`; ``k`` is
     the time index of ``y``."""

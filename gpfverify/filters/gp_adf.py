@@ -26,6 +26,7 @@ from gpfverify.filters.update import check_belief, gaussian_update
 from gpfverify.linalg import symmetrize
 from gpfverify.models.learned import GPModel
 from gpfverify.models.system import require_model
+from gpfverify.runtime import one_blas_thread
 
 
 def moment_match_batched(gp, belief: Gaussian, name: str = "belief") -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -64,6 +65,7 @@ def gp_adf_measurement(prediction: Gaussian, model, *, k: int = 1) -> Measuremen
     return MeasurementMoments(mu_y, symmetrize(cov + np.diag(gp.noise_var)), cross)
 
 
+@one_blas_thread
 def gp_adf_step(belief: Gaussian, model, y, *, k: int = 1) -> StepRecord:
     """One GP-ADF predict–update cycle (Lemma 1) on a :class:`~gpfverify.models.GPModel`."""
     prediction = gp_adf_predict(belief, model, k=k)

@@ -28,6 +28,7 @@ from gpfverify.filters.update import check_belief, gaussian_update
 from gpfverify.linalg import symmetrize
 from gpfverify.models.learned import GPModel
 from gpfverify.models.system import require_model
+from gpfverify.runtime import one_blas_thread
 
 
 def gp_noise_covariance(gp, means: np.ndarray) -> np.ndarray:
@@ -59,6 +60,7 @@ def gp_ukf_measurement(prediction: Gaussian, model, *, k: int = 1,
     return MeasurementMoments(mu_y, symmetrize(C_y + gp_noise_covariance(gp, prediction.mean)), C_xy)
 
 
+@one_blas_thread
 def gp_ukf_step(belief: Gaussian, model, y, *, k: int = 1, params: SigmaParams = SigmaParams()) -> StepRecord:
     """One GP-UKF predict–update cycle on a :class:`~gpfverify.models.GPModel`."""
     prediction = gp_ukf_predict(belief, model, k=k, params=params)

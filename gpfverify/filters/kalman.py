@@ -33,6 +33,7 @@ from gpfverify.filters.records import Gaussian, MeasurementMoments, StepRecord
 from gpfverify.filters.update import check_belief, condition
 from gpfverify.linalg import matmul_for, symmetrize
 from gpfverify.models.system import StateSpaceModel, require_model
+from gpfverify.runtime import one_blas_thread
 
 
 def _predict(belief: Gaussian, F: np.ndarray, Q: np.ndarray) -> Gaussian:
@@ -91,6 +92,7 @@ def _joint(model) -> PredictedJoint:
     return found
 
 
+@one_blas_thread
 def kf_step(belief: Gaussian, model, y, *, k: int = 1) -> StepRecord:
     """One Kalman predict–update cycle: the predicted joint (module docstring), then the update of
     :func:`~gpfverify.filters.update.gaussian_update`; the belief and y are checked once and no

@@ -41,6 +41,7 @@ from gpfverify.filters.sigma_points import SigmaParams, weighted_outer
 from gpfverify.filters.ukf import map_points
 from gpfverify.linalg import cholesky, symmetrize
 from gpfverify.models.system import StateSpaceModel, require_model
+from gpfverify.runtime import one_blas_thread
 
 #: whether :func:`cholupdate` runs its column loop compiled (numba, the optional ``fast`` extra,
 #: imported on first use); the same bits either way. Set False to take the numpy loop (tests run both).
@@ -261,6 +262,7 @@ def sr_ukf_update(prior: SqrtGaussian, h: PointMap, sqrt_R: np.ndarray, y: np.nd
     return SqrtStepRecord(prior.mean, prior.sqrt_cov, mu_y, s_y, c_xy, mu_e, s_e, max(jitter_y, jitter_e))
 
 
+@one_blas_thread
 def sr_ukf_step(belief: SqrtGaussian, model, y: np.ndarray, *, k: int = 1,
                 params: SigmaParams = SigmaParams()) -> SqrtStepRecord:
     """One SR-UKF cycle on a :class:`~gpfverify.models.StateSpaceModel` (additive noise;

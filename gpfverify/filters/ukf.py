@@ -26,6 +26,7 @@ from gpfverify.filters.sigma_points import SigmaParams, sigma_points, weighted_m
 from gpfverify.filters.update import check_belief, gaussian_update
 from gpfverify.linalg import symmetrize
 from gpfverify.models.system import StateSpaceModel, require_model
+from gpfverify.runtime import one_blas_thread
 
 
 def map_points(fn: Callable[[np.ndarray], np.ndarray], points: np.ndarray) -> np.ndarray:
@@ -64,6 +65,7 @@ def ukf_measurement(prediction: Gaussian, model, *, k: int = 1,
     return MeasurementMoments(mu_y, symmetrize(C_y + model.R), C_xy)
 
 
+@one_blas_thread
 def ukf_step(belief: Gaussian, model, y, *, k: int = 1, params: SigmaParams = SigmaParams()) -> StepRecord:
     """One UKF predict–update cycle on a :class:`~gpfverify.models.StateSpaceModel`; ``k`` is
     the time index of ``y``."""

@@ -45,6 +45,7 @@ from gpfverify.fusion.exactness import NUMPY_RANK_RULE, RankRule, resolve_rank_r
 from gpfverify.models.learned import GPModel
 from gpfverify.models.system import StateSpaceModel, require_model
 from gpfverify.validate import as_matrix, as_vector
+from gpfverify.runtime import one_blas_thread
 
 if TYPE_CHECKING:
     from gpfverify.audit import CaseAudit, RunAudit
@@ -231,6 +232,7 @@ def _priors(model, local_priors, fused_prior) -> tuple[list[Gaussian], Gaussian]
     return local, default if fused_prior is None else fused_prior
 
 
+@one_blas_thread
 def run_fusion(model, ys, *, family: str = "ukf", methods: Sequence[str] = METHODS, first_k: int = 1,
                params: SigmaParams = SigmaParams(), rank_tol: float | None = None,
                local_priors: Sequence[Gaussian] | None = None, fused_prior: Gaussian | None = None,

@@ -20,6 +20,7 @@ from gpfverify.gp.kernels import se_ard
 from gpfverify.linalg import Cholesky, cholesky
 from gpfverify.rng import generator
 from gpfverify.validate import as_array, as_covariance, as_positive, as_vector
+from gpfverify.runtime import one_blas_thread
 
 _LOG_2PI = float(np.log(2.0 * np.pi))
 
@@ -162,6 +163,7 @@ class GaussianProcess:
 
     # -- construction by evidence maximisation ---------------------------------------------------
     @classmethod
+    @one_blas_thread
     def fit(cls, X, Y, restarts: int = 3, seed=0, bounds: FitBounds | None = None) -> GaussianProcess:
         """Maximise the log evidence of each output independently (log-parameterised L-BFGS-B with
         analytic gradients, ``restarts`` starts, deterministic for a given ``seed``)."""

@@ -27,6 +27,7 @@ import numpy as np
 from gpfverify.errors import InputError
 from gpfverify.gp import GaussianProcess, GaussianProcessStack
 from gpfverify.models.system import StackedMeasurement, StateSpaceModel, _indices
+from gpfverify.runtime import one_blas_thread
 
 
 def _check_gp(gp, what: str, in_dim: int | None = None, out_dim: int | None = None):
@@ -111,6 +112,7 @@ def fit_capped(X: np.ndarray, Y: np.ndarray, restarts: int, fit_points: int | No
     return GaussianProcess(X, Y, fitted.lengthscales, fitted.signal_var, fitted.noise_var)
 
 
+@one_blas_thread
 def fit_gp_model(transition_inputs, transition_targets, measurement_inputs, measurement_targets: Sequence,
                  rng: np.random.Generator, *, restarts: int = 3, fit_points: int | None = None,
                  sensor_circular: Sequence[Sequence[int]] = (), circular_state: Sequence[int] = ()) -> GPModel:
@@ -125,6 +127,7 @@ def fit_gp_model(transition_inputs, transition_targets, measurement_inputs, meas
     return GPModel(transition, sensors, tuple(sensor_circular), tuple(circular_state))
 
 
+@one_blas_thread
 def learn_gp_model(model: StateSpaceModel, samples: int, rng: np.random.Generator, *, restarts: int = 3,
                    fit_points: int | None = None) -> GPModel:
     """Draw one trajectory of ``samples`` states from ``model`` (started from its prior) with its
