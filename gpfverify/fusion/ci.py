@@ -32,7 +32,6 @@ from __future__ import annotations
 from functools import lru_cache
 from collections.abc import Sequence
 
-import cvxpy as cp
 import numpy as np
 
 from gpfverify.errors import InputError, SolverError
@@ -73,7 +72,11 @@ def criterion_value(cov: np.ndarray, criterion: str) -> float:
 def _ci_problem(n: int, d: int, criterion: str, solver: str):
     """The DPP problem over ω for N information matrices of size D, built once per solver (a
     problem is only ever solved by one solver) and re-solved without warm start, so a solve depends
-    on its parameter values alone, not on what the process solved before."""
+    on its parameter values alone, not on what the process solved before. cvxpy is imported here,
+    when more than two estimates are fused (about a second of start-up otherwise spent by every
+    command that merely can fuse)."""
+    import cvxpy as cp
+
     mats = [cp.Parameter((d, d), symmetric=True) for _ in range(n)]
     omega = cp.Variable(n, nonneg=True)
     total = sum(omega[m] * mats[m] for m in range(n))
@@ -89,6 +92,8 @@ def _ci_problem(n: int, d: int, criterion: str, solver: str):
 
 def _ci_weights_cvxpy(info: Information, criterion: str) -> list[np.ndarray]:
     """Solver weights: Clarabel's, or SCS's when Clarabel fails; [] when both fail."""
+    import cvxpy as cp
+
     n, d = info.matrices.shape[:2]
     scale = np.mean(np.trace(info.matrices, axis1=1, axis2=2)) / d  # ω is scale invariant
     for solver in (cp.CLARABEL, cp.SCS):
