@@ -23,9 +23,13 @@ buffers that stay in cache: no n_a × n_b matrix is written, read back or multip
 with k = 0 giving p itself (no cancellation near zero) and 2ᵏ built from the bits of the rounded
 x/ln 2. Arguments are clamped below at −60 (expm1(−60) rounds to −1); above, the caller
 guarantees x ≤ 700 (the kernel reports larger exponents and the caller takes the log-space path).
-Accuracy: within 2 ulp of a correctly rounded expm1 (tested against mpmath); every arithmetic step
-is a single IEEE operation (no fused multiply–add, no reassociation), so the compiled kernel and
-:func:`expm1_reference` give the same bits.
+Accuracy: within 2 ulp of a correctly rounded expm1, both here and compiled (each tested against
+mpmath). The compiled kernel lets a multiply and the add that follows it fuse into one FMA where
+the processor has one (no other reordering): the polynomial and the n² loop are chains of such
+pairs, and on a processor whose vector exp is fast (AVX-512) the unfused loop costs about 1.8 ×
+numpy's exp where the fused one costs about 1.3 ×. An FMA rounds once where the two operations
+round twice, so the compiled results differ from :func:`expm1_reference` by rounding (the same
+inputs give the same bits on one machine).
 """
 
 from __future__ import annotations
