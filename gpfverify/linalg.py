@@ -110,7 +110,8 @@ def cholesky(a: np.ndarray, name: str = "matrix", allow_jitter: bool = True) -> 
     steps = JITTER_STEPS if allow_jitter else (0.0,)
     for rel in steps:
         jitter = rel * scale
-        # LAPACK potrf directly: numpy's cholesky gives the same bits at four times the overhead
+        # LAPACK potrf directly: numpy's cholesky gives the same factor (to rounding: the two may link
+        # different LAPACK builds) at four times the overhead
         factor, info = sla.lapack.dpotrf(a + jitter * np.eye(n) if jitter else a, lower=1, clean=1)
         if info == 0 and np.all(np.isfinite(factor)):
             return Cholesky(factor, jitter)

@@ -1,5 +1,6 @@
-"""Direct Clarabel solves of compiled DPP problems: bitwise equal to cvxpy's own route (same
-problem, same solver) on solvable and infeasible cases of the RCC-CI primal and dual, independent
+"""Direct Clarabel solves of compiled DPP problems: equal to cvxpy's own route (same problem, same
+solver: the same status, and the same solution to the solver's tolerance — two routes to the
+solver's data need not round alike on every processor) on solvable and infeasible cases of the RCC-CI primal and dual, independent
 of earlier solves and of when the program was compiled, and refusing what it cannot map."""
 
 import cvxpy as cp
@@ -11,6 +12,7 @@ from gpfverify.fusion import conic
 from gpfverify.fusion import rcc_ci as rcc
 from gpfverify.fusion.estimates import checked_estimates, information_form
 from gpfverify.fusion.synthetic import random_spd
+from gpfverify.tolerances import SOLVER_TOL
 
 
 def _parameter_values(ests, c=None, dual=False):
@@ -37,15 +39,27 @@ def _bits(solution: conic.ConicSolution):
     return solution.status, np.float64(solution.value).tobytes(), [a.tobytes() for a in arrays]
 
 
+def _assert_same_solution(compiled: conic.ConicSolution, reference: conic.ConicSolution):
+    """The same status and, when there is a solution, the same objective and arrays to the
+    solver's tolerance relative to their scale."""
+    assert compiled.status == reference.status
+    if not reference.values:
+        assert not compiled.values and np.isnan(compiled.value)
+        return
+    assert compiled.value == pytest.approx(reference.value, rel=SOLVER_TOL, abs=SOLVER_TOL)
+    for got, want in zip((*compiled.values, *compiled.duals), (*reference.values, *reference.duals), strict=True):
+        np.testing.assert_allclose(got, want, rtol=SOLVER_TOL, atol=SOLVER_TOL * max(1.0, np.abs(want).max()))
+
+
 @pytest.mark.parametrize("build, dual", [(rcc._primal_problem, False), (rcc._dual_problem, True)])
-def test_compiled_clarabel_equals_cvxpy_clarabel_bitwise(build, dual):
+def test_compiled_clarabel_equals_cvxpy_clarabel(build, dual):
     statuses = set()
     for ests in _cases(3, 36):
         n, d = len(ests), ests[0].mean.shape[0]
         values = _parameter_values(ests, dual=dual)
         reference = conic.solve_with_cvxpy(build(n, d, "cvxpy route"), values, cp.CLARABEL)
         compiled = rcc._clarabel_program(build, n, d).solve(values)
-        assert _bits(compiled) == _bits(reference)
+        _assert_same_solution(compiled, reference)
         statuses.add(compiled.status)
     assert "optimal" in statuses and len(statuses) > 1  # solvable and unsolvable cases both met
 

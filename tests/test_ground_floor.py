@@ -36,12 +36,17 @@ def test_solves_of_an_empty_system_are_empty():
     assert right_solve_spd(np.zeros((3, 0)), np.zeros((0, 0))).shape == (3, 0)
 
 
-def test_cholesky_is_numpys_factor_bit_for_bit():
-    """The factor comes from LAPACK directly; it is the factor numpy computes, to the bit."""
+def test_cholesky_is_numpys_factor_to_rounding():
+    """The factor comes from LAPACK's potrf directly: lower triangular with exact zeros above the
+    diagonal, and numpy's factor to the rounding of a condition-1e3 factorisation (numpy and scipy
+    link LAPACK builds that round differently on some processors, so not to the bit)."""
     for n in (1, 2, 5, 40):
         a = _spd(n, n, cond=1e3)
         a = (a + a.T) / 2  # exactly symmetric, as cholesky makes its argument
-        np.testing.assert_array_equal(cholesky(a).factor, np.linalg.cholesky(a))
+        factor = cholesky(a).factor
+        assert not np.triu(factor, 1).any()
+        tol = algebra_rtol(1e3)
+        np.testing.assert_allclose(factor, np.linalg.cholesky(a), rtol=tol, atol=tol * np.abs(factor).max())
 
 
 def test_whiten_is_the_triangular_solve():

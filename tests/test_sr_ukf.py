@@ -49,9 +49,10 @@ def test_cholupdate_matches_explicit_factor_batched(sign):
 
 @pytest.mark.skipif(not sr_ukf.compiled, reason="the compiled loop needs numba (the fast extra)")
 @pytest.mark.parametrize("sign", [1.0, -1.0])
-def test_compiled_cholupdate_gives_the_numpy_loops_bits(sign, monkeypatch):
-    """Same operations in the same order: equal bit for bit, failed downdates' NaN/inf included,
-    for a batch, a single factor and a Fortran-ordered one."""
+def test_compiled_cholupdate_agrees_with_the_numpy_loop(sign, monkeypatch):
+    """The compiled loop against the numpy loop, for a batch, a single factor and a Fortran-ordered
+    one: the same factors to the rounding of the update (a compiler may contract or reorder the
+    floating-point operations, so not to the bit) and the same failed downdates flagged."""
     rng = np.random.default_rng(4)
     lower = np.linalg.cholesky(_spd(rng, 6, (9,)))
     x = 0.4 * rng.normal(size=(9, 6))
@@ -61,8 +62,9 @@ def test_compiled_cholupdate_gives_the_numpy_loops_bits(sign, monkeypatch):
         fast = cholupdate(*args, sign)
         monkeypatch.setattr(sr_ukf, "compiled", False)
         reference = cholupdate(*args, sign)
-        np.testing.assert_array_equal(fast[0], reference[0])
         np.testing.assert_array_equal(fast[1], reference[1])
+        kept = ~np.asarray(reference[1])  # a failed downdate's entries are not meaningful
+        _close(np.asarray(fast[0])[kept], np.asarray(reference[0])[kept], np.linalg.cond(args[0]).max())
 
 
 def test_failed_downdate_is_flagged_not_kept():

@@ -44,7 +44,8 @@ from gpfverify.models.system import StateSpaceModel, require_model
 from gpfverify.runtime import one_blas_thread
 
 #: whether :func:`cholupdate` runs its column loop compiled (numba, the optional ``fast`` extra,
-#: imported on first use); the same bits either way. Set False to take the numpy loop (tests run both).
+#: imported on first use); the same operations either way, equal to rounding. Set False to take the
+#: numpy loop (tests run both).
 compiled = importlib.util.find_spec("numba") is not None
 
 #: f(points (M, D), k) -> (M, D'): a transition or measurement function vectorised over points.

@@ -1,7 +1,8 @@
 """The compiled rank-one loop of :func:`gpfverify.filters.sr_ukf.cholupdate` (numba, the optional
 ``fast`` extra; imported on first use). Every step is the IEEE operation of the numpy loop there,
-in the same order (no fused multiply–add, no reassociation), so both give the same bits, NaN and
-±inf of failed downdates included (tested)."""
+in the same order (no fused multiply–add, no reassociation requested), so both agree to rounding
+and flag the same failed downdates (tested); a compiler or processor may still round differently,
+so the two routes are never held to the same bits."""
 
 from __future__ import annotations
 
