@@ -356,6 +356,12 @@ def test_report_command_runs_a_toy_section_with_progress(monkeypatch, tmp_path, 
     held = sum(c.verdict == "held" for c in records)
     assert f"Verdicts:   {held} held, {len(records) - held} NOT held, 0 undecided" in out
     assert (tmp_path / "toy" / "toy-typed-small" / "run" / "results.json").is_file()
+    # the profile's interpretations: "strict" reads the setting's runs, "shifted" runs its own
+    interpretations = tmp_path / "toy" / "toy-typed-small" / "run" / "interpretations"
+    assert not (interpretations / "strict" / "runs").exists() and (interpretations / "shifted" / "runs").is_dir()
+    for record in records:
+        assert [(i.name, i.n) for i in record.interpretations] == [("strict", 3), ("shifted", 3)]
+        assert next(i for i in record.interpretations if i.name == "strict").verdict == "NOT held"
     # a second build reuses the saved runs and says so
     assert cli.main(["report", "--out", str(tmp_path), "--seed", "2"]) == 0
     again = capsys.readouterr().out

@@ -129,10 +129,12 @@ class ReportContext:
 
 def run_section(ctx: ReportContext, slug: str, progress: Callable[[str], None]) -> SectionRuns:
     """Run every setting of the section's experiments at the report's profile into
-    ``<out>/<slug>/<experiment>-<tag>/run`` (reusing runs saved there with the same settings) and
-    write the section's ``runs.json``."""
+    ``<out>/<slug>/<experiment>-<tag>/run`` (reusing runs saved there with the same settings), with
+    the profile's interpretations in ``run/interpretations/<name>``, and write the section's
+    ``runs.json``."""
     from gpfverify.experiments import EXPERIMENTS
     from gpfverify.experiments.runner import make_executor, run_experiment
+    from gpfverify.experiments.sensitivity import run_interpretations, select
 
     entries = []
     for name in SECTION_EXPERIMENTS[slug]:
@@ -160,6 +162,10 @@ def run_section(ctx: ReportContext, slug: str, progress: Callable[[str], None]) 
             with make_executor(ctx.workers) as executor:
                 run_experiment(module, setting.params, profile.runs, ctx.seed, run_dir, resume=True,
                                executor=executor, show_progress=False, on_run=on_run)
+                if profile.interpretations:
+                    progress(f"{where}: interpretations {', '.join(profile.interpretations)}")
+                    run_interpretations(module, setting.params, select(module, ",".join(profile.interpretations)),
+                                        profile.runs, ctx.seed, run_dir, executor, on_run=on_run)
             if not last[1]:
                 progress(f"{where}: every run saved by an earlier build with the same settings, reused")
             entries.append(RunEntry(name, setting.label, setting.tag, f"{folder}/run/results.json"))

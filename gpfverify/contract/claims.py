@@ -21,7 +21,7 @@ from typing import Any, Literal
 import numpy as np
 
 from gpfverify.contract.serial import from_json, to_json
-from gpfverify.tolerances import monte_carlo_atol
+from gpfverify.tolerances import MONTE_CARLO_SIGMAS, monte_carlo_atol
 
 Verdict = Literal["held", "NOT held", "undecided", "not decidable"]
 VERDICTS: tuple[Verdict, ...] = ("held", "NOT held", "undecided", "not decidable")
@@ -59,6 +59,8 @@ class Interpretation:
     verdict: Verdict
     statistic: float | None
     n: int | None = None
+    #: for an undecided verdict, about how many runs would decide it under this interpretation
+    runs_to_decide: int | None = None
 
 
 @dataclass(frozen=True)
@@ -143,3 +145,11 @@ class PairedDifference:
         mean = float(np.mean(d))
         held = True if mean < -atol else False if mean > atol else None
         return cls(verdict_of(held), mean, atol, int(d.size))
+
+
+def paired_evidence(d: PairedDifference, unit: str = "") -> str:
+    """A paired difference in words: "+0.012 s ± 0.004 (5 standard errors, 60 runs)"."""
+    unit = f" {unit}" if unit else ""
+    spread = "no standard error (fewer than two runs)" if d.atol is None else \
+        f"± {d.atol:.2g}{unit} ({MONTE_CARLO_SIGMAS:g} standard errors, {d.n} runs)"
+    return f"{d.mean:+.3g}{unit} {spread}"

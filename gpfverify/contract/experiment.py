@@ -42,10 +42,13 @@ class Setting:
 
 @dataclass(frozen=True)
 class Profile:
-    """A report profile of one experiment: the settings, each run ``runs`` times."""
+    """A report profile of one experiment: the settings, each run ``runs`` times, and the names of
+    the experiment's ``INTERPRETATIONS`` the report tries at every setting (at the same run count;
+    summary-only ones read the setting's own runs, :mod:`gpfverify.experiments.sensitivity`)."""
 
     runs: int
     settings: tuple[Setting, ...]
+    interpretations: tuple[str, ...] = ()
 
 
 @dataclass(frozen=True)

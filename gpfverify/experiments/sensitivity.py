@@ -2,7 +2,12 @@
 (:mod:`gpfverify.contract.interpretations`): the experiment is run once per interpretation in
 ``DIR/interpretations/<name>/`` (same seed, same run count, the runner's usual saving and
 resuming), and every claim of the main ``DIR/results.json`` gains the verdict and statistic it
-has under each — matched by the claim's ``id``."""
+has under each — matched by the claim's ``id``.
+
+An interpretation that changes only how the runs are *read* — parameters the experiment lists in
+``SUMMARY_FIELDS`` (a detection definition, an error metric) — needs no runs of its own: its
+``results.json`` is the summary of the main run's saved runs under the changed parameters
+(:func:`summary_results`), at the main run's count whenever it is recomputed."""
 
 from __future__ import annotations
 
@@ -36,6 +41,28 @@ def select(module: ModuleType, wanted: str) -> tuple[InterpretationSpec, ...]:
     return tuple(by_name[n] for n in chosen)
 
 
+def summary_only(module: ModuleType, spec: InterpretationSpec) -> bool:
+    """Does ``spec`` change only parameters the summary reads (the experiment's ``SUMMARY_FIELDS``)?
+    Then the main run's saved runs answer it."""
+    fields = frozenset(getattr(module, "SUMMARY_FIELDS", ()))
+    return bool(spec.changes) and set(spec.changes) <= fields
+
+
+def summary_results(module: ModuleType, run_dir: Path, spec: InterpretationSpec) -> dict:
+    """The ``results.json`` of a summary-only interpretation: the main run's saved runs in
+    ``run_dir`` summarised under its parameters changed by ``spec``, written to
+    ``run_dir/interpretations/<name>/results.json`` and returned."""
+    from gpfverify.experiments.runner import _atomic_write_json, read_manifest, results_of
+
+    manifest = read_manifest(Path(run_dir))
+    changed = module.Params.from_json(manifest["params"]).replace(**spec.changes)
+    results = results_of(module, Path(run_dir), {**manifest, "params": changed.to_json()})
+    folder = Path(run_dir) / "interpretations" / spec.name
+    folder.mkdir(parents=True, exist_ok=True)
+    _atomic_write_json(folder / "results.json", results)
+    return results
+
+
 def merge(main: dict, tried: Sequence[tuple[InterpretationSpec, dict]], as_run: Sequence[dict] = ()) -> dict:
     """``main`` results with each claim's ``interpretations`` (not the timing claims') set from the
     results of each interpretation, with its run count (a claim absent under an interpretation gets
@@ -45,7 +72,8 @@ def merge(main: dict, tried: Sequence[tuple[InterpretationSpec, dict]], as_run: 
     def entry(claim: ClaimRecord, name: str, params: dict, results: dict) -> Interpretation | None:
         other = next((ClaimRecord.from_json(c) for c in results.get("claims", [])
                       if c.get("id") == claim.id and claim.id), None)
-        return None if other is None else Interpretation(name, params, other.verdict, other.statistic, other.n)
+        return None if other is None else Interpretation(name, params, other.verdict, other.statistic, other.n,
+                                                         other.runs_to_decide)
 
     counts = {results.get("runs") for _, results in tried} - {main.get("runs")}
     claims = []
@@ -70,7 +98,9 @@ def merge_saved(run_dir: Path, module: ModuleType) -> dict:
     tried = []
     for spec in getattr(module, "INTERPRETATIONS", ()):
         folder = Path(run_dir) / "interpretations" / spec.name
-        if (folder / "manifest.json").exists():
+        if summary_only(module, spec):
+            tried.append((spec, summary_results(module, Path(run_dir), spec)))
+        elif (folder / "manifest.json").exists():
             tried.append((spec, rewrite_results(folder, module)))
     fewer = sorted({r["runs"] for _, r in tried if r["runs"] < main["runs"]})
     merged = merge(main, tried, [results_of(module, Path(run_dir), manifest, n) for n in fewer])
@@ -82,7 +112,8 @@ def run_interpretations(module: ModuleType, params: Params, specs: Sequence[Inte
                         seed: int, out_dir: Path, executor: Executor,
                         on_run: Callable[[int, int], None] | None = None) -> dict:
     """Run every interpretation next to the main run in ``out_dir`` (which must hold its
-    ``results.json``) and rewrite that file with the merged claims; returns it."""
+    ``results.json``; a summary-only one reads the main run's runs, :func:`summary_results`) and
+    rewrite that file with the merged claims; returns it."""
     from gpfverify.experiments.runner import _atomic_write_json, run_experiment
 
     main_path = Path(out_dir) / "results.json"
@@ -91,6 +122,9 @@ def run_interpretations(module: ModuleType, params: Params, specs: Sequence[Inte
     main = json.loads(main_path.read_text(encoding="utf-8"))
     tried = []
     for spec in specs:
+        if summary_only(module, spec):
+            tried.append((spec, summary_results(module, Path(out_dir), spec)))
+            continue
         changed = params.replace(**spec.changes)
         results = run_experiment(module, changed, runs, seed, Path(out_dir) / "interpretations" / spec.name,
                                  resume=True, executor=executor, on_run=on_run)
