@@ -177,6 +177,13 @@ def test_undecided_paired_claims_state_the_runs_that_would_decide_and_timing_is_
         update = timing[f"ct2d/dmf-update-cheaper-than-cmf/{family}"]
         assert "whole fusion step" in whole.claim and "update alone" in update.claim
         cmf, dmf = Method("CMF", family).key, Method("DMF", family).key
-        assert whole.statistic == pytest.approx(body["time_per_step"][dmf] / body["time_per_step"][cmf])
-        assert update.statistic == pytest.approx(body["online_time_per_step"][dmf]
-                                                 / body["online_time_per_step"][cmf])
+        # decided on per-run times, paired: the statistic is the mean difference of seconds per run
+        steps = len(runs[0].families[family].seconds[dmf])
+        assert whole.statistic == pytest.approx(body["time_per_run"][dmf] - body["time_per_run"][cmf])
+        assert update.statistic == pytest.approx(steps * (body["online_time_per_step"][dmf]
+                                                          - body["online_time_per_step"][cmf]))
+        for claim in (whole, update):
+            assert claim.verdict == ("held" if claim.statistic < -claim.threshold else
+                                     "NOT held" if claim.statistic > claim.threshold else "undecided")
+        rcc = timing[f"ct2d/rcc-ci-costs-most/{family}"]
+        assert rcc.evidence.count(" − RCC-CI-") == 3  # CMF, DMF and CW each against RCC-CI

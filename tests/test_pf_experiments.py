@@ -63,7 +63,10 @@ def test_bearing_writes_the_contract_keys_and_wraps_bearings(tmp_path):
     claims = read_claims(res)
     assert [c.timing for c in claims] == [False, True]
     assert all(c.paper_n == 200 and c.n == 2 for c in claims)
-    assert claims[1].statistic == pytest.approx(res["time_per_run"]["IE-PFF-N50"] / res["time_per_run"]["PF-N200"])
+    # the time claim is the paired difference of per-run CPU seconds (difference of the means)
+    assert claims[1].statistic == pytest.approx(res["time_per_run"]["IE-PFF-N50"] - res["time_per_run"]["PF-N200"])
+    assert claims[1].verdict == ("held" if claims[1].statistic < -claims[1].threshold else "NOT held"
+                                 if claims[1].statistic > claims[1].threshold else "undecided")
 
 
 def test_params_and_records_round_trip_through_json_text():
