@@ -111,3 +111,73 @@ def test_same_seed_object_twice_gives_the_same_numbers():
     for noise in ("1.0", "2.0"):
         for family in FAMILIES:
             assert first.settings[noise].families[family].maha == again.settings[noise].families[family].maha
+
+
+def test_fusion_across_sweep_is_made_of_the_decided_per_noise_claims(cli_results):
+    """Fig. 4's claim goes through the paired rule and the health gate of its parts: NOT held when one
+    part is, not decidable when a part is and none is NOT held, held when all are."""
+    claims = [ClaimRecord.from_json(c) for c in cli_results["claims"]]
+    parts = [c.verdict for c in claims if "/fusion-beats-sensors/" in c.id]
+    sweep = next(c for c in claims if c.id == "ungm1d/fusion-beats-sensors-every-noise")
+    assert len(parts) == 4
+    expected = ("NOT held" if "NOT held" in parts else "not decidable" if "not decidable" in parts else
+                "held" if set(parts) == {"held"} else "undecided")
+    assert sweep.verdict == expected
+    assert "point estimates" not in " ".join(sweep.caveats)
+
+
+def test_metric_readings_are_summary_only_interpretations(tmp_path):
+    """The square-root Mahalanobis form and the RMSE read the same runs: their claims compare the
+    per-run means of |x − x̂|/σ and ‖x − x̂‖², recomputed here from the saved runs."""
+    out = tmp_path / "run"
+    assert main(["reproduce", "ungm1d", "--train", "15", "--test-steps", "3", "--sweep", "2", "--runs", "3",
+                 "--seed", "1", "--out", str(out), "--interpretations", "mahalanobis-root,rmse"]) == 0
+    assert not (out / "interpretations" / "rmse" / "runs").exists()
+    saved = [json.loads(p.read_text())["result"]["settings"]["1.0"]["families"]["GP-ADF"]
+             for p in sorted((out / "runs").glob("run-*.json"))]
+    for name, per_step in (("mahalanobis-root", lambda f, m: np.sqrt(f["maha"][m])),
+                           ("rmse", lambda f, m: np.asarray(f["sq_err"][m]))):
+        results = json.loads((out / "interpretations" / name / "results.json").read_text())
+        claim = next(c for c in results["claims"] if c["id"] == "ungm1d/s1.0/sensor2-beats-sensor1/GP-ADF")
+        d = np.array([np.mean(per_step(f, "Sensor2-GP-ADF")) - np.mean(per_step(f, "Sensor1-GP-ADF")) for f in saved])
+        assert claim["statistic"] == pytest.approx(d.mean(), rel=1e-12)
+        assert claim["threshold"] == pytest.approx(5 * d.std(ddof=1) / np.sqrt(d.size), rel=1e-12)
+    main_claim = next(c for c in json.loads((out / "results.json").read_text())["claims"]
+                      if c["id"] == "ungm1d/s1.0/sensor2-beats-sensor1/GP-ADF")
+    assert [i["name"] for i in main_claim["interpretations"]] == ["mahalanobis-root", "rmse"]
+
+
+def test_cmf_gp_ukf_variance_falls_to_the_noise_scale_because_three_sigma_points_span_a_plane():
+    """With one state GP-UKF has three sigma points; their images (x, y₁, y₂) lie in a plane, so on
+    them x = a + bᵀy exactly, and the fused variance C_p − C_xy C_y⁻¹ C_xyᵀ = bᵀ(S⁻¹ + R⁻¹)⁻¹b is at
+    most bᵀRb (S the sigma points' output covariance, R the GP noise): the noise scale, whatever the
+    state's uncertainty. A single sensor's (x, y) is not degenerate."""
+    from gpfverify.experiments.fusion_run import train_models
+    from gpfverify.filters.gp_ukf import gp_noise_covariance
+    from gpfverify.filters.sigma_points import SigmaParams, sigma_points
+    from gpfverify.fusion.model_fusion import cmf_step
+    from gpfverify.rng import generator
+    from gpfverify.scenarios.fusion_models import simulate_data, ungm_scenario
+
+    rng = generator(np.random.SeedSequence(4))
+    data = simulate_data(ungm_scenario(1.0, 0.01, 1.0, 60, 5), rng)
+    models = train_models(data, 1, 60, rng)
+    belief = Gaussian(np.zeros(1), np.eye(1))
+    ys = data.stacked_test_measurements()
+    for k in range(4):
+        record = cmf_step(belief, models, ys[k], k=k + 1, family="GP-UKF", params=SigmaParams())
+        points = sigma_points(record.mu_p, record.C_p, SigmaParams())  # drawn from N(μ_p, C_p), eq. 25
+        y = models.measurement.predict_mean(points)  # (3, 2): both sensors' GP means
+        assert points.shape == (3, 1)
+        # three points: x = a + bᵀy holds exactly on them
+        a, *b = np.linalg.solve(np.column_stack([np.ones(3), y]), points[:, 0])
+        R = gp_noise_covariance(models.measurement, record.mu_p)
+        b = np.array(b)
+        S = record.C_y - R  # the sigma points' output covariance
+        exact = float(b @ (S - S @ np.linalg.solve(record.C_y, S)) @ b)  # bᵀ(S⁻¹ + R⁻¹)⁻¹b
+        # both sides subtract from C_p-sized terms: rounding scales with C_p and the conditioning
+        atol = algebra_rtol(np.linalg.cond(record.C_y) * np.linalg.cond(np.column_stack([np.ones(3), y]))) \
+            * record.C_p[0, 0]
+        assert record.C_e[0, 0] == pytest.approx(exact, rel=0, abs=atol)
+        assert record.C_e[0, 0] <= float(b @ R @ b) + atol
+        belief = record.posterior
