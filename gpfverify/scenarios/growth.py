@@ -8,6 +8,8 @@ for the Gaussian cases of Table 1:
     x_k = x_{k−1}/2 + 25 x_{k−1} / (1 + x_{k−1}²) + 8 cos(1.2 k) + w_k,  w_k ~ N(0, Q)
     y_k = x_k² / 20 + v_k,                                              v_k ~ N(0, R)
 
+(or, as an interpretation of the lost model, the one-to-one y_k = x_k + v_k with the same dynamics)
+
 **Gamma benchmark** — van der Merwe, Doucet, de Freitas & Wan (2000), for the Γ(3, 2) case (Fig. 2):
 
     x_k = 1 + sin(ω π (k − 1)) + φ₁ x_{k−1} + w_k,   w_k ~ Γ(shape 3, rate 2)
@@ -27,6 +29,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.special import gammaln
 
+from gpfverify.errors import InputError
 from gpfverify.models import Sensor, StateSpaceModel
 
 #: prior mean and variance of x₀
@@ -41,10 +44,21 @@ def _ungm_drift(x: np.ndarray, k: int) -> np.ndarray:
     return 0.5 * x + 25.0 * x / (1.0 + x * x) + 8.0 * np.cos(1.2 * k)
 
 
-def ungm_model(Q: float, R: float) -> StateSpaceModel:
-    """The UNGM with process-noise variance Q, measurement-noise variance R and prior N(0, 1)."""
-    sensor = Sensor(lambda x, k: x * x / 20.0, np.array([[float(R)]]),
-                    jacobian=lambda x, k: np.array([[x[0] / 10.0]]), name="x²/20")
+#: the UNGM's measurement functions: Kitagawa's two-peaked x²/20, and a one-to-one reading
+UNGM_MEASUREMENTS = ("quadratic", "linear")
+
+
+def ungm_model(Q: float, R: float, measurement: str = "quadratic") -> StateSpaceModel:
+    """The UNGM with process-noise variance Q, measurement-noise variance R and prior N(0, 1);
+    ``measurement`` "quadratic" is yₖ = xₖ²/20 (which cannot tell x from −x: the posterior is
+    two-peaked), "linear" the one-to-one yₖ = xₖ with the same dynamics."""
+    if measurement == "quadratic":
+        sensor = Sensor(lambda x, k: x * x / 20.0, np.array([[float(R)]]),
+                        jacobian=lambda x, k: np.array([[x[0] / 10.0]]), name="x²/20")
+    elif measurement == "linear":
+        sensor = Sensor(lambda x, k: x, np.array([[float(R)]]), jacobian=lambda x, k: np.ones((1, 1)), name="x")
+    else:
+        raise InputError(f"measurement must be one of {list(UNGM_MEASUREMENTS)}, got {measurement!r}")
     return StateSpaceModel(
         _ungm_drift, np.array([[float(Q)]]), [sensor], UNGM_PRIOR[0], UNGM_PRIOR[1],
         transition_jacobian=lambda x, k: np.array([[0.5 + 25.0 * (1.0 - x[0] ** 2) / (1.0 + x[0] ** 2) ** 2]]),
