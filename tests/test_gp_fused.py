@@ -139,3 +139,67 @@ def test_importing_the_package_does_not_import_numba():
     code = "import sys, gpfverify.cli, gpfverify.models, gpfverify.gp; print('numba' in sys.modules)"
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
     assert out.strip() == "False"
+
+
+_WIDTH_SCRIPT = """
+import json, sys
+import numba, numpy as np
+from gpfverify.gp import GaussianProcess
+from gpfverify.gp.moments import moment_match_batch
+rng = np.random.default_rng(0)
+n, d, e = 301, 3, 3
+x = rng.uniform(-3, 3, (n, d))
+gp = GaussianProcess(x, np.sin(x @ rng.normal(size=(d, e))), rng.uniform(0.5, 2, (e, d)), rng.uniform(0.5, 2, e),
+                     np.full(e, 0.01))
+mu, a = rng.normal(size=(5, d)), rng.normal(size=(5, d, d))
+mm = moment_match_batch(gp, mu, 0.1 * a @ a.transpose(0, 2, 1) + 0.01 * np.eye(d))
+widened = bool(numba.config.CPU_FEATURES) and "-prefer-256-bit" in numba.config.CPU_FEATURES
+print(json.dumps({"widened": widened, "cov": mm.cov.tolist(), "mean": mm.mean.tolist(),
+                  "kappa": max(float(np.linalg.cond(k)) for k in gp.K_inv)}))
+"""
+
+
+def _moments_in_a_process(env_features: str | None) -> dict:
+    import json
+    import os
+    import subprocess
+    import sys
+
+    env = {k: v for k, v in os.environ.items() if k not in ("NUMBA_CPU_NAME", "NUMBA_CPU_FEATURES")}
+    if env_features is not None:
+        env["NUMBA_CPU_FEATURES"] = env_features
+    out = subprocess.run([sys.executable, "-c", _WIDTH_SCRIPT], capture_output=True, text=True, check=True, env=env)
+    return json.loads(out.stdout)
+
+
+@needs_numba
+def test_the_vector_width_setting_changes_speed_not_results():
+    """On a processor with AVX-512 gpfverify turns LLVM's 256-bit preference off for its kernels,
+    unless the user chose numba's CPU features (here: the processor's own, preference kept); the
+    moments agree to the rounding of the algebra either way (elsewhere neither run widens)."""
+    from gpfverify import numba_target
+
+    wider = numba_target.wider_vectors_features()
+    own = _moments_in_a_process(None)
+    kept = _moments_in_a_process(wider.removesuffix(",-prefer-256-bit") if wider else "")
+    assert own["widened"] is (wider is not None)
+    assert kept["widened"] is False
+    tol = algebra_rtol(own["kappa"])
+    for key in ("cov", "mean"):
+        a, b = np.array(own[key]), np.array(kept[key])
+        assert np.all(np.abs(a - b) <= tol * np.abs(b).max()), key
+
+
+@needs_numba
+def test_the_vector_width_setting_leaves_a_users_numba_alone():
+    """Once numba has compiled code in the process (its code generator is fixed), or when the user
+    set numba's CPU features, :func:`configure` changes nothing."""
+    import subprocess
+    import sys
+
+    code = ("import numba\n"
+            "numba.njit(lambda v: v + 1)(1)\n"
+            "from gpfverify import numba_target\n"
+            "print(numba_target.configure(), numba.config.CPU_FEATURES)")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout.split()
+    assert out == ["False", "None"]

@@ -9,6 +9,10 @@ from __future__ import annotations
 import numba
 import numpy as np
 
+from gpfverify import numba_target
+
+numba_target.configure()
+
 
 @numba.njit(cache=True, nogil=True, error_model="numpy")
 def cholupdate_in_place(lower: np.ndarray, x: np.ndarray, sign: float) -> None:

@@ -9,8 +9,11 @@ import numba.extending
 import numpy as np
 from llvmlite import ir
 
+from gpfverify import numba_target
 from gpfverify.gp.fused import (_SHIFTER_BITS, INV_LN2, LN2_HI, LN2_LO, LOWEST, SHIFTER,
                                 _expm1_reduced)
+
+numba_target.configure()
 
 #: the unroll width of :func:`_dot`: four partial sums, combined at the end (a fixed order)
 _LANES = 4
