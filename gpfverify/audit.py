@@ -7,9 +7,12 @@ output, the rank under the *rank rule* (:class:`~gpfverify.fusion.exactness.Rank
 ``rank_tol`` or an explicit ``rank_tol`` means the ``absolute`` rule on singular values; ``numpy``:
 σ_max · max(D, l_m) · eps), the tolerance that decided it (``tol``, in the rule's own units: τ for
 canonical, a singular value otherwise), the condition number σ_max/σ_min of C_xy^m, the
-necessary-and-sufficient exactness verdict ‖G_m C_y^m N_m‖ ≤ tol (whitened by L_p⁻¹, so unit-free,
-under the canonical rule; see :mod:`gpfverify.fusion.exactness`), and the repair dimension
-l_m − r_m with its basis N_m.
+necessary-and-sufficient exactness verdict (the gap gain in prior standard deviations per unit
+whitened innovation against its rounding bound; :mod:`gpfverify.fusion.exactness`,
+docs/fusion-definitions.md), and the repair dimension l_m − r_m with its basis N_m. DMF is eq. 35
+with the Moore–Penrose inverse at the decided rank; when a sensor lost rank under the canonical rule
+the audit also gives the unit-free variant's mean and its distance from DMF's (``unit_free_dmf_mean``,
+``unit_dependence``, prior standard deviations) in a note.
 
 JSON (:func:`audit_to_dict`): top-level ``"rank_rule"`` = {"name", "tol" (null for numpy, whose
 tolerance is per matrix), "covariance" (whitening covariance of the canonical correlations:
@@ -18,7 +21,9 @@ computed), "description"}; per sensor ``"rank_rule"`` = {"name", "tol" (the one 
 matrix), "covariance"} and ``"canonical_correlations"`` (reported under every rule when the
 whitening succeeds, else null).
 
-With y: CMF, the observed gap DMF − CMF, the closed-form gap, each sensor's repair message
+With y: CMF, the observed gap DMF − CMF (also as ``gap_size`` in prior standard deviations, with
+the step's rounding bound ``gap_bound`` and ``reproduced`` = within it), the closed-form gap,
+each sensor's repair message
 k_m = (I − P_m)(C_y^m)⁻¹(y^m − μ_y^m) (an l_m-vector, basis-free), the repaired DMF, and how far
 each logged local posterior is from the local update with that y (when it is not, the observed and
 predicted gaps may differ).
@@ -51,9 +56,10 @@ import numpy as np
 from gpfverify.errors import NumericalError
 from gpfverify.fusion.case import FusionCase, case_from_records
 from gpfverify.fusion.centralized import cmf_update
-from gpfverify.fusion.distributed import dmf_update
+from gpfverify.fusion.distributed import DMFResult, dmf_update
 from gpfverify.fusion.exactness import (COVARIANCE_CENTRAL, COVARIANCE_LOCAL, DEFAULT_RANK_RULE,  # noqa: F401
                                         NUMPY_RANK_RULE, RankRule, branch_offsets, canonical_split,
+                                        equivalence_tolerance, gap_size,
                                         local_consistency_residual, parse_rank_rule, predicted_gap,
                                         resolve_rank_rule, sensor_gap, sensor_prior_covariance,
                                         whitened_innovation)
@@ -122,6 +128,19 @@ class CaseAudit:
     gap: np.ndarray | None = None
     predicted_gap: np.ndarray | None = None
     repaired_dmf_mean: np.ndarray | None = None
+    gap_size: float | None = None
+    gap_bound: float | None = None
+    prediction_error: float | None = None
+    unit_free_dmf_mean: np.ndarray | None = None
+    unit_dependence: float | None = None
+
+    @property
+    def reproduced(self) -> bool | None:
+        """Whether DMF equals CMF to the rounding bound of the step (``gap_size`` ≤ ``gap_bound``,
+        both in prior standard deviations); None without y."""
+        if self.gap_size is None or self.gap_bound is None:
+            return None
+        return self.gap_size <= self.gap_bound
 
     @property
     def covariance(self) -> str | None:
@@ -138,11 +157,23 @@ class CaseAudit:
         if self.exact and not self.condition_holds:
             notes.append("the rank condition of Proposition 1 fails but DMF is exact: every lost "
                          "kernel direction lies in ker G_m C_y^m")
+        lost = [s.index for s in self.sensors if not s.full_column_rank]
+        if lost and self.unit_dependence is not None:
+            notes.append(f"sensor(s) {lost} lost rank: DMF's Moore-Penrose inverse (eq. 35) then depends on the "
+                         f"units of state and outputs; the unit-free variant (whitened truncation) gives a mean "
+                         f"{self.unit_dependence:.3g} prior standard deviations away (unit_free_dmf_mean)")
+        elif lost and self.rank_rule.name != "canonical":
+            notes.append(f"sensor(s) {lost} lost rank under the {self.rank_rule.name} rule, whose decision "
+                         f"depends on units (singular values of C_xy^m); the canonical rule decides without them")
         bad = [s.index for s in self.sensors if s.local_consistency_residual is not None
                and s.consistency_tol is not None and s.local_consistency_residual > s.consistency_tol]
         if bad:
             notes.append(f"the logged local posterior of sensor(s) {bad} is not the local update with "
                          f"the logged y: the observed gap need not equal the predicted gap")
+        elif (self.prediction_error is not None and self.gap_bound is not None
+              and self.prediction_error > self.gap_bound):
+            notes.append(f"the observed gap differs from the predicted one by {self.prediction_error:.3g} prior "
+                         f"standard deviations, beyond the step's rounding bound {self.gap_bound:.3g}")
         branched = [f"sensor {s.index} output {j} (n = {n:+d})" for s in self.sensors
                     if s.branch_offsets is not None for j, n in enumerate(s.branch_offsets) if n]
         if branched:
@@ -178,6 +209,15 @@ def _correlations(case: FusionCase, m: int, split) -> tuple[np.ndarray | None, s
             return canonical_split(local.C_xy, case.central.C_p, local.C_y).correlations, COVARIANCE_CENTRAL
     except (NumericalError, np.linalg.LinAlgError):
         return None, None
+
+
+def _unit_free_variant(case: FusionCase, rule: RankRule, dmf: DMFResult) -> tuple[np.ndarray | None, float | None]:
+    """(the unit-free variant's mean, its distance from DMF's in prior standard deviations) when a
+    sensor lost rank under the canonical rule (the variant needs it), else (None, None)."""
+    if rule.name != "canonical" or dmf.condition_holds:
+        return None, None
+    variant = dmf_update(case, rank_rule=rule, unit_free=True).mean
+    return variant, gap_size(case, dmf.mean - variant, dmf.scale)
 
 
 def audit_case(case: FusionCase, rank_tol: float | None = None, sensitivity: bool = False,
@@ -219,13 +259,18 @@ def audit_case(case: FusionCase, rank_tol: float | None = None, sensitivity: boo
             gap_contribution=contribution, sensitivity=jacobians[s.index],
             branch_offsets=offset, rank_rule=rule, canonical_correlations=rho,
             covariance=covariance))
+    unit_free = _unit_free_variant(case, rule, dmf)
     if case.y is None:
-        return CaseAudit(tuple(sensors), rule, dmf.condition_holds, dmf.exact, dmf.mean)
+        return CaseAudit(tuple(sensors), rule, dmf.condition_holds, dmf.exact, dmf.mean, None, None, None, None,
+                         None, None, None, *unit_free)
     cmf = cmf_update(case.central, case.y, dmf.gain)
     repaired = dmf_update(case, messages, rank_rule=rule)
-    return CaseAudit(tuple(sensors), rule, dmf.condition_holds, dmf.exact, dmf.mean, cmf.mean,
-                     dmf.mean - cmf.mean,
-                     predicted_gap(case, dmf.sensors, dmf.gain), repaired.mean)
+    gap = dmf.mean - cmf.mean
+    predicted = predicted_gap(case, dmf.sensors, dmf.gain)
+    return CaseAudit(tuple(sensors), rule, dmf.condition_holds, dmf.exact, dmf.mean, cmf.mean, gap,
+                     predicted, repaired.mean,
+                     gap_size(case, gap, dmf.scale), equivalence_tolerance(case, dmf.gain, dmf.sensors, dmf.scale),
+                     gap_size(case, gap - predicted, dmf.scale), *unit_free)
 
 
 def rank_rule_to_dict(rule: RankRule, covariance: str | None = None, tol: float | None = None) -> dict:
@@ -287,7 +332,12 @@ def audit_to_dict(audit: CaseAudit) -> dict:
                     "predicted_gap": predicted.tolist(),
                     "gap_norm": float(np.linalg.norm(gap)),
                     "gap_residual": float(np.linalg.norm(gap - predicted)),
+                    "gap_size": audit.gap_size, "gap_bound": audit.gap_bound, "reproduced": audit.reproduced,
+                    "prediction_error": audit.prediction_error,
                     "repaired_dmf_mean": repaired.tolist()})
+    if audit.unit_free_dmf_mean is not None:
+        out.update({"unit_free_dmf_mean": audit.unit_free_dmf_mean.tolist(),
+                    "unit_dependence": audit.unit_dependence})
     out["notes"] = audit.notes
     return out
 
@@ -317,7 +367,9 @@ def format_audit(audit: CaseAudit) -> str:
                      f"{cond:>10} {str(s.exact):>5} {s.gap_gain_norm:>10.3g} {s.repair_dim:>6}  {evidence}")
     lines += ["", f"Proposition 1 condition (every C_xy^m full column rank): {audit.condition_holds}",
               f"DMF exact for every measurement (ker C_xy^m in ker G_m C_y^m): {audit.exact}",
-              f"DMF mean: {_vec(audit.dmf_mean)}"]
+              f"DMF mean: {_vec(audit.dmf_mean)} (eq. 35, Moore-Penrose inverse at the decided rank)"]
+    if audit.unit_free_dmf_mean is not None:
+        lines.append(f"unit-free variant's mean: {_vec(audit.unit_free_dmf_mean)}")
     measured = _measured(audit)
     if measured is not None:
         cmf_mean, gap, predicted, repaired = measured
@@ -325,6 +377,8 @@ def format_audit(audit: CaseAudit) -> str:
                   f"gap DMF - CMF: {_vec(gap)} (norm {np.linalg.norm(gap):.3g})",
                   f"predicted gap: {_vec(predicted)} "
                   f"(|observed - predicted| = {np.linalg.norm(gap - predicted):.3g})",
+                  f"gap in prior standard deviations: {audit.gap_size:.3g}, "
+                  f"{'within' if audit.reproduced else 'beyond'} the step's rounding bound {audit.gap_bound:.3g}",
                   f"repaired DMF mean: {_vec(repaired)}"]
         for s in audit.sensors:
             if s.repair_dim:

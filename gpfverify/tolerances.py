@@ -62,6 +62,15 @@ def learned_model_rtol(n_train: int, sigmas: float = MONTE_CARLO_SIGMAS) -> floa
     return sigmas * float(np.sqrt(2.0 / n_train))
 
 
+def rounding_bound(magnitude: float, operations: int) -> float:
+    """First-order rounding bound of a computation: ``operations`` IEEE operations in sequence,
+    each rounding by at most eps relative to the ``magnitude`` of what it handles (the sum of the
+    operands' sizes, already multiplied by the condition numbers that amplify them). No floor:
+    the bound of an exact computation on zeros is zero (docs/fusion-definitions.md derives the
+    fusion step's magnitudes)."""
+    return float(operations) * EPS * float(magnitude)
+
+
 def numpy_rank_tol(singular_values, shape) -> float:
     """numpy's ``matrix_rank`` default: ``S.max() * max(M, N) * eps``."""
     s = np.asarray(singular_values, dtype=float)
@@ -85,3 +94,8 @@ def numpy_rank_tol(singular_values, shape) -> float:
 #:   condition of the equilibrated covariances: 1e-13 at condition 1e3), so exactly uncorrelated
 #:   directions are never counted as rank.
 CANONICAL_RANK_TOL: float = float(np.sqrt(EPS))
+#: The largest rounding bound at which an exactness verdict is still decided: a gap per unit
+#: whitened innovation of τ prior standard deviations is what the canonical rule itself treats as
+#: no information (:data:`CANONICAL_RANK_TOL`). Where the arithmetic cannot resolve a gap this
+#: small (a kernel computed in badly mixed units), the verdict is "not exact".
+RESOLVABLE_GAP: float = CANONICAL_RANK_TOL

@@ -46,7 +46,15 @@ def test_audit_reports_what_the_fusion_routines_compute():
     np.testing.assert_allclose(audit.gap, audit.predicted_gap, atol=tol)
     np.testing.assert_allclose(audit.repaired_dmf_mean, cmf.mean, atol=tol)
     assert all(s.local_consistency_residual <= s.consistency_tol for s in audit.sensors)
-    assert audit.notes == []
+    # sensor 0 lost rank: the note gives the unit-free variant's distance, in prior standard deviations
+    [note] = audit.notes
+    assert note.startswith("sensor(s) [0] lost rank") and "depends on the units" in note
+    variant = dmf_update(case, unit_free=True).mean
+    np.testing.assert_array_equal(audit.unit_free_dmf_mean, variant)
+    whitened = np.linalg.solve(np.linalg.cholesky(case.central.C_p), audit.dmf_mean - variant)
+    assert audit.unit_dependence == pytest.approx(np.linalg.norm(whitened), rel=algebra_rtol(
+        np.linalg.cond(case.central.C_p)))
+    assert audit.unit_dependence > 1e3 * audit.gap_bound  # a real effect, not rounding
 
 
 def test_exact_despite_rank_failure_is_explained():

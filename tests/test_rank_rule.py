@@ -18,10 +18,11 @@ from gpfverify.errors import InputError
 from gpfverify.fusion.case import CentralPrediction, FusionCase, LocalReport
 from gpfverify.fusion.centralized import cmf_update
 from gpfverify.fusion.distributed import dmf_update
+from gpfverify.fusion import exactness
 from gpfverify.fusion.exactness import (COVARIANCE_CENTRAL, COVARIANCE_LOCAL, DEFAULT_RANK_RULE, RankRule,
-                                        equivalence_tolerance, parse_rank_rule, repair_message,
-                                        rescaled_case, resolve_rank_rule, sensor_split,
-                                        whitened_innovation)
+                                        analyse_sensors, equivalence_tolerance, parse_rank_rule,
+                                        range_condition_number, repair_message, rescaled_case,
+                                        resolve_rank_rule, sensor_split, whitened_innovation)
 from gpfverify.fusion.synthetic import random_case
 from gpfverify.linalg import canonical_correlations
 from gpfverify.tolerances import CANONICAL_RANK_TOL, EPS, algebra_rtol
@@ -163,11 +164,12 @@ def test_repair_message_shape_is_checked():
         dmf_update(case, [np.zeros(1), np.zeros(2)])
 
 
-def test_canonical_split_is_an_oblique_projector_with_the_gap_formula():
-    """A_m C_xy^m = P_m idempotent, C_y^m P_m symmetric, I − P_m = N_m Ñ_mᵀ, Ñ_m = C_y^m N_m."""
+def test_unit_free_split_is_an_oblique_projector_with_the_gap_formula():
+    """The unit-free variant: A_m C_xy^m = P_m idempotent, C_y^m P_m symmetric, I − P_m = N_m Ñ_mᵀ,
+    Ñ_m = C_y^m N_m; and its DMF's observed gap is the predicted one."""
     case = random_case(np.random.default_rng(23), 3, (5,))
     local = case.locals[0]
-    split = sensor_split(local, DEFAULT_RANK_RULE, case.central.C_p)
+    split = sensor_split(local, DEFAULT_RANK_RULE, case.central.C_p, unit_free=True)
     p = split.pinv @ local.C_xy
     tol = algebra_rtol(split.condition * np.linalg.cond(local.C_y))
     np.testing.assert_allclose(p @ p, p, atol=tol)
@@ -175,10 +177,31 @@ def test_canonical_split_is_an_oblique_projector_with_the_gap_formula():
     np.testing.assert_allclose(np.eye(5) - p, split.kernel_basis @ split.cokernel.T, atol=tol)
     np.testing.assert_allclose(split.cokernel, local.C_y @ split.kernel_basis, atol=tol * np.linalg.norm(local.C_y))
     assert not np.allclose(p, p.T)  # oblique
-    audit = audit_case(case)
+    dmf = dmf_update(case, unit_free=True)
+    cmf = cmf_update(case.central, case.y, dmf.gain)
+    sensors = analyse_sensors(case, dmf.gain, unit_free=True)
+    observed, predicted = dmf.mean - cmf.mean, exactness.predicted_gap(case, sensors, dmf.gain)
+    assert exactness.gap_size(case, observed - predicted) <= equivalence_tolerance(case, dmf.gain, dmf.sensors)
+
+
+def test_moore_penrose_split_is_the_orthogonal_projector_at_the_decided_rank():
+    """The default (DMF) split under the canonical rule: the rank the canonical correlations
+    decide, and A_m = (C_xy^m)⁺ truncated there in C_xy^m's own SVD, so P_m = A_m C_xy^m is the
+    orthogonal projector onto the top-r right singular vectors (symmetric, idempotent)."""
+    case = random_case(np.random.default_rng(23), 3, (5,))
+    local = case.locals[0]
+    split = sensor_split(local, DEFAULT_RANK_RULE, case.central.C_p)
+    r = int(np.sum(split.correlations > DEFAULT_RANK_RULE.tol))
+    assert split.rank.rank == r
+    _, _, vt = np.linalg.svd(local.C_xy)
+    p = split.pinv @ local.C_xy
+    tol = algebra_rtol(range_condition_number(split))
+    np.testing.assert_allclose(p, vt[:r].T @ vt[:r], atol=tol)
+    np.testing.assert_allclose(np.eye(5) - p, split.kernel_basis @ split.kernel_basis.T, atol=tol)
     dmf = dmf_update(case)
-    np.testing.assert_allclose(audit.gap, audit.predicted_gap, rtol=0,
-                               atol=equivalence_tolerance(case, dmf.gain, dmf.sensors))
+    audit = audit_case(case)
+    assert exactness.gap_size(case, audit.gap - audit.predicted_gap) <= equivalence_tolerance(
+        case, dmf.gain, dmf.sensors)
 
 
 # -- covariance used, API -------------------------------------------------------------------------

@@ -55,28 +55,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="dask.distributed scheduler address (needs gpfverify[cluster])")
 
 
-def summary_line(results: dict) -> str:
-    """The plain-words verdict of a check: DMF = CMF to rounding (the one-step gap within its
-    rounding bound) at how many steps, and why not elsewhere."""
-    total, held = results["total_steps"], results["condition_held_steps"]
-    reproduced, inexact = results["reproduced_steps"], total - results["exact_steps"]
-    runs = results["runs_ok"]
-    where = f"{results['steps']} steps" + (f" of {runs} runs" if runs > 1 else "")
-    if reproduced == total:
-        verdict = f"DMF reproduced CMF at all {where}"
-        if held < total:
-            verdict += f" (the rank condition failed at {total - held}, exact anyway)"
-    else:
-        reasons = [f"{inexact} not exact"] if inexact else []
-        if results["branch_offset_steps"]:
-            reasons.append(f"{results['branch_offset_steps']} with an angle branch offset")
-        verdict = (f"DMF differed from CMF beyond rounding at {total - reproduced} of {total} steps ({where}"
-                   + (f"; {', '.join(reasons)}" if reasons else "") + ")")
-    return f"{verdict}; largest one-step gap {results['max_gap']:.3g}."
-
-
 def run(args: argparse.Namespace) -> int:
     from gpfverify.errors import InputError
+    from gpfverify.contract.check import verdict_sentence
     from gpfverify.experiments import check
     from gpfverify.experiments.runner import make_executor, run_experiment
     from gpfverify.systems import load_system
@@ -107,5 +88,5 @@ def run(args: argparse.Namespace) -> int:
     if args.json:
         print(json.dumps(results))
     else:
-        print(summary_line(results) + f" Results: {args.out / 'results.json'}")
+        print(verdict_sentence(results) + f" Results: {args.out / 'results.json'}")
     return 0

@@ -50,3 +50,25 @@ class RunRecord:
 
     truth_known: bool
     steps: tuple[dict[str, Any], ...]
+
+
+def verdict_sentence(results: dict) -> str:
+    """The one plain-words verdict of a check, rendered from results.json's counts by the console
+    line and the report page alike: DMF = CMF to rounding (the one-step gap within the step's
+    rounding bound, docs/fusion-definitions.md) at how many steps, and why not elsewhere."""
+    total, held = results["total_steps"], results["condition_held_steps"]
+    reproduced, inexact = results["reproduced_steps"], total - results["exact_steps"]
+    runs = results["runs_ok"]
+    where = f"{total} steps" + (f" of {runs} runs" if runs > 1 else "")
+    if reproduced == total:
+        verdict = f"DMF reproduced CMF at all {where}"
+        if held < total:
+            verdict += f" (the rank condition failed at {total - held}, exact anyway)"
+    else:
+        reasons = [f"{inexact} not exact"] if inexact else []
+        if results["branch_offset_steps"]:
+            reasons.append(f"{results['branch_offset_steps']} with an angle branch offset")
+        verdict = (f"DMF differed from CMF beyond rounding at {total - reproduced} of {where}"
+                   + (f" ({', '.join(reasons)})" if reasons else ""))
+    return (f"{verdict}; largest one-step gap {results['max_gap']:.3g} "
+            f"({results['max_gap_size']:.3g} prior standard deviations).")

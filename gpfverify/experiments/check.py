@@ -6,9 +6,10 @@ One run: the measurements y_1..y_T — simulated from the system (truth known) o
 centre's CMF and DMF (seed 000 eq. 35; each with its own recursion from the prior) and the chosen
 baselines (:func:`gpfverify.fusion.run_fusion`), and every DMF step is audited
 (:func:`gpfverify.audit.audit_case`): the one-step gap μ_DMF − μ_CMF from the same central
-prediction against its rounding bound (:func:`~gpfverify.fusion.exactness.equivalence_tolerance`),
-each sensor's rank verdict, exactness, share of the gap and repair size. With the truth, every
-estimate's squared error and NEES, and the NIS of CMF and of each local filter.
+prediction against its rounding bound (:func:`~gpfverify.fusion.exactness.equivalence_tolerance`,
+both in prior standard deviations), each sensor's rank verdict, exactness, share of the gap and
+repair size. With the truth, every estimate's squared error and NEES, and the NIS of CMF and of
+each local filter.
 
 The GP families (``gp-adf``, ``gp-ukf``) first learn the system from ``train`` samples drawn from it
 (:func:`gpfverify.models.learn_gp_model`) or from the user's training file (``x`` (n, D) states,
@@ -31,7 +32,7 @@ from gpfverify.errors import InputError
 from gpfverify.filters.families import GP_FAMILIES
 from gpfverify.filters.records import Gaussian
 from gpfverify.audit import rank_rule_to_dict
-from gpfverify.fusion.exactness import equivalence_tolerance, parse_rank_rule
+from gpfverify.fusion.exactness import parse_rank_rule
 from gpfverify.fusion.model_fusion import run_fusion
 from gpfverify.models import fit_gp_model, learn_gp_model
 from gpfverify.rng import generator
@@ -134,12 +135,12 @@ def _record(model, fused, ys: np.ndarray, truth: np.ndarray | None) -> RunRecord
     errors = _normalised_errors(model, fused, ys, truth)
     steps = []
     for t, step in enumerate(fused.steps):
-        audit, dmf = step.audit, step.dmf
-        bound = equivalence_tolerance(dmf.case, dmf.result.gain, dmf.result.sensors)
+        audit = step.audit
         entry = {
             "k": step.k, "cmf_mean": audit.cmf_mean.tolist(), "dmf_mean": audit.dmf_mean.tolist(),
             "gap": audit.gap.tolist(), "gap_norm": float(np.linalg.norm(audit.gap)),
-            "predicted_gap_norm": float(np.linalg.norm(audit.predicted_gap)), "gap_bound": float(bound),
+            "predicted_gap_norm": float(np.linalg.norm(audit.predicted_gap)),
+            "gap_size": float(audit.gap_size), "gap_bound": float(audit.gap_bound),
             "repaired_gap_norm": float(np.linalg.norm(audit.repaired_dmf_mean - audit.cmf_mean)),
             "recursive_gap_norm": float(np.linalg.norm(step.estimate("dmf").mean - step.estimate("cmf").mean)),
             "condition_holds": bool(audit.condition_holds), "exact": bool(audit.exact),
@@ -205,16 +206,18 @@ def summarize(params: Params, results: list[RunRecord]) -> dict:
                       "sensors": [{key: s[key] for key in ("index", "rank", "full_column_rank", "exact")}
                                   for s in e["sensors"]]} for e in first],
         "max_gap": max(e["gap_norm"] for e in every),
+        "max_gap_size": max(e["gap_size"] for e in every),
         "condition_held_steps": sum(e["condition_holds"] for e in every),
         "exact_steps": sum(e["exact"] for e in every),
-        "exact_steps_within_bound": sum(bool(e["exact"] and e["gap_norm"] <= e["gap_bound"]) for e in every),
-        "reproduced_steps": sum(bool(e["gap_norm"] <= e["gap_bound"]) for e in every),
+        "exact_steps_within_bound": sum(bool(e["exact"] and e["gap_size"] <= e["gap_bound"]) for e in every),
+        "reproduced_steps": sum(bool(e["gap_size"] <= e["gap_bound"]) for e in every),
         "branch_offset_steps": sum(any(s["branch_offset_count"] for s in e["sensors"]) for e in every),
         "total_steps": len(every),
         "system": params.system, "state_dim": model.state_dim, "sensors": _sensor_table(model),
         "rank_rule": {**rank_rule_to_dict(rule), "description": rule.describe()},
         "k": [e["k"] for e in first],
         "gap_norm": [[e["gap_norm"] for e in steps] for steps in steps_by_run],
+        "gap_size": [[e["gap_size"] for e in steps] for steps in steps_by_run],
         "gap_bound": [[e["gap_bound"] for e in steps] for steps in steps_by_run],
         "recursive_gap_norm": [[e["recursive_gap_norm"] for e in steps] for steps in steps_by_run],
         **{key: _per_sensor(steps_by_run, key)
@@ -240,3 +243,4 @@ def summarize(params: Params, results: list[RunRecord]) -> dict:
         out["nees"] = {m: _average("NEES", v, d) for m, v in nees.items()}
         out["local_nees"] = [_average("NEES", local_nees[:, :, m], d) for m in range(len(model.sensors))]
     return out
+

@@ -7,13 +7,15 @@ The centre runs its own prediction (μ_p, C_p, μ_y, C_y, C_xy) and receives fro
               [+ Σ_m G_m C_y^m (I − P_m) k_m   with the repair messages k_m, see exactness.py]
     C_e = C_p − G C_xyᵀ                                                                (as CMF)
 
-A_m is the truncated generalised inverse of C_xy^m at the rank the rank rule decides
-(:class:`~gpfverify.fusion.exactness.RankRule`): (C_xy^m)⁺ truncated in C_xy^m's own SVD for the
-``numpy``/``absolute`` rules, in the whitened (canonical) coordinates for the default
-``canonical`` rule — on consistent reports of full column rank both are (C_xy^m)⁺ of eq. 35.
-Default rule: an explicit ``rank_rule``, else an explicit ``rank_tol`` (absolute), else the case's
-``rank_tol`` (absolute), else canonical. (:func:`gpfverify.fusion.model_fusion.dmf_step` defaults
-to numpy's rule instead, for the experiments' reference numbers.)
+A_m = (C_xy^m)⁺ is the Moore–Penrose inverse of C_xy^m truncated at the rank the rank rule decides
+(:class:`~gpfverify.fusion.exactness.RankRule`), in C_xy^m's own SVD — eq. 35 as the paper writes
+it, whichever rule decided the rank (the default ``canonical`` rule decides it without units; the
+inverse itself depends on units when the rank is lost, docs/fusion-definitions.md). The unit-free
+variant (``unit_free=True``, canonical rule only) truncates in the whitened coordinates instead; it
+is reported under its own name, never as DMF. Default rule: an explicit ``rank_rule``, else an
+explicit ``rank_tol`` (absolute), else the case's ``rank_tol`` (absolute), else canonical.
+(:func:`gpfverify.fusion.model_fusion.dmf_step` defaults to numpy's rule instead, for the
+experiments' reference numbers.)
 
 Computed as μ_p + G v with v stacked from the per-sensor terms (one product with G). ⊖ wraps the
 angle outputs (``locals[m].circular``) to (−π, π]; the local update already wrapped y^m − μ_y^m.
@@ -32,13 +34,15 @@ from gpfverify.angles import difference
 from gpfverify.errors import InputError
 from gpfverify.fusion.case import FusionCase
 from gpfverify.fusion.centralized import fused_covariance, fusion_gain
-from gpfverify.fusion.exactness import RankRule, SensorExactness, analyse_sensors, resolve_rank_rule
+from gpfverify.fusion.exactness import (FusedScale, RankRule, SensorExactness, analyse_sensors, fused_scale,
+                                        resolve_rank_rule)
 
 
 @dataclass(frozen=True)
 class DMFResult:
     """DMF posterior ``mean`` (D,), ``cov`` (D, D), the central ``gain`` G (D, L), the per-sensor
-    exactness evidence, whether repair messages were used and the ``rank_rule`` that decided."""
+    exactness evidence, whether repair messages were used, the ``rank_rule`` that decided, whether
+    this is the ``unit_free`` variant, and the central step's ``scale`` (:class:`FusedScale`)."""
 
     mean: np.ndarray
     cov: np.ndarray
@@ -46,6 +50,8 @@ class DMFResult:
     sensors: tuple[SensorExactness, ...]
     repaired: bool
     rank_rule: RankRule | None = None
+    unit_free: bool = False
+    scale: FusedScale | None = None
 
     @property
     def condition_holds(self) -> bool:
@@ -59,17 +65,20 @@ class DMFResult:
 
 
 def dmf_update(case: FusionCase, repair_messages: Sequence[np.ndarray] | None = None,
-               rank_tol: float | None = None, rank_rule: RankRule | str | None = None) -> DMFResult:
+               rank_tol: float | None = None, rank_rule: RankRule | str | None = None,
+               unit_free: bool = False) -> DMFResult:
     """Eq. 35 on ``case`` under ``rank_rule`` (a :class:`~gpfverify.fusion.exactness.RankRule` or
     its string, e.g. ``"numpy"``; or an absolute ``rank_tol``; default the case's ``rank_tol``,
     else canonical); with ``repair_messages`` (one l_m-vector k_m per sensor, from
     :func:`~gpfverify.fusion.exactness.repair_message` under the same rule) the repaired rule that
     equals CMF whatever the ranks. The centre applies the kernel projector I − P_m to each message,
-    so the whole w_m works as well as its kernel component."""
+    so the whole w_m works as well as its kernel component. ``unit_free`` computes the unit-free
+    variant instead of eq. 35 (canonical rule only)."""
     central = case.central
     gain = fusion_gain(central)
     rule = resolve_rank_rule(case, rank_rule, rank_tol)
-    sensors = analyse_sensors(case, gain, rank_rule=rule)
+    scale = fused_scale(central)
+    sensors = analyse_sensors(case, gain, rank_rule=rule, unit_free=unit_free, scale=scale)
     if repair_messages is not None and len(repair_messages) != len(case.locals):
         raise InputError(f"repair_messages needs {len(case.locals)} entries, got {len(repair_messages)}")
     parts = []
@@ -83,4 +92,5 @@ def dmf_update(case: FusionCase, repair_messages: Sequence[np.ndarray] | None = 
             recovered = recovered + s.split.kernel_component(k_m)
         parts.append(difference(local.mu_y, central.mu_y[block], local.circular) + local.C_y @ recovered)
     mean = central.mu_p + gain @ np.concatenate(parts)
-    return DMFResult(mean, fused_covariance(central, gain), gain, sensors, repair_messages is not None, rule)
+    return DMFResult(mean, fused_covariance(central, gain), gain, sensors, repair_messages is not None, rule,
+                     unit_free, scale)

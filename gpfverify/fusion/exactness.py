@@ -57,43 +57,32 @@ Rank rules (:class:`RankRule`). Which singular directions of C_xy^m count as ran
 The last two depend on units: a bearing in microradians instead of radians multiplies its column
 of C_xy^m by 1e6. They are kept, bit for bit as before, for the experiments' reference numbers.
 
-Kernel split. With the SVD rules the split is the orthogonal one above: (C_xy^m)⁺ truncated at the
-rank, N_m orthonormal, P_m = V_r V_rᵀ. With the canonical rule the truncation is done in the
-whitened coordinates and mapped back. Let K_m = U diag(ρ) Vᵀ (full SVD), r the rank, and
+Kernel split (DMF's inverse). Whichever rule decides the rank r, eq. 35's inverse is the
+Moore–Penrose inverse of C_xy^m truncated at r in C_xy^m's own SVD C_xy^m = U S Vᵀ:
+A_m = (C_xy^m)⁺ = V_r S_r⁻¹ U_rᵀ, P_m = A_m C_xy^m = V_r V_rᵀ (orthogonal), N_m = V_⊥ orthonormal
+(``kernel_split``, and ``canonical_split`` by default). With full column rank this is a left inverse
+and DMF does not depend on units; when the rank is lost it does ((S_x C S_y)⁺ ≠ S_y⁻¹ C⁺ S_x⁻¹
+for a rank-deficient C), and the audit says by how much (docs/fusion-definitions.md).
 
-    A_m = L_y⁻ᵀ V_r diag(ρ_r)⁻¹ U_rᵀ L_p⁻¹        (the truncated generalised inverse, ``pinv``),
-    N_m = L_y⁻ᵀ V_⊥,   Ñ_m = L_y V_⊥ = C_y^m N_m      (``kernel_basis``, ``cokernel``).
+The unit-free variant (``canonical_split(..., unit_free=True)``; never reported as DMF) truncates in
+the whitened coordinates instead. Let K_m = U diag(ρ) Vᵀ (full SVD), r the rank, and
 
-Then A_m C_xy^m = L_y⁻ᵀ (K_r⁺ K_m) L_yᵀ = L_y⁻ᵀ V_r V_rᵀ L_yᵀ =: P_m *exactly*, for the truncated
-K_r⁺ whatever the dropped ρ_i are (U_rᵀ U = [I 0]). P_m is idempotent but not symmetric: an oblique
-projector, orthogonal in the metric of C_y^m (C_y^m P_m = L_y V_r V_rᵀ L_yᵀ is symmetric), and
-I − P_m = N_m Ñ_mᵀ with Ñ_mᵀ N_m = I. The gap derivation above used only A_m C_xy^m = P_m and
-I − P_m = N_m Ñ_mᵀ, so with N_mᵀ w_m replaced by Ñ_mᵀ w_m it holds unchanged:
+    A_m = L_y⁻ᵀ V_r diag(ρ_r)⁻¹ U_rᵀ L_p⁻¹,   N_m = L_y⁻ᵀ V_⊥,   Ñ_m = L_y V_⊥ = C_y^m N_m.
 
-    μ_DMF − μ_CMF = Σ_m [2π G_m n_m − (G_m C_y^m N_m)(Ñ_mᵀ w_m)],
+Then A_m C_xy^m = L_y⁻ᵀ V_r V_rᵀ L_yᵀ =: P_m exactly, an oblique projector orthogonal in the metric
+of C_y^m, I − P_m = N_m Ñ_mᵀ with Ñ_mᵀ N_m = I, and the gap formula above holds with N_mᵀ w_m
+replaced by Ñ_mᵀ w_m = V_⊥ᵀ L_y⁻¹ (y^m ⊖ μ_y^m), the dropped canonical coordinates of the innovation.
+For a consistent report A_m returns the minimum-C_y^m-norm solution of C_xy^m w = μ_e^m − μ_p^m, and
+under rescaling A_m → S_y⁻¹ A_m S_x⁻¹: its mean and gap transform as states do.
 
-exact in exact arithmetic, not only to first order. Ñ_mᵀ w_m = V_⊥ᵀ L_y⁻¹ (y^m ⊖ μ_y^m) are the
-dropped canonical coordinates of the innovation, unit variance under the sensor's predictive, so
-G_m C_y^m N_m = G_m L_y V_⊥ is the gap per standard deviation of what was dropped. For a
-consistent report (μ_e^m − μ_p^m = C_xy^m w_m, exact rank) A_m returns the minimum-C_y^m-norm
-solution of C_xy^m w = μ_e^m − μ_p^m, which is E[w_m | C_xy^m w_m] for w_m ~ N(0, (C_y^m)⁻¹): the
-best the centre can infer from the report. (The orthogonal split's Moore–Penrose choice is not
-covariant under rescaling — (S_x C S_y)⁺ ≠ S_y⁻¹ C⁺ S_x⁻¹ when C is rank deficient — so under the
-SVD rules even the DMF mean of a rank-deficient sensor depends on units; under the canonical split
-A_m → S_y⁻¹ A_m S_x⁻¹, N_m Ñ_mᵀ → S_y⁻¹ N_m Ñ_mᵀ S_y, and DMF mean and gap transform as states do.)
-With full rank, A_m is a left inverse of C_xy^m and eq. 35 is unchanged on consistent reports.
-
-Exactness verdict. SVD rules (as before): a gap gain counts as zero when
-‖G_m C_y^m N_m‖₂ ≤ algebra_rtol(cond C_y) · ‖G_m‖₂ ‖C_y^m‖₂. Canonical rule (unit-free): the
-whitened gap gain L_p⁻¹ G_m C_y^m N_m (prior standard deviations per unit dropped canonical
-coordinate) against the whitened gain of the whole block, W_m = L_p⁻¹ G_m L_y:
-
-    ‖L_p⁻¹ G_m C_y^m N_m‖₂ ≤ algebra_rtol(κ) · ‖W_m‖₂,
-    κ = max(cond of the correlation matrices of the central C_y, of C_y^m, of C_p^m),
-
-every factor of which is invariant under diagonal rescaling. A dropped direction with a nonzero
-but small ρ (≤ τ) generally leaves a gap of that size: the verdict is then "not exact" with a
-gap gain of order ρ (for one sensor sharing the centre's prior, exactly ρ_{r+1}).
+Exactness verdict (every rule; docs/fusion-definitions.md). The residual
+‖L_p⁻¹ G_m C_y^m N_m Ñ_mᵀ L_y⁻ᵀ‖₂ (L_p, L_y the factors of the central C_p and of C_y^m) is the gap
+in prior standard deviations of the fused state per unit whitened innovation; the sensor is exact
+when it is within the rounding bound of its own computation (the computed G, the computed kernel's
+angle eps·σ_1/σ_r, and the fused estimate's own rounding ‖ |L_p⁻¹| |μ_p| ‖) and that bound resolves
+the condition (at most :data:`~gpfverify.tolerances.RESOLVABLE_GAP`). The gap's own rounding bound,
+in the same units, is :func:`equivalence_tolerance`; "reproduced" compares the observed
+:func:`gap_size` with it.
 
 Repair. The part of w_m that eq. 35 cannot recover is its kernel component (I − P_m) w_m: μ_e^m −
 μ_p^m determines w_m only on range(P_m). The repair message (:func:`repair_message`) is that
@@ -119,8 +108,8 @@ from gpfverify.errors import InputError, NumericalError
 from gpfverify.fusion.case import CentralPrediction, FusionCase, LocalReport
 from gpfverify.fusion.centralized import fusion_gain
 from gpfverify.linalg import (CanonicalCorrelations, RankReport, canonical_correlations, correlation_condition,
-                              right_solve_spd, solve_spd, spd_condition, symmetrize)
-from gpfverify.tolerances import CANONICAL_RANK_TOL, algebra_rtol, numpy_rank_tol
+                              equilibrated_cholesky, right_solve_spd, solve_spd, symmetrize)
+from gpfverify.tolerances import CANONICAL_RANK_TOL, RESOLVABLE_GAP, numpy_rank_tol, rounding_bound
 
 #: the rank rules :class:`RankRule` knows
 RULE_NAMES: tuple[str, ...] = ("canonical", "absolute", "numpy")
@@ -272,31 +261,43 @@ def _cross_cov_svd(cross_cov: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.nd
     return np.linalg.svd(cross_cov, full_matrices=True)
 
 
+def _moore_penrose_at_rank(u: np.ndarray, s: np.ndarray, vt: np.ndarray, rank: int) -> np.ndarray:
+    """(C)⁺ truncated at ``rank`` in C's own SVD C = U diag(s) Vᵀ: V_r diag(s_r)⁻¹ U_rᵀ — the
+    Moore–Penrose inverse eq. 35 writes, whichever rule decided the rank."""
+    return (vt[:rank].T / s[:rank]) @ u[:, :rank].T
+
+
 def kernel_split(cross_cov: np.ndarray, tol: float | None = None) -> KernelSplit:
     """Orthogonal SVD split of a sensor's cross covariance C_xy^m (D, l) with absolute tolerance
     ``tol`` (default numpy's matrix_rank rule): the ``absolute``/``numpy`` rules."""
     u, s, vt = _cross_cov_svd(cross_cov)
     used = numpy_rank_tol(s, cross_cov.shape) if tol is None else float(tol)
     r = int(np.sum(s > used))
-    pinv = (vt[:r].T / s[:r]) @ u[:, :r].T
     rule = NUMPY_RANK_RULE if tol is None else RankRule("absolute", float(tol))
-    return KernelSplit(RankReport(r, s, used, cross_cov.shape), pinv, vt[r:].T, rule=rule)
+    return KernelSplit(RankReport(r, s, used, cross_cov.shape), _moore_penrose_at_rank(u, s, vt, r), vt[r:].T,
+                       rule=rule)
 
 
 def canonical_split(cross_cov: np.ndarray, prior_cov: np.ndarray, cov_y: np.ndarray,
-                    tol: float = CANONICAL_RANK_TOL, covariance: str | None = None) -> KernelSplit:
-    """Canonical split of C_xy^m (D, l) under the prior covariance C_p^m (D, D) and C_y^m (l, l):
-    rank = #{ρ_i > tol}, A_m, N_m, Ñ_m as in the module docstring (solves, no inverses)."""
+                    tol: float = CANONICAL_RANK_TOL, covariance: str | None = None,
+                    unit_free: bool = False) -> KernelSplit:
+    """Split of C_xy^m (D, l) at the rank the canonical correlations under C_p^m (D, D) and C_y^m
+    (l, l) decide, rank = #{ρ_i > tol} (a unit-free decision). DMF's inverse is then (C_xy^m)⁺
+    truncated at that rank in C_xy^m's own SVD (eq. 35 as written; N_m = V_⊥ orthonormal); with
+    ``unit_free`` the truncation is done in the whitened coordinates instead (module docstring,
+    "The unit-free variant"; solves, no inverses)."""
     cc = canonical_correlations(prior_cov, cov_y, cross_cov, ("C_p^m", "C_y^m"))
     rho = cc.correlations
     r = int(np.sum(rho > tol))
+    u, s, vt = _cross_cov_svd(cross_cov)
+    rank, rule = RankReport(r, s, float(tol), cross_cov.shape), RankRule("canonical", float(tol))
+    if not unit_free:
+        return KernelSplit(rank, _moore_penrose_at_rank(u, s, vt, r), vt[r:].T, None, rule, rho, covariance, cc)
     d, l = cross_cov.shape
     v_r, v_perp = cc.v[:, :r], cc.v[:, r:]
     pinv = cc.y_from_whitened(v_r / rho[:r]) @ cc.x_dual(cc.u[:, :r]).T if r else np.zeros((l, d))
-    s = _cross_cov_svd(cross_cov)[1]
     condition = (float(rho[0] / rho[r - 1]) if r else 1.0) * cc.whitening_condition
-    return KernelSplit(RankReport(r, s, float(tol), cross_cov.shape), pinv, cc.y_from_whitened(v_perp),
-                       cc.y_factor_times(v_perp), RankRule("canonical", float(tol)), rho, covariance,
+    return KernelSplit(rank, pinv, cc.y_from_whitened(v_perp), cc.y_factor_times(v_perp), rule, rho, covariance,
                        cc, condition)
 
 
@@ -314,10 +315,14 @@ def sensor_prior_covariance(local: LocalReport, central_cov: np.ndarray | None =
     return np.asarray(central_cov, dtype=float), COVARIANCE_CENTRAL
 
 
-def sensor_split(local: LocalReport, rule: RankRule, central_cov: np.ndarray | None = None) -> KernelSplit:
+def sensor_split(local: LocalReport, rule: RankRule, central_cov: np.ndarray | None = None,
+                 unit_free: bool = False) -> KernelSplit:
     """Sensor m's kernel split under ``rule``; the canonical rule whitens with the sensor's C_p^m
     (:func:`sensor_prior_covariance`), falling back to ``central_cov`` when the recovered C_p^m is
-    not positive definite even with jitter."""
+    not positive definite even with jitter. ``unit_free`` (canonical rule only) asks for the
+    unit-free variant's split instead of the Moore–Penrose one."""
+    if unit_free and rule.name != "canonical":
+        raise InputError(f"the unit-free variant of DMF needs the canonical rank rule, not {rule.name!r}")
     if rule.name == "numpy":
         return kernel_split(local.C_xy)
     if rule.name == "absolute":
@@ -325,12 +330,12 @@ def sensor_split(local: LocalReport, rule: RankRule, central_cov: np.ndarray | N
     assert rule.tol is not None  # RankRule.__post_init__ sets the canonical default
     prior, which = sensor_prior_covariance(local, central_cov)
     try:
-        return canonical_split(local.C_xy, prior, local.C_y, rule.tol, which)
+        return canonical_split(local.C_xy, prior, local.C_y, rule.tol, which, unit_free)
     except NumericalError:
         if which != COVARIANCE_LOCAL or central_cov is None:
             raise
         return canonical_split(local.C_xy, np.asarray(central_cov, dtype=float), local.C_y, rule.tol,
-                               COVARIANCE_CENTRAL)
+                               COVARIANCE_CENTRAL, unit_free)
 
 
 @dataclass(frozen=True)
@@ -347,7 +352,10 @@ class SensorExactness:
 
     @property
     def exact(self) -> bool:
-        return self.residual <= self.tol
+        """The residual is within its rounding bound, and that bound resolves the condition (at
+        most :data:`~gpfverify.tolerances.RESOLVABLE_GAP`; in units where the computed kernel is too
+        uncertain the verdict is "not exact", never a false "exact")."""
+        return self.residual <= self.tol <= RESOLVABLE_GAP
 
     @property
     def full_column_rank(self) -> bool:
@@ -358,34 +366,84 @@ class SensorExactness:
         return self.split.kernel_basis.shape[1]
 
 
+@dataclass(frozen=True)
+class FusedScale:
+    """The centre's step in its own units (docs/fusion-definitions.md, "Rounding bound"):
+    ``whitening`` holds the canonical correlations of the central prediction, so that L_p⁻¹
+    measures a state difference in prior standard deviations (unit-free); ``update`` is
+    ρ_max = ‖L_p⁻¹ C_xy L_y⁻ᵀ‖₂, how many prior standard deviations the fused mean moves per unit
+    whitened innovation; ``condition`` the central whitenings' condition, which G = C_xy C_y⁻¹
+    inherits."""
+
+    whitening: CanonicalCorrelations
+
+    @property
+    def update(self) -> float:
+        rho = self.whitening.correlations
+        return float(rho[0]) if rho.size else 0.0
+
+    @property
+    def condition(self) -> float:
+        return self.whitening.whitening_condition
+
+    def whiten(self, a: np.ndarray) -> np.ndarray:
+        """L_p⁻¹ a."""
+        return self.whitening.whiten_x(np.asarray(a, dtype=float))
+
+    def componentwise(self, magnitudes: np.ndarray) -> float:
+        """‖ |L_p⁻¹| m ‖₂ for entrywise magnitudes m ≥ 0 of a state vector: the largest whitened
+        size of any vector whose entries are at most m (componentwise rounding errors)."""
+        inverse = np.abs(self.whiten(np.eye(magnitudes.shape[0])))
+        return float(sla.norm(inverse @ magnitudes))
+
+
+def fused_scale(central: CentralPrediction) -> FusedScale:
+    """:class:`FusedScale` of the central prediction."""
+    return FusedScale(canonical_correlations(central.C_p, central.C_y, central.C_xy, ("C_p", "C_y")))
+
+
+def _norm2(a: np.ndarray) -> float:
+    return float(np.linalg.norm(a, 2)) if a.size else 0.0
+
+
+def _exactness_evidence(scale: FusedScale, gain_times_cov: np.ndarray, cov_y: np.ndarray, split: KernelSplit,
+                        prior_mean: np.ndarray) -> tuple[float, float]:
+    """(residual, bound) of the kernel-inclusion condition for one sensor (module docstring,
+    "Exactness verdict"): residual = ‖L_p⁻¹ G_m C_y^m N_m Ñ_mᵀ L_y⁻ᵀ‖₂, the gap in prior standard
+    deviations per unit whitened innovation, and the rounding bound of its computation: the
+    computed G (ρ_max · κ_G · ‖L_yᵀN_m‖), the computed kernel, whose angle to the decided one is
+    eps·σ_1/σ_r (‖L_p⁻¹ G_m C_y^m V_r‖ σ_1/σ_r), both times ‖L_y⁻¹Ñ_m‖, and the rounding of the
+    fused estimate itself (‖ |L_p⁻¹| |μ_p| ‖: a gap below it cannot be told from the estimate's
+    last digits)."""
+    basis = split.kernel_basis
+    if not basis.shape[1]:
+        return 0.0, 0.0
+    d_y, l_y = equilibrated_cholesky(cov_y, "local C_y")
+    dual = sla.solve_triangular(l_y, split.dual_basis / d_y[:, None], lower=True, check_finite=False)  # L_y⁻¹ Ñ_m
+    lifted = l_y.T @ (d_y[:, None] * basis)                                                          # L_yᵀ N_m
+    residual = _norm2(scale.whiten(gain_times_cov @ basis) @ dual.T)
+    s, r = split.rank.singular_values, split.rank.rank
+    kept = _norm2(scale.whiten(gain_times_cov @ split.pinv @ split.pinv.T)) * s[0] * s[r - 1] if r else 0.0
+    magnitude = ((scale.update * scale.condition * _norm2(lifted) + kept) * _norm2(dual)
+                 + scale.componentwise(np.abs(prior_mean)))
+    return residual, rounding_bound(magnitude, cov_y.shape[0] + gain_times_cov.shape[0])
+
+
 def analyse_sensors(case: FusionCase, gain: np.ndarray, rank_tol: float | None = None,
-                    rank_rule=None) -> tuple[SensorExactness, ...]:
-    """Kernel split and gap gain of every sensor under the rule :func:`resolve_rank_rule` picks
-    (``rank_rule``, else absolute ``rank_tol``, else ``case.rank_tol``, else canonical)."""
+                    rank_rule=None, unit_free: bool = False, scale: FusedScale | None = None
+                    ) -> tuple[SensorExactness, ...]:
+    """Kernel split, gap gain and exactness evidence of every sensor under the rule
+    :func:`resolve_rank_rule` picks (``rank_rule``, else absolute ``rank_tol``, else
+    ``case.rank_tol``, else canonical); ``unit_free`` for the unit-free variant's splits."""
     rule = resolve_rank_rule(case, rank_rule, rank_tol)
     central = case.central
+    scale = fused_scale(central) if scale is None else scale
     out = []
-    if rule.name == "canonical":
-        central_cond = correlation_condition(central.C_y)
-        for m, (block, local) in enumerate(zip(central.blocks, case.locals)):
-            split = sensor_split(local, rule, central.C_p)
-            g_m = gain[:, block]
-            gap_gain = g_m @ local.C_y @ split.kernel_basis
-            cc = split.whitening
-            assert cc is not None  # canonical splits carry their whitening
-            residual = float(np.linalg.norm(cc.whiten_x(gap_gain), 2)) if gap_gain.size else 0.0
-            scale = float(np.linalg.norm(cc.whiten_x(cc.times_y_factor(g_m)), 2)) if g_m.size else 0.0
-            kappa = max(central_cond, cc.whitening_condition ** 2)
-            out.append(SensorExactness(m, split, gap_gain, residual, algebra_rtol(kappa) * scale))
-        return tuple(out)
-    rtol = algebra_rtol(spd_condition(central.C_y))
     for m, (block, local) in enumerate(zip(central.blocks, case.locals)):
-        split = sensor_split(local, rule)
-        g_m = gain[:, block]
-        gap_gain = g_m @ local.C_y @ split.kernel_basis
-        residual = float(np.linalg.norm(gap_gain, 2)) if gap_gain.size else 0.0
-        scale = float(np.linalg.norm(g_m, 2) * np.linalg.norm(local.C_y, 2))
-        out.append(SensorExactness(m, split, gap_gain, residual, rtol * scale))
+        split = sensor_split(local, rule, central.C_p, unit_free)
+        gain_times_cov = gain[:, block] @ local.C_y
+        residual, tol = _exactness_evidence(scale, gain_times_cov, local.C_y, split, central.mu_p)
+        out.append(SensorExactness(m, split, gain_times_cov @ split.kernel_basis, residual, tol))
     return tuple(out)
 
 
@@ -453,8 +511,8 @@ def local_consistency_residual(case: FusionCase, m: int) -> np.ndarray:
 
 
 def range_condition_number(split: KernelSplit) -> float:
-    """How much the reconstruction A_m (μ_e^m − μ_p^m) can amplify rounding: σ_max / σ_r over the
-    kept singular values for the SVD split (1 for a zero matrix); for the canonical split
+    """How much the reconstruction A_m (μ_e^m − μ_p^m) can amplify rounding: σ_1 / σ_r over the
+    kept singular values (1 when none is kept); for the unit-free variant's split
     (ρ_1 / ρ_r) · cond(L_p) · cond(L_y) of the equilibrated whitening factors."""
     if split.condition is not None:
         return split.condition
@@ -462,29 +520,41 @@ def range_condition_number(split: KernelSplit) -> float:
     return float(s[0] / s[-1]) if s.size else 1.0
 
 
-def equivalence_tolerance(case: FusionCase, gain: np.ndarray, sensors: tuple[SensorExactness, ...]) -> float:
-    """Rounding bound on ‖μ_DMF − μ_CMF‖ when DMF is exact *at the rank rule used* (every
-    sensor's verdict ``exact``; a singular value or correlation at or below the tolerance is
-    dropped, and its effect is then the closed-form gap, not rounding):
-
-        algebra_rtol(κ) · (‖μ_p‖ + ‖G‖₂ Σ_m [‖C_y^m‖₂ ‖A_m‖₂ (‖μ_e^m‖ + ‖μ_p^m‖)
-                                               + ‖μ_y^m‖ + ‖μ_y(m)‖ + ‖y^m‖]),
-        κ = max(cond C_y, max_m range_condition_number(split_m) · cond C_y^m).
-
-    Each term is the size of an operand eq. 35 or 36 works with, which loses ≈ eps·κ of itself.
-    The recovered innovation A_m(μ_e^m − μ_p^m) carries the rounding of μ_e^m and μ_p^m —
-    of their sizes, not of their difference: when C_xy^m is small the local update C_xy^m w_m can
-    fall below eps·‖μ_e^m‖ and be lost in the report itself, and A_m amplifies that loss by up to
-    ‖A_m‖. Norms are BLAS nrm2 (scipy.linalg.norm), which does not underflow for tiny entries.
-    Needs ``case.y``."""
+def equivalence_tolerance(case: FusionCase, gain: np.ndarray, sensors: tuple[SensorExactness, ...],
+                          scale: FusedScale | None = None) -> float:
+    """Rounding bound on ‖L_p⁻¹(μ_DMF − μ_CMF)‖₂, in prior standard deviations, when DMF is exact
+    at the rank rule used (docs/fusion-definitions.md, "Rounding bound"). With G shared by both
+    rules (its rounding cancels in the difference to first order), the operands that round
+    independently are, entrywise: μ_p (in both sums); G's products with DMF's stacked innovation
+    |μ_y^m| + |μ_y(m)| + |C_y^m A_m(μ_e^m − μ_p^m)| and with CMF's |y| + |μ_y|; the report's own
+    rounding |μ_e^m| + |μ_p^m| + κ(C_y^m)|μ_e^m − μ_p^m| (the local update is a solve with C_y^m)
+    carried into the state by |G_m C_y^m A_m|; and the reconstruction A_m, whose relative error
+    σ_1/σ_r · eps multiplies its contribution G_m C_y^m A_m(μ_e^m − μ_p^m). Each is whitened entrywise
+    (:meth:`FusedScale.componentwise`, unit-free) and the sum goes to
+    :func:`~gpfverify.tolerances.rounding_bound` with D + L operations. Needs ``case.y``."""
     c = case.central
-    cond, terms = spd_condition(c.C_y), 0.0
+    scale = fused_scale(c) if scale is None else scale
+    if case.y is None:
+        raise InputError("the rounding bound of the gap needs the measurement y")
+    magnitudes = 2.0 * np.abs(c.mu_p) + np.abs(gain) @ (np.abs(case.y) + np.abs(c.mu_y))
+    reconstruction = np.zeros(case.state_dim)
     for s, block, local in zip(sensors, c.blocks, case.locals):
-        cond = max(cond, range_condition_number(s.split) * spd_condition(local.C_y))
-        terms += (sla.norm(local.C_y, 2) * sla.norm(s.split.pinv, 2) * (sla.norm(local.mu_e) + sla.norm(local.mu_p))
-                  + sla.norm(local.mu_y) + sla.norm(c.mu_y[block])
-                  + sla.norm(case.local_measurement(s.index)))
-    return algebra_rtol(cond) * (sla.norm(c.mu_p) + sla.norm(gain, 2) * terms)
+        change = local.mu_e - local.mu_p
+        recovered = s.split.pinv @ change
+        carried = np.abs(gain[:, block] @ local.C_y @ s.split.pinv)
+        report = np.abs(local.mu_e) + np.abs(local.mu_p) + correlation_condition(local.C_y) * np.abs(change)
+        innovation = np.abs(local.mu_y) + np.abs(c.mu_y[block]) + np.abs(local.C_y @ recovered)
+        magnitudes = magnitudes + np.abs(gain[:, block]) @ innovation + carried @ report
+        contribution = np.abs(gain[:, block] @ (local.C_y @ recovered))
+        reconstruction = reconstruction + range_condition_number(s.split) * contribution
+    total = scale.componentwise(magnitudes) + scale.componentwise(reconstruction)
+    return rounding_bound(total, case.state_dim + c.mu_y.shape[0])
+
+
+def gap_size(case: FusionCase, gap: np.ndarray, scale: FusedScale | None = None) -> float:
+    """‖L_p⁻¹ gap‖₂: a state difference in prior standard deviations (unit-free)."""
+    scale = fused_scale(case.central) if scale is None else scale
+    return float(sla.norm(scale.whiten(gap)))
 
 
 def rescaled_case(case: FusionCase, state_scale, output_scale) -> FusionCase:

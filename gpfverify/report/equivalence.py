@@ -23,6 +23,7 @@ from pathlib import Path
 
 import numpy as np
 
+from gpfverify.contract.check import verdict_sentence
 from gpfverify.report.document import Code, Figure, Paragraph, Section, Table, integer_ranges
 from gpfverify.report.render import provenance_section, to_html, to_markdown
 
@@ -95,7 +96,8 @@ class CheckData:
 
     def __init__(self, results: dict):
         self.r = results
-        self.gap = np.asarray(results["gap_norm"], dtype=float)              # (R, T)
+        # the gap and its rounding bound in prior standard deviations (docs/fusion-definitions.md)
+        self.gap = np.asarray(results["gap_size"], dtype=float)              # (R, T)
         self.bound = np.asarray(results["gap_bound"], dtype=float)
         self.recursive = np.asarray(results["recursive_gap_norm"], dtype=float)
         self.full = np.asarray(results["full_column_rank"], dtype=bool)       # (R, T, N)
@@ -203,29 +205,16 @@ def summary_paragraphs(results: dict) -> list[str]:
     held_steps = int(d.step_held.sum())
     within = np.less_equal(d.gap, d.bound)
     n_within = int(within.sum())
-    max_gap = float(d.gap.max())
-    out = []
-    if exact_steps == d.total and n_within == d.total:
-        head = (f"DMF reproduced CMF at all {d.total} steps{d.of_runs} (largest one-step gap {_g(max_gap)}, "
-                "within the rounding bound at every step)")
-        if held_steps < d.total:
-            head += (f"; the rank condition of Proposition 1 failed at {d.total - held_steps} of them and DMF "
-                     "was exact anyway")
-        out.append(head + ".")
-    elif exact_steps == d.total:
-        head = (f"Every sensor was judged exact at all {d.total} steps{d.of_runs}, and the one-step gap stayed "
-                f"within the rounding bound at {n_within} of them; at {d.total - n_within} it exceeded the bound "
-                f"(largest gap {_g(max_gap)}, explained below)")
-        if held_steps < d.total:
-            head += (f"; the rank condition of Proposition 1 failed at {d.total - held_steps} of them and DMF "
-                     "was exact anyway")
-        out.append(head + ".")
-    else:
+    out = [verdict_sentence(results)]
+    if exact_steps < d.total:
         worst = np.unravel_index(np.argmax(d.gap), d.gap.shape)
-        out.append(f"DMF differed from CMF at {d.total - exact_steps} of {d.total} steps{d.of_runs} and "
-                   f"reproduced it at {exact_steps} (largest one-step gap {_g(max_gap)}, at {d.where([worst])}); "
+        out.append(f"The exactness condition (ker C_xy^m ⊆ ker G_m C_y^m) failed at {d.total - exact_steps} of "
+                   f"{d.total} steps; the largest gap was at {d.where([worst])}; "
                    + ("the rank condition of Proposition 1 never held." if held_steps == 0 else
                       f"the rank condition of Proposition 1 held at {held_steps} of the {d.total} steps."))
+    elif n_within < d.total:
+        out.append(f"Every sensor was judged exact at every step, yet at {d.total - n_within} step(s) the gap "
+                   "exceeded the rounding bound (explained below).")
     out += [s for s in (_sensor_sentence(d, m) for m in range(d.n)) if s]
     inexact = ~d.step_exact
     if inexact.any():
@@ -349,7 +338,7 @@ def inexact_table(d: CheckData) -> Table | None:
                      ", ".join(f"{d.repair[r, t, m]}" for m in culprits) or "0"])
     caption = (f"Steps judged not exact, or with a gap above the rounding bound ({len(where)} of {d.total})"
                + (f"; the first {MAX_STEP_ROWS} listed" if len(where) > MAX_STEP_ROWS else ""))
-    return Table(["run", "k", "‖gap‖", "rounding bound", "exact", "sensors without full rank",
+    return Table(["run", "k", "gap (prior sd)", "rounding bound", "exact", "sensors without full rank",
                   "share of the gap (sensors not exact)", "repair numbers"], rows, caption)
 
 
@@ -434,8 +423,9 @@ def equivalence_sections(results: dict, fig_dir: Path, fig_prefix: str = FIGURES
 
     gap = Section("gap", "The gap per step")
     path, floor = ef.plot_gap(d.ks, d.gap, d.bound, ~d.step_exact, fig_dir / "gap.png", d.run_labels)
-    gap.add(Figure(path, "‖μ_DMF − μ_CMF‖ per step from the same central prediction (solid) against the rounding "
-                         "bound of that step (dashed), log scale; circles: steps judged not exact"
+    gap.add(Figure(path, "‖L_p⁻¹(μ_DMF − μ_CMF)‖ per step, in prior standard deviations, from the same central "
+                         "prediction (solid) against the rounding bound of that step (dashed, "
+                         "docs/fusion-definitions.md), log scale; circles: steps judged not exact"
                    + (f"; zero gaps drawn at {_g(floor)}" if (d.gap <= 0).any() else "")
                    + (" (median and range over runs)" if d.runs_ok > ef.MAX_RUN_LINES else "")))
     gap.add(Figure(ef.plot_verdict_strip(d.ks, d.full, d.exact, labels, fig_dir / "verdicts.png",
