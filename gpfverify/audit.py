@@ -53,6 +53,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from gpfverify.angles import difference
 from gpfverify.errors import NumericalError
 from gpfverify.fusion.case import FusionCase, case_from_records
 from gpfverify.fusion.centralized import cmf_update
@@ -217,7 +218,7 @@ def _unit_free_variant(case: FusionCase, rule: RankRule, dmf: DMFResult) -> tupl
     if rule.name != "canonical" or dmf.condition_holds:
         return None, None
     variant = dmf_update(case, rank_rule=rule, unit_free=True).mean
-    return variant, gap_size(case, dmf.mean - variant, dmf.scale)
+    return variant, gap_size(case, difference(dmf.mean, variant, case.circular_state), dmf.scale)
 
 
 def audit_case(case: FusionCase, rank_tol: float | None = None, sensitivity: bool = False,
@@ -265,12 +266,12 @@ def audit_case(case: FusionCase, rank_tol: float | None = None, sensitivity: boo
                          None, None, None, *unit_free)
     cmf = cmf_update(case.central, case.y, dmf.gain)
     repaired = dmf_update(case, messages, rank_rule=rule)
-    gap = dmf.mean - cmf.mean
+    gap = difference(dmf.mean, cmf.mean, case.circular_state)
     predicted = predicted_gap(case, dmf.sensors, dmf.gain)
     return CaseAudit(tuple(sensors), rule, dmf.condition_holds, dmf.exact, dmf.mean, cmf.mean, gap,
                      predicted, repaired.mean,
                      gap_size(case, gap, dmf.scale), equivalence_tolerance(case, dmf.gain, dmf.sensors, dmf.scale),
-                     gap_size(case, gap - predicted, dmf.scale), *unit_free)
+                     gap_size(case, difference(gap, predicted, case.circular_state), dmf.scale), *unit_free)
 
 
 def rank_rule_to_dict(rule: RankRule, covariance: str | None = None, tol: float | None = None) -> dict:

@@ -13,7 +13,9 @@ A fusion case holds what the fusion centre knows at time k (seed 000 §3):
 * optionally which outputs are angles in radians: ``locals[m].circular`` (0-based indices into
   sensor m's outputs) and/or ``central.circular`` (indices into the stacked measurement); when both
   are given they must agree. Every difference of an angle output (y − μ_y, μ_y^m − μ_y(m), the CMF
-  innovation) is then taken on the circle, wrapped to (−π, π] (:mod:`gpfverify.angles`).
+  innovation) is then taken on the circle, wrapped to (−π, π] (:mod:`gpfverify.angles`);
+* optionally which state components are angles: top-level ``circular_state`` (0-based indices);
+  μ_e^m − μ_p^m in eq. 35, the fused means and the gap are then taken on the circle.
 
 Every check raises :class:`~gpfverify.errors.CaseFileError` naming the offending entry.
 
@@ -65,7 +67,8 @@ def split_circular(stacked, sizes) -> tuple[tuple[int, ...], ...]:
 class CentralPrediction:
     """The fusion centre's prediction: mu_p (D,), C_p (D, D), mu_y (L,), C_y (L, L) positive
     definite, C_xy (D, L); ``sizes`` the measurement dimension of each sensor (Σ = L);
-    ``circular`` the angle outputs of the stacked measurement (sorted 0-based indices)."""
+    ``circular`` the angle outputs of the stacked measurement and ``circular_state`` the angle
+    components of the state (sorted 0-based indices; a case file's top-level ``circular_state``)."""
 
     mu_p: np.ndarray
     C_p: np.ndarray
@@ -74,6 +77,7 @@ class CentralPrediction:
     C_xy: np.ndarray
     sizes: tuple[int, ...]
     circular: tuple[int, ...] = ()
+    circular_state: tuple[int, ...] = ()
 
     @property
     def blocks(self) -> list[slice]:
@@ -111,6 +115,16 @@ class FusionCase:
         if stacked != tuple(self.central.circular):
             raise InputError(f"central.circular {list(self.central.circular)} disagrees with the "
                              f"sensors' circular outputs (stacked: {list(stacked)})")
+        states = self.central.circular_state
+        if len(set(states)) != len(states) or any(not 0 <= i < self.state_dim for i in states):
+            raise InputError(f"circular_state {list(states)} must be distinct state indices in "
+                             f"[0, {self.state_dim - 1}]")
+
+    @property
+    def circular_state(self) -> tuple[int, ...]:
+        """The angle components of the state (radians): every difference and mean of them in eq. 35,
+        CMF and the audit is taken on the circle."""
+        return self.central.circular_state
 
     @property
     def state_dim(self) -> int:
@@ -167,14 +181,18 @@ def case_to_dict(case: FusionCase) -> dict:
         out["y"] = case.y.tolist()
     if case.rank_tol is not None:
         out["rank_tol"] = case.rank_tol
+    if case.circular_state:
+        out["circular_state"] = list(case.circular_state)
     return out
 
 
-def case_from_records(central, local_records, sizes, y=None, rank_tol=None, circular=()) -> FusionCase:
+def case_from_records(central, local_records, sizes, y=None, rank_tol=None, circular=(),
+                      circular_state=()) -> FusionCase:
     """A case from filter records: ``central`` has the centre's mu_p, C_p, mu_y, C_y, C_xy
     (e.g. the CMF :class:`~gpfverify.filters.records.StepRecord`); ``local_records`` are the
     sensors' step records (their mu_e and C_e are what they send); ``circular`` the angle outputs
-    of the stacked measurement (e.g. a model's ``circular``)."""
+    of the stacked measurement (e.g. a model's ``circular``), ``circular_state`` the angle state
+    components (a model's ``circular_state``)."""
     return case_from_dict({
         "central": {"mu_p": np.asarray(central.mu_p).tolist(), "C_p": np.asarray(central.C_p).tolist(),
                     "mu_y": np.asarray(central.mu_y).tolist(), "C_y": np.asarray(central.C_y).tolist(),
@@ -186,4 +204,5 @@ def case_from_records(central, local_records, sizes, y=None, rank_tol=None, circ
                    for r in local_records],
         "y": None if y is None else np.asarray(y, dtype=float).tolist(),
         "rank_tol": rank_tol,
+        "circular_state": [int(i) for i in circular_state],
     })

@@ -66,6 +66,7 @@ class CaseBlock:
     locals: tuple[LocalBlock, ...]
     y: np.ndarray | None
     rank_tol: np.ndarray
+    circular_state: tuple[int, ...] = ()
 
     def __len__(self) -> int:
         return self.mu_p.shape[0]
@@ -83,7 +84,7 @@ class CaseBlock:
     def case(self, t: int) -> FusionCase:
         """Step t as a FusionCase (its arrays are views of the block's)."""
         central = CentralPrediction(self.mu_p[t], self.C_p[t], self.mu_y[t], self.C_y[t], self.C_xy[t],
-                                    self.sizes, self.circular)
+                                    self.sizes, self.circular, self.circular_state)
         local_circular = split_circular(self.circular, self.sizes)
         reports = tuple(LocalReport(r.mu_p[t], r.mu_y[t], r.C_y[t], r.C_xy[t], r.mu_e[t],
                                     r.C_e[t] if r.C_e is not None and r.has_C_e[t] else None, c)
@@ -162,7 +163,7 @@ def check_block(block: CaseBlock) -> CaseBlock:
         tuple(LocalBlock(r.mu_p, r.mu_y, sym[f"locals[{m}].C_y"], r.C_xy, r.mu_e,
                          None if r.C_e is None else sym[f"locals[{m}].C_e"], r.has_C_e)
               for m, r in enumerate(block.locals)),
-        block.y, block.rank_tol)
+        block.y, block.rank_tol, block.circular_state)
 
 
 # --------------------------------------------------------------------------------------------
@@ -174,7 +175,8 @@ def checked_indices(value, count: int, entry: str) -> tuple[int, ...] | None:
         return None
     for i in value:
         if not 0 <= i < count:
-            raise CaseFileError(f"{entry} index {i} is out of range for {count} output(s)")
+            what = "state component(s)" if entry == "circular_state" else "output(s)"
+            raise CaseFileError(f"{entry} index {i} is out of range for {count} {what}")
     if len(set(value)) != len(value):
         raise CaseFileError(f"{entry} lists an index twice: {list(value)}")
     return tuple(sorted(value))
@@ -196,9 +198,9 @@ def agreed_circular(central, per_sensor, sizes) -> tuple[int, ...]:
     return central
 
 
-def layout(record: Case) -> tuple[int, tuple[int, ...], tuple[int, ...]]:
-    """(D, sizes, stacked angle outputs) of a decoded record; CaseFileError when the record's own
-    sensors, sizes and angle lists disagree."""
+def layout(record: Case) -> tuple[int, tuple[int, ...], tuple[int, ...], tuple[int, ...]]:
+    """(D, sizes, stacked angle outputs, angle state components) of a decoded record;
+    CaseFileError when the record's own sensors, sizes and angle lists disagree."""
     sizes = tuple(record.central.sizes)
     if len(record.locals) != len(sizes):
         raise CaseFileError(f"locals has {len(record.locals)} entries but central.sizes lists "
@@ -206,7 +208,9 @@ def layout(record: Case) -> tuple[int, tuple[int, ...], tuple[int, ...]]:
     central = checked_indices(given(record.central.circular), sum(sizes), "central.circular")
     per_sensor = [checked_indices(given(r.circular), s, f"locals[{m}].circular")
                   for m, (r, s) in enumerate(zip(record.locals, sizes))]
-    return len(record.central.mu_p), sizes, agreed_circular(central, per_sensor, sizes)
+    d = len(record.central.mu_p)
+    states = checked_indices(given(record.circular_state), d, "circular_state") or ()
+    return d, sizes, agreed_circular(central, per_sensor, sizes), states
 
 
 def _shape_problem(value, shape: tuple[int, ...], entry: str) -> str | None:
@@ -232,7 +236,7 @@ def block_from_records(records: Sequence[Case]) -> CaseBlock:
     """Stack and check decoded records that share one layout (:func:`layout`, checked by the
     caller); raises :class:`StepError` for the first step that breaks a rule."""
     first = records[0]
-    d, sizes, circular = layout(first)
+    d, sizes, circular, circular_state = layout(first)
     total = sum(sizes)
     fields = [("central.mu_p", lambda r: r.central.mu_p, (d,)), ("central.C_p", lambda r: r.central.C_p, (d, d)),
               ("central.mu_y", lambda r: r.central.mu_y, (total,)),
@@ -276,7 +280,7 @@ def block_from_records(records: Sequence[Case]) -> CaseBlock:
     rank_tol = np.array([np.nan if given(r.rank_tol) is None else r.rank_tol for r in records], dtype=float)
     return check_block(CaseBlock(sizes, circular, arrays["central.mu_p"], arrays["central.C_p"],
                                  arrays["central.mu_y"], arrays["central.C_y"], arrays["central.C_xy"],
-                                 locals_, stacked_optional.get("y"), rank_tol))
+                                 locals_, stacked_optional.get("y"), rank_tol, circular_state))
 
 
 def _raise_shape_problem(records, t: int, fields, optional) -> None:
@@ -297,7 +301,7 @@ def _raise_shape_problem(records, t: int, fields, optional) -> None:
 
 def block_from_arrays(sizes: Sequence[int], circular: Sequence[int], central: dict[str, np.ndarray],
                       local: Sequence[dict[str, np.ndarray | None]], y: np.ndarray | None,
-                      rank_tol: np.ndarray) -> CaseBlock:
+                      rank_tol: np.ndarray, circular_state: Sequence[int] = ()) -> CaseBlock:
     """A checked block from arrays already of the right shapes (an npz run file's rows):
     ``central`` with keys mu_p, C_p, mu_y, C_y, C_xy; ``local[m]`` with mu_p, mu_y, C_y, C_xy,
     mu_e and C_e (or None); ``y`` with NaN rows where a step has none; ``rank_tol`` NaN for none."""
@@ -312,5 +316,5 @@ def block_from_arrays(sizes: Sequence[int], circular: Sequence[int], central: di
     return check_block(CaseBlock(tuple(int(s) for s in sizes), tuple(int(i) for i in circular), f["mu_p"],
                                  f["C_p"], f["mu_y"], f["C_y"], f["C_xy"], tuple(locals_),
                                  None if y is None else np.asarray(y, dtype=float),
-                                 np.asarray(rank_tol, dtype=float)))
+                                 np.asarray(rank_tol, dtype=float), tuple(int(i) for i in circular_state)))
 

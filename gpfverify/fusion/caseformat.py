@@ -44,6 +44,8 @@ StackedIndices = Annotated[list[Index], Meta(description="0-based indices of ang
                                                          "stacked measurement; distinct")]
 SensorIndices = Annotated[list[Index], Meta(description="0-based indices of angle outputs (radians) into the "
                                                         "sensor's own outputs; distinct")]
+StateIndices = Annotated[list[Index], Meta(description="0-based indices of angle components (radians) of the "
+                                                       "state; distinct")]
 OptionalCovariance = Annotated[Matrix, Meta(description="(D, D), optional posterior covariance, a list of rows")]
 
 
@@ -82,6 +84,7 @@ class Case(Struct, forbid_unknown_fields=True):
     rank_tol: Annotated[float, Meta(ge=0, le=MAX_MAGNITUDE, description="optional absolute singular-value "
                                                                         "tolerance for rank(C_xy^m)")] \
         | None | UnsetType = UNSET
+    circular_state: StateIndices | None | UnsetType = UNSET
 
 
 class RunLine(Case, forbid_unknown_fields=True):

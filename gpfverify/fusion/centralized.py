@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from gpfverify.angles import difference
+from gpfverify.angles import difference, wrap_components
 from gpfverify.filters.records import Gaussian
 from gpfverify.fusion.case import CentralPrediction
 from gpfverify.linalg import right_solve_spd, symmetrize
@@ -30,7 +30,9 @@ def fused_covariance(central: CentralPrediction, gain: np.ndarray) -> np.ndarray
 
 
 def cmf_update(central: CentralPrediction, y: np.ndarray, gain: np.ndarray | None = None) -> Gaussian:
-    """The CMF posterior N(μ_p + G (y ⊖ μ_y), C_p − G C_xyᵀ) for the stacked measurement ``y``."""
+    """The CMF posterior N(μ_p + G (y ⊖ μ_y), C_p − G C_xyᵀ) for the stacked measurement ``y``
+    (angle state components of the mean wrapped to (−π, π])."""
     gain = fusion_gain(central) if gain is None else gain
     innovation = difference(y, central.mu_y, central.circular)
-    return Gaussian(central.mu_p + gain @ innovation, fused_covariance(central, gain))
+    mean = wrap_components(central.mu_p + gain @ innovation, central.circular_state)
+    return Gaussian(mean, fused_covariance(central, gain))

@@ -19,6 +19,8 @@ experiments' reference numbers.)
 
 Computed as μ_p + G v with v stacked from the per-sensor terms (one product with G). ⊖ wraps the
 angle outputs (``locals[m].circular``) to (−π, π]; the local update already wrapped y^m − μ_y^m.
+Angle state components (the case's ``circular_state``): μ_e^m − μ_p^m is taken on the circle and
+the fused mean's components are wrapped to (−π, π], as CMF's are.
 Wrapping the two terms separately can land on another branch than CMF's wrap(y^m − μ_y(m)): see
 :func:`~gpfverify.fusion.exactness.branch_offsets`.
 """
@@ -30,7 +32,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from gpfverify.angles import difference
+from gpfverify.angles import difference, wrap_components
 from gpfverify.errors import InputError
 from gpfverify.fusion.case import FusionCase
 from gpfverify.fusion.centralized import fused_covariance, fusion_gain
@@ -83,7 +85,7 @@ def dmf_update(case: FusionCase, repair_messages: Sequence[np.ndarray] | None = 
         raise InputError(f"repair_messages needs {len(case.locals)} entries, got {len(repair_messages)}")
     parts = []
     for s, block, local in zip(sensors, central.blocks, case.locals):
-        recovered = s.split.pinv @ (local.mu_e - local.mu_p)
+        recovered = s.split.pinv @ difference(local.mu_e, local.mu_p, case.circular_state)
         if repair_messages is not None:
             k_m = np.asarray(repair_messages[s.index], dtype=float)
             if k_m.shape != local.mu_y.shape:
@@ -91,6 +93,6 @@ def dmf_update(case: FusionCase, repair_messages: Sequence[np.ndarray] | None = 
                                  f"({local.mu_y.shape[0]} entries), got shape {k_m.shape}")
             recovered = recovered + s.split.kernel_component(k_m)
         parts.append(difference(local.mu_y, central.mu_y[block], local.circular) + local.C_y @ recovered)
-    mean = central.mu_p + gain @ np.concatenate(parts)
+    mean = wrap_components(central.mu_p + gain @ np.concatenate(parts), case.circular_state)
     return DMFResult(mean, fused_covariance(central, gain), gain, sensors, repair_messages is not None, rule,
                      unit_free, scale)

@@ -507,7 +507,8 @@ def local_consistency_residual(case: FusionCase, m: int) -> np.ndarray:
     posterior is the local update with the logged y (eq. 32); when it is not, the observed gap
     need not equal the predicted one."""
     local = case.locals[m]
-    return local.mu_e - local.mu_p - local.C_xy @ whitened_innovation(local, case.local_measurement(m))
+    change = difference(local.mu_e, local.mu_p, case.circular_state)
+    return change - local.C_xy @ whitened_innovation(local, case.local_measurement(m))
 
 
 def range_condition_number(split: KernelSplit) -> float:
@@ -539,7 +540,7 @@ def equivalence_tolerance(case: FusionCase, gain: np.ndarray, sensors: tuple[Sen
     magnitudes = 2.0 * np.abs(c.mu_p) + np.abs(gain) @ (np.abs(case.y) + np.abs(c.mu_y))
     reconstruction = np.zeros(case.state_dim)
     for s, block, local in zip(sensors, c.blocks, case.locals):
-        change = local.mu_e - local.mu_p
+        change = difference(local.mu_e, local.mu_p, case.circular_state)
         recovered = s.split.pinv @ change
         carried = np.abs(gain[:, block] @ local.C_y @ s.split.pinv)
         report = np.abs(local.mu_e) + np.abs(local.mu_p) + correlation_condition(local.C_y) * np.abs(change)

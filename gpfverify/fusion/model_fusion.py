@@ -20,8 +20,9 @@ stacked, so its C_y carries the cross-sensor blocks); sensor m's local filter ru
   intersection, rcc-ci: relaxed Chebyshev centre CI, ellipsoids enlarged when they do not
   intersect) and the per-step rank-condition audit (:func:`gpfverify.audit.audit_case`).
 
-Angle state components (``model.circular_state``) of the fused DMF mean are wrapped as the CMF
-update wraps them; eq. 35's μ_e^m − μ_p^m is not (angle *states* are not part of the case format).
+Angle state components (``model.circular_state``) travel in every fusion case
+(``central.circular_state``): eq. 35's μ_e^m − μ_p^m is taken on the circle and the fused means
+are wrapped, DMF's as CMF's.
 The convex-solver baselines (ci, rcc-ci: cvxpy) are imported only when requested.
 """
 
@@ -34,7 +35,6 @@ from collections.abc import Callable, Sequence
 
 import numpy as np
 
-from gpfverify.angles import wrap_components
 from gpfverify.errors import InputError
 from gpfverify.filters.families import GP_FAMILIES, GaussianFamily, gaussian_family
 from gpfverify.filters.records import Gaussian, StepRecord
@@ -72,7 +72,8 @@ def central_prediction(belief: Gaussian, model, *, k: int = 1, family: str = "uk
     prediction = chosen.predict(belief, model, k=k)
     moments = chosen.measurement(prediction, model, k=k)
     return prediction, CentralPrediction(prediction.mean, prediction.cov, moments.mu_y, moments.C_y,
-                                         moments.C_xy, tuple(model.sizes), tuple(model.circular))
+                                         moments.C_xy, tuple(model.sizes), tuple(model.circular),
+                                         tuple(model.circular_state))
 
 
 def cmf_step(belief: Gaussian, model, y, *, k: int = 1, family: str = "ukf",
@@ -123,8 +124,7 @@ def dmf_step(belief: Gaussian, model, y=None, *, local_records: Sequence[StepRec
     case = FusionCase(central, local_reports(local_records, central), stacked, rank_tol)
     rule = resolve_rank_rule(None, rank_rule, rank_tol, default=NUMPY_RANK_RULE)
     result, seconds = _timed(dmf_update, case, rank_rule=rule)
-    mean = wrap_components(result.mean, model.circular_state)
-    record = StepRecord(central.mu_p, central.C_p, central.mu_y, central.C_y, central.C_xy, mean, result.cov)
+    record = StepRecord(central.mu_p, central.C_p, central.mu_y, central.C_y, central.C_xy, result.mean, result.cov)
     return DMFStep(record, case, result, seconds)
 
 

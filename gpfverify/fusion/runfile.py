@@ -224,7 +224,8 @@ def _lines(path: Path) -> Iterator[tuple[int, bytes]]:
 
 
 def _signature_difference(sig, first) -> str:
-    names = ("state dimension D", "central.sizes", "angle outputs (central.circular)")
+    names = ("state dimension D", "central.sizes", "angle outputs (central.circular)",
+             "angle state components (circular_state)")
 
     def shown(v):
         return list(v) if isinstance(v, tuple) else v
@@ -251,7 +252,7 @@ class _JsonlState:
         """(D, sizes, circular) of a record; the first line's computed once and reused for lines
         that write the same sizes and angle lists."""
         raw = (len(record.central.mu_p), record.central.sizes, given(record.central.circular),
-               [given(r.circular) for r in record.locals])
+               [given(r.circular) for r in record.locals], given(record.circular_state))
         if raw == self._raw_layout:
             return self.first_layout
         return layout(record)
@@ -285,7 +286,7 @@ class _JsonlState:
         if self.first_layout is None:
             self.first_layout = sig
             self._raw_layout = (len(record.central.mu_p), record.central.sizes, given(record.central.circular),
-                                [given(r.circular) for r in record.locals])
+                                [given(r.circular) for r in record.locals], given(record.circular_state))
         elif sig != self.first_layout:
             refuse(f"{_signature_difference(sig, self.first_layout)} (every step of a run has the same "
                    f"dimensions and angle outputs)", record)
@@ -327,6 +328,7 @@ NPZ_ARRAYS = {
     "local{m}_C_e": ("(T, D, D)", False),
     "circular{m}": ("(n_m,)", False),
     "central_circular": ("(n,)", False),
+    "circular_state": ("(n,)", False),
     "y": ("(T, L)", False),
     "k": ("(T,)", False),
     "rank_tol": ("() or (T,)", False),
@@ -398,7 +400,7 @@ class _NpzLayout:
                              f"local{m}_C_xy": ((T, D, l), f"(T, D, l_{m})"), f"local{m}_mu_e": ((T, D), "(T, D)")})
             optional[f"local{m}_C_e"] = ((T, D, D), "(T, D, D)")
         circular_names = ["central_circular"] + [f"circular{m}" for m in range(len(self.sizes))]
-        known = set(expected) | set(optional) | {"sizes", "rank_tol"} | set(circular_names)
+        known = set(expected) | set(optional) | {"sizes", "rank_tol", "circular_state"} | set(circular_names)
         unknown = sorted(set(headers) - known)
         if unknown:
             raise CaseFileError(f"{path}: unknown array(s) {', '.join(unknown)} (N = {len(self.sizes)} sensors "
@@ -439,6 +441,13 @@ class _NpzLayout:
                 given_circular[name] = [int(i) for i in self._small(name)]
         try:
             self.circular = _npz_circular(given_circular, self.sizes)
+            self.circular_state: tuple[int, ...] = ()
+            if "circular_state" in headers:
+                if len(headers["circular_state"].shape) != 1 or headers["circular_state"].shape[0] > D:
+                    raise CaseFileError(f"array circular_state must be a list of at most {D} state indices, "
+                                        f"got shape {headers['circular_state'].shape}")
+                self.circular_state = checked_indices([int(i) for i in self._small("circular_state")], D,
+                                                      "circular_state") or ()
         except CaseFileError as exc:
             raise CaseFileError(f"{path}: {_npz_name(_one_line(exc))}") from None
         self.streamed = [n for n in headers if n in expected or (n in optional and n != "k")]
@@ -453,7 +462,7 @@ class _NpzLayout:
                 local = [{key: rows.get(f"local{m}_{key}") for key in _LOCAL_KEYS} for m in range(len(self.sizes))]
                 try:
                     block = block_from_arrays(self.sizes, self.circular, central, local, rows.get("y"),
-                                              self.rank_tol[start:stop])
+                                              self.rank_tol[start:stop], self.circular_state)
                 except StepError as exc:
                     t = start + exc.step
                     raise CaseFileError(f"{self.path} step {t} (k = {int(self.ks[t])}): "
@@ -536,7 +545,7 @@ def write_run(path, cases: Iterable[FusionCase], ks: Sequence[int] | None = None
 
 
 def _shape_signature(case: FusionCase) -> tuple:
-    return case.state_dim, tuple(case.central.sizes), tuple(case.central.circular)
+    return case.state_dim, tuple(case.central.sizes), tuple(case.central.circular), tuple(case.circular_state)
 
 
 def _npz_arrays(cases: list[FusionCase], ks) -> dict[str, np.ndarray]:
@@ -560,6 +569,8 @@ def _npz_arrays(cases: list[FusionCase], ks) -> dict[str, np.ndarray]:
             raise InputError(f"locals[{m}].C_e must be given at every step or at none for an npz run file")
         if cases[0].locals[m].circular:
             out[f"circular{m}"] = np.array(cases[0].locals[m].circular, dtype=np.int64)
+    if cases[0].circular_state:
+        out["circular_state"] = np.array(cases[0].circular_state, dtype=np.int64)
     if any(c.y is not None for c in cases):
         nan = np.full(sum(sizes), np.nan)
         out["y"] = np.stack([nan if c.y is None else c.y for c in cases])
