@@ -11,13 +11,13 @@ import argparse
 import contextlib
 import json
 import sys
-from pathlib import Path
 
 from gpfverify.audit import (RANK_RULE_DEFAULT, RunAudit, audit_case, audit_to_dict, format_audit,
                              parse_rank_rule)
 from gpfverify.cli import positive_int
 from gpfverify.errors import InputError
 from gpfverify.fusion.runfile import run_format
+from gpfverify.outputs import check_out, out_path, output_folder
 from gpfverify.report.document import integer_ranges
 from gpfverify.runaudit import copy_out, spool, stream_audit, table_header, table_row
 
@@ -41,7 +41,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="how the rank of each C_xy^m is decided: canonical[:TAU] (canonical "
                              "correlations > TAU, unit-free), absolute:TOL (singular values > TOL) or "
                              "numpy; overrides the case's 'rank_tol'; not together with --rank-tol")
-    parser.add_argument("--out", type=Path, default=None, metavar="DIR",
+    parser.add_argument("--out", type=out_path, default=None, metavar="DIR",
                         help="run files: write the report (DIR/report.html, DIR/README.md, figures, "
                              "DIR/audit.json)")
     parser.add_argument("--workers", type=positive_int, default=1, metavar="N",
@@ -140,8 +140,9 @@ def _audit_run(args: argparse.Namespace) -> None:
         if args.out is not None:
             from gpfverify.report.equivalence import write_run_audit_report
 
-            write_run_audit_report({"steps": steps, "summary": summary, "rank_rule": summary["rank_rule"]},
-                                   args.out)
+            with output_folder(args.out, keep=False) as stage:
+                write_run_audit_report({"steps": steps, "summary": summary, "rank_rule": summary["rank_rule"]},
+                                       stage)
         copy_out(out)
 
 
@@ -159,5 +160,7 @@ def run(args: argparse.Namespace) -> int:
                        args.sensitivity)
         print(json.dumps(audit_to_dict(audit)) if args.json else format_audit(audit))
         return 0
+    if args.out is not None:
+        check_out(args.out)  # before the audit: a refused folder costs nothing
     _audit_run(args)
     return 0

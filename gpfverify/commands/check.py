@@ -16,6 +16,7 @@ import tempfile
 from pathlib import Path
 
 from gpfverify.filters.families import FAMILY_NAMES
+from gpfverify.outputs import check_out, out_path, output_folder
 
 
 def _methods(text: str) -> list[str]:
@@ -47,7 +48,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="how the rank of each C_xy^m is decided: canonical[:TAU] (default; canonical "
                              "correlations of state and sensor output > TAU, unit-free), absolute:TOL "
                              "(singular values > TOL) or numpy (sigma_max * max(D, l) * eps)")
-    parser.add_argument("--out", type=Path, default=None, help="output folder (results.json, runs/, report)")
+    parser.add_argument("--out", type=out_path, default=None, help="output folder (results.json, runs/, report)")
     parser.add_argument("--json", action="store_true", help="print results.json to stdout")
     parser.add_argument("--resume", action="store_true", help="continue the runs saved in --out")
     parser.add_argument("--workers", type=int, default=1, help="local worker processes (default 1)")
@@ -73,14 +74,20 @@ def run(args: argparse.Namespace) -> int:
         raise InputError(f"--workers must be at least 1, got {args.workers}")
     if args.out is None and not args.json:
         raise InputError("give --out DIR (results and report) and/or --json (results on stdout)")
+    if args.out is not None:
+        check_out(args.out)
     with contextlib.ExitStack() as stack:
-        out = args.out if args.out is not None else Path(stack.enter_context(tempfile.TemporaryDirectory()))
+        if args.out is not None:
+            out = stack.enter_context(output_folder(args.out, keep=True))
+        else:
+            out = Path(stack.enter_context(tempfile.TemporaryDirectory()))
         with make_executor(args.workers, args.scheduler) as executor:
             results = run_experiment(check, params, args.runs, args.seed, out, args.resume, executor)
         if args.out is not None:
+            check.write_run_files(out, args.runs)
             from gpfverify.report.equivalence import write_equivalence_report
 
-            write_equivalence_report(results, args.out)
+            write_equivalence_report(results, out)
     if results["failed_runs"]:
         first = results["failed_runs"][0]
         print(f"gpfverify check: {len(results['failed_runs'])} run(s) failed; first: {first['error']}",

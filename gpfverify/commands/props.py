@@ -25,6 +25,7 @@ holds, 1 when one fails, 2 on a usage error.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
 import os
 import sys
@@ -32,6 +33,7 @@ import time
 from pathlib import Path
 
 from gpfverify.errors import InputError
+from gpfverify.outputs import check_out, final_path, out_path, output_folder
 
 PROFILES = ("ci", "dev", "thorough")
 FAILURE_LINES = 40
@@ -49,7 +51,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--profile", choices=PROFILES, default="ci",
                         help="hypothesis profile: ci (derandomised, as in make test), dev, "
                              "thorough (many examples, minutes); default ci")
-    parser.add_argument("--out", type=Path, required=True, help="output folder for summary.json")
+    parser.add_argument("--out", type=out_path, required=True, help="output folder for summary.json")
     parser.add_argument("--suite", type=Path, default=None,
                         help="folder of property modules (default: property_tests/ of the source "
                              "tree the package is installed from)")
@@ -107,6 +109,56 @@ def make_collector(pytest):
     return Collector()
 
 
+def _run_suite(pytest, suite: Path, stage: Path, args: argparse.Namespace) -> dict:
+    """Run the property suite with its counterexamples written under ``stage``: the summary.
+    pytest's own output goes to stderr when the suite ran, nowhere when pytest refused the
+    arguments (the one error line says why); hypothesis keeps its files in a temporary folder,
+    not in the current one."""
+    import io
+    import tempfile
+
+    from hypothesis import configuration
+
+    counterexamples = stage / "counterexamples"
+    collector = make_collector(pytest)
+    options = [str(suite), "-q", "-p", "no:cacheprovider", f"--hypothesis-profile={args.profile}",
+               f"--rootdir={suite.parent}", "-W", "ignore::UserWarning"]
+    if args.keyword:
+        options += ["-k", args.keyword]
+    home = getattr(configuration, "__hypothesis_home_directory")
+    captured = io.StringIO()
+    start = time.perf_counter()
+    with tempfile.TemporaryDirectory(prefix="gpfverify-hypothesis-") as scratch, \
+            contextlib.redirect_stdout(captured), contextlib.redirect_stderr(captured):
+        os.environ["GPFVERIFY_COUNTEREXAMPLES"] = str(counterexamples)
+        configuration.set_hypothesis_home_dir(scratch)
+        try:
+            code = pytest.main(options, plugins=[collector])
+        finally:
+            configuration.set_hypothesis_home_dir(home)
+            os.environ.pop("GPFVERIFY_COUNTEREXAMPLES", None)
+    seconds = time.perf_counter() - start
+    if code not in (pytest.ExitCode.OK, pytest.ExitCode.TESTS_FAILED):
+        said = [line for line in captured.getvalue().splitlines() if "error" in line.lower()]
+        raise InputError(f"the property suite could not run (pytest exit status {int(code)})"
+                         + (f": {said[0].strip()}" if said else ""))
+    sys.stderr.write(captured.getvalue())
+    files = sorted(counterexamples.glob("*.json")) if counterexamples.is_dir() else []
+    properties = sorted(collector.records.values(), key=lambda r: r["name"])
+    from gpfverify.provenance import current
+
+    return {
+        "provenance": current(),
+        "profile": args.profile, "suite": str(suite), "passed": code == pytest.ExitCode.OK,
+        "seconds": round(seconds, 3), "properties": properties,
+        "counterexample_files": [str(f) for f in files],
+        "totals": {"properties": len(properties),
+                   "passed": sum(r["outcome"] == "passed" for r in properties),
+                   "failed": sum(r["outcome"] == "failed" for r in properties),
+                   "examples": sum(r["examples"] or 0 for r in properties)},
+    }
+
+
 def run(args: argparse.Namespace) -> int:
     try:
         import hypothesis  # noqa: F401
@@ -121,35 +173,16 @@ def run(args: argparse.Namespace) -> int:
     if not suite.is_dir() or not any(suite.glob("test_*.py")):
         raise InputError(f"no property suite at {suite}: gpfverify props needs the source tree "
                          "(property_tests/) or --suite DIR")
-    out = args.out
-    counterexamples = (out / "counterexamples").resolve()
-    out.mkdir(parents=True, exist_ok=True)
-    collector = make_collector(pytest)
-    os.environ["GPFVERIFY_COUNTEREXAMPLES"] = str(counterexamples)
-    options = [str(suite), "-q", "-p", "no:cacheprovider", f"--hypothesis-profile={args.profile}",
-               f"--rootdir={suite.parent}", "-W", "ignore::UserWarning"]
-    if args.keyword:
-        options += ["-k", args.keyword]
-    start = time.perf_counter()
-    code = pytest.main(options, plugins=[collector])
-    seconds = time.perf_counter() - start
-    if code not in (pytest.ExitCode.OK, pytest.ExitCode.TESTS_FAILED):
-        raise InputError(f"the property suite could not run (pytest exit status {int(code)})")
-    files = sorted(counterexamples.glob("*.json")) if counterexamples.is_dir() else []
-    properties = sorted(collector.records.values(), key=lambda r: r["name"])
-    from gpfverify.provenance import current
-
-    summary = {
-        "provenance": current(),
-        "profile": args.profile, "suite": str(suite), "passed": code == pytest.ExitCode.OK,
-        "seconds": round(seconds, 3), "properties": properties,
-        "counterexample_files": [str(f) for f in files],
-        "totals": {"properties": len(properties),
-                   "passed": sum(r["outcome"] == "passed" for r in properties),
-                   "failed": sum(r["outcome"] == "failed" for r in properties),
-                   "examples": sum(r["examples"] or 0 for r in properties)},
-    }
-    (out / "summary.json").write_text(json.dumps(summary, indent=2) + "\n")
+    check_out(args.out)
+    with output_folder(args.out, keep=False) as stage:
+        summary = _run_suite(pytest, suite, stage, args)
+        summary["counterexample_files"] = [str(final_path(Path(f), stage, args.out))
+                                           for f in summary["counterexample_files"]]
+        for record in summary["properties"]:
+            record["counterexample_files"] = [str(final_path(Path(f), stage, args.out)) if f.startswith(str(stage))
+                                              else f for f in record["counterexample_files"]]
+        (stage / "summary.json").write_text(json.dumps(summary, indent=2) + "\n")
+    out, seconds = args.out, summary["seconds"]
     totals = summary["totals"]
     print(f"props ({args.profile}): {totals['passed']} of {totals['properties']} properties hold, "
           f"{totals['examples']} examples, {seconds:.1f} s -> {out / 'summary.json'}",

@@ -6,30 +6,30 @@ from __future__ import annotations
 import argparse
 import json
 import sys
-from pathlib import Path
+
+from gpfverify.cli import non_negative_int
+from gpfverify.outputs import check_out, out_path, output_folder
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     from gpfverify.symbolic.claims import CLAIMS
 
-    parser.add_argument("--out", type=Path, required=True, help="output folder")
+    parser.add_argument("--out", type=out_path, required=True, help="output folder")
     parser.add_argument("--size", choices=("small", "large"), default="large",
                         help="problem sizes: small (seconds, as in the test suite) or large (minutes; default)")
     parser.add_argument("--only", nargs="+", metavar="CLAIM", choices=list(CLAIMS),
                         help=f"run only these sympy claims (no casadi cross-checks): {', '.join(CLAIMS)}")
     parser.add_argument("--no-casadi", action="store_true", help="skip the casadi cross-checks")
-    parser.add_argument("--seed", type=int, default=1, help="root seed of the cross-checks' random inputs")
+    parser.add_argument("--seed", type=non_negative_int, default=1, help="root seed of the cross-checks' random inputs")
 
 
 def run(args: argparse.Namespace) -> int:
-    from gpfverify.errors import InputError
     from gpfverify.report.render import to_markdown
     from gpfverify.report.sections.proofs import render
     from gpfverify.symbolic.claims import run_claims
     from gpfverify.symbolic.crosscheck import run_crosschecks
 
-    if args.out.exists() and not args.out.is_dir():
-        raise InputError(f"--out {args.out} exists and is not a folder")
+    check_out(args.out)
     progress = lambda text: print(text, file=sys.stderr)  # noqa: E731
     certificates = run_claims(args.size, args.only, progress)
     if not args.no_casadi and not args.only:
@@ -38,9 +38,9 @@ def run(args: argparse.Namespace) -> int:
 
     provenance = current()  # certificates.json is a list (CONTRACT.md): every record carries it
     records = [{**c.to_json(), "provenance": provenance} for c in certificates]
-    args.out.mkdir(parents=True, exist_ok=True)
-    (args.out / "certificates.json").write_text(json.dumps(records, indent=2), encoding="utf-8")
-    (args.out / "README.md").write_text(to_markdown(render(records), args.out), encoding="utf-8")
+    with output_folder(args.out, keep=False) as stage:
+        (stage / "certificates.json").write_text(json.dumps(records, indent=2), encoding="utf-8")
+        (stage / "README.md").write_text(to_markdown(render(records), stage), encoding="utf-8")
     summary = ", ".join(f"{c.claim}: {c.status}" for c in certificates)
     print(f"{len(certificates)} certificates -> {args.out / 'certificates.json'} ({summary})")
     accepted = [(c.claim, m["mutant"]) for c in certificates for m in c.negative_controls if not m["rejected"]]

@@ -24,6 +24,7 @@ from typing import TextIO
 
 from gpfverify.cli import non_negative_int, positive_int
 from gpfverify.contract.experiment import RunEntry, SectionRuns
+from gpfverify.outputs import check_out, final_path, out_path, output_folder
 from gpfverify.report import SECTIONS, build_report
 from gpfverify.report.inputs import counts_line, verdict_counts, write_runs
 from gpfverify.report.render import read_summaries
@@ -50,7 +51,7 @@ RUN_LINE_SECONDS = 10.0
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--full", action="store_true",
                         help="the papers' run counts (hours) instead of the quick profile (minutes)")
-    parser.add_argument("--out", type=Path, default=None,
+    parser.add_argument("--out", type=out_path, default=None,
                         help="output folder (default reports/quick or reports/full)")
     parser.add_argument("--seed", type=non_negative_int, default=1, help="root seed, an integer >= 0 (default 1)")
     parser.add_argument("--workers", type=positive_int, default=1,
@@ -233,23 +234,16 @@ def build(ctx: ReportContext, only: list[str] | None, progress: Progress) -> Pat
 
 
 def run(args: argparse.Namespace) -> int:
-    from gpfverify.errors import InputError
-
     profile = "full" if args.full else "quick"
     out = args.out or Path("reports") / profile
-    if out.exists() and not out.is_dir():  # before running anything
-        raise InputError(f"--out {out} exists and is not a folder")
-    if out.exists() and not out.is_dir():  # before any section runs (and prints progress)
-        from gpfverify.errors import InputError
-
-        raise InputError(f"--out {out} exists and is not a folder")
-    ctx = ReportContext(out, profile, args.seed, args.workers)
+    check_out(out)  # before any section runs (and prints progress)
     selected = [s for s in SECTIONS if not args.only or s in args.only]
-    with Progress() as progress:
+    with Progress() as progress, output_folder(out, keep=True) as stage:
         progress(f"building the {profile} report in {out} (seed {args.seed}, {args.workers} worker(s)): "
                  f"{', '.join(selected)}")
-        html_path = build(ctx, args.only, progress)
-        summaries = read_summaries(out, list(SECTIONS))
+        ctx = ReportContext(stage, profile, args.seed, args.workers)
+        html_path = final_path(build(ctx, args.only, progress), stage, out)
+        summaries = read_summaries(stage, list(SECTIONS))
         progress(f"done in {_duration(time.monotonic() - progress.started)}")
     counts = verdict_counts(summaries)
     print(f"\nThe report: {html_path} (one self-contained page; open it in a browser)\n"

@@ -5,10 +5,9 @@ from __future__ import annotations
 import argparse
 import importlib
 import sys
-from pathlib import Path
 
-from gpfverify.errors import InputError
 from gpfverify.experiments import EXPERIMENTS
+from gpfverify.outputs import check_out, out_path, output_folder
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -23,7 +22,7 @@ def add_common_arguments(parser: argparse.ArgumentParser, default_runs: int) -> 
     parser.add_argument("--runs", type=positive_int, default=default_runs,
                         help=f"Monte Carlo runs (default {default_runs}, the paper's)")
     parser.add_argument("--seed", type=non_negative_int, default=1, help="root seed, an integer >= 0 (default 1)")
-    parser.add_argument("--out", type=Path, required=True, help="output folder")
+    parser.add_argument("--out", type=out_path, required=True, help="output folder")
     parser.add_argument("--resume", action="store_true", help="continue the runs saved in --out")
     parser.add_argument("--workers", type=positive_int, default=1,
                         help="local worker processes, >= 1 (BLAS pinned to 1 thread each; default 1); "
@@ -48,17 +47,16 @@ def run(args: argparse.Namespace) -> int:
     add_params_arguments(sub, module.Params)  # the options are generated from the experiment's Params
     opts = sub.parse_args(args.rest)
     params = from_arguments(module.Params, opts)
-    if opts.out.exists() and not opts.out.is_dir():
-        raise InputError(f"--out {opts.out} exists and is not a folder")
+    check_out(opts.out)
     specs = None
     if opts.interpretations is not None:
         from gpfverify.experiments.sensitivity import run_interpretations, select
 
         specs = select(module, opts.interpretations)  # before any run: a wrong name costs nothing
-    with make_executor(opts.workers, opts.scheduler) as executor:
-        results = run_experiment(module, params, opts.runs, opts.seed, opts.out, opts.resume, executor)
+    with output_folder(opts.out, keep=True) as stage, make_executor(opts.workers, opts.scheduler) as executor:
+        results = run_experiment(module, params, opts.runs, opts.seed, stage, opts.resume, executor)
         if specs:
-            results = run_interpretations(module, params, specs, opts.runs, opts.seed, opts.out, executor)
+            results = run_interpretations(module, params, specs, opts.runs, opts.seed, stage, executor)
     print(f"{args.experiment}: {results['runs_ok']} of {results['runs']} runs ok -> {opts.out / 'results.json'}",
           file=sys.stderr if results["failed_runs"] else sys.stdout)
     return 0

@@ -32,8 +32,10 @@ from gpfverify.errors import InputError
 from gpfverify.filters.families import GP_FAMILIES
 from gpfverify.filters.records import Gaussian
 from gpfverify.audit import rank_rule_to_dict
+from gpfverify.fusion.case import case_from_dict, case_to_dict
 from gpfverify.fusion.exactness import parse_rank_rule
 from gpfverify.fusion.model_fusion import run_fusion
+from gpfverify.fusion.runfile import write_run
 from gpfverify.models import fit_gp_model, learn_gp_model
 from gpfverify.rng import generator
 from gpfverify.systems import load_system, split_spec
@@ -159,6 +161,7 @@ def _record(model, fused, ys: np.ndarray, truth: np.ndarray | None) -> RunRecord
             "seconds": {**step.seconds, "local": list(step.local_seconds)},
             "nis": {"cmf": float(errors["nis"]["cmf"][t]),
                     "local": [float(v[t]) for v in errors["nis"]["local"]]},
+            "case": case_to_dict(step.dmf.case),
         }
         if truth is not None:
             x = truth[t]
@@ -170,6 +173,32 @@ def _record(model, fused, ys: np.ndarray, truth: np.ndarray | None) -> RunRecord
             entry["local_nees"] = [float(v[t]) for v in errors["local_nees"]]
         steps.append(entry)
     return RunRecord(truth is not None, tuple(steps))
+
+
+def run_file_name(index: int, runs: int) -> str:
+    """The run file of run ``index`` in a check's output folder: ``run.jsonl`` when the check made
+    one run, ``run-NNN.jsonl`` (the run's index, from 000) when it made several."""
+    return "run.jsonl" if runs == 1 else f"run-{index:03d}.jsonl"
+
+
+def write_run_files(out_dir: Path, runs: int) -> list[Path]:
+    """Write the per-step fusion cases of every run saved in ``out_dir`` (the case each step's audit
+    decided) as run files :command:`gpfverify audit` reads (docs/run-file-format.md), named by
+    :func:`run_file_name`, each line's ``"k"`` the step's index; a failed run has none. Returns the
+    paths written."""
+    from gpfverify.experiments.runner import load_runs
+
+    paths = []
+    for record in load_runs(out_dir, runs):
+        if record["status"] != "ok":
+            continue
+        steps = record["result"]["steps"]
+        if any("case" not in step for step in steps):
+            raise InputError(f"saved run {record['index']} in {out_dir} was made by an older gpfverify without "
+                             "the per-step cases; choose a new --out")
+        paths.append(write_run(out_dir / run_file_name(record["index"], runs),
+                               [case_from_dict(step["case"]) for step in steps], ks=[step["k"] for step in steps]))
+    return paths
 
 
 # -- results.json ----------------------------------------------------------------------------------

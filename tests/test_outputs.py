@@ -1,0 +1,201 @@
+"""Output folders (docs/output-and-errors.md): ``--out ''`` is refused; a folder holding anything
+gpfverify did not write is refused before anything runs, and left byte for byte as it was; a
+command that fails leaves the folder as it found it; an interrupted run keeps its saved runs for
+``--resume``; ``check --out`` writes run files that ``audit`` reads. One test per command."""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from gpfverify import cli
+from gpfverify.experiments import EXPERIMENTS
+from gpfverify.fusion.runfile import write_run
+from gpfverify.outputs import FILE_LIST
+from gpfverify.fusion.synthetic import random_case
+from gpfverify.tolerances import algebra_rtol
+
+HERE = Path(__file__).parent
+LINEAR_SYSTEM = '''
+import numpy as np
+from gpfverify.models import linear_model
+F = np.array([[1.0, 1.0], [0.0, 0.95]])
+H = np.array([[1.0, 0.0], [0.0, 1.0], [1.0, 1.0], [0.5, -1.0]])
+Q = np.array([[0.2, 0.05], [0.05, 0.1]])
+R = np.diag([0.5, 0.3, 0.4, 0.2])
+system = linear_model(F, H, Q, R, prior_mean=[1.0, 0.5], prior_cov=np.eye(2), sizes=(2, 2))
+'''
+
+
+@pytest.fixture
+def toy(monkeypatch):
+    monkeypatch.syspath_prepend(str(HERE))
+    monkeypatch.setitem(EXPERIMENTS, "toy", "toy_experiment")
+    sys.modules.pop("toy_experiment", None)
+
+
+def _main(argv, capsys):
+    """(exit status, stdout, stderr) of the command line, usage errors included."""
+    try:
+        code = cli.main([str(a) for a in argv])
+    except SystemExit as exc:
+        code = exc.code
+    out, err = capsys.readouterr()
+    return code, out, err
+
+
+def _snapshot(folder: Path) -> dict[str, bytes]:
+    return {p.relative_to(folder).as_posix(): p.read_bytes() for p in sorted(folder.rglob("*")) if p.is_file()}
+
+
+def _run_file(tmp_path: Path) -> Path:
+    rng = np.random.default_rng(0)
+    return write_run(tmp_path / "RUN.jsonl", [random_case(rng, 2, (2, 2)) for _ in range(3)])
+
+
+def _system(tmp_path: Path) -> str:
+    path = tmp_path / "linear.py"
+    path.write_text(LINEAR_SYSTEM)
+    return f"{path}:system"
+
+
+def _commands(tmp_path: Path) -> dict[str, list]:
+    """Every command that writes --out, with arguments that make it quick; the folder goes last."""
+    return {
+        "audit": ["audit", _run_file(tmp_path)],
+        "check": ["check", _system(tmp_path), "--steps", "3", "--methods", "cmf,dmf"],
+        "reproduce": ["reproduce", "toy", "--runs", "2"],
+        "prove": ["prove", "--size", "small", "--only", "full-rank-needs-l-le-D"],
+        "report": ["report", "--only", "moments"],
+        "props": ["props"],
+    }
+
+
+@pytest.mark.parametrize("command", ["audit", "check", "reproduce", "prove", "report", "props"])
+def test_an_empty_out_is_refused_and_the_current_folder_untouched(command, toy, tmp_path, capsys,
+                                                                    monkeypatch):
+    argv = _commands(tmp_path)[command]
+    work = tmp_path / "work"
+    (work / "figures").mkdir(parents=True)
+    (work / "README.md").write_text("the user's notes")
+    (work / "figures" / "x.png").write_bytes(b"user figure")
+    before = _snapshot(work)
+    monkeypatch.chdir(work)
+    code, out, err = _main([*argv, "--out", ""], capsys)
+    assert code == 2 and out == "" and len(err.strip().splitlines()) == 1, err
+    assert "empty" in err
+    assert _snapshot(work) == before and sorted(os.listdir(work)) == ["README.md", "figures"]
+
+
+@pytest.mark.parametrize("command", ["audit", "check", "reproduce", "prove", "report", "props"])
+def test_a_folder_with_a_file_gpfverify_did_not_write_is_refused(command, toy, tmp_path, capsys):
+    argv = _commands(tmp_path)[command]
+    out_dir = tmp_path / "out"
+    (out_dir / "figures").mkdir(parents=True)
+    (out_dir / "figures" / "x.png").write_bytes(b"user figure")
+    before = _snapshot(out_dir)
+    code, out, err = _main([*argv, "--out", out_dir], capsys)
+    assert code == 2 and out == "" and len(err.strip().splitlines()) == 1, err
+    assert "figures/x.png" in err and "did not write" in err
+    assert _snapshot(out_dir) == before
+    assert sorted(os.listdir(tmp_path)) == sorted(p.name for p in tmp_path.iterdir() if not p.name.startswith("."))
+
+
+def test_audit_rewrites_its_own_folder_and_lists_every_file(tmp_path, capsys):
+    run, out_dir = _run_file(tmp_path), tmp_path / "out"
+    assert _main(["audit", run, "--out", out_dir], capsys)[0] == 0
+    listed = set((out_dir / FILE_LIST).read_text().split())
+    assert listed == set(_snapshot(out_dir))
+    assert {"audit.json", "README.md", "report.html"} <= listed
+    assert _main(["audit", run, "--out", out_dir], capsys)[0] == 0  # its own files: rewritten
+    (out_dir / "figures" / "mine.png").write_bytes(b"user figure")  # now a foreign file
+    code, _, err = _main(["audit", run, "--out", out_dir], capsys)
+    assert code == 2 and "figures/mine.png" in err
+    assert (out_dir / "figures" / "mine.png").read_bytes() == b"user figure"
+
+
+def test_prove_writes_into_an_empty_folder_and_leaves_no_staging_folder(tmp_path, capsys):
+    out_dir = tmp_path / "certs"
+    out_dir.mkdir()
+    code, _, _ = _main(["prove", "--size", "small", "--only", "full-rank-needs-l-le-D", "--out", out_dir], capsys)
+    assert code == 0
+    assert {"certificates.json", "README.md", FILE_LIST} == set(os.listdir(out_dir))
+    assert os.listdir(tmp_path) == ["certs"]
+
+
+def test_reproduce_that_fails_leaves_the_folder_as_it_found_it(toy, tmp_path, capsys):
+    out_dir = tmp_path / "out"
+    code, _, err = _main(["reproduce", "toy", "--runs", "1", "--fail-run", "0", "--out", out_dir], capsys)
+    assert code == 2 and "every run of toy failed" in err
+    assert os.listdir(tmp_path) == []  # no manifest.json, no runs/, no staging folder
+    out_dir.mkdir()
+    assert _main(["reproduce", "toy", "--runs", "1", "--fail-run", "0", "--out", out_dir], capsys)[0] == 2
+    assert os.listdir(out_dir) == [] and os.listdir(tmp_path) == ["out"]
+
+
+def test_an_interrupted_reproduce_keeps_its_saved_runs_for_resume(toy, tmp_path, capsys):
+    out_dir = tmp_path / "out"
+    argv = ["reproduce", "toy", "--runs", "3", "--interrupt-run", "2", "--out", out_dir]
+    code, _, err = _main(argv, capsys)
+    assert code == 130 and "interrupted" in err
+    saved = {"manifest.json", "runs/run-000000.json", "runs/run-000001.json"}
+    assert set(_snapshot(out_dir)) == saved | {FILE_LIST}
+    assert set((out_dir / FILE_LIST).read_text().split()) == saved | {FILE_LIST}
+    assert _main([*argv, "--resume"], capsys)[0] == 130  # accepted as gpfverify's own, interrupted again
+    assert os.listdir(tmp_path) == ["out"]
+
+
+def test_a_resumed_reproduce_adds_to_its_own_runs(toy, tmp_path, capsys):
+    out_dir = tmp_path / "out"
+    assert _main(["reproduce", "toy", "--runs", "2", "--out", out_dir], capsys)[0] == 0
+    first = json.loads((out_dir / "runs" / "run-000000.json").read_text())
+    assert _main(["reproduce", "toy", "--runs", "2", "--out", out_dir], capsys)[0] == 2  # no --resume
+    assert _main(["reproduce", "toy", "--runs", "2", "--out", out_dir, "--resume"], capsys)[0] == 0
+    assert json.loads((out_dir / "runs" / "run-000000.json").read_text()) == first
+
+
+@pytest.mark.parametrize("runs", [1, 2])
+def test_check_writes_run_files_that_audit_reads(tmp_path, capsys, runs):
+    out_dir = tmp_path / "out"
+    code, _, err = _main(["check", _system(tmp_path), "--steps", "4", "--runs", runs, "--methods", "cmf,dmf",
+                          "--out", out_dir], capsys)
+    assert code == 0, err
+    results = json.loads((out_dir / "results.json").read_text())
+    names = ["run.jsonl"] if runs == 1 else [f"run-{i:03d}.jsonl" for i in range(runs)]
+    assert sorted(p.name for p in out_dir.glob("run*.jsonl")) == names
+    for i, name in enumerate(names):
+        code, out, err = _main(["audit", out_dir / name, "--json", "--rank-rule", "canonical"], capsys)
+        assert code == 0, err
+        audit = json.loads(out)
+        assert [s["k"] for s in audit["steps"]] == results["k"]
+        check_gaps = np.array(results["gap_norm"][i])
+        audit_gaps = np.array([np.linalg.norm(s["gap"]) for s in audit["steps"]])
+        scale = max(1.0, float(np.abs(check_gaps).max()))
+        np.testing.assert_allclose(audit_gaps, check_gaps, rtol=0, atol=algebra_rtol() * scale)
+        # the same rank decisions and exactness per sensor and step as the check recorded
+        assert [[x["rank"] for x in s["sensors"]] for s in audit["steps"]] == results["rank"][i]
+        assert [[x["exact"] for x in s["sensors"]] for s in audit["steps"]] == results["exact"][i]
+
+
+def test_resume_adopts_the_runs_of_a_killed_command(toy, tmp_path, capsys):
+    done = tmp_path / "done"
+    assert _main(["reproduce", "toy", "--runs", "2", "--out", done], capsys)[0] == 0
+    child = subprocess.Popen(["true"])
+    child.wait()  # its process id is now free: the "killed" command
+    orphan = tmp_path / f".gpfverify-partial-out-{child.pid}"
+    (orphan / "runs").mkdir(parents=True)
+    for name in ("manifest.json", "runs/run-000000.json"):
+        (orphan / name).write_bytes((done / name).read_bytes())
+    out_dir = tmp_path / "out"
+    assert _main(["reproduce", "toy", "--runs", "2", "--out", out_dir], capsys)[0] == 2  # not without --resume
+    assert orphan.is_dir() and not out_dir.exists()
+    assert _main(["reproduce", "toy", "--runs", "2", "--out", out_dir, "--resume"], capsys)[0] == 0
+    # run 0 is the killed command's file (its own timing), run 1 was computed now
+    assert (out_dir / "runs" / "run-000000.json").read_bytes() == (done / "runs" / "run-000000.json").read_bytes()
+    assert not orphan.exists()
