@@ -18,6 +18,7 @@ runs, so ``gpfverify --help`` stays fast.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import importlib
 import math
 import os
@@ -124,8 +125,6 @@ OVERFLOW_IS_INPUT_ERROR = ("audit", "fuse")
 
 
 def _float_errors(command: str):
-    import contextlib
-
     if command not in OVERFLOW_IS_INPUT_ERROR:
         return contextlib.nullcontext()
     import numpy as np
@@ -141,6 +140,47 @@ def _silence_stdout() -> None:
         os.dup2(devnull, sys.stdout.fileno())
     except (OSError, ValueError, AttributeError):  # no real file descriptor (captured in tests)
         pass
+
+
+class _Diagnostics:
+    """stderr that never stops a command: a line that cannot be written (stderr closed, on a full
+    device, a closed pipe) is dropped; stderr carries diagnostics, never the result."""
+
+    def __init__(self, stream) -> None:
+        self._stream = stream
+
+    def write(self, text: str) -> int:
+        try:
+            return self._stream.write(text) if self._stream is not None else len(text)
+        except (OSError, ValueError):  # ValueError: the stream was closed
+            return len(text)
+
+    def flush(self) -> None:
+        with contextlib.suppress(OSError, ValueError, AttributeError):
+            self._stream.flush()
+
+    def __getattr__(self, name: str):
+        return getattr(self._stream, name)
+
+
+def _occupy_closed_standard_fds() -> None:
+    """Point a closed descriptor 0, 1 or 2 (``2>&-``) at /dev/null, so that no file gpfverify opens
+    gets its number (a library writing to descriptor 2 would write into that file)."""
+    for fd in (0, 1, 2):
+        try:
+            os.fstat(fd)
+        except OSError:
+            null = os.open(os.devnull, os.O_RDWR)
+            if null != fd:
+                os.dup2(null, fd)
+                os.close(null)
+
+
+def _refuse_closed_stdout() -> None:
+    """A closed stdout (``>&-``) is refused before anything runs: the result would be lost."""
+    if sys.stdout is None:
+        raise GpfverifyError("standard output is closed: give the command somewhere to print "
+                             "(e.g. >/dev/null)")
 
 
 #: warning categories handed back to the warnings machinery (hidden by default outside tests)
@@ -161,6 +201,17 @@ def _summarise_warnings(command: str, caught: list) -> None:
 
 
 def main(argv: list[str] | None = None) -> int:
+    """Run one command (see the module docstring); stderr is :class:`_Diagnostics` meanwhile."""
+    saved = sys.stderr
+    _occupy_closed_standard_fds()
+    sys.stderr = _Diagnostics(saved if saved is not None else open(os.devnull, "w"))
+    try:
+        return _main(argv)
+    finally:
+        sys.stderr = saved
+
+
+def _main(argv: list[str] | None) -> int:
     default_single_blas_thread()  # before any command imports numpy (see gpfverify.runtime)
     try:
         signal.signal(signal.SIGTERM, _interrupt)  # `kill` stops cleanly, like Ctrl-C
@@ -173,6 +224,7 @@ def main(argv: list[str] | None = None) -> int:
     command = known.command
     with warnings.catch_warnings(record=True) as caught:
         try:
+            _refuse_closed_stdout()
             module = importlib.import_module(COMMANDS[command][0])
             sub = OneLineParser(prog=f"gpfverify {command}", description=COMMANDS[command][1])
             module.add_arguments(sub)

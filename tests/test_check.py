@@ -140,7 +140,7 @@ def test_a_bad_system_exits_2_with_one_line_and_writes_nothing(tmp_path, source,
 def test_bad_measurement_files_exit_2(tmp_path):
     np.savez(tmp_path / "wrong.npz", y=np.zeros((5, 3)))
     (tmp_path / "junk.npz").write_text("not an npz")
-    for name, message in (("wrong.npz", "y must have shape"), ("junk.npz", "cannot read measurements")):
+    for name, message in (("wrong.npz", "y must have shape"), ("junk.npz", "is not an npz archive")):
         result = _cli(TRACKER, "--measurements", tmp_path / name, "--json")
         assert result.returncode == 2 and message in result.stderr and result.stderr.count("\n") == 1
 

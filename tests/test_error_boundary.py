@@ -257,3 +257,88 @@ def test_fuzz_bad_numeric_options(tmp_path, capsys, value, option):
     command, flag = option
     extra = ["--method", "rcc-ci"] if command == "fuse" else []
     assert_user_error([command, path, *extra, f"{flag}={value}"], capsys, tmp_path)
+
+
+# ---- faults of the machine and user files that are not what they claim -------------------------
+
+CHECK_SYSTEM = f"{Path(__file__).resolve().parents[1] / 'examples' / 'three_sensor_system.py'}:tracker"
+
+
+@st.composite
+def broken_npz_bytes(draw) -> bytes:
+    """An empty file, a valid measurements archive cut anywhere, or one with a byte flipped."""
+    import io
+
+    buffer = io.BytesIO()
+    np.savez(buffer, y=np.zeros((4, 5)))
+    data = buffer.getvalue()
+    kind = draw(st.sampled_from(["empty", "truncate", "flip"]))
+    if kind == "empty":
+        return b""
+    cut = draw(st.integers(0, len(data) - 2))
+    if kind == "truncate":
+        return data[:cut]
+    return data[:cut] + bytes([data[cut] ^ 0xFF]) + data[cut + 1:]
+
+
+@settings(max_examples=scaled_examples(0.3), suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(content=broken_npz_bytes())
+def test_fuzz_broken_measurement_archives(tmp_path, capsys, content):
+    path = _write(tmp_path, "measurements.npz", content)
+    code, out, err = run_cli(["check", CHECK_SYSTEM, "--measurements", path, "--json"], capsys)
+    # a flipped byte inside stored (uncompressed) zeros still decodes: then the measurements are read
+    assert code == 2 or (code == 0 and json.loads(out)["steps"] >= 1), err
+    if code == 2:
+        assert len(err.strip().splitlines()) == 1 and out == "", err
+
+
+@settings(max_examples=scaled_examples(0.3), suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(address=st.one_of(st.sampled_from(["not an address", "tcp://", "::::", "tcp://host:port"]),
+                         st.text(alphabet="abc :/", min_size=1, max_size=8).filter(lambda a: ":" not in a[-6:])))
+def test_fuzz_malformed_scheduler_addresses(tmp_path, capsys, address):
+    pytest.importorskip("distributed")
+    out = tmp_path / "never"
+    assert_user_error(["check", CHECK_SYSTEM, "--steps", "2", "--out", out, "--scheduler", address], capsys, tmp_path)
+    assert not out.exists()
+
+
+@settings(max_examples=scaled_examples(0.3), suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(out=st.sampled_from(["", " ", "  "]), command=st.sampled_from(
+    [["prove", "--size", "small"], ["reproduce", *TINY_CT2D], ["props"], ["report", "--only", "moments"]]))
+def test_fuzz_empty_output_folder_names(tmp_path, capsys, out, command):
+    assert_user_error([*command, "--out", out], capsys, tmp_path)
+
+
+@settings(max_examples=scaled_examples(0.3), suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(seed=BAD_SEEDS)
+def test_fuzz_bad_prove_seeds(tmp_path, capsys, seed):
+    out = tmp_path / "never"
+    assert_user_error(["prove", "--size", "small", "--seed", seed, "--out", out], capsys, tmp_path)
+    assert not out.exists()
+
+
+def _shell(command: str, cwd: Path) -> subprocess.CompletedProcess:
+    return subprocess.run(["bash", "-c", command], capture_output=True, text=True, cwd=cwd, timeout=120)
+
+
+@pytest.mark.parametrize("command", ["audit {case}", f"check {CHECK_SYSTEM} --steps 2 --out out",
+                                     "reproduce moments --runs 1 --out out"])
+def test_a_closed_stdout_is_refused_before_anything_is_written(tmp_path, command):
+    case = _write(tmp_path, "case.json", json.dumps(CASE))
+    work = tmp_path / "work"
+    work.mkdir()
+    proc = _shell(f"{sys.executable} -m gpfverify {command.format(case=case)} >&-", work)
+    assert proc.returncode == 2 and "standard output is closed" in proc.stderr
+    assert len(proc.stderr.strip().splitlines()) == 1 and list(work.iterdir()) == []
+
+
+@pytest.mark.skipif(not Path("/dev/full").exists(), reason="needs /dev/full")
+@pytest.mark.parametrize("command, code", [(f"check {CHECK_SYSTEM} --steps 2 --runs 0 --json", 2),
+                                           ("audit /dev/zero", 2),
+                                           (f"check {CHECK_SYSTEM} --steps 2 --json", 0)])
+def test_stderr_on_a_full_device_changes_no_exit_status(tmp_path, command, code):
+    """Diagnostics that cannot be written are dropped: a user error still exits 2 (its line is
+    lost with the device), a successful check still prints its result and exits 0."""
+    proc = _shell(f"{sys.executable} -m gpfverify {command} 2>/dev/full", tmp_path)
+    assert proc.returncode == code, proc.stdout
+    assert (proc.stdout == "") == (code == 2)

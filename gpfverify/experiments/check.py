@@ -39,6 +39,7 @@ from gpfverify.fusion.runfile import write_run
 from gpfverify.models import fit_gp_model, learn_gp_model
 from gpfverify.rng import generator
 from gpfverify.systems import load_system, split_spec
+from gpfverify.userfiles import read_npz
 from gpfverify.validate import as_array
 
 NAME = "check"
@@ -65,11 +66,12 @@ def params_for(system: str, filter: FilterName = "ukf", steps: int = 50, measure
 
 
 def _load_npz(path: str, what: str) -> dict[str, np.ndarray]:
+    """The arrays of a user's npz file, read by :func:`gpfverify.userfiles.read_npz` (a regular
+    file, every declared size checked before anything is decompressed)."""
     try:
-        with np.load(path, allow_pickle=False) as data:
-            return {key: data[key] for key in data.files}
-    except (OSError, ValueError) as exc:
-        raise InputError(f"cannot read {what} {path}: {exc}") from None
+        return read_npz(path)
+    except OSError as exc:
+        raise InputError(f"cannot read {what} {path}: {exc.strerror or exc}") from None
 
 
 def logged_measurements(path: str, model) -> tuple[np.ndarray | None, np.ndarray]:

@@ -76,7 +76,10 @@ def make_executor(workers: int = 1, scheduler: str | None = None):
             from distributed import Client
         except ImportError:
             raise InputError("--scheduler needs dask.distributed: pip install 'gpfverify[cluster]'") from None
-        client = Client(scheduler)
+        try:
+            client = Client(scheduler)
+        except (ValueError, TypeError, OSError, TimeoutError) as exc:  # a malformed or unreachable address
+            raise InputError(f"--scheduler {scheduler}: cannot connect ({exc})") from None
         try:
             yield client.get_executor()
         finally:
