@@ -41,6 +41,22 @@ def as_matrix(value, name: str, rows: int | None = None, cols: int | None = None
     return as_array(value, name, shape=(rows, cols))
 
 
+def as_indices(value, count: int, name: str) -> tuple[int, ...]:
+    """0-based indices into ``count`` components, sorted and unique; InputError naming ``name``."""
+    try:
+        items = list(value)
+    except TypeError:
+        raise InputError(f"{name} must be a list of 0-based indices, got {value!r}") from None
+    for i in items:
+        if isinstance(i, (bool, np.bool_)) or not isinstance(i, (int, np.integer)):
+            raise InputError(f"{name} must hold integers, got {i!r}")
+        if not 0 <= i < count:
+            raise InputError(f"{name} index {i} is out of range for {count} component(s)")
+    if len(set(items)) != len(items):
+        raise InputError(f"{name} lists an index twice: {items}")
+    return tuple(sorted(int(i) for i in items))
+
+
 def as_positive(value, name: str, shape: tuple | None = None) -> np.ndarray:
     arr = as_array(value, name, shape=shape)
     if np.any(arr <= 0):

@@ -114,10 +114,10 @@ class _Clock:
         return out
 
 
-def _rcc_ci(estimates, size: float | None, on_empty: str) -> tuple[Gaussian, bool]:
+def _rcc_ci(estimates, size: float | None, on_empty: str, circular_state=()) -> tuple[Gaussian, bool]:
     """RCC-CI (with the ellipsoids enlarged when they do not intersect, for on_empty="enlarge");
     (estimate, enlarged)."""
-    result = rcc_ci(estimates, c=size, on_empty=on_empty)
+    result = rcc_ci(estimates, c=size, on_empty=on_empty, circular_state=circular_state)
     return Gaussian(result.mean, result.cov), result.enlarged
 
 
@@ -185,8 +185,8 @@ def run_family(family: str, models: GPModel, data: FusionData, local_starts: Seq
         dmf = clock.run(dmf_key, k, dmf_step, dmf_belief, models, ys[k], local_records=records, k=k + 1,
                         family=family, params=sigma, rank_tol=rank_tol, rank_rule=rule)
         cmf_belief, dmf_belief = cmf.posterior, dmf.record.posterior
-        cw = clock.run(cw_key, k, convex_combination, locals_)
-        rcc, enlarged = clock.run(rcc_key, k, _rcc_ci, locals_, rcc_size, rcc_on_empty)
+        cw = clock.run(cw_key, k, convex_combination, locals_, models.circular_state)
+        rcc, enlarged = clock.run(rcc_key, k, _rcc_ci, locals_, rcc_size, rcc_on_empty, models.circular_state)
         rcc_enlarged += int(enlarged)
 
         # the update alone (what is left once the measurements arrive), CMF vs eq. 35 (timed

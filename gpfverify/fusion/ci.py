@@ -37,7 +37,7 @@ import numpy as np
 from gpfverify.errors import InputError, SolverError
 from gpfverify.filters.records import Gaussian
 from gpfverify.fusion.estimates import (FusedEstimate, Information, checked_estimates,
-                                        information_form, weighted_information_fusion)
+                                        information_form, weighted_information_fusion, wrapped)
 from gpfverify.fusion.pairwise import (criterion_derivative, joint_diagonalise,
                                        minimise_convex_on_unit_interval)
 from gpfverify.linalg import cholesky, symmetrize
@@ -122,14 +122,20 @@ def kkt_violation(info: Information, weights: np.ndarray, criterion: str) -> flo
     return float(grads.max() / (weights @ grads) - 1.0)
 
 
-def covariance_intersection(estimates: Sequence, criterion: str = "trace",
-                            solver: str = "auto") -> FusedEstimate:
+def covariance_intersection(estimates: Sequence, criterion: str = "trace", solver: str = "auto",
+                            circular_state: Sequence[int] = ()) -> FusedEstimate:
     """CI of N local estimates with trace- or det-optimal weights (see module docstring).
 
-    ``solver``: "auto" (closed form for two, cvxpy for more), "closed-form" (two only) or "cvxpy".
+    ``solver``: "auto" (closed form for two, cvxpy for more), "closed-form" (two only) or "cvxpy";
+    ``circular_state``: the angle state components.
     """
+    return wrapped(_covariance_intersection(estimates, criterion, solver, circular_state), circular_state)
+
+
+def _covariance_intersection(estimates: Sequence, criterion: str, solver: str,
+                             circular_state: Sequence[int]) -> FusedEstimate:
     _check_criterion(criterion)
-    checked = checked_estimates(estimates)
+    checked = checked_estimates(estimates, circular_state=circular_state)
     if solver not in ("auto", "closed-form", "cvxpy"):
         raise InputError(f"solver must be auto, closed-form or cvxpy, got {solver!r}")
     if len(checked) == 1:
@@ -167,10 +173,12 @@ def _two_sensor_ici(first, second, criterion: str) -> FusedEstimate:
     return jd.fuse(q(omega), 1.0 - omega / tw, 1.0 / mu - (1.0 - omega) / tw, [omega, 1.0 - omega])
 
 
-def inverse_covariance_intersection(estimates: Sequence, criterion: str = "trace") -> FusedEstimate:
-    """ICI of N local estimates, pairwise in order; ``weights`` holds each pair's ω (N − 1,)."""
+def inverse_covariance_intersection(estimates: Sequence, criterion: str = "trace",
+                                    circular_state: Sequence[int] = ()) -> FusedEstimate:
+    """ICI of N local estimates, pairwise in order; ``weights`` holds each pair's ω (N − 1,);
+    ``circular_state``: the angle state components."""
     _check_criterion(criterion)
-    checked = checked_estimates(estimates)
+    checked = checked_estimates(estimates, circular_state=circular_state)
     fused: Gaussian | FusedEstimate = checked[0]
     omegas = []
     for nxt in checked[1:]:
@@ -179,4 +187,4 @@ def inverse_covariance_intersection(estimates: Sequence, criterion: str = "trace
         omegas.append(step.weights[0])
         fused = step
     weights = np.array(omegas) if omegas else None
-    return FusedEstimate(fused.mean, fused.cov, weights)
+    return wrapped(FusedEstimate(fused.mean, fused.cov, weights), circular_state)

@@ -7,7 +7,8 @@ the joint eigenbasis. With Vᵀ P_1 V = I, Vᵀ P_2 V = diag(μ) (:mod:`gpfverif
 (Sijs & Lazar eq. 10 with η → 0) makes the fused mean, in coordinates u = Vᵀx, take each component
 from the more accurate estimate: u_i = u1_i if μ_i > 1, u2_i if μ_i < 1, and their average when
 μ_i = 1 to rounding (|μ_i − 1| ≤ algebra_rtol(cond P_1), Sijs & Lazar's η-regularised case).
-For N estimates EI is applied sequentially in the given order.
+For N estimates EI is applied sequentially in the given order. Angle state components are put on
+one branch first and the fused angle wrapped (:mod:`gpfverify.fusion.estimates`).
 """
 
 from __future__ import annotations
@@ -17,7 +18,7 @@ from collections.abc import Sequence
 import numpy as np
 
 from gpfverify.filters.records import Gaussian
-from gpfverify.fusion.estimates import FusedEstimate, checked_estimates
+from gpfverify.fusion.estimates import FusedEstimate, checked_estimates, wrapped
 from gpfverify.fusion.pairwise import joint_diagonalise
 from gpfverify.linalg import spd_condition
 from gpfverify.tolerances import algebra_rtol
@@ -33,10 +34,10 @@ def _two_sensor_ei(first, second) -> FusedEstimate:
     return jd.fuse(q, a1 * q, (1.0 - a1) * q)
 
 
-def ellipsoidal_intersection(estimates: Sequence) -> FusedEstimate:
-    """EI of N local estimates, pairwise in order."""
-    checked = checked_estimates(estimates)
+def ellipsoidal_intersection(estimates: Sequence, circular_state: Sequence[int] = ()) -> FusedEstimate:
+    """EI of N local estimates, pairwise in order; ``circular_state`` the angle state components."""
+    checked = checked_estimates(estimates, circular_state=circular_state)
     fused: Gaussian | FusedEstimate = checked[0]
     for nxt in checked[1:]:
         fused = _two_sensor_ei(fused, nxt)
-    return FusedEstimate(fused.mean, fused.cov)
+    return wrapped(FusedEstimate(fused.mean, fused.cov), circular_state)

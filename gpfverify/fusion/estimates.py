@@ -2,6 +2,20 @@
 
 The baselines (CC/CW, CI, ICI, EI, RCC-CI) use only each sensor's (μ_e^m, C_e^m); every fused
 result is a :class:`FusedEstimate`. Information matrices I_m = P_m⁻¹ are formed by Cholesky solves.
+
+Angle state components (``circular_state``): every rule is a weighted mean of the local means
+(CC/CI/ICI/RCC-CI: x = P Σ_m W_m x_m with P Σ_m W_m = I; EI picks and averages components in a
+joint eigenbasis), so an angle is averaged on the circle by putting the local angles on one branch
+first. The reference is the circular mean of the local angles, r = atan2(Σ_m sin x_m, Σ_m cos x_m)
+(independent of the sensors' order); each local angle is replaced by its representative within π
+of r,
+
+    x_m ← r + wrap(x_m − r),
+
+the linear rule is applied, and the fused angle is wrapped to (−π, π]. Every rule here is
+equivariant under a common translation of the local means, so the result is a weighted circular
+mean: rotating every local angle by φ rotates the fused angle by φ, wherever the ±π cut falls.
+Covariances are used as given (the small-angle linearisation of the angle errors).
 """
 
 from __future__ import annotations
@@ -11,10 +25,11 @@ from collections.abc import Sequence
 
 import numpy as np
 
+from gpfverify.angles import wrap, wrap_components
 from gpfverify.errors import InputError
 from gpfverify.filters.records import Gaussian
 from gpfverify.linalg import cholesky, solve_spd, symmetrize
-from gpfverify.validate import as_covariance, as_vector
+from gpfverify.validate import as_covariance, as_indices, as_vector
 
 
 @dataclass(frozen=True)
@@ -26,15 +41,42 @@ class FusedEstimate:
     weights: np.ndarray | None = None
 
 
-def checked_estimates(estimates: Sequence, minimum: int = 1) -> list[Gaussian]:
-    """Validated local estimates: objects with ``mean`` (D,) and positive definite ``cov``."""
+def checked_estimates(estimates: Sequence, minimum: int = 1,
+                      circular_state: Sequence[int] = ()) -> list[Gaussian]:
+    """Validated local estimates — objects with ``mean`` (D,) and positive definite ``cov`` — with
+    their ``circular_state`` components (validated indices) on one branch (:func:`on_one_branch`)."""
     if len(estimates) < minimum:
         raise InputError(f"fusion needs at least {minimum} estimate(s), got {len(estimates)}")
     out: list[Gaussian] = []
     for m, e in enumerate(estimates):
         mean = as_vector(e.mean, f"estimates[{m}].mean", None if not out else out[0].mean.shape[0])
         out.append(Gaussian(mean, as_covariance(e.cov, f"estimates[{m}].cov", mean.shape[0], definite=True)))
+    angles = as_indices(circular_state, out[0].mean.shape[0], "circular_state") if out else ()
+    return on_one_branch(out, angles)
+
+
+def on_one_branch(estimates: Sequence[Gaussian], circular_state: Sequence[int]) -> list[Gaussian]:
+    """The estimates with each angle component replaced by its representative within π of the
+    circular mean r of the local angles: x_m ← r + wrap(x_m − r) (module docstring)."""
+    if not circular_state or not estimates:
+        return list(estimates)
+    idx = list(circular_state)
+    angles = np.array([e.mean[idx] for e in estimates])
+    reference = np.arctan2(np.sin(angles).sum(axis=0), np.cos(angles).sum(axis=0))
+    out = []
+    for e, a in zip(estimates, angles):
+        mean = e.mean.copy()
+        mean[idx] = reference + wrap(a - reference)
+        out.append(Gaussian(mean, e.cov))
     return out
+
+
+def wrapped(fused: FusedEstimate, circular_state: Sequence[int]) -> FusedEstimate:
+    """``fused`` with its angle components (indices checked by :func:`checked_estimates`) wrapped
+    to (−π, π]."""
+    if not circular_state:
+        return fused
+    return FusedEstimate(wrap_components(fused.mean, circular_state), fused.cov, fused.weights)
 
 
 @dataclass(frozen=True)

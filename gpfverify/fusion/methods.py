@@ -4,7 +4,8 @@ result (what ``gpfverify fuse --json`` prints).
 cmf: centralized update with the stacked y (needs ``y``); dmf: Proposition 1 (eq. 35); cc: convex
 combination (CW); ci: covariance intersection; rcc-ci: relaxed Chebyshev centre CI; ici, ei:
 inverse covariance / ellipsoidal intersection. cc, ci, rcc-ci, ici and ei use only the sensors'
-(mu_e, C_e) and need ``C_e`` in every local report.
+(mu_e, C_e) and need ``C_e`` in every local report. The case's angle state components
+(``circular_state``) are averaged on the circle by every rule.
 """
 
 from __future__ import annotations
@@ -38,6 +39,7 @@ def fuse_case(case: FusionCase, method: str, criterion: str = "trace", c: float 
               on_empty: str = "error") -> dict:
     """The ``fuse --json`` object for one method."""
     extra: dict = {}
+    angles = case.circular_state
     fused: Gaussian | FusedEstimate | DMFResult | RccCiResult
     if method == "cmf":
         if case.y is None:
@@ -48,20 +50,20 @@ def fuse_case(case: FusionCase, method: str, criterion: str = "trace", c: float 
         fused = dmf
         extra = {"condition_holds": dmf.condition_holds, "exact": dmf.exact}
     elif method == "cc":
-        fused = convex_combination(_local_estimates(case, method))
+        fused = convex_combination(_local_estimates(case, method), angles)
     elif method == "ci":
-        ci = covariance_intersection(_local_estimates(case, method), criterion)
+        ci = covariance_intersection(_local_estimates(case, method), criterion, circular_state=angles)
         assert ci.weights is not None  # CI always reports its weights ω
         fused = ci
         extra = {"weights": ci.weights.tolist(), "criterion": criterion}
     elif method == "ici":
-        ici = inverse_covariance_intersection(_local_estimates(case, method), criterion)
+        ici = inverse_covariance_intersection(_local_estimates(case, method), criterion, angles)
         fused = ici
         extra = {"weights": [] if ici.weights is None else ici.weights.tolist(), "criterion": criterion}
     elif method == "ei":
-        fused = ellipsoidal_intersection(_local_estimates(case, method))
+        fused = ellipsoidal_intersection(_local_estimates(case, method), angles)
     elif method == "rcc-ci":
-        res = rcc_ci(_local_estimates(case, method), c=c, on_empty=on_empty)
+        res = rcc_ci(_local_estimates(case, method), c=c, on_empty=on_empty, circular_state=angles)
         fused = res
         extra = {"weights": res.weights.tolist(), "c": res.c, "enlarged": res.enlarged,
                  "primal_mean": res.primal_mean.tolist(), "primal_dual_discrepancy": res.discrepancy}

@@ -30,6 +30,7 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass, field
+from functools import partial
 from typing import TYPE_CHECKING
 from collections.abc import Callable, Sequence
 
@@ -193,19 +194,20 @@ def _timed(fn: Callable, *args, **kwargs):
     return out, time.perf_counter() - start
 
 
-def _baselines(methods: Sequence[str], rcc_size: float | None) -> dict[str, Callable]:
-    """The requested baselines as functions of the local posteriors (convex solvers imported
-    only when requested)."""
+def _baselines(methods: Sequence[str], rcc_size: float | None,
+               circular_state: Sequence[int]) -> dict[str, Callable]:
+    """The requested baselines as functions of the local posteriors, averaging the angle state
+    components ``circular_state`` on the circle (convex solvers imported only when requested)."""
     out: dict[str, Callable[[Sequence], FusedEstimate | RccCiResult]] = {}
     if "cw" in methods:
         from gpfverify.fusion.convex import convex_combination
-        out["cw"] = convex_combination
+        out["cw"] = partial(convex_combination, circular_state=circular_state)
     if "ci" in methods:
         from gpfverify.fusion.ci import covariance_intersection
-        out["ci"] = covariance_intersection
+        out["ci"] = partial(covariance_intersection, circular_state=circular_state)
     if "rcc-ci" in methods:
         from gpfverify.fusion.rcc_ci import rcc_ci
-        out["rcc-ci"] = lambda estimates: rcc_ci(estimates, c=rcc_size, on_empty="enlarge")
+        out["rcc-ci"] = partial(rcc_ci, c=rcc_size, on_empty="enlarge", circular_state=circular_state)
     return out
 
 
@@ -248,7 +250,7 @@ def run_fusion(model, ys, *, family: str = "ukf", methods: Sequence[str] = METHO
     ys = as_matrix(ys, "ys", None, model.measurement_dim)
     local_beliefs, fused = _priors(model, local_priors, fused_prior)
     sensor_models = [model.sensor_model(m) for m in range(len(model.sizes))]
-    baselines = _baselines(methods, rcc_size)
+    baselines = _baselines(methods, rcc_size, model.circular_state)
     cmf_belief = dmf_belief = fused
     steps = []
     for t, y in enumerate(ys):

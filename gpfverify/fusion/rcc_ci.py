@@ -32,6 +32,11 @@ each solve calls Clarabel directly (:mod:`gpfverify.fusion.conic`: the same data
 cvxpy's route, bit for bit, without its per-solve overhead). Every solve is a function of its
 inputs alone (a new solver object each time, no warm start from the previous solve), so a Monte
 Carlo run gives the same bits whichever runs its process solved before (CONTRACT.md, Provenance).
+
+Angles. Angle state components (``circular_state``) are put on one branch around the circular mean
+of the local angles before the ellipsoids are formed (the RCC is translation equivariant, so the
+fused angle is a weighted circular mean), and the fused angles of ``mean`` and ``primal_mean``
+are wrapped to (−π, π] (:mod:`gpfverify.fusion.estimates`).
 """
 
 from __future__ import annotations
@@ -44,6 +49,7 @@ import cvxpy as cp
 import numpy as np
 from scipy.stats import chi2
 
+from gpfverify.angles import difference, wrap_components
 from gpfverify.errors import InputError, SolverError
 from gpfverify.fusion.conic import ClarabelProgram, ConicSolution, Parametrised, solve_with_cvxpy
 from gpfverify.fusion.estimates import (FusedEstimate, checked_estimates, information_form,
@@ -68,7 +74,8 @@ class RccCiResult:
     """``mean`` (CI form from the duals), ``cov`` = (Σω_mP_m⁻¹)⁻¹, ``weights`` ω (N,), ``alpha``
     (N,) dual multipliers (normalised problem), ``c`` the size used, ``primal_mean`` x*,
     ``primal_value`` = max tr(Δ) − ‖x‖² in original units (relaxed squared radius),
-    ``enlarged`` whether on_empty="enlarge" changed c."""
+    ``enlarged`` whether on_empty="enlarge" changed c, ``circular_state`` the angle state
+    components (wrapped in both means)."""
 
     mean: np.ndarray
     cov: np.ndarray
@@ -78,6 +85,7 @@ class RccCiResult:
     primal_mean: np.ndarray
     primal_value: float
     enlarged: bool = False
+    circular_state: tuple[int, ...] = ()
 
     @property
     def estimate(self) -> FusedEstimate:
@@ -85,8 +93,9 @@ class RccCiResult:
 
     @property
     def discrepancy(self) -> float:
-        """‖x* − x_CI-form‖: primal against dual centre (zero up to solver accuracy)."""
-        return float(np.linalg.norm(self.primal_mean - self.mean))
+        """‖x* − x_CI-form‖ (angles on the circle): primal against dual centre (zero up to solver
+        accuracy)."""
+        return float(np.linalg.norm(difference(self.primal_mean, self.mean, self.circular_state)))
 
 
 @dataclass(frozen=True)
@@ -215,10 +224,10 @@ def smallest_intersecting_size(estimates: Sequence) -> float:
 
 
 def rcc_ci(estimates: Sequence, c: float | None = None, on_empty: str = "error",
-           solver: str = cp.CLARABEL) -> RccCiResult:
+           solver: str = cp.CLARABEL, circular_state: Sequence[int] = ()) -> RccCiResult:
     """RCC-CI fusion of local estimates (see module docstring); ``c`` defaults to
-    :func:`default_size`."""
-    checked = checked_estimates(estimates)
+    :func:`default_size`; ``circular_state``: the angle state components."""
+    checked = checked_estimates(estimates, circular_state=circular_state)
     if on_empty not in ("error", "enlarge"):
         raise InputError(f"on_empty must be 'error' or 'enlarge', got {on_empty!r}")
     dim = checked[0].mean.shape[0]
@@ -246,9 +255,10 @@ def rcc_ci(estimates: Sequence, c: float | None = None, on_empty: str = "error",
         raise SolverError("RCC-CI: the dual multipliers are all zero")
     weights = alpha / alpha.sum()
     fused = weighted_information_fusion(info, weights)
-    return RccCiResult(mean=fused.mean, cov=fused.cov, weights=weights, alpha=alpha, c=c,
-                       primal_mean=norm.centre + norm.scale * solution.values[0],
-                       primal_value=solution.value * norm.scale**2, enlarged=enlarged)
+    angles = tuple(sorted(circular_state))
+    return RccCiResult(mean=wrap_components(fused.mean, angles), cov=fused.cov, weights=weights, alpha=alpha,
+                       c=c, primal_mean=wrap_components(norm.centre + norm.scale * solution.values[0], angles),
+                       primal_value=solution.value * norm.scale**2, enlarged=enlarged, circular_state=angles)
 
 
 @dataclass(frozen=True)
@@ -261,9 +271,10 @@ class RccCiDual:
     mean: np.ndarray
 
 
-def rcc_ci_dual(estimates: Sequence, c: float | None = None, solver: str = cp.CLARABEL) -> RccCiDual:
+def rcc_ci_dual(estimates: Sequence, c: float | None = None, solver: str = cp.CLARABEL,
+                circular_state: Sequence[int] = ()) -> RccCiDual:
     """Solve the RCC dual SDP (module docstring) for the cross-check against :func:`rcc_ci`."""
-    checked = checked_estimates(estimates)
+    checked = checked_estimates(estimates, circular_state=circular_state)
     dim = checked[0].mean.shape[0]
     c = default_size(dim) if c is None else float(as_positive(c, "c", shape=()))
     info = information_form(checked)
@@ -274,4 +285,4 @@ def rcc_ci_dual(estimates: Sequence, c: float | None = None, solver: str = cp.CL
         raise SolverError(f"RCC-CI dual ended with status {solution.status}")
     a = np.clip(solution.values[0], 0.0, None)
     fused = weighted_information_fusion(info, a / a.sum())
-    return RccCiDual(a, solution.value * norm.scale**2, fused.mean)
+    return RccCiDual(a, solution.value * norm.scale**2, wrap_components(fused.mean, circular_state))

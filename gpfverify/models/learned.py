@@ -26,7 +26,8 @@ import numpy as np
 
 from gpfverify.errors import InputError
 from gpfverify.gp import GaussianProcess, GaussianProcessStack
-from gpfverify.models.system import StackedMeasurement, StateSpaceModel, _indices
+from gpfverify.models.system import StackedMeasurement, StateSpaceModel
+from gpfverify.validate import as_indices
 from gpfverify.runtime import one_blas_thread
 
 
@@ -74,8 +75,8 @@ class GPModel(StackedMeasurement):
             raise InputError(f"sensor_circular has {len(circular)} entries for {len(sensors)} sensors")
         object.__setattr__(self, "sensors", sensors)
         object.__setattr__(self, "sensor_circular", tuple(
-            _indices(c, gp.output_dim, f"sensor {m} circular") for m, (c, gp) in enumerate(zip(circular, sensors))))
-        object.__setattr__(self, "circular_state", _indices(self.circular_state, d, "circular_state"))
+            as_indices(c, gp.output_dim, f"sensor {m} circular") for m, (c, gp) in enumerate(zip(circular, sensors))))
+        object.__setattr__(self, "circular_state", as_indices(self.circular_state, d, "circular_state"))
 
     @property
     def state_dim(self) -> int:
@@ -95,7 +96,7 @@ class GPModel(StackedMeasurement):
         return self.with_sensors([m])
 
     def with_sensors(self, indices: Sequence[int]) -> GPModel:
-        if not _indices(indices, len(self.sensors), "sensor indices"):
+        if not as_indices(indices, len(self.sensors), "sensor indices"):
             raise InputError("a GP model needs at least one sensor")
         return replace(self, sensors=tuple(self.sensors[i] for i in indices),
                        sensor_circular=tuple(self.sensor_circular[i] for i in indices))

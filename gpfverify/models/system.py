@@ -40,23 +40,7 @@ from gpfverify.angles import difference
 from gpfverify.errors import InputError
 from gpfverify.models.functions import LinearFunction, ModelFunction, NumpyFunction
 from gpfverify.tolerances import algebra_rtol
-from gpfverify.validate import as_covariance, as_vector
-
-
-def _indices(value, count: int, what: str) -> tuple[int, ...]:
-    """0-based indices into ``count`` components, sorted and unique; InputError naming ``what``."""
-    try:
-        items = list(value)
-    except TypeError:
-        raise InputError(f"{what} must be a list of 0-based indices, got {value!r}") from None
-    for i in items:
-        if isinstance(i, (bool, np.bool_)) or not isinstance(i, (int, np.integer)):
-            raise InputError(f"{what} must hold integers, got {i!r}")
-        if not 0 <= i < count:
-            raise InputError(f"{what} index {i} is out of range for {count} component(s)")
-    if len(set(items)) != len(items):
-        raise InputError(f"{what} lists an index twice: {items}")
-    return tuple(sorted(int(i) for i in items))
+from gpfverify.validate import as_covariance, as_indices, as_vector
 
 
 def as_model_function(obj, name: str, in_dim: int, out_dim: int, jacobian=None,
@@ -101,7 +85,7 @@ class Sensor:
         cov = as_covariance(_floats(self.noise_cov, f"{label} noise_cov", 2), f"{label} noise_cov",
                             definite=True)
         object.__setattr__(self, "noise_cov", cov)
-        object.__setattr__(self, "circular", _indices(self.circular, cov.shape[0], f"{label} circular"))
+        object.__setattr__(self, "circular", as_indices(self.circular, cov.shape[0], f"{label} circular"))
 
     @property
     def size(self) -> int:
@@ -190,7 +174,7 @@ class StateSpaceModel(StackedMeasurement):
         set_("process_cov", Q)
         set_("prior_mean", as_vector(_floats(self.prior_mean, "prior_mean", 1), "prior_mean", d))
         set_("prior_cov", as_covariance(_floats(self.prior_cov, "prior_cov", 2), "prior_cov", d))
-        set_("circular_state", _indices(self.circular_state, d, "circular_state"))
+        set_("circular_state", as_indices(self.circular_state, d, "circular_state"))
         sensors = tuple(self.sensors) if isinstance(self.sensors, (list, tuple)) else (self.sensors,)
         if not sensors:
             raise InputError("a model needs at least one sensor")
@@ -309,7 +293,7 @@ class StateSpaceModel(StackedMeasurement):
 
     def with_sensors(self, indices: Sequence[int]) -> StateSpaceModel:
         """The same system with the sensors ``indices`` (in that order)."""
-        if not _indices(indices, len(self.sensors), "sensor indices"):
+        if not as_indices(indices, len(self.sensors), "sensor indices"):
             raise InputError("a model needs at least one sensor")
         return replace(self, sensors=tuple(self.sensors[i] for i in indices), probe=False)
 
