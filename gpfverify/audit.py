@@ -57,7 +57,7 @@ from gpfverify.angles import difference
 from gpfverify.errors import NumericalError
 from gpfverify.fusion.case import FusionCase, case_from_records
 from gpfverify.fusion.centralized import cmf_update
-from gpfverify.fusion.distributed import DMFResult, dmf_update
+from gpfverify.fusion.distributed import DMFResult, dmf_update, fused_mean
 from gpfverify.fusion.exactness import (COVARIANCE_CENTRAL, COVARIANCE_LOCAL, DEFAULT_RANK_RULE,  # noqa: F401
                                         NUMPY_RANK_RULE, RankRule, branch_offsets, canonical_split,
                                         equivalence_tolerance, gap_size,
@@ -265,11 +265,11 @@ def audit_case(case: FusionCase, rank_tol: float | None = None, sensitivity: boo
         return CaseAudit(tuple(sensors), rule, dmf.condition_holds, dmf.exact, dmf.mean, None, None, None, None,
                          None, None, None, *unit_free)
     cmf = cmf_update(case.central, case.y, dmf.gain)
-    repaired = dmf_update(case, messages, rank_rule=rule)
+    repaired = fused_mean(case, dmf.gain, dmf.sensors, messages)
     gap = difference(dmf.mean, cmf.mean, case.circular_state)
     predicted = predicted_gap(case, dmf.sensors, dmf.gain)
     return CaseAudit(tuple(sensors), rule, dmf.condition_holds, dmf.exact, dmf.mean, cmf.mean, gap,
-                     predicted, repaired.mean,
+                     predicted, repaired,
                      gap_size(case, gap, dmf.scale), equivalence_tolerance(case, dmf.gain, dmf.sensors, dmf.scale),
                      gap_size(case, difference(gap, predicted, case.circular_state), dmf.scale), *unit_free)
 

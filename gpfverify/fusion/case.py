@@ -33,6 +33,7 @@ floating-point overflow as an error). A case file must be a regular file of UTF-
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 from typing import Any
 
@@ -46,10 +47,15 @@ __all__ = ["MAX_MAGNITUDE", "CentralPrediction", "LocalReport", "FusionCase", "c
            "case_to_dict", "case_from_records", "sensor_blocks", "stack_circular", "split_circular"]
 
 
+@functools.lru_cache(maxsize=256)
+def _blocks(sizes: tuple[int, ...]) -> tuple[slice, ...]:
+    ends = np.cumsum((0,) + sizes)
+    return tuple(slice(int(a), int(b)) for a, b in zip(ends[:-1], ends[1:]))
+
+
 def sensor_blocks(sizes) -> list[slice]:
     """Slice of every sensor's outputs in the stacked measurement (sensor order)."""
-    ends = np.cumsum((0,) + tuple(sizes))
-    return [slice(int(a), int(b)) for a, b in zip(ends[:-1], ends[1:])]
+    return list(_blocks(tuple(int(s) for s in sizes)))
 
 
 def stack_circular(per_sensor, sizes) -> tuple[int, ...]:

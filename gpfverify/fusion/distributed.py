@@ -81,6 +81,16 @@ def dmf_update(case: FusionCase, repair_messages: Sequence[np.ndarray] | None = 
     rule = resolve_rank_rule(case, rank_rule, rank_tol)
     scale = fused_scale(central)
     sensors = analyse_sensors(case, gain, rank_rule=rule, unit_free=unit_free, scale=scale)
+    mean = fused_mean(case, gain, sensors, repair_messages)
+    return DMFResult(mean, fused_covariance(central, gain), gain, sensors, repair_messages is not None, rule,
+                     unit_free, scale)
+
+
+def fused_mean(case: FusionCase, gain: np.ndarray, sensors: Sequence[SensorExactness],
+               repair_messages: Sequence[np.ndarray] | None = None) -> np.ndarray:
+    """Eq. 35's mean (repaired with ``repair_messages``) from the sensors' splits already computed
+    (:func:`dmf_update`'s; the audit reuses them for the repaired mean)."""
+    central = case.central
     if repair_messages is not None and len(repair_messages) != len(case.locals):
         raise InputError(f"repair_messages needs {len(case.locals)} entries, got {len(repair_messages)}")
     parts = []
@@ -93,6 +103,4 @@ def dmf_update(case: FusionCase, repair_messages: Sequence[np.ndarray] | None = 
                                  f"({local.mu_y.shape[0]} entries), got shape {k_m.shape}")
             recovered = recovered + s.split.kernel_component(k_m)
         parts.append(difference(local.mu_y, central.mu_y[block], local.circular) + local.C_y @ recovered)
-    mean = wrap_components(central.mu_p + gain @ np.concatenate(parts), case.circular_state)
-    return DMFResult(mean, fused_covariance(central, gain), gain, sensors, repair_messages is not None, rule,
-                     unit_free, scale)
+    return wrap_components(central.mu_p + gain @ np.concatenate(parts), case.circular_state)
