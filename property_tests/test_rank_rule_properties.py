@@ -4,7 +4,7 @@ Rescaling state components (x → S_x x) and measurement components (y → S_y y
 diagonal factors — metres → km, radians → microradians, anything in [1e-6, 1e6] — changes
 
 * no rank verdict (rank, full column rank, Proposition 1's condition),
-* no exactness verdict (per sensor, wherever both frames resolve it),
+* no exactness verdict (per sensor, wherever both frames' arithmetic resolves it),
 * the DMF − CMF gap only by rounding when no sensor lost rank (with a rank loss eq. 35's
   Moore–Penrose inverse depends on units; the unit-free variant's gap never does): it is a state
   difference, so S_x⁻¹ · gap' = gap, compared component by component against a rounding bound
@@ -69,9 +69,12 @@ def check_unit_invariance(case, s_x, s_y) -> None:
     assert base.rank_rule.name == other.rank_rule.name == "canonical"
     assert [s.rank for s in base.sensors] == [s.rank for s in other.sensors]
     for s, t in zip(base.sensors, other.sensors):
-        # the kernel-inclusion verdict does not depend on units wherever both frames resolve it
-        # (in units where the computed kernel is too uncertain the verdict is "not exact" by design)
-        if max(s.exactness_tol, t.exactness_tol) <= RESOLVABLE_GAP:
+        # the kernel-inclusion verdict does not depend on units wherever both frames resolve it: both
+        # bounds at most RESOLVABLE_GAP (else "not exact" by design) and neither residual between the
+        # two frames' rounding bounds (a gap one frame's arithmetic resolves and the other's cannot)
+        low, high = sorted((s.exactness_tol, t.exactness_tol))
+        between = any(low < r <= high for r in (s.gap_gain_norm, t.gap_gain_norm))
+        if high <= RESOLVABLE_GAP and not between:
             assert s.exact == t.exact, (s.gap_gain_norm, s.exactness_tol, t.gap_gain_norm, t.exactness_tol)
     assert base.condition_holds == other.condition_holds
     dmf, dmf_moved = dmf_update(case), dmf_update(moved)
