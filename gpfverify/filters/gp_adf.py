@@ -13,7 +13,10 @@ Gaussian input (:meth:`GaussianProcess.predict_uncertain`, eq. 8–11 and 20):
 
 The model is a :class:`~gpfverify.models.GPModel` (validated when built): its ``transition`` GP
 and its ``measurement`` GP (one sensor's GP, or the stack of several, whose joint moments carry
-the cross-sensor blocks of centralized fusion). Angle outputs: y − μ_y is wrapped in the update.
+the cross-sensor blocks of centralized fusion). Angle outputs: y − μ_y is wrapped in the update;
+angle state components (``circular_state``) of μ_p and μ_e are wrapped to (−π, π]; the GPs are
+moment-matched at the belief with its angles on the branch of their training data
+(:meth:`GPModel.on_training_branch`: a mean shift by whole turns, which leaves C_xy unchanged).
 Beliefs may carry leading batch axes; each belief in a batch is moment-matched separately.
 """
 
@@ -21,6 +24,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from gpfverify.angles import wrap_components
 from gpfverify.filters.records import Gaussian, MeasurementMoments, StepRecord
 from gpfverify.filters.update import check_belief, gaussian_update
 from gpfverify.linalg import symmetrize
@@ -53,15 +57,19 @@ def gp_adf_predict(belief: Gaussian, model, *, k: int = 1) -> Gaussian:
     """N(μ_p, C_p), eq. 18–19: moment matching at the belief plus the learned transition noise
     (``k`` is accepted for the common protocol; a GP model does not depend on it)."""
     require_model(model, GPModel, "GP-ADF")
-    mean, cov, _ = moment_match_batched(model.transition, belief)
-    return Gaussian(mean, symmetrize(cov + np.diag(model.transition.noise_var)))
+    belief = check_belief(belief, model.state_dim)
+    mean, cov, _ = moment_match_batched(model.transition, Gaussian(model.on_training_branch(belief.mean), belief.cov))
+    return Gaussian(wrap_components(mean, model.circular_state),
+                    symmetrize(cov + np.diag(model.transition.noise_var)))
 
 
 def gp_adf_measurement(prediction: Gaussian, model, *, k: int = 1) -> MeasurementMoments:
     """(μ_y, C_y, C_xy) at N(μ_p, C_p): exact moments plus the learned measurement noise."""
     require_model(model, GPModel, "GP-ADF")
     gp = model.measurement
-    mu_y, cov, cross = moment_match_batched(gp, prediction, "prediction")
+    prediction = check_belief(prediction, model.state_dim, "prediction")
+    mu_y, cov, cross = moment_match_batched(gp, Gaussian(model.on_training_branch(prediction.mean), prediction.cov),
+                                            "prediction")
     return MeasurementMoments(mu_y, symmetrize(cov + np.diag(gp.noise_var)), cross)
 
 

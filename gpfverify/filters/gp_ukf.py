@@ -13,8 +13,9 @@ i.e. the latent variance plus the GP's learned noise variance σ_ε², as diagon
 Q and R tend to the learned system and measurement noise where the training data are dense.
 Sigma-point parameters default to α = 1, β = 0, κ = 2 (:class:`SigmaParams`). The model is a
 :class:`~gpfverify.models.GPModel`; angle outputs and state components are handled as in the UKF
-(circular sigma-point means, wrapped deviations and innovation). Beliefs may carry leading batch
-axes.
+(circular sigma-point means, wrapped deviations and innovation), and the GPs are evaluated with the
+angles on the branch of their training data (:meth:`GPModel.on_training_branch`). Beliefs may
+carry leading batch axes.
 """
 
 from __future__ import annotations
@@ -44,9 +45,9 @@ def gp_ukf_predict(belief: Gaussian, model, *, k: int = 1, params: SigmaParams =
     require_model(model, GPModel, "GP-UKF")
     gp = model.transition
     belief = check_belief(belief, gp.input_dim)
-    mean, cov, _ = unscented_transform(belief, gp.predict_mean, params, model.circular_state,
-                                       model.circular_state)
-    return Gaussian(mean, symmetrize(cov + gp_noise_covariance(gp, belief.mean)))
+    mean, cov, _ = unscented_transform(belief, lambda x: gp.predict_mean(model.on_training_branch(x)), params,
+                                       model.circular_state, model.circular_state)
+    return Gaussian(mean, symmetrize(cov + gp_noise_covariance(gp, model.on_training_branch(belief.mean))))
 
 
 def gp_ukf_measurement(prediction: Gaussian, model, *, k: int = 1,
@@ -55,9 +56,10 @@ def gp_ukf_measurement(prediction: Gaussian, model, *, k: int = 1,
     require_model(model, GPModel, "GP-UKF")
     gp = model.measurement
     prediction = check_belief(prediction, gp.input_dim, "prediction")
-    mu_y, C_y, C_xy = unscented_transform(prediction, gp.predict_mean, params, model.circular_state,
-                                          model.circular)
-    return MeasurementMoments(mu_y, symmetrize(C_y + gp_noise_covariance(gp, prediction.mean)), C_xy)
+    mu_y, C_y, C_xy = unscented_transform(prediction, lambda x: gp.predict_mean(model.on_training_branch(x)),
+                                          params, model.circular_state, model.circular)
+    noise = gp_noise_covariance(gp, model.on_training_branch(prediction.mean))
+    return MeasurementMoments(mu_y, symmetrize(C_y + noise), C_xy)
 
 
 @one_blas_thread

@@ -5,10 +5,19 @@ the GP-ADF and GP-UKF families filter with.
 
 with the transition GP (D → D), one measurement GP per sensor (D → l_m), and the noise learned by
 each GP (its ``noise_var``). The stacked measurement is the :class:`~gpfverify.gp.GaussianProcessStack`
-of the sensors' GPs (one shared uncertain input, hence cross-sensor blocks in C_y). Angle outputs
-(``sensor_circular``) are learned as given; the filters wrap y − μ_y and the fusion rules wrap
-every difference of them (a GP cannot learn across the ±π cut, so train on data away from it or
-on an unwrapped angle).
+of the sensors' GPs (one shared uncertain input, hence cross-sensor blocks in C_y).
+
+Angles. Angle outputs (``sensor_circular``) and angle state components (``circular_state``) are
+learned as given; the filters wrap y − μ_y and the angle states of μ_p and μ_e, and the fusion
+rules take every difference of them on the circle. A squared-exponential GP knows no period, so
+
+* the GPs are evaluated with the angle inputs on the branch of their training data:
+  θ ↦ r + wrap(θ − r), r the circular mean of the transition GP's training angles
+  (:meth:`GPModel.on_training_branch`); a belief that moves past ±π stays next to the data the
+  GPs learned from instead of jumping 2π away from them;
+* :func:`fit_gp_model` refuses training data in which an angle jumps across the cut
+  (:func:`check_no_cut_crossing`): a target that is 3.1 at one sample and −3.1 at the next would
+  be learned as a steep slope through 0.
 
 :func:`fit_gp_model` learns the GPs from samples (evidence maximisation on at most ``fit_points``
 evenly spaced samples, then conditioning on all of them); :func:`learn_gp_model` draws the samples
@@ -24,6 +33,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
+from gpfverify.angles import wrap
 from gpfverify.errors import InputError
 from gpfverify.gp import GaussianProcess, GaussianProcessStack
 from gpfverify.models.system import StackedMeasurement, StateSpaceModel
@@ -91,6 +101,27 @@ class GPModel(StackedMeasurement):
         """The sensors' GP, or their stack when there are several."""
         return self.sensors[0] if len(self.sensors) == 1 else GaussianProcessStack(self.sensors)
 
+    @cached_property
+    def angle_reference(self) -> np.ndarray | None:
+        """r: the circular mean of the transition GP's training inputs' angle state components
+        (None without angle states, or for a GP that does not expose its inputs ``X``)."""
+        inputs = getattr(self.transition, "X", None)
+        if not self.circular_state or inputs is None:
+            return None
+        angles = np.asarray(inputs, dtype=float)[:, list(self.circular_state)]
+        return np.arctan2(np.sin(angles).sum(axis=0), np.cos(angles).sum(axis=0))
+
+    def on_training_branch(self, states: np.ndarray) -> np.ndarray:
+        """``states`` (..., D) with the angle components θ moved to r + wrap(θ − r), the branch of
+        the GPs' training data (module docstring); unchanged without angle states."""
+        reference = self.angle_reference
+        if reference is None:
+            return states
+        out = np.array(states, dtype=float)
+        idx = list(self.circular_state)
+        out[..., idx] = reference + wrap(out[..., idx] - reference)
+        return out
+
     def sensor_model(self, m: int) -> GPModel:
         """Sensor ``m`` alone (its local filter's model)."""
         return self.with_sensors([m])
@@ -113,13 +144,39 @@ def fit_capped(X: np.ndarray, Y: np.ndarray, restarts: int, fit_points: int | No
     return GaussianProcess(X, Y, fitted.lengthscales, fitted.signal_var, fitted.noise_var)
 
 
+def check_no_cut_crossing(before: np.ndarray, after: np.ndarray, circular: Sequence[int], what: str) -> None:
+    """InputError when an angle component (``circular``, last axis) of consecutive samples
+    ``before`` → ``after`` jumps across the ±π cut, i.e. |after − before| > π: the shortest move
+    between them passes through ±π, and a GP would learn the jump as a steep slope through 0."""
+    if not len(circular) or not len(before):
+        return
+    idx = list(circular)
+    jumps = np.abs(np.asarray(after, dtype=float)[:, idx] - np.asarray(before, dtype=float)[:, idx]) > np.pi
+    if jumps.any():
+        sample, column = (int(i) for i in np.argwhere(jumps)[0])
+        raise InputError(
+            f"{what} component {idx[column]} (an angle) crosses the ±pi cut between samples {sample} and "
+            f"{sample + 1} ({float(np.asarray(before)[sample, idx[column]]):.4g} -> "
+            f"{float(np.asarray(after)[sample, idx[column]]):.4g}): a GP cannot learn an angle across the cut; "
+            f"train on a trajectory that stays on one side of it")
+
+
 @one_blas_thread
 def fit_gp_model(transition_inputs, transition_targets, measurement_inputs, measurement_targets: Sequence,
                  rng: np.random.Generator, *, restarts: int = 3, fit_points: int | None = None,
                  sensor_circular: Sequence[Sequence[int]] = (), circular_state: Sequence[int] = ()) -> GPModel:
     """Learn a :class:`GPModel`: the transition GP on pairs x_{τ} ↦ x_{τ+1} (n_f, D) → (n_f, D),
-    each sensor's GP on x_τ ↦ y_τ^m (n, D) → (n, l_m). One optimiser seed per GP is drawn from
-    ``rng`` (transition first, then the sensors in order)."""
+    each sensor's GP on x_τ ↦ y_τ^m (n, D) → (n, l_m), the samples in time order. One optimiser
+    seed per GP is drawn from ``rng`` (transition first, then the sensors in order). Training data
+    in which an angle crosses the ±π cut — a transition pair's angle state, or an angle output or
+    angle state from one measurement sample to the next — are refused (:func:`check_no_cut_crossing`)."""
+    inputs = np.asarray(measurement_inputs, dtype=float)
+    check_no_cut_crossing(np.asarray(transition_inputs, dtype=float), np.asarray(transition_targets, dtype=float),
+                          circular_state, "the training trajectory's state")
+    check_no_cut_crossing(inputs[:-1], inputs[1:], circular_state, "the training trajectory's state")
+    for m, (y, circular) in enumerate(zip(measurement_targets, tuple(sensor_circular) or ())):
+        y = np.asarray(y, dtype=float).reshape(len(y), -1)
+        check_no_cut_crossing(y[:-1], y[1:], circular, f"sensor {m}'s training output")
     seeds = [int(s) for s in rng.integers(1 << 31, size=1 + len(measurement_targets))]
     transition = fit_capped(np.asarray(transition_inputs, dtype=float), np.asarray(transition_targets, dtype=float),
                             restarts, fit_points, seeds[0])

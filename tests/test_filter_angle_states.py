@@ -1,0 +1,179 @@
+"""Angle states in every Gaussian filter family: a heading θ and turn rate ω, two compasses and a
+gyro, the heading crossing ±π. Oracles written here: the exact Kalman filter in numpy on the
+*unwrapped* problem (headings as plain numbers beyond π), whose wrapped posterior every family
+must reproduce on the wrapped data (the model is linear); the same run rotated by π and by angles
+that move the cut; for the learned families, the update recomputed by hand from each record's
+moments, and every predicted and posterior heading in (−π, π]."""
+
+import numpy as np
+import pytest
+
+from gpfverify.angles import wrap
+from gpfverify.errors import InputError
+from gpfverify.filters.families import gaussian_family
+from gpfverify.filters.records import Gaussian
+from gpfverify.models import Sensor, StateSpaceModel, fit_gp_model
+from gpfverify.tolerances import algebra_rtol
+
+F = np.array([[1.0, 1.0], [0.0, 1.0]])
+Q = np.diag([1e-3, 1e-4])
+H = np.array([[1.0, 0.0], [1.0, 0.0], [0.0, 1.0]])
+R = np.diag([0.04, 0.09, 0.01])
+PRIOR_COV = np.diag([0.05, 0.01])
+STEPS = 12
+
+
+def heading_model(rotation: float = 0.0) -> StateSpaceModel:
+    """θ_k = θ_{k−1} + ω_{k−1}, ω_k = ω_{k−1}; compasses read θ (angles), a gyro reads ω."""
+    sensors = [Sensor(H[:1], R[:1, :1], circular=(0,), name="compass A"),
+               Sensor(H[1:2], R[1:2, 1:2], circular=(0,), name="compass B"),
+               Sensor(H[2:], R[2:, 2:], name="gyro")]
+    return StateSpaceModel(F, Q, sensors, np.array([wrap(3.0 + rotation), 0.05]), PRIOR_COV,
+                           circular_state=(0,), name="heading")
+
+
+def unwrapped_run(seed: int = 3) -> tuple[np.ndarray, np.ndarray]:
+    """Truth (T, 2) and measurements (T, 3) with the heading as a plain number (it passes π)."""
+    rng = np.random.default_rng(seed)
+    x = np.array([3.0, 0.05])
+    truth, ys = [], []
+    for _ in range(STEPS):
+        x = F @ x + rng.multivariate_normal(np.zeros(2), Q)
+        truth.append(x)
+        ys.append(H @ x + rng.multivariate_normal(np.zeros(3), R))
+    return np.array(truth), np.array(ys)
+
+
+def kf_by_hand(ys: np.ndarray) -> np.ndarray:
+    """The textbook Kalman filter on unwrapped numbers; posterior means (T, 2)."""
+    mean, cov = np.array([3.0, 0.05]), PRIOR_COV.copy()
+    out = []
+    for y in ys:
+        mean, cov = F @ mean, F @ cov @ F.T + Q
+        s = H @ cov @ H.T + R
+        gain = np.linalg.solve(s, H @ cov).T
+        mean, cov = mean + gain @ (y - H @ mean), cov - gain @ s @ gain.T
+        out.append(mean)
+    return np.array(out)
+
+
+def run_family(name: str, model, ys: np.ndarray) -> list:
+    family = gaussian_family(name)
+    belief = Gaussian(model.prior_mean, model.prior_cov)
+    records = []
+    for k, y in enumerate(ys, start=1):
+        record = family.step(belief, model, y, k=k)
+        records.append(record)
+        belief = record.posterior
+    return records
+
+
+def close_on_circle(a, b, tol: float) -> None:
+    d = np.asarray(a, float) - np.asarray(b, float)
+    d[..., 0] = wrap(d[..., 0])
+    assert np.all(np.abs(d) <= tol * np.pi), np.abs(d).max()
+
+
+TOL = STEPS * algebra_rtol(np.linalg.cond(H @ PRIOR_COV @ H.T + R))
+KNOWN_MODEL_FAMILIES = ["kf", "ekf", "ukf"]
+
+
+@pytest.mark.parametrize("name", KNOWN_MODEL_FAMILIES)
+def test_every_family_is_the_unwrapped_kalman_filter_wrapped(name):
+    truth, ys = unwrapped_run()
+    assert truth[:, 0].max() > np.pi  # the heading crosses the cut
+    expected = kf_by_hand(ys)
+    wrapped_ys = ys.copy()
+    wrapped_ys[:, :2] = wrap(ys[:, :2])
+    records = run_family(name, heading_model(), wrapped_ys)
+    means = np.array([r.mu_e for r in records])
+    assert np.all((-np.pi < means[:, 0]) & (means[:, 0] <= np.pi))
+    close_on_circle(means, expected, TOL)
+
+
+@pytest.mark.parametrize("rotation", [np.pi, 0.5, -2.0, 0.2, -0.15])
+@pytest.mark.parametrize("name", KNOWN_MODEL_FAMILIES)
+def test_every_family_is_equivariant_under_a_rotation_of_the_heading(name, rotation):
+    _, ys = unwrapped_run()
+    base, turned = ys.copy(), ys.copy()
+    base[:, :2] = wrap(ys[:, :2])
+    turned[:, :2] = wrap(ys[:, :2] + rotation)
+    a = np.array([r.mu_e for r in run_family(name, heading_model(), base)])
+    b = np.array([r.mu_e for r in run_family(name, heading_model(rotation), turned)])
+    a[:, 0] = a[:, 0] + rotation
+    close_on_circle(b, a, TOL)
+
+
+@pytest.fixture(scope="module")
+def learned_heading_model():
+    """GPs learned from a trajectory whose heading stays below the cut (2.2 … 3.0)."""
+    rng = np.random.default_rng(11)
+    theta = np.linspace(2.2, 3.0, 60)
+    omega = 0.05 + 0.01 * rng.standard_normal(60)
+    x = np.column_stack([theta, omega])
+    x_next = np.column_stack([theta + omega, omega]) + rng.normal(0, 0.01, (60, 2))
+    y = x @ H.T + rng.normal(0, 0.05, (60, 3))
+    return fit_gp_model(x, x_next, x, [y[:, :1], y[:, 1:2], y[:, 2:]], rng, restarts=1,
+                        sensor_circular=[(0,), (0,), ()], circular_state=(0,))
+
+
+@pytest.mark.parametrize("name", ["gp-adf", "gp-ukf"])
+def test_learned_families_wrap_predicted_and_posterior_headings(name, learned_heading_model):
+    """A belief just below π and compasses reading just past the cut (−3.13): every μ_p and μ_e
+    heading lies in (−π, π], and μ_e is μ_p + C_xy C_y⁻¹ wrap(y − μ_y), wrapped — by hand."""
+    model = learned_heading_model
+    family = gaussian_family(name)
+    belief = Gaussian(np.array([3.05, 0.05]), np.diag([0.01, 1e-4]))
+    y = np.array([-3.13, -3.12, 0.05])
+    for k in range(1, 4):
+        record = family.step(belief, model, y, k=k)
+        assert -np.pi < record.mu_p[0] <= np.pi and -np.pi < record.mu_e[0] <= np.pi
+        innovation = y - record.mu_y
+        innovation[:2] = wrap(innovation[:2])
+        expected = record.mu_p + record.C_xy @ np.linalg.solve(record.C_y, innovation)
+        close_on_circle(record.mu_e, expected, algebra_rtol(np.linalg.cond(record.C_y)))
+        belief = record.posterior
+    assert abs(wrap(belief.mean[0] - (-3.12))) < 0.2  # the heading followed the compasses across the cut
+
+
+def _crossing_training():
+    """A heading trajectory 2.9, 3.0, …, passing π (wrapped as the system simulates it)."""
+    theta = wrap(np.linspace(2.9, 3.5, 20))
+    x = np.column_stack([theta, np.full(20, 0.03)])
+    y = x @ H.T
+    y[:, :2] = wrap(y[:, :2])
+    return x, y
+
+
+def test_training_across_the_cut_is_refused_with_the_reason():
+    x, y = _crossing_training()
+    with pytest.raises(InputError, match=r"state component 0 \(an angle\) crosses the ±pi cut between samples"):
+        fit_gp_model(x[:-1], x[1:], x, [y[:, :1], y[:, 1:2], y[:, 2:]], np.random.default_rng(0), restarts=1,
+                     sensor_circular=[(0,), (0,), ()], circular_state=(0,))
+    with pytest.raises(InputError, match=r"sensor 1's training output component 0 \(an angle\) crosses"):
+        fit_gp_model(np.zeros((19, 1)), np.zeros((19, 1)), np.zeros((20, 1)), [y[:, 2:], y[:, 1:2]],
+                     np.random.default_rng(0), restarts=1, sensor_circular=[(), (0,)])
+
+
+def test_check_refuses_to_learn_a_system_whose_heading_crosses_the_cut(tmp_path, capsys):
+    """``check --filter gp-adf`` with ``--training`` data crossing ±π: exit 2, one line naming the
+    reason, nothing written."""
+    from gpfverify.cli import main
+
+    system = tmp_path / "heading.py"
+    system.write_text(
+        "import numpy as np\n"
+        "from gpfverify.models import Sensor, StateSpaceModel\n"
+        "system = StateSpaceModel(np.array([[1.0, 1.0], [0.0, 1.0]]), np.diag([1e-3, 1e-4]),\n"
+        "    [Sensor(np.array([[1.0, 0.0]]), [[0.04]], circular=(0,)), Sensor(np.array([[1.0, 0.0]]), [[0.09]],\n"
+        "     circular=(0,)), Sensor(np.array([[0.0, 1.0]]), [[0.01]])], [3.0, 0.05], np.diag([0.05, 0.01]),\n"
+        "    circular_state=(0,))\n")
+    x, y = _crossing_training()
+    training = tmp_path / "train.npz"
+    np.savez(training, x=x, y=y)
+    out = tmp_path / "out"
+    assert main(["check", f"{system}:system", "--filter", "gp-adf", "--training", str(training),
+                 "--steps", "3", "--out", str(out)]) == 2
+    printed, err = capsys.readouterr()
+    assert err.count("\n") == 1 and "crosses the ±pi cut" in err, err
+    assert not out.exists()
