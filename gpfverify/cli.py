@@ -82,6 +82,41 @@ def positive_int(text: str) -> int:
     return value
 
 
+def fusion_rule(text: str) -> str:
+    """argparse type: one fusion rule by any accepted name, as its canonical name
+    (:mod:`gpfverify.fusion.names`: ``cw`` -> ``cc``)."""
+    from gpfverify.fusion.names import canonical_rule
+
+    try:
+        return canonical_rule(text)
+    except GpfverifyError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
+
+
+def fusion_rules(text: str) -> tuple[str, ...]:
+    """argparse type: comma-separated fusion rules (:func:`fusion_rule` each), each once."""
+    return tuple(dict.fromkeys(fusion_rule(name) for name in text.split(",") if name.strip()))
+
+
+#: the one description of ``--rank-rule`` (check, audit, reproduce)
+RANK_RULE_HELP = ("How the rank of each C_xy^m in eq. 35 is decided: canonical[:TAU] (canonical correlations "
+                  "of state and sensor output above TAU, default sqrt(eps); unit-free), absolute:TOL "
+                  "(singular values above TOL) or numpy (singular values above sigma_max * max(D, l) * eps, "
+                  "numpy's and MATLAB's rank()).")
+
+
+def rank_rule_text(text: str) -> str:
+    """argparse type: a rank rule ``canonical[:TAU]``, ``absolute:TOL`` or ``numpy``, checked and
+    kept as typed (:func:`gpfverify.fusion.exactness.parse_rank_rule`)."""
+    from gpfverify.fusion.exactness import parse_rank_rule
+
+    try:
+        parse_rank_rule(text)
+    except GpfverifyError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
+    return text
+
+
 non_negative_int.__name__ = "integer >= 0"  # argparse names the type in "invalid ... value"
 positive_int.__name__ = "integer >= 1"
 

@@ -204,7 +204,7 @@ def test_ci_conservative_and_naive_convex_combination_flagged():
     rng = np.random.default_rng(3)
     truth, locals_ = _correlated_estimates(rng, 600, rho=0.95)
     results = {}
-    for name, rule in (("ci", covariance_intersection), ("cw", convex_combination)):
+    for name, rule in (("ci", covariance_intersection), ("cc", convex_combination)):
         fused = [rule(pair) for pair in locals_]
         errors = estimation_errors(truth, np.array([f.mean for f in fused]))
         results[name] = conservativeness(errors, np.array([f.cov for f in fused]), STRICT_LEVEL)
@@ -216,7 +216,7 @@ def test_ci_conservative_and_naive_convex_combination_flagged():
                                    rtol=algebra_rtol(10.0))
     assert results["ci"].verdict() == "conservative", results["ci"].summary()
     assert_consistent(results["ci"])
-    cw = results["cw"]
+    cw = results["cc"]
     assert cw.verdict() == "not conservative", cw.summary()
     assert cw.bound == conservativeness_bound(600, 2, STRICT_LEVEL)
     with pytest.raises(AssertionError, match="not conservative"):
@@ -259,8 +259,8 @@ def test_from_fusion_and_from_records_equal_arrays():
     rng = np.random.default_rng(5)
     sims = [model.simulate(4, rng) for _ in range(3)]
     truth = np.array([x for x, _ in sims])
-    runs = [run_fusion(model, y, family="kf", methods=("cmf", "cw"), audit=False) for _, y in sims]
-    for method in ("cmf", "cw"):
+    runs = [run_fusion(model, y, family="kf", methods=("cmf", "cc"), audit=False) for _, y in sims]
+    for method in ("cmf", "cc"):
         got = Consistency.from_fusion(truth, runs, method)
         means = np.array([run.means(method) for run in runs])
         covs = np.array([[s.estimate(method).cov for s in run.steps] for run in runs])

@@ -36,7 +36,7 @@ def learned():
 @pytest.mark.parametrize("family", ["gp-adf", "gp-ukf"])
 def test_dmf_equals_cmf_on_a_learned_model(learned, family):
     system, model, ys, prior = learned
-    run = run_fusion(model, ys, family=family, methods=("cmf", "dmf", "cw"), local_priors=[prior] * 3,
+    run = run_fusion(model, ys, family=family, methods=("cmf", "dmf", "cc"), local_priors=[prior] * 3,
                      fused_prior=prior)
     assert run.family == family and [s.k for s in run.steps] == list(range(1, STEPS + 1))
     belief, full_rank_steps = prior, 0
@@ -59,7 +59,7 @@ def test_run_parts_match_their_direct_computation():
     """Locals: each sensor's filter on its own; cw and ci: the rules on the local posteriors."""
     model = three_sensor_model()
     _, ys = model.simulate(4, np.random.default_rng(5))
-    run = run_fusion(model, ys, methods=("cmf", "dmf", "cw", "ci"), first_k=3)
+    run = run_fusion(model, ys, methods=("cmf", "dmf", "cc", "ci"), first_k=3)
     family = gaussian_family("ukf")
     for m in range(3):
         belief = Gaussian(model.prior_mean, model.prior_cov)
@@ -69,9 +69,9 @@ def test_run_parts_match_their_direct_computation():
             belief = record.posterior
     for step in run.steps:
         posteriors = [r.posterior for r in step.local]
-        np.testing.assert_array_equal(step.estimate("cw").mean, convex_combination(posteriors).mean)
+        np.testing.assert_array_equal(step.estimate("cc").mean, convex_combination(posteriors).mean)
         np.testing.assert_array_equal(step.estimate("ci").cov, covariance_intersection(posteriors).cov)
-        assert set(step.seconds) == {"local", "cmf", "dmf", "cw", "ci"} and len(step.local_seconds) == 3
+        assert set(step.seconds) == {"local", "cmf", "dmf", "cc", "ci"} and len(step.local_seconds) == 3
         # eq. 35's own time is part of the DMF step's, and a measurement: not compared
         assert 0 < step.dmf.update_seconds < step.seconds["dmf"]
         assert step.dmf == replace(step.dmf, update_seconds=step.dmf.update_seconds + 1.0)

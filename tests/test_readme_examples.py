@@ -27,7 +27,7 @@ def test_the_readme_examples_run_and_give_what_they_claim():
     assert np.mean(nees) < 3 * model.state_dim  # consistent to within a generous factor of E[NEES] = D
     # the fusion example: every requested method has an estimate at every step
     fused = namespace["fused"]
-    assert set(fused.methods) >= {"cmf", "dmf", "cw", "ci"}
-    for method in ("cmf", "dmf", "cw", "ci"):
+    assert set(fused.methods) >= {"cmf", "dmf", "cc", "ci"}
+    for method in ("cmf", "dmf", "cc", "ci"):
         assert fused.means(method).shape == (30, 4)
     assert fused.audit.full_column_rank.shape == (30, 2) and fused.audit.gap_norm.shape == (30,)

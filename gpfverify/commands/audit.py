@@ -14,7 +14,7 @@ import sys
 
 from gpfverify.audit import (RANK_RULE_DEFAULT, RunAudit, audit_case, audit_to_dict, format_audit,
                              parse_rank_rule)
-from gpfverify.cli import positive_int
+from gpfverify.cli import RANK_RULE_HELP, positive_int, rank_rule_text
 from gpfverify.errors import InputError
 from gpfverify.fusion.runfile import run_format
 from gpfverify.outputs import check_out, out_path, output_folder
@@ -37,10 +37,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--rank-tol", type=float, default=None, metavar="TOL",
                         help="absolute singular-value tolerance for the rank of each C_xy^m; overrides "
                              f"the case's 'rank_tol'; default: {RANK_RULE_DEFAULT}")
-    parser.add_argument("--rank-rule", default=None, metavar="RULE",
-                        help="how the rank of each C_xy^m is decided: canonical[:TAU] (canonical "
-                             "correlations > TAU, unit-free), absolute:TOL (singular values > TOL) or "
-                             "numpy; overrides the case's 'rank_tol'; not together with --rank-tol")
+    parser.add_argument("--rank-rule", type=rank_rule_text, default=None, metavar="RULE",
+                        help=RANK_RULE_HELP + " Overrides the case's 'rank_tol'; not together with "
+                             "--rank-tol. Default: the case's 'rank_tol' (absolute), else canonical, which "
+                             "does not depend on units (reproduce defaults to numpy, the papers' rule). The "
+                             "output names the rule that decided.")
     parser.add_argument("--out", type=out_path, default=None, metavar="DIR",
                         help="run files: write the report (DIR/report.html, DIR/README.md, figures, "
                              "DIR/audit.json)")

@@ -15,12 +15,10 @@ import sys
 import tempfile
 from pathlib import Path
 
+from gpfverify.cli import RANK_RULE_HELP, fusion_rules, rank_rule_text
 from gpfverify.filters.families import FAMILY_NAMES
+from gpfverify.fusion.names import CHOICES_TEXT
 from gpfverify.outputs import check_out, out_path, output_folder
-
-
-def _methods(text: str) -> list[str]:
-    return [m.strip() for m in text.split(",") if m.strip()]
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -41,13 +39,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--fit-points", type=int, default=200,
                         help="GP families: at most this many samples for the evidence maximisation (default 200)")
     parser.add_argument("--restarts", type=int, default=2, help="GP families: optimiser starts (default 2)")
-    parser.add_argument("--methods", type=_methods, default=["cmf", "dmf", "cw", "ci"],
-                        help="comma-separated fusion rules among cmf,dmf,cw,ci,rcc-ci (cmf and dmf always; "
-                             "default cmf,dmf,cw,ci)")
-    parser.add_argument("--rank-rule", default="canonical", metavar="RULE",
-                        help="how the rank of each C_xy^m is decided: canonical[:TAU] (default; canonical "
-                             "correlations of state and sensor output > TAU, unit-free), absolute:TOL "
-                             "(singular values > TOL) or numpy (sigma_max * max(D, l) * eps)")
+    parser.add_argument("--methods", type=fusion_rules, default=("cmf", "dmf", "cc", "ci"), metavar="RULES",
+                        help=f"comma-separated fusion rules among {CHOICES_TEXT}, the same names as fuse's "
+                             "(cmf and dmf always; default cmf,dmf,cc,ci)")
+    parser.add_argument("--rank-rule", type=rank_rule_text, default="canonical", metavar="RULE",
+                        help=RANK_RULE_HELP + " Default canonical: a user's system has its own units, and "
+                             "the canonical rule does not depend on them (reproduce defaults to numpy, the "
+                             "papers' rule, to reproduce their numbers).")
     parser.add_argument("--out", type=out_path, default=None, help="output folder (results.json, runs/, report)")
     parser.add_argument("--json", action="store_true", help="print results.json to stdout")
     parser.add_argument("--resume", action="store_true", help="continue the runs saved in --out")

@@ -11,11 +11,10 @@ from typing import Any, Literal
 from gpfverify.contract.params import Params as ParamsBase
 from gpfverify.contract.params import option
 from gpfverify.errors import InputError
+from gpfverify.fusion.names import CHOICES_TEXT, canonical_rules
 
 #: the Gaussian families a check can run (gpfverify.filters.families.FAMILY_NAMES)
 FilterName = Literal["kf", "ekf", "ukf", "gp-adf", "gp-ukf"]
-#: the fusion rules a check can run (gpfverify.fusion.model_fusion.METHODS); cmf and dmf always
-RULES: tuple[str, ...] = ("cmf", "dmf", "cw", "ci", "rcc-ci")
 
 
 @dataclass(frozen=True)
@@ -33,13 +32,14 @@ class Params(ParamsBase):
     fit_points: int | None = option(200, "GP families: at most this many samples for the evidence maximisation",
                                     minimum=2)
     restarts: int = option(2, "GP families: optimiser starts", minimum=1)
-    methods: tuple[str, ...] = option(("cmf", "dmf", "cw", "ci"), "fusion rules run (cmf and dmf always)")
+    methods: tuple[str, ...] = option(("cmf", "dmf", "cc", "ci"), "fusion rules run (cmf and dmf always; "
+                                      "canonical names, an alias such as cw recorded as cc)")
     rank_rule: str = option("canonical", "rank rule of eq. 35: canonical[:TAU], absolute:TOL or numpy")
 
     def check(self) -> None:
-        unknown = [m for m in self.methods if m not in RULES]
-        if unknown or "cmf" not in self.methods or "dmf" not in self.methods:
-            raise InputError(f"--methods must include cmf and dmf and be among {', '.join(RULES)}, got "
+        object.__setattr__(self, "methods", canonical_rules(self.methods))  # InputError for unknown names
+        if "cmf" not in self.methods or "dmf" not in self.methods:
+            raise InputError(f"--methods must include cmf and dmf (among {CHOICES_TEXT}), got "
                              f"{','.join(self.methods)}")
 
 

@@ -18,6 +18,7 @@ from typing import Literal
 from gpfverify.contract.methods import Method
 from gpfverify.contract.params import Params, option
 from gpfverify.errors import InputError
+from gpfverify.fusion.exactness import parse_rank_rule
 
 #: the paper (a key of :data:`gpfverify.contract.papers.PAPERS`)
 PAPER = "seed000"
@@ -64,13 +65,15 @@ class FusionParams(Params):
     rcc_on_empty: Literal["enlarge", "error"] = option(
         "enlarge", "RCC-CI when the local ellipsoids do not intersect: enlarge c to twice the smallest "
         "intersecting size (the step is counted), or fail the run")
-    rank_tol: float | None = option(None, "absolute singular-value tolerance for rank(C_xy^m) in eq. 35 (none: "
-                                    "the rank rule's own tolerance)", minimum=0)
-    rank_rule: Literal["numpy", "canonical"] = option(
-        "numpy", "how eq. 35 decides rank(C_xy^m): 'numpy' — singular values of C_xy^m above σ_max · max(D, l) · eps "
-        "(numpy's and MATLAB's rank(), the paper's likely default; depends on units, calls any nonzero scalar cross "
-        "term full rank); 'canonical' — canonical correlations of state and sensor output above τ = √eps "
-        "(unit-free; gpfverify.fusion.exactness)")
+    rank_tol: float | None = option(None, "absolute singular-value tolerance for rank(C_xy^m) in eq. 35, the same "
+                                    "as --rank-rule absolute:TOL (none: the rank rule decides)", minimum=0)
+    rank_rule: str = option(
+        "numpy", "how eq. 35 decides rank(C_xy^m), as in check and audit: numpy, canonical[:TAU] or absolute:TOL. "
+        "Default numpy — singular values of C_xy^m above σ_max · max(D, l) · eps (numpy's and MATLAB's rank(), the "
+        "paper's likely rule, so the papers' reference numbers are reproduced; depends on units, calls any nonzero "
+        "scalar cross term full rank). canonical[:TAU] — canonical correlations of state and sensor output above "
+        "τ (default √eps; unit-free; the default of check and audit, which judge a user's system). absolute:TOL — "
+        "singular values above TOL")
     alpha: float = option(1.0, "sigma-point α of GP-UKF", above=0)
     beta: float = option(0.0, "sigma-point β of GP-UKF")
     sigma_kappa: float = option(2.0, "sigma-point κ of GP-UKF")
@@ -80,9 +83,10 @@ class FusionParams(Params):
                                above=0, maximum=0.9999)
 
     def check(self) -> None:
-        if self.rank_rule == "canonical" and self.rank_tol is not None:
-            raise InputError("--rank-tol is an absolute singular-value tolerance of the numpy rule; the canonical "
-                             "rule takes none")
+        rule = parse_rank_rule(self.rank_rule)  # InputError naming the accepted forms
+        if rule.name != "numpy" and self.rank_tol is not None:
+            raise InputError(f"--rank-tol is an absolute singular-value tolerance (the same as --rank-rule "
+                             f"absolute:TOL); --rank-rule {self.rank_rule} takes none")
 
     @property
     def rank_rule_spec(self) -> str:

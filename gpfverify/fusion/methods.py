@@ -2,10 +2,11 @@
 result (what ``gpfverify fuse --json`` prints).
 
 cmf: centralized update with the stacked y (needs ``y``); dmf: Proposition 1 (eq. 35); cc: convex
-combination (CW); ci: covariance intersection; rcc-ci: relaxed Chebyshev centre CI; ici, ei:
-inverse covariance / ellipsoidal intersection. cc, ci, rcc-ci, ici and ei use only the sensors'
-(mu_e, C_e) and need ``C_e`` in every local report. The case's angle state components
-(``circular_state``) are averaged on the circle by every rule.
+combination (also spelled cw; names in :mod:`gpfverify.fusion.names`); ci: covariance
+intersection; rcc-ci: relaxed Chebyshev centre CI; ici, ei: inverse covariance / ellipsoidal
+intersection. cc, ci, rcc-ci, ici and ei use only the sensors' (mu_e, C_e) and need ``C_e`` in
+every local report. The case's angle state components (``circular_state``) are averaged on the
+circle by every rule.
 """
 
 from __future__ import annotations
@@ -21,9 +22,10 @@ from gpfverify.fusion.convex import convex_combination
 from gpfverify.fusion.distributed import DMFResult, dmf_update
 from gpfverify.fusion.ellipsoidal import ellipsoidal_intersection
 from gpfverify.fusion.estimates import FusedEstimate
+from gpfverify.fusion.names import FUSION_RULES, canonical_rule
 from gpfverify.fusion.rcc_ci import RccCiResult, rcc_ci
 
-METHODS = ("cmf", "dmf", "cc", "ci", "rcc-ci", "ici", "ei")
+METHODS = FUSION_RULES
 
 
 def _local_estimates(case: FusionCase, method: str) -> list[Gaussian]:
@@ -37,7 +39,9 @@ def _local_estimates(case: FusionCase, method: str) -> list[Gaussian]:
 
 def fuse_case(case: FusionCase, method: str, criterion: str = "trace", c: float | None = None,
               on_empty: str = "error") -> dict:
-    """The ``fuse --json`` object for one method."""
+    """The ``fuse --json`` object for one method (any accepted spelling; the object names the
+    canonical one)."""
+    method = canonical_rule(method)
     extra: dict = {}
     angles = case.circular_state
     fused: Gaussian | FusedEstimate | DMFResult | RccCiResult

@@ -16,14 +16,16 @@ stacked, so its C_y carries the cross-sensor blocks); sensor m's local filter ru
   sensor's local record (μ_p^m, μ_y^m, C_y^m, C_xy^m, μ_e^m), C_e as in CMF
   (:mod:`gpfverify.fusion.distributed`);
 * :func:`run_fusion`: a whole run — every sensor's local filter, CMF and DMF each with its own
-  recursion, the baselines on the local posteriors (cw: convex combination, ci: covariance
-  intersection, rcc-ci: relaxed Chebyshev centre CI, ellipsoids enlarged when they do not
-  intersect) and the per-step rank-condition audit (:func:`gpfverify.audit.audit_case`).
+  recursion, the baselines on the local posteriors (cc: convex combination, also spelled cw; ci:
+  covariance intersection; rcc-ci: relaxed Chebyshev centre CI, ellipsoids enlarged when they do
+  not intersect; ici, ei: inverse covariance / ellipsoidal intersection; names in
+  :mod:`gpfverify.fusion.names`) and the per-step rank-condition audit
+  (:func:`gpfverify.audit.audit_case`).
 
 Angle state components (``model.circular_state``) travel in every fusion case
 (``central.circular_state``): eq. 35's μ_e^m − μ_p^m is taken on the circle and the fused means
 are wrapped, DMF's as CMF's.
-The convex-solver baselines (ci, rcc-ci: cvxpy) are imported only when requested.
+The convex-solver baselines (ci, rcc-ci, ici: cvxpy) are imported only when requested.
 """
 
 from __future__ import annotations
@@ -42,6 +44,7 @@ from gpfverify.filters.records import Gaussian, StepRecord
 from gpfverify.filters.sigma_points import SigmaParams
 from gpfverify.fusion.case import CentralPrediction, FusionCase, LocalReport, sensor_blocks, split_circular
 from gpfverify.fusion.distributed import DMFResult, dmf_update
+from gpfverify.fusion.names import FUSION_RULES, canonical_rule, canonical_rules
 from gpfverify.fusion.exactness import NUMPY_RANK_RULE, RankRule, resolve_rank_rule
 from gpfverify.models.learned import GPModel
 from gpfverify.models.system import StateSpaceModel, require_model
@@ -53,9 +56,10 @@ if TYPE_CHECKING:
     from gpfverify.fusion.estimates import FusedEstimate
     from gpfverify.fusion.rcc_ci import RccCiResult
 
-#: the fusion rules :func:`run_fusion` can run
-METHODS: tuple[str, ...] = ("cmf", "dmf", "cw", "ci", "rcc-ci")
-BASELINES: tuple[str, ...] = ("cw", "ci", "rcc-ci")
+#: the fusion rules :func:`run_fusion` can run: every rule (one list for every command)
+METHODS: tuple[str, ...] = FUSION_RULES
+#: what :func:`run_fusion` runs unless told otherwise
+DEFAULT_METHODS: tuple[str, ...] = ("cmf", "dmf", "cc", "ci", "rcc-ci")
 
 
 def model_family(name: str, model, params: SigmaParams = SigmaParams()) -> GaussianFamily:
@@ -148,7 +152,8 @@ class FusionStep:
     local_seconds: tuple[float, ...]
 
     def estimate(self, method: str) -> Gaussian:
-        """The fused posterior of ``method`` (one of the run's methods)."""
+        """The fused posterior of ``method`` (one of the run's methods, any accepted spelling)."""
+        method = canonical_rule(method)
         if method == "cmf" and self.cmf is not None:
             return self.cmf.posterior
         if method == "dmf" and self.dmf is not None:
@@ -199,23 +204,29 @@ def _baselines(methods: Sequence[str], rcc_size: float | None,
     """The requested baselines as functions of the local posteriors, averaging the angle state
     components ``circular_state`` on the circle (convex solvers imported only when requested)."""
     out: dict[str, Callable[[Sequence], FusedEstimate | RccCiResult]] = {}
-    if "cw" in methods:
+    if "cc" in methods:
         from gpfverify.fusion.convex import convex_combination
-        out["cw"] = partial(convex_combination, circular_state=circular_state)
+        out["cc"] = partial(convex_combination, circular_state=circular_state)
     if "ci" in methods:
         from gpfverify.fusion.ci import covariance_intersection
         out["ci"] = partial(covariance_intersection, circular_state=circular_state)
     if "rcc-ci" in methods:
         from gpfverify.fusion.rcc_ci import rcc_ci
         out["rcc-ci"] = partial(rcc_ci, c=rcc_size, on_empty="enlarge", circular_state=circular_state)
+    if "ici" in methods:
+        from gpfverify.fusion.ci import inverse_covariance_intersection
+        out["ici"] = partial(inverse_covariance_intersection, circular_state=circular_state)
+    if "ei" in methods:
+        from gpfverify.fusion.ellipsoidal import ellipsoidal_intersection
+        out["ei"] = partial(ellipsoidal_intersection, circular_state=circular_state)
     return out
 
 
 def _checked_methods(methods: Sequence[str], audit: bool) -> tuple[str, ...]:
-    methods = tuple(methods)
-    unknown = [m for m in methods if m not in METHODS]
-    if unknown or not methods:
-        raise InputError(f"methods must be a non-empty selection of {', '.join(METHODS)}, got {list(methods)}")
+    if isinstance(methods, str) or not methods:
+        raise InputError(f"methods must be a non-empty sequence of rule names among {', '.join(METHODS)}, "
+                         f"got {methods!r}")
+    methods = canonical_rules(methods)
     if audit and "dmf" not in methods:
         raise InputError("audit=True audits the DMF step: include 'dmf' in methods or pass audit=False")
     return methods
@@ -235,7 +246,7 @@ def _priors(model, local_priors, fused_prior) -> tuple[list[Gaussian], Gaussian]
 
 
 @one_blas_thread
-def run_fusion(model, ys, *, family: str = "ukf", methods: Sequence[str] = METHODS, first_k: int = 1,
+def run_fusion(model, ys, *, family: str = "ukf", methods: Sequence[str] = DEFAULT_METHODS, first_k: int = 1,
                params: SigmaParams = SigmaParams(), rank_tol: float | None = None,
                local_priors: Sequence[Gaussian] | None = None, fused_prior: Gaussian | None = None,
                audit: bool = True, rcc_size: float | None = None,
