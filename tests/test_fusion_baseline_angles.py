@@ -28,7 +28,7 @@ def _covariances(seed: int = 4) -> list[np.ndarray]:
     coordinated-turn prediction): a heading error of 0.1 rad moves the position by tens of metres."""
     rng = np.random.default_rng(seed)
     covs = []
-    for m in range(3):
+    for _ in range(3):
         root = np.diag([30.0, 30.0, 1.0, 0.05]) @ (np.eye(4) + 0.4 * rng.standard_normal((4, 4)))
         cov = root @ root.T
         covs.append(0.5 * (cov + cov.T))
