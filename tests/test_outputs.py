@@ -5,6 +5,7 @@ command that fails leaves the folder as it found it; an interrupted run keeps it
 
 from __future__ import annotations
 
+import errno
 import json
 import os
 import subprocess
@@ -199,3 +200,120 @@ def test_resume_adopts_the_runs_of_a_killed_command(toy, tmp_path, capsys):
     # run 0 is the killed command's file (its own timing), run 1 was computed now
     assert (out_dir / "runs" / "run-000000.json").read_bytes() == (done / "runs" / "run-000000.json").read_bytes()
     assert not orphan.exists()
+
+
+# ---- a full disk, a failing system, a damaged folder: nothing half-written ----------------------
+
+def _enospc(*_args, **_kwargs):
+    raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
+
+
+def _fails_after_a_partial_write(original, name):
+    """``original(path, ...)`` that, for a file called ``name``, leaves a partial file then fails as
+    on a full disk."""
+    def write(self_or_path, *args, **kwargs):
+        path = Path(self_or_path)
+        if path.name == name or path.name.startswith(name + ".tmp"):
+            Path(str(path) + f".tmp{os.getpid()}").write_bytes(b"")
+            path.write_bytes(b"")
+            _enospc()
+        return original(self_or_path, *args, **kwargs)
+    return write
+
+
+def _assert_full_disk(code, err, tmp_path, kept):
+    last = err.strip().splitlines()[-1]  # after any progress lines
+    assert code == 2 and "error: No space left on device" in last and "Traceback" not in err, err
+    assert sorted(os.listdir(tmp_path)) == sorted(kept)  # no staging folder, no partial file
+
+
+def test_reproduce_on_a_full_disk_leaves_no_partial_file(toy, tmp_path, capsys, monkeypatch):
+    from gpfverify.experiments import runner
+
+    monkeypatch.setattr(runner, "_atomic_write_json",
+                        _fails_after_a_partial_write(runner._atomic_write_json, "results.json"))
+    code, _, err = _main(["reproduce", "toy", "--runs", "2", "--out", tmp_path / "out"], capsys)
+    _assert_full_disk(code, err, tmp_path, [])
+
+
+def test_prove_on_a_full_disk_leaves_no_empty_readme(tmp_path, capsys, monkeypatch):
+    monkeypatch.setattr(Path, "write_text", _fails_after_a_partial_write(Path.write_text, "README.md"))
+    code, _, err = _main(["prove", "--size", "small", "--only", "full-rank-needs-l-le-D", "--out",
+                          tmp_path / "out"], capsys)
+    _assert_full_disk(code, err, tmp_path, [])
+
+
+def test_audit_on_a_full_disk_leaves_no_empty_folder(tmp_path, capsys, monkeypatch):
+    from gpfverify.report import equivalence
+
+    run = _run_file(tmp_path)
+    monkeypatch.setattr(equivalence, "to_html", _enospc)
+    code, _, err = _main(["audit", run, "--out", tmp_path / "out"], capsys)
+    _assert_full_disk(code, err, tmp_path, [run.name])
+
+
+def test_check_on_a_full_disk_keeps_the_folder_it_found(tmp_path, capsys, monkeypatch):
+    from gpfverify.report import equivalence
+
+    system, out_dir = _system(tmp_path), tmp_path / "out"
+    argv = ["check", system, "--steps", "3", "--methods", "cmf,dmf", "--out", out_dir]
+    assert _main(argv, capsys)[0] == 0
+    before = _snapshot(out_dir)
+    monkeypatch.setattr(equivalence, "to_html", _enospc)  # results.json written, its report not
+    code, _, err = _main([*argv, "--runs", "2", "--resume"], capsys)
+    assert code == 2 and "No space left on device" in err
+    assert _snapshot(out_dir) == before
+    assert sorted(os.listdir(tmp_path)) == ["linear.py", "out"]
+
+
+RAISING_SYSTEM = '''
+import numpy as np
+from gpfverify.models import Sensor, StateSpaceModel
+calls = [0]
+def broken(x):
+    calls[0] += 1
+    if calls[0] > 4:
+        raise RuntimeError("the sensor model broke")
+    return x[:, :1]
+system = StateSpaceModel(transition=np.eye(2), process_cov=0.1 * np.eye(2),
+                         sensors=[Sensor(np.eye(2), np.eye(2)), Sensor(broken, [[1.0]])],
+                         prior_mean=[0.0, 0.0], prior_cov=np.eye(2))
+'''
+
+
+def test_a_measurement_function_raising_mid_run_leaves_nothing(tmp_path, capsys):
+    (tmp_path / "raising.py").write_text(RAISING_SYSTEM)
+    code, out, err = _main(["check", f"{tmp_path / 'raising.py'}:system", "--steps", "5", "--methods", "cmf,dmf",
+                            "--out", tmp_path / "out"], capsys)
+    assert code == 2 and "the sensor model broke" in err and len(err.strip().splitlines()) == 1, err
+    assert sorted(os.listdir(tmp_path)) == ["raising.py"]  # no manifest.json, no runs/
+
+
+def test_resume_with_a_damaged_manifest_refuses_and_changes_nothing(toy, tmp_path, capsys):
+    out_dir = tmp_path / "out"
+    assert _main(["reproduce", "toy", "--runs", "2", "--out", out_dir], capsys)[0] == 0
+    (out_dir / "manifest.json").write_text('{"experiment": "toy", "se')
+    (out_dir / "runs" / "run-000001.json").unlink()
+    before = _snapshot(out_dir)
+    code, _, err = _main(["reproduce", "toy", "--runs", "2", "--out", out_dir, "--resume"], capsys)
+    assert code == 2 and "manifest" in err
+    assert _snapshot(out_dir) == before
+
+
+@pytest.mark.parametrize("damage", ['{"status": "ok"}', "[1, 2]", '{"index": 1, "status": "error"}', "{"])
+def test_resume_runs_a_damaged_saved_run_again(toy, tmp_path, capsys, damage):
+    out_dir = tmp_path / "out"
+    assert _main(["reproduce", "toy", "--runs", "2", "--out", out_dir], capsys)[0] == 0
+    first = json.loads((out_dir / "results.json").read_text())
+    (out_dir / "runs" / "run-000001.json").write_text(damage)
+    assert _main(["reproduce", "toy", "--runs", "2", "--out", out_dir, "--resume"], capsys)[0] == 0
+    again = json.loads((out_dir / "results.json").read_text())
+    assert again["mean"] == first["mean"] and again["runs_ok"] == 2
+
+
+def test_props_refusing_its_arguments_writes_nothing_anywhere(tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    proc = subprocess.run([sys.executable, "-m", "gpfverify", "props", "--out", "o", "-k", "bad("],
+                          capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 2 and proc.stdout == "" and len(proc.stderr.strip().splitlines()) == 1
+    assert os.listdir(tmp_path) == []  # no .hypothesis/, no o/

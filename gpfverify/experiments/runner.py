@@ -341,21 +341,39 @@ def runs_machine_load(records: list[dict]) -> dict:
     return {"load_average": average, "cpus": cpus, "runs_measured": len(loads)}
 
 
+def _well_formed(record, index: int) -> bool:
+    """Whether ``record`` is what :func:`_execute` saves for run ``index``: a finished run with its
+    result, or a failed one with its error and seed."""
+    if not isinstance(record, dict) or record.get("index") != index:
+        return False
+    if record.get("status") == "ok":
+        return "result" in record
+    return record.get("status") == "error" and isinstance(record.get("error"), str) and "spawn_key" in record
+
+
 def _is_ok(path: Path) -> bool:
+    """Whether run ``path`` is saved and finished; anything else (absent, damaged, failed) runs again."""
     if not path.exists():
         return False
     try:
-        return json.loads(path.read_text(encoding="utf-8")).get("status") == "ok"
-    except (json.JSONDecodeError, OSError):
+        record = json.loads(path.read_bytes().decode("utf-8"))
+    except (ValueError, RecursionError, OSError):
         return False
+    index = int(path.stem.removeprefix("run-"))
+    return _well_formed(record, index) and record["status"] == "ok"
 
 
 def load_runs(out_dir: Path, runs: int) -> list[dict]:
+    """The saved runs of ``out_dir`` in order; InputError for one that is not a saved run."""
     records = []
     for i in range(runs):
         path = _run_path(out_dir, i)
         if path.exists():
-            records.append(_read_json(path, "saved run"))
+            record = _read_json(path, "saved run")
+            if not _well_formed(record, i):
+                raise InputError(f"{path} is not a saved run of run {i} (damaged or edited); remove it or "
+                                 "choose a new --out")
+            records.append(record)
     return records
 
 
