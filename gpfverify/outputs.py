@@ -127,7 +127,7 @@ def _salvage_runs(stage: Path, out: Path) -> None:
     """After an interruption: move the saved runs of ``stage`` into ``out`` (each replaces only
     its own earlier copy, a file gpfverify wrote) and list them, for ``--resume``."""
     runs = [entry for entry, is_folder in _entries(stage) if not is_folder and _is_saved_run(PurePosixPath(entry))]
-    if not runs:
+    if all(PurePosixPath(entry).name == "manifest.json" for entry in runs):  # no run finished: keep nothing
         return
     check_out(out)
     listed = _listed(out) - {FILE_LIST}

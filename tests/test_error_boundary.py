@@ -342,3 +342,45 @@ def test_stderr_on_a_full_device_changes_no_exit_status(tmp_path, command, code)
     proc = _shell(f"{sys.executable} -m gpfverify {command} 2>/dev/full", tmp_path)
     assert proc.returncode == code, proc.stdout
     assert (proc.stdout == "") == (code == 2)
+
+
+@pytest.mark.parametrize("option", ["--measurements", "--training"])
+@pytest.mark.parametrize("kind", ["device", "link to a device", "named pipe", "folder", "bomb"])
+def test_check_user_archives_that_are_not_files_or_lie_about_their_size(tmp_path, capsys, option, kind):
+    import os
+    import zipfile
+
+    path = tmp_path / "data.npz"
+    if kind == "device":
+        path = Path("/dev/zero")
+    elif kind == "link to a device":
+        path.symlink_to("/dev/urandom")
+    elif kind == "named pipe":
+        os.mkfifo(path)
+    elif kind == "folder":
+        path.mkdir()
+    else:  # 8 GB declared next to a few bytes
+        with zipfile.ZipFile(path, "w", zipfile.ZIP_DEFLATED) as z, z.open("y.npy", "w") as member:
+            np.lib.format.write_array_header_1_0(member, {"descr": "<f8", "fortran_order": False,
+                                                          "shape": (1_000_000_000, 5)})
+            member.write(b"\0" * 64)
+    extra = ["--filter", "gp-ukf"] if option == "--training" else []
+    out = tmp_path / "never"
+    assert_user_error(["check", CHECK_SYSTEM, *extra, option, path, "--out", out], capsys, tmp_path)
+    assert not out.exists()
+
+
+@settings(max_examples=scaled_examples(0.3), suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(runs=st.integers(10**12, 10**40))
+def test_fuzz_run_counts_beyond_memory_are_refused_before_anything_is_written(tmp_path, capsys, runs):
+    out = tmp_path / "never"
+    assert_user_error(["reproduce", *TINY_CT2D, "--runs", runs, "--out", out], capsys, tmp_path)
+    assert not out.exists()
+
+
+@settings(max_examples=scaled_examples(0.3), suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(steps=st.integers(10**9, 10**30), runs=st.integers(1, 10**12))
+def test_fuzz_check_sizes_beyond_memory_are_refused_before_anything_is_written(tmp_path, capsys, steps, runs):
+    out = tmp_path / "never"
+    assert_user_error(["check", CHECK_SYSTEM, "--steps", steps, "--runs", runs, "--out", out], capsys, tmp_path)
+    assert not out.exists()

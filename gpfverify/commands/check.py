@@ -68,6 +68,7 @@ def run(args: argparse.Namespace) -> int:
         if args.runs != 1:
             raise InputError("--measurements filters one logged run: --runs must be 1")
         check.logged_measurements(params.measurements, model)
+    check.check_size_fits(model, params.steps, args.runs, params.methods)
     if args.workers < 1:
         raise InputError(f"--workers must be at least 1, got {args.workers}")
     if args.out is None and not args.json:

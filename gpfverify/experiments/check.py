@@ -177,6 +177,30 @@ def _record(model, fused, ys: np.ndarray, truth: np.ndarray | None) -> RunRecord
     return RunRecord(truth is not None, tuple(steps))
 
 
+def step_record_bytes(model, methods: Sequence[str]) -> int:
+    """A lower estimate of the memory one step's record takes while the summary holds every run:
+    the step's fusion case (the joint covariance of state and outputs, centre and each sensor) and
+    the estimates, as Python floats in lists (32 bytes each), and 2 kB of fixed fields."""
+    d, total = model.state_dim, model.measurement_dim
+    floats = 3 * (d + total) ** 2 + (len(methods) + len(model.sensors) + 4) * d
+    return 32 * floats + 2048
+
+
+def check_size_fits(model, steps: int, runs: int, methods: Sequence[str]) -> None:
+    """Refuse ``runs`` × ``steps`` when their records (:func:`step_record_bytes` each step) cannot
+    be held in the memory available now (:func:`gpfverify.userfiles.memory_budget`), before
+    anything is written."""
+    from gpfverify.userfiles import human_bytes, memory_budget
+
+    if not (isinstance(steps, int) and steps >= 1 and isinstance(runs, int) and runs >= 1):
+        return  # refused where they are validated
+    each, budget = step_record_bytes(model, methods), memory_budget()
+    if runs * steps * each > budget:
+        raise InputError(f"--runs {runs} × --steps {steps} is more than this machine can hold: the summary keeps "
+                         f"every step's record in memory (at least {human_bytes(each)} each, "
+                         f"{human_bytes(runs * steps * each)} in all; {human_bytes(budget)} may be used now)")
+
+
 def run_file_name(index: int, runs: int) -> str:
     """The run file of run ``index`` in a check's output folder: ``run.jsonl`` when the check made
     one run, ``run-NNN.jsonl`` (the run's index, from 000) when it made several."""

@@ -121,6 +121,29 @@ def check_workers(workers) -> int:
     return workers
 
 
+def run_seed(seed: int, index: int) -> np.random.SeedSequence:
+    """The seed of run ``index``: ``SeedSequence(seed).spawn(runs)[index]``, made without the
+    other runs' seeds."""
+    return np.random.SeedSequence(seed, spawn_key=(index,))
+
+
+#: the least memory one run's record takes while the summary holds them all
+RUN_RECORD_BYTES = 2048
+
+
+def check_runs_fit(runs: int, bytes_each: int = RUN_RECORD_BYTES) -> None:
+    """Refuse a run count whose records (``bytes_each`` at least, each) cannot all be held in the
+    memory this machine has available (:func:`gpfverify.userfiles.memory_budget`), before anything
+    is written."""
+    from gpfverify.userfiles import human_bytes, memory_budget
+
+    fits = memory_budget() // max(1, bytes_each)
+    if runs > fits:
+        raise InputError(f"--runs {runs} is more than this machine can hold: the summary keeps every run's record "
+                         f"in memory (at least {human_bytes(bytes_each)} each), so at most {fits} runs fit in the "
+                         "memory available now")
+
+
 def check_seed(seed) -> int:
     """``seed`` as a root seed for ``SeedSequence``: an integer >= 0."""
     if isinstance(seed, bool) or not isinstance(seed, int) or seed < 0:
@@ -257,6 +280,7 @@ def run_experiment(module: ModuleType | str, params: Params, runs: int, seed: in
     if isinstance(runs, bool) or not isinstance(runs, int) or runs < 1:
         raise InputError(f"--runs must be an integer >= 1, got {runs!r}")
     check_seed(seed)
+    check_runs_fit(runs)
     out_dir = Path(out_dir)
     for folder in (out_dir, out_dir / "runs"):
         if folder.exists() and not folder.is_dir():
@@ -270,7 +294,6 @@ def run_experiment(module: ModuleType | str, params: Params, runs: int, seed: in
         _check_manifest(out_dir, manifest, resume, write=False)
     (out_dir / "runs").mkdir(parents=True, exist_ok=True)
     _check_manifest(out_dir, manifest, resume)
-    seeds = np.random.SeedSequence(seed).spawn(runs)
     pending = [i for i in range(runs) if not _is_ok(_run_path(out_dir, i))]
     show = sys.stderr.isatty() if show_progress is None else show_progress
     with contextlib.ExitStack() as stack:
@@ -287,7 +310,7 @@ def run_experiment(module: ModuleType | str, params: Params, runs: int, seed: in
             while True:
                 # submit lazily so each run is saved as soon as it finishes, whatever the executor
                 for i in itertools.islice(queue, max(0, limit - len(in_flight))):
-                    in_flight.add(executor.submit(_execute, module.__name__, run_params, seeds[i], i))
+                    in_flight.add(executor.submit(_execute, module.__name__, run_params, run_seed(seed, i), i))
                 if not in_flight:
                     break
                 done, in_flight = wait(in_flight, return_when=FIRST_COMPLETED)
