@@ -14,7 +14,8 @@ Gaussian input (:meth:`GaussianProcess.predict_uncertain`, eq. 8–11 and 20):
 The model is a :class:`~gpfverify.models.GPModel` (validated when built): its ``transition`` GP
 and its ``measurement`` GP (one sensor's GP, or the stack of several, whose joint moments carry
 the cross-sensor blocks of centralized fusion). Angle outputs: y − μ_y is wrapped in the update;
-angle state components (``circular_state``) of μ_p and μ_e are wrapped to (−π, π]; the GPs are
+angle outputs of μ_y and angle state components (``circular_state``) of μ_p and μ_e are wrapped
+to (−π, π]; the GPs are
 moment-matched at the belief with its angles on the branch of their training data
 (:meth:`GPModel.on_training_branch`: a mean shift by whole turns, which leaves C_xy unchanged).
 Beliefs may carry leading batch axes; each belief in a batch is moment-matched separately.
@@ -70,7 +71,7 @@ def gp_adf_measurement(prediction: Gaussian, model, *, k: int = 1) -> Measuremen
     prediction = check_belief(prediction, model.state_dim, "prediction")
     mu_y, cov, cross = moment_match_batched(gp, Gaussian(model.on_training_branch(prediction.mean), prediction.cov),
                                             "prediction")
-    return MeasurementMoments(mu_y, symmetrize(cov + np.diag(gp.noise_var)), cross)
+    return MeasurementMoments(wrap_components(mu_y, model.circular), symmetrize(cov + np.diag(gp.noise_var)), cross)
 
 
 @one_blas_thread

@@ -8,16 +8,17 @@ each GP (its ``noise_var``). The stacked measurement is the :class:`~gpfverify.g
 of the sensors' GPs (one shared uncertain input, hence cross-sensor blocks in C_y).
 
 Angles. Angle outputs (``sensor_circular``) and angle state components (``circular_state``) are
-learned as given; the filters wrap y − μ_y and the angle states of μ_p and μ_e, and the fusion
-rules take every difference of them on the circle. A squared-exponential GP knows no period, so
+wrapped by the filters (y − μ_y, μ_p, μ_e) and differenced on the circle by the fusion rules. A
+squared-exponential GP knows no period, so an angle is learned and used on one unwrapped branch:
 
-* the GPs are evaluated with the angle inputs on the branch of their training data:
-  θ ↦ r + wrap(θ − r), r the circular mean of the transition GP's training angles
-  (:meth:`GPModel.on_training_branch`); a belief that moves past ±π stays next to the data the
-  GPs learned from instead of jumping 2π away from them;
-* :func:`fit_gp_model` refuses training data in which an angle jumps across the cut
-  (:func:`check_no_cut_crossing`): a target that is 3.1 at one sample and −3.1 at the next would
-  be learned as a steep slope through 0.
+* :func:`fit_gp_model` unwraps the training trajectory (samples in time order): every angle state
+  and angle output is moved by whole turns so that consecutive samples differ by at most π
+  (numpy's ``unwrap``), a transition target's angle is put within π of its input's, and the
+  measurement inputs are put on the transition inputs' branch. A heading that passes ±π is then
+  learned as the continuous function it is, not as a jump of 2π through 0;
+* the filters evaluate the GPs with the belief's angle states on that branch,
+  θ ↦ r + wrap(θ − r), r the mean of the transition GP's training angles
+  (:meth:`GPModel.on_training_branch`), and wrap what the GPs return.
 
 :func:`fit_gp_model` learns the GPs from samples (evidence maximisation on at most ``fit_points``
 evenly spaced samples, then conditioning on all of them); :func:`learn_gp_model` draws the samples
@@ -103,13 +104,13 @@ class GPModel(StackedMeasurement):
 
     @cached_property
     def angle_reference(self) -> np.ndarray | None:
-        """r: the circular mean of the transition GP's training inputs' angle state components
-        (None without angle states, or for a GP that does not expose its inputs ``X``)."""
+        """r: the mean of the transition GP's training inputs' angle state components, on the
+        branch they were learned on (None without angle states, or for a GP that does not expose
+        its inputs ``X``)."""
         inputs = getattr(self.transition, "X", None)
         if not self.circular_state or inputs is None:
             return None
-        angles = np.asarray(inputs, dtype=float)[:, list(self.circular_state)]
-        return np.arctan2(np.sin(angles).sum(axis=0), np.cos(angles).sum(axis=0))
+        return np.asarray(inputs, dtype=float)[:, list(self.circular_state)].mean(axis=0)
 
     def on_training_branch(self, states: np.ndarray) -> np.ndarray:
         """``states`` (..., D) with the angle components θ moved to r + wrap(θ − r), the branch of
@@ -144,21 +145,14 @@ def fit_capped(X: np.ndarray, Y: np.ndarray, restarts: int, fit_points: int | No
     return GaussianProcess(X, Y, fitted.lengthscales, fitted.signal_var, fitted.noise_var)
 
 
-def check_no_cut_crossing(before: np.ndarray, after: np.ndarray, circular: Sequence[int], what: str) -> None:
-    """InputError when an angle component (``circular``, last axis) of consecutive samples
-    ``before`` → ``after`` jumps across the ±π cut, i.e. |after − before| > π: the shortest move
-    between them passes through ±π, and a GP would learn the jump as a steep slope through 0."""
-    if not len(circular) or not len(before):
-        return
-    idx = list(circular)
-    jumps = np.abs(np.asarray(after, dtype=float)[:, idx] - np.asarray(before, dtype=float)[:, idx]) > np.pi
-    if jumps.any():
-        sample, column = (int(i) for i in np.argwhere(jumps)[0])
-        raise InputError(
-            f"{what} component {idx[column]} (an angle) crosses the ±pi cut between samples {sample} and "
-            f"{sample + 1} ({float(np.asarray(before)[sample, idx[column]]):.4g} -> "
-            f"{float(np.asarray(after)[sample, idx[column]]):.4g}): a GP cannot learn an angle across the cut; "
-            f"train on a trajectory that stays on one side of it")
+def unwrapped_along_time(values, circular: Sequence[int]) -> np.ndarray:
+    """``values`` (n, E) with the ``circular`` columns moved by whole turns so that consecutive rows
+    differ by at most π (``numpy.unwrap`` along the rows)."""
+    out = np.array(values, dtype=float).reshape(len(values), -1)
+    if len(circular) and len(out):
+        idx = list(circular)
+        out[:, idx] = np.unwrap(out[:, idx], axis=0)
+    return out
 
 
 @one_blas_thread
@@ -167,21 +161,21 @@ def fit_gp_model(transition_inputs, transition_targets, measurement_inputs, meas
                  sensor_circular: Sequence[Sequence[int]] = (), circular_state: Sequence[int] = ()) -> GPModel:
     """Learn a :class:`GPModel`: the transition GP on pairs x_{τ} ↦ x_{τ+1} (n_f, D) → (n_f, D),
     each sensor's GP on x_τ ↦ y_τ^m (n, D) → (n, l_m), the samples in time order. One optimiser
-    seed per GP is drawn from ``rng`` (transition first, then the sensors in order). Training data
-    in which an angle crosses the ±π cut — a transition pair's angle state, or an angle output or
-    angle state from one measurement sample to the next — are refused (:func:`check_no_cut_crossing`)."""
-    inputs = np.asarray(measurement_inputs, dtype=float)
-    check_no_cut_crossing(np.asarray(transition_inputs, dtype=float), np.asarray(transition_targets, dtype=float),
-                          circular_state, "the training trajectory's state")
-    check_no_cut_crossing(inputs[:-1], inputs[1:], circular_state, "the training trajectory's state")
-    for m, (y, circular) in enumerate(zip(measurement_targets, tuple(sensor_circular) or ())):
-        y = np.asarray(y, dtype=float).reshape(len(y), -1)
-        check_no_cut_crossing(y[:-1], y[1:], circular, f"sensor {m}'s training output")
+    seed per GP is drawn from ``rng`` (transition first, then the sensors in order). Angles are
+    learned on the unwrapped trajectory (module docstring)."""
+    angles = list(as_indices(circular_state, np.shape(transition_inputs)[-1], "circular_state"))
+    x_in = unwrapped_along_time(transition_inputs, angles)
+    x_out = np.array(transition_targets, dtype=float)
+    states = unwrapped_along_time(measurement_inputs, angles)
+    if angles:
+        x_out[:, angles] = x_in[:, angles] + wrap(x_out[:, angles] - x_in[:, angles])
+        turns = np.round((x_in[:, angles].mean(axis=0) - states[:, angles].mean(axis=0)) / (2 * np.pi))
+        states[:, angles] += 2 * np.pi * turns
+    circular = tuple(sensor_circular) or ((),) * len(measurement_targets)
+    targets = [unwrapped_along_time(y, c) for y, c in zip(measurement_targets, circular)]
     seeds = [int(s) for s in rng.integers(1 << 31, size=1 + len(measurement_targets))]
-    transition = fit_capped(np.asarray(transition_inputs, dtype=float), np.asarray(transition_targets, dtype=float),
-                            restarts, fit_points, seeds[0])
-    sensors = tuple(fit_capped(np.asarray(measurement_inputs, dtype=float), np.asarray(y, dtype=float),
-                               restarts, fit_points, s) for y, s in zip(measurement_targets, seeds[1:]))
+    transition = fit_capped(x_in, x_out, restarts, fit_points, seeds[0])
+    sensors = tuple(fit_capped(states, y, restarts, fit_points, s) for y, s in zip(targets, seeds[1:]))
     return GPModel(transition, sensors, tuple(sensor_circular), tuple(circular_state))
 
 
