@@ -28,8 +28,10 @@ TWO_PI = 2.0 * np.pi
 
 
 def wrap(angle) -> np.ndarray:
-    """Angles wrapped to (−π, π]."""
-    return np.pi - np.mod(np.pi - np.asarray(angle, dtype=float), TWO_PI)
+    """Angles wrapped to (−π, π]. (π − a) mod 2π rounds to 2π for an a just above π (a tiny
+    negative remainder plus 2π), which would give −π: that one value is moved up by 2π (exactly π)."""
+    wrapped = np.pi - np.mod(np.pi - np.asarray(angle, dtype=float), TWO_PI)
+    return wrapped + np.where(wrapped == -np.pi, TWO_PI, 0.0)
 
 
 def difference(a, b, circular: Sequence[int]) -> np.ndarray:

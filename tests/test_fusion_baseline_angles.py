@@ -172,3 +172,13 @@ def test_fuse_reads_the_case_files_circular_state(tmp_path, capsys, method):
     tol = SOLVER_TOL if method in ("ci", "rcc-ci") else algebra_rtol(10.0)
     assert abs(wrap(means[1][0] - means[0][0] - np.pi)) <= tol * np.pi
     assert abs(means[1][1] - means[0][1]) <= tol
+
+
+def test_wrap_stays_in_the_half_open_interval_at_the_cut():
+    """Every value wraps into (−π, π], including the float just above π, whose remainder rounds to
+    2π (it gave −π), and −π itself."""
+    just_above = np.nextafter(np.pi, 4.0)
+    values = np.array([just_above, -np.pi, np.pi, 3 * np.pi, np.nextafter(-np.pi, -4.0), -just_above])
+    wrapped = wrap(values)
+    assert np.all((-np.pi < wrapped) & (wrapped <= np.pi))
+    assert wrap(just_above) == np.pi and wrap(-np.pi) == np.pi

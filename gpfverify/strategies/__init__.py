@@ -16,7 +16,8 @@ Fusion cases (:mod:`~gpfverify.strategies.fusion`)
     with its design), ``fusion_case_files(...)`` -> dicts in the CONTRACT.md case-file format.
 Local estimates (:mod:`~gpfverify.strategies.estimates`)
     ``correlated_estimates(count, state_dim, ...)``, ``estimate_pairs(state_dim)`` — (x_m, P_m) with
-    an admissible (PSD) joint error covariance.
+    an admissible (PSD) joint error covariance; ``estimates_across_the_cut(...)`` -> :class:`AngleEstimates`,
+    the same with angle components straddling ±π.
 Models (:mod:`~gpfverify.strategies.models`)
     ``gaussian_processes``, ``gaussian_inputs``, ``linear_gaussian_models``, ``sigma_params``.
 Counterexamples (:mod:`~gpfverify.strategies.counterexamples`)
@@ -26,7 +27,8 @@ Profiles (:mod:`~gpfverify.strategies.profiles`)
 """
 
 from gpfverify.strategies.counterexamples import saving_case_on_failure, write_case
-from gpfverify.strategies.estimates import CorrelatedEstimates, correlated_estimates, estimate_pairs
+from gpfverify.strategies.estimates import (AngleEstimates, CorrelatedEstimates, correlated_estimates,
+                                            estimate_pairs, estimates_across_the_cut)
 from gpfverify.strategies.fusion import PRIORS, DrawnCase, fusion_case_files, fusion_cases
 from gpfverify.strategies.gaussians import KINDS, JointGaussian, SensorDesign, joint_gaussians
 from gpfverify.strategies.matrices import (matrices_with_singular_values, orthonormal_matrices,
@@ -35,8 +37,9 @@ from gpfverify.strategies.models import (GPStackCase, LinearGaussianModel, gauss
                                          gp_stacks, linear_gaussian_models, psd_matrices, sigma_params)
 from gpfverify.strategies.profiles import PROFILES, load_profile, register_profiles, scaled_examples
 
-__all__ = ["saving_case_on_failure", "write_case", "CorrelatedEstimates", "correlated_estimates",
-           "estimate_pairs", "PRIORS", "DrawnCase", "fusion_case_files", "fusion_cases", "KINDS",
+__all__ = ["saving_case_on_failure", "write_case", "AngleEstimates", "CorrelatedEstimates",
+           "correlated_estimates", "estimate_pairs", "estimates_across_the_cut", "PRIORS", "DrawnCase",
+           "fusion_case_files", "fusion_cases", "KINDS",
            "JointGaussian", "SensorDesign", "joint_gaussians", "matrices_with_singular_values",
            "orthonormal_matrices", "spd_matrices", "LinearGaussianModel", "gaussian_inputs",
            "gaussian_processes", "gp_stacks", "GPStackCase", "linear_gaussian_models", "psd_matrices", "sigma_params",

@@ -19,6 +19,7 @@ from dataclasses import dataclass
 import numpy as np
 from hypothesis import strategies as st
 
+from gpfverify.angles import wrap
 from gpfverify.filters.records import Gaussian
 from gpfverify.linalg import symmetrize
 from gpfverify.strategies.matrices import as_strategy, float_arrays, spd_matrices, unit_floats
@@ -70,3 +71,44 @@ def estimate_pairs(state_dim=st.integers(1, 4), **options) -> st.SearchStrategy[
     """Two local estimates with an admissible cross-correlation (options of
     :func:`correlated_estimates`)."""
     return correlated_estimates(count=2, state_dim=state_dim, **options)
+
+
+@dataclass(frozen=True)
+class AngleEstimates:
+    """Correlated local estimates (``drawn``) whose ``circular_state`` components are angles that
+    straddle the ±π cut."""
+
+    drawn: CorrelatedEstimates
+    circular_state: tuple[int, ...]
+
+    @property
+    def estimates(self) -> tuple[Gaussian, ...]:
+        return self.drawn.estimates
+
+    def rotated(self, angle: float) -> tuple[Gaussian, ...]:
+        """The estimates with every angle component turned by ``angle`` (wrapped)."""
+        idx = list(self.circular_state)
+        out = []
+        for e in self.estimates:
+            mean = e.mean.copy()
+            mean[idx] = wrap(mean[idx] + angle)
+            out.append(Gaussian(mean, e.cov))
+        return tuple(out)
+
+
+@st.composite
+def estimates_across_the_cut(draw, count=st.integers(2, 4), state_dim=st.integers(1, 4),
+                             max_condition: float = 1e3, spread: float = 0.5) -> AngleEstimates:
+    """:func:`correlated_estimates` with one or more components made angles near ±π: sensor m's
+    angle is wrap(π + δ_m), δ_m drawn in [−spread, spread] (spread < π/2, so the local angles lie
+    within half a turn of each other and, for most draws, on both sides of the cut)."""
+    drawn = draw(correlated_estimates(count, state_dim, max_condition))
+    d = drawn.state_dim
+    angles = tuple(sorted(draw(st.sets(st.integers(0, d - 1), min_size=1, max_size=d))))
+    offsets = draw(float_arrays((len(drawn.estimates), len(angles)), -spread, spread))
+    estimates = []
+    for e, delta in zip(drawn.estimates, offsets):
+        mean = e.mean.copy()
+        mean[list(angles)] = wrap(np.pi + delta)
+        estimates.append(Gaussian(mean, e.cov))
+    return AngleEstimates(CorrelatedEstimates(tuple(estimates), drawn.joint_cov, drawn.shared_weight), angles)
