@@ -47,7 +47,10 @@ def _expected(case, k):
 
 
 def _cli(argv, capsys):
-    code = main(argv)
+    try:
+        code = main(argv)
+    except SystemExit as exc:  # usage errors found by the parser (a malformed --rank-rule)
+        code = exc.code
     out, err = capsys.readouterr()
     return code, out, err
 
@@ -341,7 +344,7 @@ def test_out_writes_the_run_report_with_the_json_it_renders(tmp_path, capsys, th
     ks, cases = three_sensor_run
     path = write_run(tmp_path / "run.jsonl", cases, ks)
     code, out, err = _cli(["audit", str(path), "--json", "--out", str(tmp_path / "report")], capsys)
-    assert code == 0 and err == ""
+    assert code == 0 and err == f"gpfverify audit: the report page: {tmp_path / 'report' / 'report.html'}\n"
     report = tmp_path / "report"
     assert {"report.html", "README.md", "audit.json"} <= {p.name for p in report.iterdir()}
     assert json.loads((report / "audit.json").read_text()) == json.loads(out)

@@ -91,6 +91,7 @@ def test_logged_measurements_with_and_without_truth(tmp_path):
     with_truth = json.loads(_cli(TRACKER, "--measurements", tmp_path / "run.npz", "--json").stdout)
     without = json.loads(_cli(TRACKER, "--measurements", tmp_path / "y_only.npz", "--json").stdout)
     assert with_truth["steps"] == without["steps"] == 12 and with_truth["runs"] == 1
+    assert with_truth["params"]["steps"] == without["params"]["steps"] == 12  # the file's count, recorded once
     assert with_truth["truth_known"] and "rmse" in with_truth
     assert not without["truth_known"] and "rmse" not in without
     # the same measurements give the same fusion whether the truth is known or not
@@ -143,6 +144,30 @@ def test_bad_measurement_files_exit_2(tmp_path):
     for name, message in (("wrong.npz", "y must have shape"), ("junk.npz", "is not an npz archive")):
         result = _cli(TRACKER, "--measurements", tmp_path / name, "--json")
         assert result.returncode == 2 and message in result.stderr and result.stderr.count("\n") == 1
+    assert "--measurements expects a measurements file" in _cli(TRACKER, "--measurements", tmp_path / "wrong.npz",
+                                                                "--json").stderr
+    result = _cli(TRACKER, "--measurements", tmp_path / "wrong.npz", "--steps", "5", "--json")
+    assert result.returncode == 2 and "leave out --steps" in result.stderr
+
+
+def test_measurements_and_audit_run_files_are_told_apart(tmp_path):
+    """An audit run file given to check --measurements, and a measurements file given to audit,
+    are refused naming the format each command expected."""
+    from gpfverify.fusion.runfile import write_run
+    from gpfverify.fusion.synthetic import random_case
+
+    system = check.load_system(TRACKER)
+    truth, ys = system.simulate(4, np.random.default_rng(5))
+    np.savez(tmp_path / "measurements.npz", y=ys, x=truth)
+    cases = [random_case(np.random.default_rng(k), 4, system.sizes) for k in range(3)]
+    run = write_run(tmp_path / "run.npz", cases, list(range(3)))
+    result = _cli(TRACKER, "--measurements", run, "--json")
+    assert result.returncode == 2 and result.stderr.count("\n") == 1
+    assert "audit run file" in result.stderr and "--measurements expects a measurements file" in result.stderr
+    audit = subprocess.run([sys.executable, "-m", "gpfverify", "audit", str(tmp_path / "measurements.npz")],
+                           capture_output=True, text=True)
+    assert audit.returncode == 2 and audit.stderr.count("\n") == 1
+    assert "check --measurements" in audit.stderr and "run file of fusion cases" in audit.stderr
 
 
 def test_the_rank_rule_is_unit_free_by_default_and_recorded():

@@ -38,6 +38,7 @@ def test_reproduce_runs_an_experiment_and_refuses_to_overwrite(monkeypatch, tmp_
     monkeypatch.setitem(EXPERIMENTS, "toy", "toy_experiment")
     out = tmp_path / "run"
     assert cli.main(["reproduce", "toy", "--runs", "3", "--seed", "4", "--out", str(out)]) == 0
+    capsys.readouterr()  # the progress lines of the first command
     results = json.loads((out / "results.json").read_text())
     assert (results["experiment"], results["runs"], results["seed"]) == ("toy", 3, 4)
     assert results["params"] == {"scale": 1.0, "shift": 0.0, "fail_run": -1, "interrupt_run": -1}

@@ -17,7 +17,7 @@ from gpfverify.audit import (RANK_RULE_DEFAULT, RunAudit, audit_case, audit_to_d
 from gpfverify.cli import RANK_RULE_HELP, positive_int, rank_rule_text
 from gpfverify.errors import InputError
 from gpfverify.fusion.runfile import run_format
-from gpfverify.outputs import check_out, out_path, output_folder
+from gpfverify.outputs import check_out, final_path, out_path, output_folder
 from gpfverify.report.document import integer_ranges
 from gpfverify.runaudit import copy_out, spool, stream_audit, table_header, table_row
 
@@ -142,9 +142,14 @@ def _audit_run(args: argparse.Namespace) -> None:
             from gpfverify.report.equivalence import write_run_audit_report
 
             with output_folder(args.out, keep=False) as stage:
-                write_run_audit_report({"steps": steps, "summary": summary, "rank_rule": summary["rank_rule"]},
-                                       stage)
+                html = final_path(write_run_audit_report({"steps": steps, "summary": summary,
+                                                          "rank_rule": summary["rank_rule"]}, stage), stage, args.out)
         copy_out(out)
+    if args.out is not None:  # after the audit itself; on stderr when stdout carries JSON
+        if args.json:
+            print(f"gpfverify audit: the report page: {html}", file=sys.stderr)
+        else:
+            print(f"the report page: {html}")
 
 
 def run(args: argparse.Namespace) -> int:

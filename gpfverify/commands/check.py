@@ -21,17 +21,23 @@ from gpfverify.fusion.names import CHOICES_TEXT
 from gpfverify.outputs import check_out, out_path, output_folder
 
 
+#: steps per simulated run unless --steps says otherwise
+DEFAULT_STEPS = 50
+
+
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("system", metavar="SYSTEM.py:NAME",
                         help="a Python file and the name of the StateSpaceModel it defines (docs/models.md)")
     parser.add_argument("--filter", default="ukf", choices=[f for f in FAMILY_NAMES if f != "kf"],
                         help="the Gaussian family of every local filter and of the centre (default ukf)")
-    parser.add_argument("--steps", type=int, default=50, help="steps per simulated run (default 50)")
+    parser.add_argument("--steps", type=int, default=None,
+                        help="steps per simulated run (default 50; with --measurements the file's row count)")
     parser.add_argument("--runs", type=int, default=1, help="simulated Monte Carlo runs (default 1)")
     parser.add_argument("--seed", type=int, default=1, help="root seed (default 1)")
-    parser.add_argument("--measurements", metavar="RUN.npz", default=None,
-                        help="filter your logged measurements instead of simulating: y (T, L) stacked in "
-                             "sensor order, optional truth x (T, D)")
+    parser.add_argument("--measurements", metavar="MEASUREMENTS.npz", default=None,
+                        help="filter your logged measurements instead of simulating: an .npz with y (T, L) "
+                             "stacked in sensor order and optional truth x (T, D) (docs/check-format.md; not "
+                             "an audit run file)")
     parser.add_argument("--training", metavar="TRAIN.npz", default=None,
                         help="GP families: learn from your samples, x (n, D) consecutive states and y (n, L)")
     parser.add_argument("--train", type=int, default=200,
@@ -61,13 +67,17 @@ def run(args: argparse.Namespace) -> int:
     from gpfverify.experiments.runner import make_executor, run_experiment
     from gpfverify.systems import load_system
 
-    params = check.params_for(args.system, args.filter, args.steps, args.measurements, args.training,
-                              args.train, args.fit_points, args.restarts, args.methods, args.rank_rule)
+    if args.measurements is not None and args.steps is not None:
+        raise InputError("--measurements filters every row of the file: leave out --steps")
+    params = check.params_for(args.system, args.filter, args.steps or DEFAULT_STEPS, args.measurements,
+                              args.training, args.train, args.fit_points, args.restarts, args.methods,
+                              args.rank_rule)
     model = load_system(params.system)  # fail before anything is written
     if params.measurements is not None:
         if args.runs != 1:
             raise InputError("--measurements filters one logged run: --runs must be 1")
-        check.logged_measurements(params.measurements, model)
+        _, ys = check.logged_measurements(params.measurements, model)
+        params = params.replace(steps=len(ys))  # results.json records the file's step count
     check.check_size_fits(model, params.steps, args.runs, params.methods)
     if args.workers < 1:
         raise InputError(f"--workers must be at least 1, got {args.workers}")
@@ -94,5 +104,8 @@ def run(args: argparse.Namespace) -> int:
     if args.json:
         print(json.dumps(results))
     else:
-        print(verdict_sentence(results) + f" Results: {args.out / 'results.json'}")
+        print(verdict_sentence(results) + f" Results: {args.out / 'results.json'}; the report page: "
+              f"{args.out / 'report.html'}")
+    if args.json and args.out is not None:
+        print(f"gpfverify check: the report page: {args.out / 'report.html'}", file=sys.stderr)
     return 0

@@ -23,9 +23,10 @@ from pathlib import Path
 from typing import TextIO
 
 from gpfverify.cli import non_negative_int, positive_int
+from gpfverify.errors import InputError
 from gpfverify.contract.experiment import RunEntry, SectionRuns
 from gpfverify.outputs import check_out, final_path, out_path, output_folder
-from gpfverify.report import SECTIONS, build_report
+from gpfverify.report import SECTIONS, build_report, papers_title
 from gpfverify.report.inputs import counts_line, verdict_counts, write_runs
 from gpfverify.report.render import read_summaries
 
@@ -39,6 +40,11 @@ SECTION_EXPERIMENTS: dict[str, tuple[str, ...]] = {
     "particle-flow": ("pff1d", "bearing"),
     "sins-gps": ("sins-gps",),
 }
+#: the mapping as help texts and docs show it
+SECTION_MAP_TEXT = "; ".join(f"{slug} = {' + '.join(names)}" for slug, names in SECTION_EXPERIMENTS.items()
+                             if names != (slug,))
+#: the profile name a page rendered from one reproduce folder records
+REPRODUCED = "reproduce"
 #: the section whose "runs" are the symbolic proofs and cross-checks
 PROOFS = "proofs"
 CERTIFICATES = "certificates.json"
@@ -58,7 +64,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="worker processes for experiments (>= 1; results do not depend on it)")
     parser.add_argument("--only", nargs="+", metavar="SECTION", choices=list(SECTIONS),
                         help=f"build (or rebuild) only these sections, keeping the others already in "
-                             f"the output folder: {', '.join(SECTIONS)}")
+                             f"the output folder: {', '.join(SECTIONS)} (a section renders the experiments "
+                             f"reproduce names: {SECTION_MAP_TEXT})")
+    parser.add_argument("--from", dest="from_dir", type=Path, default=None, metavar="DIR",
+                        help="render one 'gpfverify reproduce NAME --out DIR' folder as a page instead of "
+                             "running anything (into --out, default DIR-report)")
 
 
 class Progress:
@@ -233,7 +243,50 @@ def build(ctx: ReportContext, only: list[str] | None, progress: Progress) -> Pat
     return build_report(ctx.out_dir, only, progress)
 
 
+def section_of(experiment: str) -> str:
+    """The report section that renders ``experiment`` (a reproduce name)."""
+    for slug, names in SECTION_EXPERIMENTS.items():
+        if experiment in names:
+            return slug
+    raise InputError(f"no report section renders the experiment {experiment!r}")
+
+
+def render_reproduced(source: Path, out: Path) -> Path:
+    """Render the folder of one ``gpfverify reproduce NAME --out DIR`` run (``source``) as a page
+    in ``out``: its results (and interpretations) copied as the section's only run, nothing run.
+    Returns the HTML page's path."""
+    results_path = source / "results.json"
+    if not results_path.is_file():
+        raise InputError(f"--from {source}: no results.json; give the folder 'gpfverify reproduce NAME --out DIR' "
+                         "wrote")
+    try:
+        results = json.loads(results_path.read_text(encoding="utf-8"))
+    except ValueError as exc:
+        raise InputError(f"--from {source}: results.json is not valid JSON ({exc})") from None
+    if not isinstance(results, dict) or not isinstance(results.get("experiment"), str):
+        raise InputError(f"--from {source}: results.json names no experiment (not a reproduce folder)")
+    name = results["experiment"]
+    slug = section_of(name)
+    check_out(out)
+    with output_folder(out) as stage:
+        folder = f"{name}-{REPRODUCED}"
+        shutil.copytree(source, stage / slug / folder / "run", ignore=shutil.ignore_patterns("runs", ".*"))
+        write_runs(stage, SectionRuns(slug, REPRODUCED, int(results.get("seed", 0)),
+                                      (RunEntry(name, "", REPRODUCED, f"{folder}/run/results.json"),)))
+        title = papers_title([slug]).replace("Verification report", f"gpfverify reproduce {name}")
+        html = final_path(build_report(stage, [slug], progress=lambda text: None, title=title), stage, out)
+    return html
+
+
 def run(args: argparse.Namespace) -> int:
+    if args.from_dir is not None:
+        if args.full or args.only:
+            raise InputError("--from renders a folder that reproduce wrote: not together with --full or --only")
+        out = args.out or Path(str(args.from_dir).rstrip("/\\") + "-report")
+        html_path = render_reproduced(args.from_dir, out)
+        print(f"The page: {html_path} (one self-contained page; open it in a browser)\n"
+              f"          {out / 'README.md'} (Markdown)")
+        return 0
     profile = "full" if args.full else "quick"
     out = args.out or Path("reports") / profile
     check_out(out)  # before any section runs (and prints progress)

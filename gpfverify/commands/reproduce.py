@@ -1,13 +1,30 @@
-"""``gpfverify reproduce NAME``: run one of the papers' experiments into ``--out DIR``."""
+"""``gpfverify reproduce NAME --out DIR``: run one of the papers' experiments into ``DIR``.
+
+By default the run count of the report's quick profile (minutes); ``--paper-scale`` runs the
+paper's count (hours for some experiments), ``--runs N`` any count. Before the runs: what will
+run; after the first runs are saved: the estimated time left. Off a terminal a progress line
+every few percent (on a terminal, a progress bar). At the end: each claim's verdict, the rank rule
+that decided eq. 35 where the experiment has one, and the command that renders the folder as a
+page (``gpfverify report --from DIR``).
+"""
 
 from __future__ import annotations
 
 import argparse
 import importlib
 import sys
+import time
+from collections import Counter
+from collections.abc import Callable
+from pathlib import Path
 
 from gpfverify.experiments import EXPERIMENTS
 from gpfverify.outputs import check_out, out_path, output_folder
+
+#: a progress line off a terminal every this fraction of the runs
+PROGRESS_FRACTION = 0.05
+#: ... and at least this often while runs are being saved
+PROGRESS_SECONDS = 30.0
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -16,13 +33,26 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("rest", nargs=argparse.REMAINDER, help=argparse.SUPPRESS)
 
 
-def add_common_arguments(parser: argparse.ArgumentParser, default_runs: int) -> None:
+def quick_runs(module) -> int:
+    """The run count of the experiment's quick report profile (its paper's count if it has none)."""
+    profiles = getattr(module, "PROFILES", {})
+    return profiles["quick"].runs if "quick" in profiles else module.DEFAULT_RUNS
+
+
+def add_common_arguments(parser: argparse.ArgumentParser, default_runs: int, paper_runs: int | None = None) -> None:
     from gpfverify.cli import non_negative_int, positive_int
 
-    parser.add_argument("--runs", type=positive_int, default=default_runs,
-                        help=f"Monte Carlo runs (default {default_runs}, the paper's)")
+    paper_runs = default_runs if paper_runs is None else paper_runs
+    parser.add_argument("--runs", type=positive_int, default=None,
+                        help=f"Monte Carlo runs (default {default_runs}, the quick profile of the report; "
+                             f"--paper-scale: {paper_runs}, the paper's)")
+    parser.add_argument("--paper-scale", action="store_true",
+                        help=f"run the paper's count, {paper_runs} runs (the estimated time is printed after "
+                             "the first runs)")
     parser.add_argument("--seed", type=non_negative_int, default=1, help="root seed, an integer >= 0 (default 1)")
-    parser.add_argument("--out", type=out_path, required=True, help="output folder")
+    parser.add_argument("--out", type=out_path, required=True,
+                        help="output folder (required: every run is saved there as it ends, so that --resume "
+                             "can continue and 'gpfverify report --from DIR' can render it)")
     parser.add_argument("--resume", action="store_true", help="continue the runs saved in --out")
     parser.add_argument("--workers", type=positive_int, default=1,
                         help="local worker processes, >= 1 (BLAS pinned to 1 thread each; default 1); "
@@ -35,17 +65,86 @@ def add_common_arguments(parser: argparse.ArgumentParser, default_runs: int) -> 
                              "each claim's verdict under each in results.json")
 
 
+def duration(seconds: float) -> str:
+    """``'3 h 12 min'``, ``'4 min 10 s'``, ``'12 s'``."""
+    seconds = int(round(seconds))
+    hours, rest = divmod(seconds, 3600)
+    minutes, secs = divmod(rest, 60)
+    if hours:
+        return f"{hours} h {minutes} min"
+    return f"{minutes} min {secs} s" if minutes else f"{secs} s"
+
+
+def progress_lines(name: str, say: Callable[[str], None], header: str = "",
+                   clock: Callable[[], float] = time.monotonic):
+    """``on_run(saved, total)`` for the runner: ``header`` (what runs; said once the runs have
+    started, so that a refused command prints only its error) and the estimated time left after
+    the first saved run, then a line every :data:`PROGRESS_FRACTION` of the runs (and at least every
+    :data:`PROGRESS_SECONDS`), each with the time left at the rate so far."""
+    started = last_line = clock()
+    before: int | None = None  # runs saved before this command (--resume)
+    last_share = -1
+
+    def on_run(saved: int, total: int) -> None:
+        nonlocal before, last_line, last_share
+        now = clock()
+        if before is None:
+            before = saved - 1
+            if header:
+                say(header)
+        new = saved - before
+        left = (total - saved) * (now - started) / max(new, 1)
+        share = int(saved / total / PROGRESS_FRACTION)
+        if new == 1 and saved < total:
+            say(f"{name}: first run took {duration(now - started)}; estimated time left for the other "
+                f"{total - saved}: {duration(left)}")
+        elif saved == total or share > last_share or now - last_line >= PROGRESS_SECONDS:
+            say(f"{name}: {saved} of {total} runs saved ({100 * saved // total} %), "
+                f"about {duration(left)} left")
+        else:
+            return
+        last_line, last_share = now, share
+
+    return on_run
+
+
+def claims_text(results: dict) -> str:
+    """Each claim's verdict (and the rank rule of eq. 35 where there is one), one line each."""
+    claims = list(results.get("claims") or []) + list(results.get("timing_claims") or [])
+    lines = []
+    if results.get("rank_tolerance"):
+        lines.append(f"rank rule of eq. 35: {results['rank_tolerance']} (reproduce's default is numpy, the "
+                     "papers' rule; --rank-rule to change it)")
+    if not claims:
+        return "\n".join(lines + ["no claims recorded"])
+    runs = results.get("runs_ok", results.get("runs"))
+    papers = {c.get("paper_n") for c in claims if c.get("paper_n")}
+    lines.append(f"claims at {runs} run(s)" + (f" (the paper: {', '.join(map(str, sorted(papers)))})" if papers
+                                                else "") + ":")
+    for c in claims:
+        more = (f" (about {c['runs_to_decide']} runs would decide)"
+                if c.get("verdict") == "undecided" and c.get("runs_to_decide") else "")
+        lines.append(f"  {c['verdict']:<14} {c['claim']}{more}")
+    counts = Counter(c["verdict"] for c in claims)
+    lines.append("verdicts: " + ", ".join(f"{n} {v}" for v, n in counts.items()))
+    return "\n".join(lines)
+
+
 def run(args: argparse.Namespace) -> int:
     from gpfverify.cli import OneLineParser
     from gpfverify.contract.params import add_arguments as add_params_arguments
     from gpfverify.contract.params import from_arguments
+    from gpfverify.errors import InputError
     from gpfverify.experiments.runner import make_executor, run_experiment
 
     module = importlib.import_module(EXPERIMENTS[args.experiment])
     sub = OneLineParser(prog=f"gpfverify reproduce {args.experiment}", description=module.__doc__)
-    add_common_arguments(sub, module.DEFAULT_RUNS)
+    add_common_arguments(sub, quick_runs(module), module.DEFAULT_RUNS)
     add_params_arguments(sub, module.Params)  # the options are generated from the experiment's Params
     opts = sub.parse_args(args.rest)
+    if opts.paper_scale and opts.runs is not None:
+        raise InputError("--paper-scale runs the paper's count: not together with --runs")
+    runs = module.DEFAULT_RUNS if opts.paper_scale else opts.runs or quick_runs(module)
     params = from_arguments(module.Params, opts)
     check_out(opts.out)
     specs = None
@@ -53,10 +152,34 @@ def run(args: argparse.Namespace) -> int:
         from gpfverify.experiments.sensitivity import run_interpretations, select
 
         specs = select(module, opts.interpretations)  # before any run: a wrong name costs nothing
+    if opts.paper_scale:
+        scale = "the paper's count"
+    elif opts.runs is None:
+        scale = f"the quick profile; --paper-scale for the paper's {module.DEFAULT_RUNS}"
+    else:
+        scale = f"the paper's: {module.DEFAULT_RUNS}"
+    header = f"{args.experiment}: {runs} run(s) ({scale}), {opts.workers} worker(s), into {opts.out}"
+    terminal = sys.stderr.isatty()  # there the runner draws a progress bar
     with output_folder(opts.out, keep=True) as stage, make_executor(opts.workers, opts.scheduler) as executor:
-        results = run_experiment(module, params, opts.runs, opts.seed, stage, opts.resume, executor)
+        results = run_experiment(module, params, runs, opts.seed, stage, opts.resume, executor,
+                                 on_run=None if terminal else progress_lines(args.experiment, say, header))
         if specs:
-            results = run_interpretations(module, params, specs, opts.runs, opts.seed, stage, executor)
+            say(f"{args.experiment}: interpretations {', '.join(s.name for s in specs)}")
+            results = run_interpretations(module, params, specs, runs, opts.seed, stage, executor,
+                                          on_run=None if terminal else progress_lines(args.experiment, say))
     print(f"{args.experiment}: {results['runs_ok']} of {results['runs']} runs ok -> {opts.out / 'results.json'}",
           file=sys.stderr if results["failed_runs"] else sys.stdout)
+    print(claims_text(results))
+    print(f"page: gpfverify report --from {_shell_word(opts.out)}")
     return 0
+
+
+def say(text: str) -> None:
+    """A progress line (a diagnostic: stderr, flushed at once)."""
+    print(text, file=sys.stderr, flush=True)
+
+
+def _shell_word(path: Path) -> str:
+    import shlex
+
+    return shlex.quote(str(path))

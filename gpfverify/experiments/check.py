@@ -74,15 +74,28 @@ def _load_npz(path: str, what: str) -> dict[str, np.ndarray]:
         raise InputError(f"cannot read {what} {path}: {exc.strerror or exc}") from None
 
 
+def measurements_format(model) -> str:
+    """What ``--measurements`` expects, for error messages."""
+    return (f"a measurements file (MEASUREMENTS.npz: y (T, {model.measurement_dim}) stacked in sensor order, "
+            f"optional truth x (T, {model.state_dim}); docs/check-format.md)")
+
+
 def logged_measurements(path: str, model) -> tuple[np.ndarray | None, np.ndarray]:
-    """(truth x (T, D) or None, measurements y (T, L)) from a run file (``y`` required)."""
+    """(truth x (T, D) or None, measurements y (T, L)) from a measurements file (``y`` required;
+    docs/check-format.md). Not an audit run file: that one is refused saying which is which."""
     data = _load_npz(path, "measurements")
+    if "central_mu_p" in data:
+        raise InputError(f"{path} is an audit run file of fusion cases ('gpfverify audit' reads it): "
+                         f"--measurements expects {measurements_format(model)}")
     if "y" not in data:
-        raise InputError(f"{path} has no array 'y' (the measurements, (T, {model.measurement_dim}))")
-    ys = as_array(data["y"], f"{Path(path).name}: y", shape=(None, model.measurement_dim))
-    truth = None
-    if "x" in data:
-        truth = as_array(data["x"], f"{Path(path).name}: x", shape=(ys.shape[0], model.state_dim))
+        raise InputError(f"{path} has no array 'y': --measurements expects {measurements_format(model)}")
+    try:
+        ys = as_array(data["y"], f"{Path(path).name}: y", shape=(None, model.measurement_dim))
+        truth = None
+        if "x" in data:
+            truth = as_array(data["x"], f"{Path(path).name}: x", shape=(ys.shape[0], model.state_dim))
+    except InputError as exc:
+        raise InputError(f"{exc}; --measurements expects {measurements_format(model)}") from None
     return truth, ys
 
 

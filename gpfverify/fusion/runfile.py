@@ -374,9 +374,14 @@ class _NpzLayout:
 
     def _check(self) -> None:
         path, headers = self.path, self.archive.headers
+        if "sizes" not in headers and "central_mu_p" not in headers and "y" in headers:
+            raise CaseFileError(f"{path} looks like a measurements file for 'gpfverify check --measurements' "
+                                "(arrays y and x); audit expects a run file of fusion cases (arrays sizes, "
+                                "central_mu_p, ...; docs/run-file-format.md)")
         for name in ("sizes", "central_mu_p"):
             if name not in headers:
-                raise CaseFileError(f"{path}: missing array {name} (layout in docs/run-file-format.md)")
+                raise CaseFileError(f"{path}: missing array {name}: audit expects a run file of fusion cases "
+                                    "(layout in docs/run-file-format.md)")
         if len(headers["sizes"].shape) != 1 or headers["sizes"].shape[0] > 1 << 20:
             raise CaseFileError(f"{path}: array sizes must be (N,) positive integers, got shape "
                                 f"{headers['sizes'].shape}")

@@ -38,13 +38,24 @@ SECTION_PAPERS: dict[str, tuple[str, ...]] = {
     "sins-gps": ("seed001",),
 }
 
-TITLE = "Verification report: Gaussian-process filters and multisensor fusion, four papers reproduced"
+_NUMBER_WORDS = ("no", "one", "two", "three", "four", "five", "six", "seven", "eight", "nine", "ten")
+
+
+def papers_title(slugs) -> str:
+    """The report's title, counting the distinct papers the sections ``slugs`` reproduce."""
+    papers = {p for slug in slugs for p in SECTION_PAPERS.get(slug, ())}
+    count = _NUMBER_WORDS[len(papers)] if len(papers) < len(_NUMBER_WORDS) else str(len(papers))
+    return (f"Verification report: Gaussian-process filters and multisensor fusion, {count} "
+            f"paper{'s' if len(papers) != 1 else ''} reproduced")
+
+
+TITLE = papers_title(SECTIONS)
 PREAMBLE = ("Each section reruns one paper's experiments (or checks its algebra) with this toolkit and "
             "records every claim it checks as a verdict computed from the runs; nothing on these pages "
             "is typed in by hand. The summary counts them; each section opens with the runs it rests on.")
 
 
-def build_report(out_dir: Path, only: list[str] | None = None, progress=print) -> Path:
+def build_report(out_dir: Path, only: list[str] | None = None, progress=print, title: str = TITLE) -> Path:
     """Render the sections (all, or ``only``) from the files the command layer wrote in ``out_dir``
     and write the report there (:func:`~gpfverify.report.render.write_report`); returns the HTML
     page's path. Sections not in ``only`` keep the pages already in ``out_dir``."""
@@ -70,5 +81,5 @@ def build_report(out_dir: Path, only: list[str] | None = None, progress=print) -
         summaries[slug] = summarize_section(data, section.title, SECTION_PAPERS.get(slug, ()))
         sections.append(section)
     progress("writing the report pages (Markdown and one HTML file)")
-    return write_report(sections, out_dir, TITLE, PREAMBLE, order=list(SECTIONS),
+    return write_report(sections, out_dir, title, PREAMBLE, order=list(SECTIONS),
                         provenance=provenance.current(), summaries=summaries)
