@@ -69,7 +69,8 @@ def run(args: argparse.Namespace) -> int:
 
     if args.measurements is not None and args.steps is not None:
         raise InputError("--measurements filters every row of the file: leave out --steps")
-    params = check.params_for(args.system, args.filter, args.steps or DEFAULT_STEPS, args.measurements,
+    params = check.params_for(args.system, args.filter, DEFAULT_STEPS if args.steps is None else args.steps,
+                              args.measurements,
                               args.training, args.train, args.fit_points, args.restarts, args.methods,
                               args.rank_rule)
     model = load_system(params.system)  # fail before anything is written
