@@ -5,6 +5,7 @@ sins-gps experiment: typed parameters and run records, results.json per CONTRACT
 N_eff/N of each particle filter), claim records with the collapse caveat, and the report page
 rendered from a stored results.json."""
 
+import dataclasses
 import json
 import shutil
 from functools import partial
@@ -231,7 +232,7 @@ def test_results_follow_the_contract(tiny_run):
         assert all(len(v) == 60 for v in r[f"{q}_error"].values())
         rms = r["rms"]
         assert r["reduction"][q] == pytest.approx(1 - rms["GPSR-UPF"][q] / rms["UPF"][q])
-    assert set(r["time_per_run"]) == {"UPF", "GPSR-UPF", "SR-UKF", "GP-SR-UKF"}
+    assert set(r["time_per_run"]) == {"UPF", "GPSR-UPF", "SR-UKF", "GP-SR-UKF", "TRUE-SR-UKF"}
     assert Params.from_json(r["params"]) == TINY
     json.dumps(r, allow_nan=False)
 
@@ -310,7 +311,12 @@ def test_claims_are_records_with_the_ess_and_the_health_checks(tiny_run):
         per_run = 1 - np.asarray(r["per_run_rms"]["GPSR-UPF"][q]) / np.asarray(r["per_run_rms"]["UPF"][q])
         assert claim.statistic == pytest.approx(per_run.mean()) and claim.threshold == pytest.approx(claimed - 0.10)
         test = PairedDifference.of(np.full(per_run.size, claimed - 0.10), per_run)
-        assert claim.verdict == ("not decidable" if failed else test.verdict)
+        out_of_reach = r["reference"]["ceiling"][q] < claimed - 0.10
+        assert claim.verdict == ("not decidable" if failed or (out_of_reach and test.verdict == "NOT held")
+                                 else test.verdict)
+        assert f"true-model ceiling (TRUE-SR-UKF against SR-UKF) {100 * r['reference']['ceiling'][q]:.1f} %" \
+            in claim.evidence
+        assert any("out of reach in this scenario" in c for c in claim.caveats) == out_of_reach
         assert f"UPF {ess['UPF']:.4f}" in claim.evidence and f"GPSR-UPF {ess['GPSR-UPF']:.4f}" in claim.evidence
         assert any("verdict withheld" in c for c in claim.caveats) == bool(failed)
         assert all(any(c["subject"] in caveat and c["name"] in caveat for caveat in claim.caveats) for c in failed)
@@ -320,6 +326,11 @@ def test_claims_are_records_with_the_ess_and_the_health_checks(tiny_run):
     assert not next(c for c in health if c["subject"] == "UPF")["passed"]
     for q in ("position", "velocity", "attitude"):
         assert r["reference"]["reduction"][q] == by_id[f"sins-gps/single-filter-reduction-{q}"].statistic
+    rms = r["reference"]["rms"]
+    for q, claimed in (("position", 0.33), ("velocity", 0.33), ("attitude", 0.40)):
+        ceiling = by_id[f"sins-gps/true-model-ceiling-{q}"]
+        assert ceiling.statistic == pytest.approx(1 - rms["TRUE-SR-UKF"][q] / rms["SR-UKF"][q])
+        assert ceiling.verdict == ("held" if ceiling.statistic >= claimed - 0.10 else "NOT held")
     assert by_id["sins-gps/factors-valid"].verdict == "held"  # every factor diagonal stayed positive
     for c in records:
         assert ClaimRecord.from_json(json.loads(json.dumps(c.to_json()))) == c
@@ -364,3 +375,57 @@ def test_the_renderer_runs_no_experiment():
     source = Path(sins_gps_section.__file__).read_text()
     assert "gpfverify.experiments" not in source and "run_for_report" not in source
     assert not hasattr(sins_gps_section, "build")
+
+
+# ---- the true-model ceiling ---------------------------------------------------------------------
+def test_the_ceiling_filter_is_the_kalman_filter_of_the_generating_model(scenario):
+    """TRUE-SR-UKF runs the SR-UKF on the model that generated the flight: on this linear model it
+    must be the KF with the true transitions, at every step."""
+    config, _, models = scenario
+    rng = np.random.default_rng(1)
+    prior = config.initial_cov()
+    x0 = rng.multivariate_normal(np.zeros(15), prior)
+    xs, ys = models.true.simulate(config.steps, rng, x0=x0)
+    true_model = sins_gps.ceiling_model(models, models.approx)
+    run = sins_gps.run_sr_ukf(lambda k: true_model, prior, ys, xs)
+    kf = Gaussian(np.zeros(15), prior)
+    worst, cond = 0.0, 1.0
+    for k, y in enumerate(ys, 1):
+        linear = linear_model(models.transitions_true[k - 1], measurement_matrix(), models.true.Q, models.true.R)
+        kf = kf_step(kf, linear, y, k=k).posterior
+        error = np.concatenate([run.attitude[k - 1], run.velocity[k - 1], run.position[k - 1]])
+        scale = np.sqrt(np.diag(kf.cov))
+        worst = max(worst, float(np.max(np.abs(error - (kf.mean - xs[k - 1])[:9]) / scale[:9])))
+        cond = max(cond, float(np.linalg.cond(kf.cov / np.outer(scale, scale))))
+    assert worst < algebra_rtol(cond * config.steps)
+
+
+def test_zero_model_error_gives_a_zero_ceiling_and_withholds_nothing_as_unreachable(monkeypatch):
+    """With the true model equal to the inaccurate one, TRUE-SR-UKF is the SR-UKF (one route, the
+    same numbers): the ceiling is 0 and every ceiling claim is NOT held."""
+    def no_model_error(flight, config):
+        models = build_models(flight, config)
+        return dataclasses.replace(models, true=models.approx, transitions_true=models.transitions_approx)
+
+    sins_gps.setup.cache_clear()
+    monkeypatch.setattr(sins_gps, "build_models", no_model_error)
+    try:
+        record = sins_gps.run_one(TINY, np.random.SeedSequence(3))
+    finally:
+        sins_gps.setup.cache_clear()
+    assert record.references["TRUE-SR-UKF"].position == record.references["SR-UKF"].position
+    body = sins_gps.summarize(TINY, [record])
+    assert body["reference"]["ceiling"] == {"attitude": 0.0, "velocity": 0.0, "position": 0.0}
+    by_id = {c.id: c for c in body["claims"]}
+    for q in ("position", "velocity", "attitude"):
+        assert by_id[f"sins-gps/true-model-ceiling-{q}"].verdict == "NOT held"
+        assert any("out of reach" in c for c in by_id[f"sins-gps/reduction-{q}"].caveats)
+
+
+@pytest.mark.parametrize(("verdict", "ceiling", "expected"), [
+    ("NOT held", 0.05, "not decidable"), ("undecided", 0.05, "undecided"), ("held", 0.05, "held"),
+    ("NOT held", 0.30, "NOT held")])
+def test_a_claim_out_of_reach_is_never_not_held(verdict, ceiling, expected):
+    decided, caveats = sins_gps._within_reach(verdict, {"position": ceiling}, "position", 0.23)
+    assert decided == expected
+    assert bool(caveats) == (ceiling < 0.23)

@@ -27,8 +27,11 @@ UPF = Method.parse("UPF")
 GPSR_UPF = Method.parse("GPSR-UPF")
 SR_UKF = Method.parse("SR-UKF")
 GP_SR_UKF = Method.parse("GP-SR-UKF")
+#: the true-model ceiling: the SR-UKF on the model that generated the flight (no model error left to
+#: correct), the best any correction of the inaccurate model can reach
+TRUE_SR_UKF = Method.parse("TRUE-SR-UKF")
 PARTICLE_FILTERS: tuple[Method, ...] = (UPF, GPSR_UPF)
-REFERENCES: tuple[Method, ...] = (SR_UKF, GP_SR_UKF)
+REFERENCES: tuple[Method, ...] = (SR_UKF, GP_SR_UKF, TRUE_SR_UKF)
 #: error quantities, in the order of the paper's Table 1 claims, and their units
 QUANTITIES: tuple[str, ...] = ("position", "velocity", "attitude")
 UNITS: dict[str, str] = {"attitude": "arcmin", "velocity": "m/s", "position": "m"}
@@ -128,7 +131,8 @@ class ParticleFilterRun(FilterRun):
 class RunRecord:
     """One Monte Carlo run: how well the GP knows this flight's velocity residual (RMS of the true
     residual, RMS of the GP mean's miss), the GP fit's CPU seconds, and every filter keyed by
-    :attr:`Method.key` (``particle_filters``: UPF, GPSR-UPF; ``references``: SR-UKF, GP-SR-UKF)."""
+    :attr:`Method.key` (``particle_filters``: UPF, GPSR-UPF; ``references``: SR-UKF, GP-SR-UKF,
+    TRUE-SR-UKF; records saved before the true-model ceiling was run lack TRUE-SR-UKF)."""
 
     residual_rms: float
     gp_residual_error_rms: float

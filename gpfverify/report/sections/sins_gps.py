@@ -12,8 +12,8 @@ import numpy as np
 from gpfverify.contract.claims import AS_RUN, ClaimRecord, read_claims
 from gpfverify.contract.papers import PAPERS
 from gpfverify.contract.sins_gps import (COLLAPSE_FACTOR, GP_SR_UKF, GPSR_UPF, INTERPRETATIONS, NAME, PAPER,
-                                        PARTICLE_FILTERS, QUANTITIES, REFERENCES, SR_UKF, UNITS, UPF, Params,
-                                        collapsed)
+                                        PARTICLE_FILTERS, QUANTITIES, REFERENCES, SR_UKF, TRUE_SR_UKF, UNITS, UPF,
+                                        Params, collapsed)
 from gpfverify.report.document import (Figure, Paragraph, Section, Table, claim_records_table, fmt,
                                        interpretations_table)
 from gpfverify.report.figures import new_figure, save
@@ -21,6 +21,11 @@ from gpfverify.report.inputs import SectionInput
 
 SLUG = "sins-gps"
 AXES = ("E", "N", "U")
+
+
+def _references(results: dict) -> list:
+    """The reference filters the results hold (runs saved before the true-model ceiling lack it)."""
+    return [m for m in REFERENCES if m.key in results["reference"]["rms"]]
 
 
 def render_section(data: SectionInput) -> Section:
@@ -65,21 +70,26 @@ def render(results: dict, out_dir: Path) -> Section:
         "1 − RMS(GPSR-UPF)/RMS(UPF) over runs and steps."))
     section.add(claim_records_table(read_claims(results), f"Claims of {PAPERS[PAPER].short} checked"))
     rows = []
+    ceiling = results["reference"].get("ceiling")
     for q in QUANTITIES:
         rows.append([f"{q} ({UNITS[q]})", results["rms"][upf][q], results["rms"][gpsr][q],
                      _pct(results["reduction"][q]), _pct(results["segment_reduction"]["manoeuvre"][q]),
                      _pct(results["segment_reduction"]["cruise"][q]), results["reference"]["rms"][sr][q],
-                     results["reference"]["rms"][gp_sr][q], _pct(results["reference"]["reduction"][q])])
+                     results["reference"]["rms"][gp_sr][q], _pct(results["reference"]["reduction"][q]),
+                     _pct(ceiling[q]) if ceiling else "—"])
     section.add(Table(["error", upf, gpsr, "reduction", "in manoeuvres", "in cruise", sr, gp_sr,
-                       "reduction (single filters)"], rows,
+                       "reduction (single filters)", "true-model ceiling"], rows,
                       "RMS errors (Table 1 layout); the single-filter columns run each particle filter's "
-                      "proposal filter alone (— where the flight has no such segment)"))
+                      "proposal filter alone (— where the flight has no such segment); the true-model ceiling "
+                      f"is 1 − RMS({TRUE_SR_UKF.key})/RMS({sr}), the reduction an SR-UKF reaches by knowing the "
+                      "model that generated the flight: no correction of the inaccurate model can reach more "
+                      "(— for runs saved before it was run)"))
     ess, rate = results["mean_ess_fraction"], results["resample_rate"]
     per_run, per_step = results["time_per_run"], results["time_per_step"]
     section.add(Table(["filter", "mean N_eff / N", "resampling rate", "CPU s per run", "CPU ms per step"],
                       [[m.key, ess[m.key], rate[m.key], per_run[m.key], 1e3 * per_step[m.key]]
                        for m in PARTICLE_FILTERS]
-                      + [[m.key, "—", "—", per_run[m.key], 1e3 * per_step[m.key]] for m in REFERENCES],
+                      + [[m.key, "—", "—", per_run[m.key], 1e3 * per_step[m.key]] for m in _references(results)],
                       "Importance-weight health (N_eff/N = 1/N: all weight on one particle) and CPU time"))
     health = results.get("health", [])
     if health:
@@ -250,7 +260,7 @@ def _rms_figure(results: dict, path: Path) -> Path:
         _shade_manoeuvres(ax, time, manoeuvre)
         for i, method in enumerate(PARTICLE_FILTERS):
             ax.plot(time, results[f"{quantity}_error"][method.key], color=f"C{i}", lw=0.9, label=method.key)
-        for i, method in enumerate(REFERENCES):
+        for i, method in enumerate(_references(results)):
             ax.plot(time, results["reference"]["error"][quantity][method.key], color=f"C{i}", ls="--", lw=0.9,
                     label=method.key)
         ax.set_yscale("log")
