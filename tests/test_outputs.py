@@ -317,3 +317,58 @@ def test_props_refusing_its_arguments_writes_nothing_anywhere(tmp_path, monkeypa
                           capture_output=True, text=True, timeout=120)
     assert proc.returncode == 2 and proc.stdout == "" and len(proc.stderr.strip().splitlines()) == 1
     assert os.listdir(tmp_path) == []  # no .hypothesis/, no o/
+
+
+# ---- the user's system file cannot end gpfverify or print into its output -------------------------
+
+EXITING_SYSTEM = '''
+import os, sys
+import numpy as np
+from gpfverify.models import Sensor, StateSpaceModel
+calls = [0]
+{at_import}
+def h(x):
+    calls[0] += 1
+    if calls[0] > {after}:
+        {in_measurement}
+    return x[:, :1]
+system = StateSpaceModel(transition=np.eye(2), process_cov=0.1 * np.eye(2),
+                         sensors=[Sensor(np.eye(2), np.eye(2)), Sensor(h, [[1.0]])],
+                         prior_mean=[0.0, 0.0], prior_cov=np.eye(2))
+'''
+
+
+def _check_system(tmp_path, *extra, **parts):
+    parts = {"at_import": "", "in_measurement": "pass", "after": 0, **parts}
+    (tmp_path / "system.py").write_text(EXITING_SYSTEM.format(**parts))
+    return subprocess.run([sys.executable, "-m", "gpfverify", "check", "system.py:system", "--steps", "4",
+                           "--methods", "cmf,dmf", "--json", "--out", "out", *extra],
+                          capture_output=True, text=True, cwd=tmp_path, timeout=120)
+
+
+@pytest.mark.parametrize("call", ["sys.exit(0)", "os._exit(0)", "sys.exit(3)", "exit()"])
+@pytest.mark.parametrize("where", ["at_import", "in_measurement"])
+def test_an_exit_in_the_system_file_is_an_error_of_that_file(tmp_path, call, where):
+    # in_measurement: after a few calls, i.e. while the runs are under way
+    proc = _check_system(tmp_path, **{where: call, "after": 6})
+    assert proc.returncode == 2 and proc.stdout == "", proc.stderr
+    lines = proc.stderr.strip().splitlines()
+    assert len(lines) == 1 and "the system file system.py called" in lines[0] and "exit(" in lines[0], lines
+    assert sorted(os.listdir(tmp_path)) == ["system.py"]  # no manifest.json, no runs/
+
+
+def test_an_exit_in_a_worker_process_is_an_error_of_the_system_file(tmp_path):
+    proc = _check_system(tmp_path, "--workers", "2", "--runs", "2", in_measurement="os._exit(0)", after=6)
+    assert proc.returncode == 2 and proc.stdout == ""
+    assert "the system file system.py called os._exit(0)" in proc.stderr.strip().splitlines()[-1]
+    assert sorted(os.listdir(tmp_path)) == ["system.py"]
+
+
+@pytest.mark.parametrize("workers", ["1", "2"])
+def test_print_in_the_system_file_goes_to_stderr(tmp_path, workers):
+    proc = _check_system(tmp_path, "--workers", workers, at_import="print('loading my system')",
+                         in_measurement="print('measuring')")
+    assert proc.returncode == 0, proc.stderr
+    results = json.loads(proc.stdout)  # stdout is the results and nothing else
+    assert results["experiment"] == "check"
+    assert "loading my system" in proc.stderr and "measuring" in proc.stderr

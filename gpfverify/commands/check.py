@@ -19,6 +19,7 @@ from gpfverify.cli import RANK_RULE_HELP, fusion_rules, rank_rule_text
 from gpfverify.filters.families import FAMILY_NAMES
 from gpfverify.fusion.names import CHOICES_TEXT
 from gpfverify.outputs import check_out, out_path, output_folder
+from gpfverify.usercode import guarded, system_file
 
 
 #: steps per simulated run unless --steps says otherwise
@@ -73,7 +74,8 @@ def run(args: argparse.Namespace) -> int:
                               args.measurements,
                               args.training, args.train, args.fit_points, args.restarts, args.methods,
                               args.rank_rule)
-    model = load_system(params.system)  # fail before anything is written
+    with guarded(system_file(params.system)):  # the system file's print() to stderr, its exits reported
+        model = load_system(params.system)  # fail before anything is written
     if params.measurements is not None:
         if args.runs != 1:
             raise InputError("--measurements filters one logged run: --runs must be 1")
@@ -87,6 +89,7 @@ def run(args: argparse.Namespace) -> int:
     if args.out is not None:
         check_out(args.out)
     with contextlib.ExitStack() as stack:
+        stack.enter_context(guarded(system_file(params.system)))
         if args.out is not None:
             out = stack.enter_context(output_folder(args.out, keep=True))
         else:

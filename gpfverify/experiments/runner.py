@@ -45,6 +45,7 @@ from gpfverify.contract.params import Params
 from gpfverify.contract.serial import from_json, to_json
 from gpfverify.errors import InputError
 from gpfverify.runtime import BLAS_THREAD_VARS
+from gpfverify.usercode import HARD_EXIT, UserExit, guarded, system_file
 
 #: a key of ``results.json`` (at any depth) whose value is a measured time, not a result
 TIMING_KEY = re.compile(r"time_per|seconds|machine_load|timing_claims")
@@ -164,12 +165,12 @@ def _exit_with_parent(parent_pid: int) -> None:
 
             ctypes.CDLL(None, use_errno=True).prctl(1, int(signal.SIGKILL), 0, 0, 0)  # PR_SET_PDEATHSIG
     if os.getppid() != parent_pid:  # the parent died before the prctl took effect
-        os._exit(1)
+        HARD_EXIT(1)
 
     def watch():
         while os.getppid() == parent_pid:
             time.sleep(PARENT_POLL_SECONDS)
-        os._exit(1)
+        HARD_EXIT(1)
 
     threading.Thread(target=watch, name="gpfverify-parent-watch", daemon=True).start()
 
@@ -192,8 +193,12 @@ def _execute(module_name: str, params: Params, seed: np.random.SeedSequence, ind
     # process ran it; filters set to "error" (as in the test suite) still raise
     with warnings.catch_warnings(record=True) as caught:
         try:
-            record["result"] = to_json(module.run_one(params, seed))
+            spec = getattr(params, "system", None)  # check: the user's system file; print() to stderr, exits reported
+            with guarded(system_file(spec) if spec else f"the code run by {module.NAME}"):
+                record["result"] = to_json(module.run_one(params, seed))
             record["status"] = "ok"
+        except UserExit:  # the user's code tried to end the process: the command stops
+            raise
         except Exception as exc:  # noqa: BLE001 - recorded, counted, reported
             record["status"] = "error"
             record["error"] = f"{type(exc).__name__}: {exc}"
