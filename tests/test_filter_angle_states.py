@@ -220,3 +220,31 @@ def test_check_learns_a_system_whose_training_heading_crosses_the_cut(tmp_path, 
     for step in result["per_step"]:
         for key in ("cmf_mean", "dmf_mean"):
             assert -np.pi < step[key][0] <= np.pi
+
+
+@pytest.mark.parametrize("name", ["pf", "upf"])
+def test_particle_filters_average_the_heading_on_the_circle(name):
+    """The particle filters' estimate against the exact Kalman filter on the unwrapped problem,
+    at every step while the particles straddle ±π: within one posterior standard deviation. A
+    coarse bound (a recursive filter's Monte Carlo error is not σ/√N_eff; measured: below 0.5 σ
+    with 4000 particles over eight seeds), aimed at a mean taken across the cut, off by about π."""
+    from gpfverify.filters.pf import pf_step
+    from gpfverify.filters.resampling import Particles
+    from gpfverify.filters.upf import upf_step
+
+    step = {"pf": pf_step, "upf": upf_step}[name]
+    truth, ys = unwrapped_run()
+    expected = kf_by_hand(ys)
+    wrapped_ys = ys.copy()
+    wrapped_ys[:, :2] = wrap(ys[:, :2])
+    model = heading_model()
+    rng = np.random.default_rng(8)
+    belief = Particles.from_gaussian(model.prior_mean, model.prior_cov, 4000, rng)
+    for k, (y, mean) in enumerate(zip(wrapped_ys, expected), start=1):
+        result = step(belief, model, y, k=k, rng=rng)
+        assert -np.pi < result.mean[0] <= np.pi
+        atol = np.sqrt(np.diag(result.cov))
+        gap = result.mean - mean
+        gap[0] = wrap(gap[0])
+        assert np.all(np.abs(gap) <= atol), (k, gap, atol)
+        belief = result.posterior

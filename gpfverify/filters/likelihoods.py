@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from gpfverify.angles import difference
 from gpfverify.linalg import cholesky, cholesky_batched
 
 LOG_2PI = float(np.log(2.0 * np.pi))
@@ -64,10 +65,11 @@ def batched_gaussian_logpdf(residuals: np.ndarray, covs: np.ndarray, name: str) 
 
 
 def transition_logpdf(model, x_new: np.ndarray, x_prev: np.ndarray, k: int) -> np.ndarray:
-    """log p(x_new | x_prev) per particle (N,)."""
+    """log p(x_new | x_prev) per particle (N,); angle state components (``model.circular_state``)
+    of x_new − f(x_prev) wrapped."""
     if model.transition_logpdf is not None:
         return model.transition_logpdf(x_new, x_prev, k)
-    return gaussian_logpdf(x_new - model.f(x_prev, k), model.Q)
+    return gaussian_logpdf(difference(x_new, model.f(x_prev, k), model.circular_state), model.Q)
 
 
 def measurement_loglik(model, y: np.ndarray, x: np.ndarray, k: int) -> np.ndarray:

@@ -8,7 +8,8 @@ One step, particles {x_{k−1}^i, w_{k−1}^i}:
     systematic resampling when N_eff < threshold · N (threshold ≥ 1: every step, the SIR filter).
 
 Angle outputs of the measurement (``model.circular``) enter the likelihood through the wrapped
-residual (:func:`~gpfverify.filters.likelihoods.measurement_loglik`). The estimate is taken from
+residual (:func:`~gpfverify.filters.likelihoods.measurement_loglik`); angle state components
+(``model.circular_state``) of the estimate are weighted circular means. The estimate is taken from
 the weighted particles *before* resampling (resampling only adds noise).
 """
 
@@ -29,4 +30,4 @@ def pf_step(belief: Particles, model, y: np.ndarray, *, k: int = 1, rng: np.rand
     y = as_vector(y, "y", model.measurement_dim)
     x = model.sample_transition(as_matrix(belief.particles, "belief.particles", None, model.state_dim), k, rng)
     return reweight_and_resample(x, belief.log_weights + measurement_loglik(model, y, x, k), rng,
-                                 resample_threshold)
+                                 resample_threshold, circular_state=model.circular_state)

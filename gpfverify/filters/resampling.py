@@ -16,10 +16,12 @@ rng, <parameters>) -> ParticleStep``.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
 
+from gpfverify.angles import difference, weighted_mean
 from gpfverify.errors import InputError
 from gpfverify.linalg import cholesky, symmetrize
 
@@ -90,11 +92,18 @@ def needs_resampling(log_weights: np.ndarray, threshold: float) -> bool:
     return threshold >= 1.0 or effective_sample_size(log_weights) < threshold * np.size(log_weights)
 
 
-def moments_from_weights(particles: np.ndarray, weights: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def moments_from_weights(particles: np.ndarray, weights: np.ndarray,
+                         circular_state: Sequence[int] = ()) -> tuple[np.ndarray, np.ndarray]:
     """Mean x̄ = Σ w_i x_i (D,) and covariance Σ w_i (x_i − x̄)(x_i − x̄)ᵀ (D, D) of particles
-    (N, D) with normalised weights (N,)."""
-    mean = weights @ particles
-    dev = particles - mean
+    (N, D) with normalised weights (N,); the angle components ``circular_state`` are averaged on
+    the circle (:func:`gpfverify.angles.weighted_mean`, wrapped to (−π, π]) and their deviations
+    x_i − x̄ wrapped."""
+    if not len(circular_state):
+        mean = weights @ particles
+        dev = particles - mean
+    else:
+        mean = weighted_mean(particles, weights, circular_state)
+        dev = difference(particles, mean, circular_state)
     return mean, symmetrize((dev * weights[:, None]).T @ dev)
 
 
@@ -170,14 +179,15 @@ class ParticleStep:
 
 
 def reweight_and_resample(particles: np.ndarray, log_weights: np.ndarray, rng: np.random.Generator,
-                          resample_threshold: float, sqrt_covs: np.ndarray | None = None) -> ParticleStep:
-    """Normalise the weights, take the weighted estimate, resample (the particles with their
-    ``sqrt_covs``) when :func:`needs_resampling`; the estimate is taken before resampling (which
-    only adds noise)."""
+                          resample_threshold: float, sqrt_covs: np.ndarray | None = None,
+                          circular_state: Sequence[int] = ()) -> ParticleStep:
+    """Normalise the weights, take the weighted estimate (angle components ``circular_state`` on
+    the circle), resample (the particles with their ``sqrt_covs``) when :func:`needs_resampling`;
+    the estimate is taken before resampling (which only adds noise)."""
     log_weights = normalize_log_weights(log_weights)
     weighted = Particles(particles, log_weights, sqrt_covs)
     w = np.exp(log_weights)  # formed once for the estimate, N_eff and the resample
-    mean, cov = moments_from_weights(particles, w)
+    mean, cov = moments_from_weights(particles, w, circular_state)
     ess = float(1.0 / np.sum(w * w))
     resample = resample_threshold >= 1.0 or ess < resample_threshold * w.size
     posterior = weighted

@@ -71,4 +71,4 @@ def upf_step(belief: Particles, model, y: np.ndarray, *, k: int = 1, rng: np.ran
     x = means + np.einsum("nij,nj->ni", factors, white)
     log_w = (belief.log_weights + measurement_loglik(model, y, x, k)
              + transition_logpdf(model, x, belief.particles, k) - proposal_logpdf(white, factors))
-    return reweight_and_resample(x, log_w, rng, resample_threshold, factors)
+    return reweight_and_resample(x, log_w, rng, resample_threshold, factors, model.circular_state)
