@@ -36,6 +36,11 @@ MONTE_CARLO_SIGMAS: float = 5.0
 #: How far an observed order of convergence, log2(err(h) / err(h/2)), may be from the
 #: theoretical order of a discretisation in its asymptotic range.
 CONVERGENCE_ORDER_ATOL: float = 0.1
+#: Asymmetry |A_ij - A_ji| / sqrt(A_ii A_jj) accepted as rounding in a "symmetric" matrix.
+SYMMETRY_RTOL: float = 1e-8
+#: Negative eigenvalue of a covariance's correlation matrix D^-1/2 A D^-1/2 (a unit-free number,
+#: relative to its largest eigenvalue) accepted as rounding in a positive semidefinite matrix.
+PSD_RTOL: float = 1e-10
 #: Relative jitter steps tried, in order, when a Cholesky factorisation fails.
 JITTER_STEPS: tuple[float, ...] = (0.0, 1e-12, 1e-10, 1e-8, 1e-6)
 

@@ -5,14 +5,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from gpfverify.errors import InputError
-from gpfverify.tolerances import EPS
+from gpfverify.errors import InputError, NumericalError
+from gpfverify.tolerances import EPS, PSD_RTOL, SYMMETRY_RTOL
 
-#: Relative asymmetry ||A - A^T|| / ||A|| accepted as rounding in a "symmetric" matrix.
-SYMMETRY_RTOL = 1e-8
-#: Relative negative eigenvalue -lambda_min / lambda_max accepted as rounding in a PSD matrix.
-PSD_RTOL = 1e-10
-
+__all__ = ["PSD_RTOL", "SYMMETRY_RTOL"]  # re-exported: the thresholds of covariance_defects
 
 def as_array(value, name: str, ndim: int | None = None, shape: tuple | None = None) -> np.ndarray:
     """A finite float array; ``shape`` entries of ``None`` match any size."""
@@ -65,11 +61,8 @@ def as_positive(value, name: str, shape: tuple | None = None) -> np.ndarray:
 
 
 def as_covariance(value, name: str, dim: int | None = None, definite: bool = False) -> np.ndarray:
-    """A symmetric positive semidefinite (``definite=True``: positive definite) matrix.
-
-    Asymmetry up to :data:`SYMMETRY_RTOL` relative is accepted and removed; eigenvalues down to
-    ``-PSD_RTOL * lambda_max`` count as rounding of a PSD matrix (:func:`covariance_defects`).
-    """
+    """A symmetric positive semidefinite (``definite=True``: positive definite) matrix, judged
+    without units (:func:`covariance_defects`); the asymmetry of rounding is removed."""
     arr = as_matrix(value, name, dim, dim)
     if arr.shape[0] != arr.shape[1]:
         raise InputError(f"{name} must be square, got shape {arr.shape}")
@@ -79,18 +72,36 @@ def as_covariance(value, name: str, dim: int | None = None, definite: bool = Fal
     return sym[0]
 
 
+def correlation_scale(stack: np.ndarray) -> np.ndarray:
+    """(..., n) the scales s with A_ij / (s_i s_j) unit-free: s_i = sqrt(A_ii) where A_ii > 0; a
+    component whose variance is zero or negative is measured on the matrix's largest standard
+    deviation (1 for an all-zero matrix), so its entries are judged relative to the others."""
+    diag = np.diagonal(stack, axis1=-2, axis2=-1)
+    largest = diag.max(axis=-1, keepdims=True, initial=0.0)
+    fallback = np.where(largest > 0, largest, 1.0)
+    return np.sqrt(np.where(diag > 0, diag, fallback))
+
+
 def covariance_defects(stack: np.ndarray, definite: bool = False):
     """The rule of :func:`as_covariance` applied to a stack of square matrices (..., n, n) at once:
     ``(symmetrised stack, bad (...,) bool, why)`` where ``why(index)`` says what is wrong with a
-    bad matrix (``is not symmetric (max |A - A^T| = ...)``)."""
+    bad matrix (``is not symmetric (max |A - A^T| = ...)``).
+
+    The rule has no units: rescaling components (A -> S A S, S diagonal positive) never changes
+    the verdict. It is applied to the correlation matrix R = D^-1/2 A D^-1/2 with D_ii = A_ii
+    (:func:`correlation_scale` for zero variances): symmetric when max |R - R^T| <=
+    ``SYMMETRY_RTOL``; positive semidefinite when R's least eigenvalue is >= -``PSD_RTOL`` times
+    its largest; positive definite, in addition, when it exceeds that and n·eps times the largest.
+    """
+    s = correlation_scale(stack)
+    unit = 1.0 / (s[..., :, None] * s[..., None, :])
     swapped = np.swapaxes(stack, -1, -2)
-    scale = np.maximum(np.abs(stack).max(axis=(-2, -1), initial=0.0), np.finfo(float).tiny)
-    asym = np.abs(stack - swapped).max(axis=(-2, -1), initial=0.0)
-    not_symmetric = asym > SYMMETRY_RTOL * scale
+    asym_abs = np.abs(stack - swapped).max(axis=(-2, -1), initial=0.0)
+    not_symmetric = (np.abs(stack - swapped) * unit).max(axis=(-2, -1), initial=0.0) > SYMMETRY_RTOL
     sym = 0.5 * (stack + swapped)
     if stack.shape[-1] == 0:
-        return sym, not_symmetric, lambda i: f"is not symmetric (max |A - A^T| = {asym[i]:.3g})"
-    eig = np.linalg.eigvalsh(sym)
+        return sym, not_symmetric, lambda i: f"is not symmetric (max |A - A^T| = {asym_abs[i]:.3g})"
+    eig = np.linalg.eigvalsh(sym * unit)
     lo, hi = eig[..., 0], eig[..., -1]
     floor = PSD_RTOL * np.maximum(np.abs(hi), EPS)
     not_psd = lo < -floor
@@ -98,9 +109,21 @@ def covariance_defects(stack: np.ndarray, definite: bool = False):
 
     def why(i) -> str:
         if not_symmetric[i]:
-            return f"is not symmetric (max |A - A^T| = {asym[i]:.3g})"
-        if not_psd[i]:
-            return f"is not positive semidefinite (min eigenvalue {lo[i]:.3g})"
-        return f"is not positive definite (min eigenvalue {lo[i]:.3g})"
+            return f"is not symmetric (max |A - A^T| = {asym_abs[i]:.3g})"
+        kind = "semidefinite" if not_psd[i] else "definite"
+        return f"is not positive {kind} (least eigenvalue of its correlation matrix {lo[i]:.3g})"
 
     return sym, not_symmetric | not_psd | not_pd, why
+
+
+def computed_covariance(value, name: str) -> np.ndarray:
+    """A covariance a computation produced, checked before anyone sees it: symmetric and positive
+    semidefinite to rounding by the rule of :func:`covariance_defects`; :class:`NumericalError`
+    naming ``name`` otherwise (a result that is not a covariance is never shown)."""
+    arr = np.asarray(value, dtype=float)
+    if not np.all(np.isfinite(arr)):
+        raise NumericalError(f"{name} holds a NaN or an inf")
+    sym, bad, why = covariance_defects(arr[None])
+    if bad[0]:
+        raise NumericalError(f"{name} {why(0)}")
+    return sym[0]

@@ -11,7 +11,11 @@ of NaN where a step has no y, ``rank_tol`` (B,) with NaN where a step has none.
 :func:`block_from_arrays` takes arrays (an npz run file); both end in :func:`check_block`, which
 applies the case format's rules to every step at once: finite numbers of magnitude at most
 1e100, covariances symmetric and positive semidefinite (C_y and C_y^m positive definite; the rule
-of :func:`~gpfverify.validate.covariance_defects`). The first step that breaks a rule raises
+of :func:`~gpfverify.validate.covariance_defects`, which has no units), and the centre's joint
+covariance [[C_p, C_xy], [C_xyᵀ, C_y]] of (x, y) positive semidefinite by the same rule (a C_xy
+implying a correlation above one is impossible). A sensor's joint with its own prior C_p^m, which
+is not sent, is implied as C_p^m = C_e^m + C_xy^m (C_y^m)⁻¹ C_xy^mᵀ; it is positive semidefinite
+exactly when C_e^m is (Schur complement), which is checked. The first step that breaks a rule raises
 :class:`StepError` with that step's position and the entry's name, so a file's first problem is
 the one reported, whatever the block size.
 """
@@ -134,11 +138,20 @@ def check_block(block: CaseBlock) -> CaseBlock:
         sym[entry] = s
         checks.append((bad, lambda t: f"{entry} {why(t)}"))
 
+    def joint_psd(b: CaseBlock):
+        parts = [b.C_p, b.C_xy, b.C_y]
+        ok = np.logical_and.reduce([_finite(a) for a in parts])
+        c_p, c_xy, c_y = (np.where(ok[:, None, None], a, 0.0) for a in parts)
+        joint = np.block([[c_p, c_xy], [np.swapaxes(c_xy, -1, -2), c_y]])
+        _, bad, why = covariance_defects(joint)
+        checks.append((bad & ok, lambda t: f"central joint covariance [[C_p, C_xy], [C_xyᵀ, C_y]] {why(t)}"))
+
     finite("central.mu_p", block.mu_p)
     covariance("central.C_p", block.C_p, False)
     finite("central.mu_y", block.mu_y)
     covariance("central.C_y", block.C_y, True)
     finite("central.C_xy", block.C_xy)
+    joint_psd(block)
     for m, r in enumerate(block.locals):
         where = f"locals[{m}]"
         finite(f"{where}.mu_p", r.mu_p)

@@ -24,6 +24,7 @@ from gpfverify.fusion.ellipsoidal import ellipsoidal_intersection
 from gpfverify.fusion.estimates import FusedEstimate
 from gpfverify.fusion.names import FUSION_RULES, canonical_rule
 from gpfverify.fusion.rcc_ci import RccCiResult, rcc_ci
+from gpfverify.validate import computed_covariance
 
 METHODS = FUSION_RULES
 
@@ -73,5 +74,5 @@ def fuse_case(case: FusionCase, method: str, criterion: str = "trace", c: float 
                  "primal_mean": res.primal_mean.tolist(), "primal_dual_discrepancy": res.discrepancy}
     else:
         raise InputError(f"unknown method {method!r}")
-    return {"method": method, "mean": np.asarray(fused.mean).tolist(),
-            "cov": np.asarray(fused.cov).tolist(), **extra}
+    cov = computed_covariance(fused.cov, f"the {method} fused covariance")
+    return {"method": method, "mean": np.asarray(fused.mean).tolist(), "cov": cov.tolist(), **extra}
