@@ -24,6 +24,8 @@ class Certificate:
     scope: str = ""
     #: ({"mutant": str, "rejected": bool, ...}, ...): mutated statements the proof must reject
     negative_controls: tuple = ()
+    #: facts the argument uses and does not prove (textbook facts, each named), if any
+    stated_facts: tuple = ()
 
     def __post_init__(self):
         if self.status not in STATUSES:
@@ -47,6 +49,9 @@ class Certificate:
             out.pop("scope")
         if not self.negative_controls:
             out.pop("negative_controls")
+        out["stated_facts"] = list(self.stated_facts)
+        if not self.stated_facts:
+            out.pop("stated_facts")
         return out
 
 

@@ -132,15 +132,19 @@ class Checked:
 
     rules: list[Rule]
     verdicts: dict = field(default_factory=dict)
+    #: stated facts outside the algebra (name -> holds on its instance family), see :func:`rank_bound`
+    facts: dict = field(default_factory=dict)
 
     @property
     def holds(self) -> bool:
-        return all(self.verdicts.values())
+        return all(self.verdicts.values()) and all(self.facts.values())
 
     def describe(self) -> list[str]:
-        return [f"{r.kind} {r.name}: {r.lhs} = {r.rhs}"
-                + ("" if r.kind == "lemma" else f" (exact instances: {'hold' if self.verdicts[r.name] else 'FAIL'})")
-                for r in self.rules]
+        return ([f"{r.kind} {r.name}: {r.lhs} = {r.rhs}"
+                 + ("" if r.kind == "lemma" else f" (exact instances: {'hold' if self.verdicts[r.name] else 'FAIL'})")
+                 for r in self.rules]
+                + [f"stated fact {name} (checked, not proved: {'holds' if ok else 'FAILS'} on every "
+                   f"full-column-rank shape l_m ≤ D ≤ {FACT_MAX_D})" for name, ok in self.facts.items()])
 
 
 def check_rules(rules: list[Rule], families: dict) -> Checked:
@@ -150,6 +154,19 @@ def check_rules(rules: list[Rule], families: dict) -> Checked:
     for r in rules:
         out.verdicts[r.name] = wa.holds_on(r, families[r.name] if r.name in families else instances())
     return out
+
+
+def planted_control(name: str, unsound: Rule, family: list[tuple]) -> wa.ControlResult:
+    """A certificate holds only if every rule it uses holds on the instances of the rule's own
+    hypotheses; planting ``unsound`` (a false rule, or a true one used outside its hypotheses) must
+    make it fail. Rejected = the planted rule fails its check on ``family``."""
+    checked = check_rules([unsound], {unsound.name: family})
+    return wa.ControlResult(f"planted unsound rule: {name}", not checked.holds,
+                            wa.counterexample(unsound.lhs, unsound.rhs, family))
+
+
+PLANTED_TRANSPOSE = Rule("A⁺ = Aᵀ", Ap, A.T, "axiom")
+PLANTED_FULL_RANK = Rule("A⁺A = I used on a rank-deficient C_xy^m", Ap * A, I_l, "axiom")
 
 
 # ---- lemmas ---------------------------------------------------------------------------------------
@@ -330,15 +347,66 @@ def _stacked_proofs(statement_rhs: str, full_rank: bool) -> tuple[list[Proof], l
     return proofs, rules_all, families
 
 
+# ---- any N: induction over the number of sensors --------------------------------------------------
+
+K = sp.Symbol("K", integer=True, positive=True)   # outputs of the first N sensors together
+G_first, y_first, mu_first = symbol("G_(N)", n, K), symbol("y_(N)", K, ONE), symbol("μ_y(N)", K, ONE)
+G_next, y_next, mu_next = symbol("G_(N+1)", n, K + l), symbol("y_(N+1)", K + l, ONE), symbol("μ_y(N+1)", K + l, ONE)
+dmf_first = symbol("Σ_{m≤N} DMF_m", n, ONE)       # the first N sensors' share of μ_DMF − μ_p
+gap_first = symbol("Σ_{m≤N} gap_m", n, ONE)
+BLOCKS = [Rule("block product G_(N+1) y_(N+1) = G_(N) y_(N) + G_m y^m", G_next * y_next,
+               G_first * y_first + G * y, "axiom"),
+          Rule("block product G_(N+1) μ_y(N+1) = G_(N) μ_y(N) + G_m μ_y(m)", G_next * mu_next,
+               G_first * mu_first + G * mc, "axiom")]
+
+
+def induction_instances(with_gap: bool) -> list[tuple]:
+    """Instances of the induction step: a sensor instance, N sensors' blocks of K = 1..3 outputs
+    (random), the N + 1 sensors' blocks stacked from both, the induction hypothesis made true."""
+    rng = np.random.default_rng(SEED + 3)
+    out = []
+    for k, (values, sizes) in enumerate(instances()):
+        d = sizes[n]
+        first = 1 + k % 3
+        vals = dict(values, **{"G_(N)": _int_matrix(rng, d, first), "y_(N)": _int_matrix(rng, first, 1),
+                               "μ_y(N)": _int_matrix(rng, first, 1), "Σ_{m≤N} gap_m": _int_matrix(rng, d, 1)})
+        vals["G_(N+1)"] = sp.Matrix.hstack(vals["G_(N)"], vals["G_m"])
+        vals["y_(N+1)"] = sp.Matrix.vstack(vals["y_(N)"], vals["y^m"])
+        vals["μ_y(N+1)"] = sp.Matrix.vstack(vals["μ_y(N)"], vals["μ_y(m)"])
+        vals["Σ_{m≤N} DMF_m"] = (vals["G_(N)"] * (vals["y_(N)"] - vals["μ_y(N)"])
+                                 + (vals["Σ_{m≤N} gap_m"] if with_gap else sp.zeros(d, 1)))
+        out.append((vals, {**sizes, K: first}))
+    return out
+
+
+def induction_step(per_sensor: list[Rule], with_gap: bool) -> tuple[Proof, list[Rule], list[tuple]]:
+    """From N to N + 1 sensors: if the first N sensors' DMF terms sum to G_(N)(y_(N) − μ_y(N))
+    (+ their gaps), adding sensor m (``per_sensor``: the rules of the one-sensor proof) gives
+    G_(N+1)(y_(N+1) − μ_y(N+1)) (+ the gaps and gap_m). With N = 1 (the one-sensor proof) as the
+    base, this is the statement for every N."""
+    gaps = gap_first if with_gap else zero(n, ONE)
+    hypothesis = Rule("induction hypothesis (N sensors)", dmf_first,
+                      G_first * (y_first - mu_first) + gaps, "hypothesis")
+    rules = per_sensor + BLOCKS + [hypothesis]
+    lhs = dmf_first + dmf_term()
+    rhs = G_next * (y_next - mu_next) + gaps + (gap_term() if with_gap else zero(n, ONE))
+    proof = wa.prove_by_normal_form(lhs, rhs, rules, "induction step N → N + 1 sensors: Σ_{m≤N+1} DMF_m = "
+                                    + ("G_(N+1)(y_(N+1) − μ_y(N+1)) + Σ_{m≤N+1} gap_m" if with_gap
+                                       else "G_(N+1)(y_(N+1) − μ_y(N+1))"))
+    return proof, BLOCKS + [hypothesis], induction_instances(with_gap)
+
+
 def prop1() -> DimensionFreeResult:
     p_is_i, p_proof = lemma_projector_is_identity()
     rules = PENROSE + C_RULES + [LOCAL_UPDATE, LEFT_INVERSE]
     main_rules = C_RULES + [LOCAL_UPDATE, p_is_i]
     main = wa.prove_by_normal_form(dmf_term(), cmf_term(), main_rules, "DMF_m = CMF_m for a generic sensor m")
     stacked_proofs, stacked_rules, stacked_families = _stacked_proofs("0", full_rank=True)
+    step, step_rules, step_instances = induction_step(main_rules, with_gap=False)
     full = instances(full_rank=True)
-    families = {LEFT_INVERSE.name: full, **stacked_families}
-    checked = check_rules(rules + [p_is_i] + [r for r in stacked_rules if r.kind != "lemma"],
+    full_step = [i for i in step_instances if i[1][n] >= i[0]["C_y^m"].shape[0]]
+    families = {LEFT_INVERSE.name: full, **stacked_families, **{r.name: full_step for r in step_rules}}
+    checked = check_rules(rules + [p_is_i] + step_rules + [r for r in stacked_rules if r.kind != "lemma"],
                           {**families, p_is_i.name: full})
     deficient = instances(full_rank=False)
     mutants = [
@@ -359,9 +427,9 @@ def prop1() -> DimensionFreeResult:
     controls += wa.run_controls([Mutant("full-column-rank hypothesis dropped",
                                         _nf(dmf_term(), cmf_term(), C_RULES + [LOCAL_UPDATE] + PENROSE),
                                         dmf_term(), cmf_term())], deficient)
-    return DimensionFreeResult([p_proof, main] + stacked_proofs, checked, controls,
-                               "any dimension: D, l_m ≤ D symbolic; any N (generic sensor m and the block "
-                               "product; N = 2, 3 also with explicit blocks)")
+    controls.append(planted_control("A⁺ = Aᵀ (proves the first mutant)", PLANTED_TRANSPOSE, full))
+    controls.append(planted_control("P = I outside full column rank", PLANTED_FULL_RANK, deficient))
+    return DimensionFreeResult([p_proof, main, step] + stacked_proofs, checked, controls, "any dimension")
 
 
 def gap_formula() -> DimensionFreeResult:
@@ -369,7 +437,9 @@ def gap_formula() -> DimensionFreeResult:
     main = wa.prove_by_normal_form(dmf_term() - cmf_term(), gap_term(), rules,
                                    "DMF_m − CMF_m = G_m C_y^m (P_m − I)(C_y^m)⁻¹(y^m − μ_y^m), any C_xy^m")
     stacked_proofs, stacked_rules, families = _stacked_proofs("Σ_m gap_m", full_rank=False)
-    checked = check_rules(rules + PENROSE + [r for r in stacked_rules if r.kind != "lemma"], families)
+    step, step_rules, step_instances = induction_step(rules, with_gap=True)
+    families.update({r.name: step_instances for r in step_rules})
+    checked = check_rules(rules + PENROSE + step_rules + [r for r in stacked_rules if r.kind != "lemma"], families)
     lhs = dmf_term() - cmf_term()
     cases = {
         "(I − P) in place of (P − I)": gap_term(proj=2 * I_l - P),
@@ -381,9 +451,9 @@ def gap_formula() -> DimensionFreeResult:
     }
     mutants = [Mutant(k, _nf(lhs, rhs, rules), lhs, rhs) for k, rhs in cases.items()]
     controls = wa.run_controls(mutants, instances(full_rank=False))
-    return DimensionFreeResult([main] + stacked_proofs, checked, controls,
-                               "any dimension: D, l_m symbolic, any rank of C_xy^m; any N (generic sensor m and the "
-                               "block product; N = 2, 3 also with explicit blocks)")
+    controls.append(planted_control("P = I outside full column rank (makes every gap 0)", PLANTED_FULL_RANK,
+                                    instances(full_rank=False)))
+    return DimensionFreeResult([main, step] + stacked_proofs, checked, controls, "any dimension")
 
 
 def kernel_inclusion() -> DimensionFreeResult:
@@ -427,7 +497,7 @@ def kernel_inclusion() -> DimensionFreeResult:
                gap_term(meas=my + Ci * (I_l - P) * v), -x_v),
         Mutant("necessity with P_m replaced by C_xyᵀC_xy",
                _nf(gap_term(proj=A.T * A), -G * C * (I_l - A.T * A) * v, C_RULES + [chosen, idem]),
-               None, None),
+               gap_term(proj=A.T * A), -G * C * (I_l - A.T * A) * v),
         Mutant("sufficiency from the weaker G_m(I − P_m) = 0",
                _nf(gap_term(), zero(n, ONE), C_RULES + [Rule("G P = G", G * Ap * A, G, "hypothesis")]),
                gap_term(), zero(n, ONE)),
@@ -435,37 +505,67 @@ def kernel_inclusion() -> DimensionFreeResult:
                gap_term(), zero(n, ONE)),
         Mutant("kernel inclusion with C_y^m dropped (ker A ⊆ ker G_m)",
                lambda: wa.prove_by_chain([(G * v, None), (G * Ap * A * v, x_zero.name), (zero(n, ONE), in_kernel.name)],
-                                         [x_zero, in_kernel]), None, None),
+                                         [x_zero, in_kernel]), G * v, zero(n, ONE)),
     ]
-    controls = wa.run_controls(mutants[:2], chosen_inst) + wa.run_controls(mutants[2:3], [])
-    controls += wa.run_controls(mutants[3:5], instances(full_rank=False)) + wa.run_controls(mutants[5:], [])
+    # X_m = 0 (G = W A C⁻¹) with v in the kernel of a rank-deficient A: G v = W A C⁻¹ v is not 0
+    incl_kern = [(dict(vals, v=vals["C_xy^m"].nullspace()[0]), sizes)
+                 for vals, sizes in instances(full_rank=False, kernel_inclusion=True)]
+    controls = wa.run_controls(mutants[:3], chosen_inst)
+    controls += wa.run_controls(mutants[3:5], instances(full_rank=False)) + wa.run_controls(mutants[5:], incl_kern)
+    controls.append(planted_control("P = I outside full column rank (X_m = 0 for every G_m)", PLANTED_FULL_RANK,
+                                    kern_inst))
     return DimensionFreeResult([idem_proof, kern_proof, sufficiency, necessity, kernel_fwd], checked, controls,
-                               "any dimension: D, l_m and rank C_xy^m symbolic")
+                               "any dimension")
 
 
-def l_le_d() -> DimensionFreeResult:
-    """LA = I (A n×l) ⇒ E = AL is idempotent (n×n); then l = tr(I_l) = tr(LA) = tr(AL) = tr E
-    = rank E ≤ n. The idempotence is proved by rewriting; the trace and rank facts are checked on
-    exact instances."""
+#: the stated facts about trace and rank are checked on every full-column-rank shape up to this D
+FACT_MAX_D = 5
+
+
+@cache
+def _every_full_rank_shape() -> tuple:
+    rng = np.random.default_rng(SEED + 2)
+    return tuple(fusion_instance(rng, d, outputs, None) for d in range(1, FACT_MAX_D + 1)
+                 for outputs in range(1, d + 1))
+
+
+def every_full_rank_shape() -> list[tuple]:
+    """Instances of the hypothesis "C_xy^m has full column rank" at every shape l_m ≤ D ≤
+    :data:`FACT_MAX_D` (a fact is checked on all shapes its hypothesis allows, not on a few)."""
+    return [(dict(values), sizes) for values, sizes in _every_full_rank_shape()]
+
+
+def rank_bound(bound, bound_text: str) -> DimensionFreeResult:
+    """Full column rank ⇒ l_m ≤ ``bound(D)``: LA = I (A n×l) ⇒ E = AL is idempotent (n×n), proved
+    by rewriting; then l = tr(I_l) = tr(LA) = tr(AL) = tr E = rank E ≤ bound(D) is a stated fact
+    (trace cyclic, trace of an idempotent = its rank, rank ≤ D), checked on every full-column-rank
+    shape D ≤ :data:`FACT_MAX_D`, so the conclusion is checked there, not proved for every D.
+    ``bound(D) = D`` is the claim; any smaller bound is false and fails the check."""
     e = A * Lf
     idem = wa.prove_by_normal_form(e * e, e, [LEFT_INVERSE], "E = A L is idempotent: (AL)(AL) = A(LA)L = AL")
-    full = instances(full_rank=True)
-    trace_ok = all(vals["L_m"].shape[0] == (vals["L_m"] * vals["C_xy^m"]).trace()
-                   == (vals["C_xy^m"] * vals["L_m"]).trace() == (vals["C_xy^m"] * vals["L_m"]).rank()
-                   <= vals["C_xy^m"].shape[0] for vals, _ in full)
-    facts = Rule("trace facts: l = tr(I_l) = tr(LA) = tr(AL) = rank(AL) ≤ D (trace cyclic, "
-                 "trace of an idempotent = its rank)", Lf * A, I_l, "axiom")
-    checked = check_rules([LEFT_INVERSE, facts], {LEFT_INVERSE.name: full, facts.name: full})
-    checked.verdicts[facts.name] &= trace_ok
+    every = every_full_rank_shape()
+    fact = (f"l_m = tr(I_l) = tr(LA) = tr(AL) = rank(AL) ≤ {bound_text} (trace cyclic, trace of an "
+            "idempotent = its rank)")
+    fact_holds = all(vals["L_m"].shape[0] == (vals["L_m"] * vals["C_xy^m"]).trace()
+                     == (vals["C_xy^m"] * vals["L_m"]).trace() == (vals["C_xy^m"] * vals["L_m"]).rank()
+                     <= bound(vals["C_xy^m"].shape[0]) for vals, _ in every)
+    checked = check_rules([LEFT_INVERSE], {LEFT_INVERSE.name: every})
+    checked.facts[fact] = fact_holds
     mutants = [
         Mutant("(AL)(AL) = I_D (AL the identity)", _nf(e * e, I_n, [LEFT_INVERSE]), e * e, I_n),
-        Mutant("(AL)ᵀ = AL (AL symmetric)", _nf(e.T, e, [LEFT_INVERSE]),
-               e.T, e),
+        Mutant("(AL)ᵀ = AL (AL symmetric)", _nf(e.T, e, [LEFT_INVERSE]), e.T, e),
         Mutant("idempotence with the hypothesis dropped", _nf(e * e, e, PENROSE), e * e, e),
     ]
+    full = instances(full_rank=True)
     controls = wa.run_controls(mutants[:2], [i for i in full if i[1][n] > i[1][l]])
     controls += wa.run_controls(mutants[2:3], [(dict(vals, L_m=_int_matrix(np.random.default_rng(SEED),
                                                                            *vals["L_m"].shape)), s)
                                                for vals, s in full])
-    controls += wa.run_controls(mutants[3:], [])
-    return DimensionFreeResult([idem], checked, controls, "any dimension: D, l_m symbolic")
+    controls.append(planted_control("AL = I_D (a left inverse taken for a right inverse)",
+                                    Rule("AL = I_D", e, I_n, "axiom"), every))
+    return DimensionFreeResult([idem], checked, controls, f"checked on D ≤ {FACT_MAX_D}")
+
+
+def l_le_d() -> DimensionFreeResult:
+    """Full column rank ⇒ l_m ≤ D (:func:`rank_bound` with the bound D)."""
+    return rank_bound(lambda d: d, "D")

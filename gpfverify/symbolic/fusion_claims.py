@@ -170,7 +170,7 @@ def prove_prop1(size: str = "small") -> Certificate:
                        "word-algebra rewriting from the Penrose equations and a left inverse (any dimension) + "
                        "sympy polynomial identity over Q[entries] and rational-function field reduction (l_m ≤ D ≤ 3)",
                        verdict(holds), detail, time.perf_counter() - start,
-                       scope="any dimension (route (d)); (a)-(c) l_m ≤ D ≤ 3",
+                       scope="any dimension",
                        negative_controls=_controls(general))
 
 
@@ -206,7 +206,7 @@ def prove_gap_formula(size: str = "small") -> Certificate:
                        "μ_DMF − μ_CMF = Σ_m G_m C_y^m (P_m − I)(C_y^m)⁻¹(y^m − μ_y^m), P_m = (C_xy^m)⁺C_xy^m",
                        "word-algebra rewriting (any dimension) + sympy polynomial identity for rank-deficient "
                        "families", verdict(holds), detail, time.perf_counter() - start,
-                       scope="any dimension and rank (route (d)); (a) the listed (D, l_m, rank) families",
+                       scope="any dimension",
                        negative_controls=_controls(general))
 
 
@@ -238,6 +238,11 @@ def _necessity(d: int, l: int, r: int, rng: np.random.Generator) -> tuple[bool, 
     return identity_holds, witness is not None
 
 
+#: the quantifier steps of the kernel-inclusion iff, which the word algebra does not express
+KERNEL_LOGIC_STEPS = ("X_m v = 0 for every v ⇒ X_m = 0; ⇐ of the kernel form: A(I − P_m) = 0 (proved) puts "
+                      "(I − P_m)w in ker C_xy^m ⊆ ker G_m C_y^m, so X_m w = 0 for every w")
+
+
 def prove_kernel_inclusion(size: str = "small") -> Certificate:
     start = time.perf_counter()
     rng = np.random.default_rng(POINT_SEED)
@@ -261,16 +266,16 @@ def prove_kernel_inclusion(size: str = "small") -> Certificate:
         f"identically ({'yes' if necessary else 'NO'}), and that vector is nonzero at an integer point "
         f"({'yes' if nonzero else 'NO'}): whenever X_m = G_m C_y^m (I − P_m) ≠ 0, some v (other sensors at "
         "y^k = μ_y^k) gives a nonzero gap. " + _dimension_free_detail(general)
-        + " Logic steps not rewritten: X_m v = 0 for every v ⇒ X_m = 0; (⇐ of the kernel form) A(I − P_m) = 0 "
-        "puts (I − P_m)w in ker C_xy^m ⊆ ker G_m C_y^m, so X_m w = 0.")
+        + " Stated (logic steps not rewritten): " + KERNEL_LOGIC_STEPS + ".")
     return Certificate("dmf-exact-iff-kernel-inclusion",
                        "DMF = CMF for every measurement iff G_m C_y^m (I − P_m) = 0 for every m "
                        "(ker C_xy^m ⊆ ker G_m C_y^m)",
                        "sympy: polynomial identities for rank-deficient families (sufficiency), explicit "
                        "breaking measurement direction (necessity), word-algebra rewriting (any dimension)",
                        verdict(holds), detail, time.perf_counter() - start,
-                       scope="any dimension and rank (word algebra); the listed families (polynomial identities)",
-                       negative_controls=_controls(general))
+                       scope="any dimension",
+                       negative_controls=_controls(general),
+                       stated_facts=(KERNEL_LOGIC_STEPS,))
 
 
 # ---- concrete counterexamples (the two refuted statements) ------------------------------------
@@ -380,12 +385,14 @@ def prove_full_rank_needs_l_le_d(size: str = "small") -> Certificate:
               f"vector with C_xy^m v ≡ 0 ({'yes' if kernel_ok else 'NO'}), so rank C_xy^m ≤ l_m − 1 for every value "
               f"of the entries; det(C_xyᵀC_xy) expands to the zero polynomial for {', '.join(gram_sizes)} "
               f"({'yes' if gram_ok else 'NO'}), so (C_xyᵀC_xy)⁻¹ never exists and P_m = (C_xy^m)⁺C_xy^m ≠ I. "
-              "Every size: full column rank ⇔ a left inverse L (LA = I); then E = AL is idempotent and "
-              "l_m = tr(I) = tr(LA) = tr(AL) = rank(AL) ≤ D. " + _dimension_free_detail(general))
+              "Every size: full column rank ⇔ a left inverse L (LA = I); then E = AL is idempotent (proved) "
+              "and l_m = tr(I) = tr(LA) = tr(AL) = rank(AL) ≤ D (a stated fact, checked on every full-column-rank "
+              f"shape with D ≤ {dimension_free.FACT_MAX_D}, not proved). " + _dimension_free_detail(general))
     return Certificate("full-rank-needs-l-le-D",
                        "a sensor with l_m > D outputs never has a full-column-rank C_xy^m (Proposition 1 cannot apply)",
-                       "word-algebra rewriting + trace facts (any dimension) + sympy explicit polynomial kernel "
-                       "vector and vanishing Gram determinant (listed sizes)",
+                       "sympy explicit polynomial kernel vector and vanishing Gram determinant (listed sizes) + "
+                       "word-algebra rewriting with a stated trace/rank fact checked on instances",
                        verdict(holds), detail, time.perf_counter() - start,
-                       scope="any dimension (idempotent route); the listed (D, l_m) (polynomial route)",
-                       negative_controls=_controls(general))
+                       scope=f"(D, l_m) ∈ {{{wide}}}; checked on D ≤ {dimension_free.FACT_MAX_D}",
+                       negative_controls=_controls(general),
+                       stated_facts=tuple(general.checked.facts))

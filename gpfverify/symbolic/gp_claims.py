@@ -205,7 +205,8 @@ def direct_route(size: str) -> tuple[dict, list]:
                 wrong = closed_forms(s, product, mutant)
                 affected = [k for k in wrong if wrong[k] != closed[k]]
                 accepted = all(exactly_equal(got[k], wrong[k]) for k in affected) and bool(affected)
-                controls.append(wa.ControlResult(f"direct route, D = 2: {mutant}", not accepted, None))
+                # evidence: the mutated closed form differs from the true one at D = 2
+                controls.append(wa.ControlResult(f"direct route, D = 2: {mutant}", not accepted, bool(affected)))
     return results, controls
 
 
@@ -213,19 +214,21 @@ def direct_route(size: str) -> tuple[dict, list]:
 
 n = sp.Symbol("n", integer=True, positive=True)  # D
 ONE = sp.Integer(1)
-Lam = symbol("Λ", n, n, symmetric=True)
-Lam_i = symbol("Λ⁻¹", n, n, symmetric=True)
-Sig = symbol("Σ", n, n, symmetric=True)
-Sig_i = symbol("Σ⁻¹", n, n, symmetric=True)
-Cc = symbol("C", n, n, symmetric=True)     # (Λ⁻¹ + Σ⁻¹)⁻¹
-Sm = symbol("S", n, n, symmetric=True)     # (Λ + Σ)⁻¹
-Xi = symbol("Ξ", n, n, symmetric=True)     # Λ_a⁻¹ + Λ_b⁻¹
-Mi = symbol("M⁻¹", n, n, symmetric=True)   # (Ξ + Σ⁻¹)⁻¹
+Lam = symbol("Λ", n, n)
+Lam_i = symbol("Λ⁻¹", n, n)
+Sig = symbol("Σ", n, n)
+Sig_i = symbol("Σ⁻¹", n, n)
+Cc = symbol("C", n, n)     # (Λ⁻¹ + Σ⁻¹)⁻¹
+Sm = symbol("S", n, n)     # (Λ + Σ)⁻¹
+Xi = symbol("Ξ", n, n)     # Λ_a⁻¹ + Λ_b⁻¹
+Mi = symbol("M⁻¹", n, n)   # (Ξ + Σ⁻¹)⁻¹
 Ri = symbol("R⁻¹", n, n)                   # (ΣΞ + I)⁻¹ (not symmetric)
 xv, av, bv, uv, zv = (symbol(k, n, ONE) for k in ("x", "x_i", "μ", "u", "z"))
 I_n = identity(n)
 
-INVERSES = [Rule("ΛΛ⁻¹=I", Lam * Lam_i, I_n, "hypothesis"), Rule("Λ⁻¹Λ=I", Lam_i * Lam, I_n, "hypothesis"),
+#: declared symmetric (covariances, their inverses, sums of them): assumptions, checked on instances
+SYMMETRIES = [wa.symmetry(x) for x in (Lam, Lam_i, Sig, Sig_i, Cc, Sm, Xi, Mi)]
+INVERSES = SYMMETRIES + [Rule("ΛΛ⁻¹=I", Lam * Lam_i, I_n, "hypothesis"), Rule("Λ⁻¹Λ=I", Lam_i * Lam, I_n, "hypothesis"),
             Rule("ΣΣ⁻¹=I", Sig * Sig_i, I_n, "hypothesis"), Rule("Σ⁻¹Σ=I", Sig_i * Sig, I_n, "hypothesis")]
 C_DEF = Rule("C := (Λ⁻¹ + Σ⁻¹)⁻¹, i.e. Λ⁻¹C = I − Σ⁻¹C", Lam_i * Cc, I_n - Sig_i * Cc, "definition")
 S_DEF = Rule("S := (Λ + Σ)⁻¹, i.e. S(Λ + Σ) = I", Sm * Lam + Sm * Sig, I_n, "definition")
@@ -255,10 +258,20 @@ def _gp_instances() -> list[tuple]:
     return out
 
 
-def _c_lemma() -> tuple[Rule, wa.Proof]:
-    """CΣ⁻¹Λ = Λ − C: CΣ⁻¹Λ = Λ − (I − CΣ⁻¹)Λ... by one chain: Λ − CΛ⁻¹Λ ← C_DEF, then Λ⁻¹Λ = I."""
-    proof = wa.prove_by_chain([(Cc * Sig_i * Lam, None), (Lam - Cc * Lam_i * Lam, C_DEF.name),
-                               (Lam - Cc, "Λ⁻¹Λ=I")], INVERSES + [C_DEF], "CΣ⁻¹Λ = Λ − C")
+def _c_transposed() -> tuple[Rule, wa.Proof]:
+    """CΛ⁻¹ = I − CΣ⁻¹, the transpose of C_DEF once C, Λ⁻¹ and Σ⁻¹ are symmetric (each symmetry a
+    named step)."""
+    sym = {r.lhs.T: r.name for r in SYMMETRIES}
+    proof = wa.prove_by_chain([(Cc * Lam_i, None), (Cc.T * Lam_i, sym[Cc]), (Cc.T * Lam_i.T, sym[Lam_i]),
+                               (I_n - Cc.T * Sig_i.T, C_DEF.name), (I_n - Cc * Sig_i.T, sym[Cc]),
+                               (I_n - Cc * Sig_i, sym[Sig_i])], SYMMETRIES + [C_DEF], "CΛ⁻¹ = I − CΣ⁻¹")
+    return wa.lemma("CΛ⁻¹=I−CΣ⁻¹", proof, Cc * Lam_i, I_n - Cc * Sig_i), proof
+
+
+def _c_lemma(transposed: Rule) -> tuple[Rule, wa.Proof]:
+    """CΣ⁻¹Λ = Λ − C: CΣ⁻¹Λ = Λ − CΛ⁻¹Λ (CΛ⁻¹ = I − CΣ⁻¹), then Λ⁻¹Λ = I."""
+    proof = wa.prove_by_chain([(Cc * Sig_i * Lam, None), (Lam - Cc * Lam_i * Lam, transposed.name),
+                               (Lam - Cc, "Λ⁻¹Λ=I")], INVERSES + [transposed], "CΣ⁻¹Λ = Λ − C")
     return wa.lemma("CΣ⁻¹Λ=Λ−C", proof, Cc * Sig_i * Lam, Lam - Cc), proof
 
 
@@ -288,14 +301,15 @@ def _quad(v, m, w=None):
 
 def dimension_free_route() -> tuple[list, list, bool, list]:
     """(proofs, rules, every rule holds on exact instances, negative controls)."""
-    c_lemma, c_proof = _c_lemma()
+    c_transposed, c_t_proof = _c_transposed()
+    c_lemma, c_proof = _c_lemma(c_transposed)
     s_lemma, s_proofs = _s_lemma()
     m_lemma, m_proof = _m_lemma()
-    base = INVERSES + [C_DEF, c_lemma, s_lemma]
+    base = INVERSES + [C_DEF, c_transposed, c_lemma, s_lemma]
     c = Cc * (Lam_i * av + Sig_i * bv)
     product_lhs = _quad(xv - av, Lam_i) + _quad(xv - bv, Sig_i)
     product_rhs = _quad(xv - c, Lam_i + Sig_i) + _quad(av - bv, Sm)
-    proofs: list[wa.Proof] = [c_proof, *s_proofs, m_proof]
+    proofs: list[wa.Proof] = [c_t_proof, c_proof, *s_proofs, m_proof]
     proofs.append(wa.prove_by_normal_form(
         product_lhs, product_rhs, base,
         "Gaussian product: (x−x_i)ᵀΛ⁻¹(x−x_i) + (x−μ)ᵀΣ⁻¹(x−μ) = (x−c)ᵀ(Λ⁻¹+Σ⁻¹)(x−c) + ν_iᵀ(Λ+Σ)⁻¹ν_i, "
@@ -316,14 +330,13 @@ def dimension_free_route() -> tuple[list, list, bool, list]:
     proofs.append(wa.prove_by_normal_form(square_lhs, square_rhs, INVERSES + [M_DEF],
                                           "uᵀMu − 2uᵀz = (u − M⁻¹z)ᵀM(u − M⁻¹z) − zᵀM⁻¹z, M = Ξ + Σ⁻¹ (completing the "
                                           "square of eq. 11's exponent, u = x − μ, z = Λ_a⁻¹ν_i + Λ_b⁻¹ν_j)"))
-    proofs.append(wa.prove_by_normal_form(_quad(zv, Mi), _quad(zv, Ri * Sig), [m_lemma],
+    proofs.append(wa.prove_by_normal_form(_quad(zv, Mi), _quad(zv, Ri * Sig), SYMMETRIES + [m_lemma],
                                           "zᵀM⁻¹z = zᵀR⁻¹Σz with R = ΣΞ + I; and Σ(Ξ + Σ⁻¹) = R gives "
                                           "|Σ|^{-1/2}|M|^{-1/2} = |R|^{-1/2} (eq. 11)"))
     proofs.append(wa.prove_by_normal_form(Sig * (Xi + Sig_i), Sig * Xi + I_n, INVERSES, "Σ(Ξ + Σ⁻¹) = ΣΞ + I"))
-    rules = INVERSES + [C_DEF, S_DEF, M_DEF, M_DEF_SUM, R_DEF, c_lemma, s_lemma, m_lemma]
+    rules = INVERSES + [C_DEF, S_DEF, M_DEF, M_DEF_SUM, R_DEF, c_transposed, c_lemma, s_lemma, m_lemma]
     inst = _gp_instances()
-    rules_hold = all(wa.holds_on(r, inst) for r in rules) and wa.symmetric_on(
-        ["Λ", "Λ⁻¹", "Σ", "Σ⁻¹", "C", "S", "Ξ", "M⁻¹"], inst)
+    rules_hold = all(wa.holds_on(r, inst) for r in rules)
     nf = lambda lhs, rhs, rules_: (lambda: wa.prove_by_normal_form(lhs, rhs, rules_))  # noqa: E731
     mutants = [
         Mutant("cross moment sign flipped: c − μ = −Σ(Σ + Λ)⁻¹ν_i", nf(c - bv, -(Sig * Sm * (av - bv)), base),
@@ -338,11 +351,21 @@ def dimension_free_route() -> tuple[list, list, bool, list]:
                                                         INVERSES + [M_DEF]),
                square_lhs, _quad(uv + Mi * zv, m) - _quad(zv, Mi)),
         Mutant("eq. 11 with ΣR⁻¹ in place of R⁻¹Σ (a transpose, seen in zᵀ·w)",
-               nf(_quad(zv, Mi, uv), _quad(zv, Sig * Ri, uv), [m_lemma]),
+               nf(_quad(zv, Mi, uv), _quad(zv, Sig * Ri, uv), SYMMETRIES + [m_lemma]),
                _quad(zv, Mi, uv), _quad(zv, Sig * Ri, uv)),
     ]
     controls = wa.run_controls(mutants, inst)
+    planted = wa.symmetry(Ri)  # R⁻¹ = (ΣΞ + I)⁻¹ is not symmetric: declaring it so must fail
+    planted_proves = wa.prove_by_normal_form(_quad(zv, Ri, uv), _quad(uv, Ri, zv), [planted]).proved
+    controls.append(wa.ControlResult("planted unsound rule: R⁻¹ declared symmetric (proves zᵀR⁻¹u = uᵀR⁻¹z)",
+                                     planted_proves and not wa.holds_on(planted, inst),
+                                     wa.counterexample(planted.lhs, planted.rhs, inst)))
     return proofs, rules, rules_hold, controls
+
+
+#: what route 1 uses without proving it (route 2 needs neither, for its listed D)
+GP_STATED_FACTS = ("|XY| = |X||Y| (determinant of a product)",
+                   "∫N(x; m, P)dx = 1 (a Gaussian density integrates to one)")
 
 
 def prove_gp_moment_integrals(size: str = "small") -> Certificate:
@@ -355,8 +378,8 @@ def prove_gp_moment_integrals(size: str = "small") -> Certificate:
     dims = ", ".join(f"D={d}" + (" (with Q_ij)" if p else "") for d, p in DIRECT_DIMS[size].items())
     detail = (
         "Route 1 (any dimension D, full Σ): rules — " + "; ".join(f"{r.kind} {r.name}" for r in rules)
-        + f" (each holds on exact instances, D = 1..4: {'yes' if rules_hold else 'NO'}); axioms not rewritten: "
-        "|XY| = |X||Y|, ∫N(x; m, P)dx = 1. Proofs: "
+        + f" (each holds on exact instances, D = 1..4: {'yes' if rules_hold else 'NO'}); stated facts, not "
+        "rewritten: " + "; ".join(GP_STATED_FACTS) + ". Proofs: "
         + "; ".join(f"[{'proved' if p.proved else 'NOT PROVED'}] {p.statement} — {p.trace}" for p in proofs)
         + f". Route 2 (direct integration, {dims}; Σ = LLᵀ with every entry of L free, diagonal Λ_a, Λ_b, "
         f"ν_i, ν_j free): 1-D rule verified by sympy.integrate ({'yes' if one_d else 'NO'}); each integral equals "
@@ -367,5 +390,6 @@ def prove_gp_moment_integrals(size: str = "small") -> Certificate:
                        "moment (seed 000 eq. 8–11, 20) with a full input covariance Σ",
                        "word-algebra rewriting from stated rules (any D) + iterated exact Gaussian integration "
                        "(D = 1..3)", verdict(holds), detail, time.perf_counter() - start,
-                       scope=f"any dimension (route 1); {dims} (route 2)",
-                       negative_controls=tuple(c.to_json() for c in controls))
+                       scope="any dimension",
+                       negative_controls=tuple(c.to_json() for c in controls),
+                       stated_facts=GP_STATED_FACTS)

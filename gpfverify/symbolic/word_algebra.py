@@ -7,7 +7,8 @@ letter of its own (``C⁻¹``, ``A⁺``) that nothing relates to ``C`` or ``A`` 
 states. The only built-in algebra is what holds in every ring of matrices:
 
 * associativity and distributivity (words are flat tuples; sums are expanded);
-* transposition: (XY)ᵀ = YᵀXᵀ, (Xᵀ)ᵀ = X, pushed down to the letters;
+* transposition: (XY)ᵀ = YᵀXᵀ, (Xᵀ)ᵀ = X, pushed down to the letters (no letter is its own
+  transpose: symmetry is a rule, :func:`symmetry`);
 * a 1×1 word equals its transpose (it is a scalar); such words are stored in a canonical order;
 * the empty word is the identity of the right size, I·X = X.
 
@@ -47,7 +48,6 @@ class Letter:
     rows: sp.Expr = field(compare=False)
     cols: sp.Expr = field(compare=False)
     transposed: bool = False
-    symmetric: bool = field(default=False, compare=False)  # declared: Xᵀ = X (an assumption)
 
     @property
     def shape(self):
@@ -55,8 +55,6 @@ class Letter:
 
     @property
     def T(self) -> Letter:
-        if self.symmetric:
-            return self
         return Letter(self.name, self.rows, self.cols, not self.transposed)
 
     def __str__(self) -> str:
@@ -187,15 +185,10 @@ class Expr:
         return total
 
 
-def symbol(name: str, rows, cols, symmetric: bool = False) -> Expr:
-    """The matrix symbol ``name`` (rows × cols) as an expression; ``symmetric`` declares Xᵀ = X
-    (an assumption: list it among the rules' premises and check it with :func:`symmetric_on`)."""
-    return Expr.of({(Letter(name, rows, cols, symmetric=symmetric),): 1}, (rows, cols))
-
-
-def symmetric_on(names, instances) -> bool:
-    """The declared-symmetric letters really are symmetric at every instance."""
-    return all(v[name] == v[name].T for v, _ in instances for name in names)
+def symbol(name: str, rows, cols) -> Expr:
+    """The matrix symbol ``name`` (rows × cols) as an expression. Nothing is known about it: even
+    symmetry is a rule (:func:`symmetry`) that a proof names and that is checked on instances."""
+    return Expr.of({(Letter(name, rows, cols),): 1}, (rows, cols))
 
 
 def identity(size) -> Expr:
@@ -235,6 +228,12 @@ class Rule:
 
     def __str__(self) -> str:
         return f"{self.name}: {self.lhs} = {self.rhs}"
+
+
+def symmetry(x: Expr, kind: str = "hypothesis") -> Rule:
+    """The assumption ``Xᵀ = X`` for a square symbol X, as a rule like any other: a proof that
+    needs it lists it, and it is checked on the instances like every assumed rule."""
+    return Rule(f"{x}ᵀ={x}", x.T, x, kind)
 
 
 def _find(word: Word, pattern: Word) -> Iterable[int]:
