@@ -182,3 +182,14 @@ def test_wrap_stays_in_the_half_open_interval_at_the_cut():
     wrapped = wrap(values)
     assert np.all((-np.pi < wrapped) & (wrapped <= np.pi))
     assert wrap(just_above) == np.pi and wrap(-np.pi) == np.pi
+
+
+def test_the_smallest_intersecting_size_does_not_see_the_cut():
+    """c_min of the local ellipsoids is the same for the headings across the cut and turned away
+    from it by π/2 (and far larger when the headings are taken as plain numbers)."""
+    from gpfverify.fusion.rcc_ci import smallest_intersecting_size
+
+    across = smallest_intersecting_size(_estimates(), [HEADING])
+    away = smallest_intersecting_size(_estimates(np.pi / 2), [HEADING])
+    assert abs(across - away) <= SOLVER_TOL * away
+    assert smallest_intersecting_size(_estimates(), []) > 10 * across

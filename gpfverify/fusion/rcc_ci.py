@@ -201,9 +201,10 @@ def _in_every_ellipsoid(norm: _Normalised, xi) -> bool:
     return bool(np.all(quad + lin + norm.d <= INACCURATE_SLACK * size))
 
 
-def smallest_intersecting_size(estimates: Sequence) -> float:
-    """c_min = min_x max_m (x − x_m)ᵀP_m⁻¹(x − x_m): the ellipsoids meet iff c ≥ c_min."""
-    checked = checked_estimates(estimates)
+def smallest_intersecting_size(estimates: Sequence, circular_state: Sequence[int] = ()) -> float:
+    """c_min = min_x max_m (x − x_m)ᵀP_m⁻¹(x − x_m): the ellipsoids meet iff c ≥ c_min (angle
+    components ``circular_state`` on one branch, as in :func:`rcc_ci`)."""
+    checked = checked_estimates(estimates, circular_state=circular_state)
     # c_min is invariant under x -> (x - x̄)/s with P_m -> P_m/s²: solve in those coordinates
     # (as the primal) so that the solver sees numbers of order one whatever the units
     centre = np.mean([e.mean for e in checked], axis=0)
