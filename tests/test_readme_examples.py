@@ -31,3 +31,7 @@ def test_the_readme_examples_run_and_give_what_they_claim():
     for method in ("cmf", "dmf", "cc", "ci"):
         assert fused.means(method).shape == (30, 4)
     assert fused.audit.full_column_rank.shape == (30, 2) and fused.audit.gap_norm.shape == (30,)
+    # the GP example: a learned model with the system's prior as every starting belief
+    gp_fused = namespace["gp_fused"]
+    for method in ("cmf", "dmf"):
+        assert gp_fused.means(method).shape == (5, 4) and np.isfinite(gp_fused.means(method)).all()

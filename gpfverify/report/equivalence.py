@@ -1,5 +1,5 @@
 """The equivalence report of ``gpfverify check`` (and of ``gpfverify audit RUN --out``): does the
-distributed rule DMF (seed 000 eq. 35) reproduce centralized fusion CMF (Proposition 1) on the
+distributed rule DMF (Liao et al. 2019, eq. 35) reproduce centralized fusion CMF (Proposition 1) on the
 user's system, at every step, and if not, which sensor's report makes the difference and what
 repairs it.
 
@@ -300,15 +300,15 @@ def _rule_sentence(d: CheckData) -> str:
 # -- tables ----------------------------------------------------------------------------------------
 
 def sensor_table(d: CheckData) -> Table:
-    headers = ["sensor", "name", "outputs l_m", "angle outputs", "l_m > D", "steps full rank", "steps exact",
-               "largest share of gap", "repair size (numbers per step)", "rank tolerance"]
+    headers = ["sensor", "name", "outputs l_m", "angle outputs (indices from 0)", "l_m > D", "steps full rank",
+               "steps exact", "largest share of gap", "repair size (numbers per step)", "rank tolerance"]
     if d.canonical is not None:
         headers.append("smallest canonical correlation")
     rows = []
     for m, s in enumerate(d.sensors):
         repair = d.repair[:, :, m]
         tol = d.tol[:, :, m]
-        row = [m, s.get("name", ""), s["outputs"], ", ".join(map(str, s.get("circular") or [])) or "none",
+        row = [m, s.get("name", ""), s["outputs"], ", ".join(f"#{i}" for i in s.get("circular") or []) or "none",
                "yes" if int(s["outputs"]) > d.D else "no", f"{int(d.full[:, :, m].sum())} of {d.total}",
                f"{int(d.exact[:, :, m].sum())} of {d.total}", _g(float(d.share[:, :, m].max())),
                "0" if not repair.any() else f"{repair.max()} (at {int((repair > 0).sum())} steps)",
@@ -415,10 +415,10 @@ def equivalence_sections(results: dict, fig_dir: Path, fig_prefix: str = FIGURES
     head = Section("summary", "Does DMF reproduce CMF?")
     head.add(*[Paragraph(p) for p in summary_paragraphs(results)])
     head.add(Paragraph(f"System `{system}`, filter family {results.get('filter', '?')}, {d.runs_ok} "
-                       f"run(s) × {d.steps} steps. DMF is the distributed rule of seed 000 eq. 35 (each sensor sends "
-                       "its local posterior); CMF fuses the stacked measurements at the centre. The one-step gap "
-                       "compares both from the same central prediction; the recursive filters each run from their "
-                       "own previous posterior."))
+                       f"run(s) × {d.steps} steps. DMF is the distributed rule of Liao et al. 2019, eq. 35 "
+                       "(each sensor sends its local posterior); CMF fuses the stacked measurements at the centre. "
+                       "The one-step gap compares both from the same central prediction; the recursive filters "
+                       "each run from their own previous posterior."))
     head.add(sensor_table(d))
 
     gap = Section("gap", "The gap per step")
