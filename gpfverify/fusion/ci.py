@@ -8,8 +8,9 @@ P is consistent (P ⪰ true error covariance) for every cross-correlation betwee
   Vᵀ P_1 V = I, Vᵀ P_2 V = diag(μ), the information is V diag(q) Vᵀ with q_i = ω + (1 − ω)/μ_i,
   so tr P = Σ c_i/q_i and log det P = const − Σ log q_i are convex in ω; the optimum is an endpoint
   exactly when the derivative keeps its sign on [0, 1], else the derivative's root.
-* N estimates: a parameterised cvxpy problem (DPP, built once per (N, D, criterion), Clarabel),
-  trace: min tr X s.t. [[X, I], [I, Σ ω_m I_m]] ⪰ 0; det: max log det Σ ω_m I_m. The weights are
+* N estimates: a parameterised cvxpy problem (DPP, built once per (N, D, criterion), Clarabel)
+  in coordinates whitened by the mean information (:func:`_ci_weights_cvxpy`),
+  trace: min tr M X s.t. [[X, I], [I, Σ ω_m I'_m]] ⪰ 0; det: max log det Σ ω_m I'_m. The weights are
   clipped to the simplex and compared with every vertex (single estimate), so an optimum at an
   endpoint is returned exactly. Both criteria are convex in ω, so the returned weights are
   certified by the KKT condition on the simplex, with S = Σ ω_m I_m and g_m = ∂(−criterion)/∂ω_m:
@@ -70,36 +71,50 @@ def criterion_value(cov: np.ndarray, criterion: str) -> float:
 
 @lru_cache(maxsize=32)
 def _ci_problem(n: int, d: int, criterion: str, solver: str):
-    """The DPP problem over ω for N information matrices of size D, built once per solver (a
-    problem is only ever solved by one solver) and re-solved without warm start, so a solve depends
-    on its parameter values alone, not on what the process solved before. cvxpy is imported here,
-    when more than two estimates are fused (about a second of start-up otherwise spent by every
-    command that merely can fuse)."""
+    """The DPP problem over ω for N whitened information matrices of size D and the trace's
+    weight matrix M (see :func:`_ci_weights_cvxpy`), built once per solver (a problem is only ever
+    solved by one solver) and re-solved without warm start, so a solve depends on its parameter
+    values alone, not on what the process solved before. cvxpy is imported here, when more than
+    two estimates are fused (about a second of start-up otherwise spent by every command that
+    merely can fuse)."""
     import cvxpy as cp
 
     mats = [cp.Parameter((d, d), symmetric=True) for _ in range(n)]
+    weight = cp.Parameter((d, d), PSD=True)
     omega = cp.Variable(n, nonneg=True)
     total = sum(omega[m] * mats[m] for m in range(n))
     if criterion == "trace":
         x = cp.Variable((d, d), symmetric=True)
         eye = np.eye(d)
-        problem = cp.Problem(cp.Minimize(cp.trace(x)),
+        problem = cp.Problem(cp.Minimize(cp.trace(weight @ x)),
                              [cp.bmat([[x, eye], [eye, total]]) >> 0, cp.sum(omega) == 1])
     else:
         problem = cp.Problem(cp.Maximize(cp.log_det(total)), [cp.sum(omega) == 1])
-    return problem, mats, omega
+    return problem, mats, weight, omega
 
 
 def _ci_weights_cvxpy(info: Information, criterion: str) -> list[np.ndarray]:
-    """Solver weights: Clarabel's, or SCS's when Clarabel fails; [] when both fail."""
+    """Solver weights: Clarabel's, or SCS's when Clarabel fails; [] when both fail.
+
+    The solver sees the problem in whitened coordinates, where the mean information
+    Ā = Σ_m I_m / N = L Lᵀ is the identity: I'_m = L⁻¹ I_m L⁻ᵀ, S' = Σ ω_m I'_m = L⁻¹ S L⁻ᵀ, so
+    log det S = log det S' + const and tr S⁻¹ = tr(M S'⁻¹) with M = L⁻¹ L⁻ᵀ (normalised to
+    tr M = D); ω is unchanged. Without it, components in different units (variances 30 and 0.05)
+    leave interior-point solvers a badly scaled cone and answers that fail the KKT certificate."""
     import cvxpy as cp
 
     n, d = info.matrices.shape[:2]
-    scale = np.mean(np.trace(info.matrices, axis1=1, axis2=2)) / d  # ω is scale invariant
+    sym = 0.5 * (info.matrices + np.swapaxes(info.matrices, 1, 2))
+    lower = cholesky(sym.mean(axis=0), "mean information", allow_jitter=False).factor
+    half = np.linalg.solve(lower, np.eye(d))  # L⁻¹
+    whitened = symmetrize(half @ sym @ half.T)
+    weight = symmetrize(half @ half.T)
+    weight *= d / np.trace(weight)
     for solver in (cp.CLARABEL, cp.SCS):
-        problem, mats, omega = _ci_problem(n, d, criterion, solver)
-        for param, mat in zip(mats, info.matrices):
-            param.value = 0.5 * (mat + mat.T) / scale
+        problem, mats, weight_param, omega = _ci_problem(n, d, criterion, solver)
+        for param, mat in zip(mats, whitened):
+            param.value = mat
+        weight_param.value = weight
         try:
             problem.solve(solver=solver, warm_start=False)
         except cp.SolverError:
