@@ -96,3 +96,19 @@ def test_a_planted_rule_that_holds_is_not_counted_as_rejected():
     d = dimension_free
     control = d.planted_control("a true Penrose equation", d.PENROSE[0], d.instances())
     assert not control.rejected and not control.false_on_instance
+
+
+def test_a_lemma_used_outside_its_hypotheses_is_refused():
+    """P = A⁺A = I rests on full column rank; a DMF = CMF 'for any rank' built with it is refused."""
+    d = dimension_free
+    p_is_i, _ = d.lemma_projector_is_identity()
+    assert p_is_i.premises == {d.LEFT_INVERSE.name}
+    rules = d.C_RULES + [d.LOCAL_UPDATE]
+    proof = wa.prove_by_normal_form(d.dmf_term(), d.cmf_term(), rules + [p_is_i], "DMF_m = CMF_m for any rank")
+    assert proof.proved and d.LEFT_INVERSE.name in proof.premises
+    result = d.DimensionFreeResult([proof], d.check_rules(rules, {}), [], "any dimension")
+    assert result.checked.holds and result.outside_hypotheses == [proof.statement] and not result.holds
+    stated = d.DimensionFreeResult([proof], d.check_rules(rules + [d.LEFT_INVERSE],
+                                                          {d.LEFT_INVERSE.name: d.instances(full_rank=True)}),
+                                   [], "any dimension")
+    assert stated.holds  # with the hypothesis stated (and checked on its instances) it is the real claim

@@ -299,8 +299,19 @@ class DimensionFreeResult:
     scope: str
 
     @property
+    def hypotheses(self) -> frozenset:
+        """The certificate's hypotheses: the hypothesis rules it lists and checks on instances."""
+        return frozenset(r.name for r in self.checked.rules if r.kind == "hypothesis")
+
+    @property
+    def outside_hypotheses(self) -> list[str]:
+        """Proofs resting on a hypothesis the certificate does not state (a rule used outside its
+        hypotheses, e.g. the full-rank lemma P = I in a statement about any rank)."""
+        return [p.statement for p in self.proofs if not p.premises <= self.hypotheses]
+
+    @property
     def holds(self) -> bool:
-        return all(p.proved for p in self.proofs) and self.checked.holds
+        return all(p.proved for p in self.proofs) and self.checked.holds and not self.outside_hypotheses
 
     @property
     def controls_rejected(self) -> bool:

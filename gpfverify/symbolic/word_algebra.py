@@ -213,6 +213,12 @@ class Rule:
     rhs: Expr
     kind: str
     derivation: str = ""
+    #: the hypotheses (by name) a lemma rests on; a hypothesis rests on itself
+    premises: frozenset = frozenset()
+
+    @property
+    def rests_on(self) -> frozenset:
+        return frozenset({self.name}) if self.kind == "hypothesis" else self.premises
 
     @property
     def difference(self) -> Expr:
@@ -224,7 +230,7 @@ class Rule:
         return len(self.lhs.terms) == 1 and self.lhs.terms[0][1] == 1 and len(self.lhs.terms[0][0]) > 0
 
     def transposed(self) -> Rule:
-        return Rule(self.name + "ᵀ", self.lhs.T, self.rhs.T, self.kind, self.derivation)
+        return Rule(self.name + "ᵀ", self.lhs.T, self.rhs.T, self.kind, self.derivation, self.premises)
 
     def __str__(self) -> str:
         return f"{self.name}: {self.lhs} = {self.rhs}"
@@ -339,6 +345,13 @@ class Proof:
     proved: bool
     used: tuple
     trace: str
+    #: the hypotheses (by name) the rules it used rest on
+    premises: frozenset = frozenset()
+
+
+def _premises(used, rules: list[Rule]) -> frozenset:
+    by_name = {r.name: r for r in rules}
+    return frozenset().union(*(by_name[name].rests_on for name in used if name in by_name))
 
 
 def prove_by_normal_form(lhs: Expr, rhs: Expr, rules: list[Rule], statement: str = "") -> Proof:
@@ -347,7 +360,7 @@ def prove_by_normal_form(lhs: Expr, rhs: Expr, rules: list[Rule], statement: str
     except (NotTerminating, ShapeError) as err:
         return Proof(statement or f"{lhs} = {rhs}", False, (), f"no proof: {err}")
     trace = f"lhs − rhs rewrites to {nf.result} using " + ", ".join(f"{k}×{v}" for k, v in nf.used.items())
-    return Proof(statement or f"{lhs} = {rhs}", nf.result.is_zero, tuple(nf.used), trace)
+    return Proof(statement or f"{lhs} = {rhs}", nf.result.is_zero, tuple(nf.used), trace, _premises(nf.used, rules))
 
 
 def prove_by_chain(chain: list[tuple[Expr, str | None]], rules: list[Rule], statement: str = "") -> Proof:
@@ -364,14 +377,15 @@ def prove_by_chain(chain: list[tuple[Expr, str | None]], rules: list[Rule], stat
         ok &= step_ok
         used.append(name)
         lines.append(f"= {cur} [{name}{'' if step_ok else ': FAILED'}]")
-    return Proof(statement or f"{chain[0][0]} = {chain[-1][0]}", ok, tuple(dict.fromkeys(used)), " ".join(lines))
+    return Proof(statement or f"{chain[0][0]} = {chain[-1][0]}", ok, tuple(dict.fromkeys(used)), " ".join(lines),
+                 _premises(used, rules))
 
 
 def lemma(name: str, proof: Proof, lhs: Expr, rhs: Expr) -> Rule:
-    """A derived rule; refuses an unproved one."""
+    """A derived rule, resting on the hypotheses its proof rests on; refuses an unproved one."""
     if not proof.proved:
         raise ValueError(f"lemma {name} is not proved: {proof.trace}")
-    return Rule(name, lhs, rhs, "lemma", proof.trace)
+    return Rule(name, lhs, rhs, "lemma", proof.trace, proof.premises)
 
 
 # ---- checking rules on exact instances -----------------------------------------------------------
