@@ -112,3 +112,15 @@ def test_a_lemma_used_outside_its_hypotheses_is_refused():
                                                           {d.LEFT_INVERSE.name: d.instances(full_rank=True)}),
                                    [], "any dimension")
     assert stated.holds  # with the hypothesis stated (and checked on its instances) it is the real claim
+
+
+def test_stated_facts_are_in_the_record_and_on_the_page():
+    from gpfverify.report.document import Table
+    from gpfverify.report.sections.proofs import render
+    from gpfverify.symbolic.certificate import Certificate
+
+    record = Certificate("a", "s", "m", "proved", "d", scope="any dimension", stated_facts=("|XY| = |X||Y|",)).to_json()
+    assert record["stated_facts"] == ["|XY| = |X||Y|"]
+    assert "stated_facts" not in Certificate("b", "s", "m", "proved", "d").to_json()
+    table = next(b for b in render([record]).blocks if isinstance(b, Table))
+    assert table.rows[0][4] == "|XY| = |X||Y|"

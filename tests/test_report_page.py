@@ -254,15 +254,17 @@ def test_papers_are_cited_in_full(report):
 def test_proof_certificates_are_a_table(report):
     _, page, _ = report
     (table,) = page.find_all("table", cls="certificates")
-    assert [th.text for th in table.find_all("th")] == ["claim", "status", "statement", "scope", "method",
+    assert [th.text for th in table.find_all("th")] == ["claim", "status", "statement", "scope",
+                                                        "stated facts (used, not proved)", "method",
                                                         "negative controls", "seconds"]
     rows = {tr.attrs["id"]: [td.text for td in tr.find_all("td")] for tr in table.find_all("tbody")[0].find_all("tr")}
     proved = rows["cert-ukf-equals-kf-linear"]
     assert proved[:3] == ["ukf-equals-kf-linear", "proved", "the UKF equals the KF on linear models"]
-    assert proved[3] == "(D, l) ∈ {(1, 1), (2, 1)}" and proved[4] == "sympy: symbolic sigma points"
-    assert proved[5].startswith("all 2 rejected: ȳ = Hμ (offset b dropped)")
+    assert proved[3] == "(D, l) ∈ {(1, 1), (2, 1)}" and proved[4] == "none"
+    assert proved[5] == "sympy: symbolic sigma points"
+    assert proved[6].startswith("all 2 rejected: ȳ = Hμ (offset b dropped)")
     assert rows["cert-dmf-exact-without-condition"][3] == "not stated"
-    assert rows["cert-dmf-exact-without-condition"][5] == "none"
+    assert rows["cert-dmf-exact-without-condition"][6] == "none"
     status = table.find_all("tr", id="cert-dmf-exact-without-condition")[0].find_all("td")[1]
     assert "v-refuted" in status.classes
 

@@ -143,6 +143,8 @@ class CertificateInfo:
     seconds: float = 0.0
     scope: str = ""
     negative_controls: tuple[Control, ...] = ()
+    #: facts the argument uses without proving them
+    stated_facts: tuple[str, ...] = ()
 
     @classmethod
     def of(cls, record: dict) -> CertificateInfo:
@@ -154,7 +156,8 @@ class CertificateInfo:
                              for c in record.get("negative_controls", ()))
             return cls(str(record["claim"]), str(record.get("statement", "")), str(record.get("method", "")),
                        str(record["status"]), str(record.get("detail", "")), float(record.get("seconds", 0.0)),
-                       str(record.get("scope", "")), controls)
+                       str(record.get("scope", "")), controls,
+                       tuple(str(f) for f in record.get("stated_facts", ())))
         except (KeyError, TypeError, ValueError) as exc:
             raise InputError(f"malformed certificate {str(record)[:80]!r}: {exc}") from None
 

@@ -39,12 +39,14 @@ def render(certificates: list[dict], out_dir: Path | None = None) -> Section:
         Paragraph("Each statement is checked by exact symbolic computation (proved; or refuted by an exact "
                   "counterexample) or by numerical agreement of two independent implementations within a stated "
                   "tolerance (checked). A proof must also reject its negative controls — deliberately wrong "
-                  "variants of the statement (a sign, a transpose, a dropped term) — or it is demoted. "
+                  "variants of the statement (a sign, a transpose, a dropped term) — or it is demoted; a proof "
+                  "that uses a textbook fact it does not prove lists it as a stated fact. "
                   "Statements expected to be false are kept and shown as refuted. Totals: "
                   + ", ".join(f"{counts[s]} {s}" for s in STATUSES) + "."),
-        Table(["claim", "status", "statement", "scope", "method", "negative controls", "seconds"],
-              [[c.claim, VerdictCell(c.status), c.statement, c.scope or "not stated", c.method, _controls(c),
-                fmt(c.seconds, 3)] for c in infos],
+        Table(["claim", "status", "statement", "scope", "stated facts (used, not proved)", "method",
+               "negative controls", "seconds"],
+              [[c.claim, VerdictCell(c.status), c.statement, c.scope or "not stated",
+                "; ".join(c.stated_facts) or "none", c.method, _controls(c), fmt(c.seconds, 3)] for c in infos],
               "Certificates", tuple(certificate_anchor(c.claim) for c in infos), "certificates"),
     )
     for c in infos:
