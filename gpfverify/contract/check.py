@@ -55,7 +55,8 @@ class RunRecord:
 def verdict_sentence(results: dict) -> str:
     """The one plain-words verdict of a check, rendered from results.json's counts by the console
     line and the report page alike: DMF = CMF to rounding (the one-step gap within the step's
-    rounding bound, docs/fusion-definitions.md) at how many steps, and why not elsewhere."""
+    rounding bound, docs/fusion-definitions.md) at how many steps, and why not elsewhere; each
+    baseline that failed at some steps, with the first failure's step and reason."""
     total, held = results["total_steps"], results["condition_held_steps"]
     reproduced, inexact = results["reproduced_steps"], total - results["exact_steps"]
     runs = results["runs_ok"]
@@ -70,5 +71,11 @@ def verdict_sentence(results: dict) -> str:
             reasons.append(f"{results['branch_offset_steps']} with an angle branch offset")
         verdict = (f"DMF differed from CMF beyond rounding at {total - reproduced} of {where}"
                    + (f" ({', '.join(reasons)})" if reasons else ""))
-    return (f"{verdict}; largest one-step gap {results['max_gap']:.3g} "
-            f"({results['max_gap_size']:.3g} prior standard deviations).")
+    sentence = (f"{verdict}; largest one-step gap {results['max_gap']:.3g} "
+                f"({results['max_gap_size']:.3g} prior standard deviations)")
+    failures = results.get("method_failures") or []
+    for method in results.get("failed_methods") or []:
+        mine = [f for f in failures if f["method"] == method]
+        sentence += (f"; {method} failed at {len(mine)} of {total} steps (first at k = {mine[0]['k']}"
+                     + (f" of run {mine[0]['run']}" if runs > 1 else "") + f": {mine[0]['reason']})")
+    return sentence + "."

@@ -143,7 +143,12 @@ def _normalised_errors(model, fused, ys: np.ndarray, truth: np.ndarray | None) -
     if truth is not None:
         nees = lambda estimates: Consistency.from_records(  # noqa: E731
             truth, estimates, circular_state=model.circular_state).values[0]
-        out["nees"] = {m: nees([s.estimate(m) for s in fused.steps]) for m in fused.methods}
+        out["nees"] = {}
+        for m in fused.methods:  # per step, at the steps where the method fused
+            at = [t for t, s in enumerate(fused.steps) if m not in s.failed]
+            values = Consistency.from_records(truth[at], [fused.steps[t].estimate(m) for t in at],
+                                              circular_state=model.circular_state).values[0] if at else []
+            out["nees"][m] = dict(zip(at, values))
         out["local_nees"] = [nees([r.posterior for r in records]) for records in locals_]
     return out
 
@@ -153,6 +158,7 @@ def _record(model, fused, ys: np.ndarray, truth: np.ndarray | None) -> RunRecord
     steps = []
     for t, step in enumerate(fused.steps):
         audit = step.audit
+        fused_by = [m for m in fused.methods if m not in step.failed]
         entry = {
             "k": step.k, "cmf_mean": audit.cmf_mean.tolist(), "dmf_mean": audit.dmf_mean.tolist(),
             "gap": audit.gap.tolist(), "gap_norm": float(np.linalg.norm(audit.gap)),
@@ -171,7 +177,8 @@ def _record(model, fused, ys: np.ndarray, truth: np.ndarray | None) -> RunRecord
                                                        else float(s.canonical_correlations.min())),
                          "branch_offsets": s.branch_offsets.tolist(),
                          "branch_offset_count": int(np.count_nonzero(s.branch_offsets))} for s in audit.sensors],
-            "means": {m: step.estimate(m).mean.tolist() for m in fused.methods},
+            "means": {m: step.estimate(m).mean.tolist() for m in fused_by},
+            "failed": dict(step.failed),
             "local_means": [r.mu_e.tolist() for r in step.local],
             "seconds": {**step.seconds, "local": list(step.local_seconds)},
             "nis": {"cmf": float(errors["nis"]["cmf"][t]),
@@ -181,8 +188,8 @@ def _record(model, fused, ys: np.ndarray, truth: np.ndarray | None) -> RunRecord
         if truth is not None:
             x = truth[t]
             entry["sq_err"] = {m: float(np.sum(difference(x, step.estimate(m).mean, model.circular_state) ** 2))
-                               for m in fused.methods}
-            entry["nees"] = {m: float(v[t]) for m, v in errors["nees"].items()}
+                               for m in fused_by}
+            entry["nees"] = {m: float(v[t]) for m, v in errors["nees"].items() if t in v}
             entry["local_sq_err"] = [float(np.sum(difference(x, r.mu_e, model.circular_state) ** 2))
                                      for r in step.local]
             entry["local_nees"] = [float(v[t]) for v in errors["local_nees"]]
@@ -268,6 +275,9 @@ def summarize(params: Params, results: list[RunRecord]) -> dict:
     first = steps_by_run[0]
     every = [e for steps in steps_by_run for e in steps]
     methods = list(params.methods)
+    failures = [{"run": i, "k": e["k"], "method": m, "reason": why}
+                for i, steps in enumerate(steps_by_run) for e in steps for m, why in e.get("failed", {}).items()]
+    failed_methods = [m for m in methods if any(f["method"] == m for f in failures)]
     out = {
         "steps": len(first), "filter": params.filter,
         "per_step": [{"k": e["k"], "cmf_mean": e["cmf_mean"], "dmf_mean": e["dmf_mean"], "gap": e["gap"],
@@ -281,6 +291,7 @@ def summarize(params: Params, results: list[RunRecord]) -> dict:
         "reproduced_steps": sum(bool(e["gap_size"] <= e["gap_bound"]) for e in every),
         "branch_offset_steps": sum(any(s["branch_offset_count"] for s in e["sensors"]) for e in every),
         "total_steps": len(every),
+        "failed_methods": failed_methods, "method_failures": failures,
         "system": params.system, "state_dim": model.state_dim, "sensors": _sensor_table(model),
         "rank_rule": {**rank_rule_to_dict(rule), "description": rule.describe()},
         "k": [e["k"] for e in first],
@@ -302,8 +313,9 @@ def summarize(params: Params, results: list[RunRecord]) -> dict:
                                      s.size) for m, s in enumerate(model.sensors)]}
     if out["truth_known"]:
         d = model.state_dim
-        sq = {m: np.array([[e["sq_err"][m] for e in steps] for steps in steps_by_run]) for m in methods}
-        nees = {m: np.array([[e["nees"][m] for e in steps] for steps in steps_by_run]) for m in methods}
+        scored = [m for m in methods if m not in failed_methods]  # averages need every step
+        sq = {m: np.array([[e["sq_err"][m] for e in steps] for steps in steps_by_run]) for m in scored}
+        nees = {m: np.array([[e["nees"][m] for e in steps] for steps in steps_by_run]) for m in scored}
         local_sq = np.array([[e["local_sq_err"] for e in steps] for steps in steps_by_run])   # (R, T, N)
         local_nees = np.array([[e["local_nees"] for e in steps] for steps in steps_by_run])
         out["rmse"] = {m: np.sqrt(v.mean(axis=0)).tolist() for m, v in sq.items()}

@@ -38,7 +38,7 @@ from collections.abc import Callable, Sequence
 
 import numpy as np
 
-from gpfverify.errors import InputError
+from gpfverify.errors import InputError, NumericalError
 from gpfverify.filters.families import GP_FAMILIES, GaussianFamily, gaussian_family
 from gpfverify.filters.records import Gaussian, StepRecord
 from gpfverify.filters.sigma_points import SigmaParams
@@ -140,7 +140,9 @@ class FusionStep:
     ``cov``; rcc-ci gives the :class:`~gpfverify.fusion.rcc_ci.RccCiResult` with ``enlarged``),
     ``audit`` the :class:`~gpfverify.audit.CaseAudit` of ``dmf.case`` (None without audit) and
     ``seconds`` the wall-clock time per method (``"local"``: the sensors' filters, one entry each
-    in ``local_seconds``)."""
+    in ``local_seconds``); ``failed`` baseline → why it could not fuse at this step (a solver
+    failure or an estimate that is not a covariance: :class:`~gpfverify.errors.NumericalError`),
+    the run going on with the other methods."""
 
     k: int
     local: tuple[StepRecord, ...]
@@ -150,6 +152,7 @@ class FusionStep:
     audit: CaseAudit | None
     seconds: dict
     local_seconds: tuple[float, ...]
+    failed: dict = field(default_factory=dict)
 
     def estimate(self, method: str) -> Gaussian:
         """The fused posterior of ``method`` (one of the run's methods, any accepted spelling)."""
@@ -158,6 +161,8 @@ class FusionStep:
             return self.cmf.posterior
         if method == "dmf" and self.dmf is not None:
             return self.dmf.record.posterior
+        if method in self.failed:
+            raise NumericalError(f"{method} failed at step {self.k}: {self.failed[method]}")
         if method in self.baselines:
             return Gaussian(self.baselines[method].mean, self.baselines[method].cov)
         raise InputError(f"method {method!r} was not run at step {self.k}")
@@ -197,6 +202,15 @@ def _timed(fn: Callable, *args, **kwargs):
     start = time.perf_counter()
     out = fn(*args, **kwargs)
     return out, time.perf_counter() - start
+
+
+def _attempt(rule: Callable, beliefs: Sequence) -> tuple[object, str | None, float]:
+    """``(fused estimate or None, why it failed or None, seconds)`` of one baseline at one step."""
+    start = time.perf_counter()
+    try:
+        return rule(beliefs), None, time.perf_counter() - start
+    except NumericalError as exc:
+        return None, str(exc), time.perf_counter() - start
 
 
 def _baselines(methods: Sequence[str], rcc_size: float | None,
@@ -253,7 +267,8 @@ def run_fusion(model, ys, *, family: str = "ukf", methods: Sequence[str] = DEFAU
                rank_rule: RankRule | str | None = None) -> FusionRun:
     """Filter the stacked measurements ``ys`` (T, L) — ``ys[t]`` at step k = first_k + t — with
     every sensor's local filter, CMF and DMF (each its own recursion from ``fused_prior``) and the
-    chosen baselines; ``rcc_size`` is RCC-CI's ellipsoid size c (default χ²_D(0.99)). Priors default
+    chosen baselines (a baseline that fails at a step is recorded in ``FusionStep.failed`` and the run
+    goes on); ``rcc_size`` is RCC-CI's ellipsoid size c (default χ²_D(0.99)). Priors default
     to the model's (a GPModel has none: then both are required). ``rank_rule``/``rank_tol`` as in
     :func:`dmf_step` (default numpy's rule); the per-step audit uses the same rule."""
     chosen = model_family(family, model, params)
@@ -271,6 +286,7 @@ def run_fusion(model, ys, *, family: str = "ukf", methods: Sequence[str] = DEFAU
         local = tuple(r for r, _ in timed)
         local_beliefs = [r.posterior for r in local]
         seconds, cmf, dmf, fused_estimates = {"local": sum(s for _, s in timed)}, None, None, {}
+        failed: dict[str, str] = {}
         if "cmf" in methods:
             cmf, seconds["cmf"] = _timed(cmf_step, cmf_belief, model, y, k=k, family=family, params=params)
             cmf_belief = cmf.posterior
@@ -280,13 +296,17 @@ def run_fusion(model, ys, *, family: str = "ukf", methods: Sequence[str] = DEFAU
                                          rank_rule=rank_rule)
             dmf_belief = dmf.record.posterior
         for name, rule in baselines.items():
-            fused_estimates[name], seconds[name] = _timed(rule, local_beliefs)
+            estimate, why, seconds[name] = _attempt(rule, local_beliefs)
+            if why is None:
+                fused_estimates[name] = estimate
+            else:
+                failed[name] = why
         step_audit = None
         if audit:
             assert dmf is not None  # _checked_methods requires dmf when auditing
             step_audit = _audit(dmf)
         steps.append(FusionStep(k, local, cmf, dmf, fused_estimates, step_audit,
-                                seconds, tuple(s for _, s in timed)))
+                                seconds, tuple(s for _, s in timed), failed))
     return FusionRun(family, methods, tuple(steps))
 
 

@@ -353,7 +353,9 @@ def method_table(d: CheckData) -> Table:
     rows = []
     for m in methods:
         row = [m.upper()]
-        if truth:
+        if truth and m not in r["rmse"]:
+            row += ["failed at some steps (see the verdict)", "—", "—"]
+        elif truth:
             rmse = np.asarray(r["rmse"][m], float)
             nees = r["nees"][m]
             row += [_g(float(np.sqrt(np.mean(rmse ** 2))), 4), _g(float(np.mean(nees["average"])), 3),
