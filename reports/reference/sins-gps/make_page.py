@@ -26,7 +26,7 @@ sys.path.insert(0, str(HERE.parent))
 
 from reference_pages import write_page  # type: ignore[import-not-found]  # noqa: E402
 
-from gpfverify.contract.sins_gps import INTERPRETATIONS, Params  # noqa: E402
+from gpfverify.contract.sins_gps import DEFAULT_RUNS, INTERPRETATIONS, Params  # noqa: E402
 from gpfverify.report.document import Paragraph  # noqa: E402
 from gpfverify.report.sections import sins_gps as section_module  # noqa: E402
 
@@ -70,6 +70,10 @@ def main(run_dir: Path, command: str, confirm: tuple[Path, str] | None = None) -
     section = section_module.render(results, HERE)
     also = "" if confirm is None else f" and `{confirm[1]}`"
     extra = "" if confirm is None else " CONFIRM_DIR \"CONFIRM_COMMAND\""
+    provenance = json.loads((run_dir / "manifest.json").read_text(encoding="utf-8"))["provenance"]
+    section.add(Paragraph(f"Runs made at commit {provenance['git_commit'][:12]} on {provenance['platform']}, "
+                          f"{results['runs_ok']} of {results['runs']} runs per configuration (the full profile "
+                          f"runs {DEFAULT_RUNS})."))
     section.add(Paragraph(f"Made by `{command}`{also}, then `python reports/reference/sins-gps/make_page.py RUN_DIR "
                           f"\"COMMAND\"{extra}` (which adds the interpretations' health and errors, and the "
                           "confirmation run's, to the committed results.json)."))
