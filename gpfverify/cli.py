@@ -22,6 +22,7 @@ import contextlib
 import importlib
 import math
 import os
+import re
 import signal
 import sys
 import warnings
@@ -59,6 +60,17 @@ class OneLineParser(argparse.ArgumentParser):
                     flag = action.option_strings[-1] if action.option_strings else action.dest
                     self.error(f"{flag} must be a finite number, got {v}")
         return parsed
+
+
+_SPHINX_ROLE = re.compile(r":[a-z]+:`~?([^`]+)`")
+
+
+def plain_help(doc: str | None) -> str | None:
+    """A docstring as --help shows it: Sphinx roles (``:mod:`x```) and literals (````x````) as
+    their plain text."""
+    if doc is None:
+        return None
+    return _SPHINX_ROLE.sub(r"\1", doc).replace("``", "")
 
 
 def one_line(text) -> str:

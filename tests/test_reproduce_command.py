@@ -3,6 +3,7 @@ lines off a terminal, each claim's verdict at the end; ``gpfverify report --from
 one reproduce folder as a page."""
 
 import json
+import re
 import shutil
 from pathlib import Path
 
@@ -100,3 +101,10 @@ def test_report_from_refuses_a_folder_reproduce_did_not_write(tmp_path, capsys):
     code, stdout, stderr = _run(["report", "--from", str(empty)], capsys)
     assert code == 2 and stdout == "" and len(stderr.strip().splitlines()) == 1 and "results.json" in stderr
     assert not (tmp_path / "empty-report").exists()
+
+
+@pytest.mark.parametrize("experiment", sorted(set(EXPERIMENTS) - {"toy"}))
+def test_help_shows_no_sphinx_markup(experiment, capsys):
+    code, out, _ = _run(["reproduce", experiment, "--help"], capsys)
+    assert code == 0 and "--paper-scale" in out
+    assert not re.search(r":(mod|func|class|meth|data|attr):`|``", out), out

@@ -131,14 +131,14 @@ def claims_text(results: dict) -> str:
 
 
 def run(args: argparse.Namespace) -> int:
-    from gpfverify.cli import OneLineParser
+    from gpfverify.cli import OneLineParser, plain_help
     from gpfverify.contract.params import add_arguments as add_params_arguments
     from gpfverify.contract.params import from_arguments
     from gpfverify.errors import InputError
     from gpfverify.experiments.runner import make_executor, run_experiment
 
     module = importlib.import_module(EXPERIMENTS[args.experiment])
-    sub = OneLineParser(prog=f"gpfverify reproduce {args.experiment}", description=module.__doc__)
+    sub = OneLineParser(prog=f"gpfverify reproduce {args.experiment}", description=plain_help(module.__doc__))
     add_common_arguments(sub, quick_runs(module), module.DEFAULT_RUNS)
     add_params_arguments(sub, module.Params)  # the options are generated from the experiment's Params
     opts = sub.parse_args(args.rest)

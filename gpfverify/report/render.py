@@ -13,6 +13,7 @@ import base64
 import html
 import json
 import os
+import re
 from collections.abc import Iterable
 from pathlib import Path
 
@@ -25,6 +26,14 @@ from gpfverify.report.document import (CAUTION_MARK, VERDICT_CLASSES, Cell, Chip
 from gpfverify.report.inputs import STATUSES, RunInfo, SectionSummary, counts_line, verdict_counts
 
 esc = html.escape
+_CODE_SPAN = re.compile(r"`([^`\n]+)`")
+_BOLD_SPAN = re.compile(r"\*\*([^*\n]+)\*\*")
+
+
+def inline(text: str) -> str:
+    """Markdown text as HTML: escaped, with its `code` and **bold** spans rendered (the Markdown
+    pages and the HTML page show the same text, neither with raw backticks)."""
+    return _BOLD_SPAN.sub(r"<b>\1</b>", _CODE_SPAN.sub(r"<code>\1</code>", esc(text)))
 
 
 # ---- cells ---------------------------------------------------------------------------------------
@@ -58,7 +67,7 @@ def _html_cell(value) -> str:
     if isinstance(value, Cell):
         title = f' title="{esc(value.title)}"' if value.title else ""
         css = f' class="{esc(value.css)}"' if value.css else ""
-        return f"<td{css}{title}>{esc(_text(value.value))}</td>"
+        return f"<td{css}{title}>{inline(_text(value.value))}</td>"
     if isinstance(value, Link):
         return f'<td><a href="#{esc(value.anchor or value.slug)}">{esc(_text(value.text))}</a></td>'
     if isinstance(value, Chips):
@@ -67,7 +76,7 @@ def _html_cell(value) -> str:
             f'href="#{esc(anchor)}" title="{esc(tooltip)}">{CAUTION_MARK if cautioned else ""}</a>'
             for verdict, tooltip, anchor, cautioned in value.chips)
         return f'<td class="chips">{marks}</td>'
-    return f"<td>{esc(_text(value))}</td>"
+    return f"<td>{inline(_text(value))}</td>"
 
 
 # ---- blocks --------------------------------------------------------------------------------------
@@ -102,25 +111,25 @@ def _markdown_lines(blocks, page_dir: Path) -> list[str]:
 
 def _html_block(block) -> str:
     if isinstance(block, Paragraph):
-        return f"<p>{esc(_text(block.text))}</p>"
+        return f"<p>{inline(_text(block.text))}</p>"
     if isinstance(block, Table):
-        head = "".join(f"<th>{esc(_text(h))}</th>" for h in block.headers)
+        head = "".join(f"<th>{inline(_text(h))}</th>" for h in block.headers)
         ids = list(block.row_ids) + [""] * (len(block.rows) - len(block.row_ids))
         body = "".join((f'<tr id="{esc(row_id)}">' if row_id else "<tr>")
                        + "".join(_html_cell(c) for c in row) + "</tr>" for row, row_id in zip(block.rows, ids))
-        cap = f"<caption>{esc(_text(block.caption))}</caption>" if block.caption else ""
+        cap = f"<caption>{inline(_text(block.caption))}</caption>" if block.caption else ""
         css = f' class="{esc(block.css)}"' if block.css else ""
         return (f'<div class="table-wrap"><table{css}>{cap}<thead><tr>{head}</tr></thead>'
                 f"<tbody>{body}</tbody></table></div>")
     if isinstance(block, Figure):
         data = base64.b64encode(Path(block.path).read_bytes()).decode("ascii")
         return (f'<figure><img alt="{esc(_text(block.caption))}" src="data:image/png;base64,{data}">'
-                f"<figcaption>{esc(_text(block.caption))}</figcaption></figure>")
+                f"<figcaption>{inline(_text(block.caption))}</figcaption></figure>")
     if isinstance(block, Code):
         return f"<pre>{esc(block.text)}</pre>"
     if isinstance(block, Details):
-        return (f"<details><summary>{esc(_text(block.summary))}</summary>"
-                f"<p>{esc(_text(block.text))}</p></details>")
+        return (f"<details><summary>{inline(_text(block.summary))}</summary>"
+                f"<p>{inline(_text(block.text))}</p></details>")
     raise TypeError(f"unknown block {type(block).__name__}")
 
 
@@ -174,14 +183,18 @@ td.chips{min-width:9rem}
 .chip{display:inline-block;width:1.05rem;height:1.05rem;margin:1px;border-radius:3px;border:1px solid #0002;
 font-size:.7rem;line-height:1rem;text-align:center;text-decoration:none;color:#7a4b00;vertical-align:middle}
 .chip.cautioned{border:1px solid #b7791f;box-shadow:inset 0 0 0 1px #fff7e6}
-table.summary td,table.summary th{padding:.3rem .4rem}table.summary th{font-size:.82rem}
-table.summary td:nth-child(2){min-width:11rem}table.summary td.paper{min-width:7rem;font-weight:600}
+table.summary{width:100%}
+table.summary td,table.summary th{padding:.25rem .3rem}table.summary th{font-size:.74rem;font-weight:600;
+overflow-wrap:anywhere;hyphens:auto}
+table.summary td:nth-child(2){min-width:8rem}table.summary td.paper{min-width:5rem;font-weight:600}
+table.summary td.chips{min-width:5.5rem}
 td.controls{font-size:.82rem}
 .totals{display:flex;flex-wrap:wrap;gap:.4rem;margin:.6rem 0}
 .badge{padding:.3rem .6rem;border-radius:6px;font-weight:600;border:1px solid #0001}
 .badge.caution-badge{background:#fff7e6;color:#7a4b00;border-color:#b7791f}
 ol.refs li{margin:.3rem 0}
 .legend{font-size:.88rem;color:var(--muted)}
+@media (max-width:1100px){.layout{grid-template-columns:11rem minmax(0,1fr)}main{padding:1rem 1rem 3rem}}
 @media (max-width:900px){.layout{display:block}nav.toc{height:auto;max-height:35vh;z-index:2;
 border-right:0;border-bottom:1px solid var(--line)}main{padding:1rem}}
 @media print{nav.toc{display:none}.layout{display:block}}
@@ -195,7 +208,7 @@ def to_html(sections: list[Section], title: str) -> str:
 
 
 def _fragment(section: Section) -> str:
-    return (f'<section id="{esc(section.slug)}"><h2>{esc(_text(section.title))}</h2>'
+    return (f'<section id="{esc(section.slug)}"><h2>{inline(_text(section.title))}</h2>'
             + "".join(_html_block(b) for b in section.blocks) + "</section>")
 
 
@@ -482,7 +495,7 @@ def _page(title: str, preamble: str, listed: dict, summaries: dict[str, SectionS
         toc += ['<li><a href="#summary">Summary of verdicts</a></li>',
                 '<li><a href="#what-was-run">What was run</a></li>']
     for slug, (page_title, _) in listed.items():
-        toc.append(f'<li><a href="#{esc(slug)}">{esc(_text(page_title))}{_toc_counts(summaries.get(slug))}</a></li>')
+        toc.append(f'<li><a href="#{esc(slug)}">{inline(_text(page_title))}{_toc_counts(summaries.get(slug))}</a></li>')
     parts += [fragment for _, fragment in listed.values()]
     if summaries or provenance is not None:
         parts.append('<section id="references"><h2>References</h2><ol class="refs">'
