@@ -247,15 +247,30 @@ def _summarise_warnings(command: str, caught: list) -> None:
               f"{first.category.__name__}: {one_line(first.message)}", file=sys.stderr)
 
 
+def _ignore_further_interrupts() -> None:
+    """After the first Ctrl-C or SIGTERM the command is ending (workers stopped, saved runs kept):
+    a second one would only interrupt that clean-up with a traceback, so it is ignored."""
+    with contextlib.suppress(ValueError):  # not the main thread
+        signal.signal(signal.SIGINT, signal.SIG_IGN)
+        signal.signal(signal.SIGTERM, signal.SIG_IGN)
+
+
 def main(argv: list[str] | None = None) -> int:
-    """Run one command (see the module docstring); stderr is :class:`_Diagnostics` meanwhile."""
+    """Run one command (see the module docstring); stderr is :class:`_Diagnostics` meanwhile.
+    Called as the program (``argv`` None), the signal handlers it sets stay until the process
+    ends; called from Python with ``argv``, they are restored on return."""
     saved = sys.stderr
+    handlers = {s: signal.getsignal(s) for s in (signal.SIGINT, signal.SIGTERM)}
     _occupy_closed_standard_fds()
     sys.stderr = _Diagnostics(saved if saved is not None else open(os.devnull, "w"))
     try:
         return _main(argv)
     finally:
         sys.stderr = saved
+        if argv is not None:
+            with contextlib.suppress(ValueError, TypeError):
+                for number, handler in handlers.items():
+                    signal.signal(number, handler)
 
 
 def _main(argv: list[str] | None) -> int:
@@ -280,6 +295,7 @@ def _main(argv: list[str] | None) -> int:
                 code = int(module.run(args) or 0)
             sys.stdout.flush()  # a closed pipe shows here, inside the boundary
         except KeyboardInterrupt:
+            _ignore_further_interrupts()
             print(f"gpfverify {command}: interrupted", file=sys.stderr)
             return 130
         except SystemExit:  # argparse: usage error (one line) or --help

@@ -372,3 +372,70 @@ def test_print_in_the_system_file_goes_to_stderr(tmp_path, workers):
     results = json.loads(proc.stdout)  # stdout is the results and nothing else
     assert results["experiment"] == "check"
     assert "loading my system" in proc.stderr and "measuring" in proc.stderr
+
+
+# ---- signals: a second Ctrl-C, a killed worker ---------------------------------------------------
+
+SLOW_SYSTEM = '''
+import time
+import numpy as np
+from gpfverify.models import Sensor, StateSpaceModel
+def h(x):
+    time.sleep(0.05)
+    return x[:, :1]
+system = StateSpaceModel(transition=np.eye(2), process_cov=0.1 * np.eye(2),
+                         sensors=[Sensor(np.eye(2), np.eye(2)), Sensor(h, [[1.0]])],
+                         prior_mean=[0.0, 0.0], prior_cov=np.eye(2))
+'''
+
+
+def _slow_check(tmp_path):
+    """A check with two workers whose runs take seconds, started in its own process; returns once a
+    worker is running."""
+    (tmp_path / "slow.py").write_text(SLOW_SYSTEM)
+    proc = subprocess.Popen([sys.executable, "-m", "gpfverify", "check", "slow.py:system", "--steps", "400",
+                             "--runs", "4", "--workers", "2", "--methods", "cmf,dmf", "--out", "out"],
+                            cwd=tmp_path, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    import time
+
+    deadline = time.monotonic() + 60
+    while time.monotonic() < deadline and len(_workers(proc.pid)) < 2:
+        time.sleep(0.1)
+    time.sleep(1.0)  # the workers are inside their first runs
+    return proc
+
+
+def _workers(pid: int) -> list[int]:
+    try:
+        children = Path(f"/proc/{pid}/task/{pid}/children").read_text().split()
+    except OSError:
+        return []
+    return [int(c) for c in children if "spawn_main" in Path(f"/proc/{c}/cmdline").read_text(errors="replace")]
+
+
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="reads /proc")
+def test_a_second_ctrl_c_prints_no_traceback(tmp_path):
+    import signal
+    import time
+
+    proc = _slow_check(tmp_path)
+    proc.send_signal(signal.SIGINT)
+    time.sleep(0.05)
+    proc.send_signal(signal.SIGINT)
+    _, err = proc.communicate(timeout=60)
+    assert proc.returncode == 130, err
+    assert "Traceback" not in err and err.strip().splitlines()[-1] == "gpfverify check: interrupted", err
+
+
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="reads /proc")
+def test_a_killed_worker_is_one_line_and_no_leaked_semaphore_warning(tmp_path):
+    import signal
+
+    proc = _slow_check(tmp_path)
+    os.kill(_workers(proc.pid)[0], signal.SIGKILL)
+    out, err = proc.communicate(timeout=60)
+    assert proc.returncode == 2 and out == "", err
+    assert err.strip().splitlines() == ["gpfverify check: error: a worker process ended abruptly (killed by a "
+                                        "signal or out of memory); nothing was written to --out: run the command "
+                                        "again"], err
+    assert sorted(os.listdir(tmp_path)) == ["slow.py"]

@@ -33,7 +33,7 @@ import threading
 import time
 import traceback
 import warnings
-from concurrent.futures import FIRST_COMPLETED, Executor, Future, ProcessPoolExecutor, wait
+from concurrent.futures import FIRST_COMPLETED, BrokenExecutor, Executor, Future, ProcessPoolExecutor, wait
 from collections.abc import Callable
 from pathlib import Path
 from types import ModuleType
@@ -43,7 +43,7 @@ import numpy as np
 from gpfverify import provenance
 from gpfverify.contract.params import Params
 from gpfverify.contract.serial import from_json, to_json
-from gpfverify.errors import InputError
+from gpfverify.errors import GpfverifyError, InputError
 from gpfverify.runtime import BLAS_THREAD_VARS
 from gpfverify.usercode import HARD_EXIT, UserExit, guarded, system_file
 
@@ -320,7 +320,11 @@ def run_experiment(module: ModuleType | str, params: Params, runs: int, seed: in
                     break
                 done, in_flight = wait(in_flight, return_when=FIRST_COMPLETED)
                 for future in done:
-                    record = future.result()
+                    try:
+                        record = future.result()
+                    except BrokenExecutor:
+                        raise GpfverifyError("a worker process ended abruptly (killed by a signal or out of memory); "
+                                             "nothing was written to --out: run the command again") from None
                     _atomic_write_json(_run_path(out_dir, record["index"]), record)
                     n_done += 1
                     if on_run is not None:
