@@ -15,6 +15,7 @@ No test or routine should carry a bare numerical tolerance of its own.
 from __future__ import annotations
 
 import numpy as np
+from scipy import special
 
 EPS: float = float(np.finfo(float).eps)
 
@@ -57,6 +58,16 @@ def algebra_rtol(condition_number: float = 1.0) -> float:
 def monte_carlo_atol(sample_std, n_samples: int, sigmas: float = MONTE_CARLO_SIGMAS):
     """Absolute tolerance ``sigmas * std / sqrt(n)`` for a Monte Carlo mean, elementwise."""
     return sigmas * np.asarray(sample_std, dtype=float) / np.sqrt(n_samples)
+
+
+def bounded_mean_atol(width: float, n_samples: int, sigmas: float = MONTE_CARLO_SIGMAS) -> float:
+    """Absolute tolerance for the mean of ``n_samples`` independent draws of a variable confined to
+    an interval of length ``width``, at the false-alarm probability of ``sigmas`` normal standard
+    errors, p = erfc(sigmas / √2), by Hoeffding's inequality
+    P(|mean − E| ≥ t) ≤ 2 exp(−2 n t² / width²):  t = width · sqrt(log(2 / p) / (2 n)).
+    Needs no estimate of the variance (which a sample may put at 0 when it is merely small)."""
+    p = float(special.erfc(sigmas / np.sqrt(2.0)))
+    return float(width) * float(np.sqrt(np.log(2.0 / p) / (2.0 * n_samples)))
 
 
 def learned_model_rtol(n_train: int, sigmas: float = MONTE_CARLO_SIGMAS) -> float:

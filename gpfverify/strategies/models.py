@@ -156,3 +156,57 @@ def gp_stacks(draw, regime=st.sampled_from(STACK_REGIMES), count=st.integers(1, 
     else:
         sigma = draw(psd_matrices(d, 1e-4, 1.0, allow_singular=True))
     return GPStackCase(tuple(gps), mu, sigma, kind)
+
+
+@dataclass(frozen=True)
+class AngleModel:
+    """A linear-Gaussian model whose state component 0 and measurement output 0 are angles:
+    x_k = F x_{k−1} + w with F e_0 = e_0 (a turn of 2π in the angle moves nothing else), and
+    y_k = H x_k + φ e_0 + v with H e_0 = e_0, the angle output wrapped to (−π, π] (``offset`` φ moves
+    it across the cut). Beliefs are a batch: ``means`` (B, D), ``covs`` (B, D, D), ``ys`` (B, L)."""
+
+    F: np.ndarray
+    H: np.ndarray
+    Q: np.ndarray
+    R: np.ndarray
+    offset: float
+    means: np.ndarray
+    covs: np.ndarray
+    ys: np.ndarray
+
+
+@st.composite
+def angle_models(draw, state_dim=st.integers(1, 3), measurement_dim=st.integers(1, 3),
+                 batch=st.integers(1, 3), max_std: float = 0.05) -> AngleModel:
+    """:class:`AngleModel` with a batch of beliefs whose predicted angle output sits within
+    ``max_std``-scaled sigma-point spreads of ±π (the sigma points straddle the cut) and whose angle
+    state sits within 0.2 of ±π; every covariance has standard deviations ≤ ``max_std`` (so sigma
+    points of any valid (α, κ) with α²(D + κ) ≤ 4(D + 10) stay within π/2 of their mean)."""
+    d, l, b = draw(as_strategy(state_dim)), draw(as_strategy(measurement_dim)), draw(as_strategy(batch))
+    F = draw(float_arrays((d, d), -1.0, 1.0))
+    F[:, 0] = 0.0
+    F[0, 0] = 1.0
+    H = draw(float_arrays((l, d), -1.0, 1.0))
+    H[:, 0] = 0.0
+    H[0, 0] = 1.0
+    small = log_uniform(1e-5 * max_std**2, max_std**2 / 10.0)
+    Q = draw(spd_matrices(d, 10.0, small))
+    R = draw(spd_matrices(l, 10.0, small))
+    covs = np.stack([draw(spd_matrices(d, 10.0, small)) for _ in range(b)])
+    means = draw(float_arrays((b, d), -0.5, 0.5))
+    means[:, 0] = np.pi + draw(float_arrays((b,), -0.2, 0.2))
+    offset = float(np.pi - (H @ F @ means[0])[0] + draw(unit_floats(-0.1, 0.1)))
+    noise = draw(float_arrays((b, l), -2.0 * max_std, 2.0 * max_std))
+    ys = (means @ F.T) @ H.T + noise
+    ys[:, 0] = np.pi - np.mod(np.pi - (ys[:, 0] + offset), 2.0 * np.pi)
+    return AngleModel(F, H, Q, R, offset, means, covs, ys)
+
+
+@st.composite
+def batched_beliefs(draw, dim: int, batch=st.integers(2, 4), max_variance: float = 1.0) -> Gaussian:
+    """A batch of B Gaussian beliefs: means (B, dim) in [−3, 3], covariances (B, dim, dim) SPD with
+    condition ≤ 100 and eigenvalues ≤ ``max_variance``."""
+    b = draw(as_strategy(batch))
+    covs = [draw(spd_matrices(dim, 100.0, log_uniform(max_variance / 1e4, max_variance / 100.0)))
+            for _ in range(b)]
+    return Gaussian(draw(float_arrays((b, dim), -INPUT_BOUND, INPUT_BOUND)), np.stack(covs))

@@ -1,0 +1,53 @@
+"""Systematic resampling as a randomised algorithm: over the generator's draws its counts are
+unbiased, E[count_i] = n w_i (Kitagawa 1996), and every draw gives ⌊n w_i⌋ or ⌈n w_i⌉.
+
+Each count lies in an interval of length 1 (checked on every draw), so the mean of R draws is
+within Hoeffding's :func:`~gpfverify.tolerances.bounded_mean_atol` of n w_i — no estimate of the
+variance, which a sample may put at 0 when the fractional part of n w_i is small. The fixed-offset
+variant (one u for every call) satisfies floor/ceil on every call but is biased; a variant with
+one uniform per particle is unbiased but leaves floor/ceil.
+"""
+
+import numpy as np
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from gpfverify.filters.resampling import reweight_and_resample, systematic_resample
+from gpfverify.strategies import scaled_examples
+from gpfverify.tolerances import EPS, bounded_mean_atol
+
+DRAWS = 2000
+
+
+@given(counts=st.lists(st.integers(0, 6), min_size=1, max_size=12).filter(lambda c: sum(c) > 0),
+       size=st.integers(1, 40), seed=st.integers(0, 2**32 - 1))
+def test_systematic_resampling_counts_are_unbiased_over_the_generators_draws(counts, size, seed):
+    weights = np.array(counts, dtype=float) / sum(counts)
+    with np.errstate(divide="ignore"):
+        log_w = np.log(weights)
+    rng = np.random.default_rng(seed)
+    drawn = np.stack([np.bincount(systematic_resample(log_w, rng, size), minlength=weights.size)
+                      for _ in range(DRAWS)])
+    expected = size * weights
+    slack = size * weights.size * EPS
+    assert np.all(drawn >= np.floor(expected - slack)) and np.all(drawn <= np.ceil(expected + slack))
+    bias = np.abs(drawn.mean(axis=0) - expected)
+    assert np.all(bias <= bounded_mean_atol(1.0, DRAWS) + slack), (bias, expected)
+
+
+@settings(max_examples=scaled_examples(0.2))
+@given(counts=st.lists(st.integers(1, 6), min_size=2, max_size=8), seed=st.integers(0, 2**32 - 1))
+def test_a_resampling_step_keeps_every_particle_in_expectation(counts, seed):
+    """reweight_and_resample at threshold 1 (resample every step): each particle's number of copies
+    has mean N w_i over the generator's draws, and the resampled set is equally weighted."""
+    weights = np.array(counts, dtype=float) / sum(counts)
+    particles = np.arange(weights.size, dtype=float)[:, None]
+    rng = np.random.default_rng(seed)
+    copies = []
+    for _ in range(DRAWS):
+        step = reweight_and_resample(particles, np.log(weights), rng, 1.0)
+        copies.append(np.bincount(step.posterior.particles[:, 0].astype(int), minlength=weights.size))
+    assert step.resampled
+    np.testing.assert_allclose(np.exp(step.posterior.log_weights), 1.0 / weights.size, rtol=4 * EPS)
+    bias = np.abs(np.mean(copies, axis=0) - weights.size * weights)
+    assert np.all(bias <= bounded_mean_atol(1.0, DRAWS) + weights.size**2 * EPS), bias
