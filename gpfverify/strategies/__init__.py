@@ -19,7 +19,9 @@ Local estimates (:mod:`~gpfverify.strategies.estimates`)
     an admissible (PSD) joint error covariance; ``estimates_across_the_cut(...)`` -> :class:`AngleEstimates`,
     the same with angle components straddling ±π.
 Models (:mod:`~gpfverify.strategies.models`)
-    ``gaussian_processes``, ``gaussian_inputs``, ``linear_gaussian_models``, ``sigma_params``.
+    ``gaussian_processes``, ``gaussian_inputs``, ``linear_gaussian_models``, ``sigma_params``,
+    ``angle_models`` (a linear-Gaussian model with an angle state and an angle output, a batch of
+    beliefs near ±π), ``batched_beliefs`` (B Gaussian beliefs stacked on a leading axis).
 Counterexamples (:mod:`~gpfverify.strategies.counterexamples`)
     ``saving_case_on_failure(case, name)`` writes a failing property's shrunk case as a case file.
 Profiles (:mod:`~gpfverify.strategies.profiles`)
@@ -33,8 +35,9 @@ from gpfverify.strategies.fusion import PRIORS, DrawnCase, fusion_case_files, fu
 from gpfverify.strategies.gaussians import KINDS, JointGaussian, SensorDesign, joint_gaussians
 from gpfverify.strategies.matrices import (matrices_with_singular_values, orthonormal_matrices,
                                            spd_matrices)
-from gpfverify.strategies.models import (GPStackCase, LinearGaussianModel, gaussian_inputs, gaussian_processes,
-                                         gp_stacks, linear_gaussian_models, psd_matrices, sigma_params)
+from gpfverify.strategies.models import (AngleModel, GPStackCase, LinearGaussianModel, angle_models,
+                                         batched_beliefs, gaussian_inputs, gaussian_processes, gp_stacks,
+                                         linear_gaussian_models, psd_matrices, sigma_params)
 from gpfverify.strategies.profiles import PROFILES, load_profile, register_profiles, scaled_examples
 
 __all__ = ["saving_case_on_failure", "write_case", "AngleEstimates", "CorrelatedEstimates",
@@ -43,4 +46,5 @@ __all__ = ["saving_case_on_failure", "write_case", "AngleEstimates", "Correlated
            "JointGaussian", "SensorDesign", "joint_gaussians", "matrices_with_singular_values",
            "orthonormal_matrices", "spd_matrices", "LinearGaussianModel", "gaussian_inputs",
            "gaussian_processes", "gp_stacks", "GPStackCase", "linear_gaussian_models", "psd_matrices", "sigma_params",
+           "AngleModel", "angle_models", "batched_beliefs",
            "PROFILES", "load_profile", "register_profiles", "scaled_examples"]

@@ -2,7 +2,9 @@
 exactly once) and names the property tests that are expected to notice.
 
 A mutant is *killed by a property* when a hypothesis test (``@given``) fails on the mutated copy;
-a failure of a plain test (a fixed example) is recorded but does not count.
+a failure of a plain test (a fixed example) is recorded but does not count. A mutant that no
+property kills carries a ``note`` saying why (an equivalent change, or what no property draws);
+the kill table prints it.
 """
 
 from __future__ import annotations
@@ -29,6 +31,7 @@ class Mutant:
     old: str
     new: str
     tests: tuple[str, ...]
+    note: str = ""
 
 
 MUTANTS: tuple[Mutant, ...] = (

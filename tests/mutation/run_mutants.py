@@ -13,8 +13,9 @@ fail on an unmutated copy are deselected. A mutant is
 * ``killed (example only)`` when only plain tests fail,
 * ``survived`` otherwise (``timeout``/``error`` are reported as such).
 
-Writes ``OUT/kill_table.json`` and ``OUT/kill_table.md``; exits 1 unless every mutant is killed
-by a property.
+Writes ``OUT/kill_table.json`` and ``OUT/kill_table.md`` (with each survivor's ``note`` from
+:mod:`tests.mutation.mutants`); ``--render`` rewrites the markdown from an existing JSON table
+without running anything. Exits 1 unless every mutant is killed by a property.
 """
 
 from __future__ import annotations
@@ -103,17 +104,33 @@ def baseline_failures(tests, timeout: float) -> list[str]:
 
 
 def run_one(mutant: Mutant, deselect, timeout: float) -> dict:
+    """One mutant's row; a snippet that no longer occurs exactly once is reported as
+    ``does not apply`` (never skipped silently)."""
+    row = {"mutant": mutant.name, "area": mutant.area, "file": mutant.path, "tests": list(mutant.tests)}
     with tempfile.TemporaryDirectory(prefix="gpfverify-mutant-") as tmp:
         copy = make_copy(Path(tmp))
-        apply(mutant, copy)
+        try:
+            apply(mutant, copy)
+        except ValueError as exc:
+            return {**row, "verdict": "does not apply", "killed_by": [], "seconds": 0.0, "error": str(exc)}
         result = run_tests(copy, mutant.tests, [d for d in deselect if d.split("::")[0] in mutant.tests], timeout)
-    return {"mutant": mutant.name, "area": mutant.area, "file": mutant.path, "tests": list(mutant.tests),
-            "verdict": verdict(result), "killed_by": [f["test"] for f in result["failed"]],
+    return {**row, "verdict": verdict(result), "killed_by": [f["test"] for f in result["failed"]],
             "seconds": result["seconds"]}
+
+
+def write_table(out: Path, rows: dict[str, dict], baseline: list[str]) -> list[dict]:
+    """Write OUT/kill_table.json and .md with the rows of the current mutants, in their order."""
+    ordered = [rows[m.name] for m in MUTANTS if m.name in rows]
+    out.mkdir(parents=True, exist_ok=True)
+    (out / "kill_table.json").write_text(json.dumps({"baseline_failures": baseline, "mutants": ordered},
+                                                    indent=2, ensure_ascii=False), encoding="utf-8")
+    (out / "kill_table.md").write_text(markdown(ordered, baseline), encoding="utf-8")
+    return ordered
 
 
 def markdown(rows: list[dict], baseline: list[str]) -> str:
     killed = sum(r["verdict"] == "killed (property)" for r in rows)
+    notes = {m.name: m.note for m in MUTANTS}
     out = ["# Mutation kill table", "",
            f"{killed} of {len(rows)} mutants killed by a property (hypothesis profile `mutation`: the `ci` "
            "profile's generated examples without explicit examples or shrinking, `-x`, on a copy "
@@ -123,6 +140,11 @@ def markdown(rows: list[dict], baseline: list[str]) -> str:
         first = r["killed_by"][0].split("::")[-1] if r["killed_by"] else "—"
         name = r["mutant"].replace("|", "\\|")
         out.append(f"| {name} | {r['area']} | {r['verdict']} | {first} | {r['seconds']} |")
+    survivors = [r for r in rows if r["verdict"] != "killed (property)"]
+    if survivors:
+        out += ["", "## Not killed by a property", ""]
+        out += [f"* **{r['mutant']}** ({r['verdict']}): {notes.get(r['mutant']) or 'not explained'}"
+                for r in survivors]
     if baseline:
         out += ["", "Deselected (failing on the unmutated copy already): " + ", ".join(f"`{b}`" for b in baseline)]
     return "\n".join(out) + "\n"
@@ -135,19 +157,35 @@ def main(argv=None) -> int:
     parser.add_argument("--timeout", type=float, default=900.0)
     parser.add_argument("--out", type=Path, default=ROOT / "reports" / "mutation")
     parser.add_argument("--no-baseline", action="store_true", help="do not run the unmutated copy first")
+    parser.add_argument("--render", action="store_true", help="rewrite OUT/kill_table.md from OUT/kill_table.json")
+    parser.add_argument("--merge", action="store_true",
+                        help="keep the other mutants' rows of OUT/kill_table.json, replace the chosen ones")
+    parser.add_argument("--missing", action="store_true", help="only the mutants OUT/kill_table.json lacks")
     args = parser.parse_args(argv)
+    if args.render:
+        table = json.loads((args.out / "kill_table.json").read_text(encoding="utf-8"))
+        (args.out / "kill_table.md").write_text(markdown(table["mutants"], table["baseline_failures"]),
+                                                encoding="utf-8")
+        return 0
     chosen = [m for m in MUTANTS if not args.only or any(o in m.name for o in args.only)]
+    if args.missing:
+        earlier = json.loads((args.out / "kill_table.json").read_text(encoding="utf-8"))
+        known = {r["mutant"] for r in earlier["mutants"]}
+        chosen = [m for m in chosen if m.name not in known]
     tests = sorted({t for m in chosen for t in m.tests})
     baseline = [] if args.no_baseline else baseline_failures(tests, args.timeout)
+    rows: dict[str, dict] = {}
+    table: list[dict] = []
+    if args.merge and (args.out / "kill_table.json").exists():
+        earlier = json.loads((args.out / "kill_table.json").read_text(encoding="utf-8"))
+        rows = {r["mutant"]: r for r in earlier["mutants"]}
+        baseline = sorted(set(baseline) | set(earlier["baseline_failures"]))
     with ThreadPoolExecutor(args.jobs) as pool:
-        rows = list(pool.map(lambda m: run_one(m, baseline, args.timeout), chosen))
-    for r in rows:
-        print(f"{r['verdict']:24s} {r['mutant']} ({r['seconds']} s)", flush=True)
-    args.out.mkdir(parents=True, exist_ok=True)
-    (args.out / "kill_table.json").write_text(json.dumps({"baseline_failures": baseline, "mutants": rows},
-                                                         indent=2, ensure_ascii=False), encoding="utf-8")
-    (args.out / "kill_table.md").write_text(markdown(rows, baseline), encoding="utf-8")
-    return 0 if all(r["verdict"] == "killed (property)" for r in rows) else 1
+        for r in pool.map(lambda m: run_one(m, baseline, args.timeout), chosen):
+            print(f"{r['verdict']:24s} {r['mutant']} ({r['seconds']} s)", flush=True)
+            rows[r["mutant"]] = r
+            table = write_table(args.out, rows, baseline)  # after every mutant: an interrupted run keeps its rows
+    return 0 if all(r["verdict"] == "killed (property)" for r in table) else 1
 
 
 if __name__ == "__main__":
