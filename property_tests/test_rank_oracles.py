@@ -6,7 +6,8 @@ residual the code reports.
   covariances with known singular values (a scaled, signed permutation of a diagonal: its singular
   values are the diagonal to a few ulps), some placed between σ_max·min(D, l)·eps and
   σ_max·max(D, l)·eps; the canonical rule (ρ_i > τ) against canonical correlations computed here
-  from eigendecomposition square roots, ρ = σ(C_p^{-1/2} C_xy C_y^{-1/2}). Values within a
+  from eigendecomposition square roots, ρ = σ(C_p^{-1/2} C_xy C_y^{-1/2}), with C_p^m recovered
+  from the report as C_e^m + C_xy^m (C_y^m)⁻¹ C_xy^mᵀ; the reported correlations are these ρ. Values within a
   relative band of the threshold that the two routes' rounding could cross are not decided.
 * Exactness: the gap map of eq. 35 against CMF, T_m = G_m C_y^m (A_m C_xy^m − I), is formed here
   with numpy's pinv at the rank the test decides, and measured in prior standard deviations per
@@ -91,6 +92,9 @@ def test_canonical_rank_rule_decides_as_the_correlations_computed_here(drawn, ta
         band = algebra_rtol(cond) / tau
         if _decided(rho, tau, band):
             assert split.rank.rank == int(np.sum(rho > tau)), (rho, tau, split.rank.rank)
+        if split.covariance == "local C_p from C_e" or local.C_e is None:
+            np.testing.assert_allclose(split.correlations, rho[: split.correlations.size], rtol=0,
+                                       atol=algebra_rtol(cond))
 
 
 RULES = st.sampled_from(("numpy", "absolute", "canonical"))
