@@ -64,3 +64,22 @@ def test_the_shell_blocks_run_as_typed(path, user_folder):
         ran += 1
     if not ran:
         pytest.skip(f"{path.name}: no shell block to run" + (f" ({'; '.join(skipped)})" if skipped else ""))
+
+
+def _python_blocks(path: Path) -> list[tuple[str, str | None]]:
+    return [(m["body"], m["reason"]) for m in FENCE.finditer(path.read_text(encoding="utf-8"))
+            if m["lang"] == "python"]
+
+
+@pytest.mark.parametrize("path", [p for p in DOCS if p.name != "README.md"], ids=lambda p: p.name)
+def test_the_python_blocks_of_the_docs_run_as_written(path):
+    """Each Python block of docs/*.md runs on its own (a user pastes it into a fresh session);
+    README.md's blocks run in tests/test_readme_examples.py, with what they compute checked."""
+    ran = 0
+    for body, reason in _python_blocks(path):
+        if reason:
+            continue
+        exec(compile(body, str(path), "exec"), {})
+        ran += 1
+    if not ran:
+        pytest.skip(f"{path.name}: no Python block to run")

@@ -293,8 +293,10 @@ def _rule_sentence(d: CheckData) -> str:
             and tols.min() != tols.max() else f"tolerance {_g(tols.max())}" if tols.size and not stated else "")
     return (f"Every rank verdict was decided by the {rule}" + (f"; {span}" if span else "") +
             ". A sensor is exact when the directions its rank decision drops carry no gain "
-            "(‖G_m C_y^m N_m‖₂ at rounding level), a step when every sensor is; the rounding bound of the gap is "
-            "that of the step's CMF/DMF arithmetic.")
+            "(‖G_m C_y^m N_m‖₂ at rounding level), a step when every sensor is. The rounding bound is the "
+            "first-order bound on the DMF − CMF gap, in prior standard deviations, that rounding in the "
+            "step's own CMF and DMF arithmetic can produce when DMF is exact; a gap within it counts as DMF "
+            "reproducing CMF (derivation: docs/fusion-definitions.md, 'Rounding bound and \"reproduced\"').")
 
 
 # -- tables ----------------------------------------------------------------------------------------
