@@ -384,3 +384,28 @@ def test_fuzz_check_sizes_beyond_memory_are_refused_before_anything_is_written(t
     out = tmp_path / "never"
     assert_user_error(["check", CHECK_SYSTEM, "--steps", steps, "--runs", runs, "--out", out], capsys, tmp_path)
     assert not out.exists()
+
+
+@settings(max_examples=scaled_examples(0.3), suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(foreign=st.lists(st.sampled_from(["notes.txt", "figures", "figures/x.png", "runs", "runs/mine.json",
+                                         ".gpfverify-files-not", "README.md"]), min_size=1, max_size=3, unique=True),
+       listed=st.booleans())
+def test_fuzz_output_folders_holding_what_gpfverify_did_not_write(tmp_path, capsys, foreign, listed):
+    """An --out folder with entries of the user's (files or folders; the list of gpfverify's files
+    present or not, naming none of them) is refused and left as it was."""
+    import shutil
+
+    out = tmp_path / "out"
+    shutil.rmtree(out, ignore_errors=True)
+    out.mkdir()
+    for entry in sorted(foreign):
+        path = out / entry
+        if "." in entry.rsplit("/", 1)[-1]:
+            path.parent.mkdir(parents=True, exist_ok=True)
+            path.write_text("the user's")
+        else:
+            path.mkdir(exist_ok=True)
+    if listed:
+        (out / ".gpfverify-files").write_text(".gpfverify-files\n")
+    case = _write(tmp_path, "run.jsonl", json.dumps(CASE) + "\n")
+    assert_user_error(["audit", case, "--out", out], capsys, tmp_path)
