@@ -11,7 +11,7 @@ import pytest
 
 from gpfverify.commands.report import render_reproduced
 from gpfverify.report.document import Paragraph, Section
-from gpfverify.report.render import _STYLE, to_html
+from gpfverify.report.render import _STYLE, inline, to_html
 
 HERE = Path(__file__).parent
 WINDOW = 1024  # px
@@ -86,3 +86,16 @@ def test_markdown_code_spans_render_as_html_code():
     assert "&lt;b&gt;raw&lt;/b&gt;" in html  # text stays escaped
     body = html.split("<body>", 1)[-1]
     assert "`" not in re.sub(r"<style>.*?</style>", "", body, flags=re.S)
+
+
+def test_chinese_names_are_marked_for_cjk_fonts_beside_their_transliteration(page):
+    from gpfverify.contract.papers import PAPERS
+
+    html = page.read_text(encoding="utf-8")
+    meng = PAPERS["seed001"]
+    assert "孟阳" in meng.citation and "Meng Yang" in meng.citation
+    assert 'Meng Yang (<span lang="zh" class="cjk">孟阳</span>)' in html  # readable without a CJK font
+    assert re.search(r"\.cjk\{font-family:\"Noto Sans CJK SC\"", html)
+    outside = re.sub(r'<span lang="zh" class="cjk">[^<]*</span>', "", html.split("<body>", 1)[-1])
+    assert not re.search(r"[\u4e00-\u9fff]", re.sub(r"<style>.*?</style>", "", outside, flags=re.S))
+    assert inline("“quoted”") == "“quoted”"  # English quotation marks stay as they are

@@ -28,12 +28,19 @@ from gpfverify.report.inputs import STATUSES, RunInfo, SectionSummary, counts_li
 esc = html.escape
 _CODE_SPAN = re.compile(r"`([^`\n]+)`")
 _BOLD_SPAN = re.compile(r"\*\*([^*\n]+)\*\*")
+#: runs of CJK characters (with the punctuation between them)
+_CJK_RUN = re.compile(r"[\u3000-\u303f\u3400-\u4dbf\u4e00-\u9fff\uf900-\ufaff\uff00-\uffef“”]+")
+_CJK_IDEOGRAPH = re.compile(r"[\u3400-\u4dbf\u4e00-\u9fff\uf900-\ufaff]")
 
 
 def inline(text: str) -> str:
     """Markdown text as HTML: escaped, with its `code` and **bold** spans rendered (the Markdown
-    pages and the HTML page show the same text, neither with raw backticks)."""
-    return _BOLD_SPAN.sub(r"<b>\1</b>", _CODE_SPAN.sub(r"<code>\1</code>", esc(text)))
+    pages and the HTML page show the same text, neither with raw backticks), and runs of Chinese
+    characters marked ``lang="zh"`` with CJK fonts named first; the papers' citations give the
+    transliteration beside them, readable where no CJK font is installed."""
+    html_text = _BOLD_SPAN.sub(r"<b>\1</b>", _CODE_SPAN.sub(r"<code>\1</code>", esc(text)))
+    return _CJK_RUN.sub(lambda m: f'<span lang="zh" class="cjk">{m.group(0)}</span>'
+                        if _CJK_IDEOGRAPH.search(m.group(0)) else m.group(0), html_text)
 
 
 # ---- cells ---------------------------------------------------------------------------------------
@@ -193,6 +200,8 @@ td.controls{font-size:.82rem}
 .badge{padding:.3rem .6rem;border-radius:6px;font-weight:600;border:1px solid #0001}
 .badge.caution-badge{background:#fff7e6;color:#7a4b00;border-color:#b7791f}
 ol.refs li{margin:.3rem 0}
+.cjk{font-family:"Noto Sans CJK SC","Source Han Sans SC","PingFang SC","Microsoft YaHei","WenQuanYi Micro Hei",
+sans-serif}
 .legend{font-size:.88rem;color:var(--muted)}
 @media (max-width:1100px){.layout{grid-template-columns:11rem minmax(0,1fr)}main{padding:1rem 1rem 3rem}}
 @media (max-width:900px){.layout{display:block}nav.toc{height:auto;max-height:35vh;z-index:2;
@@ -499,7 +508,7 @@ def _page(title: str, preamble: str, listed: dict, summaries: dict[str, SectionS
     parts += [fragment for _, fragment in listed.values()]
     if summaries or provenance is not None:
         parts.append('<section id="references"><h2>References</h2><ol class="refs">'
-                     + "".join(f'<li id="ref-{esc(p.key)}"><b>{esc(p.short)}</b>: {esc(p.citation)}</li>'
+                     + "".join(f'<li id="ref-{esc(p.key)}"><b>{esc(p.short)}</b>: {inline(p.citation)}</li>'
                                for p in PAPERS.values()) + "</ol></section>")
         toc.append('<li><a href="#references">References</a></li>')
     if provenance is not None:
