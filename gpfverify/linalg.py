@@ -156,6 +156,18 @@ def cholesky_symmetric(sym: np.ndarray, name: str) -> np.ndarray:
     raise NumericalError(f"{name} is not positive definite{where} (min eigenvalue {lowest[first]:.3g})")
 
 
+def sampling_factor(cov: np.ndarray) -> np.ndarray:
+    """A factor L with L Lᵀ = cov (to rounding) of a positive semidefinite covariance, for drawing
+    x = L z, z ~ N(0, I): numpy's lower Cholesky factor when cov is positive definite (the draws of
+    ``rng.multivariate_normal(..., method="cholesky")``), else V diag(√max(λ, 0)) from cov = V Λ Vᵀ
+    (a singular covariance, e.g. noise that drives some states only, has no Cholesky factor)."""
+    try:
+        return np.linalg.cholesky(cov)
+    except np.linalg.LinAlgError:
+        lam, vec = np.linalg.eigh(symmetrize(cov))
+        return vec * np.sqrt(np.clip(lam, 0.0, None))
+
+
 def solve_lower(factor: np.ndarray, b: np.ndarray) -> np.ndarray:
     """L⁻¹ b for lower-triangular factors L (..., n, n) and right-hand sides b (..., n, m) with the
     same batch axes, by LU with partial pivoting (LAPACK ``gesv``): numpy's dense solve for a

@@ -1,6 +1,8 @@
 """Load a user's system from ``SYSTEM.py:NAME`` (the ``gpfverify check`` argument).
 
-``SYSTEM.py`` is imported as a module of its own (not on ``sys.path``); ``NAME`` must be a
+``SYSTEM.py`` is imported as a module of its own, with its folder first on ``sys.path`` while it
+loads and while ``NAME()`` builds the model (so helper modules next to it import; ``sys.path`` is
+restored afterwards); ``NAME`` must be a
 :class:`~gpfverify.models.StateSpaceModel` or a function of no arguments returning one. Every
 failure — no such file, the file raising while it is imported, no such name, not a model, a model
 function that raises or returns the wrong shape when the model is built — is an
@@ -12,6 +14,7 @@ from __future__ import annotations
 import hashlib
 import importlib.util
 import sys
+from contextlib import contextmanager
 from pathlib import Path
 
 from gpfverify.errors import GpfverifyError, InputError
@@ -24,6 +27,17 @@ def split_spec(spec: str) -> tuple[Path, str]:
     if not sep or not path or not name.isidentifier():
         raise InputError(f"the system must be given as SYSTEM.py:NAME, got {spec!r}")
     return Path(path).expanduser().resolve(), name
+
+
+@contextmanager
+def _folder_on_path(folder: Path):
+    """``folder`` first on ``sys.path`` for the duration, ``sys.path`` as it was afterwards."""
+    saved = list(sys.path)
+    sys.path.insert(0, str(folder))
+    try:
+        yield
+    finally:
+        sys.path[:] = saved
 
 
 def load_system(spec: str) -> StateSpaceModel:
@@ -39,7 +53,8 @@ def load_system(spec: str) -> StateSpaceModel:
             raise InputError(f"{path} is not a Python file")
         module = importlib.util.module_from_spec(module_spec)
         try:
-            module_spec.loader.exec_module(module)
+            with _folder_on_path(path.parent):
+                module_spec.loader.exec_module(module)
         except GpfverifyError as exc:
             raise InputError(f"{path.name}: {exc}") from exc
         except Exception as exc:  # the user's code
@@ -50,7 +65,8 @@ def load_system(spec: str) -> StateSpaceModel:
     model = getattr(module, name)
     if callable(model) and not isinstance(model, StateSpaceModel):
         try:
-            model = model()
+            with _folder_on_path(path.parent):
+                model = model()
         except GpfverifyError as exc:
             raise InputError(f"{path.name}:{name}(): {exc}") from exc
         except Exception as exc:

@@ -10,8 +10,25 @@ from gpfverify.tolerances import EPS, PSD_RTOL, SYMMETRY_RTOL
 
 __all__ = ["PSD_RTOL", "SYMMETRY_RTOL"]  # re-exported: the thresholds of covariance_defects
 
+#: Array kinds (numpy dtype.kind) that are not real numbers, as named in messages.
+_NOT_REAL = {"b": "booleans", "c": "complex numbers", "U": "text", "S": "bytes", "V": "structured records",
+             "M": "dates", "m": "time spans"}
+
+
+def _kind(value) -> str:
+    """numpy's dtype kind of ``value`` as an array ("O" when it is not one, e.g. a ragged list)."""
+    try:
+        return np.asarray(value).dtype.kind
+    except (TypeError, ValueError):
+        return "O"
+
+
 def as_array(value, name: str, ndim: int | None = None, shape: tuple | None = None) -> np.ndarray:
-    """A finite float array; ``shape`` entries of ``None`` match any size."""
+    """A finite float array; ``shape`` entries of ``None`` match any size. Booleans, complex
+    numbers and text are refused, not converted."""
+    kind = _kind(value)
+    if kind in _NOT_REAL:
+        raise InputError(f"{name} must be numeric (real numbers), got {_NOT_REAL[kind]}")
     try:
         arr = np.asarray(value, dtype=float)
     except (TypeError, ValueError) as exc:

@@ -66,11 +66,20 @@ class ModelFunction:
 
     def __call__(self, x: np.ndarray, k: int = 1) -> np.ndarray:
         try:
-            out = np.asarray(self.evaluate(x, k), dtype=float)
+            raw = np.asarray(self.evaluate(x, k))
         except GpfverifyError:
             raise
         except Exception as exc:  # the user's code: report which part failed, keep the cause
-            raise InputError(f"{self.name} raised {type(exc).__name__}: {exc}") from exc
+            hint = (" (functions take a batch of states as rows, x of shape (N, D): index columns, x[:, i], "
+                    "not x[i])" if isinstance(exc, IndexError) else "")
+            raise InputError(f"{self.name} raised {type(exc).__name__}: {exc}{hint}") from exc
+        if raw.dtype.kind not in "iufO":
+            what = {"c": "complex numbers", "b": "booleans"}.get(raw.dtype.kind, f"values of type {raw.dtype}")
+            raise InputError(f"{self.name} returned {what}; it must return real numbers")
+        try:
+            out = raw.astype(float, copy=False)
+        except (TypeError, ValueError):  # objects that are not real numbers (complex, text)
+            raise InputError(f"{self.name} returned values that are not real numbers") from None
         n = x.shape[0]
         if out.shape != (n, self.out_dim):
             if self.out_dim == 1 and out.shape == (n,):

@@ -38,6 +38,7 @@ import scipy.linalg as sla
 
 from gpfverify.angles import difference
 from gpfverify.errors import InputError
+from gpfverify.linalg import sampling_factor
 from gpfverify.models.functions import LinearFunction, ModelFunction, NumpyFunction
 from gpfverify.tolerances import algebra_rtol
 from gpfverify.validate import as_covariance, as_indices, as_vector
@@ -311,23 +312,27 @@ class StateSpaceModel(StackedMeasurement):
         """Draws x_k ~ p(x_k | x_{k−1}) for states x_prev (N, D)."""
         if self.transition_sampler is not None:
             return np.asarray(self.transition_sampler(x_prev, k, rng), dtype=float)
-        # the draws of rng.multivariate_normal(0, Q, N, method="cholesky"), bit for bit, without
-        # factorising Q at every call
+        # for a positive definite Q, the draws of rng.multivariate_normal(0, Q, N, method="cholesky"),
+        # bit for bit, without factorising Q at every call
         noise = rng.standard_normal((x_prev.shape[0], self.state_dim)) @ self._process_factor.T
         return self.f(x_prev, k) + noise
 
     @cached_property
     def _process_factor(self) -> np.ndarray:
-        """The lower Cholesky factor of Q (numpy's, as rng.multivariate_normal uses)."""
-        return np.linalg.cholesky(self.Q)
+        """A factor of Q (:func:`~gpfverify.linalg.sampling_factor`: numpy's lower Cholesky factor,
+        as rng.multivariate_normal uses, or an eigen-factor for a singular Q)."""
+        return sampling_factor(self.Q)
 
     def simulate(self, steps: int, rng: np.random.Generator, x0=None) -> tuple[np.ndarray, np.ndarray]:
         """States x_1..x_T (T, D) and stacked measurements y_1..y_T (T, L), from x_0 = ``x0`` or a
         draw from the prior. Angle components are wrapped to (−π, π]."""
         if steps < 1:
             raise InputError(f"steps must be at least 1, got {steps}")
-        x = (rng.multivariate_normal(self.prior_mean, self.prior_cov, method="cholesky") if x0 is None
-             else as_vector(x0, "x0", self.state_dim))[None, :]
+        if x0 is None:  # numpy's multivariate_normal(prior_mean, prior_cov, method="cholesky"), step by step
+            x = np.dot(rng.standard_normal(self.state_dim).reshape(1, -1), sampling_factor(self.prior_cov).T)
+            x += self.prior_mean
+        else:
+            x = as_vector(x0, "x0", self.state_dim)[None, :]
         noise = rng.multivariate_normal(np.zeros(self.measurement_dim), self.R, size=steps, method="cholesky")
         states, measurements = np.empty((steps, self.state_dim)), np.empty((steps, self.measurement_dim))
         for k in range(1, steps + 1):
