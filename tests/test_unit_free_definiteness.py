@@ -2,7 +2,8 @@
 millimetres, a measurement in micro-units, a whole case in units 1e25 times larger) never changes
 whether a matrix is accepted, and fusion results follow the rescaling. Genuinely indefinite
 matrices, and a centre whose joint covariance of (x, y) is impossible, are still refused, naming
-the matrix; a fused covariance that is not positive semidefinite is never printed."""
+the matrix; a fused covariance that is not positive semidefinite is never printed; an RCC-CI size
+too small to be a normal float is refused."""
 
 import json
 
@@ -145,3 +146,12 @@ def test_a_computed_covariance_that_is_not_psd_is_never_shown():
         computed_covariance((q * [3.0, 1.0, -4321.0]) @ q.T, "the dmf fused covariance")
     with pytest.raises(NumericalError, match="NaN"):
         computed_covariance([[np.nan]], "C")
+
+
+def test_a_subnormal_rcc_size_is_refused_in_one_line(tmp_path, capsys):
+    """c = 1e-320 has lost its precision (subnormal); it used to reach the solver as inf."""
+    path = tmp_path / "case.json"
+    path.write_text(json.dumps(case_to_dict(random_case(np.random.default_rng(0), 2, (1, 2)))))
+    assert main(["fuse", str(path), "--method", "rcc-ci", "--c", "1e-320"]) == 2
+    out, err = capsys.readouterr()
+    assert out == "" and err.count("\n") == 1 and "c must be at least 2.23e-308" in err

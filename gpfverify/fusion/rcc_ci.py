@@ -107,6 +107,16 @@ class _Normalised:
     d: np.ndarray  # (N,)
 
 
+def _checked_size(c) -> float:
+    """The ellipsoid size ``c``: a positive normal float (a subnormal c has lost its precision and
+    its square root's reciprocal overflows the normalised problem); InputError otherwise."""
+    c = float(as_positive(c, "c", shape=()))
+    if c < np.finfo(float).tiny:
+        raise InputError(f"c must be at least {np.finfo(float).tiny:.3g} (a normal floating-point number), "
+                         f"got {c:.3g}")
+    return c
+
+
 def _normalise(estimates, info, c: float) -> _Normalised:
     centre = np.mean([e.mean for e in estimates], axis=0)
     scale = float(np.sqrt(c * max(np.linalg.eigvalsh(e.cov)[-1] for e in estimates)))
@@ -232,7 +242,7 @@ def rcc_ci(estimates: Sequence, c: float | None = None, on_empty: str = "error",
     if on_empty not in ("error", "enlarge"):
         raise InputError(f"on_empty must be 'error' or 'enlarge', got {on_empty!r}")
     dim = checked[0].mean.shape[0]
-    c = default_size(dim) if c is None else float(as_positive(c, "c", shape=()))
+    c = default_size(dim) if c is None else _checked_size(c)
     info = information_form(checked)
     enlarged = False
     while True:
@@ -277,7 +287,7 @@ def rcc_ci_dual(estimates: Sequence, c: float | None = None, solver: str = cp.CL
     """Solve the RCC dual SDP (module docstring) for the cross-check against :func:`rcc_ci`."""
     checked = checked_estimates(estimates, circular_state=circular_state)
     dim = checked[0].mean.shape[0]
-    c = default_size(dim) if c is None else float(as_positive(c, "c", shape=()))
+    c = default_size(dim) if c is None else _checked_size(c)
     info = information_form(checked)
     norm = _normalise(checked, info, c)
     solution = _solve_parametrised(_dual_problem, (len(checked), dim), [*norm.A, *norm.b, norm.d],
