@@ -71,3 +71,12 @@ def test_measurements_that_are_not_real_numbers_are_refused(tmp_path, y, what):
                              "--json"], capture_output=True, text=True)
     assert result.returncode == 2 and result.stdout == "" and result.stderr.count("\n") == 1
     assert f"must be numeric (real numbers), got {what}" in result.stderr
+
+
+def test_training_data_with_a_filter_that_learns_nothing_is_refused(tmp_path):
+    path = tmp_path / "training.npz"
+    np.savez(path, x=np.zeros((10, 4)), y=np.zeros((10, 4)))
+    result = subprocess.run([sys.executable, "-m", "gpfverify", "check", TRACKER, "--filter", "ukf", "--training",
+                             str(path), "--steps", "2", "--json"], capture_output=True, text=True)
+    assert result.returncode == 2 and result.stdout == "" and result.stderr.count("\n") == 1
+    assert "--filter ukf uses the system's own functions and would ignore it" in result.stderr

@@ -56,8 +56,12 @@ def params_for(system: str, filter: FilterName = "ukf", steps: int = 50, measure
     """The parameters of a check, validated, with the paths made absolute and the rank rule in its
     canonical spelling. ``rank_rule`` is a :func:`~gpfverify.fusion.exactness.parse_rank_rule`
     string: the unit-free canonical-correlation rule by default (``"canonical[:TAU]"``),
-    ``"absolute:TOL"`` or ``"numpy"``."""
+    ``"absolute:TOL"`` or ``"numpy"``. A ``training`` file with a filter that learns nothing is
+    refused rather than ignored."""
     path, name = split_spec(system)
+    if training is not None and filter not in GP_FAMILIES:
+        raise InputError(f"--training is learned from by the GP filters ({', '.join(GP_FAMILIES)}) only; "
+                         f"--filter {filter} uses the system's own functions and would ignore it")
     return Params(system=f"{path}:{name}", filter=filter, steps=steps,
                   measurements=None if measurements is None else str(Path(measurements).resolve()),
                   training=None if training is None else str(Path(training).resolve()),
