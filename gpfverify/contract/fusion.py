@@ -83,7 +83,10 @@ class FusionParams(Params):
                                above=0, maximum=0.9999)
 
     def check(self) -> None:
-        rule = parse_rank_rule(self.rank_rule)  # InputError naming the accepted forms
+        try:
+            rule = parse_rank_rule(self.rank_rule)
+        except InputError as exc:  # the accepted forms, named by the option that took the text
+            raise InputError(f"--rank-rule: {exc}") from None
         if rule.name != "numpy" and self.rank_tol is not None:
             raise InputError(f"--rank-tol is an absolute singular-value tolerance (the same as --rank-rule "
                              f"absolute:TOL); --rank-rule {self.rank_rule} takes none")

@@ -68,6 +68,16 @@ class SerialExecutor(Executor):
         return future
 
 
+def _check_address(address: str) -> None:
+    """ValueError unless ``address`` is a scheduler address dask.distributed can parse
+    (``[protocol://]host:port`` for TCP/TLS)."""
+    from distributed.comm.addressing import parse_address, parse_host_port
+
+    protocol, location = parse_address(address)
+    if protocol in ("tcp", "tls"):
+        parse_host_port(location)
+
+
 @contextlib.contextmanager
 def make_executor(workers: int = 1, scheduler: str | None = None):
     """Serial for one worker; a local process pool with BLAS pinned to one thread per worker;
@@ -78,6 +88,7 @@ def make_executor(workers: int = 1, scheduler: str | None = None):
         except ImportError:
             raise InputError("--scheduler needs dask.distributed: pip install 'gpfverify[cluster]'") from None
         try:
+            _check_address(scheduler)  # the syntax first: Client's own checks can race with its timeouts
             client = Client(scheduler)
         except (ValueError, TypeError, OSError, TimeoutError) as exc:  # a malformed or unreachable address
             raise InputError(f"--scheduler {scheduler}: cannot connect ({exc})") from None
