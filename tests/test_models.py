@@ -181,6 +181,12 @@ def test_bad_measurement_covariance(R, pattern):
     with pytest.raises(InputError, match=pattern.replace("sensor", "sensor 'gps'")):
         Sensor(lambda x: x, R, name="gps")
 
+    def range_bearing(x):
+        return x
+
+    with pytest.raises(InputError, match=pattern.replace("sensor", r"sensor \(measure range_bearing\)")):
+        Sensor(range_bearing, R)
+
 
 def test_prior_of_the_wrong_size():
     with pytest.raises(InputError, match="prior_mean"):

@@ -64,6 +64,15 @@ def as_model_function(obj, name: str, in_dim: int, out_dim: int, jacobian=None,
     return fn
 
 
+def _sensor_label(name: str, measure: object) -> str:
+    """How messages name a sensor: its ``name``, else its measurement function's own name (a
+    lambda has none worth showing)."""
+    if name:
+        return f"sensor {name!r}"
+    function_name = getattr(measure, "__name__", "")
+    return f"sensor (measure {function_name})" if function_name and function_name != "<lambda>" else "sensor"
+
+
 @dataclass(frozen=True, eq=False)
 class Sensor:
     """y^m = measure(x, k) + v, v ~ N(0, noise_cov): ``noise_cov`` (l, l) positive definite,
@@ -82,7 +91,7 @@ class Sensor:
                      jacobian: Callable | None = None, name: str = "") -> None: ...
 
     def __post_init__(self):
-        label = f"sensor {self.name!r}" if self.name else "sensor"
+        label = _sensor_label(self.name, self.measure)
         cov = as_covariance(_floats(self.noise_cov, f"{label} noise_cov", 2), f"{label} noise_cov",
                             definite=True)
         object.__setattr__(self, "noise_cov", cov)
