@@ -5,7 +5,7 @@ numpy's exp. Every row is a ratio against a reference measured side by side, int
 
     .venv/bin/python benchmarks/bench_scale.py [--quick] [--million] [--out benchmarks/results/scale.md]
 
-Rows (goals from the issue that asked for them):
+Rows (each with its goal):
 
 * ``audit RUN.jsonl``, 20 000 steps (D = 4, three 2-output sensors, ~91 MB): wall time of the
   command against Python's ``json`` parsing the same file line by line (goal ≤ 10 ×), and its

@@ -1,6 +1,6 @@
 """One error boundary (gpfverify.cli): every user error on every command path exits 2 with exactly
-one line on stderr, no traceback, no warning lines, and nothing written — the cases listed in
-issue #15, then hypothesis-generated malformed case files, run files and arguments. Cases at the
+one line on stderr, no traceback, no warning lines, and nothing written — hand-made cases first,
+then hypothesis-generated malformed case files, run files and arguments. Cases at the
 accepted range's bound are fused or refused, never overflowed into warnings."""
 
 import json
