@@ -59,7 +59,7 @@ from gpfverify.fusion.case import FusionCase, case_from_records
 from gpfverify.fusion.centralized import cmf_update
 from gpfverify.fusion.distributed import DMFResult, dmf_update, fused_mean
 from gpfverify.fusion.exactness import (COVARIANCE_CENTRAL, COVARIANCE_LOCAL, DEFAULT_RANK_RULE,  # noqa: F401
-                                        NUMPY_RANK_RULE, RankRule, branch_offsets, canonical_split,
+                                        NUMPY_RANK_RULE, RankRule, analyse_sensors, branch_offsets, canonical_split,
                                         equivalence_tolerance, gap_size,
                                         local_consistency_residual, parse_rank_rule, predicted_gap,
                                         resolve_rank_rule, sensor_gap, sensor_prior_covariance,
@@ -217,7 +217,9 @@ def _unit_free_variant(case: FusionCase, rule: RankRule, dmf: DMFResult) -> tupl
     sensor lost rank under the canonical rule (the variant needs it), else (None, None)."""
     if rule.name != "canonical" or dmf.condition_holds:
         return None, None
-    variant = dmf_update(case, rank_rule=rule, unit_free=True).mean
+    # the variant's splits under the same central gain and scale DMF already computed
+    sensors = analyse_sensors(case, dmf.gain, rank_rule=rule, unit_free=True, scale=dmf.scale)
+    variant = fused_mean(case, dmf.gain, sensors)
     return variant, gap_size(case, difference(dmf.mean, variant, case.circular_state), dmf.scale)
 
 
@@ -260,18 +262,19 @@ def audit_case(case: FusionCase, rank_tol: float | None = None, sensitivity: boo
             gap_contribution=contribution, sensitivity=jacobians[s.index],
             branch_offsets=offset, rank_rule=rule, canonical_correlations=rho,
             covariance=covariance))
-    unit_free = _unit_free_variant(case, rule, dmf)
+    unit_free_mean, unit_dependence = _unit_free_variant(case, rule, dmf)
     if case.y is None:
-        return CaseAudit(tuple(sensors), rule, dmf.condition_holds, dmf.exact, dmf.mean, None, None, None, None,
-                         None, None, None, *unit_free)
+        return CaseAudit(tuple(sensors), rule, dmf.condition_holds, dmf.exact, dmf.mean,
+                         unit_free_dmf_mean=unit_free_mean, unit_dependence=unit_dependence)
     cmf = cmf_update(case.central, case.y, dmf.gain)
     repaired = fused_mean(case, dmf.gain, dmf.sensors, messages)
     gap = difference(dmf.mean, cmf.mean, case.circular_state)
     predicted = predicted_gap(case, dmf.sensors, dmf.gain)
-    return CaseAudit(tuple(sensors), rule, dmf.condition_holds, dmf.exact, dmf.mean, cmf.mean, gap,
-                     predicted, repaired,
-                     gap_size(case, gap, dmf.scale), equivalence_tolerance(case, dmf.gain, dmf.sensors, dmf.scale),
-                     gap_size(case, difference(gap, predicted, case.circular_state), dmf.scale), *unit_free)
+    return CaseAudit(tuple(sensors), rule, dmf.condition_holds, dmf.exact, dmf.mean, cmf.mean, gap, predicted,
+                     repaired, gap_size=gap_size(case, gap, dmf.scale),
+                     gap_bound=equivalence_tolerance(case, dmf.gain, dmf.sensors, dmf.scale),
+                     prediction_error=gap_size(case, difference(gap, predicted, case.circular_state), dmf.scale),
+                     unit_free_dmf_mean=unit_free_mean, unit_dependence=unit_dependence)
 
 
 def rank_rule_to_dict(rule: RankRule, covariance: str | None = None, tol: float | None = None) -> dict:

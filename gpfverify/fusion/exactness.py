@@ -98,6 +98,7 @@ tolerance counts as zero and the generalised inverse in eq. 35 uses the same dec
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -390,11 +391,15 @@ class FusedScale:
         """L_p⁻¹ a."""
         return self.whitening.whiten_x(np.asarray(a, dtype=float))
 
+    @functools.cached_property
+    def _abs_inverse(self) -> np.ndarray:
+        """|L_p⁻¹| entrywise (formed once per step: every rounding magnitude goes through it)."""
+        return np.abs(self.whiten(np.eye(self.whitening.u.shape[0])))
+
     def componentwise(self, magnitudes: np.ndarray) -> float:
         """‖ |L_p⁻¹| m ‖₂ for entrywise magnitudes m ≥ 0 of a state vector: the largest whitened
         size of any vector whose entries are at most m (componentwise rounding errors)."""
-        inverse = np.abs(self.whiten(np.eye(magnitudes.shape[0])))
-        return float(sla.norm(inverse @ magnitudes))
+        return float(sla.norm(self._abs_inverse @ magnitudes))
 
 
 def fused_scale(central: CentralPrediction) -> FusedScale:
@@ -418,7 +423,10 @@ def _exactness_evidence(scale: FusedScale, gain_times_cov: np.ndarray, cov_y: np
     basis = split.kernel_basis
     if not basis.shape[1]:
         return 0.0, 0.0
-    d_y, l_y = equilibrated_cholesky(cov_y, "local C_y")
+    # the canonical split already factored C_y^m (the same equilibrated Cholesky)
+    whitening = split.whitening
+    d_y, l_y = ((whitening.scale_y, whitening.factor_y) if whitening is not None
+                else equilibrated_cholesky(cov_y, "local C_y"))
     dual = sla.solve_triangular(l_y, split.dual_basis / d_y[:, None], lower=True, check_finite=False)  # L_y⁻¹ Ñ_m
     lifted = l_y.T @ (d_y[:, None] * basis)                                                          # L_yᵀ N_m
     residual = _norm2(scale.whiten(gain_times_cov @ basis) @ dual.T)
