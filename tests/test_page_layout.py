@@ -1,7 +1,10 @@
 """The report page's summary table fits a 1024 px window: checked by the page's layout rules
 (its CSS), and measured in a headless browser when /usr/bin/chromium is installed. Markdown
-code spans render as HTML, never as raw backticks."""
+code spans render as HTML, never as raw backticks. Chinese text renders with the CJK font the
+page embeds: its subset covers every CJK character of gpfverify's sources (read with fontTools),
+and a browser loads it."""
 
+import base64
 import re
 import shutil
 import subprocess
@@ -10,6 +13,7 @@ from pathlib import Path
 import pytest
 
 from gpfverify.commands.report import render_reproduced
+from gpfverify.report import cjk_font
 from gpfverify.report.document import Paragraph, Section
 from gpfverify.report.render import _STYLE, inline, to_html
 
@@ -95,7 +99,46 @@ def test_chinese_names_are_marked_for_cjk_fonts_beside_their_transliteration(pag
     meng = PAPERS["seed001"]
     assert "孟阳" in meng.citation and "Meng Yang" in meng.citation
     assert 'Meng Yang (<span lang="zh" class="cjk">孟阳</span>)' in html  # readable without a CJK font
-    assert re.search(r"\.cjk\{font-family:\"Noto Sans CJK SC\"", html)
+    assert re.search(r"\.cjk\{font-family:\"gpfverify-cjk\",\"Noto Sans CJK SC\"", html)
     outside = re.sub(r'<span lang="zh" class="cjk">[^<]*</span>', "", html.split("<body>", 1)[-1])
     assert not re.search(r"[\u4e00-\u9fff]", re.sub(r"<style>.*?</style>", "", outside, flags=re.S))
     assert inline("“quoted”") == "“quoted”"  # English quotation marks stay as they are
+
+
+def test_the_embedded_cjk_font_covers_every_cjk_character_of_the_sources():
+    from fontTools.ttLib import TTFont
+
+    font = TTFont(cjk_font.FONT)
+    covered = {chr(code) for code in font.getBestCmap()}
+    used = cjk_font.characters_used()
+    assert "孟" in used and "檢" in used  # the scan finds the citations' and the quotations' characters
+    missing = "".join(sorted(used - covered))
+    assert not missing, (f"rebuild the subset (see gpfverify/report/cjk_font.py): {missing}")
+    assert font["name"].getDebugName(1) == cjk_font.FAMILY  # renamed, as the font's licence asks
+    assert "Open Font License" in (cjk_font.FONT.parent / "OFL.txt").read_text(encoding="utf-8")
+
+
+def test_a_page_embeds_the_cjk_font_only_when_it_shows_cjk_text():
+    with_cjk = to_html([Section("s", "S", [Paragraph("Meng Yang (孟阳)")])], "t")
+    without = to_html([Section("s", "S", [Paragraph("Meng Yang")])], "t")
+    face = '@font-face{font-family:"gpfverify-cjk"'
+    assert face in with_cjk and face not in without
+    data = re.search(r"data:font/woff;base64,([A-Za-z0-9+/=]+)", with_cjk).group(1)
+    assert base64.b64decode(data) == cjk_font.FONT.read_bytes()
+
+
+@pytest.mark.skipif(not CHROMIUM.exists(), reason="no headless browser at /usr/bin/chromium")
+def test_a_browser_loads_the_embedded_cjk_font_for_the_pages_chinese_text(page, tmp_path):
+    """The page's face named gpfverify-cjk loads in the browser and every Chinese character on the
+    page is among those the browser was asked to draw with it (no system CJK font needed)."""
+    measured = tmp_path / "fonts.html"
+    probe = ("<script>const text=[...document.querySelectorAll('.cjk')].map(e=>e.textContent).join('');"
+             "document.fonts.load('16px \"gpfverify-cjk\"',text).then(faces=>{document.title="
+             "'faces='+faces.filter(f=>f.family.replace(/\"/g,'')==='gpfverify-cjk'&&f.status==='loaded').length"
+             "+' chars='+text.length;});</script>")
+    measured.write_text(page.read_text(encoding="utf-8").replace("</body>", probe + "</body>"), encoding="utf-8")
+    proc = subprocess.run([str(CHROMIUM), "--headless", "--no-sandbox", "--disable-gpu", "--virtual-time-budget=5000",
+                           "--dump-dom", measured.as_uri()], capture_output=True, text=True, timeout=120)
+    found = re.search(r"<title>faces=(\d+) chars=(\d+)</title>", proc.stdout)
+    assert found, proc.stderr[-2000:]
+    assert int(found.group(2)) > 0 and int(found.group(1)) == 1

@@ -20,6 +20,7 @@ from pathlib import Path
 from gpfverify.contract.claims import VERDICTS
 from gpfverify.contract.interpretations import is_robust, robustness
 from gpfverify.contract.papers import PAPERS
+from gpfverify.report import cjk_font
 from gpfverify.report.document import (CAUTION_MARK, VERDICT_CLASSES, Cell, Chips, Code, Details, Figure, Link,
                                        Paragraph, Section, Table, VerdictCell, anchor_id, claim_anchor, fmt,
                                        unicode_math)
@@ -36,8 +37,9 @@ _CJK_IDEOGRAPH = re.compile(r"[\u3400-\u4dbf\u4e00-\u9fff\uf900-\ufaff]")
 def inline(text: str) -> str:
     """Markdown text as HTML: escaped, with its `code` and **bold** spans rendered (the Markdown
     pages and the HTML page show the same text, neither with raw backticks), and runs of Chinese
-    characters marked ``lang="zh"`` with CJK fonts named first; the papers' citations give the
-    transliteration beside them, readable where no CJK font is installed."""
+    characters marked ``lang="zh"`` with the embedded CJK font named first
+    (:mod:`gpfverify.report.cjk_font`; a page with such characters carries it), then the usual
+    system CJK fonts; the papers' citations also give the transliteration beside them."""
     html_text = _BOLD_SPAN.sub(r"<b>\1</b>", _CODE_SPAN.sub(r"<code>\1</code>", esc(text)))
     return _CJK_RUN.sub(lambda m: f'<span lang="zh" class="cjk">{m.group(0)}</span>'
                         if _CJK_IDEOGRAPH.search(m.group(0)) else m.group(0), html_text)
@@ -193,6 +195,8 @@ font-size:.7rem;line-height:1rem;text-align:center;text-decoration:none;color:#7
 table.summary{width:100%}
 table.summary td,table.summary th{padding:.25rem .3rem}table.summary th{font-size:.74rem;font-weight:600;
 overflow-wrap:anywhere;hyphens:auto}
+table.summary th:nth-child(n+3):nth-last-child(n+3){writing-mode:vertical-rl;transform:rotate(180deg);
+white-space:nowrap;text-align:left;vertical-align:middle;padding:.4rem .15rem}
 table.summary td:nth-child(2){min-width:8rem}table.summary td.paper{min-width:5rem;font-weight:600}
 table.summary td.chips{min-width:5.5rem}
 td.controls{font-size:.82rem}
@@ -200,8 +204,8 @@ td.controls{font-size:.82rem}
 .badge{padding:.3rem .6rem;border-radius:6px;font-weight:600;border:1px solid #0001}
 .badge.caution-badge{background:#fff7e6;color:#7a4b00;border-color:#b7791f}
 ol.refs li{margin:.3rem 0}
-.cjk{font-family:"Noto Sans CJK SC","Source Han Sans SC","PingFang SC","Microsoft YaHei","WenQuanYi Micro Hei",
-sans-serif}
+.cjk{font-family:"gpfverify-cjk","Noto Sans CJK SC","Source Han Sans SC","PingFang SC","Microsoft YaHei",
+"WenQuanYi Micro Hei",sans-serif}
 .legend{font-size:.88rem;color:var(--muted)}
 @media (max-width:1100px){.layout{grid-template-columns:11rem minmax(0,1fr)}main{padding:1rem 1rem 3rem}}
 @media (max-width:900px){.layout{display:block}nav.toc{height:auto;max-height:35vh;z-index:2;
@@ -516,10 +520,11 @@ def _page(title: str, preamble: str, listed: dict, summaries: dict[str, SectionS
                      + _html_block(provenance_table(provenance)) + "</section>")
         toc.append('<li><a href="#provenance">Provenance</a></li>')
     toc.append("</ol></nav>")
+    body = f"<body><div class='layout'>{''.join(toc)}<main>{''.join(parts)}</main></div></body></html>"
+    style = (cjk_font.font_face_css() if cjk_font.page_needs_font(body) else "") + _STYLE
     return (f"<!DOCTYPE html><html lang='en'><head><meta charset='utf-8'>"
             f"<meta name='viewport' content='width=device-width, initial-scale=1'><title>{esc(title)}</title>"
-            f"<style>{_STYLE}</style></head><body><div class='layout'>{''.join(toc)}"
-            f"<main>{''.join(parts)}</main></div></body></html>")
+            f"<style>{style}</style></head>{body}")
 
 
 def read_summaries(out_dir: Path, order: list[str]) -> list[SectionSummary]:
