@@ -71,7 +71,7 @@ import numpy as np
 from gpfverify.angles import difference
 from gpfverify.errors import InputError
 from gpfverify.tolerances import ALGEBRA_RTOL, MONTE_CARLO_SIGMAS
-from gpfverify.validate import SYMMETRY_RTOL, as_array
+from gpfverify.validate import SYMMETRY_RTOL, as_array, as_indices
 
 #: default level of the two-sided χ² intervals (Bar-Shalom et al.'s 95 % region)
 DEFAULT_LEVEL: float = 0.95
@@ -95,18 +95,6 @@ def _probability(value, name: str) -> float:
     if not (0.0 < p < 1.0):  # also rejects NaN
         raise InputError(f"{name} must be in the open interval (0, 1), got {value!r}")
     return p
-
-
-def _indices(indices: Sequence[int], dim: int, name: str) -> tuple[int, ...]:
-    try:
-        items = [int(i) for i in indices]
-    except (TypeError, ValueError):
-        raise InputError(f"{name} must be a sequence of integer indices, got {indices!r}") from None
-    if any(i < 0 or i >= dim for i in items):
-        raise InputError(f"{name} has an index outside 0..{dim - 1}: {items}")
-    if len(set(items)) != len(items):
-        raise InputError(f"{name} lists an index twice: {items}")
-    return tuple(sorted(items))
 
 
 def _cholesky(covs: np.ndarray, name: str) -> np.ndarray:
@@ -293,7 +281,7 @@ class Consistency:
         R, T, D = x.shape
         m = _matching(means, "means", (R, T, D), single)
         P = _matching(covs, "covs", (R, T, D, D), single)
-        err = difference(x, m, _indices(circular_state, D, "circular_state"))
+        err = difference(x, m, as_indices(circular_state, D, "circular_state"))
         return cls("NEES", _squared_whitened(err, P, "covs"), D)
 
     @classmethod
@@ -331,7 +319,7 @@ class Consistency:
         R, T, L = y.shape
         mu = _matching(predicted, "predicted", (R, T, L), single)
         S = _matching(innovation_covs, "innovation_covs", (R, T, L, L), single)
-        nu = difference(y, mu, _indices(circular, L, "circular"))
+        nu = difference(y, mu, as_indices(circular, L, "circular"))
         return cls("NIS", _squared_whitened(nu, S, "innovation_covs"), L)
 
     @classmethod
@@ -438,7 +426,7 @@ def estimation_errors(truth, means, circular_state: Sequence[int] = ()) -> np.nd
     if x.ndim < 1 or x.shape[-1] == 0:
         raise InputError(f"truth must have a non-empty last axis, got shape {x.shape}")
     m = as_array(means, "means", shape=x.shape)
-    return difference(x, m, _indices(circular_state, x.shape[-1], "circular_state"))
+    return difference(x, m, as_indices(circular_state, x.shape[-1], "circular_state"))
 
 
 def conservativeness(errors, claimed_cov, level: float = DEFAULT_LEVEL) -> ConservativenessTest:

@@ -86,8 +86,17 @@ def test_every_family_is_the_unwrapped_kalman_filter_wrapped(name):
     wrapped_ys[:, :2] = wrap(ys[:, :2])
     records = run_family(name, heading_model(), wrapped_ys)
     means = np.array([r.mu_e for r in records])
-    assert np.all((-np.pi < means[:, 0]) & (means[:, 0] <= np.pi))
+    for recorded in (means[:, 0], [r.mu_p[0] for r in records], [r.mu_y[:2] for r in records]):
+        assert np.all((-np.pi < np.asarray(recorded)) & (np.asarray(recorded) <= np.pi))  # predictions too
     close_on_circle(means, expected, TOL)
+
+
+def test_kf_predict_and_measurement_wrap_the_heading():
+    from gpfverify.filters.kalman import kf_measurement, kf_predict
+
+    prediction = kf_predict(Gaussian(np.array([3.1, 0.2]), PRIOR_COV), heading_model())
+    assert prediction.mean[0] == pytest.approx(3.3 - 2 * np.pi)
+    assert kf_measurement(prediction, heading_model()).mu_y[:2] == pytest.approx([3.3 - 2 * np.pi] * 2)
 
 
 @pytest.mark.parametrize("rotation", [np.pi, 0.5, -2.0, 0.2, -0.15])

@@ -185,3 +185,42 @@ def test_flows_reject_bad_input():
     with pytest.raises(InputError, match="ekf_cov"):
         edh_step(Particles.equally_weighted(np.zeros((5, 2))), model, np.zeros(1), rng=np.random.default_rng(0),
                  step_sizes=uniform_steps(2))
+
+
+@pytest.mark.parametrize("flow", ["ie-pff", "edh"])
+def test_a_flow_of_an_angle_state_does_not_depend_on_where_the_cut_at_pi_falls(flow):
+    """Rotation invariance: a heading cloud straddling ±π, flowed towards a heading measurement
+    (a bearing output), gives the same posterior — mean, covariance and each particle, modulo 2π —
+    as the same problem rotated by π, where the cloud sits around 0 and nothing is cut. The
+    transition draws the same noise in both (the same seed); the estimate's heading is in (−π, π]."""
+    def model(offset):
+        return StateSpaceModel(transition=np.array([[1.0, 0.1], [0.0, 1.0]]), process_cov=np.diag([1e-4, 1e-4]),
+                               sensors=[Sensor(np.eye(1, 2), np.array([[0.02]]), circular=[0])],
+                               prior_mean=[np.pi - 0.02 + offset, 0.1], prior_cov=np.diag([0.01, 0.01]),
+                               circular_state=[0])
+
+    cloud = np.random.default_rng(5).normal(size=(300, 2)) * [0.15, 0.05] + [np.pi - 0.02, 0.1]
+    results = []
+    for offset in (0.0, -np.pi):
+        particles = cloud + [offset, 0.0]
+        particles[:, 0] = (particles[:, 0] + np.pi) % (2 * np.pi) - np.pi
+        z = np.array([(np.pi - 0.05 + offset + np.pi) % (2 * np.pi) - np.pi])
+        if flow == "edh":
+            belief = Particles.equally_weighted(particles, ekf_cov=np.diag([0.0225, 0.0025]))
+            step = edh_step(belief, model(offset), z, k=1, rng=np.random.default_rng(9),
+                            step_sizes=exponential_steps(29))
+        else:
+            step = ie_pff_step(Particles.equally_weighted(particles), model(offset), z, k=1,
+                               rng=np.random.default_rng(9), step_sizes=uniform_steps(50))
+        assert -np.pi < step.mean[0] <= np.pi
+        assert np.all((-np.pi < step.posterior.particles[:, 0]) & (step.posterior.particles[:, 0] <= np.pi))
+        results.append(step)
+    cut, uncut = results
+    tol = algebra_rtol(300.0) * 2 * np.pi  # rounding of N-term sums and the flow's products
+    def off_by_pi(a, b):  # a − b − π wrapped to [−π, π): zero when a is b turned by π
+        return (a - b) % (2 * np.pi) - np.pi
+
+    assert np.abs(off_by_pi(cut.posterior.particles[:, 0], uncut.posterior.particles[:, 0])).max() <= tol
+    np.testing.assert_allclose(cut.posterior.particles[:, 1], uncut.posterior.particles[:, 1], rtol=0, atol=tol)
+    assert abs(off_by_pi(cut.mean[0], uncut.mean[0])) <= tol
+    np.testing.assert_allclose(cut.cov, uncut.cov, rtol=0, atol=tol * np.abs(uncut.cov).max())

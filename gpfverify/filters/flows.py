@@ -25,7 +25,9 @@ the previous posterior particle mean, and P_k|k = P_k|k−1 − P_k|k−1 Hᵀ S
 flowed mean (Ding & Coates 2012, Alg. 1).
 
 Angle outputs of the measurement (``model.circular``, bearings) are handled by evaluating h on
-the branch nearest z (:func:`~gpfverify.filters.likelihoods.unwrapped_measurement`).
+the branch nearest z (:func:`~gpfverify.filters.likelihoods.unwrapped_measurement`). Angle state
+components (``model.circular_state``) are flowed on one branch around their circular mean
+(:func:`on_one_branch`) and wrapped to (−π, π] afterwards; the estimate is their circular mean.
 
 Both steps take and return :class:`~gpfverify.filters.resampling.Particles` with equal weights
 (the flows neither weight nor resample); the EDH belief carries the parallel EKF covariance in
@@ -34,11 +36,14 @@ Both steps take and return :class:`~gpfverify.filters.resampling.Particles` with
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+
 import numpy as np
 
+from gpfverify.angles import difference, wrap_components
 from gpfverify.errors import InputError
 from gpfverify.filters.likelihoods import unwrapped_measurement
-from gpfverify.filters.resampling import Particles, ParticleStep
+from gpfverify.filters.resampling import Particles, ParticleStep, moments_from_weights
 from gpfverify.linalg import cholesky, right_solve_spd, symmetrize
 from gpfverify.models.system import StateSpaceModel, require_model
 from gpfverify.validate import as_matrix, as_vector
@@ -75,11 +80,26 @@ def _check_steps(step_sizes: np.ndarray) -> np.ndarray:
     return steps
 
 
-def particle_moments(particles: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Equal-weight mean (D,) and covariance (D, D) (1/N normalisation, as in the gain)."""
+def particle_moments(particles: np.ndarray, circular_state: Sequence[int] = ()) -> tuple[np.ndarray, np.ndarray]:
+    """Equal-weight mean (D,) and covariance (D, D) (1/N normalisation, as in the gain); angle
+    components ``circular_state`` averaged on the circle with wrapped deviations
+    (:func:`~gpfverify.filters.resampling.moments_from_weights`)."""
+    n = particles.shape[0]
+    if len(circular_state):
+        return moments_from_weights(particles, np.full(n, 1.0 / n), circular_state)
     mean = particles.mean(axis=0)
     dev = particles - mean
-    return mean, symmetrize(dev.T @ dev / particles.shape[0])
+    return mean, symmetrize(dev.T @ dev / n)
+
+
+def on_one_branch(particles: np.ndarray, circular_state: Sequence[int]) -> np.ndarray:
+    """The particles with their angle components moved by multiples of 2π to the branch around
+    their circular mean, so that the flow's linear algebra (means, Cov(X, h(X)), x̄) sees one
+    contiguous cloud instead of one cut at ±π; the flow's result is wrapped back."""
+    if not len(circular_state):
+        return particles
+    mean, _ = particle_moments(particles, circular_state)
+    return mean + difference(particles, mean, circular_state)
 
 
 def _flow_step(x: np.ndarray, mean: np.ndarray, cov: np.ndarray, **extras) -> ParticleStep:
@@ -128,8 +148,10 @@ def ie_pff_step(belief: Particles, model, z: np.ndarray, *, k: int = 1, rng: np.
     The flow treats the particles as equally weighted (it neither weights nor resamples)."""
     require_model(model, StateSpaceModel, "IE-PFF")
     x = as_matrix(belief.particles, "particles", None, model.state_dim)
-    x = ie_pff_update(model.sample_transition(x, k, rng), model, z, k, step_sizes)
-    return _flow_step(x, *particle_moments(x))
+    circular = model.circular_state
+    x = ie_pff_update(on_one_branch(model.sample_transition(x, k, rng), circular), model, z, k, step_sizes)
+    x = wrap_components(x, circular)
+    return _flow_step(x, *particle_moments(x, circular))
 
 
 def edh_update(particles: np.ndarray, P: np.ndarray, model, z: np.ndarray, k: int,
@@ -176,7 +198,10 @@ def edh_step(belief: Particles, model, z: np.ndarray, *, k: int = 1, rng: np.ran
         raise InputError("belief.ekf_cov: EDH needs the parallel EKF covariance "
                          "(e.g. Particles.equally_weighted(particles, ekf_cov=prior_cov))")
     particles = as_matrix(belief.particles, "particles", None, model.state_dim)
-    P_pred = ekf_covariance_predict(belief.ekf_cov, particles.mean(axis=0), model, k)
-    x = edh_update(model.sample_transition(particles, k, rng), P_pred, model, z, k, step_sizes)
-    mean, cov = particle_moments(x)
+    circular = model.circular_state
+    P_pred = ekf_covariance_predict(belief.ekf_cov, particle_moments(particles, circular)[0], model, k)
+    x = edh_update(on_one_branch(model.sample_transition(particles, k, rng), circular), P_pred, model, z, k,
+                   step_sizes)
+    x = wrap_components(x, circular)
+    mean, cov = particle_moments(x, circular)
     return _flow_step(x, mean, cov, ekf_cov=ekf_covariance_update(P_pred, mean, model, k))

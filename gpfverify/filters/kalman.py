@@ -3,7 +3,8 @@
     x_k = F x_{k−1} + w_k, w_k ~ N(0, Q);   y_k = H x_k + v_k, v_k ~ N(0, R).
 
 Prediction μ_p = F μ_e, C_p = F C_e Fᵀ + Q; measurement moments μ_y = H μ_p,
-C_y = H C_p Hᵀ + R, C_xy = C_p Hᵀ; update by :func:`~gpfverify.filters.update.gaussian_update`
+C_y = H C_p Hᵀ + R, C_xy = C_p Hᵀ (angle state components of μ_p and angle outputs of μ_y wrapped
+to (−π, π], as every filter records them); update by :func:`~gpfverify.filters.update.gaussian_update`
 (seed 000 eq. 15–16 are exactly these formulas with the moments computed exactly). The exact
 oracle of every other Gaussian filter on linear models. The model is a
 :class:`~gpfverify.models.StateSpaceModel` whose functions are matrices
@@ -29,6 +30,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from gpfverify.angles import wrap_components
 from gpfverify.filters.records import Gaussian, MeasurementMoments, StepRecord
 from gpfverify.filters.update import check_belief, condition
 from gpfverify.linalg import matmul_for, symmetrize
@@ -36,27 +38,27 @@ from gpfverify.models.system import StateSpaceModel, require_model
 from gpfverify.runtime import one_blas_thread
 
 
-def _predict(belief: Gaussian, F: np.ndarray, Q: np.ndarray) -> Gaussian:
-    return Gaussian(belief.mean @ F.T, symmetrize(F @ belief.cov @ F.T + Q))
+def _predict(belief: Gaussian, F: np.ndarray, Q: np.ndarray, circular_state=()) -> Gaussian:
+    return Gaussian(wrap_components(belief.mean @ F.T, circular_state), symmetrize(F @ belief.cov @ F.T + Q))
 
 
-def _measurement(prediction: Gaussian, H: np.ndarray, R: np.ndarray) -> MeasurementMoments:
+def _measurement(prediction: Gaussian, H: np.ndarray, R: np.ndarray, circular=()) -> MeasurementMoments:
     C_xy = prediction.cov @ H.T
-    return MeasurementMoments(prediction.mean @ H.T, symmetrize(H @ C_xy + R), C_xy)
+    return MeasurementMoments(wrap_components(prediction.mean @ H.T, circular), symmetrize(H @ C_xy + R), C_xy)
 
 
 def kf_predict(belief: Gaussian, model, *, k: int = 1) -> Gaussian:
     """N(F μ_e, F C_e Fᵀ + Q)."""
     require_model(model, StateSpaceModel, "the Kalman filter")
     F, _ = model.linear_matrices()
-    return _predict(check_belief(belief, model.state_dim), F, model.Q)
+    return _predict(check_belief(belief, model.state_dim), F, model.Q, model.circular_state)
 
 
 def kf_measurement(prediction: Gaussian, model, *, k: int = 1) -> MeasurementMoments:
     """(H μ_p, H C_p Hᵀ + R, C_p Hᵀ)."""
     require_model(model, StateSpaceModel, "the Kalman filter")
     _, H = model.linear_matrices()
-    return _measurement(check_belief(prediction, model.state_dim, "prediction"), H, model.R)
+    return _measurement(check_belief(prediction, model.state_dim, "prediction"), H, model.R, model.circular)
 
 
 @dataclass(frozen=True)
@@ -105,5 +107,7 @@ def kf_step(belief: Gaussian, model, y, *, k: int = 1) -> StepRecord:
     cov = half + half.swapaxes(-1, -2)
     mean = mul(belief.mean, joint.A_T)
     d = joint.state_dim
-    return condition(mean[..., :d], cov[..., :d, :d], mean[..., d:], cov[..., d:, d:], cov[..., :d, d:], y,
+    mu_p = wrap_components(mean[..., :d], model.circular_state)
+    mu_y = wrap_components(mean[..., d:], model.circular)
+    return condition(mu_p, cov[..., :d, :d], mu_y, cov[..., d:, d:], cov[..., :d, d:], y,
                      model.circular, model.circular_state)
