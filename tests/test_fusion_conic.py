@@ -20,7 +20,7 @@ def _parameter_values(ests, c=None, dual=False):
     checked = checked_estimates(ests)
     c = rcc.default_size(checked[0].mean.shape[0]) if c is None else c
     norm = rcc._normalise(checked, information_form(checked), c)
-    return [*norm.A, *norm.b, norm.d] if dual else [*norm.A, *norm.b, *norm.d]
+    return [*norm.A, *norm.b, norm.d] if dual else norm.primal_values()
 
 
 def _cases(seed, count):

@@ -25,7 +25,13 @@ uses c = :data:`EMPTY_GROWTH` · c_min and records it.
 
 Numerics. The RCC is equivariant under translations and isotropic scalings, so the problem is
 solved in coordinates ξ = (x − x̄)/s with x̄ the mean of the x_m and s² = c · max_m λ_max(P_m): every
-ellipsoid then has semi-axes ≤ 1. The problems are DPP (parameters A_m, b_m, d_m), built once per
+ellipsoid then has semi-axes ≤ 1. It is not equivariant under other linear maps (the Euclidean
+‖x‖² is part of the estimator), so ellipsoids in mixed units — metres and radians, semi-axes a
+million apart — stay badly scaled; the primal is therefore solved after the change of variables
+ξ = Tξ', Δ = TΔ'Tᵀ with T = L⁻ᵀ, L Lᵀ the mean of the normalised A_m: the same problem (the
+PSD constraint is congruent, the ellipsoid constraints are the same functions, so their multipliers
+are unchanged), whose constraints TᵀA_mT are of order one, the units' spread moving into the
+objective tr(TᵀT Δ') − ‖Tξ'‖². The problems are DPP (parameters A_m, b_m, d_m), built once per
 (N, D, solver) and re-solved with new values; Clarabel by default, SCS when Clarabel fails. For
 Clarabel the problem is compiled once into its conic data as an affine map of the parameters and
 each solve calls Clarabel directly (:mod:`gpfverify.fusion.conic`: the same data and results as
@@ -105,6 +111,13 @@ class _Normalised:
     A: np.ndarray  # (N, D, D)
     b: np.ndarray  # (N, D)
     d: np.ndarray  # (N,)
+    T: np.ndarray  # (D, D): the primal's change of variables ξ = T ξ' (module docstring)
+
+    def primal_values(self) -> list:
+        """The primal's parameters: TᵀA_mT, Tᵀb_m, d_m, T and M = TᵀT."""
+        a = np.einsum("ji,mjk,kl->mil", self.T, self.A, self.T)
+        a = 0.5 * (a + np.swapaxes(a, 1, 2))
+        return [*a, *(self.b @ self.T), *self.d, self.T, self.T.T @ self.T]
 
 
 def _checked_size(c) -> float:
@@ -124,23 +137,31 @@ def _normalise(estimates, info, c: float) -> _Normalised:
     xi = (np.array([e.mean for e in estimates]) - centre) / scale
     b = -np.einsum("mij,mj->mi", a, xi)
     d = np.einsum("mi,mij,mj->m", xi, a, xi) - 1.0
-    return _Normalised(centre, scale, 0.5 * (a + np.swapaxes(a, 1, 2)), b, d)
+    a = 0.5 * (a + np.swapaxes(a, 1, 2))
+    # T = L⁻ᵀ with L Lᵀ the mean of the A_m: TᵀA_mT are O(1) for ellipsoids of similar shape
+    whitening = np.linalg.solve(np.linalg.cholesky(a.mean(axis=0)), np.eye(a.shape[1])).T
+    return _Normalised(centre, scale, a, b, d, whitening)
 
 
 @lru_cache(maxsize=32)
 def _primal_problem(n: int, dim: int, solver: str = cp.CLARABEL) -> Parametrised:
-    """The DPP primal for N ellipsoids in D dimensions, built once per (N, D, solver): a problem is
-    only ever solved (or compiled, for Clarabel) by one solver, so switching solvers never
-    recompiles a shared object. Parameters A_1..A_N, b_1..b_N, d_1..d_N; returns x and the duals of
-    the N ellipsoid constraints."""
+    """The DPP primal for N ellipsoids in D dimensions after the change of variables Δ = TΔ'Tᵀ,
+    x = Tx' (module docstring, "Numerics"), built once per (N, D, solver): a problem is only ever
+    solved (or compiled, for Clarabel) by one solver, so switching solvers never recompiles a
+    shared object. Parameters TᵀA_1T..TᵀA_NT, Tᵀb_1..Tᵀb_N, d_1..d_N, T and M = TᵀT; the objective
+    tr(Δ) − ‖x‖² is tr(MΔ') − s with ‖Tx'‖² ≤ s. Returns x' and the duals of the N ellipsoid
+    constraints (the same constraints, written in x': their multipliers are the original ones)."""
     A = [cp.Parameter((dim, dim)) for _ in range(n)]  # symmetric by construction; unchecked is cheaper
     b = [cp.Parameter(dim) for _ in range(n)]
     d = [cp.Parameter() for _ in range(n)]
+    T, M = cp.Parameter((dim, dim)), cp.Parameter((dim, dim))
     z = cp.Variable((dim + 1, dim + 1), PSD=True)
+    s = cp.Variable()
     delta, x = z[:dim, :dim], z[:dim, dim]
     ellipsoids = [cp.trace(A[m] @ delta) + 2 * b[m] @ x + d[m] <= 0 for m in range(n)]
-    problem = cp.Problem(cp.Maximize(cp.trace(delta) - cp.sum_squares(x)), [z[dim, dim] == 1] + ellipsoids)
-    return Parametrised(problem, (*A, *b, *d), (x,), tuple(ellipsoids))
+    problem = cp.Problem(cp.Maximize(cp.trace(M @ delta) - s),
+                         [z[dim, dim] == 1, cp.sum_squares(T @ x) <= s] + ellipsoids)
+    return Parametrised(problem, (*A, *b, *d, T, M), (x,), tuple(ellipsoids))
 
 
 @lru_cache(maxsize=32)
@@ -247,10 +268,11 @@ def rcc_ci(estimates: Sequence, c: float | None = None, on_empty: str = "error",
     enlarged = False
     while True:
         norm = _normalise(checked, info, c)
-        solution = _solve_parametrised(_primal_problem, (len(checked), dim), [*norm.A, *norm.b, *norm.d],
+        solution = _solve_parametrised(_primal_problem, (len(checked), dim), norm.primal_values(),
                                        solver, "RCC-CI primal")
         status = solution.status
-        if status == "optimal_inaccurate" and not _in_every_ellipsoid(norm, solution.values[0]):
+        xi = norm.T @ solution.values[0] if solution.values and solution.values[0] is not None else None
+        if status == "optimal_inaccurate" and not _in_every_ellipsoid(norm, xi):
             status = "infeasible_inaccurate"  # a badly scaled empty intersection, not a centre
         if status in SOLVED:
             break
@@ -268,7 +290,7 @@ def rcc_ci(estimates: Sequence, c: float | None = None, on_empty: str = "error",
     fused = weighted_information_fusion(info, weights)
     angles = tuple(sorted(circular_state))
     return RccCiResult(mean=wrap_components(fused.mean, angles), cov=fused.cov, weights=weights, alpha=alpha,
-                       c=c, primal_mean=wrap_components(norm.centre + norm.scale * solution.values[0], angles),
+                       c=c, primal_mean=wrap_components(norm.centre + norm.scale * xi, angles),
                        primal_value=solution.value * norm.scale**2, enlarged=enlarged, circular_state=angles)
 
 
