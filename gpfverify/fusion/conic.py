@@ -39,7 +39,7 @@ from gpfverify.errors import SolverError
 # cvxpy's internals (run against cvxpy 1.9): a cvxpy that moved them makes compile refuse, and
 # callers solve through cvxpy's public route instead (the same numbers, slower)
 try:
-    from cvxpy.cvxcore.python.canonInterface import get_matrix_from_tensor, lo
+    from cvxpy.cvxcore.python.canonInterface import lo
     from cvxpy.reductions.cvx_attr2constr import (SYMMETRIC_ATTRIBUTES, attributes_present,
                                                   recover_value_for_leaf)
     from cvxpy.reductions.solvers.conic_solvers.clarabel_conif import CLARABEL, dims_to_solver_cones
@@ -143,7 +143,7 @@ class ClarabelProgram:
     b_rows: np.ndarray                  # rows of the remaining (b's) nonzeros
     P: sp.csc_array                     # upper triangle, as cvxpy hands it to Clarabel
     q: np.ndarray                       # when the objective has no parameters, else
-    q_tensor: sp.sparray | None         # cvxpy's tensor giving q from p
+    q_tensor: sp.csr_array | None       # cvxpy's tensor giving (q, offset) from p, as CSR
     cones: tuple
     program: Parametrised
     evaluated: tuple[int, ...]              # parameters in the objective or the requested values
@@ -181,7 +181,7 @@ class ClarabelProgram:
             constant_column=columns[lo.CONSTANT_ID], tensor=reduced.reduced_mat,
             a_nonzeros=int(indptr[n_var]), a_indices=indices[:indptr[n_var]], a_indptr=indptr[:n_var + 1],
             a_shape=(shape[0], n_var), b_rows=b_rows, P=sp.triu(P).tocsc(), q=data[cvxpy_status.C],
-            q_tensor=cone_program.q if q_depends else None,
+            q_tensor=sp.csr_array(cone_program.q) if q_depends else None,
             cones=tuple(dims_to_solver_cones(data[CLARABEL.DIMS])), program=program,
             evaluated=_evaluated_parameters(program), variable_index=(), dual_index=())
         compiled._check_data(data, [p.value for p in program.parameters])
@@ -222,11 +222,13 @@ class ClarabelProgram:
 
     def _data(self, parameter_values: Sequence) -> tuple[np.ndarray, sp.csc_array, np.ndarray]:
         """(q, A, b) as cvxpy hands them to Clarabel: cvxpy stores Au + b ∈ K, Clarabel b − Au ∈ K.
-        A parametrised q is formed by cvxpy's own routine (it is not on the hot path here)."""
+        A parametrised q is the tensor's product with p without its last entry (the objective's
+        constant), as cvxpy's ``get_matrix_from_tensor`` forms it; :meth:`_check_data` compares the
+        two at compilation."""
         p = self._parameter_vector(parameter_values)
         q = self.q
         if self.q_tensor is not None:
-            q = get_matrix_from_tensor(self.q_tensor, p, self.a_shape[1], with_offset=True)[0].toarray().flatten()
+            q = (self.q_tensor @ p)[:self.a_shape[1]]
         nonzeros = self.tensor @ p
         A = sp.csc_array((-nonzeros[:self.a_nonzeros], self.a_indices, self.a_indptr), shape=self.a_shape)
         b = np.zeros(self.a_shape[0])

@@ -232,6 +232,13 @@ def _in_every_ellipsoid(norm: _Normalised, xi) -> bool:
     return bool(np.all(quad + lin + norm.d <= INACCURATE_SLACK * size))
 
 
+def _centre(norm: _Normalised, solution: ConicSolution) -> np.ndarray | None:
+    """The primal's centre ξ = Tx' in normalised coordinates (None when the solve returned none)."""
+    if not solution.values or solution.values[0] is None:
+        return None
+    return norm.T @ solution.values[0]
+
+
 def smallest_intersecting_size(estimates: Sequence, circular_state: Sequence[int] = ()) -> float:
     """c_min = min_x max_m (x − x_m)ᵀP_m⁻¹(x − x_m): the ellipsoids meet iff c ≥ c_min (angle
     components ``circular_state`` on one branch, as in :func:`rcc_ci`)."""
@@ -271,8 +278,7 @@ def rcc_ci(estimates: Sequence, c: float | None = None, on_empty: str = "error",
         solution = _solve_parametrised(_primal_problem, (len(checked), dim), norm.primal_values(),
                                        solver, "RCC-CI primal")
         status = solution.status
-        xi = norm.T @ solution.values[0] if solution.values and solution.values[0] is not None else None
-        if status == "optimal_inaccurate" and not _in_every_ellipsoid(norm, xi):
+        if status == "optimal_inaccurate" and not _in_every_ellipsoid(norm, _centre(norm, solution)):
             status = "infeasible_inaccurate"  # a badly scaled empty intersection, not a centre
         if status in SOLVED:
             break
@@ -283,6 +289,8 @@ def rcc_ci(estimates: Sequence, c: float | None = None, on_empty: str = "error",
             raise SolverError(f"RCC-CI: the local ellipsoids do not intersect at size c = {c:.6g}; "
                               f"they do for c >= {c_min:.6g}")
         c, enlarged = EMPTY_GROWTH * c_min, True
+    xi = _centre(norm, solution)
+    assert xi is not None  # a solved status carries the primal's values
     alpha = np.clip(np.array(solution.duals, dtype=float), 0.0, None)
     if not alpha.sum() > 0:
         raise SolverError("RCC-CI: the dual multipliers are all zero")
