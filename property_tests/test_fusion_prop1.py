@@ -65,17 +65,31 @@ def check_full_rank_equivalence(case: FusionCase, rank_rule=None) -> None:
 def closed_form_rounding(case: FusionCase) -> float:
     """Rounding bound, in prior standard deviations, of the closed form Σ_m G_m C_y^m N_m (Ñ_mᵀ w_m)
     — what the predicted gap and the repair messages compute and :func:`dmf_error_bound` does not
-    cover: each product in the chain rounds by eps relative to the product of the factors' sizes,
-    |G_m| |C_y^m| |N_m| |Ñ_mᵀ| |w_m| entrywise, whitened by |L_p⁻¹| (numpy's Cholesky factor here).
-    A drawn case whose true gap is far below eps (a gain of 1e-17 through a coupling of 1e-19) has
-    a DMF − CMF bound of zero while this chain still rounds."""
+    cover (there, the rounding of the gain G cancels between DMF and CMF; here it does not):
+
+    * each product in the chain rounds by eps relative to the product of the factors' sizes,
+      |G_m| |C_y^m| |N_m| |Ñ_mᵀ| |w_m| entrywise;
+    * the gain G = C_xy C_y⁻¹ itself is a solve, each row in error by up to eps κ ‖G_i‖ with κ the
+      condition of the centre's C_y equilibrated to unit diagonal (Cholesky's error depends on
+      nothing else), carried by ‖C_y^m N_m Ñ_mᵀ w_m‖ — the whole predicted gap when its true value
+      is zero, e.g. a decoupled output measured against a near-singular block of C_y.
+
+    Whitened by |L_p⁻¹| (numpy's Cholesky factor here). Drawn cases show both: a true gap of ~1e-48
+    prior sd with a DMF − CMF bound of zero, and a predicted gap of 1.7e-14 prior sd that is all the
+    gain's rounding (κ ≈ 1.6e5)."""
     dmf = dmf_update(case)
+    c_y = case.central.C_y
+    unit = np.sqrt(np.diag(c_y))
+    kappa = np.linalg.cond(c_y / np.outer(unit, unit))
     magnitude = np.zeros(case.state_dim)
     for sensor, block, local in zip(dmf.sensors, case.central.blocks, case.locals):
-        w = np.abs(whitened_innovation(local, case.local_measurement(sensor.index)))
+        w = whitened_innovation(local, case.local_measurement(sensor.index))
         split = sensor.split
-        magnitude += (np.abs(dmf.gain[:, block]) @ np.abs(local.C_y) @ np.abs(split.kernel_basis)
-                      @ (np.abs(split.dual_basis.T) @ w))
+        gain = dmf.gain[:, block]
+        magnitude += (np.abs(gain) @ np.abs(local.C_y) @ np.abs(split.kernel_basis)
+                      @ (np.abs(split.dual_basis.T) @ np.abs(w)))
+        carried = float(np.linalg.norm(local.C_y @ split.kernel_component(w)))
+        magnitude += kappa * np.linalg.norm(dmf.gain, axis=1) * carried
     whitened = np.abs(np.linalg.inv(np.linalg.cholesky(case.central.C_p))) @ magnitude
     return rounding_bound(float(sla.norm(whitened)), case.state_dim + case.central.mu_y.shape[0])
 
