@@ -166,7 +166,7 @@ class RankRule:
     def describe(self) -> str:
         if self.name == "canonical":
             return (f"canonical correlations of state and sensor output > tau = {self.tol:.3g} "
-                    "(unit-free; tol is tau)")
+                    "(unit-free)")
         if self.name == "absolute":
             return f"explicit absolute tolerance {self.tol:g} on the singular values of C_xy^m"
         return "numpy matrix_rank rule: sigma_max * max(D, l_m) * eps (absolute, per matrix)"

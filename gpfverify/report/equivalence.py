@@ -54,8 +54,9 @@ def rank_rule_text(rule, rank_tol=None) -> str:
         text = "the rank rule recorded with the run"
     elif isinstance(rule, dict):
         name = rule.get("name") or rule.get("kind") or rule.get("rule") or "rank rule"
+        described = ("name", "kind", "rule", "description") + (("tol",) if rule.get("description") else ())
         rest = [f"{k} = {v:.3g}" if isinstance(v, float) else f"{k} = {v}" for k, v in rule.items()
-                if k not in ("name", "kind", "rule", "description") and v is not None]
+                if k not in described and v is not None]  # a description states its tolerance
         extras = f" ({', '.join(rest)})" if rest else ""
         text = (f"{name} rank rule{extras}" if not rule.get("description")
                 else f"{name} rank rule — {rule['description']}{extras}")
@@ -643,7 +644,8 @@ def run_audit_sections(run_audit: dict, fig_dir: Path) -> list[Section]:
     if np.isfinite(a.gap).any():
         gap = np.where(np.isfinite(a.gap), a.gap, 0.0)[None, :]
         pred = np.where(np.isfinite(a.predicted), a.predicted, 0.0)[None, :]
-        path, _ = ef.plot_gap(a.ks, gap, None, inexact[None, :], fig_dir / "gap.png", predicted=pred)
+        path, _ = ef.plot_gap(a.ks, gap, None, inexact[None, :], fig_dir / "gap.png", predicted=pred,
+                              quantity=ef.GAP_IN_STATE_UNITS)
         figs.add(Figure(path, "‖μ_DMF − μ_CMF‖ per step (solid) against the closed-form predicted gap "
                               "−Σ_m G_m C_y^m N_m r_m (dotted; hidden under the solid line where it explains the gap), "
                               "log scale; "

@@ -63,10 +63,17 @@ def _runs_plot(ax, ks, values: np.ndarray, color: str, label: str, floor: float 
                         label=f"{label}, range over runs")
 
 
+#: the one-step gap as the check pages plot it (unit-free) and as a run file's audit does (state units)
+GAP_IN_PRIOR_SD = ("‖L_p⁻¹(μ_DMF − μ_CMF)‖", "one-step gap (prior standard deviations)")
+GAP_IN_STATE_UNITS = ("‖μ_DMF − μ_CMF‖", "one-step gap (state units)")
+
+
 def plot_gap(ks, gap: np.ndarray, bound: np.ndarray | None, inexact: np.ndarray, path: Path, run_labels=None,
-             predicted: np.ndarray | None = None) -> tuple[Path, float]:
-    """‖μ_DMF − μ_CMF‖ per step against the rounding bound, log scale; steps judged not exact marked.
-    ``gap``/``bound``/``inexact`` are (R, T); returns the path and the floor where zeros are drawn."""
+             predicted: np.ndarray | None = None, quantity: tuple[str, str] = GAP_IN_PRIOR_SD) -> tuple[Path, float]:
+    """The one-step gap per step against the rounding bound, log scale; steps judged not exact
+    marked. ``gap``/``bound``/``inexact`` are (R, T); ``quantity`` names what ``gap`` holds (legend,
+    axis): :data:`GAP_IN_PRIOR_SD` or :data:`GAP_IN_STATE_UNITS`. Returns the path and the floor
+    where zeros are drawn."""
     floor = log_floor(*[a for a in (gap, bound, predicted) if a is not None])
     fig, axes = new_figure(width=9.0, height=4.2)
     ax = axes[0, 0]
@@ -74,13 +81,13 @@ def plot_gap(ks, gap: np.ndarray, bound: np.ndarray | None, inexact: np.ndarray,
         _runs_plot(ax, ks, bound, "0.45", "rounding bound", floor, "--", run_labels)
     if predicted is not None:
         _runs_plot(ax, ks, predicted, "tab:orange", "predicted gap (closed form)", floor, ":", run_labels)
-    _runs_plot(ax, ks, gap, "tab:blue", "‖μ_DMF − μ_CMF‖", floor, "-", run_labels)
+    _runs_plot(ax, ks, gap, "tab:blue", quantity[0], floor, "-", run_labels)
     rows, cols = np.nonzero(inexact)
     if rows.size:
         shown = np.where(gap[rows, cols] > 0, gap[rows, cols], floor)
         ax.scatter(np.asarray(ks)[cols], shown, s=22, facecolors="none", edgecolors="tab:red", zorder=5,
                    label="step judged not exact")
-    _log_steps_axes(ax, "norm of the one-step gap", "DMF − CMF from the same central prediction")
+    _log_steps_axes(ax, quantity[1], "DMF − CMF from the same central prediction")
     return save(fig, path), floor
 
 
