@@ -65,18 +65,19 @@ def check_full_rank_equivalence(case: FusionCase, rank_rule=None) -> None:
 def closed_form_rounding(case: FusionCase) -> float:
     """Rounding bound, in prior standard deviations, of the closed form Σ_m G_m C_y^m N_m (Ñ_mᵀ w_m)
     — what the predicted gap and the repair messages compute and :func:`dmf_error_bound` does not
-    cover (there, the rounding of the gain G cancels between DMF and CMF; here it does not):
+    cover (there, the rounding of the gain and of the split cancels between DMF and CMF; here it
+    does not). Per state component, eps times:
 
-    * each product in the chain rounds by eps relative to the product of the factors' sizes,
-      |G_m| |C_y^m| |N_m| |Ñ_mᵀ| |w_m| entrywise;
-    * the gain G = C_xy C_y⁻¹ itself is a solve, each row in error by up to eps κ ‖G_i‖ with κ the
-      condition of the centre's C_y equilibrated to unit diagonal (Cholesky's error depends on
-      nothing else), carried by ‖C_y^m N_m Ñ_mᵀ w_m‖ — the whole predicted gap when its true value
-      is zero, e.g. a decoupled output measured against a near-singular block of C_y.
+    * the products of the chain: |G_m| |C_y^m| |N_m| |Ñ_mᵀ| |w_m| entrywise;
+    * the gain G = C_xy C_y⁻¹, a solve: each row in error by up to κ ‖G_i‖, κ the condition of the
+      centre's C_y equilibrated to unit diagonal, carried by ‖C_y^m N_m Ñ_mᵀ w_m‖;
+    * the split N_m Ñ_mᵀ, from an SVD in coordinates whitened by the factor L_y of C_y^m: in error
+      by up to cond(L_y) = √cond(C_y^m), carried by ‖(G_m C_y^m)_i‖ ‖w_m‖.
 
-    Whitened by |L_p⁻¹| (numpy's Cholesky factor here). Drawn cases show both: a true gap of ~1e-48
-    prior sd with a DMF − CMF bound of zero, and a predicted gap of 1.7e-14 prior sd that is all the
-    gain's rounding (κ ≈ 1.6e5)."""
+    Whitened by |L_p⁻¹| (numpy's Cholesky factor here). Drawn cases show each: a true gap of ~1e-48
+    prior sd with a DMF − CMF bound of zero; a predicted gap of 1.7e-14 prior sd that is all the
+    gain's rounding (κ ≈ 1.6e5); one of 5e-14 that is a kernel basis entry of 2.2e-16 times
+    C_y^m = 513 (cond 5e4)."""
     dmf = dmf_update(case)
     c_y = case.central.C_y
     unit = np.sqrt(np.diag(c_y))
@@ -88,8 +89,9 @@ def closed_form_rounding(case: FusionCase) -> float:
         gain = dmf.gain[:, block]
         magnitude += (np.abs(gain) @ np.abs(local.C_y) @ np.abs(split.kernel_basis)
                       @ (np.abs(split.dual_basis.T) @ np.abs(w)))
-        carried = float(np.linalg.norm(local.C_y @ split.kernel_component(w)))
-        magnitude += kappa * np.linalg.norm(dmf.gain, axis=1) * carried
+        magnitude += kappa * np.linalg.norm(dmf.gain, axis=1) * np.linalg.norm(local.C_y @ split.kernel_component(w))
+        magnitude += (np.sqrt(np.linalg.cond(local.C_y)) * np.linalg.norm(gain @ local.C_y, axis=1)
+                      * np.linalg.norm(w))
     whitened = np.abs(np.linalg.inv(np.linalg.cholesky(case.central.C_p))) @ magnitude
     return rounding_bound(float(sla.norm(whitened)), case.state_dim + case.central.mu_y.shape[0])
 
