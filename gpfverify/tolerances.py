@@ -32,6 +32,10 @@ SOLVER_TOL: float = 1e-5
 #: accurate to ~1e-5–1e-4 (measured: 4e-5 for det-optimal CI weights), so this detects failures,
 #: not the last digits.
 KKT_REJECT_TOL: float = 1e-3
+#: Change of a smooth convex objective (of order one, in whitened coordinates) between SLSQP
+#: iterations at which it stops. Measured on 700 random CI problems (N ≤ 8, D ≤ 10, information
+#: condition numbers up to 7e10): KKT violations at most 2e-5, 4e-7 for well-conditioned ones.
+SLSQP_FTOL: float = 1e-14
 #: How many standard errors a Monte Carlo estimate may stray (two-sided p ~ 6e-7 per check).
 MONTE_CARLO_SIGMAS: float = 5.0
 #: How far an observed order of convergence, log2(err(h) / err(h/2)), may be from the
@@ -53,6 +57,13 @@ def algebra_rtol(condition_number: float = 1.0) -> float:
     if not np.isfinite(cond):
         return float("inf")
     return max(ALGEBRA_RTOL, ALGEBRA_SAFETY * EPS * max(cond, 1.0))
+
+
+def kkt_reject_tol(condition_number: float) -> float:
+    """Relative KKT violation above which a convex solver's answer is rejected: the solver-accuracy
+    floor :data:`KKT_REJECT_TOL` plus the rounding of gradients computed through a matrix of the
+    given condition number, ``ALGEBRA_SAFETY * eps * cond``."""
+    return KKT_REJECT_TOL + ALGEBRA_SAFETY * EPS * max(float(condition_number), 1.0)
 
 
 def monte_carlo_atol(sample_std, n_samples: int, sigmas: float = MONTE_CARLO_SIGMAS):
