@@ -6,11 +6,12 @@ current summaries and copied, with its manifest, next to the page that shows it.
 
 from __future__ import annotations
 
+import json
 import shutil
 from pathlib import Path
 
 from gpfverify.experiments.sensitivity import merge_saved
-from gpfverify.report.document import Section
+from gpfverify.report.document import Paragraph, Section
 from gpfverify.report.render import to_markdown
 
 
@@ -26,7 +27,20 @@ def recompute_into(run_dir: Path, module, target: Path) -> dict:
     return results
 
 
+def provenance_paragraph(page_dir: Path) -> Paragraph:
+    """Which commit made the runs of every ``manifest.json`` committed under ``page_dir``."""
+    made = {}
+    for manifest_path in sorted(page_dir.rglob("manifest.json")):
+        provenance = json.loads(manifest_path.read_text(encoding="utf-8"))["provenance"]
+        where = manifest_path.parent.relative_to(page_dir).as_posix()
+        made[provenance["git_commit"][:12] + ("" if where == "." else f" ({where})")] = None
+    return Paragraph("Runs made at commit " + "; ".join(made)
+                     + " (each folder's manifest.json has the full provenance).")
+
+
 def write_page(section: Section, page_dir: Path) -> Path:
+    """The page as ``README.md`` in ``page_dir``, ending with the commit its runs were made at."""
+    section.add(provenance_paragraph(page_dir))
     path = page_dir / "README.md"
     path.write_text(to_markdown(section, page_dir), encoding="utf-8")
     return path
