@@ -87,7 +87,8 @@ def main(runs_dir: Path | None) -> None:
         r = found["ungm1d-sweep"]
         sections.append(fusion_ungm1d.render(r, HERE / "ungm1d", command=f"{command('ungm1d-sweep', r)}; then {made}"))
     for section in sections:
-        write_page(section, HERE / section.slug)
+        write_page(section, HERE / section.slug,
+                   [r for n, r in found.items() if n.split("-")[0] == section.slug])
     (HERE / "fusion-paper.html").write_text(to_html(sections, "Fusion paper: reference run"), encoding="utf-8")
 
 

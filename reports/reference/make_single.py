@@ -32,7 +32,7 @@ def main(experiment: str, run_dir: Path, command: str) -> None:
     section = section_module.render(results, page_dir)
     section.add(Paragraph(f"Made by `{command}`, then `python reports/reference/make_single.py "
                           f"{experiment} RUN_DIR \"COMMAND\"`."))
-    write_page(section, page_dir)
+    write_page(section, page_dir, [results])
 
 
 if __name__ == "__main__":
