@@ -290,7 +290,7 @@ def startup_rows(rounds: int) -> list[list[str]]:
         return timed_process([sys.executable, "-c", "import numpy, scipy.linalg"])["wall"]
 
     rows = []
-    for extra, label in ((["--methods", "cmf,dmf"], "CMF and DMF"), ([], "default methods (CI over 3 sensors: cvxpy)")):
+    for extra, label in ((["--methods", "cmf,dmf"], "CMF and DMF"), ([], "default methods (CMF, DMF, CC, CI over 3 sensors)")):
         ours, ref = interleaved(lambda extra=extra: timed_process(check + extra)["wall"], imports, rounds)
         rows.append([f"`check --json`, 2 steps, {label}", "`python -c 'import numpy, scipy.linalg'`", fmt(ours),
                      fmt(ref), f"{ours / ref:.2f}", "≤ 2"])
