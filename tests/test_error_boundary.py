@@ -409,3 +409,15 @@ def test_fuzz_output_folders_holding_what_gpfverify_did_not_write(tmp_path, caps
         (out / ".gpfverify-files").write_text(".gpfverify-files\n")
     case = _write(tmp_path, "run.jsonl", json.dumps(CASE) + "\n")
     assert_user_error(["audit", case, "--out", out], capsys, tmp_path)
+
+
+def test_solver_chatter_never_reaches_the_terminal(tmp_path):
+    """SCS prints "ERROR: could not determine problem status." from C on file descriptor 1 when
+    RCC-CI's ellipsoid size is degenerate; the user sees gpfverify's one line on stderr only."""
+    case = Path(__file__).resolve().parents[1] / "examples" / "tracker-case.json"
+    proc = subprocess.run([sys.executable, "-m", "gpfverify", "fuse", str(case), "--method", "rcc-ci",
+                           "--c", "1e-300"], capture_output=True, text=True, cwd=tmp_path, timeout=300)
+    assert proc.returncode == 2
+    assert proc.stdout == ""
+    assert len(proc.stderr.splitlines()) == 1 and proc.stderr.startswith("gpfverify fuse: error:")
+    assert list(tmp_path.iterdir()) == []

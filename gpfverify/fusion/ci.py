@@ -44,6 +44,7 @@ from gpfverify.errors import InputError, NumericalError, SolverError
 from gpfverify.filters.records import Gaussian
 from gpfverify.fusion.estimates import (FusedEstimate, Information, checked_estimates,
                                         information_form, weighted_information_fusion, wrapped)
+from gpfverify.fusion.quiet import solver_output_discarded
 from gpfverify.fusion.pairwise import (criterion_derivative, joint_diagonalise,
                                        minimise_convex_on_unit_interval)
 from gpfverify.linalg import cholesky, symmetrize
@@ -151,7 +152,8 @@ def _ci_weights_cvxpy(info: Information, criterion: str) -> list[np.ndarray]:
             param.value = mat
         weight_param.value = weight
         try:
-            problem.solve(solver=solver, warm_start=False)
+            with solver_output_discarded():
+                problem.solve(solver=solver, warm_start=False)
         except cp.SolverError:
             continue
         if problem.status in ("optimal", "optimal_inaccurate") and omega.value is not None:

@@ -35,6 +35,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from gpfverify.errors import SolverError
+from gpfverify.fusion.quiet import solver_output_discarded
 
 # cvxpy's internals (run against cvxpy 1.9): a cvxpy that moved them makes compile refuse, and
 # callers solve through cvxpy's public route instead (the same numbers, slower)
@@ -83,11 +84,14 @@ def _solution(status: str, value, values, duals) -> ConicSolution:
 
 def solve_with_cvxpy(program: Parametrised, parameter_values: Sequence, solver: str) -> ConicSolution:
     """Set the parameters and solve through cvxpy with ``warm_start=False`` (a new solver object,
-    not one updated from the previous solve). Raises SolverError when the solver fails."""
+    not one updated from the previous solve), the solver's own printing discarded
+    (:func:`~gpfverify.fusion.quiet.solver_output_discarded`). Raises SolverError when the solver
+    fails."""
     for parameter, value in zip(program.parameters, parameter_values, strict=True):
         parameter.value = value
     try:
-        program.problem.solve(solver=solver, warm_start=False)
+        with solver_output_discarded():
+            program.problem.solve(solver=solver, warm_start=False)
     except cp.SolverError as exc:
         raise SolverError(str(exc)) from None
     return _solution(program.problem.status, program.problem.value,
