@@ -1,5 +1,5 @@
 """Health checks of a filter in one experiment configuration: a verdict about a paper's claim
-stands only when the filters it compares work there (issue "Verdicts that survive scrutiny").
+stands only when the filters it compares work there.
 
 Three checks, each a :class:`HealthCheck` record (name, passed, statistic, threshold, detail):
 

@@ -1,4 +1,4 @@
-"""sins-gps sensitivity parameters (issue "Verdicts that survive scrutiny"): each filter-design
+"""sins-gps sensitivity parameters: each filter-design
 choice changes what it says, the health checks flag a collapsed or diverged particle filter in this
 setting, and the declared interpretations are valid parameter changes."""
 

@@ -1,4 +1,4 @@
-"""The tbd sensitivity study (issue "Verdicts that survive scrutiny"): each interpretation parameter
+"""The tbd sensitivity study: each interpretation parameter
 changes what it says, the interpretations are valid parameter changes, the health checks flag a
 collapsed or diverged filter and withhold the verdicts resting on it, and the Monte Carlo
 intervals behind the verdicts (bootstrap of the SNR gain, paired differences of Pd) state the runs
@@ -35,7 +35,7 @@ def test_interpretations_are_valid_named_parameter_changes():
         changed = Params().replace(**spec.changes)  # validates
         assert isinstance(changed, Params) and changed != Params()
         assert all(getattr(changed, k) == v for k, v in spec.changes.items())
-    # the readings the issue names: SNR convention, patch size, N
+    # the readings of the lost details: SNR convention, patch size, N
     changed_fields = {k for s in INTERPRETATIONS for k in s.changes}
     assert {"snr_convention", "patch_radius", "second_stage_radius", "particles"} <= changed_fields
     assert {s.changes.get("snr_convention") for s in INTERPRETATIONS} >= {"intensity", "energy"}

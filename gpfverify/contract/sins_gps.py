@@ -79,7 +79,7 @@ class Params(BaseParams):
     gps_position_sd: float = option(10.0, "GPS position noise standard deviation (m)", above=0.0)
     initial_velocity_sd: float = option(0.5, "initial velocity error standard deviation (m/s)", above=0.0)
     initial_position_sd: float = option(10.0, "initial position error standard deviation (m)", above=0.0)
-    # ---- filter-design choices the paper does not report (issue "Verdicts that survive scrutiny") ----
+    # ---- filter-design choices the paper does not report ----
     q_inflation: float = option(
         1.0, "filter-design process noise: both filters use this multiple of the scenario's Q (GPSR-UPF keeps "
              "the GP variance in the learned velocity block and adds (factor − 1) times Q's velocity block to it); "

@@ -4,7 +4,7 @@ profiles; the computation is :mod:`gpfverify.experiments.tbd`.
 
 Seed 004's parameter table was lost in extraction; the fields that stand in for it are the
 choices listed in :data:`READINGS` (what the code does, for the report page). The sensitivity study
-(issue "Verdicts that survive scrutiny") tries the other plausible readings of the lost details —
+tries the other plausible readings of the lost details —
 the SNR convention, the patch sizes and the particle counts — listed in :data:`INTERPRETATIONS`
 (``gpfverify reproduce tbd --interpretations all``).
 """

@@ -12,7 +12,7 @@ other definitions (settled frames, the last frame, a position gate, one decision
 :data:`~gpfverify.contract.tbd.DETECTION_READINGS`) only read the saved runs differently, so the
 sensitivity study tries them on the main run's runs (``SUMMARY_FIELDS``).
 
-Monte Carlo intervals (issue "Verdicts that survive scrutiny"): the SNR-gain claim is decided by
+Monte Carlo intervals: the SNR-gain claim is decided by
 its bootstrap standard error over runs (whole runs resampled, τ re-estimated in each resample),
 the Pd comparisons by the paired difference over runs of the per-run Pd (each method's τ from all
 runs); both with the project's tolerance of :data:`~gpfverify.tolerances.MONTE_CARLO_SIGMAS`
