@@ -94,10 +94,6 @@ class Params(ParamsBase):
                 SizedFilter(IE_PFF, self.flow_particles))
 
 
-PROFILES: dict[str, Profile] = {
-    "quick": Profile(20, (Setting("", "paper", Params()),)),
-    "full": Profile(PAPER_RUNS, (Setting("", "paper", Params()),)),
-}
 
 INTERPRETATIONS: tuple[InterpretationSpec, ...] = (
     InterpretationSpec("exponential-1.2", {"spacing": "exponential"},
@@ -113,6 +109,14 @@ INTERPRETATIONS: tuple[InterpretationSpec, ...] = (
     InterpretationSpec("noise-as-std", {"noise_values": "std"},
                        "r1 = 0.05, r2 = 0.1 read as process-noise standard deviations (variances 0.0025, 0.01)"),
 )
+
+#: the interpretations every profile tries, each at the profile's run count, so that every verdict of
+#: the report states whether it survives them
+TRIED: tuple[str, ...] = tuple(s.name for s in INTERPRETATIONS)
+PROFILES: dict[str, Profile] = {
+    "quick": Profile(20, (Setting("", "paper", Params()),), TRIED),
+    "full": Profile(PAPER_RUNS, (Setting("", "paper", Params()),), TRIED),
+}
 
 
 @dataclass(frozen=True)

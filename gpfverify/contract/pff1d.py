@@ -106,10 +106,6 @@ class Params(ParamsBase):
 
 #: quick profile: the grid's extreme process noises at one R, two Δλ, the gamma case at its main R
 QUICK_PARAMS = Params(table_q=(0.1, 10.0), table_r=(1.0,), dlambda=(0.1, 0.01), gamma_r=(0.1,))
-PROFILES: dict[str, Profile] = {
-    "quick": Profile(2, (Setting("reduced grid", "reduced", QUICK_PARAMS),)),
-    "full": Profile(PAPER_RUNS, (Setting("the paper's grid", "paper", Params()),)),
-}
 
 #: a uniform λ schedule under which IE-PFF diverged in none of the runs of the UNGM grid (at
 #: Δλ = 0.1 it diverged in every run at R = 0.1; at 0.002 still in some runs at Q = 10, R = 0.1):
@@ -138,6 +134,14 @@ INTERPRETATIONS: tuple[InterpretationSpec, ...] = (
         "with one linear gain for all particles cannot represent and a PF can: the same dynamics with the "
         "one-to-one y = x, uniform λ-steps of the stable Δλ = 0.001"),
 )
+
+#: the interpretations every profile tries, each at the profile's run count, so that every verdict of
+#: the report states whether it survives them
+TRIED: tuple[str, ...] = tuple(s.name for s in INTERPRETATIONS)
+PROFILES: dict[str, Profile] = {
+    "quick": Profile(2, (Setting("reduced grid", "reduced", QUICK_PARAMS),), TRIED),
+    "full": Profile(PAPER_RUNS, (Setting("the paper's grid", "paper", Params()),), TRIED),
+}
 
 
 # ----------------------------------------------------------------------------- per run

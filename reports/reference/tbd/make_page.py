@@ -30,13 +30,15 @@ from gpfverify.report.sections.tbd import render  # noqa: E402
 
 def main(run_dir: Path, command: str) -> None:
     results = recompute_into(run_dir, tbd, HERE / "run")
+    # every interpretation tried: those with runs of their own and the summary-only ones (the detection
+    # definitions), whose results.json recompute_into has just written from the main run's runs
     tried = [(spec, json.loads((run_dir / "interpretations" / spec.name / "results.json").read_text("utf-8")))
-             for spec in tbd.INTERPRETATIONS if (run_dir / "interpretations" / spec.name / "manifest.json").is_file()]
+             for spec in tbd.INTERPRETATIONS if (run_dir / "interpretations" / spec.name / "results.json").is_file()]
     section = render(results, HERE)
     section.add(_runs_to_decide_table(results, tried))
     section.add(Paragraph(f"Made by `{command}`, then `python reports/reference/tbd/make_page.py RUN_DIR "
                           "\"COMMAND\"`."))
-    write_page(section, HERE)
+    write_page(section, HERE, [results])
 
 
 def _runs_to_decide_table(results: dict, tried: list) -> Table:
