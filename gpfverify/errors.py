@@ -25,3 +25,8 @@ class NumericalError(GpfverifyError, ArithmeticError):
 
 class SolverError(NumericalError):
     """A convex solver returned no usable solution (infeasible, unbounded or inaccurate)."""
+
+
+class WorkerLost(GpfverifyError):
+    """A worker process ended abruptly (a signal, the kernel's out-of-memory killer) while runs
+    were being computed: the runs already saved are kept for ``--resume``, as on an interruption."""

@@ -16,10 +16,11 @@ removed, and a command that fails leaves DIR as it found it.
 3. **Commit** on success: the list of files is written into the staging folder, which then
    replaces DIR by ``rename`` (DIR held only gpfverify's files, re-checked just before).
    On an error the staging folder is removed and DIR is as it was. On an interruption
-   (Ctrl-C, SIGTERM) the saved runs (``manifest.json`` and ``runs/run-*.json`` at any depth,
-   each written whole) are committed, so ``--resume`` continues them; nothing else is. After a
-   SIGKILL the staging folder stays; the next command on DIR that keeps its files adopts its
-   saved runs and removes it once committed.
+   (Ctrl-C, SIGTERM) or a lost worker process (:class:`~gpfverify.errors.WorkerLost`) the saved
+   runs (``manifest.json`` and ``runs/run-*.json`` at any depth, each written whole) are
+   committed, so ``--resume`` continues them; nothing else is. After a SIGKILL the staging folder
+   stays; the next command on DIR that keeps its files adopts its saved runs and removes it once
+   committed.
 """
 
 from __future__ import annotations
@@ -31,7 +32,7 @@ import shutil
 from collections.abc import Iterator
 from pathlib import Path, PurePosixPath
 
-from gpfverify.errors import InputError
+from gpfverify.errors import InputError, WorkerLost
 
 #: the list of files gpfverify wrote in an output folder (its own entry included)
 FILE_LIST = ".gpfverify-files"
@@ -124,7 +125,7 @@ def _swap_in(stage: Path, out: Path) -> None:
 
 
 def _salvage_runs(stage: Path, out: Path) -> None:
-    """After an interruption: move the saved runs of ``stage`` into ``out`` (each replaces only
+    """After an interruption or a lost worker: move the saved runs of ``stage`` into ``out`` (each replaces only
     its own earlier copy, a file gpfverify wrote) and list them, for ``--resume``."""
     runs = [entry for entry, is_folder in _entries(stage) if not is_folder and _is_saved_run(PurePosixPath(entry))]
     if all(PurePosixPath(entry).name == "manifest.json" for entry in runs):  # no run finished: keep nothing
@@ -173,7 +174,7 @@ def _adopt_runs(orphan: Path, stage: Path) -> None:
 def output_folder(out: Path, keep: bool = True) -> Iterator[Path]:
     """Yield the staging folder a command writes its outputs to; commit it as ``out`` when the
     block ends normally, discard it when the block raises (keeping the saved runs when it was
-    interrupted). ``keep``: start from a copy of ``out``'s files (runs to resume, sections to
+    interrupted or lost a worker). ``keep``: start from a copy of ``out``'s files (runs to resume, sections to
     keep) rather than from an empty folder."""
     check_out(Path(out))
     out = Path(out).absolute()
@@ -196,7 +197,7 @@ def output_folder(out: Path, keep: bool = True) -> Iterator[Path]:
         _swap_in(stage, out)
         for orphan in orphans:
             shutil.rmtree(orphan, ignore_errors=True)
-    except KeyboardInterrupt:
+    except (KeyboardInterrupt, WorkerLost):  # interrupted, or a worker lost: the saved runs are kept
         with contextlib.suppress(OSError, InputError):
             if stage.exists():
                 _salvage_runs(stage, out)

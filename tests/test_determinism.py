@@ -3,7 +3,8 @@
 whose workers are separate processes) and after a SIGKILL and ``--resume`` — checked end to end
 through the command line on a small ct2d (RCC-CI included, whose solver once depended on the
 process's earlier solves) and a small ungm1d. The SIGKILL also checks that no worker process nor
-the resource tracker outlives the killed main process."""
+the resource tracker outlives the killed main process; a worker killed alone ends the command
+with exit status 2 and one line, its saved runs kept in --out for ``--resume``."""
 
 import json
 import os
@@ -126,5 +127,46 @@ def test_sigkill_leaves_no_orphans_and_resume_gives_the_same_bytes(serial, tmp_p
     assert not out.exists()  # the killed command's runs wait in its staging folder for --resume
     refused = _reproduce(name, out, check=False)  # without --resume: refused, one line
     assert refused.returncode == 2 and len(refused.stderr.strip().splitlines()) == 1
+    _reproduce(name, out, "--resume", "--workers", "1")
+    assert _canonical(out) == serial[name]
+
+
+def _workers(pid: int) -> list[int]:
+    """The worker processes of the process pool of ``pid`` (not the resource tracker)."""
+    found = []
+    for child in _children(pid):
+        try:
+            if "spawn_main" in Path(f"/proc/{child}/cmdline").read_text(errors="replace"):
+                found.append(child)
+        except OSError:  # ended meanwhile
+            continue
+    return found
+
+
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="reads /proc")
+def test_a_killed_worker_keeps_the_saved_runs_and_resume_gives_the_same_bytes(serial, tmp_path):
+    name, out = "ungm1d", tmp_path / "out"
+    proc = subprocess.Popen(_cli("reproduce", *EXPERIMENTS[name], "--runs", RUNS, "--seed", SEED,
+                                 "--out", str(out), "--workers", "2"),
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    deadline = time.monotonic() + 120
+    try:
+        while time.monotonic() < deadline and proc.poll() is None:
+            if list(tmp_path.glob(".gpfverify-partial-out-*/runs/run-*.json")) and _workers(proc.pid):
+                break
+            time.sleep(0.02)
+        assert proc.poll() is None, "the run finished before a worker could be killed"
+        os.kill(_workers(proc.pid)[0], signal.SIGKILL)
+        stdout, stderr = proc.communicate(timeout=60)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+    assert proc.returncode == 2 and stdout == "", stderr
+    lines = stderr.strip().splitlines()
+    assert lines[-1].startswith("gpfverify reproduce: error: a worker process ended abruptly") \
+        and "--resume" in lines[-1] and "Traceback" not in stderr, stderr
+    kept = sorted(p.name for p in (out / "runs").glob("run-*.json"))
+    assert 1 <= len(kept) < int(RUNS) and (out / "manifest.json").is_file(), kept
+    assert not list(tmp_path.glob(".gpfverify-partial-*"))  # the staging folder is gone
     _reproduce(name, out, "--resume", "--workers", "1")
     assert _canonical(out) == serial[name]

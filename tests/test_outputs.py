@@ -436,6 +436,6 @@ def test_a_killed_worker_is_one_line_and_no_leaked_semaphore_warning(tmp_path):
     out, err = proc.communicate(timeout=60)
     assert proc.returncode == 2 and out == "", err
     assert err.strip().splitlines() == ["gpfverify check: error: a worker process ended abruptly (killed by a "
-                                        "signal or out of memory); nothing was written to --out: run the command "
-                                        "again"], err
+                                        "signal or out of memory); no run had finished, nothing was written to "
+                                        "--out: run the command again"], err
     assert sorted(os.listdir(tmp_path)) == ["slow.py"]

@@ -43,7 +43,7 @@ import numpy as np
 from gpfverify import provenance
 from gpfverify.contract.params import Params
 from gpfverify.contract.serial import from_json, to_json
-from gpfverify.errors import GpfverifyError, InputError
+from gpfverify.errors import InputError, WorkerLost
 from gpfverify.runtime import BLAS_THREAD_VARS
 from gpfverify.usercode import HARD_EXIT, UserExit, guarded, system_file
 
@@ -334,8 +334,8 @@ def run_experiment(module: ModuleType | str, params: Params, runs: int, seed: in
                     try:
                         record = future.result()
                     except BrokenExecutor:
-                        raise GpfverifyError("a worker process ended abruptly (killed by a signal or out of memory); "
-                                             "nothing was written to --out: run the command again") from None
+                        saved = sum(_is_ok(_run_path(out_dir, i)) for i in range(runs))
+                        raise WorkerLost(_worker_lost_message(saved, runs)) from None
                     _atomic_write_json(_run_path(out_dir, record["index"]), record)
                     n_done += 1
                     if on_run is not None:
@@ -351,6 +351,16 @@ def run_experiment(module: ModuleType | str, params: Params, runs: int, seed: in
                   "run again with --resume to continue", file=sys.stderr)
             raise
     return write_results(module, out_dir, manifest)
+
+
+def _worker_lost_message(saved: int, runs: int) -> str:
+    """What a lost worker leaves: the runs saved so far (kept for ``--resume`` by the output folder,
+    :func:`gpfverify.outputs.output_folder`), or nothing when none was."""
+    said = "a worker process ended abruptly (killed by a signal or out of memory)"
+    if not saved:
+        return f"{said}; no run had finished, nothing was written to --out: run the command again"
+    return (f"{said}; the {saved} of {runs} runs saved so far are kept in --out: run the command again with "
+            "--resume to continue them")
 
 
 def _typed_params(module: ModuleType, params: dict) -> Params:
