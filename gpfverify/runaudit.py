@@ -27,6 +27,9 @@ import msgspec
 import numpy as np
 
 from gpfverify.audit import CaseAudit, audit_case, audit_to_dict
+from gpfverify.blockaudit import block_audits
+from gpfverify.fusion.caseblock import CaseBlock
+from gpfverify.fusion.exactness import DEFAULT_RANK_RULE, RankRule, resolve_rank_rule
 from gpfverify.fusion.runfile import BLOCK_STEPS, RunBlock, open_run
 
 #: output kept in memory before the spool moves to a temporary file
@@ -58,8 +61,10 @@ def audit_block(run_block: RunBlock, rank_rule=None, rank_tol: float | None = No
                 form: str = "json", keep: bool = False) -> BlockAudit:
     """Audit every step of a block (``form``: "json" encodes the step objects, "text" the table
     rows, "none" neither); ``keep`` also returns the step dicts and CaseAudit records."""
-    audits = [audit_case(case, rank_tol, sensitivity=sensitivity, rank_rule=rank_rule)
-              for _, case in run_block.steps()]
+    rule = None if sensitivity else block_rule(run_block.block, rank_rule, rank_tol)
+    batched = block_audits(run_block.block, rule) if rule is not None else [None] * len(run_block)
+    audits = [audit if audit is not None else audit_case(case, rank_tol, sensitivity=sensitivity, rank_rule=rank_rule)
+              for audit, (_, case) in zip(batched, run_block.steps())]
     steps = [{"k": int(k), **audit_to_dict(a)} for k, a in zip(run_block.ks, audits)]
     rules: list = []
     for s in steps:
@@ -76,6 +81,19 @@ def audit_block(run_block: RunBlock, rank_rule=None, rank_tol: float | None = No
         json=b", ".join(_ENCODER.encode(s) for s in steps) if form == "json" else b"",
         text="".join(table_row(s) + "\n" for s in steps) if form == "text" else "",
         steps=steps if keep else None, audits=audits if keep else None)
+
+
+def block_rule(block: CaseBlock, rank_rule=None, rank_tol: float | None = None) -> RankRule | None:
+    """The rank rule that decides every step of ``block`` (:func:`~gpfverify.fusion.exactness.resolve_rank_rule`
+    of each step), or None when the steps' own ``rank_tol`` make it differ between steps."""
+    if rank_rule is not None or rank_tol is not None:
+        return resolve_rank_rule(None, rank_rule, rank_tol)
+    tols = block.rank_tol
+    if np.all(np.isnan(tols)):
+        return DEFAULT_RANK_RULE
+    if np.all(tols == tols[0]):
+        return RankRule("absolute", float(tols[0]))
+    return None
 
 
 def table_row(step: dict) -> str:

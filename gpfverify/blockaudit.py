@@ -1,0 +1,191 @@
+"""The rank-condition audit of a block of steps of one layout, vectorised over the steps.
+
+:func:`gpfverify.audit.audit_case` audits one fusion step; a run file's block (B steps with the
+same state dimension and sensor sizes, :class:`~gpfverify.fusion.caseblock.CaseBlock`) has the
+same small matrices at every step, so the per-step Python around them dominates. This module
+computes the same audit for every step of a block at once with stacked numpy linear algebra
+(one Cholesky, one SVD, one solve per quantity over the leading step axis) wherever the step's
+audit takes the common path:
+
+* the measurement y is given, no output or state component is an angle, no sensitivity is asked;
+* every C_xy^m has full column rank under the rank rule (so N_m is empty, DMF is exact,
+  P_m = I, the repair message and the predicted gap are zero and the repaired mean is DMF's);
+* every factorisation succeeds without jitter.
+
+There the formulas are those of :mod:`gpfverify.fusion.exactness` and :mod:`gpfverify.audit` with
+their ranks fixed: canonical correlations ρ = σ(L_p⁻¹ C_xy L_y⁻ᵀ) of equilibrated Cholesky
+factors, G = C_xy C_y⁻¹, A_m = (C_xy^m)⁺ = V S⁻¹ U_lᵀ, eq. 35's mean
+μ_p + G [(μ_y^m − μ_y(m)) + C_y^m A_m (μ_e^m − μ_p^m)]_m, CMF's μ_p + G (y − μ_y), and the
+rounding bound of :func:`~gpfverify.fusion.exactness.equivalence_tolerance`. Every other step
+(a sensor that lost rank, no y, angles, a factorisation that needs jitter) is left to
+:func:`~gpfverify.audit.audit_case`, which stays the one definition of the audit: the tests
+compare the two routes field by field (tests/test_audit_batched.py).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from gpfverify.audit import CaseAudit, SensorAudit
+from gpfverify.fusion.caseblock import CaseBlock
+from gpfverify.fusion.exactness import COVARIANCE_CENTRAL, COVARIANCE_LOCAL, RankRule
+from gpfverify.tolerances import ALGEBRA_RTOL, ALGEBRA_SAFETY, EPS
+
+
+def _sym(a: np.ndarray) -> np.ndarray:
+    return 0.5 * (a + np.swapaxes(a, -1, -2))
+
+
+def _solve_lower(factor: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """L⁻¹ b over the step axis (LU solves of the triangular factors)."""
+    return np.linalg.solve(factor, b)
+
+
+def _equilibrated(cov: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(d, L) with cov = diag(d) L Lᵀ diag(d) at every step (:func:`gpfverify.linalg.equilibrated_cholesky`
+    without jitter); LinAlgError when a step's correlation matrix is not positive definite."""
+    cov = _sym(cov)
+    diag = np.diagonal(cov, axis1=1, axis2=2)
+    d = np.sqrt(np.where(diag > 0, diag, 1.0))
+    return d, np.linalg.cholesky(cov / (d[:, :, None] * d[:, None, :]))
+
+
+def _canonical(cov_x: np.ndarray, cov_y: np.ndarray, cross: np.ndarray):
+    """(ρ, d_x, L_x, d_y, L_y) of :func:`gpfverify.linalg.canonical_correlations` at every step."""
+    dx, lx = _equilibrated(cov_x)
+    dy, ly = _equilibrated(cov_y)
+    scaled = cross / (dx[:, :, None] * dy[:, None, :])
+    left = _solve_lower(lx, scaled)                                       # L_xc⁻¹ C
+    k = np.swapaxes(_solve_lower(ly, np.swapaxes(left, 1, 2)), 1, 2)      # … L_yc⁻ᵀ
+    return np.linalg.svd(k, compute_uv=False), dx, lx, dy, ly
+
+
+def _spd_condition(cov: np.ndarray) -> np.ndarray:
+    """:func:`gpfverify.linalg.correlation_condition` at every step."""
+    diag = np.diagonal(cov, axis1=1, axis2=2)
+    d = np.sqrt(np.where(diag > 0, diag, 1.0))
+    eig = np.linalg.eigvalsh(cov / (d[:, :, None] * d[:, None, :]))
+    low, high = eig[:, 0], eig[:, -1]
+    return np.where(low > 0, high / np.where(low > 0, low, 1.0), np.inf)
+
+
+def _algebra_rtol(cond: np.ndarray) -> np.ndarray:
+    """:func:`gpfverify.tolerances.algebra_rtol` elementwise."""
+    return np.where(np.isfinite(cond), np.maximum(ALGEBRA_RTOL, ALGEBRA_SAFETY * EPS * np.maximum(cond, 1.0)),
+                    np.inf)
+
+
+def _decides_full_rank(rule: RankRule, rho: np.ndarray, s: np.ndarray, shape: tuple[int, int]
+                       ) -> tuple[np.ndarray, np.ndarray]:
+    """(full column rank (B,), the tolerance that decided (B,)) under ``rule``."""
+    cols = shape[1]
+    if rule.name == "canonical":
+        assert rule.tol is not None
+        return np.sum(rho > rule.tol, axis=1) == cols, np.full(rho.shape[0], float(rule.tol))
+    if rule.name == "absolute":
+        assert rule.tol is not None
+        tol = np.full(s.shape[0], float(rule.tol))
+    else:
+        tol = s.max(axis=1, initial=0.0) * max(shape) * EPS
+    return np.sum(s > tol[:, None], axis=1) == cols, tol
+
+
+def block_audits(block: CaseBlock, rule: RankRule) -> list[CaseAudit | None]:
+    """The audit of every step of ``block`` under ``rule`` that takes the common path (module
+    docstring), None for the others (to be audited by :func:`~gpfverify.audit.audit_case`)."""
+    steps = len(block)
+    if (steps == 0 or block.y is None or block.circular or block.circular_state
+            or max(block.sizes, default=0) > block.state_dim):  # l_m > D: never full column rank
+        return [None] * steps
+    try:
+        # steps off the common path (a zero singular value, say) may divide by zero here: their
+        # values are discarded, and the per-step route reports them
+        with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+            return _block_audits(block, rule)
+    except np.linalg.LinAlgError:  # a factor needs jitter at some step: the per-step route decides
+        return [None] * steps
+
+
+def _block_audits(block: CaseBlock, rule: RankRule) -> list[CaseAudit | None]:
+    steps, dim = len(block), block.state_dim
+    assert block.y is not None
+    y = block.y
+    mu_p, c_p = block.mu_p, _sym(block.C_p)
+    dpx, lpx = _equilibrated(c_p)  # L_p = diag(d_p) L_pc: the gap in prior standard deviations
+    # FusedScale: L_p⁻¹ a = L_pc⁻¹ (a / d_p); |L_p⁻¹| formed once per step
+    abs_inverse = np.abs(_solve_lower(lpx, np.broadcast_to(np.eye(dim), (steps, dim, dim)) / dpx[:, :, None]))
+    gain = np.swapaxes(np.linalg.solve(_sym(block.C_y), np.swapaxes(block.C_xy, 1, 2)), 1, 2)  # C_xy C_y⁻¹
+
+    ok = ~np.all(np.isnan(y), axis=1)
+    parts, per_sensor = [], []
+    magnitudes = 2.0 * np.abs(mu_p) + np.einsum("bij,bj->bi", np.abs(gain), np.abs(y) + np.abs(block.mu_y))
+    reconstruction = np.zeros((steps, dim))
+    start = 0
+    for size, local in zip(block.sizes, block.locals):
+        cols = slice(start, start + size)
+        start += size
+        c_y, c_xy = _sym(local.C_y), local.C_xy
+        if local.C_e is not None:
+            solved = np.swapaxes(np.linalg.solve(c_y, np.swapaxes(c_xy, 1, 2)), 1, 2)           # C_xy C_y⁻¹
+            recovered_prior = _sym(local.C_e + solved @ np.swapaxes(c_xy, 1, 2))
+            has_c_e = local.has_C_e
+            prior = np.where(has_c_e[:, None, None], recovered_prior, c_p)
+        else:
+            has_c_e = np.zeros(steps, dtype=bool)
+            prior = c_p
+        rho, _, _, _, _ = _canonical(prior, c_y, c_xy)
+        u, s, vt = np.linalg.svd(c_xy, full_matrices=True)
+        full, tol = _decides_full_rank(rule, rho, s, (dim, size))
+        ok &= full
+        pinv = (np.swapaxes(vt, 1, 2) / s[:, None, :]) @ np.swapaxes(u[:, :, :size], 1, 2)   # V S⁻¹ U_lᵀ
+        change = local.mu_e - local.mu_p
+        recovered = np.einsum("bij,bj->bi", pinv, change)
+        c_y_recovered = np.einsum("bij,bj->bi", c_y, recovered)
+        parts.append(local.mu_y - block.mu_y[:, cols] + c_y_recovered)
+        w = np.linalg.solve(c_y, (y[:, cols] - local.mu_y)[:, :, None])[:, :, 0]
+        residual = np.linalg.norm(change - np.einsum("bij,bj->bi", c_xy, w), axis=1)
+        corr_cond = _spd_condition(c_y)
+        scale = (np.linalg.norm(change, axis=1) + np.linalg.norm(local.mu_e, axis=1)
+                 + np.linalg.norm(local.mu_p, axis=1))
+        # the rounding bound's terms (equivalence_tolerance)
+        g_m = gain[:, :, cols]
+        carried = np.abs(g_m @ c_y @ pinv)
+        report = np.abs(local.mu_e) + np.abs(local.mu_p) + corr_cond[:, None] * np.abs(change)
+        innovation = np.abs(local.mu_y) + np.abs(block.mu_y[:, cols]) + np.abs(c_y_recovered)
+        magnitudes = magnitudes + np.einsum("bij,bj->bi", np.abs(g_m), innovation) \
+            + np.einsum("bij,bj->bi", carried, report)
+        range_condition = s[:, 0] / s[:, -1]
+        reconstruction = reconstruction + range_condition[:, None] * np.abs(np.einsum("bij,bj->bi", g_m, c_y_recovered))
+        per_sensor.append(dict(size=size, s=s, tol=tol, rho=rho, covariance=np.where(
+            has_c_e, COVARIANCE_LOCAL, COVARIANCE_CENTRAL), residual=residual,
+            consistency_tol=_algebra_rtol(corr_cond) * scale))
+    dmf = mu_p + np.einsum("bij,bj->bi", gain, np.concatenate(parts, axis=1))
+    cmf = mu_p + np.einsum("bij,bj->bi", gain, y - block.mu_y)
+    gap = dmf - cmf
+    gap_size = np.linalg.norm(_solve_lower(lpx, (gap / dpx)[:, :, None])[:, :, 0], axis=1)
+    operations = dim + block.mu_y.shape[1]
+    total = (np.linalg.norm(np.einsum("bij,bj->bi", abs_inverse, magnitudes), axis=1)
+             + np.linalg.norm(np.einsum("bij,bj->bi", abs_inverse, reconstruction), axis=1))
+    gap_bound = operations * EPS * total
+    return [_case_audit(t, rule, per_sensor, dmf, cmf, gap, gap_size, gap_bound, dim) if ok[t] else None
+            for t in range(steps)]
+
+
+def _case_audit(t: int, rule: RankRule, per_sensor: list[dict], dmf: np.ndarray, cmf: np.ndarray,
+                gap: np.ndarray, gap_size: np.ndarray, gap_bound: np.ndarray, dim: int) -> CaseAudit:
+    """Step t's :class:`CaseAudit` from the block's arrays (every sensor full column rank)."""
+    sensors = []
+    for m, sensor in enumerate(per_sensor):
+        size = sensor["size"]
+        s = sensor["s"][t]
+        sensors.append(SensorAudit(
+            index=m, rows=dim, cols=size, rank=size, singular_values=s, tol=float(sensor["tol"][t]),
+            condition_number=float(s[0] / s[-1]) if s.size and s[-1] != 0.0 else float("inf"),
+            gap_gain_norm=0.0, exactness_tol=0.0, exact=True, repair_basis=np.zeros((size, 0)),
+            repair_message=np.zeros(size), local_consistency_residual=float(sensor["residual"][t]),
+            consistency_tol=float(sensor["consistency_tol"][t]), gap_contribution=np.zeros(dim),
+            branch_offsets=np.zeros(size, dtype=int), rank_rule=rule, canonical_correlations=sensor["rho"][t],
+            covariance=str(sensor["covariance"][t])))
+    size = float(gap_size[t])
+    return CaseAudit(tuple(sensors), rule, True, True, dmf[t], cmf[t], gap[t], np.zeros(dim), dmf[t],
+                     gap_size=size, gap_bound=float(gap_bound[t]), prediction_error=size)
