@@ -59,12 +59,16 @@ class BlockAudit:
 
 def audit_block(run_block: RunBlock, rank_rule=None, rank_tol: float | None = None, sensitivity: bool = False,
                 form: str = "json", keep: bool = False) -> BlockAudit:
-    """Audit every step of a block (``form``: "json" encodes the step objects, "text" the table
-    rows, "none" neither); ``keep`` also returns the step dicts and CaseAudit records."""
+    """Audit every step of a block — the steps on the common path all at once
+    (:func:`gpfverify.blockaudit.block_audits`, when one rank rule decides the whole block), the
+    others one by one (:func:`gpfverify.audit.audit_case`) — (``form``: "json" encodes the step
+    objects, "text" the table rows, "none" neither); ``keep`` also returns the step dicts and
+    CaseAudit records."""
     rule = None if sensitivity else block_rule(run_block.block, rank_rule, rank_tol)
     batched = block_audits(run_block.block, rule) if rule is not None else [None] * len(run_block)
-    audits = [audit if audit is not None else audit_case(case, rank_tol, sensitivity=sensitivity, rank_rule=rank_rule)
-              for audit, (_, case) in zip(batched, run_block.steps())]
+    audits = [audit if audit is not None else
+              audit_case(run_block.block.case(t), rank_tol, sensitivity=sensitivity, rank_rule=rank_rule)
+              for t, audit in enumerate(batched)]
     steps = [{"k": int(k), **audit_to_dict(a)} for k, a in zip(run_block.ks, audits)]
     rules: list = []
     for s in steps:
