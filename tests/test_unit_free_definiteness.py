@@ -122,8 +122,10 @@ def test_a_case_in_other_units_is_accepted_and_fused_equivariantly(kind, method,
     assert np.all(np.abs(cov_back - np.asarray(want["cov"])) <= rtol * np.outer(std, std))
 
 
-def test_an_impossible_cross_covariance_is_refused(tmp_path, capsys):
-    """Every C_xy x100 implies correlations above one between x and y."""
+@pytest.mark.parametrize("command", [["fuse", "--method", "cmf"], ["audit", "--json"]], ids=lambda c: c[0])
+def test_an_impossible_cross_covariance_is_refused(tmp_path, capsys, command):
+    """Every C_xy x100 implies correlations above one between x and y: refused by every command
+    that reads a case (docs/output-and-errors.md, "Covariances in the outputs")."""
     data = case_to_dict(random_case(np.random.default_rng(5), 2, (1, 2)))
     c = data["central"]
     c["C_xy"] = (100.0 * np.asarray(c["C_xy"])).tolist()
@@ -135,7 +137,7 @@ def test_an_impossible_cross_covariance_is_refused(tmp_path, capsys):
         case_from_dict(data)
     path = tmp_path / "case.json"
     path.write_text(json.dumps(data))
-    assert main(["fuse", str(path), "--method", "cmf"]) == 2
+    assert main([command[0], str(path), *command[1:]]) == 2
     out, err = capsys.readouterr()
     assert out == "" and err.count("\n") == 1 and "central joint covariance" in err
 
