@@ -108,3 +108,18 @@ def test_help_shows_no_sphinx_markup(experiment, capsys):
     code, out, _ = _run(["reproduce", experiment, "--help"], capsys)
     assert code == 0 and "--paper-scale" in out
     assert not re.search(r":(mod|func|class|meth|data|attr):`|``", out), out
+
+
+def test_progress_of_each_interpretation_times_its_own_runs():
+    """The interpretations run after the main run through the same progress callback, each
+    counting its runs from one again: its first run's time is its own, not the time since the
+    command started."""
+    lines, now = [], [0.0]
+    on_run = progress_lines("exp", lines.append, clock=lambda: now[0])
+    for seconds_per_run in (2.0, 60.0):  # the main run, then an interpretation thirty times slower
+        for saved in range(1, 11):
+            now[0] += seconds_per_run
+            on_run(saved, 10)
+    firsts = [line for line in lines if "first run took" in line]
+    assert firsts == ["exp: first run took 2 s; estimated time left for the other 9: 18 s",
+                      "exp: first run took 1 min 0 s; estimated time left for the other 9: 9 min 0 s"]

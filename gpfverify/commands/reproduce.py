@@ -80,18 +80,23 @@ def progress_lines(name: str, say: Callable[[str], None], header: str = "",
     """``on_run(saved, total)`` for the runner: ``header`` (what runs; said once the runs have
     started, so that a refused command prints only its error) and the estimated time left after
     the first saved run, then a line every :data:`PROGRESS_FRACTION` of the runs (and at least every
-    :data:`PROGRESS_SECONDS`), each with the time left at the rate so far."""
-    started = last_line = clock()
-    before: int | None = None  # runs saved before this command (--resume)
-    last_share = -1
+    :data:`PROGRESS_SECONDS`), each with the time left at the rate so far. A count that starts again
+    (the interpretations, each a sequence of runs after the main one) starts the clock again at the
+    end of the previous sequence."""
+    started = last_line = last_call = clock()
+    before: int | None = None  # runs saved before this command (--resume), or before this sequence
+    last_saved = last_share = -1
 
     def on_run(saved: int, total: int) -> None:
-        nonlocal before, last_line, last_share
+        nonlocal started, before, last_line, last_call, last_saved, last_share
         now = clock()
         if before is None:
             before = saved - 1
             if header:
                 say(header)
+        elif saved <= last_saved:  # the next sequence of runs (an interpretation) began after the last one
+            started, before, last_share = last_call, saved - 1, -1
+        last_call, last_saved = now, saved
         new = saved - before
         left = (total - saved) * (now - started) / max(new, 1)
         share = int(saved / total / PROGRESS_FRACTION)
