@@ -347,8 +347,10 @@ def run_experiment(module: ModuleType | str, params: Params, runs: int, seed: in
             for f in in_flight:
                 f.cancel()
             saved = sum(_is_ok(_run_path(out_dir, i)) for i in range(runs))
-            print(f"interrupted: {saved} of {runs} runs saved in {out_dir / 'runs'}; "
-                  "run again with --resume to continue", file=sys.stderr)
+            # the command's --out, not out_dir: the command writes into a staging folder and keeps the
+            # saved runs in --out (gpfverify.outputs)
+            print(f"interrupted: {saved} of {runs} runs saved, kept in --out; run again with --resume to continue",
+                  file=sys.stderr)
             raise
     return write_results(module, out_dir, manifest)
 
