@@ -105,6 +105,7 @@ def make_executor(workers: int = 1, scheduler: str | None = None):
     os.environ.update({k: "1" for k in BLAS_THREAD_VARS})  # inherited by the spawned workers
     import multiprocessing as mp
 
+    _quiet_manager_thread_on_interrupt()
     pool = ProcessPoolExecutor(max_workers=workers, mp_context=mp.get_context("spawn"),
                                initializer=_exit_with_parent, initargs=(os.getpid(),))
     try:
@@ -124,6 +125,33 @@ def make_executor(workers: int = 1, scheduler: str | None = None):
                 os.environ.pop(k, None)
             else:
                 os.environ[k] = v
+
+
+_QUIET_MANAGER_INSTALLED = False
+
+
+def _quiet_manager_thread_on_interrupt() -> None:
+    """Keep CPython 3.11's process-pool race off the terminal: when the workers are stopped on an
+    interruption, the pool's manager thread marks every pending future broken, including those
+    already cancelled, and its ``InvalidStateError`` would be printed as a traceback after the one
+    "interrupted" line. Only that exception of that thread is dropped (the hook, installed once per
+    process when a local pool is first made, passes everything else to the hook it wraps)."""
+    global _QUIET_MANAGER_INSTALLED
+    if _QUIET_MANAGER_INSTALLED:
+        return
+    import threading
+    from concurrent.futures import InvalidStateError
+    from concurrent.futures.process import _ExecutorManagerThread
+
+    previous = threading.excepthook
+
+    def hook(args) -> None:
+        if isinstance(args.thread, _ExecutorManagerThread) and isinstance(args.exc_value, InvalidStateError):
+            return
+        previous(args)
+
+    threading.excepthook = hook
+    _QUIET_MANAGER_INSTALLED = True
 
 
 def check_workers(workers) -> int:
