@@ -24,6 +24,9 @@ compare the two routes field by field (tests/test_audit_batched.py).
 
 from __future__ import annotations
 
+import functools
+from dataclasses import dataclass
+
 import numpy as np
 
 from gpfverify.audit import CaseAudit, SensorAudit
@@ -156,9 +159,10 @@ def _block_audits(block: CaseBlock, rule: RankRule) -> list[CaseAudit | None]:
             + np.einsum("bij,bj->bi", carried, report)
         range_condition = s[:, 0] / s[:, -1]
         reconstruction = reconstruction + range_condition[:, None] * np.abs(np.einsum("bij,bj->bi", g_m, c_y_recovered))
-        per_sensor.append(dict(size=size, s=s, tol=tol, rho=rho, covariance=np.where(
-            has_c_e, COVARIANCE_LOCAL, COVARIANCE_CENTRAL), residual=residual,
-            consistency_tol=_algebra_rtol(corr_cond) * scale))
+        per_sensor.append(_SensorColumns(
+            size, s, rho, tol.tolist(), np.where(s[:, -1] != 0.0, range_condition, np.inf).tolist(),
+            residual.tolist(), (_algebra_rtol(corr_cond) * scale).tolist(),
+            [COVARIANCE_LOCAL if given else COVARIANCE_CENTRAL for given in has_c_e.tolist()]))
     dmf = mu_p + np.einsum("bij,bj->bi", gain, np.concatenate(parts, axis=1))
     cmf = mu_p + np.einsum("bij,bj->bi", gain, y - block.mu_y)
     gap = dmf - cmf
@@ -167,25 +171,43 @@ def _block_audits(block: CaseBlock, rule: RankRule) -> list[CaseAudit | None]:
     total = (np.linalg.norm(np.einsum("bij,bj->bi", abs_inverse, magnitudes), axis=1)
              + np.linalg.norm(np.einsum("bij,bj->bi", abs_inverse, reconstruction), axis=1))
     gap_bound = operations * EPS * total
-    return [_case_audit(t, rule, per_sensor, dmf, cmf, gap, gap_size, gap_bound, dim) if ok[t] else None
+    zero_state = _zeros(dim)
+    sizes, bounds = gap_size.tolist(), gap_bound.tolist()
+    return [CaseAudit(tuple(_sensor_audit(t, m, c, rule, dim, zero_state) for m, c in enumerate(per_sensor)),
+                      rule, True, True, dmf[t], cmf[t], gap[t], zero_state, dmf[t], gap_size=sizes[t],
+                      gap_bound=bounds[t], prediction_error=sizes[t]) if ok[t] else None
             for t in range(steps)]
 
 
-def _case_audit(t: int, rule: RankRule, per_sensor: list[dict], dmf: np.ndarray, cmf: np.ndarray,
-                gap: np.ndarray, gap_size: np.ndarray, gap_bound: np.ndarray, dim: int) -> CaseAudit:
-    """Step t's :class:`CaseAudit` from the block's arrays (every sensor full column rank)."""
-    sensors = []
-    for m, sensor in enumerate(per_sensor):
-        size = sensor["size"]
-        s = sensor["s"][t]
-        sensors.append(SensorAudit(
-            index=m, rows=dim, cols=size, rank=size, singular_values=s, tol=float(sensor["tol"][t]),
-            condition_number=float(s[0] / s[-1]) if s.size and s[-1] != 0.0 else float("inf"),
-            gap_gain_norm=0.0, exactness_tol=0.0, exact=True, repair_basis=np.zeros((size, 0)),
-            repair_message=np.zeros(size), local_consistency_residual=float(sensor["residual"][t]),
-            consistency_tol=float(sensor["consistency_tol"][t]), gap_contribution=np.zeros(dim),
-            branch_offsets=np.zeros(size, dtype=int), rank_rule=rule, canonical_correlations=sensor["rho"][t],
-            covariance=str(sensor["covariance"][t])))
-    size = float(gap_size[t])
-    return CaseAudit(tuple(sensors), rule, True, True, dmf[t], cmf[t], gap[t], np.zeros(dim), dmf[t],
-                     gap_size=size, gap_bound=float(gap_bound[t]), prediction_error=size)
+@dataclass(frozen=True)
+class _SensorColumns:
+    """One sensor's per-step results over a block (arrays with the step first, or lists)."""
+
+    size: int
+    singular_values: np.ndarray
+    correlations: np.ndarray
+    tol: list[float]
+    condition_number: list[float]
+    residual: list[float]
+    consistency_tol: list[float]
+    covariance: list[str]
+
+
+@functools.lru_cache(maxsize=64)
+def _zeros(*shape: int, dtype=float) -> np.ndarray:
+    """A read-only array of zeros of ``shape``, shared by every step audit that reports one."""
+    out = np.zeros(shape, dtype=dtype)
+    out.flags.writeable = False
+    return out
+
+
+def _sensor_audit(t: int, m: int, c: _SensorColumns, rule: RankRule, dim: int, zero_state: np.ndarray
+                  ) -> SensorAudit:
+    """Sensor m's :class:`SensorAudit` at step t (full column rank: no kernel, exact)."""
+    return SensorAudit(
+        index=m, rows=dim, cols=c.size, rank=c.size, singular_values=c.singular_values[t], tol=c.tol[t],
+        condition_number=c.condition_number[t], gap_gain_norm=0.0, exactness_tol=0.0, exact=True,
+        repair_basis=_zeros(c.size, 0), repair_message=_zeros(c.size),
+        local_consistency_residual=c.residual[t], consistency_tol=c.consistency_tol[t],
+        gap_contribution=zero_state, branch_offsets=_zeros(c.size, dtype=int), rank_rule=rule,
+        canonical_correlations=c.correlations[t], covariance=c.covariance[t])
