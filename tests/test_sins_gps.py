@@ -87,6 +87,50 @@ def test_model_mismatch_is_exactly_the_stale_specific_force_term(scenario):
         np.testing.assert_allclose(models.transition_inputs[k], df)
 
 
+def test_an_accelerometer_scale_factor_is_the_velocity_forcing_dt_s_fn_and_nothing_else(scenario):
+    """An isotropic scale factor s adds Δt s fⁿ to the true model's velocity rows (closed form from the
+    flight's specific force); Φ_true, the approximate model and the other rows are unchanged."""
+    config, flight, models = scenario
+    scaled_config = dataclasses.replace(config, accel_scale_ppm=1000.0)
+    scaled = build_models(flight, scaled_config)
+    np.testing.assert_array_equal(models.forcing_true, 0.0)
+    np.testing.assert_array_equal(scaled.transitions_true, models.transitions_true)
+    np.testing.assert_array_equal(scaled.transitions_approx, models.transitions_approx)
+    expected = np.zeros_like(scaled.forcing_true)
+    expected[:, VELOCITY] = 1e-3 * flight.specific_force[:-1] * config.dt
+    np.testing.assert_allclose(scaled.forcing_true, expected, rtol=algebra_rtol())
+    # in cruise the forcing is the vertical s g per step, up to s times the Coriolis and transport-rate
+    # terms, bounded by (2Ω + 2 v/R) |v|
+    k = np.searchsorted(flight.time, 300.0)
+    g = gravity(flight.latitude[k], flight.height[k])
+    speed = np.linalg.norm(flight.velocity[k])
+    rotation_bound = (2 * EARTH_RATE + 2 * speed / EQUATORIAL_RADIUS) * speed
+    assert abs(scaled.forcing_true[k, 5] - 1e-3 * g * config.dt) <= 1e-3 * rotation_bound * config.dt
+    assert np.linalg.norm(scaled.forcing_true[k, 3:5]) <= 1e-3 * rotation_bound * config.dt
+    x = np.random.default_rng(5).normal(size=(3, 15))
+    np.testing.assert_allclose(scaled.true.f(x, k + 1), models.true.f(x, k + 1) + expected[k], rtol=algebra_rtol())
+    np.testing.assert_array_equal(scaled.approx.f(x, k + 1), models.approx.f(x, k + 1))
+    np.testing.assert_allclose(scaled.residual(np.zeros((flight.time.size - 1, 15))), expected, rtol=algebra_rtol())
+
+
+def test_training_targets_carry_the_scale_factor_forcing():
+    """The GP's training targets come from the true model: with a scale factor, the velocity
+    residual minus the fⁿ × φ term averages Δt s fⁿ (fⁿ from the recorded inputs f^n − f̂^n plus
+    level gravity), to within the accelerometer white noise's standard error."""
+    config = SinsGpsConfig(duration=650.0, accel_scale_ppm=1000.0)
+    data = training_set(config, [15.0, 75.0], 200, np.random.default_rng(2))
+    phi = data.states[:, ATTITUDE] * UNITS[ATTITUDE]
+    cross = np.cross(data.inputs, phi) * config.dt
+    leftover = data.next_true[:, VELOCITY] - data.next_approx[:, VELOCITY] - cross
+    level = np.array([0.0, 0.0, gravity(np.radians(34.0), 1000.0)])
+    forcing = 1e-3 * (data.inputs + level) * config.dt
+    noise_sd = config.accel_white_g_sqrt_hz * 9.78 * np.sqrt(config.dt)
+    # gravity varies by < 1e-3 m/s² over the flights' latitude and height: 1e-6 m/s of forcing
+    np.testing.assert_allclose((leftover - forcing).mean(axis=0), 0.0,
+                               atol=5 * noise_sd / np.sqrt(len(leftover)) + 1e-5)
+    assert abs(leftover[:, 2].mean()) > 100 * noise_sd / np.sqrt(len(leftover))  # the forcing is seen
+
+
 def test_sr_ukf_equals_kf_over_the_flight(scenario):
     """On the (linear) approximate model the SR-UKF must be the KF: every step of the flight."""
     config, _, models = scenario

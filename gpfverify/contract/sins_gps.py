@@ -77,6 +77,11 @@ class Params(BaseParams):
                                    "attitude (arcmin), velocity (m/s), position (m), gyro drift (°/h), "
                                    "accelerometer bias (mg)", minimum=0.0)
     gps_position_sd: float = option(10.0, "GPS position noise standard deviation (m)", above=0.0)
+    gps_velocity_sd: float = option(0.1, "GPS velocity noise standard deviation (m/s; the paper does not give "
+                                         "it)", above=0.0)
+    accel_scale_ppm: float = option(
+        0.0, "model error: an accelerometer scale factor (ppm, the same on every axis) in the flight that the "
+             "filters' model leaves out, on top of the level-flight fⁿ × φ coupling; 0 = none", minimum=0.0)
     initial_velocity_sd: float = option(0.5, "initial velocity error standard deviation (m/s)", above=0.0)
     initial_position_sd: float = option(10.0, "initial position error standard deviation (m)", above=0.0)
     # ---- filter-design choices the paper does not report ----
@@ -145,6 +150,11 @@ class RunRecord:
 QUICK_PARAMS = Params(particles=20)
 QUICK_RUNS = 2
 
+#: a model error whose true-model ceiling reaches the paper's reductions (measured over 4 runs of
+#: the SR-UKF: position 34 %, velocity 48 %, attitude 36 %): an unmodelled 1000 ppm accelerometer
+#: scale factor, with the GPS velocity noise at which the UPF's velocity error matches the paper's
+SCALE_FACTOR_MODEL_ERROR: dict[str, object] = {"accel_scale_ppm": 1000.0, "gps_velocity_sd": 1.0}
+
 #: the readings of what the paper leaves unstated about its filters, tried by ``--interpretations``
 INTERPRETATIONS: tuple[InterpretationSpec, ...] = (
     InterpretationSpec("q-x10", {"q_inflation": 10.0},
@@ -168,6 +178,20 @@ INTERPRETATIONS: tuple[InterpretationSpec, ...] = (
     InterpretationSpec("point-proposal-q-x1000", {"particle_covariance": "reset", "q_inflation": 1000.0},
                        "the point proposal with Q inflated 1000× (at 100× the 50 particles still lose the "
                        "position in some runs)"),
+    InterpretationSpec("scale-factor-1000ppm", SCALE_FACTOR_MODEL_ERROR,
+                       "a model error whose true-model ceiling reaches the claims (the level-flight fⁿ × φ error "
+                       "alone leaves an SR-UKF that knows the true model about 0.5 % of position error to gain): "
+                       "the flight's accelerometers carry a 1000 ppm scale factor (tactical grade) that the "
+                       "filters' model leaves out, and GPS velocity has σ = 1 m/s, at which the UPF's velocity "
+                       "error (about 1.6 m/s RMS) is at the paper's ±1.5–1.8 m/s band"),
+    InterpretationSpec("scale-factor-1000ppm-point-proposal",
+                       {**SCALE_FACTOR_MODEL_ERROR, "particle_covariance": "reset"},
+                       "that model error with the point proposal, under which the weights stay healthy "
+                       "(median N_eff/N about 0.45 over 2 trial runs, against 0.02 with the propagated proposal)"),
+    InterpretationSpec("scale-factor-1000ppm-point-proposal-regularised",
+                       {**SCALE_FACTOR_MODEL_ERROR, "particle_covariance": "reset", "jitter": "regularised"},
+                       "the same with the regularised particle filter's kernel move, which keeps the nearly "
+                       "deterministic particles diverse"),
 )
 
 PROFILES: dict[str, Profile] = {

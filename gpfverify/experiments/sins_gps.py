@@ -80,8 +80,8 @@ CLAIM_MARGIN = 0.10
 
 def config_of(params: Params) -> SinsGpsConfig:
     return SinsGpsConfig(duration=params.duration, dt=params.dt, gps_position_sd=params.gps_position_sd,
-                         initial_velocity_sd=params.initial_velocity_sd,
-                         initial_position_sd=params.initial_position_sd)
+                         gps_velocity_sd=params.gps_velocity_sd, initial_velocity_sd=params.initial_velocity_sd,
+                         initial_position_sd=params.initial_position_sd, accel_scale_ppm=params.accel_scale_ppm)
 
 
 def _floor_cov(floor) -> np.ndarray:
@@ -199,9 +199,10 @@ def run_one(params: Params, seed_seq: np.random.SeedSequence) -> RunRecord:
     truth_rng = child_rng(seed_seq, 0)
     x0 = truth_rng.multivariate_normal(np.zeros(STATE_DIM), prior_cov)
     xs, ys = models.true.simulate(config.steps, truth_rng, x0=x0)
-    # how well the GP knows this run's residual Δt (fⁿ − f̂ⁿ) × φ along the true trajectory
+    # how well the GP knows this run's residual (Δt (fⁿ − f̂ⁿ) × φ and the scale-factor forcing) along
+    # the true trajectory
     previous = np.vstack([x0, xs[:-1]])
-    true_residual = np.einsum("kij,kj->ki", models.transitions_true - models.transitions_approx, previous)[:, VELOCITY]
+    true_residual = models.residual(previous)[:, VELOCITY]
     gp_residual = gpsr_model.transition.mean(previous, models.transition_inputs[:-1])
     particle_filters = {m: _run_filter(m, params, upf_model, gpsr_model, prior_cov, ys, xs, child_rng(seed_seq, i))
                         for i, m in enumerate(METHODS, 1)}

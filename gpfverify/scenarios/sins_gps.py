@@ -30,6 +30,14 @@ manoeuvre dependent):
   specific force f̂^n = [0, 0, g] ("stale" cruise specific force). It is exact in straight level
   cruise and wrong during take-off, climb, acceleration and the turn; the residual is
   Δt (f^n − f̂^n) × φ in the velocity rows only.
+* accelerometer scale factor (``accel_scale_ppm``, default 0, so absent): the accelerometers read
+  (1 + s) times the specific force on every axis, which the SINS integrates; the true model gains
+  the forcing Δt s f^n in the velocity rows (an isotropic scale factor turns with the body, so it
+  does not depend on the attitude), which the approximate model lacks. Unlike the f^n × φ
+  mismatch it does not scale with the attitude error, so it is not small whatever the filter
+  knows of φ: in cruise it is a vertical acceleration error s g, beyond the accelerometer-bias
+  state's σ = 0.1 mg for s above about 100 ppm, and in manoeuvres it follows the acceleration. The
+  residual the GP learns is then Δt ((f^n − f̂^n) × φ + s f^n).
 * measurement: z = [δp; δv] + v (SINS minus GPS) is linear and known, so it is the same in both
   models. (A GPS antenna lever arm would be a measurement mismatch; in a trial with a 3 m lever arm
   under 10 m GPS noise the measurement-residual GP learned nothing useful, so it is left out.)
@@ -109,6 +117,7 @@ class SinsGpsConfig:
     initial_attitude_arcmin: tuple = (1.0, 1.0, 3.0)
     initial_velocity_sd: float = 0.5
     initial_position_sd: float = 10.0
+    accel_scale_ppm: float = 0.0
 
     @property
     def steps(self) -> int:
@@ -257,13 +266,21 @@ class SinsGpsModels:
     inputs the GP residuals use.
 
     transitions_true / transitions_approx (K, 15, 15): Φ used to go from step k−1 to k (row k−1);
-    transition_inputs (K+1, 3): f^n − f̂^n (m/s²) at each step."""
+    forcing_true (K, 15): the true model's input term u (row k−1; zero without an accelerometer
+    scale factor), so that x_k = Φ_true x_k−1 + u + w; transition_inputs (K+1, 3): f^n − f̂^n
+    (m/s²) at each step."""
 
     true: StateSpaceModel
     approx: StateSpaceModel
     transitions_true: np.ndarray
     transitions_approx: np.ndarray
+    forcing_true: np.ndarray
     transition_inputs: np.ndarray
+
+    def residual(self, previous: np.ndarray) -> np.ndarray:
+        """(K, 15) the true minus the approximate model's prediction from the states ``previous``
+        (K, 15) of steps 0..K−1: (Φ_true − Φ_approx) x + u."""
+        return np.einsum("kij,kj->ki", self.transitions_true - self.transitions_approx, previous) + self.forcing_true
 
 
 def measurement_matrix() -> np.ndarray:
@@ -290,15 +307,20 @@ def build_models(flight: Flight, config: SinsGpsConfig = SinsGpsConfig()) -> Sin
     R = config.measurement_cov()
     P0 = config.initial_cov()
 
-    def transition(table):
-        return lambda x, k: np.einsum("ij,nj->ni", table[k - 1], x)
+    forcing = np.zeros((steps, STATE_DIM))
+    # x_k = Φ x_k−1 + Δt s f^n(t_k−1): the scale-factor error's velocity increment over the step
+    forcing[:, VELOCITY] = config.accel_scale_ppm * 1e-6 * flight.specific_force[:-1] * config.dt
 
-    def model(table, name):
-        return StateSpaceModel(transition(table), Q, [Sensor(H, R, name="GPS position and velocity")],
+    def transition(table, offset):
+        return lambda x, k: np.einsum("ij,nj->ni", table[k - 1], x) + offset[k - 1]
+
+    def model(table, offset, name):
+        return StateSpaceModel(transition(table, offset), Q, [Sensor(H, R, name="GPS position and velocity")],
                                np.zeros(STATE_DIM), P0, transition_jacobian=lambda x, k: table[k - 1], name=name)
 
-    true, approx = model(phi_true, "true SINS error model"), model(phi_approx, "level-flight SINS error model")
-    return SinsGpsModels(true, approx, phi_true, phi_approx, flight.specific_force - level)
+    true = model(phi_true, forcing, "true SINS error model")
+    approx = model(phi_approx, np.zeros_like(forcing), "level-flight SINS error model")
+    return SinsGpsModels(true, approx, phi_true, phi_approx, forcing, flight.specific_force - level)
 
 
 def _training_steps(manoeuvring: np.ndarray, count: int, share: float, rng: np.random.Generator) -> np.ndarray:
@@ -343,7 +365,8 @@ def training_set(config: SinsGpsConfig, headings_deg, points: int, rng: np.rando
         steps = _training_steps(flight.manoeuvring()[:-1], count, manoeuvre_share, rng)
         x = rng.standard_normal((count, STATE_DIM)) @ chol0.T
         noise = rng.standard_normal((count, STATE_DIM)) @ np.linalg.cholesky(models.true.Q).T
-        parts.append((x, np.einsum("nij,nj->ni", models.transitions_true[steps], x) + noise,
+        next_true = np.einsum("nij,nj->ni", models.transitions_true[steps], x) + models.forcing_true[steps] + noise
+        parts.append((x, next_true,
                       np.einsum("nij,nj->ni", models.transitions_approx[steps], x),
                       models.transition_inputs[steps]))
     return TrainingSet(*(np.concatenate(arrays) for arrays in zip(*parts)))

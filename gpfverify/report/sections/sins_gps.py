@@ -40,6 +40,13 @@ def _pct(value) -> str:
     return "—" if value is None else f"{100 * value:.1f} %"
 
 
+def _scale_factor_text(p: Params) -> str:
+    if not p.accel_scale_ppm:
+        return ""
+    return (f"; and it leaves out an accelerometer scale factor of {fmt(p.accel_scale_ppm)} ppm on every axis, "
+            "the velocity forcing Δt s fⁿ (a vertical acceleration error s g in cruise)")
+
+
 def render(results: dict, out_dir: Path) -> Section:
     """The page from one ``results.json`` body; figures go to ``out_dir``."""
     p = Params.from_json(results["params"])
@@ -51,10 +58,11 @@ def render(results: dict, out_dir: Path) -> Section:
         "axes (attitude, velocity, position in local metres, gyro drift, accelerometer bias) along a generated "
         f"{fmt(p.duration)} s flight from 109°E, 34°N, 1000 m: take-off roll and climb 0–200 s, cruise, "
         "acceleration and a 153° coordinated turn 500–600 s, cruise; GPS position (σ = "
-        f"{fmt(p.gps_position_sd)} m) and velocity (0.1 m/s, our interpretation) differences every "
-        f"{fmt(p.dt)} s. Model mismatch (our choice, the paper does not state its own): the filters' model "
-        "evaluates the fⁿ × φ coupling with the level-flight specific force [0, 0, g], exact in straight "
-        "level cruise and wrong in every manoeuvre. GPSR-UPF learns the residual Δt (fⁿ − f̂ⁿ) × φ with a "
+        f"{fmt(p.gps_position_sd)} m) and velocity (σ = {fmt(p.gps_velocity_sd)} m/s, our interpretation) "
+        f"differences every {fmt(p.dt)} s. Model mismatch (our choice, the paper does not state its own): the "
+        "filters' model evaluates the fⁿ × φ coupling with the level-flight specific force [0, 0, g], exact in "
+        "straight level cruise and wrong in every manoeuvre" + _scale_factor_text(p) + ". GPSR-UPF learns the "
+        f"residual{' Δt (fⁿ − f̂ⁿ) × φ' if not p.accel_scale_ppm else ''} with a "
         f"Gaussian process on (φ, fⁿ − f̂ⁿ) from {p.train_points} transitions of training flights flown from "
         f"headings {', '.join(fmt(h) for h in p.train_headings)}° (the test flight starts at 45°), and uses "
         "its predictive variance as the velocity process noise."))
