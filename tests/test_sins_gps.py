@@ -473,3 +473,26 @@ def test_a_claim_out_of_reach_is_never_not_held(verdict, ceiling, expected):
     decided, caveats = sins_gps._within_reach(verdict, {"position": ceiling}, "position", 0.23)
     assert decided == expected
     assert bool(caveats) == (ceiling < 0.23)
+
+
+def test_cruise_range_is_the_extreme_of_mean_plus_minus_two_sd_over_cruise_steps_and_axes():
+    band = {"mean": [[0.0, 1.0, 2.0], [50.0, 50.0, -50.0], [1.0, 1.0, 1.0]],
+            "sd": [[1.0, 1.0, 1.0], [0.0, 0.0, 0.0], [0.5, 0.5, 0.5]]}
+    # step 1 manoeuvres: its ±50 is left out; cruise steps 0 and 2 give −2 (0 − 2·1) and 4 (2 + 2·1)
+    assert sins_gps.cruise_range(band, np.array([False, True, False])) == [-2.0, 4.0]
+    assert sins_gps.cruise_range(band, np.array([True, True, True])) is None
+
+
+def test_page_sets_the_paper_error_levels_beside_each_configuration(tmp_path):
+    stored = FIXTURE / "sins-gps-small" / "results.json"
+    results = json.loads(stored.read_text())
+    results.pop("cruise_range", None)
+    page = sins_gps_section.render(results, tmp_path)
+    assert not [b for b in page.blocks if isinstance(b, Table) and b.caption.startswith("The paper's error levels")]
+    results["cruise_range"] = {"UPF": {"position": [-3.0, 4.0], "velocity": [-0.5, 0.25], "attitude": [-9.0, 8.0]},
+                               "GPSR-UPF": {"position": [-2.0, 2.5], "velocity": [-0.4, 0.2], "attitude": [-5.0, 6.0]}}
+    page = sins_gps_section.render(results, tmp_path)
+    (table,) = [b for b in page.blocks if isinstance(b, Table) and b.caption.startswith("The paper's error levels")]
+    assert table.rows[0] == ["the paper (its text on Figs. 1–6)", "UPF", "-7.5 to 7.9", "-1.8 to 1.5", "-1.4 to 1.6"]
+    assert table.rows[2] == ["as run", "UPF", "-3 to 4", "-0.5 to 0.25", "-9 to 8"]
+    assert table.rows[3][1] == "GPSR-UPF" and table.rows[3][2] == "-2 to 2.5"

@@ -38,6 +38,15 @@ UNITS: dict[str, str] = {"attitude": "arcmin", "velocity": "m/s", "position": "m
 #: the paper's headline reductions 1 − RMS(GPSR-UPF)/RMS(UPF) (§3, after Table 1: position and
 #: velocity "about 33 %", attitude "about 40 %")
 CLAIMED_REDUCTION: dict[str, float] = {"position": 0.33, "velocity": 0.33, "attitude": 0.40}
+#: the paper's error ranges in cruise per axis (E, N, U together), as its text after Figs. 1–6 reads
+#: them off the curves of each filter: position (m), velocity (m/s), attitude (arcmin)
+PAPER_CRUISE_RANGE: dict[str, dict[str, tuple[float, float]]] = {
+    "UPF": {"position": (-7.5, 7.9), "velocity": (-1.8, 1.5), "attitude": (-1.4, 1.6)},
+    "GPSR-UPF": {"position": (-4.9, 4.9), "velocity": (-1.0, 1.2), "attitude": (-0.9, 1.0)},
+}
+#: the cruise range of this implementation's errors: per axis, mean ± this many s.d. over runs at
+#: every cruise step (the smallest and largest over axes and steps)
+CRUISE_RANGE_SDS = 2.0
 #: a particle filter has collapsed when its mean N_eff/N is below this many times 1/N (the health
 #: check's floor)
 COLLAPSE_FACTOR = MIN_EFFECTIVE_PARTICLES

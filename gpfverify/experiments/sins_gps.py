@@ -52,7 +52,7 @@ import numpy as np
 
 from gpfverify.contract.claims import ClaimRecord, PairedDifference, Verdict, verdict_of
 from gpfverify.contract.papers import PAPERS
-from gpfverify.contract.sins_gps import (CLAIMED_REDUCTION, DEFAULT_RUNS, DIVERGENCE_GPS_SDS,
+from gpfverify.contract.sins_gps import (CLAIMED_REDUCTION, CRUISE_RANGE_SDS, DEFAULT_RUNS, DIVERGENCE_GPS_SDS,
                                         GP_SR_UKF, GPSR_UPF, INTERPRETATIONS, NAME, PAPER, PARTICLE_FILTERS, PROFILES,
                                         QUANTITIES, REFERENCES, RESET_FACTOR_SCALE, ROUGHENING_CONSTANT, SR_UKF,
                                         TRUE_SR_UKF, UNITS, UPF, FilterRun, Params, ParticleFilterRun, RunRecord)
@@ -67,8 +67,8 @@ from gpfverify.scenarios.sins_gps import (ATTITUDE, POSITION, STATE_DIM, VELOCIT
                                           generate_flight, training_set)
 
 __all__ = ["DEFAULT_RUNS", "INTERPRETATIONS", "METHODS", "NAME", "PAPER", "PROFILES", "Params", "REFERENCE_NAMES",
-           "RunRecord", "ceiling_model", "health_checks", "jitter_particles", "run_one", "run_sr_ukf", "setup",
-           "summarize"]
+           "RunRecord", "ceiling_model", "cruise_range", "health_checks", "jitter_particles", "run_one", "run_sr_ukf",
+           "setup", "summarize"]
 
 #: the particle filters and the reference filters by name (results.json keys)
 METHODS: tuple[str, ...] = tuple(m.key for m in PARTICLE_FILTERS)
@@ -235,10 +235,21 @@ def _squared_norms(records: list[RunRecord], method: str, quantity: str) -> tupl
     return err, np.sum(err**2, axis=2)
 
 
+def cruise_range(band: dict, manoeuvre: np.ndarray) -> list[float] | None:
+    """The range of a filter's per-axis error in cruise, comparable to the paper's ranges read off its
+    figures: the smallest and largest of mean ± CRUISE_RANGE_SDS s.d. over runs, over the axes and the
+    cruise steps (``band``: per-step per-axis mean and s.d.); None for a flight without cruise."""
+    mean, sd = np.asarray(band["mean"]), np.asarray(band["sd"])
+    cruise = ~np.asarray(manoeuvre, dtype=bool)
+    if not cruise.any():
+        return None
+    return [float((mean - CRUISE_RANGE_SDS * sd)[cruise].min()), float((mean + CRUISE_RANGE_SDS * sd)[cruise].max())]
+
+
 def summarize(params: Params, records: list[RunRecord]) -> dict:
-    """Per-step RMS error norms, per-axis bands (mean ± s.d. over runs), RMS reductions overall and
-    by flight segment, filter time per run, importance-weight health, GP residual accuracy and the
-    paper's claims."""
+    """Per-step RMS error norms, per-axis bands (mean ± s.d. over runs) and their range in cruise, RMS
+    reductions overall and by flight segment, filter time per run, importance-weight health, GP
+    residual accuracy and the paper's claims."""
     config = config_of(params)
     manoeuvre = generate_flight(config).manoeuvring()[1:]
     body: dict = {f"{q}_error": {} for q in AXES}
@@ -255,6 +266,7 @@ def summarize(params: Params, records: list[RunRecord]) -> dict:
             per_run[method][q] = np.sqrt(sq.mean(axis=1)).tolist()
             segments[method][q] = {"manoeuvre": _rms(sq[:, manoeuvre]), "cruise": _rms(sq[:, ~manoeuvre])}
     reduction = {q: 1.0 - overall[GPSR_UPF.key][q] / overall[UPF.key][q] for q in AXES}
+    cruise = {m: {q: cruise_range(bands[m][q], manoeuvre) for q in AXES} for m in METHODS}
     # records saved before the true-model ceiling was run lack TRUE-SR-UKF
     present = tuple(m for m in REFERENCE_NAMES if all(m in r.references for r in records))
     reference: dict = {"error": {q: {} for q in AXES}, "rms": {m: {} for m in present}}
@@ -274,7 +286,8 @@ def summarize(params: Params, records: list[RunRecord]) -> dict:
     seconds = {m: float(np.mean([_filter(r, m).seconds for r in records])) for m in METHODS + present}
     body.update({
         "reduction": reduction, "rms": overall, "per_run_rms": per_run, "segment_rms": segments,
-        "segment_reduction": segment_reduction, "error_bands": bands, "reference": reference,
+        "segment_reduction": segment_reduction, "error_bands": bands, "cruise_range": cruise,
+        "reference": reference,
         "time_per_run": seconds, "time_per_step": {m: s / config.steps for m, s in seconds.items()},
         "ess_fraction": ess,
         # CONTRACT.md "Claims as records": mean N_eff / N of every particle-filter configuration run

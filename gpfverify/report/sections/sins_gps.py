@@ -11,9 +11,9 @@ import numpy as np
 
 from gpfverify.contract.claims import AS_RUN, ClaimRecord, read_claims
 from gpfverify.contract.papers import PAPERS
-from gpfverify.contract.sins_gps import (COLLAPSE_FACTOR, GP_SR_UKF, GPSR_UPF, INTERPRETATIONS, NAME, PAPER,
-                                        PARTICLE_FILTERS, QUANTITIES, REFERENCES, SR_UKF, TRUE_SR_UKF, UNITS, UPF,
-                                        Params, collapsed)
+from gpfverify.contract.sins_gps import (COLLAPSE_FACTOR, CRUISE_RANGE_SDS, GP_SR_UKF, GPSR_UPF, INTERPRETATIONS,
+                                        NAME, PAPER, PAPER_CRUISE_RANGE, PARTICLE_FILTERS, QUANTITIES, REFERENCES,
+                                        SR_UKF, TRUE_SR_UKF, UNITS, UPF, Params, collapsed)
 from gpfverify.report.document import (Figure, Paragraph, Section, Table, claim_records_table, fmt,
                                        interpretations_table)
 from gpfverify.report.figures import new_figure, save
@@ -108,6 +108,7 @@ def render(results: dict, out_dir: Path) -> Section:
                           "comparing them is 'not decidable' when one fails"))
     _add_interpretations(section, read_claims(results), results.get("interpretation_summaries") or {}, health)
     _add_configurations(section, results)
+    _add_error_levels(section, results)
     if collapsed(p.particles, ess):
         section.add(Paragraph(
             f"Diagnosis: the importance weights of both particle filters collapse (mean N_eff/N below "
@@ -230,6 +231,28 @@ def _add_configurations(section: Section, results: dict) -> None:
                        *(f"RMS {q} ({UNITS[q]})" for q in QUANTITIES), *(f"reduction {q}" for q in QUANTITIES)],
                       rows, "Each configuration tried: the particle filters' weight health and RMS errors over runs "
                             "and steps (reduction = 1 − RMS(GPSR-UPF)/RMS(UPF))"))
+
+
+def _add_error_levels(section: Section, results: dict) -> None:
+    """The paper's error ranges in cruise against this implementation's (``cruise_range`` of the
+    run and of each stored configuration; results saved before it was recorded have none)."""
+    stored = results.get("interpretation_summaries") or {}
+    configurations = [("as run", results.get("cruise_range"))]
+    configurations += [(name, s.get("cruise_range")) for name, s in stored.items()]
+
+    def span(pair) -> str:
+        return "—" if pair is None else f"{fmt(pair[0], 3)} to {fmt(pair[1], 3)}"
+
+    rows = [["the paper (its text on Figs. 1–6)", m.key, *(span(PAPER_CRUISE_RANGE[m.key][q]) for q in QUANTITIES)]
+            for m in PARTICLE_FILTERS]
+    rows += [[name, m.key, *(span(ranges[m.key][q]) for q in QUANTITIES)]
+             for name, ranges in configurations if ranges for m in PARTICLE_FILTERS]
+    if len(rows) == len(PARTICLE_FILTERS):
+        return
+    section.add(Table(["configuration", "filter", *(f"{q} ({UNITS[q]})" for q in QUANTITIES)], rows,
+                      "The paper's error levels as a check: each filter's error range in cruise, the paper's as its "
+                      f"text reads them off its figures, ours the smallest and largest of mean ± "
+                      f"{fmt(CRUISE_RANGE_SDS)} s.d. over runs over the axes and cruise steps"))
 
 
 def _failed(results: dict) -> str:

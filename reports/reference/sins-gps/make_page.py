@@ -3,8 +3,9 @@
     python reports/reference/sins-gps/make_page.py RUN_DIR "COMMAND" [CONFIRM_DIR "CONFIRM_COMMAND"]
 
 RUN_DIR is the output folder of COMMAND (``gpfverify reproduce sins-gps ... --interpretations ...``).
-Its ``results.json`` (claims with the verdict under each interpretation, as the runner merged
-them) is copied with its manifest to ``reports/reference/sins-gps/run/``, with one addition:
+Its ``results.json`` and those of its interpretations are recomputed from the saved runs with the
+current summary (claims with the verdict under each interpretation merged, as the runner does) and
+copied with its manifest to ``reports/reference/sins-gps/run/``, with one addition:
 ``"interpretation_summaries"`` — for each interpretation folder, its parameter changes, health
 checks, mean N_eff/N and RMS errors, read from ``RUN_DIR/interpretations/<name>/results.json``
 (the per-configuration results are 1 MB each and are not committed). The page is then rendered from
@@ -27,6 +28,8 @@ sys.path.insert(0, str(HERE.parent))
 from reference_pages import write_page  # type: ignore[import-not-found]  # noqa: E402
 
 from gpfverify.contract.sins_gps import DEFAULT_RUNS, INTERPRETATIONS, Params  # noqa: E402
+from gpfverify.experiments import sins_gps  # noqa: E402
+from gpfverify.experiments.sensitivity import merge_saved  # noqa: E402
 from gpfverify.report.document import Paragraph  # noqa: E402
 from gpfverify.report.sections import sins_gps as section_module  # noqa: E402
 
@@ -41,7 +44,7 @@ def summaries(run_dir: Path) -> dict:
         out[spec.name] = {"changes": spec.changes, "runs_ok": r["runs_ok"], "health": r["health"],
                           "mean_ess_fraction": r["mean_ess_fraction"], "rms": r["rms"],
                           "reduction": r["reduction"], "reference_rms": r["reference"]["rms"],
-                          "claims": _claims(r)}
+                          "cruise_range": r.get("cruise_range"), "claims": _claims(r)}
     return out
 
 
@@ -59,7 +62,8 @@ def confirmation(run_dir: Path, command: str) -> dict:
 
 
 def main(run_dir: Path, command: str, confirm: tuple[Path, str] | None = None) -> None:
-    results = json.loads((run_dir / "results.json").read_text(encoding="utf-8"))
+    # recomputed from the saved runs (main and interpretations) with the current summary
+    results = merge_saved(run_dir, sins_gps)
     results["interpretation_summaries"] = summaries(run_dir)
     if confirm is not None:
         results["confirmation"] = confirmation(*confirm)
