@@ -496,3 +496,35 @@ def test_page_sets_the_paper_error_levels_beside_each_configuration(tmp_path):
     assert table.rows[0] == ["the paper (its text on Figs. 1–6)", "UPF", "-7.5 to 7.9", "-1.8 to 1.5", "-1.4 to 1.6"]
     assert table.rows[2] == ["as run", "UPF", "-3 to 4", "-0.5 to 0.25", "-9 to 8"]
     assert table.rows[3][1] == "GPSR-UPF" and table.rows[3][2] == "-2 to 2.5"
+
+
+def test_page_says_where_the_claims_are_within_reach_and_where_the_filters_are_healthy(tmp_path):
+    """From the claim records alone: the configurations whose true-model ceiling reaches every
+    threshold, those whose particle filters pass their health checks, and that no configuration is
+    both."""
+    results = json.loads((FIXTURE / "sins-gps-small" / "results.json").read_text())
+    healthy_checks = [dict(c, passed=True) for c in results["health"]]
+    failed_checks = [dict(c, passed=False) for c in results["health"]]
+    ceiling_verdicts = {"position": ("NOT held", "held", "NOT held"), "velocity": ("NOT held", "held", "NOT held"),
+                        "attitude": ("held", "held", "held")}
+
+    def tried(as_run: str, wide: str, point: str) -> list[dict]:
+        return [{"name": "wide", "params": {"accel_scale_ppm": 1000.0}, "verdict": wide, "statistic": 0.3},
+                {"name": "point", "params": {"particle_covariance": "reset"}, "verdict": point, "statistic": 0.1}]
+
+    for claim in results["claims"]:
+        if claim["id"].startswith("sins-gps/reduction-"):
+            claim["interpretations"] = tried(claim["verdict"], "not decidable", "undecided")
+    template = next(c for c in results["claims"] if c["id"] == "sins-gps/single-filter-reduction-position")
+    for q, (as_run, wide, point) in ceiling_verdicts.items():
+        results["claims"].append(dict(template, id=f"sins-gps/true-model-ceiling-{q}", verdict=as_run,
+                                      interpretations=tried(as_run, wide, point)))
+    results["interpretation_summaries"] = {
+        name: {"changes": {}, "runs_ok": 2, "health": checks, "mean_ess_fraction": results["mean_ess_fraction"],
+               "rms": results["rms"], "reduction": results["reduction"], "reference_rms": results["reference"]["rms"]}
+        for name, checks in (("wide", failed_checks), ("point", healthy_checks))}
+    page = sins_gps_section.render(results, tmp_path)
+    (text,) = [b.text for b in page.blocks if isinstance(b, Paragraph) and b.text.startswith("Where the claims")]
+    assert "every claimed reduction (the true-model ceiling reaches each threshold) in wide;" in text
+    assert "in none of these do both particle filters pass their health checks" in text
+    assert text.endswith("within reach: point (attitude).")

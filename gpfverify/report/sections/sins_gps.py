@@ -172,6 +172,9 @@ def _add_interpretations(section: Section, records: list[ClaimRecord], stored: d
         healthy = ["as run"] if passed(comparisons[0].verdict, health) else []
         healthy += [i.name for i in comparisons[0].interpretations
                     if i.name != AS_RUN and passed(i.verdict, stored.get(i.name, {}).get("health"))]
+        within_reach = _within_reach_paragraph(tried, ["as run", *names], healthy)
+        if within_reach is not None:
+            section.add(within_reach)
         if not healthy:
             section.add(Paragraph("In none of the configurations tried did both particle filters pass their "
                                   "health checks: the paper's comparison is not decidable with these filters."))
@@ -190,6 +193,35 @@ def _add_interpretations(section: Section, records: list[ClaimRecord], stored: d
                 f"First configuration in which both particle filters pass their health checks: {first} "
                 f"(healthy: {', '.join(healthy)}). There the paper's reductions are {verdicts} — next to the "
                 f"faithful configuration's {faithful}."))
+
+
+def _within_reach_paragraph(tried: list[ClaimRecord], configurations: list[str],
+                            healthy: list[str]) -> Paragraph | None:
+    """Which configurations leave every claimed reduction within reach (their true-model-ceiling
+    claims held) and which have healthy particle filters: a comparison decides the paper's claims
+    only where both are true. None when the ceiling was not recorded."""
+    ceilings = [r for r in tried if r.id.startswith(f"{NAME}/true-model-ceiling-")]
+    if not ceilings:
+        return None
+
+    def verdict_under(record: ClaimRecord, name: str) -> str | None:
+        if name == "as run":
+            return record.verdict
+        return next((i.verdict for i in record.interpretations if i.name == name), None)
+
+    def reaches(name: str) -> list[str]:
+        return [r.id.rsplit("-", 1)[-1] for r in ceilings if verdict_under(r, name) == "held"]
+
+    within = [n for n in configurations if len(reaches(n)) == len(ceilings)]
+    both = [n for n in within if n in healthy]
+    return Paragraph(
+        "Where the claims can be decided: the model error leaves room for every claimed reduction (the true-model "
+        f"ceiling reaches each threshold) in {', '.join(within) if within else 'no configuration tried'}; "
+        + (f"both particle filters are healthy there in {', '.join(both)}. " if both else
+           "in none of these do both particle filters pass their health checks. ")
+        + "The healthy configurations and the reductions their model error leaves within reach: "
+        + ("; ".join(f"{n} ({', '.join(reaches(n)) or 'none'})" for n in healthy) if healthy else "none")
+        + ".")
 
 
 def _health_words(health: list[dict], method: str) -> str:
