@@ -197,9 +197,9 @@ def _add_interpretations(section: Section, records: list[ClaimRecord], stored: d
 
 def _within_reach_paragraph(tried: list[ClaimRecord], configurations: list[str],
                             healthy: list[str]) -> Paragraph | None:
-    """Which configurations leave every claimed reduction within reach (their true-model-ceiling
-    claims held) and which have healthy particle filters: a comparison decides the paper's claims
-    only where both are true. None when the ceiling was not recorded."""
+    """Per claimed reduction, the configurations that leave it within reach (its true-model-ceiling
+    claim held) and those of them whose particle filters are healthy: a comparison decides the
+    paper's claim only where both are true. None when the ceiling was not recorded."""
     ceilings = [r for r in tried if r.id.startswith(f"{NAME}/true-model-ceiling-")]
     if not ceilings:
         return None
@@ -209,19 +209,18 @@ def _within_reach_paragraph(tried: list[ClaimRecord], configurations: list[str],
             return record.verdict
         return next((i.verdict for i in record.interpretations if i.name == name), None)
 
-    def reaches(name: str) -> list[str]:
-        return [r.id.rsplit("-", 1)[-1] for r in ceilings if verdict_under(r, name) == "held"]
+    def listed(names: list[str]) -> str:
+        return ", ".join(names) if names else "none"
 
-    within = [n for n in configurations if len(reaches(n)) == len(ceilings)]
-    both = [n for n in within if n in healthy]
+    parts = []
+    for record in ceilings:
+        within = [n for n in configurations if verdict_under(record, n) == "held"]
+        parts.append(f"{record.id.rsplit('-', 1)[-1]}: within reach in {listed(within)}, healthy there in "
+                     f"{listed([n for n in within if n in healthy])}")
     return Paragraph(
-        "Where the claims can be decided: the model error leaves room for every claimed reduction (the true-model "
-        f"ceiling reaches each threshold) in {', '.join(within) if within else 'no configuration tried'}; "
-        + (f"both particle filters are healthy there in {', '.join(both)}. " if both else
-           "in none of these do both particle filters pass their health checks. ")
-        + "The healthy configurations and the reductions their model error leaves within reach: "
-        + ("; ".join(f"{n} ({', '.join(reaches(n)) or 'none'})" for n in healthy) if healthy else "none")
-        + ".")
+        "Where each claimed reduction can be decided: the model error must leave room for it (the true-model "
+        "ceiling reaches its threshold: within reach) and both particle filters must pass their health checks "
+        f"(healthy: {listed(healthy)}). " + "; ".join(parts) + ".")
 
 
 def _health_words(health: list[dict], method: str) -> str:
