@@ -145,6 +145,10 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def _interrupt(signum, frame):
+    """Ctrl-C (SIGINT) and SIGTERM stop the command; from the first one on, further ones are
+    ignored, so that a second Ctrl-C cannot cut short the clean-up the first started (stopping the
+    workers, keeping the saved runs, the one "interrupted" line)."""
+    _ignore_further_interrupts()
     raise KeyboardInterrupt
 
 
@@ -277,6 +281,7 @@ def _main(argv: list[str] | None) -> int:
     default_single_blas_thread()  # before any command imports numpy (see gpfverify.runtime)
     try:
         signal.signal(signal.SIGTERM, _interrupt)  # `kill` stops cleanly, like Ctrl-C
+        signal.signal(signal.SIGINT, _interrupt)
     except ValueError:  # not the main thread (an embedding application): leave signals alone
         pass
     argv = list(sys.argv[1:] if argv is None else argv)

@@ -427,6 +427,30 @@ def test_a_second_ctrl_c_prints_no_traceback(tmp_path):
     assert "Traceback" not in err and err.strip().splitlines()[-1] == "gpfverify check: interrupted", err
 
 
+def test_from_the_first_interrupt_on_further_ones_are_ignored():
+    """The command line's handler: the first SIGINT or SIGTERM raises KeyboardInterrupt and makes
+    both signals ignored, so a second one arriving during the clean-up (stopping the workers, moving
+    the saved runs into --out) cannot cut it short; a test of the handler itself, because a real
+    second Ctrl-C lands in that window only now and then."""
+    import signal
+
+    from gpfverify import cli
+
+    saved = {s: signal.getsignal(s) for s in (signal.SIGINT, signal.SIGTERM)}
+    try:
+        signal.signal(signal.SIGINT, cli._interrupt)
+        signal.signal(signal.SIGTERM, cli._interrupt)
+        with pytest.raises(KeyboardInterrupt):
+            os.kill(os.getpid(), signal.SIGINT)  # the handler runs as os.kill returns
+        assert signal.getsignal(signal.SIGINT) is signal.SIG_IGN
+        assert signal.getsignal(signal.SIGTERM) is signal.SIG_IGN
+        os.kill(os.getpid(), signal.SIGINT)  # ignored: nothing raised
+        os.kill(os.getpid(), signal.SIGTERM)
+    finally:
+        for number, handler in saved.items():
+            signal.signal(number, handler)
+
+
 @pytest.mark.skipif(not sys.platform.startswith("linux"), reason="reads /proc")
 def test_a_killed_worker_is_one_line_and_no_leaked_semaphore_warning(tmp_path):
     import signal
