@@ -413,11 +413,19 @@ def test_fuzz_output_folders_holding_what_gpfverify_did_not_write(tmp_path, caps
 
 def test_solver_chatter_never_reaches_the_terminal(tmp_path):
     """SCS prints "ERROR: could not determine problem status." from C on file descriptor 1 when
-    RCC-CI's ellipsoid size is degenerate; the user sees gpfverify's one line on stderr only."""
+    RCC-CI's ellipsoid size is degenerate; the user sees gpfverify's one line on stderr only. Whether
+    the solvers give up on this size (exit 2, an error line) or return an inaccurate solution that
+    the enlargement repairs (exit 0, gpfverify's result and a note line) differs between processors;
+    in both, nothing of the solvers' own printing reaches stdout or stderr."""
     case = Path(__file__).resolve().parents[1] / "examples" / "tracker-case.json"
     proc = subprocess.run([sys.executable, "-m", "gpfverify", "fuse", str(case), "--method", "rcc-ci",
                            "--c", "1e-300"], capture_output=True, text=True, cwd=tmp_path, timeout=300)
-    assert proc.returncode == 2
-    assert proc.stdout == ""
-    assert len(proc.stderr.splitlines()) == 1 and proc.stderr.startswith("gpfverify fuse: error:")
+    assert proc.returncode in (0, 2)
+    assert len(proc.stderr.splitlines()) == 1
+    if proc.returncode == 2:
+        assert proc.stdout == "" and proc.stderr.startswith("gpfverify fuse: error:")
+    else:
+        assert proc.stdout.startswith("method: rcc-ci\n") and proc.stderr.startswith("gpfverify fuse: note:")
+        assert "enlarged: True" in proc.stdout
+    assert "could not determine" not in proc.stdout and "ERROR" not in proc.stdout
     assert list(tmp_path.iterdir()) == []
