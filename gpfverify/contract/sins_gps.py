@@ -159,9 +159,9 @@ class RunRecord:
 QUICK_PARAMS = Params(particles=20)
 QUICK_RUNS = 2
 
-#: a model error whose true-model ceiling reaches the paper's reductions (measured over 4 runs of
-#: the SR-UKF: position 34 %, velocity 48 %, attitude 36 %): an unmodelled 1000 ppm accelerometer
-#: scale factor, with the GPS velocity noise at which the UPF's velocity error matches the paper's
+#: a model error whose true-model ceiling reaches the paper's position and velocity reductions (the
+#: reference page records it per quantity): an unmodelled 1000 ppm accelerometer scale factor, with
+#: the GPS velocity noise at which the UPF's velocity error matches the paper's
 SCALE_FACTOR_MODEL_ERROR: dict[str, object] = {"accel_scale_ppm": 1000.0, "gps_velocity_sd": 1.0}
 
 #: the readings of what the paper leaves unstated about its filters, tried by ``--interpretations``
@@ -188,15 +188,15 @@ INTERPRETATIONS: tuple[InterpretationSpec, ...] = (
                        "the point proposal with Q inflated 1000× (at 100× the 50 particles still lose the "
                        "position in some runs)"),
     InterpretationSpec("scale-factor-1000ppm", SCALE_FACTOR_MODEL_ERROR,
-                       "a model error whose true-model ceiling reaches the claims (the level-flight fⁿ × φ error "
-                       "alone leaves an SR-UKF that knows the true model about 0.5 % of position error to gain): "
+                       "a model error whose true-model ceiling reaches the claims (under the level-flight fⁿ × φ "
+                       "error alone an SR-UKF that knows the true model gains almost nothing in position): "
                        "the flight's accelerometers carry a 1000 ppm scale factor (tactical grade) that the "
                        "filters' model leaves out, and GPS velocity has σ = 1 m/s, at which the UPF's velocity "
-                       "error (about 1.6 m/s RMS) is at the paper's ±1.5–1.8 m/s band"),
+                       "error is at the level of the paper's ±1.5–1.8 m/s band"),
     InterpretationSpec("scale-factor-1000ppm-point-proposal",
                        {**SCALE_FACTOR_MODEL_ERROR, "particle_covariance": "reset"},
-                       "that model error with the point proposal, under which the weights stay healthy "
-                       "(median N_eff/N about 0.45 over 2 trial runs, against 0.02 with the propagated proposal)"),
+                       "that model error with the point proposal, under which the importance weights do not "
+                       "collapse (they do, to about one particle, with the propagated proposal)"),
     InterpretationSpec("scale-factor-1000ppm-point-proposal-regularised",
                        {**SCALE_FACTOR_MODEL_ERROR, "particle_covariance": "reset", "jitter": "regularised"},
                        "the same with the regularised particle filter's kernel move, which keeps the nearly "
