@@ -172,7 +172,7 @@ def _add_interpretations(section: Section, records: list[ClaimRecord], stored: d
         healthy = ["as run"] if passed(comparisons[0].verdict, health) else []
         healthy += [i.name for i in comparisons[0].interpretations
                     if i.name != AS_RUN and passed(i.verdict, stored.get(i.name, {}).get("health"))]
-        within_reach = _within_reach_paragraph(tried, ["as run", *names], healthy)
+        within_reach = _within_reach_paragraph(tried, [AS_RUN, *names], healthy)
         if within_reach is not None:
             section.add(within_reach)
         if not healthy:
@@ -205,7 +205,7 @@ def _within_reach_paragraph(tried: list[ClaimRecord], configurations: list[str],
         return None
 
     def verdict_under(record: ClaimRecord, name: str) -> str | None:
-        if name == "as run":
+        if name == AS_RUN:
             return record.verdict
         return next((i.verdict for i in record.interpretations if i.name == name), None)
 
@@ -268,19 +268,19 @@ def _add_error_levels(section: Section, results: dict) -> None:
     """The paper's error ranges in cruise against this implementation's (``cruise_range`` of the
     run and of each stored configuration; results saved before it was recorded have none)."""
     stored = results.get("interpretation_summaries") or {}
-    configurations = [("as run", results.get("cruise_range"))]
+    configurations = [(AS_RUN, results.get("cruise_range"))]
     configurations += [(name, s.get("cruise_range")) for name, s in stored.items()]
 
     def span(pair) -> str:
         return "—" if pair is None else f"{fmt(pair[0], 3)} to {fmt(pair[1], 3)}"
 
-    rows = [["the paper (its text on Figs. 1–6)", m.key, *(span(PAPER_CRUISE_RANGE[m.key][q]) for q in QUANTITIES)]
-            for m in PARTICLE_FILTERS]
-    rows += [[name, m.key, *(span(ranges[m.key][q]) for q in QUANTITIES)]
-             for name, ranges in configurations if ranges for m in PARTICLE_FILTERS]
-    if len(rows) == len(PARTICLE_FILTERS):
+    ours = [[name, m.key, *(span(ranges[m.key][q]) for q in QUANTITIES)]
+            for name, ranges in configurations if ranges for m in PARTICLE_FILTERS]
+    if not ours:
         return
-    section.add(Table(["configuration", "filter", *(f"{q} ({UNITS[q]})" for q in QUANTITIES)], rows,
+    paper = [["the paper (its text on Figs. 1–6)", m.key, *(span(PAPER_CRUISE_RANGE[m.key][q]) for q in QUANTITIES)]
+             for m in PARTICLE_FILTERS]
+    section.add(Table(["configuration", "filter", *(f"{q} ({UNITS[q]})" for q in QUANTITIES)], paper + ours,
                       "The paper's error levels as a check: each filter's error range in cruise, the paper's as its "
                       f"text reads them off its figures, ours the smallest and largest of mean ± "
                       f"{fmt(CRUISE_RANGE_SDS)} s.d. over runs over the axes and cruise steps"))
