@@ -14,8 +14,9 @@ No test or routine should carry a bare numerical tolerance of its own.
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
-from scipy import special
 
 EPS: float = float(np.finfo(float).eps)
 
@@ -36,6 +37,17 @@ KKT_REJECT_TOL: float = 1e-3
 #: iterations at which it stops. Measured on 700 random CI problems (N ≤ 8, D ≤ 10, information
 #: condition numbers up to 7e10): KKT violations at most 2e-5, 4e-7 for well-conditioned ones.
 SLSQP_FTOL: float = 1e-14
+#: Squared Newton decrement dᵀHd (relative to the objective, of order one in whitened coordinates) at
+#: which Newton's method for CI weights stops: the objective is then within about this of its
+#: minimum on the support, far below the KKT certificate's floor.
+CI_NEWTON_TOL: float = 1e-14
+#: A weight outside the support joins it when its KKT multiplier is below −CI_NEWTON_JOIN_TOL |ν|
+#: (ν the multiplier of Σω = 1): far below the certificate's KKT_REJECT_TOL, far above the
+#: gradients' rounding, so a weight whose gain is rounding never joins and leaves again.
+CI_NEWTON_JOIN_TOL: float = 1e-9
+#: Newton steps allowed for CI weights. Measured on 1400 random problems (N 3–8, D 1–10,
+#: covariance eigenvalues spread up to 10⁵, scales 10⁻³–10³): at most 13, KKT violations at most 3e-7.
+CI_NEWTON_MAX_STEPS: int = 100
 #: How many standard errors a Monte Carlo estimate may stray (two-sided p ~ 6e-7 per check).
 MONTE_CARLO_SIGMAS: float = 5.0
 #: How far an observed order of convergence, log2(err(h) / err(h/2)), may be from the
@@ -77,7 +89,7 @@ def bounded_mean_atol(width: float, n_samples: int, sigmas: float = MONTE_CARLO_
     errors, p = erfc(sigmas / √2), by Hoeffding's inequality
     P(|mean − E| ≥ t) ≤ 2 exp(−2 n t² / width²):  t = width · sqrt(log(2 / p) / (2 n)).
     Needs no estimate of the variance (which a sample may put at 0 when it is merely small)."""
-    p = float(special.erfc(sigmas / np.sqrt(2.0)))
+    p = math.erfc(sigmas / math.sqrt(2.0))
     return float(width) * float(np.sqrt(np.log(2.0 / p) / (2.0 * n_samples)))
 
 

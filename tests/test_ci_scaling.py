@@ -1,5 +1,5 @@
 """CI with more than two estimates in components of very different units (variances 30 and 0.05):
-the solvers (SLSQP and the conic program) work in coordinates whitened by the mean information, and its weights are certified
+the solvers (Newton's method, SLSQP and the conic program) work in coordinates whitened by the mean information, and its weights are certified
 and optimal against an independent search of the simplex; determinant-optimal weights do not
 depend on the units."""
 
@@ -36,7 +36,7 @@ def _grid_criterion(estimates, criterion: str) -> float:
     return float((-np.linalg.slogdet(total)[1]).min())
 
 
-@pytest.mark.parametrize("solver", ["slsqp", "cvxpy"])
+@pytest.mark.parametrize("solver", ["newton", "slsqp", "cvxpy"])
 @pytest.mark.parametrize("criterion", ["trace", "det"])
 def test_three_estimates_in_mixed_units_are_fused_optimally(criterion, solver):
     estimates = _estimates()
@@ -46,7 +46,7 @@ def test_three_estimates_in_mixed_units_are_fused_optimally(criterion, solver):
     assert value <= best_on_grid + SOLVER_TOL * abs(best_on_grid)
 
 
-@pytest.mark.parametrize("solver", ["slsqp", "cvxpy"])
+@pytest.mark.parametrize("solver", ["newton", "slsqp", "cvxpy"])
 def test_determinant_optimal_weights_do_not_depend_on_units(solver):
     units = np.array([1e3, 1.0, 1e-3, 1.0])
     plain = covariance_intersection(_estimates(), "det", solver=solver)

@@ -1,6 +1,6 @@
-"""CI of more than two estimates by SLSQP (the default) against an independent conic program
-written here with cvxpy and Clarabel in the original coordinates, and the KKT certificate's refusal
-of weights that are not optimal."""
+"""CI of more than two estimates by Newton's method (the default) and by SLSQP against an
+independent conic program written here with cvxpy and Clarabel in the original coordinates, the
+default's fallback on SLSQP, and the KKT certificate's refusal of weights that are not optimal."""
 
 import cvxpy as cp
 import numpy as np
@@ -44,11 +44,12 @@ def _fused_cov(estimates, weights) -> np.ndarray:
     return np.linalg.inv(sum(w * np.linalg.inv(e.cov) for w, e in zip(weights, estimates)))
 
 
+@pytest.mark.parametrize("solver", ["auto", "newton", "slsqp"])
 @pytest.mark.parametrize("criterion", ["trace", "det"])
 @pytest.mark.parametrize("seed, n, d", [(0, 3, 2), (1, 3, 3), (2, 4, 3), (3, 5, 4), (4, 6, 5)])
-def test_slsqp_weights_agree_with_a_conic_program(criterion, seed, n, d):
+def test_solver_weights_agree_with_a_conic_program(solver, criterion, seed, n, d):
     estimates = _estimates(seed, n, d)
-    fused = covariance_intersection(estimates, criterion)
+    fused = covariance_intersection(estimates, criterion, solver=solver)
     oracle = _conic_weights(estimates, criterion)
     value = criterion_value(fused.cov, criterion)
     oracle_value = criterion_value(_fused_cov(estimates, oracle), criterion)
@@ -75,13 +76,39 @@ def test_weights_that_fail_the_optimality_condition_are_refused(criterion, monke
     optimum = covariance_intersection(estimates, criterion).weights
     uniform = np.full(4, 0.25)
     assert np.abs(optimum - uniform).max() > 0.1 and np.all(optimum < 1.0)
-    monkeypatch.setattr(ci, "_ci_weights_slsqp", lambda info, criterion: [uniform])
+    monkeypatch.setattr(ci, "_ci_weights_newton", lambda info, criterion: [uniform])
     with pytest.raises(NumericalError, match="optimality condition"):
         covariance_intersection(estimates, criterion)
 
 
-def test_default_n_sensor_ci_does_not_import_cvxpy():
-    """The default route for more than two estimates is scipy's: cvxpy is not imported."""
+@pytest.mark.parametrize("criterion", ["trace", "det"])
+def test_the_default_falls_back_on_slsqp_when_newton_does_not_converge(criterion, monkeypatch):
+    estimates = _estimates(2, 4, 3)
+    slsqp = covariance_intersection(estimates, criterion, solver="slsqp")
+    monkeypatch.setattr(ci, "_ci_weights_newton", lambda info, criterion: [])
+    fallen_back = covariance_intersection(estimates, criterion)
+    np.testing.assert_array_equal(fallen_back.weights, slsqp.weights)
+    with pytest.raises(NumericalError, match="optimality condition"):  # "newton" alone has only the vertices
+        covariance_intersection(estimates, criterion, solver="newton")
+
+
+@pytest.mark.parametrize("criterion", ["trace", "det"])
+def test_duplicated_estimates_share_the_optimal_weight(criterion):
+    """Two copies of one estimate make the Hessian singular; the optimum of {a, a, b} is that of
+    {a, b} with a's weight split between the copies in any way, the fused estimate unchanged."""
+    a = Gaussian(np.zeros(2), np.diag([1.0, 4.0]))
+    b = Gaussian(np.ones(2), np.diag([4.0, 1.0]))
+    pair = covariance_intersection([a, b], criterion)
+    triple = covariance_intersection([a, a, b], criterion)
+    assert triple.weights is not None and pair.weights is not None
+    np.testing.assert_allclose(triple.weights[0] + triple.weights[1], pair.weights[0], atol=np.sqrt(SOLVER_TOL))
+    np.testing.assert_allclose(triple.cov, pair.cov, rtol=SOLVER_TOL)
+    np.testing.assert_allclose(triple.mean, pair.mean, atol=SOLVER_TOL)
+
+
+def test_default_n_sensor_ci_imports_neither_cvxpy_nor_scipy_optimize():
+    """The default route for more than two estimates is Newton's method: neither cvxpy nor
+    scipy.optimize (a quarter of a second of start-up each or more) is imported."""
     import subprocess
     import sys
 
@@ -90,6 +117,33 @@ def test_default_n_sensor_ci_does_not_import_cvxpy():
             "from gpfverify.fusion.ci import covariance_intersection\n"
             "e = [Gaussian(np.zeros(2), np.diag([1.0 + m, 2.0 - 0.5 * m])) for m in range(3)]\n"
             "covariance_intersection(e, 'det')\n"
-            "print('cvxpy' in sys.modules)\n")
+            "print('cvxpy' in sys.modules, 'scipy.optimize' in sys.modules)\n")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
-    assert out.stdout.strip() == "False"
+    assert out.stdout.strip() == "False False"
+
+
+@pytest.mark.parametrize("criterion", ["trace", "det"])
+def test_newton_gradient_and_hessian_match_finite_differences(criterion):
+    """Oracle for the derivatives Newton's method steps with: central differences of the
+    criterion's value, step h, whose error is O(h²) times the third derivative (order one in the
+    whitened coordinates) plus the value's rounding over h."""
+    from gpfverify.fusion.estimates import checked_estimates, information_form
+
+    info = information_form(checked_estimates(_estimates(3, 5, 4)))
+    mats, weight = ci._whitened_information(info)
+    w = np.array([0.1, 0.3, 0.2, 0.25, 0.15])
+    _, grad, hess = ci._ci_objective(mats, weight, w, criterion)
+    h = 1e-5
+    eye = np.eye(w.size)
+
+    def value(x):
+        return ci._ci_objective_value(mats, weight, x, criterion)
+
+    def grad_fd(x):
+        return np.array([(value(x + h * e) - value(x - h * e)) / (2 * h) for e in eye])
+
+    # truncation h² times the third derivative (order ten here) ~ 1e-9, rounding eps |f| / h ~ 1e-10
+    np.testing.assert_allclose(grad, grad_fd(w), rtol=1e-7, atol=1e-7)
+    hess_fd = np.array([(ci._ci_objective(mats, weight, w + h * e, criterion)[1]
+                         - ci._ci_objective(mats, weight, w - h * e, criterion)[1]) / (2 * h) for e in eye])
+    np.testing.assert_allclose(hess, hess_fd, rtol=1e-7, atol=1e-7)
