@@ -13,9 +13,9 @@ P is consistent (P ⪰ true error covariance) for every cross-correlation betwee
   the analytic gradient and Hessian (:func:`_ci_objective`), in coordinates whitened by the mean
   information (:func:`_whitened_information`), where with S' = Σ_m ω_m I'_m the objective is
   −log det S' (det) or tr(M S'⁻¹) (trace) and its gradient −tr(S'⁻¹ I'_m) or
-  −tr(S'⁻¹ M S'⁻¹ I'_m). ``solver="cvxpy"`` solves
-  the same problem as a conic program instead (DPP, built once per (N, D, criterion), Clarabel,
-  SCS when Clarabel fails; :func:`_ci_weights_cvxpy`), trace: min tr M X s.t.
+  −tr(S'⁻¹ M S'⁻¹ I'_m). ``solver="cvxpy"`` solves the same problem as a conic program instead
+  (DPP, built once per (N, D, criterion), Clarabel, SCS when Clarabel fails;
+  :func:`_ci_weights_cvxpy`), trace: min tr M X s.t.
   [[X, I], [I, Σ ω_m I'_m]] ⪰ 0; det: max log det Σ ω_m I'_m. The weights are clipped to the
   simplex and compared with every vertex (single estimate), so an optimum at an endpoint is
   returned exactly. Both criteria are convex in ω, so the returned weights are certified by the
