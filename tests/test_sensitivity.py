@@ -108,3 +108,12 @@ def test_robustness_compares_verdicts_on_equal_run_counts():
     assert robustness(unmatched).endswith("(the interpretations at 60 runs, as run at 1000)")
     same_count = claim(*(Interpretation(f"i{k}", {}, "held", 0.1, 1000) for k in range(2)))
     assert robustness(same_count) == "held under all 3 interpretations tried" and is_robust(same_count)
+    # several run counts: the full-length ones first, then by run count, the verdict as run on all runs once
+    mixed = claim(Interpretation("late", {}, "undecided", 0.1, 200), Interpretation(AS_RUN, {}, "held", 0.1, 200),
+                  Interpretation("full", {}, "held", 0.1, 1000), Interpretation(AS_RUN, {}, "undecided", 0.1, 60),
+                  *at_60)
+    assert robustness(mixed) == (
+        "held under all 2 interpretations tried; at 60 runs each: undecided under all 4 interpretations tried; "
+        "at 200 runs each: depends on the interpretation: held under as run; undecided under late; "
+        "as run at 1000 runs: held")
+    assert not is_robust(mixed)

@@ -50,21 +50,29 @@ def robustness(claim: ClaimRecord) -> str:
     """The verdict across the main run and the interpretations tried, in words ("" when none was
     tried). Interpretations run on fewer runs than the main run are compared with the verdict as run
     on that many runs (their :data:`AS_RUN` entry): "at 60 runs each: undecided under all 6 readings;
-    as run at 1000 runs: held" — not with a verdict that more runs decided."""
+    as run at 1000 runs: held" — not with a verdict that more runs decided. The interpretations run
+    as long as the main run come first, then those on fewer runs by run count, and the verdict as
+    run on all its runs closes the sentence once."""
     parts = []
-    for n, baseline, entries in _groups(claim):
+    compared_on_fewer = False
+    groups = sorted(_groups(claim), key=lambda group: (group[0] is not None, group[0] or 0))
+    for n, baseline, entries in groups:
         readings = [("as run", baseline), *((i.name, i.verdict) for i in entries)]
         if len({v for _, v in readings}) == 1:
             said = f"{baseline} under all {len(readings)} interpretations tried"
         else:
-            groups: dict[str, list[str]] = {}
+            by_verdict: dict[str, list[str]] = {}
             for name, verdict in readings:
-                groups.setdefault(verdict, []).append(name)
+                by_verdict.setdefault(verdict, []).append(name)
             said = "depends on the interpretation: " + "; ".join(
-                f"{verdict} under {', '.join(names)}" for verdict, names in groups.items())
+                f"{verdict} under {', '.join(names)}" for verdict, names in by_verdict.items())
         if n is not None:
-            matched = any(i.name == AS_RUN and i.n == n for i in claim.interpretations)
-            said = (f"at {n} runs each: {said}; as run at {claim.n} runs: {claim.verdict}" if matched else
-                    f"{said} (the interpretations at {n} runs, as run at {claim.n})")
+            if any(i.name == AS_RUN and i.n == n for i in claim.interpretations):
+                said = f"at {n} runs each: {said}"
+                compared_on_fewer = True
+            else:
+                said = f"{said} (the interpretations at {n} runs, as run at {claim.n})"
         parts.append(said)
+    if compared_on_fewer:
+        parts.append(f"as run at {claim.n} runs: {claim.verdict}")
     return "; ".join(parts)
