@@ -147,7 +147,7 @@ def _ci_weights_newton(info: Information, criterion: str) -> list[np.ndarray]:
     whose partial derivative is below −ν by the most (the KKT multiplier of ω ≥ 0 negative) joins
     F; with none, the weights are the optimum. Each objective is convex on the simplex, so the
     answer is the one SLSQP or the conic program approaches, in a handful of steps, and without
-    scipy.optimize's import (a quarter of a second, most of ``check``'s start-up)."""
+    scipy.optimize's import (about a quarter of a second of every ``check``'s start-up)."""
     mats, weight = _whitened_information(info)
     n = mats.shape[0]
     w = np.full(n, 1.0 / n)
