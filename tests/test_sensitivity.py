@@ -87,6 +87,37 @@ def test_interpretations_on_fewer_runs_are_compared_with_the_main_run_on_as_many
     assert json.loads((out / "results.json").read_text())["claims"] == merged["claims"]
 
 
+def test_interpretations_on_fewer_runs_from_the_command_line(toy, tmp_path, capsys):
+    """--interpretation-runs N: the interpretations run N runs, each claim carries the verdict as
+    run on the same first N runs, and the result is that of running them through merge_saved."""
+    from gpfverify.contract.claims import AS_RUN
+    from gpfverify.experiments.runner import read_manifest, results_of
+    from gpfverify.experiments.sensitivity import merge_saved
+
+    import toy_experiment
+
+    out = tmp_path / "run"
+    assert cli.main(["reproduce", "toy", "--runs", "30", "--seed", "2", "--out", str(out),
+                     "--interpretations", "wide", "--interpretation-runs", "3"]) == 0
+    results = json.loads((out / "results.json").read_text())
+    assert json.loads((out / "interpretations" / "wide" / "results.json").read_text())["runs"] == 3
+    claim = next(c for c in read_claims(results) if c.id == "toy/mean-below-1")
+    assert claim.n == 30
+    assert {(i.name, i.n) for i in claim.interpretations} == {("wide", 3), (AS_RUN, 3)}
+    baseline = next(i for i in claim.interpretations if i.name == AS_RUN)
+    first3 = read_claims(results_of(toy_experiment, out, read_manifest(out), 3))
+    assert baseline.statistic == next(c for c in first3 if c.id == claim.id).statistic
+    assert robustness(claim).startswith("at 3 runs each: ")
+    assert [c for c in merge_saved(out, toy_experiment)["claims"]] == results["claims"]
+    capsys.readouterr()
+    # refused before any run: more runs than the main run, or no interpretations to run
+    for extra in (["--interpretations", "wide", "--interpretation-runs", "31"], ["--interpretation-runs", "3"]):
+        fresh = tmp_path / f"refused-{len(extra)}"
+        assert cli.main(["reproduce", "toy", "--runs", "30", "--out", str(fresh), *extra]) == 2
+        err = capsys.readouterr().err
+        assert "--interpretation-runs" in err and len(err.strip().splitlines()) == 1 and not fresh.exists()
+
+
 def test_robustness_compares_verdicts_on_equal_run_counts():
     from gpfverify.contract.claims import AS_RUN
     from gpfverify.contract.interpretations import is_robust

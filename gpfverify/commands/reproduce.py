@@ -63,6 +63,10 @@ def add_common_arguments(parser: argparse.ArgumentParser, default_runs: int, pap
                         help="also run the experiment under these interpretations of what the paper leaves "
                              "unstated ('all' or comma-separated names), in OUT/interpretations/NAME, and record "
                              "each claim's verdict under each in results.json")
+    parser.add_argument("--interpretation-runs", type=positive_int, default=None, metavar="N",
+                        help="runs of each interpretation that has runs of its own (default --runs; at most "
+                             "--runs): each claim's verdict under it is then compared with the main run's on "
+                             "its first N runs; the interpretations the main run's runs answer read all of them")
 
 
 def duration(seconds: float) -> str:
@@ -157,6 +161,12 @@ def run(args: argparse.Namespace) -> int:
         from gpfverify.experiments.sensitivity import run_interpretations, select
 
         specs = select(module, opts.interpretations)  # before any run: a wrong name costs nothing
+    if opts.interpretation_runs is not None:
+        if specs is None:
+            raise InputError("--interpretation-runs needs --interpretations")
+        if opts.interpretation_runs > runs:
+            raise InputError(f"--interpretation-runs {opts.interpretation_runs} is more than the main run's "
+                             f"{runs} runs: the verdicts are compared on equal run counts")
     if opts.paper_scale:
         scale = "the paper's count"
     elif opts.runs is None:
@@ -171,7 +181,8 @@ def run(args: argparse.Namespace) -> int:
         if specs:
             say(f"{args.experiment}: interpretations {', '.join(s.name for s in specs)}")
             results = run_interpretations(module, params, specs, runs, opts.seed, stage, executor,
-                                          on_run=None if terminal else progress_lines(args.experiment, say))
+                                          on_run=None if terminal else progress_lines(args.experiment, say),
+                                          interpretation_runs=opts.interpretation_runs)
     print(f"{args.experiment}: {results['runs_ok']} of {results['runs']} runs ok -> {opts.out / 'results.json'}",
           file=sys.stderr if results["failed_runs"] else sys.stdout)
     print(claims_text(results))

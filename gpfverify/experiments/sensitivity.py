@@ -102,18 +102,31 @@ def merge_saved(run_dir: Path, module: ModuleType) -> dict:
             tried.append((spec, summary_results(module, Path(run_dir), spec)))
         elif (folder / "manifest.json").exists():
             tried.append((spec, rewrite_results(folder, module)))
-    fewer = sorted({r["runs"] for _, r in tried if r["runs"] < main["runs"]})
-    merged = merge(main, tried, [results_of(module, Path(run_dir), manifest, n) for n in fewer])
+    merged = _merged_on_equal_counts(module, Path(run_dir), main, tried)
     _atomic_write_json(Path(run_dir) / "results.json", merged)
     return merged
 
 
+def _merged_on_equal_counts(module: ModuleType, run_dir: Path, main: dict,
+                            tried: Sequence[tuple[InterpretationSpec, dict]]) -> dict:
+    """:func:`merge` of ``tried`` into ``main``, with the main run's results on the first n runs
+    for every count n of runs an interpretation ran that is smaller than the main run's."""
+    from gpfverify.experiments.runner import read_manifest, results_of
+
+    fewer = sorted({r["runs"] for _, r in tried if r["runs"] < main["runs"]})
+    manifest = read_manifest(run_dir) if fewer else {}
+    return merge(main, tried, [results_of(module, run_dir, manifest, n) for n in fewer])
+
+
 def run_interpretations(module: ModuleType, params: Params, specs: Sequence[InterpretationSpec], runs: int,
                         seed: int, out_dir: Path, executor: Executor,
-                        on_run: Callable[[int, int], None] | None = None) -> dict:
+                        on_run: Callable[[int, int], None] | None = None,
+                        interpretation_runs: int | None = None) -> dict:
     """Run every interpretation next to the main run in ``out_dir`` (which must hold its
     ``results.json``; a summary-only one reads the main run's runs, :func:`summary_results`) and
-    rewrite that file with the merged claims; returns it."""
+    rewrite that file with the merged claims; returns it. ``interpretation_runs``: the runs of each
+    interpretation with runs of its own (default ``runs``); on fewer runs than the main run, each
+    claim's verdict under it is compared with the main run's on as many (its first) runs."""
     from gpfverify.experiments.runner import _atomic_write_json, run_experiment
 
     main_path = Path(out_dir) / "results.json"
@@ -126,9 +139,10 @@ def run_interpretations(module: ModuleType, params: Params, specs: Sequence[Inte
             tried.append((spec, summary_results(module, Path(out_dir), spec)))
             continue
         changed = params.replace(**spec.changes)
-        results = run_experiment(module, changed, runs, seed, Path(out_dir) / "interpretations" / spec.name,
+        results = run_experiment(module, changed, interpretation_runs or runs, seed,
+                                 Path(out_dir) / "interpretations" / spec.name,
                                  resume=True, executor=executor, on_run=on_run)
         tried.append((spec, results))
-    merged = merge(main, tried)
+    merged = _merged_on_equal_counts(module, Path(out_dir), main, tried)
     _atomic_write_json(main_path, merged)
     return merged
