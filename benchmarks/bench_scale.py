@@ -73,11 +73,16 @@ def timed_process(argv, pinned: bool = True, stdout=subprocess.DEVNULL) -> dict:
     return {"wall": wall, "cpu": cpu, "rss_mb": after.ru_maxrss / 1024}
 
 
-def child(what: str, *args: str, pinned: bool) -> float:
-    """Seconds printed by this script run as ``--child WHAT ARGS`` in a fresh process."""
+def child_numbers(what: str, *args: str, pinned: bool) -> list[float]:
+    """The numbers printed by this script run as ``--child WHAT ARGS`` in a fresh process."""
     out = subprocess.run([sys.executable, __file__, "--child", what, *args], env=_env(pinned), check=True,
                          capture_output=True, text=True, cwd=ROOT).stdout
-    return float(out.split()[-1])
+    return [float(word) for word in out.split()]
+
+
+def child(what: str, *args: str, pinned: bool) -> float:
+    """Seconds printed (last) by this script run as ``--child WHAT ARGS`` in a fresh process."""
+    return child_numbers(what, *args, pinned=pinned)[-1]
 
 
 @contextmanager
@@ -342,11 +347,7 @@ def moment_pair(rounds: int) -> tuple[float, float]:
 def moment_rows(rounds: int) -> list[list[str]]:
     from gpfverify.gp import fused
 
-    pairs = []
-    for _ in range(MOMENT_PROCESSES):
-        out = subprocess.run([sys.executable, __file__, "--child", "moments", str(rounds)], env=_env(True),
-                             check=True, capture_output=True, text=True, cwd=ROOT).stdout.split()
-        pairs.append((float(out[-2]), float(out[-1])))
+    pairs = [child_numbers("moments", str(rounds), pinned=True)[-2:] for _ in range(MOMENT_PROCESSES)]
     ours, floor = (float(np.median(side)) for side in zip(*pairs))
     ratios = sorted(a / b for a, b in pairs)
     label = "fused kernel" if fused.enabled else "numpy path (numba not installed)"

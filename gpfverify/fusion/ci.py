@@ -49,7 +49,7 @@ from gpfverify.fusion.estimates import (FusedEstimate, Information, checked_esti
 from gpfverify.fusion.quiet import solver_output_discarded
 from gpfverify.fusion.pairwise import (criterion_derivative, joint_diagonalise,
                                        minimise_convex_on_unit_interval)
-from gpfverify.linalg import cholesky, symmetrize
+from gpfverify.linalg import Cholesky, cholesky, symmetrize
 from gpfverify.tolerances import CI_NEWTON_JOIN_TOL, CI_NEWTON_MAX_STEPS, CI_NEWTON_TOL, SLSQP_FTOL, kkt_reject_tol
 
 CRITERIA = ("trace", "det")
@@ -117,6 +117,11 @@ def _whitened_information(info: Information) -> tuple[np.ndarray, np.ndarray]:
     return symmetrize(half @ sym @ half.T), weight * (d / np.trace(weight))
 
 
+def _weighted_information_factor(mats: np.ndarray, w: np.ndarray) -> Cholesky:
+    """The Cholesky factor of S' = Σ_m ω_m I'_m (no jitter: S' is positive definite on the simplex)."""
+    return cholesky(np.tensordot(w, mats, axes=1), "weighted information", allow_jitter=False)
+
+
 def _ci_objective(mats: np.ndarray, weight: np.ndarray, w: np.ndarray, criterion: str
                   ) -> tuple[float, np.ndarray, np.ndarray]:
     """The criterion f(ω) in whitened coordinates (module docstring), its gradient and its Hessian.
@@ -125,7 +130,7 @@ def _ci_objective(mats: np.ndarray, weight: np.ndarray, w: np.ndarray, criterion
     det:   f = −log det S',  ∂f/∂ω_m = −tr A_m,             ∂²f/∂ω_m∂ω_k = tr(A_m A_k);
     trace: f = tr(M S'⁻¹),   ∂f/∂ω_m = −tr(B A_m) (B = S'⁻¹ M),  ∂²f/∂ω_m∂ω_k = tr(B A_m A_k) + tr(B A_k A_m).
     """
-    factor = cholesky(np.tensordot(w, mats, axes=1), "weighted information", allow_jitter=False)
+    factor = _weighted_information_factor(mats, w)
     inv = factor.inverse()
     solved = np.einsum("ij,mjk->mik", inv, mats)  # A_m
     if criterion == "det":
@@ -190,7 +195,7 @@ def _ci_weights_newton(info: Information, criterion: str) -> list[np.ndarray]:
 
 def _ci_objective_value(mats: np.ndarray, weight: np.ndarray, w: np.ndarray, criterion: str) -> float:
     """f(ω) alone (see :func:`_ci_objective`)."""
-    factor = cholesky(np.tensordot(w, mats, axes=1), "weighted information", allow_jitter=False)
+    factor = _weighted_information_factor(mats, w)
     return -factor.logdet() if criterion == "det" else float(np.sum(weight * factor.inverse()))
 
 
