@@ -109,11 +109,12 @@ def first_moments(x: np.ndarray, lengthscales: np.ndarray, signal_var: np.ndarra
 def centred_sums(x_a: np.ndarray, x_b: np.ndarray, mu: np.ndarray, sigma: np.ndarray, inv_l2_a: np.ndarray,
                  inv_l2_b: np.ndarray, b_logdet_a: np.ndarray, b_logdet_b: np.ndarray, ia: np.ndarray,
                  ib: np.ndarray, t_a: np.ndarray, t_b: np.ndarray, q_a: np.ndarray, q_b: np.ndarray,
-                 beta_a: np.ndarray, beta_b: np.ndarray, k_inv: np.ndarray, diagonal: np.ndarray
-                 ) -> tuple[np.ndarray, np.ndarray] | None:
+                 beta_a: np.ndarray, beta_b: np.ndarray, k_inv: np.ndarray, factors_t: np.ndarray,
+                 diagonal: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
     """(Cov (B, P), trace (B, P)) of the output pairs (ia[p], ib[p]) by the fused kernel, its
     O(n) inputs formed by :func:`gpfverify.gp.fused_kernels.prepare` (arguments as there, with
-    k_inv (E_a, n_a, n_a) and ``diagonal`` as in :func:`gpfverify.gp.fused_kernels.centred_sums`),
+    k_inv, factors_t (E_a, n_a, n_a) and ``diagonal`` as in
+    :func:`gpfverify.gp.fused_kernels.centred_sums`),
     or None when numba is not installed or an exponent may exceed :data:`EXPM1_SAFE` (the
     caller's numpy path handles both). The bound d_ij ≤ max_i r_i + max_j c_j + max_i ‖z_i‖ ·
     max_j ‖w_j‖ (Cauchy–Schwarz) decides, before any exponent is formed; the same inputs always
@@ -127,5 +128,5 @@ def centred_sums(x_a: np.ndarray, x_b: np.ndarray, mu: np.ndarray, sigma: np.nda
         return None
     shape = (mu.shape[0], ia.size)
     cov, trace = np.empty(shape), np.empty(shape)
-    fused_kernels.centred_sums(*prepared, k_inv, diagonal, cov, trace)
+    fused_kernels.centred_sums(*prepared, k_inv, factors_t, diagonal, cov, trace)
     return cov, trace

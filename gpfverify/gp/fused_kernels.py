@@ -233,29 +233,36 @@ def prepare(x_a: np.ndarray, x_b: np.ndarray, mu: np.ndarray, sigma: np.ndarray,
 
 @_jit_fma
 def centred_sums(z_a: np.ndarray, row: np.ndarray, z_b_t: np.ndarray, col: np.ndarray, u: np.ndarray,
-                 v: np.ndarray, q_a: np.ndarray, k_inv: np.ndarray, diagonal: np.ndarray,
+                 v: np.ndarray, q_a: np.ndarray, k_inv: np.ndarray, factors_t: np.ndarray, diagonal: np.ndarray,
                  cov: np.ndarray, trace: np.ndarray) -> None:
     """Both sums of the module docstring for a batch of inputs b and output pairs p:
     z_a (B, P, n_a, D), row (B, P, n_a), z_b_t (B, P, D, n_b), col (B, P, n_b), u (B, P, n_a),
-    v (B, P, n_b), q_a (B, P, n_a); k_inv (E, n_a, n_a) and diagonal (P,) the output a of a
-    diagonal pair (−1 otherwise). Writes cov (B, P) and trace (B, P) (zero off the diagonal
-    pairs). Every exponent must be at most :data:`EXPM1_SAFE` (see :func:`gpfverify.gp.fused.centred_sums`).
+    v (B, P, n_b), q_a (B, P, n_a); k_inv (E, n_a, n_a), factors_t (E, n_a, n_a) the transposed
+    Cholesky factors L_aᵀ of K_a, and diagonal (P,) the output a of a diagonal pair (−1
+    otherwise). Writes cov (B, P) and, for the diagonal pairs, trace (B, P) =
+    tr(K_a⁻¹Q^{aa}) = ‖L_a⁻¹q_a‖² + tr(K_a⁻¹(Q^{aa} − q_a q_aᵀ)) (zero off the diagonal pairs).
+    Every exponent must be at most :data:`EXPM1_SAFE` (see :func:`gpfverify.gp.fused.centred_sums`).
 
     The sums run column-wise: acc_j = Σ_i u_i E_ij over the rows, then Cov = Σ_j acc_j v_j (and
     tr = Σ_j q_j Σ_i q_i E_ij (K_a⁻¹)_ij), so the pass that forms E_ij also accumulates it, with no
     reduction inside a row. A diagonal pair is the pair (a, a) of one GP: its exponents are
     symmetric (d_ij = d_ji), as are u = v and K_a⁻¹, so only j ≥ i is formed and the terms off the
-    main diagonal count twice."""
+    main diagonal count twice. The same pass whitens q_a: forward substitution by columns
+    (x ← q_a; at row i, x_i ← x_i / L_ii, then x_j ← x_j − x_i L_ji for j > i, L_ji = (L_aᵀ)_ij a
+    contiguous row), its rows interleaved with the exponentials, which hide the solve's chain of
+    dependent divisions and its reads of the factor."""
     batch, pairs, n_a, dim = z_a.shape
     n_b = z_b_t.shape[3]
     d = np.empty(n_b)
-    acc, acc_trace = np.empty(n_b), np.empty(n_b)
+    acc, acc_trace, white = np.empty(n_b), np.empty(n_b), np.empty(n_a)
     last = dim - 1
     for b in range(batch):
         for p in range(pairs):
             a = diagonal[p]
             acc[:] = 0.0
             acc_trace[:] = 0.0
+            white[:] = q_a[b, p]
+            white_sq = 0.0
             for i in range(n_a):
                 start = i if a >= 0 else 0  # a diagonal pair: the upper triangle j ≥ i
                 width = n_b - start
@@ -280,7 +287,12 @@ def centred_sums(z_a: np.ndarray, row: np.ndarray, z_b_t: np.ndarray, col: np.nd
                     for j in range(width):
                         acc[j] += weight * _expm1(row_d[j] + z * w_last[j])
                     continue
-                # a diagonal pair: E_ii once, E_ij (j > i) twice
+                # a diagonal pair: E_ii once, E_ij (j > i) twice; row i of the whitening
+                x_i = white[i] / factors_t[a, i, i]
+                white_sq += x_i * x_i
+                rest, factor_column = white[i + 1:], factors_t[a, i, i + 1:]
+                for j in range(rest.size):
+                    rest[j] -= x_i * factor_column[j]
                 e = _expm1(row_d[0] + z * w_last[i])
                 acc[i] += u[b, p, i] * e
                 acc_trace[i] += q_a[b, p, i] * (e * k_inv[a, i, i])
@@ -290,7 +302,7 @@ def centred_sums(z_a: np.ndarray, row: np.ndarray, z_b_t: np.ndarray, col: np.nd
                     acc[i + j] += weight * e
                     acc_trace[i + j] += weight_trace * (e * k_inv[a, i, i + j])
             cov[b, p] = _dot(acc, v[b, p])
-            trace[b, p] = _dot(acc_trace, q_a[b, p]) if a >= 0 else 0.0
+            trace[b, p] = white_sq + _dot(acc_trace, q_a[b, p]) if a >= 0 else 0.0
 
 @_jit_fma
 def expm1_compiled(x: np.ndarray) -> np.ndarray:

@@ -13,8 +13,8 @@ Outputs a and b may belong to different GPs with different training inputs (x_i 
 how a stack of sensors' measurement GPs gets its cross-sensor blocks through the shared uncertain
 input (seed 000 §3).
 
-Evaluated in centred form, Cov = β_aᵀ(Q^{ab} − q_a q_bᵀ)β_b + δ_ab[(α_a² − ‖L_a⁻¹q_a‖²)
-− tr(K_a⁻¹(Q^{aa} − q_a q_aᵀ))] (L_a the Cholesky factor of K_a), with Q^{ab}_ij = q_ai q_bj exp(d_ij)
+Evaluated in centred form, Cov = β_aᵀ(Q^{ab} − q_a q_bᵀ)β_b + δ_ab[α_a² − (‖L_a⁻¹q_a‖²
++ tr(K_a⁻¹(Q^{aa} − q_a q_aᵀ)))] (L_a the Cholesky factor of K_a), with Q^{ab}_ij = q_ai q_bj exp(d_ij)
 and the small exponent d_ij formed directly (see :func:`_centred_second_moments`), so that
 Q − q_a q_bᵀ = q_ai q_bj expm1(d_ij). Algebraically the same as eq. 10, but no quantity is a
 difference of nearly equal large numbers. With long lengthscales and a large signal variance (a GP
@@ -139,8 +139,9 @@ def _centred_second_moments(gp_a, gp_b, ia: np.ndarray, ib: np.ndarray, first_a:
                             ) -> tuple[np.ndarray, np.ndarray]:
     """Cov[m_a, m_b] = β_aᵀ (Q^{ab} − q_a q_bᵀ) β_b (B, P) for the output pairs (ia[p] of gp_a,
     ib[p] of gp_b) at a batch of inputs N(mu[b], sigma[b]) (mu (B, D), sigma (B, D, D), first
-    moments with a leading batch axis), and the trace terms tr(K_a⁻¹(Q^{aa} − q_a q_aᵀ)) (B, P) of
-    the pairs p with ``diagonal[p]`` = a ≥ 0 (the pair (a, a) of one GP; zero elsewhere) (eq. 10–11).
+    moments with a leading batch axis), and the traces tr(K_a⁻¹Q^{aa}) = ‖L_a⁻¹q_a‖² +
+    tr(K_a⁻¹(Q^{aa} − q_a q_aᵀ)) (B, P) of the pairs p with ``diagonal[p]`` = a ≥ 0 (the pair (a, a)
+    of one GP; zero elsewhere) (eq. 10–11).
 
     Q_ij = q_ai q_bj exp(d_ij) with the small exponent
     d_ij = −½t_ai − ½t_bj + ½ z_ijᵀR⁻¹Σz_ij − ½log|R| + ½log|B_a + I| + ½log|B_b + I|,
@@ -151,7 +152,7 @@ def _centred_second_moments(gp_a, gp_b, ia: np.ndarray, ib: np.ndarray, first_a:
     inv_l2_b = 1.0 / gp_b.lengthscales[ib] ** 2
     fused = centred_sums(gp_a.X, gp_b.X, mu, sigma, inv_l2_a, inv_l2_b, first_a.b_logdet, first_b.b_logdet, ia, ib,
                          first_a.t, first_b.t, first_a.q, first_b.q, gp_a.beta, gp_b.beta, gp_a.K_inv,
-                         diagonal)
+                         gp_a.factors_t, diagonal)
     if fused is not None:
         return fused
     xi_half = np.sqrt(inv_l2_a + inv_l2_b)  # Ξ^½ diagonal, (P, D)
@@ -180,7 +181,8 @@ def _centred_second_moments(gp_a, gp_b, ia: np.ndarray, ib: np.ndarray, first_a:
         left_scale, right_scale = np.ones_like(q_a), np.ones_like(q_b)
     weighted_b = ((gp_b.beta[ib] * right_scale)[..., None, :] @ np.swapaxes(centred, -1, -2))[..., 0, :]
     cov = np.sum(gp_a.beta[ia] * left_scale * weighted_b, axis=-1)
-    return cov, _traces(gp_a.K_inv, centred, left_scale, right_scale, diagonal)
+    traces = _traces(gp_a.K_inv, centred, left_scale, right_scale, diagonal)
+    return cov, traces + _whitened_squares(gp_a, first_a.q[:, ia], diagonal)
 
 
 def _log_space_centred(log_q_a: np.ndarray, log_q_b: np.ndarray, exponent: np.ndarray) -> np.ndarray:
@@ -208,19 +210,25 @@ def _traces(k_inv: np.ndarray, centred: np.ndarray, left: np.ndarray, right: np.
     return trace
 
 
-def _model_uncertainty(gp, log_q: np.ndarray, traces: np.ndarray) -> np.ndarray:
-    """E_x[σ_a²(x)] = α_a² − tr(K_a⁻¹Q^{aa}) = (α_a² − ‖L_a⁻¹q_a‖²) − tr(K_a⁻¹(Q^{aa} − q_a q_aᵀ))
-    for every output a at a batch of inputs: (B, E), from ``log_q`` (B, E, n) and the traces
-    (B, E) of :func:`_centred_second_moments`. One triangular solve per input (BLAS trsv): a
-    batch's columns in one trsm would save a few µs per input but, with a multithreaded BLAS,
-    leave its threads spinning for the rest of the call (twice the process CPU time, measured)."""
-    q = np.exp(log_q)
-    whitened_sq = np.empty(q.shape[:2])  # ‖L_a⁻¹q_a‖², (B, E)
-    for a, chol in enumerate(gp.choleskys):
+def _whitened_squares(gp, q: np.ndarray, diagonal: np.ndarray) -> np.ndarray:
+    """‖L_a⁻¹q_a‖² (B, P) for the pairs p with diagonal[p] = a ≥ 0 (zero elsewhere), q (B, P, n) the
+    pairs' first-output q: one BLAS trsv per input and pair (a batch's columns in one trsm would
+    save a few µs per input but, with a multithreaded BLAS, leave its threads spinning for the
+    rest of the call: twice the process CPU time, measured)."""
+    squares = np.zeros(q.shape[:2])
+    for p in np.flatnonzero(diagonal >= 0):
+        chol = gp.choleskys[diagonal[p]]
         for b in range(q.shape[0]):
-            whitened = chol.whiten(q[b, a])
-            whitened_sq[b, a] = whitened @ whitened
-    return gp.signal_var - whitened_sq - traces
+            whitened = chol.whiten(q[b, p])
+            squares[b, p] = whitened @ whitened
+    return squares
+
+
+def _model_uncertainty(gp, traces: np.ndarray) -> np.ndarray:
+    """E_x[σ_a²(x)] = α_a² − tr(K_a⁻¹Q^{aa}) for every output a at a batch of inputs: (B, E), from
+    the traces (B, E) of :func:`_centred_second_moments`, there formed as (‖L_a⁻¹q_a‖²
+    + tr(K_a⁻¹(Q^{aa} − q_a q_aᵀ))) so that no term is a difference of large numbers."""
+    return gp.signal_var - traces
 
 
 def _chunks(batch: int, entries_per_input: int) -> list[slice]:
@@ -273,7 +281,7 @@ def moment_match_stack_batch(gps, mu: np.ndarray, sigma: np.ndarray) -> MomentMa
                                                            sigma[part], diagonal)
                 block = pair_cov.T  # (P, B)
                 if on_diagonal.any():
-                    block[on_diagonal] += _model_uncertainty(gp_a, first_a.log_q, traces[:, on_diagonal]).T
+                    block[on_diagonal] += _model_uncertainty(gp_a, traces[:, on_diagonal]).T
                 blocks[:, part] = block
             rows, cols = offsets[g] + ia, offsets[h] + ib
             cov[:, rows, cols] = blocks.T

@@ -155,7 +155,12 @@ class GaussianProcess:
         self.noise_var = _per_output(noise_var, "noise_var", (e,))
         kernels = se_ard(self.X, self.X, self.lengthscales, self.signal_var)
         kernels += self.noise_var[:, None, None] * np.eye(n)
-        self._chol: list[Cholesky] = [cholesky(kernels[a], f"K[{a}]") for a in range(e)]
+        factors = [cholesky(kernels[a], f"K[{a}]") for a in range(e)]
+        #: the factors' transposes L_aᵀ stacked, shape (E, n, n), C-ordered: column i of L_a below the
+        #: diagonal is a contiguous row (how the fused moment kernel whitens); the Cholesky factors
+        #: below are views of it
+        self.factors_t = np.stack([c.factor.T for c in factors])
+        self._chol: list[Cholesky] = [Cholesky(self.factors_t[a].T, c.jitter) for a, c in enumerate(factors)]
         #: β_a = K_a⁻¹ y_a, shape (E, n)
         self.beta = np.stack([c.solve(y[:, a]) for a, c in enumerate(self._chol)])
         #: K_a⁻¹ cached once for the trace terms of moment matching, shape (E, n, n)
