@@ -94,6 +94,36 @@ def _shifted(scaled: np.ndarray, inv: np.ndarray, ratio: np.ndarray) -> float:
     return logdet
 
 @_jit
+def _projected(x_t: np.ndarray, centre: np.ndarray, scale: np.ndarray, a_mat: np.ndarray, scaled: np.ndarray,
+               projected: np.ndarray, quadratic: np.ndarray) -> None:
+    """For the points x_t (D, n), one per column: scaled[k, i] = (x_ki − centre_k)·scale_k,
+    projected[k, i] = Σ_m scaled[m, i] A_mk and quadratic[i] = Σ_k projected[k, i] scaled[k, i]
+    (each sum in index order from 0), the points innermost in every loop (vectorised)."""
+    dim, n = x_t.shape
+    for k in range(dim):
+        shift, factor = centre[k], scale[k]
+        for i in range(n):
+            scaled[k, i] = (x_t[k, i] - shift) * factor
+    projected[:] = 0.0
+    for k in range(dim):
+        for m in range(dim):
+            coefficient = a_mat[m, k]
+            for i in range(n):
+                projected[k, i] += scaled[m, i] * coefficient
+    quadratic[:] = 0.0
+    for k in range(dim):
+        for i in range(n):
+            quadratic[i] += projected[k, i] * scaled[k, i]
+
+@_jit
+def _column_square(columns: np.ndarray, i: int) -> float:
+    """‖columns[:, i]‖², the sum in index order from 0."""
+    total = 0.0
+    for k in range(columns.shape[0]):
+        total += columns[k, i] * columns[k, i]
+    return total
+
+@_jit
 def first_moments(x: np.ndarray, inv_ell: np.ndarray, log_signal_var: np.ndarray, beta: np.ndarray,
                   mu: np.ndarray, sigma: np.ndarray):
     """Eq. 8–9 and 20 for every output a of one GP at every input N(mu[b], sigma[b]), as
@@ -111,7 +141,9 @@ def first_moments(x: np.ndarray, inv_ell: np.ndarray, log_signal_var: np.ndarray
     log_q, t, b_logdet = np.empty((batch, outputs, n)), np.empty((batch, outputs, n)), np.empty((batch, outputs))
     q = np.empty((batch, outputs, n))
     scaled_sigma, b_inv, b_ratio = np.empty((dim, dim)), np.empty((dim, dim)), np.empty((dim, dim))
-    s, weighted_nu, solved = np.empty(dim), np.empty(dim), np.empty(dim)
+    weighted_nu, solved = np.empty(dim), np.empty(dim)
+    x_t, scaled, projected = np.ascontiguousarray(x.T), np.empty((dim, n)), np.empty((dim, n))
+    maha, quad = np.empty(n), np.empty(n)
     for b in range(batch):
         for a in range(outputs):
             for k in range(dim):
@@ -121,19 +153,11 @@ def first_moments(x: np.ndarray, inv_ell: np.ndarray, log_signal_var: np.ndarray
             b_logdet[b, a] = logdet
             weighted_nu[:] = 0.0
             total = 0.0
+            _projected(x_t, mu[b], inv_ell[a], b_inv, scaled, projected, maha)  # s_iᵀ(B_a + I)⁻¹s_i
+            _projected(x_t, mu[b], inv_ell[a], b_ratio, scaled, projected, quad)  # t_ai
             for i in range(n):
-                for k in range(dim):
-                    s[k] = (x[i, k] - mu[b, k]) * inv_ell[a, k]
-                maha, quad = 0.0, 0.0
-                for k in range(dim):
-                    row_inv, row_ratio = 0.0, 0.0
-                    for m in range(dim):
-                        row_inv += s[m] * b_inv[m, k]
-                        row_ratio += s[m] * b_ratio[m, k]
-                    maha += row_inv * s[k]
-                    quad += row_ratio * s[k]
-                value = log_signal_var[a] - 0.5 * logdet - 0.5 * maha
-                log_q[b, a, i], t[b, a, i] = value, quad
+                value = log_signal_var[a] - 0.5 * logdet - 0.5 * maha[i]
+                log_q[b, a, i], t[b, a, i] = value, quad[i]
                 q[b, a, i] = np.exp(value)
                 weight = beta[a, i] * q[b, a, i]
                 total += weight
@@ -186,48 +210,31 @@ def prepare(x_a: np.ndarray, x_b: np.ndarray, mu: np.ndarray, sigma: np.ndarray,
                 for m in range(dim):
                     a_mat[b, p, k, m] = s_ratio[k, m] / (xi_half[k] * xi_half[m])
             const[b, p] = 0.5 * (b_logdet_a[b, ia[p]] + b_logdet_b[b, ib[p]] - r_logdet)
-    z_a = np.empty((batch, pairs, n_a, dim))
+    x_a_t, x_b_t = np.ascontiguousarray(x_a.T), np.ascontiguousarray(x_b.T)
+    z_a = np.empty((batch, pairs, dim, n_a))
     z_b_t = np.empty((batch, pairs, dim, n_b))
     row, u, q_a = np.empty((batch, pairs, n_a)), np.empty((batch, pairs, n_a)), np.empty((batch, pairs, n_a))
     col, v = np.empty((batch, pairs, n_b)), np.empty((batch, pairs, n_b))
-    scaled = np.empty(dim)
+    scaled_a, quadratic_a = np.empty((dim, n_a)), np.empty(n_a)
+    projected_b, quadratic_b = np.empty((dim, n_b)), np.empty(n_b)
     bound = -np.inf
     for b in range(batch):
         for p in range(pairs):
             a, e = ia[p], ib[p]
-            a_bp = a_mat[b, p]
+            _projected(x_a_t, mu[b], inv_l2_a[p], a_mat[b, p], scaled_a, z_a[b, p], quadratic_a)
             top_row, top_z = -np.inf, 0.0
             for i in range(n_a):
-                for k in range(dim):
-                    scaled[k] = (x_a[i, k] - mu[b, k]) * inv_l2_a[p, k]
-                quadratic, norm = 0.0, 0.0
-                for k in range(dim):
-                    z = 0.0
-                    for m in range(dim):
-                        z += scaled[m] * a_bp[m, k]
-                    z_a[b, p, i, k] = z
-                    quadratic += z * scaled[k]
-                    norm += z * z
-                row[b, p, i] = -0.5 * t_a[b, a, i] + 0.5 * quadratic + const[b, p]
+                row[b, p, i] = -0.5 * t_a[b, a, i] + 0.5 * quadratic_a[i] + const[b, p]
                 q = first_q_a[b, a, i]
                 q_a[b, p, i] = q
                 u[b, p, i] = beta_a[a, i] * q
-                top_row, top_z = max(top_row, row[b, p, i]), max(top_z, norm)
+                top_row, top_z = max(top_row, row[b, p, i]), max(top_z, _column_square(z_a[b, p], i))
+            _projected(x_b_t, mu[b], inv_l2_b[p], a_mat[b, p], z_b_t[b, p], projected_b, quadratic_b)
             top_col, top_w = -np.inf, 0.0
             for j in range(n_b):
-                for k in range(dim):
-                    scaled[k] = (x_b[j, k] - mu[b, k]) * inv_l2_b[p, k]
-                    z_b_t[b, p, k, j] = scaled[k]
-                quadratic, norm = 0.0, 0.0
-                for k in range(dim):
-                    z = 0.0
-                    for m in range(dim):
-                        z += scaled[m] * a_bp[m, k]
-                    quadratic += z * scaled[k]
-                    norm += scaled[k] * scaled[k]
-                col[b, p, j] = -0.5 * t_b[b, e, j] + 0.5 * quadratic
+                col[b, p, j] = -0.5 * t_b[b, e, j] + 0.5 * quadratic_b[j]
                 v[b, p, j] = beta_b[e, j] * first_q_b[b, e, j]
-                top_col, top_w = max(top_col, col[b, p, j]), max(top_w, norm)
+                top_col, top_w = max(top_col, col[b, p, j]), max(top_w, _column_square(z_b_t[b, p], j))
             bound = max(bound, top_row + top_col + np.sqrt(top_z * top_w))
     return z_a, row, z_b_t, col, u, v, q_a, bound
 
@@ -236,7 +243,7 @@ def centred_sums(z_a: np.ndarray, row: np.ndarray, z_b_t: np.ndarray, col: np.nd
                  v: np.ndarray, q_a: np.ndarray, k_inv: np.ndarray, factors_t: np.ndarray, diagonal: np.ndarray,
                  cov: np.ndarray, trace: np.ndarray) -> None:
     """Both sums of the module docstring for a batch of inputs b and output pairs p:
-    z_a (B, P, n_a, D), row (B, P, n_a), z_b_t (B, P, D, n_b), col (B, P, n_b), u (B, P, n_a),
+    z_a (B, P, D, n_a), row (B, P, n_a), z_b_t (B, P, D, n_b), col (B, P, n_b), u (B, P, n_a),
     v (B, P, n_b), q_a (B, P, n_a); k_inv (E, n_a, n_a), factors_t (E, n_a, n_a) the transposed
     Cholesky factors L_aᵀ of K_a, and diagonal (P,) the output a of a diagonal pair (−1
     otherwise). Writes cov (B, P) and, for the diagonal pairs, trace (B, P) =
@@ -251,7 +258,7 @@ def centred_sums(z_a: np.ndarray, row: np.ndarray, z_b_t: np.ndarray, col: np.nd
     (x ← q_a; at row i, x_i ← x_i / L_ii, then x_j ← x_j − x_i L_ji for j > i, L_ji = (L_aᵀ)_ij a
     contiguous row), its rows interleaved with the exponentials, which hide the solve's chain of
     dependent divisions and its reads of the factor."""
-    batch, pairs, n_a, dim = z_a.shape
+    batch, pairs, dim, n_a = z_a.shape
     n_b = z_b_t.shape[3]
     d = np.empty(n_b)
     acc, acc_trace, white = np.empty(n_b), np.empty(n_b), np.empty(n_a)
@@ -273,14 +280,14 @@ def centred_sums(z_a: np.ndarray, row: np.ndarray, z_b_t: np.ndarray, col: np.nd
                     for j in range(width):
                         row_d[j] = col[b, p, start + j] + r_i
                 else:
-                    z = z_a[b, p, i, 0]
+                    z = z_a[b, p, 0, i]
                     for j in range(width):
                         row_d[j] = (col[b, p, start + j] + r_i) + z * z_b_t[b, p, 0, start + j]
                     for k in range(1, last):
-                        z = z_a[b, p, i, k]
+                        z = z_a[b, p, k, i]
                         for j in range(width):
                             row_d[j] += z * z_b_t[b, p, k, start + j]
-                z = z_a[b, p, i, last]
+                z = z_a[b, p, last, i]
                 w_last = z_b_t[b, p, last]
                 if a < 0:  # acc_j += u_i E_ij
                     weight = u[b, p, i]

@@ -56,7 +56,7 @@ MUTANTS: tuple[Mutant, ...] = (
     Mutant("‖L⁻¹q‖² left out of the traces", "moments", "gpfverify/gp/moments.py",
            "return cov, traces + _whitened_squares(gp_a, first_a.q[:, ia], diagonal)", "return cov, traces", GP),
     Mutant("fused kernel: the input's own term left out of a row's exponent", "moments (fused kernel)",
-           "gpfverify/gp/fused_kernels.py", "row[b, p, i] = -0.5 * t_a[b, a, i] + 0.5 * quadratic + const[b, p]",
+           "gpfverify/gp/fused_kernels.py", "row[b, p, i] = -0.5 * t_a[b, a, i] + 0.5 * quadratic_a[i] + const[b, p]",
            "row[b, p, i] = -0.5 * t_a[b, a, i] + const[b, p]", GP),
     Mutant("fused kernel: a symmetric pair's off-diagonal terms counted once", "moments (fused kernel)",
            "gpfverify/gp/fused_kernels.py", "weight, weight_trace = 2.0 * u[b, p, i],",
