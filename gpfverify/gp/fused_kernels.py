@@ -177,8 +177,8 @@ def first_moments(x: np.ndarray, inv_ell: np.ndarray, log_signal_var: np.ndarray
     return mean, cross, log_q, t, b_logdet, q
 
 @_jit
-def prepare(x_a: np.ndarray, x_b: np.ndarray, mu: np.ndarray, sigma: np.ndarray, inv_l2_a: np.ndarray,
-            inv_l2_b: np.ndarray, b_logdet_a: np.ndarray, b_logdet_b: np.ndarray, ia: np.ndarray, ib: np.ndarray,
+def prepare(x_a: np.ndarray, x_b: np.ndarray, mu: np.ndarray, sigma: np.ndarray, ell_a: np.ndarray,
+            ell_b: np.ndarray, b_logdet_a: np.ndarray, b_logdet_b: np.ndarray, ia: np.ndarray, ib: np.ndarray,
             t_a: np.ndarray, t_b: np.ndarray, first_q_a: np.ndarray, first_q_b: np.ndarray, beta_a: np.ndarray,
             beta_b: np.ndarray):
     """The inputs of :func:`centred_sums` for the output pairs (ia[p], ib[p]) at the inputs
@@ -189,9 +189,10 @@ def prepare(x_a: np.ndarray, x_b: np.ndarray, mu: np.ndarray, sigma: np.ndarray,
     q_a, u = β_a ∘ q_a, v = β_b ∘ q_b — and the largest bound max_i row_i + max_j col_j +
     max_i ‖z_i‖ · max_j ‖w_j‖ (Cauchy–Schwarz) on any exponent.
 
-    x_a (n_a, D), x_b (n_b, D), mu (B, D), sigma (B, D, D), inv_l2_a/inv_l2_b (P, D) the pairs' 1/ℓ²,
+    x_a (n_a, D), x_b (n_b, D), mu (B, D), sigma (B, D, D), ell_a (E_a, D), ell_b (E_b, D) the lengthscales,
     b_logdet_a (B, E_a), b_logdet_b (B, E_b), t_a/first_q_a (B, E_a, n_a), t_b/first_q_b (B, E_b, n_b)
     (the first moments' t and q), beta_a (E_a, n_a), beta_b (E_b, n_b)."""
+    inv_l2_a, inv_l2_b = 1.0 / ell_a ** 2, 1.0 / ell_b ** 2  # Λ⁻¹ diagonals, (E, D)
     batch, dim = mu.shape
     pairs = ia.size
     n_a, n_b = x_a.shape[0], x_b.shape[0]
@@ -201,7 +202,7 @@ def prepare(x_a: np.ndarray, x_b: np.ndarray, mu: np.ndarray, sigma: np.ndarray,
     for b in range(batch):
         for p in range(pairs):
             for k in range(dim):
-                xi_half[k] = np.sqrt(inv_l2_a[p, k] + inv_l2_b[p, k])
+                xi_half[k] = np.sqrt(inv_l2_a[ia[p], k] + inv_l2_b[ib[p], k])
             for k in range(dim):
                 for m in range(dim):
                     scaled_sigma[k, m] = sigma[b, k, m] * (xi_half[k] * xi_half[m])
@@ -221,7 +222,7 @@ def prepare(x_a: np.ndarray, x_b: np.ndarray, mu: np.ndarray, sigma: np.ndarray,
     for b in range(batch):
         for p in range(pairs):
             a, e = ia[p], ib[p]
-            _projected(x_a_t, mu[b], inv_l2_a[p], a_mat[b, p], scaled_a, z_a[b, p], quadratic_a)
+            _projected(x_a_t, mu[b], inv_l2_a[a], a_mat[b, p], scaled_a, z_a[b, p], quadratic_a)
             top_row, top_z = -np.inf, 0.0
             for i in range(n_a):
                 row[b, p, i] = -0.5 * t_a[b, a, i] + 0.5 * quadratic_a[i] + const[b, p]
@@ -229,7 +230,7 @@ def prepare(x_a: np.ndarray, x_b: np.ndarray, mu: np.ndarray, sigma: np.ndarray,
                 q_a[b, p, i] = q
                 u[b, p, i] = beta_a[a, i] * q
                 top_row, top_z = max(top_row, row[b, p, i]), max(top_z, _column_square(z_a[b, p], i))
-            _projected(x_b_t, mu[b], inv_l2_b[p], a_mat[b, p], z_b_t[b, p], projected_b, quadratic_b)
+            _projected(x_b_t, mu[b], inv_l2_b[e], a_mat[b, p], z_b_t[b, p], projected_b, quadratic_b)
             top_col, top_w = -np.inf, 0.0
             for j in range(n_b):
                 col[b, p, j] = -0.5 * t_b[b, e, j] + 0.5 * quadratic_b[j]

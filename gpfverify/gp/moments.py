@@ -148,13 +148,13 @@ def _centred_second_moments(gp_a, gp_b, ia: np.ndarray, ib: np.ndarray, first_a:
     so Q − q_a q_bᵀ = q_ai q_bj expm1(d_ij) without cancellation. The n_a × n_b sums go through
     the fused kernel (:mod:`gpfverify.gp.fused`) when it is enabled, else through numpy (the
     reference: the same sums to rounding)."""
-    inv_l2_a = 1.0 / gp_a.lengthscales[ia] ** 2  # (P, D)
-    inv_l2_b = 1.0 / gp_b.lengthscales[ib] ** 2
-    fused = centred_sums(gp_a.X, gp_b.X, mu, sigma, inv_l2_a, inv_l2_b, first_a.b_logdet, first_b.b_logdet, ia, ib,
-                         first_a.t, first_b.t, first_a.q, first_b.q, gp_a.beta, gp_b.beta, gp_a.K_inv,
-                         gp_a.factors_t, diagonal)
+    fused = centred_sums(gp_a.X, gp_b.X, mu, sigma, gp_a.lengthscales, gp_b.lengthscales, first_a.b_logdet,
+                         first_b.b_logdet, ia, ib, first_a.t, first_b.t, first_a.q, first_b.q, gp_a.beta, gp_b.beta,
+                         gp_a.K_inv, gp_a.factors_t, diagonal)
     if fused is not None:
         return fused
+    inv_l2_a = 1.0 / gp_a.lengthscales[ia] ** 2  # (P, D)
+    inv_l2_b = 1.0 / gp_b.lengthscales[ib] ** 2
     xi_half = np.sqrt(inv_l2_a + inv_l2_b)  # Ξ^½ diagonal, (P, D)
     outer = xi_half[:, :, None] * xi_half[:, None, :]
     _, s_ratio, r_logdet = _shifted(sigma[:, None] * outer)  # (B, P, D, D), (B, P)
@@ -234,23 +234,28 @@ def _model_uncertainty(gp, traces: np.ndarray) -> np.ndarray:
 def _chunks(batch: int, entries_per_input: int) -> list[slice]:
     """Slices of the batch axis so that each chunk forms at most :data:`_CHUNK_ENTRIES` entries."""
     step = max(1, _CHUNK_ENTRIES // max(1, entries_per_input))
+    if step >= batch:
+        return [slice(None)]
     return [slice(i, min(i + step, batch)) for i in range(0, batch, step)]
 
 
 @functools.lru_cache(maxsize=64)
-def _block_pairs(outputs_a: int, outputs_b: int, same_gp: bool) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def _block_pairs(outputs_a: int, outputs_b: int, same_gp: bool
+                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """The output pairs (ia[p], ib[p]) of one block of the joint covariance — the upper triangle
-    within one GP, every pair across two — and ``diagonal[p]``: the output a of each pair (a, a) of
-    one GP, whose covariance adds E_x[σ_a²(x)], −1 elsewhere (read-only arrays, shared by calls)."""
+    within one GP, every pair across two — ``diagonal[p]``: the output a of each pair (a, a) of one
+    GP, whose covariance adds E_x[σ_a²(x)], −1 elsewhere, and the indices p of those pairs
+    (read-only arrays, shared by calls)."""
     if same_gp:
         ia, ib = np.triu_indices(outputs_a)
         diagonal = np.where(ia == ib, ia, -1)
     else:
         ia, ib = (idx.ravel() for idx in np.indices((outputs_a, outputs_b)))
         diagonal = np.full(ia.size, -1)
-    for array in (ia, ib, diagonal):
+    on_diagonal = np.flatnonzero(diagonal >= 0)
+    for array in (ia, ib, diagonal, on_diagonal):
         array.flags.writeable = False
-    return ia, ib, diagonal
+    return ia, ib, diagonal, on_diagonal
 
 
 def moment_match_stack_batch(gps, mu: np.ndarray, sigma: np.ndarray) -> MomentMatch:
@@ -270,8 +275,7 @@ def moment_match_stack_batch(gps, mu: np.ndarray, sigma: np.ndarray) -> MomentMa
     for g, gp_a in enumerate(gps):
         for h in range(g, len(gps)):
             gp_b = gps[h]
-            ia, ib, diagonal = _block_pairs(gp_a.output_dim, gp_b.output_dim, g == h)
-            on_diagonal = diagonal >= 0
+            ia, ib, diagonal, on_diagonal = _block_pairs(gp_a.output_dim, gp_b.output_dim, g == h)
             blocks = np.empty((ia.size, batch))  # Cov[f_a, f_b] per output pair and input
             parts = _chunks(batch, ia.size * gp_a.X.shape[0] * gp_b.X.shape[0])
             for part in parts:
@@ -280,7 +284,7 @@ def moment_match_stack_batch(gps, mu: np.ndarray, sigma: np.ndarray) -> MomentMa
                 pair_cov, traces = _centred_second_moments(gp_a, gp_b, ia, ib, first_a, first_b, mu[part],
                                                            sigma[part], diagonal)
                 block = pair_cov.T  # (P, B)
-                if on_diagonal.any():
+                if on_diagonal.size:
                     block[on_diagonal] += _model_uncertainty(gp_a, traces[:, on_diagonal]).T
                 blocks[:, part] = block
             rows, cols = offsets[g] + ia, offsets[h] + ib
