@@ -532,7 +532,7 @@ def moments_profile(repeats: int) -> list[list[str]]:
     parts = [("whole call (fused kernel)" if saved else "whole call (numpy path: numba not installed)",
               lambda: mm.moment_match(gp, mu, sigma)),
              ("whole call on the numpy reference path", numpy_path)]
-    parts += [("  the fused kernel alone (all n² work: exponents, expm1, sums, traces)",
+    parts += [("  the fused kernel alone (all n² work: exponents, expm1, sums, traces, whitening)",
                lambda a=a: real(*a)) for a in kernel_args[:1]]
     parts += [("numpy exp over the same count (the floor)", lambda: np.exp(uniform, out=out)),
               ("numpy exp over this call's exponents d_ij", lambda: np.exp(exponents, out=out)),

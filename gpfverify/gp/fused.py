@@ -9,7 +9,8 @@ For one output pair (a, b) at one input, with d_ij = z_iᵀw_j + r_i + c_j the s
 :func:`gpfverify.gp.moments._centred_second_moments` and E_ij = expm1(d_ij):
 
 * Cov[m_a, m_b] = Σ_i u_i Σ_j E_ij v_j,          u = β_a ∘ q_a, v = β_b ∘ q_b         (eq. 10–11)
-* tr(K_a⁻¹(Q^{aa} − q_a q_aᵀ)) = Σ_i q_i Σ_j (K_a⁻¹)_ij q_j E_ij   (diagonal pairs only)
+* tr(K_a⁻¹Q^{aa}) = ‖L_a⁻¹q_a‖² + Σ_i q_i Σ_j (K_a⁻¹)_ij q_j E_ij   (diagonal pairs only; L_a the
+  Cholesky factor of K_a, the whitening L_a⁻¹q_a solved row by row in the same pass)
 
 One pass over (i, j) forms d_ij and its expm1 and adds it into per-column sums, row by row in
 buffers that stay in cache: no n_a × n_b matrix is written, read back or multiplied. numpy's
@@ -27,8 +28,9 @@ guarantees x ≤ 700 (the kernel reports larger exponents and the caller takes t
 Accuracy: within 2 ulp of a correctly rounded expm1, both here and compiled (each tested against
 mpmath). The compiled kernel lets a multiply and the add that follows it fuse into one FMA where
 the processor has one (no other reordering): the polynomial and the n² loop are chains of such
-pairs, and on a processor whose vector exp is fast (AVX-512) the unfused loop costs about 1.8 ×
-numpy's exp where the fused one costs about 1.3 ×. On Intel processors with AVX-512 LLVM prefers
+pairs, and on a processor whose vector exp is fast (AVX-512) the whole moment match cost about
+1.8 × numpy's exp unfused where fused it cost about 1.3 × (measured with the Taylor polynomial the
+fit replaced; benchmarks/results/scale.md has the current ratio). On Intel processors with AVX-512 LLVM prefers
 256-bit vectors unless told otherwise; :mod:`gpfverify.numba_target` lets the kernel use the
 512-bit ones numpy's exp uses (about 1.9 → 1.5 × numpy's exp on such a Xeon). An FMA rounds
 once where the two operations round twice, so the compiled results differ from
