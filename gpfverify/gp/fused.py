@@ -30,8 +30,8 @@ mpmath). The compiled kernel lets a multiply and the add that follows it fuse in
 the processor has one (no other reordering): the polynomial and the n² loop are chains of such
 pairs, and on a processor whose vector exp is fast (AVX-512) the whole moment match cost about
 1.8 × numpy's exp unfused where fused it cost about 1.3 × (measured with the Taylor polynomial the
-fit replaced; benchmarks/results/scale.md has the current ratio). On Intel processors with AVX-512 LLVM prefers
-256-bit vectors unless told otherwise; :mod:`gpfverify.numba_target` lets the kernel use the
+fit replaced; benchmarks/results/scale.md has the current ratio). On Intel processors with
+AVX-512 LLVM prefers 256-bit vectors unless told otherwise; :mod:`gpfverify.numba_target` lets the kernel use the
 512-bit ones numpy's exp uses (about 1.9 → 1.5 × numpy's exp on such a Xeon). An FMA rounds
 once where the two operations round twice, so the compiled results differ from
 :func:`expm1_reference` by rounding (the same inputs give the same bits on one machine).

@@ -257,8 +257,8 @@ def centred_sums(z_a: np.ndarray, row: np.ndarray, z_b_t: np.ndarray, col: np.nd
     symmetric (d_ij = d_ji), as are u = v and K_a⁻¹, so only j ≥ i is formed and the terms off the
     main diagonal count twice. The same pass whitens q_a: forward substitution by columns
     (x ← q_a; at row i, x_i ← x_i / L_ii, then x_j ← x_j − x_i L_ji for j > i, L_ji = (L_aᵀ)_ij a
-    contiguous row), its rows interleaved with the exponentials, which hide the solve's chain of
-    dependent divisions and its reads of the factor."""
+    contiguous row), its rows interleaved with the exponentials' rows: one pass over the factor per
+    input and output, with no call of its own."""
     batch, pairs, dim, n_a = z_a.shape
     n_b = z_b_t.shape[3]
     d = np.empty(n_b)
