@@ -169,7 +169,7 @@ def _add_interpretations(section: Section, records: list[ClaimRecord], stored: d
         def passed(verdict: str, checks: list[dict] | None) -> bool:
             return all(c["passed"] for c in checks) if checks else verdict != "not decidable"
 
-        healthy = ["as run"] if passed(comparisons[0].verdict, health) else []
+        healthy = [AS_RUN] if passed(comparisons[0].verdict, health) else []
         healthy += [i.name for i in comparisons[0].interpretations
                     if i.name != AS_RUN and passed(i.verdict, stored.get(i.name, {}).get("health"))]
         within_reach = _within_reach_paragraph(tried, [AS_RUN, *names], healthy)
@@ -182,7 +182,7 @@ def _add_interpretations(section: Section, records: list[ClaimRecord], stored: d
             first = healthy[0]
             faithful = "; ".join(f"{r.id.rsplit('-', 1)[-1]}: {r.verdict}" for r in comparisons)
             def there(r: ClaimRecord) -> str:
-                if first == "as run":
+                if first == AS_RUN:
                     return r.verdict
                 verdict = next(i.verdict for i in r.interpretations if i.name == first)
                 runs = stored.get(first, {}).get("claims", {}).get(r.id, {}).get("runs_to_decide")
@@ -236,7 +236,7 @@ def _add_configurations(section: Section, results: dict) -> None:
     stored = results.get("interpretation_summaries") or {}
     if not stored:
         return
-    configurations = [("as run", results["runs_ok"], results.get("health", []), results["mean_ess_fraction"],
+    configurations = [(AS_RUN, results["runs_ok"], results.get("health", []), results["mean_ess_fraction"],
                        results["rms"], results["reduction"])]
     configurations += [(name, s["runs_ok"], s["health"], s["mean_ess_fraction"], s["rms"], s["reduction"])
                        for name, s in stored.items()]
