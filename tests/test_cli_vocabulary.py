@@ -104,7 +104,7 @@ def test_rank_rule_misuse_is_refused_by_every_command(tmp_path, capsys):
     with pytest.raises(InputError, match="unknown rank rule"):
         Ungm1dParams(rank_rule="sigma-max")
     with pytest.raises(InputError, match="--rank-tol"):
-        Ungm1dParams(rank_rule="canonical", rank_tol=1e-9)
+        Ungm1dParams(rank_rule="numpy", rank_tol=1e-9)
     path, _ = _case_file(tmp_path)
     for argv in (["audit", path, "--rank-rule", "sigma-max"],
                  ["check", REDUNDANT, "--rank-rule", "sigma-max", "--json"],

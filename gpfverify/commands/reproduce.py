@@ -122,8 +122,8 @@ def claims_text(results: dict) -> str:
     claims = list(results.get("claims") or []) + list(results.get("timing_claims") or [])
     lines = []
     if results.get("rank_tolerance"):
-        lines.append(f"rank rule of eq. 35: {results['rank_tolerance']} (reproduce's default is numpy, the "
-                     "papers' rule; --rank-rule to change it)")
+        lines.append(f"rank rule of eq. 35: {results['rank_tolerance']} (the default is the canonical rule, as in "
+                     "check and audit; --rank-rule to change it)")
     if not claims:
         return "\n".join(lines + ["no claims recorded"])
     runs = results.get("runs_ok", results.get("runs"))

@@ -132,9 +132,11 @@ PAPER_SETTINGS: tuple[tuple[int, float], ...] = ((300, OMEGA_SMALL), (300, 0.5),
 #: (``gpfverify reproduce ct2d --interpretations all``)
 INTERPRETATIONS: tuple[InterpretationSpec, ...] = (
     InterpretationSpec(
-        "canonical-rank", {"rank_rule": "canonical"},
-        "the paper does not say how rank(Cₓᵧᵐ) is decided; numpy's/MATLAB's rule depends on units (a bearing "
-        "column in m·rad is ≈ 1/280 of the range column), the canonical-correlation rule (τ = √eps) does not"),
+        "numpy-rank", {"rank_rule": "numpy"},
+        "the paper does not say how rank(Cₓᵧᵐ) is decided; MATLAB's rank() (numpy's matrix_rank) may be its rule. "
+        "That rule depends on units (a bearing column in m·rad is ≈ 1/280 of the range column, and its tolerance "
+        "is relative to the largest singular value); the default, the canonical-correlation rule (τ = √eps), "
+        "does not"),
     InterpretationSpec(
         "initial-cov-perturbation", {"initial_cov_scale": 1.0},
         "the paper gives no initial covariance; the filters may be told only the perturbation's spread, "

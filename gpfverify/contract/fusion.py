@@ -12,13 +12,13 @@ the DMF − CMF gaps and the audit of every step on which the rank condition fai
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Literal
 
 from gpfverify.contract.methods import Method
 from gpfverify.contract.params import Params, option
 from gpfverify.errors import InputError
-from gpfverify.fusion.exactness import parse_rank_rule
+from gpfverify.fusion.exactness import DEFAULT_RANK_RULE, parse_rank_rule
 
 #: the paper (a key of :data:`gpfverify.contract.papers.PAPERS`)
 PAPER = "seed000"
@@ -52,6 +52,10 @@ LOCAL_FILTERS: tuple[Method, ...] = tuple(m for m in METHODS if m.is_sensor)
 FUSION_METHODS: tuple[Method, ...] = tuple(m for m in METHODS if not m.is_sensor)
 
 
+#: the rank rule eq. 35 is run with unless another is given: the project's one default (unit-free)
+DEFAULT_RULE = DEFAULT_RANK_RULE.name
+
+
 @dataclass(frozen=True)
 class FusionParams(Params):
     """Options both fusion experiments take: GP fitting, RCC-CI, the rank tolerance of eq. 35 and
@@ -66,14 +70,14 @@ class FusionParams(Params):
         "enlarge", "RCC-CI when the local ellipsoids do not intersect: enlarge c to twice the smallest "
         "intersecting size (the step is counted), or fail the run")
     rank_tol: float | None = option(None, "absolute singular-value tolerance for rank(C_xy^m) in eq. 35, the same "
-                                    "as --rank-rule absolute:TOL (none: the rank rule decides)", minimum=0)
+                                    "as --rank-rule absolute:TOL (none: --rank-rule decides)", minimum=0)
     rank_rule: str = option(
-        "numpy", "how eq. 35 decides rank(C_xy^m), as in check and audit: numpy, canonical[:TAU] or absolute:TOL. "
-        "Default numpy — singular values of C_xy^m above σ_max · max(D, l) · eps (numpy's and MATLAB's rank(), the "
-        "paper's likely rule, so the papers' reference numbers are reproduced; depends on units, calls any nonzero "
-        "scalar cross term full rank). canonical[:TAU] — canonical correlations of state and sensor output above "
-        "τ (default √eps; unit-free; the default of check and audit, which judge a user's system). absolute:TOL — "
-        "singular values above TOL")
+        DEFAULT_RULE, "how eq. 35 decides rank(C_xy^m), as in check and audit: canonical[:TAU], numpy or "
+        "absolute:TOL. Default canonical — canonical correlations of state and sensor output above τ (default "
+        "√eps): unit-free, the project's one rule, which Proposition 1's verdicts are judged under. numpy — "
+        "singular values of C_xy^m above σ_max · max(D, l) · eps (numpy's and MATLAB's rank(), perhaps the "
+        "paper's; it depends on units and calls any nonzero scalar cross term full rank: the interpretation "
+        "'numpy-rank'). absolute:TOL — singular values above TOL")
     alpha: float = option(1.0, "sigma-point α of GP-UKF", above=0)
     beta: float = option(0.0, "sigma-point β of GP-UKF")
     sigma_kappa: float = option(2.0, "sigma-point κ of GP-UKF")
@@ -84,20 +88,18 @@ class FusionParams(Params):
 
     def check(self) -> None:
         try:
-            rule = parse_rank_rule(self.rank_rule)
+            parse_rank_rule(self.rank_rule)
         except InputError as exc:  # the accepted forms, named by the option that took the text
             raise InputError(f"--rank-rule: {exc}") from None
-        if rule.name != "numpy" and self.rank_tol is not None:
-            raise InputError(f"--rank-tol is an absolute singular-value tolerance (the same as --rank-rule "
-                             f"absolute:TOL); --rank-rule {self.rank_rule} takes none")
+        if self.rank_tol is not None and self.rank_rule != DEFAULT_RULE:
+            raise InputError(f"--rank-tol TOL is the rule absolute:TOL; --rank-rule {self.rank_rule} is another "
+                             "rule: give one of them")
 
     @property
     def rank_rule_spec(self) -> str:
-        """The rule as :func:`gpfverify.fusion.exactness.parse_rank_rule` reads it ("numpy",
-        "absolute:1e-09", "canonical")."""
-        if self.rank_rule == "numpy" and self.rank_tol is not None:
-            return f"absolute:{self.rank_tol!r}"
-        return self.rank_rule
+        """The rule as :func:`gpfverify.fusion.exactness.parse_rank_rule` reads it ("canonical",
+        "absolute:1e-09", "numpy")."""
+        return self.rank_rule if self.rank_tol is None else f"absolute:{self.rank_tol!r}"
 
 
 # -- one run ---------------------------------------------------------------------------------------
@@ -169,6 +171,9 @@ class FamilyRun:
     seconds: dict[str, tuple[float, ...]]
     #: CMF's and DMF's update alone (once the measurements arrive), per step
     online_seconds: dict[str, tuple[float, ...]]
+    #: canonical correlations ρ of state and sensor output per sensor and step, largest first, when
+    #: the canonical rule decided the rank (empty otherwise)
+    correlations: dict[str, tuple[tuple[float, ...], ...]] = field(default_factory=dict)
 
 
 @dataclass(frozen=True)

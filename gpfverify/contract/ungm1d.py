@@ -95,10 +95,13 @@ def _setting(params: Params) -> Setting:
 #: (``gpfverify reproduce ungm1d --interpretations all``)
 INTERPRETATIONS: tuple[InterpretationSpec, ...] = (
     InterpretationSpec(
-        "canonical-rank", {"rank_rule": "canonical"},
-        "the paper does not say how rank(Cₓᵧᵐ) is decided; with a 1 × 1 cross term numpy's/MATLAB's rule calls any "
-        "nonzero value full rank, however small against the state's and the output's spreads; the "
-        "canonical-correlation rule (τ = √eps) is unit-free"),
+        "numpy-rank", {"rank_rule": "numpy"},
+        "the paper does not say how rank(Cₓᵧᵐ) is decided; MATLAB's rank() (numpy's matrix_rank) may be its rule. "
+        "With a 1 × 1 cross term that rule calls any nonzero value full rank however small against the state's "
+        "and the output's spreads (its tolerance is relative to the one singular value itself), so a cross "
+        "covariance near zero counts as full rank and its inverse in eq. 35 amplifies the rounding of "
+        "μₑᵐ − μₚᵐ; the default, the canonical-correlation rule (τ = √eps), is unit-free and drops such a "
+        "correlation"),
     InterpretationSpec(
         "measurement-noise-0.1", {"measurement_noise_var": 0.1},
         "the text's measurement noise shows as '0.1²' with symbols lost: variance 0.01 (default) or 0.1"),

@@ -15,10 +15,11 @@ methods (:data:`gpfverify.contract.fusion.METHODS`) — for each filter family F
   intersect, c is enlarged to twice the smallest intersecting size and the step is counted).
 
 Per step and method the run records ‖x − x̂‖² (for the RMSE, eq. 45) and the squared Mahalanobis
-distance (x − x̂)ᵀC⁻¹(x − x̂) (eq. 44 as written), and its own computation time. For the
-equivalence analysis it records the singular values of every local C_xy^m and the rank decision
-at the rank tolerance used by eq. 35 (numpy's / MATLAB's ``rank`` rule σ_max · max(D, l) · eps
-unless ``rank_tol`` is given), the recursive gap ‖μ_DMF − μ_CMF‖ between the two fused filters,
+distance (x − x̂)ᵀC⁻¹(x − x̂) (eq. 44 as written), and its own computation time — CPU time of the
+process (:data:`CPU_CLOCK`), which other processes on a busy machine perturb far less than wall
+time. For the equivalence analysis it records the singular values of every local C_xy^m and the
+rank decision of the rule eq. 35 is run with (the canonical-correlation rule unless another is
+given), the recursive gap ‖μ_DMF − μ_CMF‖ between the two fused filters,
 the one-step gap of eq. 35 against CMF *from the same central prediction*, and the full audit
 (:func:`~gpfverify.audit.audit_case`: gap actual vs closed-form prediction, exact or not) of every
 step on which a rank condition failed.
@@ -42,10 +43,9 @@ import numpy as np
 
 from gpfverify.audit import audit_case
 from gpfverify.contract.claims import ClaimRecord, PairedDifference, Verdict, combine, verdict_of
-from gpfverify.contract.fusion import (FAMILIES, FUSION_RULES, LOCAL_FILTERS, METHODS, NEES_POLICY, PAPER, AuditEntry,
-                                       FamilyRun,
-                                       FittedModels, FusionRun, GPHyperparameters, SensorAuditRecord,
-                                       family_methods)
+from gpfverify.contract.fusion import (DEFAULT_RULE, FAMILIES, FUSION_RULES, LOCAL_FILTERS, METHODS, NEES_POLICY,
+                                       PAPER, AuditEntry, FamilyRun, FittedModels, FusionRun, GPHyperparameters,
+                                       SensorAuditRecord, family_methods)
 from gpfverify.contract.methods import Method
 from gpfverify.filters.families import gaussian_family
 from gpfverify.filters.records import Gaussian, StepRecord
@@ -101,16 +101,23 @@ def squared_mahalanobis(truth: np.ndarray, estimate: Gaussian) -> float:
     return float(err @ solve_spd(estimate.cov, err, "estimate covariance"))
 
 
+#: the clock every method of a run is timed with: the CPU time of this process (all its threads; BLAS
+#: runs one thread in gpfverify's calls), not wall time, which counts whatever else the machine runs
+CPU_CLOCK: Callable[[], float] = time.process_time
+#: what results.json says the times are
+CLOCK_WORDS = "CPU time of the process (time.process_time), per method and step"
+
+
 class _Clock:
-    """Accumulates per-step computation time per method."""
+    """Accumulates per-step CPU time (:data:`CPU_CLOCK`) per method."""
 
     def __init__(self, steps: int, methods: Sequence[str]):
         self.seconds = {m: np.zeros(steps) for m in methods}
 
     def run(self, method: str, step: int, fn: Callable, *args: Any, **kwargs: Any) -> Any:
-        start = time.perf_counter()
+        start = CPU_CLOCK()
         out = fn(*args, **kwargs)
-        self.seconds[method][step] += time.perf_counter() - start
+        self.seconds[method][step] += CPU_CLOCK() - start
         return out
 
 
@@ -151,10 +158,11 @@ def _floats(values) -> tuple[float, ...]:
 
 def run_family(family: str, models: GPModel, data: FusionData, local_starts: Sequence[Gaussian],
                fused_start: Gaussian, sigma: SigmaParams, rcc_size: float | None,
-               rank_tol: float | None, rcc_on_empty: str = "enlarge", rank_rule: str = "numpy") -> FamilyRun:
+               rank_rule: str = DEFAULT_RULE, rcc_on_empty: str = "enlarge") -> FamilyRun:
     """Filter the test segment with the six methods of one family; per-step records (see module
-    docstring). ``rank_rule``: "numpy" (with ``rank_tol``: absolute) or "canonical"."""
-    rule = None if rank_rule == "numpy" else rank_rule  # None: dmf_step's numpy rule, or rank_tol
+    docstring). ``rank_rule``: the rule eq. 35 decides rank(C_xy^m) with, as
+    :func:`~gpfverify.fusion.exactness.parse_rank_rule` reads it."""
+    rule = parse_rank_rule(rank_rule)
     ys_local = data.test_measurements
     ys = data.stacked_test_measurements()
     steps = ys.shape[0]
@@ -171,6 +179,7 @@ def run_family(family: str, models: GPModel, data: FusionData, local_starts: Seq
     sq_err: dict[str, list[float]] = {n: [] for n in names}
     maha: dict[str, list[float]] = {n: [] for n in names}
     singular_values: dict[str, list[tuple[float, ...]]] = {k: [] for k in sensor_keys}
+    correlations: dict[str, list[tuple[float, ...]]] = {k: [] for k in sensor_keys}
     full_rank: dict[str, list[bool]] = {k: [] for k in sensor_keys}
     tols: dict[str, list[float]] = {k: [] for k in sensor_keys}
     recursive_gap, one_step_gap, one_step_gap_rel, holds, gap_scale, conditions = [], [], [], [], [], []
@@ -183,7 +192,7 @@ def run_family(family: str, models: GPModel, data: FusionData, local_starts: Seq
         locals_ = [r.posterior for r in records]
         cmf = clock.run(cmf_key, k, cmf_step, cmf_belief, models, ys[k], k=k + 1, family=family, params=sigma)
         dmf = clock.run(dmf_key, k, dmf_step, dmf_belief, models, ys[k], local_records=records, k=k + 1,
-                        family=family, params=sigma, rank_tol=rank_tol, rank_rule=rule)
+                        family=family, params=sigma, rank_rule=rule, clock=CPU_CLOCK)
         cmf_belief, dmf_belief = cmf.posterior, dmf.record.posterior
         cw = clock.run(cw_key, k, convex_combination, locals_, models.circular_state)
         rcc, enlarged = clock.run(rcc_key, k, _rcc_ci, locals_, rcc_size, rcc_on_empty, models.circular_state)
@@ -191,9 +200,9 @@ def run_family(family: str, models: GPModel, data: FusionData, local_starts: Seq
 
         # the update alone (what is left once the measurements arrive), CMF vs eq. 35 (timed
         # within dmf_step): CMF's update from the same central prediction as DMF's
-        start = time.perf_counter()
+        start = CPU_CLOCK()
         same = cmf_update(dmf.case.central, ys[k])
-        online[cmf_key][k] = time.perf_counter() - start
+        online[cmf_key][k] = CPU_CLOCK() - start
         online[dmf_key][k] = dmf.update_seconds
 
         truth = data.test_states[k]
@@ -205,6 +214,7 @@ def run_family(family: str, models: GPModel, data: FusionData, local_starts: Seq
         for s in dmf.result.sensors:
             key = Method.sensor_filter(s.index + 1, family).key
             singular_values[key].append(_floats(s.split.rank.singular_values))
+            correlations[key].append(() if s.split.correlations is None else _floats(s.split.correlations))
             full_rank[key].append(bool(s.full_column_rank))
             tols[key].append(float(s.split.rank.tol))
         gap = dmf.result.mean - same.mean
@@ -226,16 +236,16 @@ def run_family(family: str, models: GPModel, data: FusionData, local_starts: Seq
         gap_condition=tuple(conditions), audit=tuple(audit), rcc_enlarged=rcc_enlarged,
         rounding_sensitivity=rounding_sensitivity(family, models, fused_start, ys[0], sigma),
         seconds={n: _floats(s) for n, s in clock.seconds.items()},
-        online_seconds={n: _floats(s) for n, s in online.items()})
+        online_seconds={n: _floats(s) for n, s in online.items()},
+        correlations={n: tuple(v) for n, v in correlations.items()} if rule.name == "canonical" else {})
 
 
 def run_setting(data: FusionData, models: GPModel, local_starts: Sequence[Gaussian],
                 fused_start: Gaussian, sigma: SigmaParams, rcc_size: float | None,
-                rank_tol: float | None, training_seconds: float, rcc_on_empty: str = "enlarge",
-                rank_rule: str = "numpy") -> FusionRun:
+                rank_rule: str, training_seconds: float, rcc_on_empty: str = "enlarge") -> FusionRun:
     """Both families on one run's data."""
     return FusionRun({family: run_family(family, models, data, local_starts, fused_start, sigma, rcc_size,
-                                         rank_tol, rcc_on_empty, rank_rule) for family in FAMILIES},
+                                         rank_rule, rcc_on_empty) for family in FAMILIES},
                      training_seconds, hyperparameters(models))
 
 
@@ -309,7 +319,7 @@ def to_dict(entry: AuditEntry) -> dict:
     return to_json(entry)
 
 
-def summarize_setting(results: Sequence[FusionRun], rank_rule: str = "numpy") -> dict:
+def summarize_setting(results: Sequence[FusionRun], rank_rule: str) -> dict:
     """Per-step and per-method summaries of one setting over runs (see module docstring);
     ``rank_rule`` the rule's spec (:meth:`FusionParams.rank_rule_spec`), named in the summary."""
     rule_text = rank_rule_text(rank_rule)
@@ -325,6 +335,7 @@ def summarize_setting(results: Sequence[FusionRun], rank_rule: str = "numpy") ->
         "rank_tolerance": rule_text,
         "full_rank_ratio_by_relative_tolerance": {f"{t:g}": full_rank_ratio_at(results, t)
                                                   for t in RELATIVE_RANK_TOLS},
+        "time_clock": CLOCK_WORDS,
         "time_per_step": {m: float(np.mean(seconds[m])) for m in METHOD_KEYS},
         "time_per_run": {m: float(np.mean(np.sum(seconds[m], axis=1))) for m in METHOD_KEYS},
         "online_time_per_step": {m: float(np.mean(online[m])) for m in online},
