@@ -43,7 +43,7 @@ def test_results_follow_the_contract(cli_results):
     assert all(isinstance(v, float) for v in r["max_equivalence_gap"].values())
     assert set(r["time_per_step"]) == set(r["time_per_run"]) == CONTRACT_METHODS
     assert all(v > 0 for v in r["time_per_run"].values())
-    assert "eps" in r["rank_tolerance"]
+    assert "canonical correlations" in r["rank_tolerance"]  # the default rule
 
 
 def test_params_record_every_interpretation_as_numbers(cli_results):
@@ -192,7 +192,7 @@ def test_page_renders_from_stored_results(tmp_path):
     # the verdicts under each interpretation tried, with the robustness sentence; health; both timings
     assert "Verdicts under each interpretation tried — κ = 12, Ω = 2π/90" in page
     table = page.split("Verdicts under each interpretation tried")[1]
-    assert all(f"| {name} |" in table for name in ("canonical-rank", "initial-cov-wide", "sensors-z1-below"))
+    assert all(f"| {name} |" in table for name in ("numpy-rank", "initial-cov-wide", "sensors-z1-below"))
     assert "interpretations tried" in page  # robustness(): "... under all 4 interpretations tried" or "depends"
     assert "Health of the filters compared" in page and "CMF-GP-UKF" in page
     assert "(the update alone)" in page and "(whole fusion step)" in page

@@ -25,7 +25,7 @@ TINY = {"kappa": 12, "test_steps": 3, "fit_points": 12}
 @pytest.mark.parametrize("contract", [ct2d_contract, ungm1d_contract], ids=["ct2d", "ungm1d"])
 def test_interpretations_are_valid_params_changes(contract):
     names = [spec.name for spec in contract.INTERPRETATIONS]
-    assert len(names) == len(set(names)) and "canonical-rank" in names
+    assert len(names) == len(set(names)) and "numpy-rank" in names
     for spec in contract.INTERPRETATIONS:
         base = contract.Params()
         changed = base.replace(**spec.changes)  # validates
@@ -39,21 +39,21 @@ def test_experiment_modules_export_the_interpretations():
     assert ungm1d.INTERPRETATIONS is ungm1d_contract.INTERPRETATIONS
 
 
-def test_canonical_rule_takes_no_absolute_tolerance():
+def test_rank_tol_is_the_absolute_rule_and_takes_no_other_rule():
     with pytest.raises(InputError, match="--rank-tol"):
-        ct2d.Params(rank_rule="canonical", rank_tol=1e-6)
+        ct2d.Params(rank_rule="numpy", rank_tol=1e-6)
     with pytest.raises(InputError, match="--rank-rule"):
         ct2d.Params(rank_rule="svd")
-    assert ct2d.Params().rank_rule_spec == "numpy"
+    assert ct2d.Params().rank_rule_spec == ungm1d.Params().rank_rule_spec == "canonical"  # the project's default
     assert ct2d.Params(rank_tol=1e-3).rank_rule_spec == "absolute:0.001"
-    assert ungm1d.Params(rank_rule="canonical").rank_rule_spec == "canonical"
+    assert ungm1d.Params(rank_rule="numpy").rank_rule_spec == "numpy"
 
 
 @pytest.fixture(scope="module")
 def numpy_and_canonical():
     seed = np.random.SeedSequence(4)
-    return (ct2d.run_one(ct2d.Params(**TINY), seed),
-            ct2d.run_one(ct2d.Params(**TINY, rank_rule="canonical"), seed))
+    return (ct2d.run_one(ct2d.Params(**TINY, rank_rule="numpy"), seed),
+            ct2d.run_one(ct2d.Params(**TINY), seed))
 
 
 def test_rank_rule_decides_with_its_own_tolerance(numpy_and_canonical):
@@ -67,17 +67,23 @@ def test_rank_rule_decides_with_its_own_tolerance(numpy_and_canonical):
         expected = [numpy_rank_tol(s, (2, 2)) for s in sv]
         np.testing.assert_allclose(a.rank_tol[key], expected, rtol=1e-12)
         assert all(t == CANONICAL_RANK_TOL for t in b.rank_tol[key])  # τ = √eps on the correlations
-    numpy_summary = ct2d.summarize(ct2d.Params(**TINY), [numpy_run])
-    canonical_summary = ct2d.summarize(ct2d.Params(**TINY, rank_rule="canonical"), [canonical_run])
+        # the canonical run records the correlations it decided on, the numpy run none
+        assert not a.correlations and len(b.correlations[key]) == len(b.rank_tol[key])
+        assert all(len(rho) == 2 and 0.0 <= min(rho) <= max(rho) for rho in b.correlations[key])
+    numpy_summary = ct2d.summarize(ct2d.Params(**TINY, rank_rule="numpy"), [numpy_run])
+    canonical_summary = ct2d.summarize(ct2d.Params(**TINY), [canonical_run])
     assert "eps" in numpy_summary["rank_tolerance"] and "canonical" in canonical_summary["rank_tolerance"]
     assert "canonical" in canonical_summary["rank_failure_audit"]["rank_rule"]
 
 
 def test_ungm1d_takes_the_rank_rule():
-    params = ungm1d.Params(train=10, test_steps=2, fit_points=10, sweep=(), rank_rule="canonical")
-    record = ungm1d.run_one(params, np.random.SeedSequence(3))
-    tols = record.settings["1.0"].families["GP-UKF"].rank_tol["Sensor1-GP-UKF"]
-    assert all(t == CANONICAL_RANK_TOL for t in tols)
+    params = ungm1d.Params(train=10, test_steps=2, fit_points=10, sweep=())
+    canonical = ungm1d.run_one(params, np.random.SeedSequence(3)).settings["1.0"].families["GP-UKF"]
+    assert all(t == CANONICAL_RANK_TOL for t in canonical.rank_tol["Sensor1-GP-UKF"])
+    numpy = ungm1d.run_one(params.replace(rank_rule="numpy"), np.random.SeedSequence(3)).settings["1.0"]
+    sv = np.array(numpy.families["GP-UKF"].singular_values["Sensor1-GP-UKF"])
+    np.testing.assert_allclose(numpy.families["GP-UKF"].rank_tol["Sensor1-GP-UKF"],
+                               [numpy_rank_tol(s, (1, 1)) for s in sv], rtol=1e-12)
 
 
 def test_initial_covariance_is_what_the_parameter_says():
@@ -177,13 +183,30 @@ def test_undecided_paired_claims_state_the_runs_that_would_decide_and_timing_is_
         update = timing[f"ct2d/dmf-update-cheaper-than-cmf/{family}"]
         assert "whole fusion step" in whole.claim and "update alone" in update.claim
         cmf, dmf = Method("CMF", family).key, Method("DMF", family).key
-        # decided on per-run times, paired: the statistic is the mean difference of seconds per run
-        steps = len(runs[0].families[family].seconds[dmf])
-        assert whole.statistic == pytest.approx(body["time_per_run"][dmf] - body["time_per_run"][cmf])
-        assert update.statistic == pytest.approx(steps * (body["online_time_per_step"][dmf]
-                                                          - body["online_time_per_step"][cmf]))
-        for claim in (whole, update):
-            assert claim.verdict == ("held" if claim.statistic < -claim.threshold else
-                                     "NOT held" if claim.statistic > claim.threshold else "undecided")
+        # decided on the paired per-run ratios of CPU seconds: the statistic is their geometric mean,
+        # computed here from the run records, and the threshold the bound 1
+        for claim, field in ((whole, "seconds"), (update, "online_seconds")):
+            per_run = {k: np.array([sum(getattr(r.families[family], field)[k]) for r in runs]) for k in (dmf, cmf)}
+            log_ratio = np.log(per_run[dmf] / per_run[cmf])
+            assert claim.statistic == pytest.approx(np.exp(log_ratio.mean()), rel=1e-9) and claim.threshold == 1.0
+            atol = 5 * log_ratio.std(ddof=1) / np.sqrt(len(runs))
+            assert claim.verdict == ("held" if log_ratio.mean() < -atol else
+                                     "NOT held" if log_ratio.mean() > atol else "undecided")
+            assert claim.timing and claim.group == "timing"
         rcc = timing[f"ct2d/rcc-ci-costs-most/{family}"]
-        assert rcc.evidence.count(" − RCC-CI-") == 3  # CMF, DMF and CW each against RCC-CI
+        assert rcc.evidence.count(" / RCC-CI-") == 3  # CMF, DMF and CW each against RCC-CI
+
+
+def test_a_full_rank_step_outside_rounding_names_its_smallest_canonical_correlation():
+    params = ct2d.Params(**TINY)
+    record = ct2d.run_one(params, np.random.SeedSequence(4))
+    fam = record.families["GP-ADF"]
+    k = next(i for i, holds in enumerate(fam.condition_holds) if holds)
+    gap = list(fam.one_step_gap)
+    gap[k] = 1e3 * (fam.gap_scale[k] + 1.0)  # far outside rounding on one full-rank step
+    doctored = dataclasses.replace(record, families={**record.families,
+                                                     "GP-ADF": dataclasses.replace(fam, one_step_gap=tuple(gap))})
+    claim = _claim(ct2d.summarize(params, [doctored]), "ct2d/dmf-equals-cmf/GP-ADF")
+    rho = min(min(fam.correlations[key][k]) for key in fam.correlations)
+    assert claim.verdict == "NOT held" and claim.statistic == 1.0 and claim.group == "Proposition 1"
+    assert f"the smaller canonical correlation at most {rho:.3g}" in claim.evidence

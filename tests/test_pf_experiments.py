@@ -63,10 +63,13 @@ def test_bearing_writes_the_contract_keys_and_wraps_bearings(tmp_path):
     claims = read_claims(res)
     assert [c.timing for c in claims] == [False, True]
     assert all(c.paper_n == 200 and c.n == 2 for c in claims)
-    # the time claim is the paired difference of per-run CPU seconds (difference of the means)
-    assert claims[1].statistic == pytest.approx(res["time_per_run"]["IE-PFF-N50"] - res["time_per_run"]["PF-N200"])
-    assert claims[1].verdict == ("held" if claims[1].statistic < -claims[1].threshold else "NOT held"
-                                 if claims[1].statistic > claims[1].threshold else "undecided")
+    # the time claim: the geometric mean of the paired per-run CPU-time ratios, against 1
+    seconds = [json.loads(path.read_text())["result"]["filters"] for path in sorted((tmp_path / "runs").glob("*.json"))]
+    log_ratio = np.log([s["IE-PFF-N50"]["seconds"] / s["PF-N200"]["seconds"] for s in seconds])
+    atol = 5.0 * log_ratio.std(ddof=1) / np.sqrt(log_ratio.size)
+    assert claims[1].statistic == pytest.approx(np.exp(log_ratio.mean())) and claims[1].threshold == 1.0
+    assert claims[1].verdict == ("held" if log_ratio.mean() < -atol else "NOT held" if log_ratio.mean() > atol
+                                 else "undecided")
 
 
 def test_params_and_records_round_trip_through_json_text():

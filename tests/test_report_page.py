@@ -147,33 +147,47 @@ def test_title_and_sticky_table_of_contents(report):
     assert not page.find_all("script") and not page.find_all("link")  # one file, works offline
 
 
-def test_summary_table_counts_every_verdict_per_section(report):
-    _, page, records = report
+def test_summary_table_counts_every_verdict_per_section_and_group(report):
+    out, page, records = report
     (table,) = page.find_all("table", cls="summary")
     headers = [th.text for th in table.find_all("th")]
     kinds = ["held", "NOT held", "undecided", "not decidable", "proved", "refuted", "checked"]
-    assert headers[2:9] == kinds
-    rows = {r.find_all("td")[1].text: r for r in table.find_all("tbody")[0].find_all("tr")}
-    assert set(rows) == {"Toy fusion", "Toy detection", "Symbolic proofs and a second implementation",
-                         "every section"}
-    assert [r.find_all("td")[0].text for r in rows.values()] == [
-        "Liao et al. 2019", "Chen et al. 2015", "the toolkit's own algebra", "all"]
+    assert headers[2] == "group" and headers[3:10] == kinds
+    body = table.find_all("tbody")[0].find_all("tr")
+    cells = [[td.text for td in row.find_all("td")] for row in body]
+    # a section's name on its first row only; one row per group it has, accuracy first, then the theorem, timing
+    sections, section = [], ""
+    for row in cells:
+        section = row[1] or section
+        sections.append((section, row[2]))
+    assert sections == [("Toy fusion", "accuracy"), ("Toy fusion", "Proposition 1"), ("Toy fusion", "timing"),
+                        ("Toy detection", "accuracy"), ("Symbolic proofs and a second implementation", "proofs"),
+                        ("every section", "accuracy"), ("every section", "Proposition 1"),
+                        ("every section", "timing"), ("every section", "proofs")]
+    assert [row[0] for row in cells[:5]] == ["Liao et al. 2019", "", "", "Chen et al. 2015",
+                                             "the toolkit's own algebra"]
 
-    def counts(row: Node) -> list[int]:
-        return [int(td.text) for td in row.find_all("td")[2:9]]
+    def counted(group: str, prefix: str | None) -> list[int]:
+        """The counts of one group, computed here from the records (independently of the page)."""
+        mine = [c for c in records if prefix is None or c.id.startswith(prefix)]
+        mine = [c for c in mine if ("timing" if c.timing else c.theorem or "accuracy") == group]
+        return [sum(c.verdict == k for c in mine) for k in kinds[:4]] + [0, 0, 0]
 
-    by_section = {"alpha": counts(rows["Toy fusion"]), "beta": counts(rows["Toy detection"])}
-    for slug, found in by_section.items():
-        verdicts = [c.verdict for c in records if c.id.startswith("toy-a" if slug == "alpha" else "toy-b")]
-        assert found == [verdicts.count(k) for k in kinds[:4]] + [0, 0, 0]
-    assert counts(rows["Symbolic proofs and a second implementation"]) == [0, 0, 0, 0, 1, 1, 1]
-    total = counts(rows["every section"])
-    assert total == [sum(c.verdict == k for c in records) for k in kinds[:4]] + [1, 1, 1]
+    for (section, group), row in zip(sections, cells):
+        counts = [int(v) for v in row[3:10]]
+        if group == "proofs":
+            assert counts == [0, 0, 0, 0, 1, 1, 1]
+        else:
+            prefix = {"Toy fusion": "toy-a", "Toy detection": "toy-b", "every section": None}[section]
+            assert counts == counted(group, prefix), (section, group)
+    # the groups add up to every verdict: none is counted twice or lost
+    totals = [[int(v) for v in row[3:7]] for (section, _), row in zip(sections, cells) if section == "every section"]
+    assert [sum(col) for col in zip(*totals)] == [sum(c.verdict == k for c in records) for k in kinds[:4]]
     # colour: a non-zero count carries its verdict's class, a zero none
-    held_cell = rows["Toy fusion"].find_all("td")[2]
+    held_cell = body[0].find_all("td")[3]
     assert "v-held" in held_cell.classes
-    assert "zero" in rows["Toy fusion"].find_all("td")[6].classes
-    # each row links to its section
+    assert "zero" in body[0].find_all("td")[7].classes
+    # each section's first row links to it
     links = [a.attrs["href"] for a in table.find_all("a") if "chip" not in a.classes]
     assert links == ["#alpha", "#beta", "#proofs"]
     # one mark per verdict and certificate, linking to an existing row
@@ -181,6 +195,21 @@ def test_summary_table_counts_every_verdict_per_section(report):
     assert len(chips) == len(records) + 3
     for chip in chips:
         (row,) = page.find_all("tr", id=chip.attrs["href"][1:])
+    # the totals above the table and verdicts.json render the same record, group by group
+    (totals_div,) = page.find_all("div", cls="totals")
+    lines = [line.text for line in totals_div.find_all("div", cls="group-line")]
+    saved = json.loads((out / "verdicts.json").read_text(encoding="utf-8"))
+    assert [g["group"] for g in saved["groups"]] == ["accuracy", "Proposition 1", "timing"]
+    for g in saved["groups"]:
+        assert g["counts"] == dict(zip(kinds[:4], counted(g["group"], None)))
+        line = next(text for text in lines if text.startswith(g["group"]))
+        assert all(f"{n} {v}" in line for v, n in g["counts"].items())
+    assert saved["proofs"] == {"proved": 1, "refuted": 1, "checked": 1}
+    assert set(saved["sections"]) == {"alpha", "beta", "proofs"}
+    index = (out / "README.md").read_text(encoding="utf-8")
+    expected = "; ".join(f"{g}: " + ", ".join(f"{n} {k}" for n, k in zip(counted(g, None), kinds[:4]))
+                         for g in ("accuracy", "Proposition 1", "timing"))
+    assert expected + "; proofs: 1 proved, 1 refuted, 1 checked" in index
 
 
 def test_one_caution_per_low_count_or_timing_verdict(report):
@@ -201,7 +230,7 @@ def test_one_caution_per_low_count_or_timing_verdict(report):
         if record.paper_n is not None and record.n < record.paper_n:
             assert f"the paper used {record.paper_n}" in found[0].text
         if record.timing:
-            assert "wall-clock" in found[0].text
+            assert "CPU times" in found[0].text
     # in the summary: one marked chip per cautioned verdict, and the count
     (table,) = page.find_all("table", cls="summary")
     assert len(table.find_all("a", cls="cautioned")) == len(cautioned)
@@ -356,7 +385,9 @@ def test_report_command_runs_a_toy_section_with_progress(monkeypatch, tmp_path, 
     assert f"The report: {tmp_path / 'report.html'}" in out
     records = [c for r in load_section(tmp_path, "toy").results for c in read_claims(r)]
     held = sum(c.verdict == "held" for c in records)
-    assert f"Verdicts:   {held} held, {len(records) - held} NOT held, 0 undecided" in out
+    assert all(c.group == "accuracy" for c in records)
+    assert f"Verdicts:   accuracy: {held} held, {len(records) - held} NOT held, 0 undecided, 0 not decidable; " \
+           "proofs: 0 proved, 0 refuted, 0 checked" in out
     assert (tmp_path / "toy" / "toy-typed-small" / "run" / "results.json").is_file()
     # the profile's interpretations: "strict" reads the setting's runs, "shifted" runs its own
     interpretations = tmp_path / "toy" / "toy-typed-small" / "run" / "interpretations"

@@ -97,7 +97,7 @@ def test_page_renders_from_stored_results(tmp_path):
     assert "Claims of Liao et al. 2019 checked — σ² = 1" in page and "σ² = 2" in page
     assert "Claim of Liao et al. 2019 across σ²" in page
     # the verdicts under the interpretation tried, the filters' health and the rank rule
-    assert "Verdicts under each interpretation tried — σ² = 1" in page and "canonical-rank" in page
+    assert "Verdicts under each interpretation tried — σ² = 1" in page and "numpy-rank" in page
     assert "Health of the filters compared" in page and "Rank rule of eq. 35 in the runs shown" in page
     assert "x_{k+1}" not in page and "xₖ₊₁" in page
     for name in ("mahalanobis-s1.0.png", "mahalanobis-s2.0.png", "sweep.png"):

@@ -27,7 +27,7 @@ from gpfverify.errors import InputError
 from gpfverify.contract.experiment import RunEntry, SectionRuns
 from gpfverify.outputs import check_out, final_path, out_path, output_folder
 from gpfverify.report import SECTIONS, build_report, papers_title
-from gpfverify.report.inputs import counts_line, verdict_counts, write_runs
+from gpfverify.report.inputs import VerdictCounts, write_runs
 from gpfverify.report.render import read_summaries
 
 #: report section -> the experiments it renders (names as in gpfverify.experiments.EXPERIMENTS)
@@ -298,8 +298,8 @@ def run(args: argparse.Namespace) -> int:
         html_path = final_path(build(ctx, args.only, progress), stage, out)
         summaries = read_summaries(stage, list(SECTIONS))
         progress(f"done in {_duration(time.monotonic() - progress.started)}")
-    counts = verdict_counts(summaries)
+    counts = VerdictCounts.total(s.verdicts for s in summaries)
     print(f"\nThe report: {html_path} (one self-contained page; open it in a browser)\n"
           f"            {out / 'README.md'} (Markdown pages, one per section)\n"
-          f"Verdicts:   {counts_line(counts, sum(s.cautioned for s in summaries))}", flush=True)
+          f"Verdicts:   {counts.line()}", flush=True)
     return 0

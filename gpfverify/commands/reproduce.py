@@ -14,7 +14,6 @@ import argparse
 import importlib
 import sys
 import time
-from collections import Counter
 from collections.abc import Callable
 from pathlib import Path
 
@@ -118,8 +117,12 @@ def progress_lines(name: str, say: Callable[[str], None], header: str = "",
 
 
 def claims_text(results: dict) -> str:
-    """Each claim's verdict (and the rank rule of eq. 35 where there is one), one line each."""
-    claims = list(results.get("claims") or []) + list(results.get("timing_claims") or [])
+    """Each claim's verdict (and the rank rule of eq. 35 where there is one), one line each, in
+    their groups (accuracy, a theorem checked on the runs, timing), and the counts per group."""
+    from gpfverify.contract.claims import read_claims
+    from gpfverify.report.inputs import VerdictCounts
+
+    claims = read_claims(results)
     lines = []
     if results.get("rank_tolerance"):
         lines.append(f"rank rule of eq. 35: {results['rank_tolerance']} (the default is the canonical rule, as in "
@@ -127,15 +130,18 @@ def claims_text(results: dict) -> str:
     if not claims:
         return "\n".join(lines + ["no claims recorded"])
     runs = results.get("runs_ok", results.get("runs"))
-    papers = {c.get("paper_n") for c in claims if c.get("paper_n")}
+    papers = {c.paper_n for c in claims if c.paper_n}
     lines.append(f"claims at {runs} run(s)" + (f" (the paper: {', '.join(map(str, sorted(papers)))})" if papers
                                                 else "") + ":")
-    for c in claims:
-        more = (f" (about {c['runs_to_decide']} runs would decide)"
-                if c.get("verdict") == "undecided" and c.get("runs_to_decide") else "")
-        lines.append(f"  {c['verdict']:<14} {c['claim']}{more}")
-    counts = Counter(c["verdict"] for c in claims)
-    lines.append("verdicts: " + ", ".join(f"{n} {v}" for v, n in counts.items()))
+    counts = VerdictCounts.of(claims)
+    for group in counts.groups:
+        lines.append(f" {group.group}:")
+        for c in (c for c in claims if c.group == group.group):
+            more = (f" (about {c.runs_to_decide} runs would decide)"
+                    if c.verdict == "undecided" and c.runs_to_decide else "")
+            setting = f" ({c.setting})" if c.setting else ""
+            lines.append(f"  {c.verdict:<14} {c.claim}{setting}{more}")
+    lines.append("verdicts: " + counts.groups_text())
     return "\n".join(lines)
 
 

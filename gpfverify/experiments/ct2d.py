@@ -14,13 +14,13 @@ import dataclasses
 
 import numpy as np
 
-from gpfverify.contract.claims import ClaimRecord, PairedDifference, combine, paired_evidence, verdict_of
+from gpfverify.contract.claims import PROPOSITION_1, ClaimRecord, PairedRatio, combine, verdict_of
 from gpfverify.contract.ct2d import (DEFAULT_RUNS, INTERPRETATIONS, LARGE_TRAINING, NAME, PROFILES, Params, RunRecord,
                                      default_perturbation_mean, omega_label)
 from gpfverify.contract.fusion import FAMILIES, FUSION_RULES, LOCAL_FILTERS, PAPER
 from gpfverify.contract.methods import Method
 from gpfverify.contract.serial import to_json
-from gpfverify.experiments.fusion_run import (CPU_CLOCK, ClaimContext, _num, equivalence_claim, fusion_beats_baselines,
+from gpfverify.experiments.fusion_run import (CPU_CLOCK, ClaimContext, equivalence_claim, fusion_beats_baselines,
                                               fusion_beats_sensors, health_checks, run_setting, summarize_setting,
                                               train_models)
 from gpfverify.filters.records import Gaussian
@@ -86,7 +86,7 @@ def summarize(params: Params, results: list[RunRecord]) -> dict:
 
 
 def run_seconds(results: list[RunRecord], field: str) -> dict[str, np.ndarray]:
-    """Each method's seconds per run (the sum over the test steps of ``field``, "seconds" or
+    """Each method's CPU seconds per run (the sum over the test steps of ``field``, "seconds" or
     "online_seconds" of :class:`~gpfverify.contract.fusion.FamilyRun`)."""
     out = {}
     for family in FAMILIES:
@@ -110,40 +110,24 @@ def claims(params: Params, r: dict, ctx: ClaimContext) -> list[ClaimRecord]:
     return out
 
 
-def _ms(seconds: float) -> str:
-    return f"{_num(1e3 * seconds)} ms"
-
-
-def _in_ms(d: PairedDifference) -> PairedDifference:
-    """A paired difference of seconds in milliseconds."""
-    return dataclasses.replace(d, mean=1e3 * d.mean, atol=None if d.atol is None else 1e3 * d.atol)
-
-
-def _standing(d: PairedDifference) -> float:
-    """How far a difference stands against its claim, in tolerances (+: against it)."""
-    return d.mean / d.atol if d.atol else float(np.sign(d.mean)) * np.inf
-
-
 def time_claims(ctx: ClaimContext, seconds: dict[str, np.ndarray], online: dict[str, np.ndarray]
                 ) -> list[ClaimRecord]:
     """DMF costs less than CMF, RCC-CI costs the most of the fusion methods (Figs. 8, 9, 14, 15),
-    decided like every other claim: the paired difference over runs of the methods' seconds per run
-    (held beyond the Monte Carlo tolerance, NOT held beyond it the other way, undecided in between).
-    The paper does not say what it timed, so "DMF costs less than CMF" is two claims: the whole
-    fusion step (the centre's prediction, stacked moments and update) and the update alone once the
-    measurements arrive (eq. 35 against CMF's update, from the same central prediction)."""
+    decided on the paired per-run ratios of the methods' CPU seconds per run
+    (:class:`~gpfverify.contract.claims.PairedRatio`: held when their geometric mean lies below 1
+    beyond the Monte Carlo tolerance, NOT held above it, undecided in between). The paper does not
+    say what it timed, so "DMF costs less than CMF" is two claims: the whole fusion step (the
+    centre's prediction, stacked moments and update) and the update alone once the measurements
+    arrive (eq. 35 against CMF's update, from the same central prediction)."""
     def timed(name: str, claim: str, parts: list[tuple[str, str, dict[str, np.ndarray]]], words: str
               ) -> ClaimRecord:
-        diffs = [(a, b, PairedDifference.of(times[a], times[b])) for a, b, times in parts]
-        worst = max(diffs, key=lambda item: _standing(item[2]))[2]
-        shown = "; ".join(f"{a} − {b} {paired_evidence(_in_ms(d), 'ms')}" for a, b, d in diffs)
-        means = {k: float(np.mean(times[k])) for a, b, times in parts for k in (a, b)}
-        evidence = (f"{words}; time per run, paired over runs: {shown} (held when every difference is below minus "
-                    "its tolerance, NOT held when one is above it, undecided otherwise); mean per run "
-                    + ", ".join(f"{k} {_ms(v)}" for k, v in means.items()))
-        verdict = combine([d.verdict for _, _, d in diffs])
-        undecided = [d.runs_to_decide for _, _, d in diffs if d.verdict == "undecided" and d.runs_to_decide]
-        record = ctx.record(name, claim, "Figs. 8, 9, 14, 15 (§4.2)", verdict, worst.mean, worst.atol, evidence,
+        ratios = [(a, b, PairedRatio.of(times[a], times[b])) for a, b, times in parts]
+        worst = max(ratios, key=lambda item: item[2].ratio)[2]
+        evidence = (f"{words}; " + "; ".join(r.evidence(a, b) for a, b, r in ratios)
+                    + ("" if len(ratios) == 1 else "; held when every ratio is, NOT held when one is"))
+        verdict = combine([r.verdict for _, _, r in ratios])
+        undecided = [r.runs_to_decide for _, _, r in ratios if r.verdict == "undecided" and r.runs_to_decide]
+        record = ctx.record(name, claim, "Figs. 8, 9, 14, 15 (§4.2)", verdict, worst.ratio, worst.bound, evidence,
                             timing=True)
         return dataclasses.replace(record, runs_to_decide=max(undecided) if verdict == "undecided" and undecided
                                    else None)
@@ -167,8 +151,9 @@ def time_claims(ctx: ClaimContext, seconds: dict[str, np.ndarray], online: dict[
 
 def rank_claim(ctx: ClaimContext, params: Params, r: dict) -> ClaimRecord:
     """With κ = 30 or 60, GP-UKF's cross covariances lose full column rank on some step while
-    GP-ADF's keep it on every step (Figs. 10, 11; at eq. 35's rank tolerance). Statistic: the
-    smallest full-rank ratio of GP-UKF over sensors and steps (below 1 for the claim)."""
+    GP-ADF's keep it on every step (Figs. 10, 11; under eq. 35's rank rule): a claim on when
+    Proposition 1's condition holds, counted with it. Statistic: the smallest full-rank ratio of
+    GP-UKF over sensors and steps (below 1 for the claim)."""
     ratio = {m: min(r["full_rank_ratio"][m.key]) for m in LOCAL_FILTERS}
     ukf = min(v for m, v in ratio.items() if m.family == "GP-UKF")
     adf = min(v for m, v in ratio.items() if m.family == "GP-ADF")
@@ -177,4 +162,4 @@ def rank_claim(ctx: ClaimContext, params: Params, r: dict) -> ClaimRecord:
                 + f" (κ = {params.kappa}, Ω = {omega_label(params.omega)}; rank rule: {r['rank_tolerance']})")
     return ctx.record("gp-ukf-loses-full-rank", "GP-UKF loses full column rank with small training sets "
                       "(κ = 30, 60) while GP-ADF keeps it", "Figs. 10, 11 (§4.2, case 2)",
-                      verdict_of(ukf < 1.0 and adf == 1.0), ukf, 1.0, evidence)
+                      verdict_of(ukf < 1.0 and adf == 1.0), ukf, 1.0, evidence, theorem=PROPOSITION_1)

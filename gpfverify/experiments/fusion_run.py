@@ -42,7 +42,7 @@ from typing import Any, Literal
 import numpy as np
 
 from gpfverify.audit import audit_case
-from gpfverify.contract.claims import ClaimRecord, PairedDifference, Verdict, combine, verdict_of
+from gpfverify.contract.claims import PROPOSITION_1, ClaimRecord, PairedDifference, Verdict, combine, verdict_of
 from gpfverify.contract.fusion import (DEFAULT_RULE, FAMILIES, FUSION_RULES, LOCAL_FILTERS, METHODS, NEES_POLICY,
                                        PAPER, AuditEntry, FamilyRun, FittedModels, FusionRun, GPHyperparameters,
                                        SensorAuditRecord, family_methods)
@@ -351,13 +351,17 @@ def summarize_setting(results: Sequence[FusionRun], rank_rule: str) -> dict:
         one_rel[family] = np.array([f.one_step_gap_rel for f in fam])
         holds[family] = np.array([f.condition_holds for f in fam], dtype=bool)
         within[family] = np.array([one_step_equivalence(f)[1] for f in fam])
-    smallest_sv_outside = {}
+    smallest_sv_outside, smallest_correlation_outside = {}, {}
     for family in FAMILIES:
         fam = [r.families[family] for r in results]
-        # (runs, T): the smaller σ_min of the two sensors' C_xy^m
+        # (runs, T): the smaller σ_min of the two sensors' C_xy^m, and of their canonical correlations
         sv_min = np.min([[np.array(sv)[:, -1] for sv in f.singular_values.values()] for f in fam], axis=1)
         outside = holds[family] & ~within[family]
         smallest_sv_outside[family] = float(np.max(sv_min[outside])) if outside.any() else None
+        smallest_correlation_outside[family] = None
+        if outside.any() and all(f.correlations for f in fam):
+            rho_min = np.min([[[min(step) for step in rho] for rho in f.correlations.values()] for f in fam], axis=1)
+            smallest_correlation_outside[family] = float(np.max(rho_min[outside]))
     out["max_equivalence_gap"] = {f: float(np.max(gaps[f])) for f in FAMILIES}
     out["equivalence_gap_per_step"] = {f: np.max(gaps[f], axis=0).tolist() for f in FAMILIES}
     out["one_step_gap"] = {f: {
@@ -367,6 +371,7 @@ def summarize_setting(results: Sequence[FusionRun], rank_rule: str) -> dict:
         "steps_full_rank": int(np.sum(holds[f])), "steps_rank_fails": int(np.sum(~holds[f])),
         "full_rank_steps_within_rounding": int(np.sum(within[f] & holds[f])),
         "max_smallest_singular_value_outside_rounding": smallest_sv_outside[f],
+        "max_smallest_correlation_outside_rounding": smallest_correlation_outside[f],
         "rounding_rule": "gap <= algebra_rtol(max cond of C_y, C_y^m, C_xy^m) * (|mu_p| + |mu_CMF - mu_p|)"}
         for f in FAMILIES}
     out["rounding_sensitivity"] = {f: {
@@ -440,12 +445,12 @@ class ClaimContext:
 
     def record(self, name: str, claim: str, source: str, verdict, statistic: float | None,
                threshold: float | None, evidence: str, caveats: tuple[str, ...] = (), timing: bool = False,
-               paper_n: int | None | Literal["same"] = "same") -> ClaimRecord:
+               paper_n: int | None | Literal["same"] = "same", theorem: str = "") -> ClaimRecord:
         slug = f"{self.slug}/" if self.slug else ""
         return ClaimRecord(claim=claim, source=source, verdict=verdict, statistic=statistic, threshold=threshold,
                            n=self.n, evidence=evidence, caveats=caveats, id=f"{self.experiment}/{slug}{name}",
                            paper=PAPER, setting=self.setting,
-                           paper_n=self.paper_n if paper_n == "same" else paper_n, timing=timing)
+                           paper_n=self.paper_n if paper_n == "same" else paper_n, timing=timing, theorem=theorem)
 
 
 def paired_claim(ctx: ClaimContext, name: str, claim: str, source: str, per_run: dict[str, list[float]],
@@ -500,10 +505,14 @@ def equivalence_claim(ctx: ClaimContext, results: dict, family: str, metric: str
     n, ok = g["steps_full_rank"], g["full_rank_steps_within_rounding"]
     verdict = "not decidable" if n == 0 else verdict_of(ok == n)
     outside = g.get("max_smallest_singular_value_outside_rounding")
+    correlation = g.get("max_smallest_correlation_outside_rounding")
     why = "" if outside is None else (
         f"; on the {n - ok} full-rank steps outside rounding the smaller σ_min(Cₓᵧᵐ) of the two sensors was at "
-        f"most {_num(outside)}: a cross covariance that small counts as full rank for the σ_max-relative rule, "
-        "yet its pseudo-inverse in eq. 35 amplifies the rounding of μₑᵐ − μₚᵐ")
+        f"most {_num(outside)}"
+        + (f" and the smaller canonical correlation at most {_num(correlation)}: correlations that small pass "
+           "the rule's τ" if correlation is not None else
+           ": a cross covariance that small counts as full rank for the σ_max-relative rule")
+        + ", yet the pseudo-inverse in eq. 35 amplifies the rounding of μₑᵐ − μₚᵐ")
     sensitivity = results["rounding_sensitivity"][family]
     evidence = (f"{ok} of {n} full-rank steps within rounding (‖gap‖ ≤ the algebra tolerance scaled by the largest "
                 "condition number of Cᵧ, Cᵧᵐ and Cₓᵧᵐ, times ‖μₚ‖ + ‖μ(CMF) − μₚ‖); largest one-step gap "
@@ -516,4 +525,5 @@ def equivalence_claim(ctx: ClaimContext, results: dict, family: str, metric: str
                *kwargs.pop("caveats", ()))
     return ctx.record(f"dmf-equals-cmf/{family}",
                       f"{family}: DMF = CMF when the rank condition holds (eq. 35 from the same central prediction)",
-                      source, verdict, float(n - ok), 0.0, evidence, caveats=tuple(caveats), **kwargs)
+                      source, verdict, float(n - ok), 0.0, evidence, caveats=tuple(caveats), theorem=PROPOSITION_1,
+                      **kwargs)

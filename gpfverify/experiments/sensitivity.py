@@ -18,7 +18,7 @@ from concurrent.futures import Executor
 from pathlib import Path
 from types import ModuleType
 
-from gpfverify.contract.claims import AS_RUN, ClaimRecord, Interpretation
+from gpfverify.contract.claims import AS_RUN, ClaimRecord, Interpretation, read_claims
 from gpfverify.contract.interpretations import InterpretationSpec
 from gpfverify.contract.params import Params
 from gpfverify.contract.serial import to_json
@@ -64,25 +64,28 @@ def summary_results(module: ModuleType, run_dir: Path, spec: InterpretationSpec)
 
 
 def merge(main: dict, tried: Sequence[tuple[InterpretationSpec, dict]], as_run: Sequence[dict] = ()) -> dict:
-    """``main`` results with each claim's ``interpretations`` (not the timing claims') set from the
+    """``main`` results with each claim's ``interpretations`` (the timing claims' too) set from the
     results of each interpretation, with its run count (a claim absent under an interpretation gets
     no entry for it). ``as_run``: the main run's results on fewer runs (its first n, the count the
     interpretations ran), each added as the claim's :data:`~gpfverify.contract.claims.AS_RUN` entry
     at that count, so that verdicts are compared on equal run counts."""
     def entry(claim: ClaimRecord, name: str, params: dict, results: dict) -> Interpretation | None:
-        other = next((ClaimRecord.from_json(c) for c in results.get("claims", [])
-                      if c.get("id") == claim.id and claim.id), None)
+        other = next((c for c in read_claims(results) if c.id == claim.id and claim.id), None)
         return None if other is None else Interpretation(name, params, other.verdict, other.statistic, other.n,
                                                          other.runs_to_decide)
 
     counts = {results.get("runs") for _, results in tried} - {main.get("runs")}
-    claims = []
-    for raw in main.get("claims", []):
-        claim = ClaimRecord.from_json(raw)
-        entries = [entry(claim, spec.name, to_json(spec.changes), results) for spec, results in tried]
-        entries += [entry(claim, AS_RUN, {}, results) for results in as_run if results.get("runs") in counts]
-        claims.append(to_json(dataclasses.replace(claim, interpretations=tuple(e for e in entries if e))))
-    return {**main, "claims": claims}
+    merged = {}
+    for key in ("claims", "timing_claims"):
+        claims = []
+        for raw in main.get(key, []):
+            claim = ClaimRecord.from_json(raw)
+            entries = [entry(claim, spec.name, to_json(spec.changes), results) for spec, results in tried]
+            entries += [entry(claim, AS_RUN, {}, results) for results in as_run if results.get("runs") in counts]
+            claims.append(to_json(dataclasses.replace(claim, interpretations=tuple(e for e in entries if e))))
+        if key in main:
+            merged[key] = claims
+    return {**main, **merged}
 
 
 def merge_saved(run_dir: Path, module: ModuleType) -> dict:

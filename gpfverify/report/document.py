@@ -11,7 +11,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from gpfverify.contract.claims import AS_RUN, ClaimRecord
+from gpfverify.contract.claims import AS_RUN, ClaimRecord, group_order
 from gpfverify.contract.interpretations import robustness
 
 
@@ -142,6 +142,25 @@ def claim_records_table(records, caption: str = "Claims checked") -> Table:
     if not any(r.caveats for r in records):  # no empty column
         headers, rows = headers[:-1], [row[:-1] for row in rows]
     return Table(headers, rows, caption, tuple(ids), "claims")
+
+
+#: what each group's table says under its caption
+GROUP_WORDS = {"accuracy": "accuracy and behaviour (the headline)",
+               "timing": "computation time: CPU times of the methods compared as paired per-run ratios, counted "
+                         "apart from the accuracy claims"}
+
+
+def claim_tables(records, caption: str = "Claims checked") -> list[Table]:
+    """Claim records as one :func:`claim_records_table` per group (accuracy, each theorem checked on
+    the runs, timing; :attr:`~gpfverify.contract.claims.ClaimRecord.group`), so that a page shows
+    them apart as its summary counts them; one table with ``caption`` alone when every record is an
+    accuracy claim."""
+    groups = group_order(r.group for r in records)
+    if groups in ([], ["accuracy"]):
+        return [claim_records_table(records, caption)]
+    return [claim_records_table([r for r in records if r.group == g],
+                                f"{caption} — {GROUP_WORDS.get(g, f'{g}, the theorem checked on the runs')}")
+            for g in groups]
 
 
 def claim_anchor(record) -> str:

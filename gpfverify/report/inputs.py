@@ -11,7 +11,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from gpfverify.contract.claims import VERDICTS, ClaimRecord, read_claims
+from gpfverify.contract.claims import ACCURACY, VERDICTS, ClaimRecord, group_order, read_claims
 from gpfverify.contract.experiment import RunEntry, SectionRuns
 from gpfverify.contract.serial import from_json, to_json
 from gpfverify.errors import InputError
@@ -185,14 +185,14 @@ class SectionSummary:
         return from_json(cls, data, "section summary")
 
     @property
-    def counts(self) -> Counter[str]:
-        """Verdicts and certificate statuses -> how many."""
-        return Counter([c.verdict for c in self.claims] + [c.status for c in self.certificates])
+    def verdicts(self) -> VerdictCounts:
+        """This section's counts (:class:`VerdictCounts`)."""
+        return VerdictCounts.of(self.claims, [c.status for c in self.certificates])
 
     @property
     def cautioned(self) -> int:
-        """How many verdicts carry a caution (fewer runs than the paper, wall-clock timing)."""
-        return sum(1 for c in self.claims if c.cautions)
+        """How many verdicts carry a caution (fewer runs than the paper, measured times)."""
+        return self.verdicts.cautioned
 
 
 def run_info(entry: RunEntry, results: dict) -> RunInfo:
@@ -226,18 +226,77 @@ def summarize_section(data: SectionInput, title: str, papers: tuple[str, ...] = 
                           tuple(run_info(e, r) for e, r in zip(data.runs.entries, data.results)))
 
 
-def verdict_counts(summaries: Iterable[SectionSummary]) -> Counter[str]:
-    """Verdicts and certificate statuses over sections -> how many."""
-    total: Counter[str] = Counter()
-    for summary in summaries:
-        total.update(summary.counts)
-    return total
+@dataclass(frozen=True)
+class GroupCounts:
+    """How many verdicts of one group (:attr:`~gpfverify.contract.claims.ClaimRecord.group`) are
+    held, NOT held, undecided and not decidable."""
+
+    group: str
+    counts: dict[str, int]
+
+    @property
+    def total(self) -> int:
+        return sum(self.counts.values())
+
+    def text(self) -> str:
+        """'3 held, 1 NOT held, 2 undecided, 0 not decidable'."""
+        return ", ".join(f"{self.counts.get(v, 0)} {v}" for v in VERDICTS)
 
 
-def counts_line(counts: Counter[str], cautioned: int | None = None) -> str:
-    """'18 held, 22 NOT held, 22 undecided, 0 not decidable; proofs: 6 proved, 2 refuted, 6 checked'."""
-    text = ", ".join(f"{counts[v]} {v}" for v in VERDICTS)
-    text += "; proofs: " + ", ".join(f"{counts[s]} {s}" for s in STATUSES)
-    if cautioned:
-        text += f"; {cautioned} verdict{'s' if cautioned != 1 else ''} with a caution"
-    return text
+@dataclass(frozen=True)
+class VerdictCounts:
+    """Every count a summary states, computed once from the claim records and certificate statuses
+    it covers: the verdicts per group — accuracy (the headline), each theorem checked on the runs
+    (Proposition 1), timing —, the certificates per status and the verdicts with a caution. The
+    console line, the pages and ``verdicts.json`` render this record; none counts by itself."""
+
+    groups: tuple[GroupCounts, ...]
+    proofs: dict[str, int]
+    cautioned: int
+
+    @classmethod
+    def of(cls, claims: Iterable[ClaimRecord], statuses: Iterable[str] = ()) -> VerdictCounts:
+        claims = list(claims)
+        by_group: dict[str, Counter[str]] = {}
+        for c in claims:
+            by_group.setdefault(c.group, Counter())[c.verdict] += 1
+        groups = tuple(GroupCounts(g, {v: by_group[g][v] for v in VERDICTS}) for g in group_order(by_group))
+        found = Counter(statuses)
+        return cls(groups, {s: found[s] for s in STATUSES}, sum(1 for c in claims if c.cautions))
+
+    @classmethod
+    def total(cls, parts: Iterable[VerdictCounts]) -> VerdictCounts:
+        """The counts of several summaries together."""
+        parts = list(parts)
+        by_group: dict[str, Counter[str]] = {}
+        for part in parts:
+            for g in part.groups:
+                by_group.setdefault(g.group, Counter()).update(g.counts)
+        groups = tuple(GroupCounts(g, {v: by_group[g][v] for v in VERDICTS}) for g in group_order(by_group))
+        proofs = {s: sum(part.proofs.get(s, 0) for part in parts) for s in STATUSES}
+        return cls(groups, proofs, sum(part.cautioned for part in parts))
+
+    def group(self, name: str) -> GroupCounts:
+        """One group's counts (zeros when it has no verdict)."""
+        return next((g for g in self.groups if g.group == name), GroupCounts(name, {v: 0 for v in VERDICTS}))
+
+    def groups_text(self) -> str:
+        """'accuracy: 8 held, …; Proposition 1: 7 held, …; timing: …' (accuracy always, first)."""
+        groups = [self.group(ACCURACY), *(g for g in self.groups if g.group != ACCURACY)]
+        return "; ".join(f"{g.group}: {g.text()}" for g in groups)
+
+    def line(self) -> str:
+        """'accuracy: 8 held, 12 NOT held, 20 undecided, 6 not decidable; Proposition 1: 7 held, …;
+        timing: …; proofs: 6 proved, 2 refuted, 6 checked; 30 verdicts with a caution' — the
+        accuracy group always first (the headline, zeros when empty)."""
+        text = self.groups_text() + "; proofs: " + ", ".join(f"{self.proofs.get(s, 0)} {s}" for s in STATUSES)
+        if self.cautioned:
+            text += f"; {self.cautioned} verdict{'s' if self.cautioned != 1 else ''} with a caution"
+        return text
+
+    def to_json(self) -> dict[str, Any]:
+        return to_json(self)
+
+    @classmethod
+    def from_json(cls, data: Any) -> VerdictCounts:
+        return from_json(cls, data, "verdict counts")

@@ -17,14 +17,14 @@ import re
 from collections.abc import Iterable
 from pathlib import Path
 
-from gpfverify.contract.claims import VERDICTS
+from gpfverify.contract.claims import ACCURACY, VERDICTS
 from gpfverify.contract.interpretations import is_robust, robustness
 from gpfverify.contract.papers import PAPERS
 from gpfverify.report import cjk_font
 from gpfverify.report.document import (CAUTION_MARK, VERDICT_CLASSES, Cell, Chips, Code, Details, Figure, Link,
                                        Paragraph, Section, Table, VerdictCell, anchor_id, claim_anchor, fmt,
                                        unicode_math)
-from gpfverify.report.inputs import STATUSES, RunInfo, SectionSummary, counts_line, verdict_counts
+from gpfverify.report.inputs import STATUSES, RunInfo, SectionSummary, VerdictCounts
 
 esc = html.escape
 _CODE_SPAN = re.compile(r"`([^`\n]+)`")
@@ -195,12 +195,14 @@ font-size:.7rem;line-height:1rem;text-align:center;text-decoration:none;color:#7
 table.summary{width:100%}
 table.summary td,table.summary th{padding:.25rem .3rem}table.summary th{font-size:.74rem;font-weight:600;
 overflow-wrap:anywhere;hyphens:auto}
-table.summary th:nth-child(n+3):nth-last-child(n+3){writing-mode:vertical-rl;transform:rotate(180deg);
+table.summary th:nth-child(n+4):nth-last-child(n+3){writing-mode:vertical-rl;transform:rotate(180deg);
 white-space:nowrap;text-align:left;vertical-align:middle;padding:.4rem .15rem}
 table.summary td:nth-child(2){min-width:8rem}table.summary td.paper{min-width:5rem;font-weight:600}
 table.summary td.chips{min-width:5.5rem}
 td.controls{font-size:.82rem}
-.totals{display:flex;flex-wrap:wrap;gap:.4rem;margin:.6rem 0}
+.totals{display:flex;flex-direction:column;gap:.35rem;margin:.6rem 0}
+.group-line{display:flex;flex-wrap:wrap;gap:.4rem;align-items:center}.group-label{min-width:7.5rem;font-weight:600}
+table.summary td.group{font-size:.82rem;white-space:nowrap}
 .badge{padding:.3rem .6rem;border-radius:6px;font-weight:600;border:1px solid #0001}
 .badge.caution-badge{background:#fff7e6;color:#7a4b00;border-color:#b7791f}
 ol.refs li{margin:.3rem 0}
@@ -288,6 +290,13 @@ def run_table(summary: SectionSummary) -> Table:
                  f"What was run ({summary.profile} profile)", css="runs")
 
 
+def verdicts_paragraph(counts: VerdictCounts) -> Paragraph:
+    """A page's verdicts counted per group, and why the groups are apart."""
+    return Paragraph(f"Verdicts on this page: {counts.groups_text()}. Counted apart: the paper's accuracy claims "
+                     "(the headline), its theorem checked on the runs, and its timing claims (CPU times compared "
+                     "as paired per-run ratios).")
+
+
 def header_blocks(summary: SectionSummary) -> list:
     """What every section page opens with: its paper(s) and, for experiments, what was run."""
     blocks: list = []
@@ -295,6 +304,8 @@ def header_blocks(summary: SectionSummary) -> list:
     if papers:
         blocks.append(Paragraph("Paper: " + "; ".join(f"{p.short}, “{p.title_en}” ({p.venue}, {p.year})"
                                                       for p in papers) + "."))
+    if summary.claims:
+        blocks.append(verdicts_paragraph(summary.verdicts))
     if summary.runs:
         blocks.append(run_table(summary))
     if summary.certificates:
@@ -317,45 +328,66 @@ def _paper_order(summary: SectionSummary) -> int:
 
 
 def summary_table(summaries: Iterable[SectionSummary]) -> Table:
-    """Every verdict of the report per paper and section: counts in colour, one mark per verdict
-    (⚠ on those with a caution) linking to its row, and the totals."""
+    """Every verdict of the report per paper, section and group (accuracy — the headline —, each
+    theorem checked on the runs, timing; certificates as proofs): counts in colour, one mark per
+    verdict (⚠ on those with a caution) linking to its row, and the totals per group."""
     ordered = sorted(summaries, key=_paper_order)  # stable: report order within a paper
     previous = None
-    kinds = [*VERDICTS, *STATUSES]
     rows: list[list] = []
-    total, cautioned = verdict_counts(ordered), 0
-    robust_total = tried_total = 0
+    total = VerdictCounts.total(s.verdicts for s in ordered)
+    robust_total: dict[str, list[int]] = {}
     for s in ordered:
-        counts = s.counts
-        chips: list[tuple[str, str, str, bool]] = []
-        for c in s.claims:
-            tip = f"{c.claim}" + (f" ({c.setting})" if c.setting else "") + f": {c.verdict}"
-            if c.cautions:
-                tip += f" — {CAUTION_MARK} " + "; ".join(c.cautions)
-            if c.interpretations:
-                tip += f" — {robustness(c)}"
-            chips.append((c.verdict, tip, claim_anchor(c), bool(c.cautions)))
-        chips += [(c.status, f"{c.claim}: {c.status}", certificate_anchor(c.claim), False) for c in s.certificates]
-        cautioned += s.cautioned
-        tried = [c for c in s.claims if c.interpretations]
-        robust = sum(is_robust(c) for c in tried)
-        robust_total += robust
-        tried_total += len(tried)
         papers = ", ".join(paper_name(k) for k in s.papers) or ("the toolkit's own algebra" if s.certificates else "—")
         shown, previous = ("" if papers == previous else papers), papers  # a paper once for its sections
-        rows.append([Cell(shown, "paper", "; ".join(PAPERS[k].citation for k in s.papers if k in PAPERS)),
-                     Link(s.title, s.slug),
-                     *[_count_cell(counts[k], k) for k in kinds],
-                     Cell(f"{CAUTION_MARK} {s.cautioned}" if s.cautioned else 0, "count" if s.cautioned else "zero"),
-                     Cell(f"{robust} of {len(tried)}" if tried else "—", "count" if tried else "zero"),
-                     Chips(tuple(chips), f"{len(chips)} verdicts")])
-    rows.append([Cell("all", "total"), Cell("every section", "total"),
-                 *[_count_cell(total[k], k, "total") for k in kinds],
-                 Cell(f"{CAUTION_MARK} {cautioned}" if cautioned else 0, "count total"),
-                 Cell(f"{robust_total} of {tried_total}" if tried_total else "—", "count total"), ""])
-    return Table(["paper", "section", *kinds, f"{CAUTION_MARK} caution",
+        paper_cell = Cell(shown, "paper", "; ".join(PAPERS[k].citation for k in s.papers if k in PAPERS))
+        counts = s.verdicts
+        first = True
+        for group in counts.groups:
+            claims = [c for c in s.claims if c.group == group.group]
+            tried = [c for c in claims if c.interpretations]
+            robust = sum(is_robust(c) for c in tried)
+            kept = robust_total.setdefault(group.group, [0, 0])
+            kept[0], kept[1] = kept[0] + robust, kept[1] + len(tried)
+            cautioned = sum(1 for c in claims if c.cautions)
+            section = Link(s.title, s.slug) if first else ""
+            rows.append([paper_cell if first else "", section, Cell(group.group, "group"),
+                         *[_count_cell(group.counts[v], v) for v in VERDICTS], *[_count_cell(0, k) for k in STATUSES],
+                         Cell(f"{CAUTION_MARK} {cautioned}" if cautioned else 0, "count" if cautioned else "zero"),
+                         Cell(f"{robust} of {len(tried)}" if tried else "—", "count" if tried else "zero"),
+                         Chips(tuple(_chip(c) for c in claims), f"{len(claims)} verdicts")])
+            first = False
+        if s.certificates:
+            rows.append([paper_cell if first else "", Link(s.title, s.slug) if first else "", Cell("proofs", "group"),
+                         *[_count_cell(0, v) for v in VERDICTS], *[_count_cell(counts.proofs[k], k) for k in STATUSES],
+                         Cell(0, "zero"), Cell("—", "zero"),
+                         Chips(tuple((c.status, f"{c.claim}: {c.status}", certificate_anchor(c.claim), False)
+                                     for c in s.certificates), f"{len(s.certificates)} certificates")])
+    for group in total.groups:
+        robust, tried = robust_total.get(group.group, [0, 0])
+        cautioned = sum(1 for s in ordered for c in s.claims if c.group == group.group and c.cautions)
+        rows.append([Cell("all", "total"), Cell("every section", "total"), Cell(group.group, "group total"),
+                     *[_count_cell(group.counts[v], v, "total") for v in VERDICTS],
+                     *[_count_cell(0, k, "total") for k in STATUSES],
+                     Cell(f"{CAUTION_MARK} {cautioned}" if cautioned else 0, "count total"),
+                     Cell(f"{robust} of {tried}" if tried else "—", "count total"), ""])
+    if any(total.proofs.values()):
+        rows.append([Cell("all", "total"), Cell("every section", "total"), Cell("proofs", "group total"),
+                     *[_count_cell(0, v, "total") for v in VERDICTS],
+                     *[_count_cell(total.proofs[k], k, "total") for k in STATUSES], Cell(0, "zero"), "—", ""])
+    return Table(["paper", "section", "group", *VERDICTS, *STATUSES, f"{CAUTION_MARK} caution",
                   "same verdict under every interpretation tried", "each verdict (hover, click)"],
-                 rows, "Verdicts per paper and section", css="summary")
+                 rows, "Verdicts per paper, section and group: accuracy (the headline), Proposition 1 (the theorem "
+                 "checked on the runs) and timing (CPU-time ratios) are counted apart", css="summary")
+
+
+def _chip(c) -> tuple[str, str, str, bool]:
+    """A claim's mark in the summary: its verdict, a tooltip, its row's anchor, whether cautioned."""
+    tip = f"{c.claim}" + (f" ({c.setting})" if c.setting else "") + f": {c.verdict}"
+    if c.cautions:
+        tip += f" — {CAUTION_MARK} " + "; ".join(c.cautions)
+    if c.interpretations:
+        tip += f" — {robustness(c)}"
+    return c.verdict, tip, claim_anchor(c), bool(c.cautions)
 
 
 def _count_cell(n: int, kind: str, extra: str = "") -> Cell:
@@ -404,6 +436,8 @@ def overview_line(summaries: list[SectionSummary]) -> str:
 
 #: per-section files that let a later ``--only`` build keep the sections it did not rebuild
 SECTION_HTML, SECTION_META = "section.html", "section.json"
+#: the report's counts (:class:`~gpfverify.report.inputs.VerdictCounts`, with each section's) as JSON
+VERDICTS_FILE = "verdicts.json"
 
 
 def write_report(sections: list[Section], out_dir: Path, title: str, preamble: str,
@@ -451,6 +485,10 @@ def write_report(sections: list[Section], out_dir: Path, title: str, preamble: s
         if summary is not None:
             summaries[slug] = summary
     shown = [summaries[slug] for slug in listed if slug in summaries]
+    if shown:  # the counts the index and the page show, for programs
+        counts = {**VerdictCounts.total(s.verdicts for s in shown).to_json(),
+                  "sections": {s.slug: s.verdicts.to_json() for s in shown}, "provenance": provenance}
+        (out_dir / VERDICTS_FILE).write_text(json.dumps(counts, indent=1), encoding="utf-8")
     (out_dir / "README.md").write_text(_index_markdown(title, preamble, listed, shown, provenance, out_dir),
                                        encoding="utf-8")
     html_path = out_dir / "report.html"
@@ -462,8 +500,7 @@ def _index_markdown(title: str, preamble: str, listed: dict, shown: list[Section
                     provenance: dict | None, out_dir: Path) -> str:
     lines = [f"# {title}", "", preamble, ""]
     if shown:
-        cautioned = sum(s.cautioned for s in shown)
-        lines += ["## Summary of verdicts", "", counts_line(verdict_counts(shown), cautioned) + ".", "",
+        lines += ["## Summary of verdicts", "", VerdictCounts.total(s.verdicts for s in shown).line() + ".", "",
                   *_markdown_lines([summary_table(shown)], out_dir), _LEGEND, "",
                   "## What was run", "", overview_line(shown), ""]
     lines += ["## Sections", ""]
@@ -476,14 +513,32 @@ def _index_markdown(title: str, preamble: str, listed: dict, shown: list[Section
 
 
 def _toc_counts(summary: SectionSummary | None) -> str:
+    """The section's headline (accuracy) verdicts and its certificates as small coloured counts."""
     if summary is None:
         return ""
-    counts = summary.counts
-    marks = "".join(f'<span class="mini {VERDICT_CLASSES[k]}" title="{counts[k]} {esc(k)}">{counts[k]}</span>'
-                    for k in (*VERDICTS, *STATUSES) if counts[k])
+    counts = summary.verdicts
+    accuracy = counts.group(ACCURACY).counts
+    marks = "".join(f'<span class="mini {VERDICT_CLASSES[k]}" title="{ACCURACY}: {accuracy[k]} {esc(k)}">'
+                    f"{accuracy[k]}</span>" for k in VERDICTS if accuracy[k])
+    marks += "".join(f'<span class="mini {VERDICT_CLASSES[k]}" title="{counts.proofs[k]} {esc(k)}">'
+                     f"{counts.proofs[k]}</span>" for k in STATUSES if counts.proofs[k])
     if summary.cautioned:
         marks += f'<span class="mini caution-mini" title="with a caution">{CAUTION_MARK}{summary.cautioned}</span>'
     return f'<span class="toc-counts">{marks}</span>' if marks else ""
+
+
+def totals_html(counts: VerdictCounts) -> str:
+    """The report's totals as coloured badges, one line per group (accuracy first, then each
+    theorem, timing, proofs), and the verdicts with a caution."""
+    lines = [f'<div class="group-line"><span class="group-label">{esc(g.group)}</span>'
+             + "".join(f'<span class="badge {VERDICT_CLASSES[v]}">{g.counts[v]} {esc(v)}</span>' for v in VERDICTS)
+             + "</div>" for g in (counts.group(ACCURACY), *(g for g in counts.groups if g.group != ACCURACY))]
+    lines.append('<div class="group-line"><span class="group-label">proofs</span>'
+                 + "".join(f'<span class="badge {VERDICT_CLASSES[k]}">{counts.proofs[k]} {esc(k)}</span>'
+                           for k in STATUSES) + "</div>")
+    if counts.cautioned:
+        lines.append(f'<span class="badge caution-badge">{CAUTION_MARK} {counts.cautioned} with a caution</span>')
+    return "".join(lines)
 
 
 def _page(title: str, preamble: str, listed: dict, summaries: dict[str, SectionSummary],
@@ -493,12 +548,7 @@ def _page(title: str, preamble: str, listed: dict, summaries: dict[str, SectionS
              + (f'<p class="subtitle">{esc(_text(preamble))}</p>' if preamble else "") + "</header>"]
     if summaries:
         shown = list(summaries.values())
-        counts = verdict_counts(shown)
-        cautioned = sum(s.cautioned for s in shown)
-        badges = "".join(f'<span class="badge {VERDICT_CLASSES[k]}">{counts[k]} {esc(k)}</span>'
-                         for k in (*VERDICTS, *STATUSES))
-        if cautioned:
-            badges += f'<span class="badge caution-badge">{CAUTION_MARK} {cautioned} with a caution</span>'
+        badges = totals_html(VerdictCounts.total(s.verdicts for s in shown))
         parts.append('<section id="summary"><h2>Summary of verdicts</h2>'
                      f'<div class="totals">{badges}</div>' + _html_block(summary_table(shown))
                      + f'<p class="legend">{esc(_LEGEND)}</p></section>')

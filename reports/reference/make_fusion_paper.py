@@ -18,15 +18,21 @@ import json
 import sys
 from pathlib import Path
 
-from reference_pages import recompute_into, write_page
+from reference_pages import recompute_into, runs_needed_table, verdicts_by_run_count, write_page
 
-from gpfverify.contract.claims import AS_RUN, read_claims
+from gpfverify.contract.claims import AS_RUN, ClaimRecord, read_claims
+from gpfverify.contract.serial import to_json
 from gpfverify.contract.ct2d import Params as CT2DParams
 from gpfverify.experiments import ct2d, ungm1d
 from gpfverify.report.render import to_html
 from gpfverify.report.sections import fusion_ct2d, fusion_ungm1d
 
 HERE = Path(__file__).resolve().parent
+#: the caption's explanation of the runs-needed tables
+RUNS_NEEDED = ("each claim's verdict as run on the first n runs (the same seeds) and on all of them; a decided "
+               "verdict needed more runs than the last count at which it was another and at most the next; an "
+               "undecided one states about how many runs would decide it, were the mean and spread seen here the "
+               "true ones")
 #: folder name -> the commands that made it (run from the repository root, OUT = RUNS_DIR): each
 #: main run was first made next to its interpretations (INTERPRETED runs each, the same seed), then
 #: extended alone with ``--resume`` to RUNS runs; both counts are read from the results.
@@ -68,6 +74,26 @@ def committed(name: str) -> dict | None:
     return results if "claims" in results else None  # older, untyped results are not rendered
 
 
+#: each folder's verdicts on its first runs (reference_pages.RUN_LADDER), committed next to its results
+BY_RUNS = "verdicts-by-runs.json"
+
+
+def by_run_count(name: str, runs_dir: Path | None, results: dict) -> dict[int, list[ClaimRecord]]:
+    """The claims' verdicts on the first n runs (computed from the saved runs and committed, or read
+    back from the committed file)."""
+    path = target(name) / BY_RUNS
+    if runs_dir is not None:
+        module = ct2d if name.startswith("ct2d") else ungm1d
+        found = verdicts_by_run_count(runs_dir / name, module, results["runs"])
+        path.write_text(json.dumps({str(n): [to_json(c) for c in claims] for n, claims in found.items()}, indent=1),
+                        encoding="utf-8")
+        return found
+    if not path.exists():
+        return {}
+    return {int(n): [ClaimRecord.from_json(c) for c in claims]
+            for n, claims in json.loads(path.read_text(encoding="utf-8")).items()}
+
+
 def main(runs_dir: Path | None) -> None:
     found: dict[str, dict] = {}
     for name in COMMANDS:
@@ -76,16 +102,25 @@ def main(runs_dir: Path | None) -> None:
             found[name] = recompute_into(runs_dir / name, module, target(name))
         elif (results := committed(name)) is not None:
             found[name] = results
+    ladders = {name: by_run_count(name, runs_dir if runs_dir is not None and (runs_dir / name).is_dir() else None, r)
+               for name, r in found.items()}
     made = "python reports/reference/make_fusion_paper.py OUT (or --committed: from the committed results.json)"
     sections = []
     commands = [command(n, r) for n, r in found.items() if n.startswith("ct2d")]
     ct = {CT2DParams.from_json(r["params"]).label: r for n, r in found.items() if n.startswith("ct2d")}
     if ct:
         section = fusion_ct2d.render(ct, HERE / "ct2d", command=f"{'; '.join(commands)}; then {made}")
+        for name, r in found.items():
+            if name.startswith("ct2d") and ladders[name]:
+                section.add(runs_needed_table(r, ladders[name], "The runs each claim needed — "
+                                              f"{CT2DParams.from_json(r['params']).label}: {RUNS_NEEDED}"))
         sections.append(section)
     if "ungm1d-sweep" in found:
         r = found["ungm1d-sweep"]
-        sections.append(fusion_ungm1d.render(r, HERE / "ungm1d", command=f"{command('ungm1d-sweep', r)}; then {made}"))
+        section = fusion_ungm1d.render(r, HERE / "ungm1d", command=f"{command('ungm1d-sweep', r)}; then {made}")
+        if ladders["ungm1d-sweep"]:
+            section.add(runs_needed_table(r, ladders["ungm1d-sweep"], f"The runs each claim needed: {RUNS_NEEDED}"))
+        sections.append(section)
     for section in sections:
         write_page(section, HERE / section.slug,
                    [r for n, r in found.items() if n.split("-")[0] == section.slug])

@@ -11,11 +11,13 @@ import shutil
 from collections.abc import Sequence
 from pathlib import Path
 
-from gpfverify.contract.claims import read_claims
+from gpfverify.contract.claims import ClaimRecord, read_claims
 from gpfverify.contract.interpretations import robustness
+from gpfverify.experiments.runner import read_manifest, results_of
 from gpfverify.experiments.sensitivity import merge_saved
-from gpfverify.report.document import Paragraph, Section
-from gpfverify.report.render import to_markdown
+from gpfverify.report.document import Paragraph, Section, Table
+from gpfverify.report.inputs import VerdictCounts
+from gpfverify.report.render import to_markdown, verdicts_paragraph
 
 
 def recompute_into(run_dir: Path, module, target: Path) -> dict:
@@ -28,6 +30,48 @@ def recompute_into(run_dir: Path, module, target: Path) -> dict:
     for name in ("results.json", "manifest.json"):
         shutil.copy(run_dir / name, target / name)
     return results
+
+
+#: the run counts at which a reference page shows each claim's verdict (those below the main run's)
+RUN_LADDER = (40, 100, 200, 500)
+
+
+def verdicts_by_run_count(run_dir: Path, module, runs: int, counts: Sequence[int] = RUN_LADDER
+                          ) -> dict[int, list[ClaimRecord]]:
+    """Every claim's verdict as run on the first n saved runs of ``run_dir`` (the same seeds), for
+    each n of ``counts`` below ``runs``."""
+    manifest = read_manifest(run_dir)
+    return {n: read_claims(results_of(module, run_dir, manifest, n)) for n in counts if n < runs}
+
+
+def runs_needed_table(results: dict, by_count: dict[int, list[ClaimRecord]], caption: str) -> Table:
+    """Per claim: its verdict on the first n runs for each n of ``by_count`` and on all runs, and the
+    runs it needed: between the last of those counts at which the verdict was another and the next
+    (from which it is the final one at every larger count); for a verdict still undecided, about how
+    many runs would decide it (were the mean and spread seen the true ones), said to exceed the
+    paper's count where it does."""
+    counts = sorted(by_count)
+    rows = []
+    for claim in read_claims(results):
+        earlier = [next((c for c in by_count[n] if c.id == claim.id), None) for n in counts]
+        verdicts = [c.verdict if c is not None else "—" for c in earlier] + [claim.verdict]
+        if claim.verdict == "undecided":
+            needed = "undecided"
+            if claim.runs_to_decide:
+                beyond = claim.paper_n is not None and claim.runs_to_decide > claim.paper_n
+                needed += (f": about {claim.runs_to_decide} runs would decide it"
+                           + (f", more than the paper's {claim.paper_n}" if beyond else ""))
+        else:
+            steady = len(verdicts) - 1  # the first count from which the verdict stays the final one
+            while steady > 0 and verdicts[steady - 1] == claim.verdict:
+                steady -= 1
+            ladder = [*counts, claim.n]
+            needed = (f"{ladder[0]} or fewer" if steady == 0 else
+                      f"more than {ladder[steady - 1]}, at most {ladder[steady]}")
+        rows.append([claim.claim + (f" ({claim.setting})" if claim.setting else ""), claim.group,
+                     *verdicts, needed])
+    return Table(["claim", "group", *(f"first {n} runs" for n in counts), f"all {results['runs_ok']} runs",
+                  "runs it needed"], rows, caption)
 
 
 def provenance_paragraph(page_dir: Path) -> Paragraph:
@@ -61,8 +105,13 @@ def not_held_paragraph(results: Sequence[dict]) -> Paragraph | None:
 
 
 def write_page(section: Section, page_dir: Path, results: Sequence[dict] = ()) -> Path:
-    """The page as ``README.md`` in ``page_dir``, with the NOT held verdicts' readings and health
-    (from ``results``) and the commit its runs were made at."""
+    """The page as ``README.md`` in ``page_dir``, opening with its verdicts counted per group
+    (accuracy, the theorem checked on the runs, timing: :class:`~gpfverify.report.inputs.VerdictCounts`),
+    with the NOT held verdicts' readings and health (from ``results``) and the commit its runs were
+    made at."""
+    claims = [c for r in results for c in read_claims(r)]
+    if claims:
+        section.blocks.insert(0, verdicts_paragraph(VerdictCounts.of(claims)))
     if (paragraph := not_held_paragraph(results)) is not None:
         section.add(paragraph)
     section.add(provenance_paragraph(page_dir))

@@ -11,13 +11,13 @@ from gpfverify.contract.claims import read_claims
 from gpfverify.contract.ct2d import INTERPRETATIONS, NAME, Params, omega_label
 from gpfverify.contract.fusion import FUSION_METHODS, NEES_POLICY, PAPER
 from gpfverify.contract.papers import PAPERS
-from gpfverify.report.document import (Figure, Paragraph, Section, claim_records_table, fmt,
+from gpfverify.report.document import (Figure, Paragraph, Section, claim_tables, fmt,
                                        interpretations_table)
 from gpfverify.report.inputs import SectionInput
 from gpfverify.report.sections.fusion_paper import (audit_table, equivalence_table, failed_runs_note,
                                                     health_paragraph, health_table, interpretations_paragraph,
-                                                    method_table, plot_full_rank, plot_per_step,
-                                                    rank_rule_paragraph)
+                                                    load_words, method_table, plot_full_rank, plot_per_step,
+                                                    rank_rule_paragraph, time_words)
 
 SLUG = "ct2d"
 TITLE = "Fusion paper: 2-D constant turn (Figs. 5–15)"
@@ -62,10 +62,9 @@ def render(results: dict, folder: Path, command: str | None = None) -> Section:
            if p.rcc_on_empty == "enlarge" else "")
         + ". DMF runs its own recursion (the centre predicts from the previous DMF posterior). Times: each "
         "method's own work per step (a sensor's filter step; CMF and DMF: the centre's prediction, stacked "
-        "moments and update; CW and RCC-CI: the fusion rule), wall-clock on the machine that made the run — on a "
-        "shared, loaded machine the absolute values are inflated. The paper does not say what it timed, so "
-        "'DMF costs less than CMF' is checked twice: the whole fusion step, and the update alone once the "
-        "measurements arrive (eq. 35 against CMF's update from the same central prediction)."))
+        "moments and update; CW and RCC-CI: the fusion rule), " + time_words(first) + " The paper does not say "
+        "what it timed, so 'DMF costs less than CMF' is checked twice: the whole fusion step, and the update alone "
+        "once the measurements arrive (eq. 35 against CMF's update from the same central prediction)."))
     section.add(interpretations_paragraph(INTERPRETATIONS, "all"))
     if command:
         section.add(Paragraph(f"Made by: `{command}`"))
@@ -73,11 +72,12 @@ def render(results: dict, folder: Path, command: str | None = None) -> Section:
         "Runs: " + "; ".join(
             f"{k}: {r['runs_ok']} of {r['runs']} ok (seed {r['seed']}), start perturbation b = "
             f"{fmt(r['start_perturbation']['mean'])}, GP training {fmt(r['training_time_per_run'], 3)} s per run, "
-            f"RCC-CI enlarged on {sum(r['rcc_ci_enlarged_steps'].values())} steps" for k, r in results.items())
+            f"RCC-CI enlarged on {sum(r['rcc_ci_enlarged_steps'].values())} steps, {load_words(r)}"
+            for k, r in results.items())
         + failed_runs_note(results) + "."))
     for key, r in results.items():
         claims = read_claims(r)
-        section.add(claim_records_table(claims, f"Claims of {paper.short} checked — {key}"))
+        section.add(*claim_tables(claims, f"Claims of {paper.short} checked — {key}"))
         table = interpretations_table(claims, f"Verdicts under each interpretation tried — {key} (the statistic "
                                       "in brackets; hover for the parameter changes)")
         if table is not None:
@@ -98,12 +98,12 @@ def render(results: dict, folder: Path, command: str | None = None) -> Section:
         "Proposition 1; the rank-failure rows show the gap where the condition fails, and that it equals the "
         "closed-form gap."))
     section.add(Paragraph(
-        "Rank tolerance: the full-rank ratio uses the rank rule of numpy and MATLAB, σ_min > σ_max · max(D, l) · eps "
-        "(absolute per matrix; MATLAB's rank() is the paper's likely default). The right panels of the full-rank "
-        "figures recompute the ratio with a relative tolerance σ_min > tol · σ_max. Caution: the two columns of "
-        "Cₓᵧᵐ carry different units (range: m², bearing: m·rad; a bearing column is about 1/range ≈ 1/280 of the "
-        "range column), so σ_min/σ_max is small by units and geometry, not by near-degeneracy; where the curve drops "
-        "the tolerance exceeds that unit-driven ratio. A unit-free test would use Cₓᵧᵐ (Cᵧᵐ)^(−1/2)."))
+        "Rank tolerance: the full-rank ratio uses the rank rule eq. 35 ran with (above). The right panels of the "
+        "full-rank figures recompute the ratio with a relative singular-value tolerance σ_min > tol · σ_max, the kind "
+        "of rule numpy's and MATLAB's rank() apply. Caution: the two columns of Cₓᵧᵐ carry different units (range: "
+        "m², bearing: m·rad; a bearing column is about 1/range ≈ 1/280 of the range column), so σ_min/σ_max is small "
+        "by units and geometry, not by near-degeneracy; where that curve drops the tolerance exceeds the unit-driven "
+        "ratio. The canonical correlations do not depend on units."))
     if any(r["rank_failure_audit"]["entries"] for r in results.values()):
         section.add(audit_table(results))
     for key, r in results.items():
@@ -117,9 +117,9 @@ def render(results: dict, folder: Path, command: str | None = None) -> Section:
         section.add(Figure(plot_full_rank(r, key, folder / f"full-rank-{tag}.png"),
                            f"Ratio of full column rank of Cₓᵧᵐ per step, {key} (Figs. 5, 10, 11), and its mean "
                            "over steps against a relative singular-value tolerance"))
-        section.add(Figure(plot_per_step(r["time_per_step_series"], "average computation time (s)",
+        section.add(Figure(plot_per_step(r["time_per_step_series"], "average CPU time per step (s)",
                                          f"time per step, {key}", folder / f"time-{tag}.png", log=True,
                                          methods=FUSION_METHODS),
-                           f"Average computation time per step of the fusion methods, {key} (Figs. 8, 9, 14, 15; "
+                           f"Average CPU time per step of the fusion methods, {key} (Figs. 8, 9, 14, 15; "
                            f"Ω = {omega_label(params.omega)})"))
     return section

@@ -11,13 +11,13 @@ from gpfverify.contract.fusion import METHODS, NEES_POLICY, PAPER
 from gpfverify.contract.methods import Method
 from gpfverify.contract.papers import PAPERS
 from gpfverify.contract.ungm1d import FIGURE_NOISES, INTERPRETATIONS, NAME, Params, noise_key
-from gpfverify.report.document import (Figure, Paragraph, Section, Table, claim_records_table, fmt,
+from gpfverify.report.document import (Figure, Paragraph, Section, Table, claim_tables, fmt,
                                        interpretations_table)
 from gpfverify.report.figures import new_figure, save
 from gpfverify.report.inputs import SectionInput
 from gpfverify.report.sections.fusion_paper import (audit_table, equivalence_table, failed_runs_note,
                                                     health_paragraph, health_table, interpretations_paragraph,
-                                                    method_style, method_table, plot_per_step,
+                                                    load_words, method_style, method_table, plot_per_step,
                                                     rank_rule_paragraph)
 
 SLUG = "ungm1d"
@@ -54,7 +54,10 @@ def render(results: dict, folder: Path, command: str | None = None) -> Section:
         + " (Fig. 4's values were lost). Metric: the squared Mahalanobis distance (x − x̂)ᵀC⁻¹(x − x̂) of eq. 44 as "
         f"written, averaged over runs per step. GP hyperparameters by evidence maximisation ({p.restarts} "
         f"start(s), at most {p.fit_points} samples). {results['runs_ok']} of {results['runs']} runs ok (seed "
-        f"{results['seed']})" + failed_runs_note({"": results}) + "."))
+        f"{results['seed']}; {load_words(results)})" + failed_runs_note({"": results}) + ". The paper states no "
+        "computation time for this example (§4.1: its timing figures are the constant-turn example's), so no "
+        f"timing claim is checked here; the methods' times ({results.get('time_clock', 'wall-clock time')}) are in "
+        "the table below."))
     compared = {("mahalanobis", "squared"): "the squared Mahalanobis distance (eq. 44 as written)",
                 ("mahalanobis", "root"): "the Mahalanobis distance in the square-root form |x − x̂|/σ",
                 }.get((p.metric, p.mahalanobis), "the squared error ‖x − x̂‖² (the RMSE of eq. 45)")
@@ -86,7 +89,7 @@ def render(results: dict, folder: Path, command: str | None = None) -> Section:
         mine = [c for c in claims if c.setting == setting]
         caption = f"Claims of {paper.short} checked — {setting}" if setting else \
             f"Claim of {paper.short} across σ² (Fig. 4)"
-        section.add(claim_records_table(mine, caption))
+        section.add(*claim_tables(mine, caption))
         table = interpretations_table(mine, "Verdicts under each interpretation tried"
                                       + (f" — {setting}" if setting else "") + " (the statistic in brackets)")
         if table is not None:

@@ -12,7 +12,7 @@ from gpfverify.contract.claims import read_claims
 from gpfverify.contract.gpadf_scalar import GP_ADF, METHODS, NAME, PAPER, Example, FittedGPs, TableRow
 from gpfverify.contract.papers import PAPERS
 from gpfverify.contract.serial import from_json
-from gpfverify.report.document import Figure, Paragraph, Section, Table, claim_records_table, fmt
+from gpfverify.report.document import Figure, Paragraph, Section, Table, claim_tables, fmt
 from gpfverify.report.figures import new_figure, save
 from gpfverify.report.inputs import SectionInput
 
@@ -65,7 +65,7 @@ def render(results: dict, out_dir: Path) -> Section:
     section.add(Table(["filter", "NLL", "NLL s.e. (runs)", "Mahalanobis", "RMSE", "NEES",
                        "outside ±2σ", f"ms per {p['test_points']} steps"], rows,
                       "One-step filtering on the scalar benchmark (mean ± s.e.)"))
-    section.add(claim_records_table(read_claims(results), "Claims of Deisenroth et al. (2009) checked"))
+    section.add(*claim_tables(read_claims(results), "Claims of Deisenroth et al. (2009) checked"))
 
     def median(gp: str, field: str) -> str:
         return fmt(float(np.median([getattr(getattr(g, gp), field) for g in gps])), 3)

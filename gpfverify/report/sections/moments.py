@@ -13,7 +13,7 @@ from gpfverify.contract.moments import (CLOSED_FORM, MONTE_CARLO, NAME, PAPER, Q
                                         CaseSummary, Illustration)
 from gpfverify.contract.papers import PAPERS
 from gpfverify.contract.serial import from_json
-from gpfverify.report.document import Figure, Paragraph, Section, Table, claim_records_table, fmt
+from gpfverify.report.document import Figure, Paragraph, Section, Table, claim_tables, fmt
 from gpfverify.report.figures import new_figure, save
 from gpfverify.report.inputs import SectionInput
 
@@ -61,7 +61,7 @@ def render(results: dict, out_dir: Path) -> Section:
                        "max |closed − Monte Carlo| / s.e."], rows,
                       "Closed form against the two oracles (worst run of each column; relative errors against "
                       "quadrature, max |closed − quadrature| / max |quadrature| per moment)"))
-    section.add(claim_records_table(read_claims(results), f"Claims of {paper} checked"))
+    section.add(*claim_tables(read_claims(results), f"Claims of {paper} checked"))
     t = results["time_per_run"]
     section.add(Paragraph(
         f"Time per run, all cases: closed form {fmt(1e3 * t[CLOSED_FORM.key], 3)} ms, quadrature "

@@ -19,7 +19,7 @@ from gpfverify.contract.papers import PAPERS
 from gpfverify.contract.particle_flow import EDH, FLOWS, IE_PFF, PAPER, PF, UPF, Variant
 from gpfverify.contract.serial import from_json
 from gpfverify.health import HealthCheck
-from gpfverify.report.document import (Figure, Paragraph, Section, Table, claim_records_table, fmt,
+from gpfverify.report.document import (Figure, Paragraph, Section, Table, claim_tables, fmt,
                                        interpretations_table)
 from gpfverify.report.figures import new_figure, save
 from gpfverify.report.inputs import SectionInput
@@ -49,7 +49,7 @@ def render_section(data: SectionInput) -> Section:
     else:
         section.add(Paragraph("No bearing run was found in this report folder."))
     levels = sorted({r["significance_level"] for _, r in (*pff, *brg)})
-    section.add(claim_records_table(records, f"Claims of {PAPERS[PAPER].short} (paired t-test over runs at level "
+    section.add(*claim_tables(records, f"Claims of {PAPERS[PAPER].short} (paired t-test over runs at level "
                                              f"{' / '.join(f'{v:g}' for v in levels)}; ±: one standard error; "
                                              "a divergence where the other filter stayed finite loses the comparison; "
                                              "a verdict whose filters failed a health check is 'not decidable')"))

@@ -14,7 +14,7 @@ from gpfverify.contract.papers import PAPERS
 from gpfverify.contract.sins_gps import (COLLAPSE_FACTOR, CRUISE_RANGE_SDS, GP_SR_UKF, GPSR_UPF, INTERPRETATIONS,
                                         NAME, PAPER, PAPER_CRUISE_RANGE, PARTICLE_FILTERS, QUANTITIES, REFERENCES,
                                         SR_UKF, TRUE_SR_UKF, UNITS, UPF, Params, collapsed)
-from gpfverify.report.document import (Figure, Paragraph, Section, Table, claim_records_table, fmt,
+from gpfverify.report.document import (Figure, Paragraph, Section, Table, claim_tables, fmt,
                                        interpretations_table)
 from gpfverify.report.figures import new_figure, save
 from gpfverify.report.inputs import SectionInput
@@ -76,7 +76,7 @@ def render(results: dict, out_dir: Path) -> Section:
         f"runs finished (root seed {results['seed']})" + _failed(results) + ". Errors are estimate − truth of "
         "the error state; curves are per-step RMS over runs of the 3-axis error norm, reductions "
         "1 − RMS(GPSR-UPF)/RMS(UPF) over runs and steps."))
-    section.add(claim_records_table(read_claims(results), f"Claims of {PAPERS[PAPER].short} checked"))
+    section.add(*claim_tables(read_claims(results), f"Claims of {PAPERS[PAPER].short} checked"))
     rows = []
     ceiling = results["reference"].get("ceiling")
     for q in QUANTITIES:

@@ -15,7 +15,7 @@ from gpfverify.contract.tbd import (DETECTION_READINGS, INTERPRETATIONS, NAME, P
                                    SUMMARY_FIELDS, Params, TbdMethod)
 from gpfverify.health import MIN_ESS_FRACTION
 from gpfverify.tolerances import MONTE_CARLO_SIGMAS
-from gpfverify.report.document import (Figure, Paragraph, Section, Table, claim_records_table, fmt,
+from gpfverify.report.document import (Figure, Paragraph, Section, Table, claim_tables, fmt,
                                        interpretations_table)
 from gpfverify.report.figures import new_figure, save
 from gpfverify.report.inputs import SectionInput
@@ -113,7 +113,7 @@ def render(results: dict, out_dir: Path) -> Section:
         "all merged particles weigh relatively more than in the paper's implementation."))
     section.add(*_health_blocks(results))
     claims = read_claims(results)
-    section.add(claim_records_table(claims, f"Claims of {PAPERS[PAPER].short} checked"))
+    section.add(*claim_tables(claims, f"Claims of {PAPERS[PAPER].short} checked"))
     section.add(*_sensitivity_blocks(claims))
     section.add(*_detection_blocks(p, claims))
     return section
