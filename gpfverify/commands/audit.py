@@ -40,8 +40,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--rank-rule", type=rank_rule_text, default=None, metavar="RULE",
                         help=RANK_RULE_HELP + " Overrides the case's 'rank_tol'; not together with "
                              "--rank-tol. Default: the case's 'rank_tol' (absolute), else canonical, which "
-                             "does not depend on units (reproduce defaults to numpy, the papers' rule). The "
-                             "output names the rule that decided.")
+                             "does not depend on units (as in check and reproduce). The output names the rule "
+                             "that decided.")
     parser.add_argument("--out", type=out_path, default=None, metavar="DIR",
                         help="run files: write the report (DIR/report.html, DIR/README.md, figures, "
                              "DIR/audit.json)")

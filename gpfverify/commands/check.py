@@ -50,9 +50,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help=f"comma-separated fusion rules among {CHOICES_TEXT}, the same names as fuse's "
                              "(cmf and dmf always; default cmf,dmf,cc,ci)")
     parser.add_argument("--rank-rule", type=rank_rule_text, default="canonical", metavar="RULE",
-                        help=RANK_RULE_HELP + " Default canonical: a user's system has its own units, and "
-                             "the canonical rule does not depend on them (reproduce defaults to numpy, the "
-                             "papers' rule, to reproduce their numbers).")
+                        help=RANK_RULE_HELP + " Default canonical, as in audit and reproduce: a user's system "
+                             "has its own units, and the canonical rule does not depend on them.")
     parser.add_argument("--out", type=out_path, default=None, help="output folder (results.json, runs/, report)")
     parser.add_argument("--json", action="store_true", help="print results.json to stdout")
     parser.add_argument("--resume", action="store_true", help="continue the runs saved in --out")

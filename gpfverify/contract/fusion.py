@@ -158,10 +158,12 @@ class FamilyRun:
     one_step_gap_rel: tuple[float, ...]
     #: every C_xy^m had full column rank (Proposition 1's condition), per step
     condition_holds: tuple[bool, ...]
-    #: ‖μ_p‖ + ‖μ_CMF − μ_p‖, the scale rounding is measured against
-    gap_scale: tuple[float, ...]
-    #: the largest condition number eq. 35 goes through (C_y, C_y^m, C_xy^m)
-    gap_condition: tuple[float, ...]
+    #: that gap whitened by the central prior, ‖L_p⁻¹(μ_DMF − μ_CMF)‖ in prior standard deviations
+    #: (unit-free; :func:`gpfverify.fusion.exactness.gap_size`), per step
+    gap_size: tuple[float, ...]
+    #: its rounding bound in the same units, what the audit calls the step's "gap_bound"
+    #: (:func:`gpfverify.fusion.exactness.equivalence_tolerance`), per step
+    gap_bound: tuple[float, ...]
     audit: tuple[AuditEntry, ...]
     #: RCC-CI steps on which the ellipsoids had to be enlarged
     rcc_enlarged: int

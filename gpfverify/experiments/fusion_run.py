@@ -42,7 +42,7 @@ from typing import Any, Literal
 import numpy as np
 
 from gpfverify.audit import audit_case
-from gpfverify.contract.claims import PROPOSITION_1, ClaimRecord, PairedDifference, Verdict, combine, verdict_of
+from gpfverify.contract.claims import PROPOSITION_1, ClaimRecord, PairedDifference, Verdict, combine
 from gpfverify.contract.fusion import (DEFAULT_RULE, FAMILIES, FUSION_RULES, LOCAL_FILTERS, METHODS, NEES_POLICY,
                                        PAPER, AuditEntry, FamilyRun, FittedModels, FusionRun, GPHyperparameters,
                                        SensorAuditRecord, family_methods)
@@ -52,14 +52,14 @@ from gpfverify.filters.records import Gaussian, StepRecord
 from gpfverify.filters.sigma_points import SigmaParams
 from gpfverify.fusion.centralized import cmf_update
 from gpfverify.fusion.convex import convex_combination
-from gpfverify.fusion.exactness import parse_rank_rule
+from gpfverify.fusion.exactness import equivalence_tolerance, gap_size, parse_rank_rule
 from gpfverify.fusion.model_fusion import cmf_step, dmf_step
 from gpfverify.fusion.rcc_ci import rcc_ci
 from gpfverify.health import HealthCheck, decide, divergence_check, nees_values_check
 from gpfverify.linalg import solve_spd
 from gpfverify.models import GPModel, fit_gp_model
 from gpfverify.scenarios.fusion_models import FusionData
-from gpfverify.tolerances import algebra_rtol
+from gpfverify.tolerances import RESOLVABLE_GAP
 
 __all__ = ["FAMILIES", "LOCAL_FILTERS", "METHODS"]
 
@@ -143,15 +143,6 @@ def _audit_entry(step: int, family: str, case, rule) -> AuditEntry:
                                         bool(s.exact)) for s in audit.sensors))
 
 
-def gap_condition(case) -> float:
-    """The largest condition number eq. 35 goes through: the central C_y, each C_y^m and each
-    C_xy^m (its pseudo-inverse); rounding in the one-step gap scales with it."""
-    conds = [np.linalg.cond(case.central.C_y)]
-    for local in case.locals:
-        conds += [np.linalg.cond(local.C_y), np.linalg.cond(local.C_xy)]
-    return float(max(conds))
-
-
 def _floats(values) -> tuple[float, ...]:
     return tuple(float(v) for v in values)
 
@@ -182,7 +173,7 @@ def run_family(family: str, models: GPModel, data: FusionData, local_starts: Seq
     correlations: dict[str, list[tuple[float, ...]]] = {k: [] for k in sensor_keys}
     full_rank: dict[str, list[bool]] = {k: [] for k in sensor_keys}
     tols: dict[str, list[float]] = {k: [] for k in sensor_keys}
-    recursive_gap, one_step_gap, one_step_gap_rel, holds, gap_scale, conditions = [], [], [], [], [], []
+    recursive_gap, one_step_gap, one_step_gap_rel, holds, sizes, bounds = [], [], [], [], [], []
     audit: list[AuditEntry] = []
     rcc_enlarged = 0
     for k in range(steps):
@@ -223,8 +214,9 @@ def run_family(family: str, models: GPModel, data: FusionData, local_starts: Seq
         correction = float(np.linalg.norm(same.mean - dmf.case.central.mu_p))
         one_step_gap_rel.append(float(np.linalg.norm(gap)) / correction if correction > 0 else 0.0)
         holds.append(bool(dmf.result.condition_holds))
-        gap_scale.append(float(np.linalg.norm(dmf.case.central.mu_p)) + correction)
-        conditions.append(gap_condition(dmf.case))
+        # the audit's measure and bound of the same gap (unit-free, prior standard deviations)
+        sizes.append(gap_size(dmf.case, gap, dmf.result.scale))
+        bounds.append(equivalence_tolerance(dmf.case, dmf.result.gain, dmf.result.sensors, dmf.result.scale))
         if not dmf.result.condition_holds:
             audit.append(_audit_entry(k, family, dmf.case, dmf.result.rank_rule))
     return FamilyRun(
@@ -232,8 +224,8 @@ def run_family(family: str, models: GPModel, data: FusionData, local_starts: Seq
         singular_values={n: tuple(v) for n, v in singular_values.items()},
         full_rank={n: tuple(v) for n, v in full_rank.items()}, rank_tol={n: tuple(v) for n, v in tols.items()},
         recursive_gap=tuple(recursive_gap), one_step_gap=tuple(one_step_gap),
-        one_step_gap_rel=tuple(one_step_gap_rel), condition_holds=tuple(holds), gap_scale=tuple(gap_scale),
-        gap_condition=tuple(conditions), audit=tuple(audit), rcc_enlarged=rcc_enlarged,
+        one_step_gap_rel=tuple(one_step_gap_rel), condition_holds=tuple(holds), gap_size=tuple(sizes),
+        gap_bound=tuple(bounds), audit=tuple(audit), rcc_enlarged=rcc_enlarged,
         rounding_sensitivity=rounding_sensitivity(family, models, fused_start, ys[0], sigma),
         seconds={n: _floats(s) for n, s in clock.seconds.items()},
         online_seconds={n: _floats(s) for n, s in online.items()},
@@ -277,13 +269,16 @@ def _per_method(results: Sequence[FusionRun], field: str) -> dict[str, np.ndarra
     return out
 
 
-def one_step_equivalence(record: FamilyRun) -> tuple[np.ndarray, np.ndarray]:
-    """Per step of one family's run record: whether the rank condition held, and whether the
-    one-step DMF − CMF gap is within rounding, ‖gap‖ ≤ algebra_rtol(conditioning) · (‖μ_p‖ +
-    ‖μ_CMF − μ_p‖) with the conditioning of :func:`gap_condition`."""
+def one_step_equivalence(record: FamilyRun) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Per step of one family's run record: whether the rank condition held; whether eq. 35
+    reproduced CMF from the same central prediction to the step's rounding bound (the audit's
+    "reproduced": ‖L_p⁻¹ gap‖ ≤ its bound, :func:`~gpfverify.fusion.exactness.equivalence_tolerance`);
+    and whether that bound resolves the comparison (at most
+    :data:`~gpfverify.tolerances.RESOLVABLE_GAP` prior standard deviations — above it, eq. 35 at the
+    rank decided amplifies rounding beyond what the arithmetic can tell from a gap)."""
     f = record
-    within = [g <= algebra_rtol(c) * sc for g, c, sc in zip(f.one_step_gap, f.gap_condition, f.gap_scale)]
-    return np.array(f.condition_holds, dtype=bool), np.array(within, dtype=bool)
+    size, bound = np.array(f.gap_size), np.array(f.gap_bound)
+    return np.array(f.condition_holds, dtype=bool), size <= bound, bound <= RESOLVABLE_GAP
 
 
 def full_rank_ratio_at(results: Sequence[FusionRun], rtol: float) -> dict[str, list[float]]:
@@ -343,37 +338,43 @@ def summarize_setting(results: Sequence[FusionRun], rank_rule: str) -> dict:
         "run_mean_sq_err": {m: np.mean(sq_err[m], axis=1).tolist() for m in METHOD_KEYS},
         "run_mean_mahalanobis": {m: np.mean(maha[m], axis=1).tolist() for m in METHOD_KEYS},
     }
-    gaps, one_step, one_rel, holds, within = {}, {}, {}, {}, {}
+    out["max_equivalence_gap"] = {}
+    out["equivalence_gap_per_step"] = {}
+    out["one_step_gap"] = {}
     for family in FAMILIES:
         fam = [r.families[family] for r in results]
-        gaps[family] = np.array([f.recursive_gap for f in fam])
-        one_step[family] = np.array([f.one_step_gap for f in fam])
-        one_rel[family] = np.array([f.one_step_gap_rel for f in fam])
-        holds[family] = np.array([f.condition_holds for f in fam], dtype=bool)
-        within[family] = np.array([one_step_equivalence(f)[1] for f in fam])
-    smallest_sv_outside, smallest_correlation_outside = {}, {}
-    for family in FAMILIES:
-        fam = [r.families[family] for r in results]
+        gaps = np.array([f.recursive_gap for f in fam])
+        one_step = np.array([f.one_step_gap for f in fam])
+        one_rel = np.array([f.one_step_gap_rel for f in fam])
+        size = np.array([f.gap_size for f in fam])
+        bound = np.array([f.gap_bound for f in fam])
+        holds, reproduced, resolved = (np.array(v) for v in zip(*(one_step_equivalence(f) for f in fam)))
+        unresolved = holds & reproduced & ~resolved
         # (runs, T): the smaller σ_min of the two sensors' C_xy^m, and of their canonical correlations
         sv_min = np.min([[np.array(sv)[:, -1] for sv in f.singular_values.values()] for f in fam], axis=1)
-        outside = holds[family] & ~within[family]
-        smallest_sv_outside[family] = float(np.max(sv_min[outside])) if outside.any() else None
-        smallest_correlation_outside[family] = None
-        if outside.any() and all(f.correlations for f in fam):
-            rho_min = np.min([[[min(step) for step in rho] for rho in f.correlations.values()] for f in fam], axis=1)
-            smallest_correlation_outside[family] = float(np.max(rho_min[outside]))
-    out["max_equivalence_gap"] = {f: float(np.max(gaps[f])) for f in FAMILIES}
-    out["equivalence_gap_per_step"] = {f: np.max(gaps[f], axis=0).tolist() for f in FAMILIES}
-    out["one_step_gap"] = {f: {
-        "max_when_full_rank": float(np.max(one_step[f][holds[f]], initial=0.0)),
-        "max_relative_when_full_rank": float(np.max(one_rel[f][holds[f]], initial=0.0)),
-        "max_when_rank_fails": float(np.max(one_step[f][~holds[f]], initial=0.0)),
-        "steps_full_rank": int(np.sum(holds[f])), "steps_rank_fails": int(np.sum(~holds[f])),
-        "full_rank_steps_within_rounding": int(np.sum(within[f] & holds[f])),
-        "max_smallest_singular_value_outside_rounding": smallest_sv_outside[f],
-        "max_smallest_correlation_outside_rounding": smallest_correlation_outside[f],
-        "rounding_rule": "gap <= algebra_rtol(max cond of C_y, C_y^m, C_xy^m) * (|mu_p| + |mu_CMF - mu_p|)"}
-        for f in FAMILIES}
+        rho_min = (np.min([[[min(step) for step in rho] for rho in f.correlations.values()] for f in fam], axis=1)
+                   if all(f.correlations for f in fam) else None)
+        out["max_equivalence_gap"][family] = float(np.max(gaps))
+        out["equivalence_gap_per_step"][family] = np.max(gaps, axis=0).tolist()
+        out["one_step_gap"][family] = {
+            "max_when_full_rank": float(np.max(one_step[holds], initial=0.0)),
+            "max_relative_when_full_rank": float(np.max(one_rel[holds], initial=0.0)),
+            "max_when_rank_fails": float(np.max(one_step[~holds], initial=0.0)),
+            "steps_full_rank": int(np.sum(holds)), "steps_rank_fails": int(np.sum(~holds)),
+            "full_rank_steps_reproduced": int(np.sum(holds & reproduced & resolved)),
+            "full_rank_steps_unresolved": int(np.sum(unresolved)),
+            "full_rank_steps_outside": int(np.sum(holds & ~reproduced)),
+            "max_gap_size_resolved": float(np.max(size[holds & resolved], initial=0.0)),
+            "max_gap_bound_resolved": float(np.max(bound[holds & resolved], initial=0.0)),
+            "max_gap_size_unresolved": float(np.max(size[unresolved], initial=0.0)),
+            "max_gap_bound_unresolved": float(np.max(bound[unresolved], initial=0.0)),
+            "max_gap_ratio_outside": (float(np.max(size[holds & ~reproduced] / bound[holds & ~reproduced]))
+                                      if np.any(holds & ~reproduced) else None),
+            "unresolved_max_smallest_singular_value": float(np.max(sv_min[unresolved])) if unresolved.any() else None,
+            "unresolved_max_smallest_correlation": (float(np.max(rho_min[unresolved]))
+                                                    if unresolved.any() and rho_min is not None else None),
+            "rounding_rule": "reproduced: |L_p^-1 gap| <= the step's rounding bound (the audit's gap_bound); resolved: "
+                             f"that bound <= {RESOLVABLE_GAP:.3g} prior standard deviations"}
     out["rounding_sensitivity"] = {f: {
         "probe": ROUNDING_PROBE,
         "median": float(np.median([r.families[f].rounding_sensitivity for r in results])),
@@ -496,34 +497,47 @@ def fusion_beats_baselines(ctx: ClaimContext, results: dict, family: str, per_ru
 
 def equivalence_claim(ctx: ClaimContext, results: dict, family: str, metric: str, source: str,
                       **kwargs: Any) -> ClaimRecord:
-    """DMF = CMF on the steps where every C_xy^m has full column rank (eq. 35 from the same central
-    prediction, to rounding scaled by the conditioning); statistic: the full-rank steps outside
-    rounding (threshold 0). Not decidable when no step had full rank."""
+    """DMF = CMF on the steps where every C_xy^m has full column rank: eq. 35 against CMF from the
+    same central prediction, each step judged as the audit judges it (reproduced: the gap, in prior
+    standard deviations, within the step's own rounding bound). NOT held when a full-rank step's
+    gap exceeds its bound; full-rank steps whose bound does not resolve the comparison (above
+    RESOLVABLE_GAP: eq. 35 at the rank decided amplifies rounding that far) decide nothing and are
+    named in a caveat; not decidable when no full-rank step is resolved. Statistic: the full-rank
+    steps beyond their bound (threshold 0)."""
     g = results["one_step_gap"][family]
     dmf, cmf = Method("DMF", family).key, Method("CMF", family).key
     curves = np.abs(np.subtract(results[metric][dmf], results[metric][cmf]))
-    n, ok = g["steps_full_rank"], g["full_rank_steps_within_rounding"]
-    verdict = "not decidable" if n == 0 else verdict_of(ok == n)
-    outside = g.get("max_smallest_singular_value_outside_rounding")
-    correlation = g.get("max_smallest_correlation_outside_rounding")
-    why = "" if outside is None else (
-        f"; on the {n - ok} full-rank steps outside rounding the smaller σ_min(Cₓᵧᵐ) of the two sensors was at "
-        f"most {_num(outside)}"
-        + (f" and the smaller canonical correlation at most {_num(correlation)}: correlations that small pass "
-           "the rule's τ" if correlation is not None else
-           ": a cross covariance that small counts as full rank for the σ_max-relative rule")
-        + ", yet the pseudo-inverse in eq. 35 amplifies the rounding of μₑᵐ − μₚᵐ")
+    n, ok = g["steps_full_rank"], g["full_rank_steps_reproduced"]
+    unresolved, outside = g["full_rank_steps_unresolved"], g["full_rank_steps_outside"]
+    verdict: Verdict = "NOT held" if outside else "held" if ok else "not decidable"
     sensitivity = results["rounding_sensitivity"][family]
-    evidence = (f"{ok} of {n} full-rank steps within rounding (‖gap‖ ≤ the algebra tolerance scaled by the largest "
-                "condition number of Cᵧ, Cᵧᵐ and Cₓᵧᵐ, times ‖μₚ‖ + ‖μ(CMF) − μₚ‖); largest one-step gap "
-                f"{_num(g['max_when_full_rank'])} (relative to the update {_num(g['max_relative_when_full_rank'])}); "
-                f"recursive filters: largest ‖μ(DMF) − μ(CMF)‖ = {_num(results['max_equivalence_gap'][family])}, "
-                f"one step amplifies a {sensitivity['probe']:g} relative nudge of the prior mean to "
-                f"{_num(sensitivity['median'])} (median); largest |DMF − CMF| of the per-step curves "
-                f"{_num(float(curves.max()))}{why}")
-    caveats = (*(("no step had full column rank: Proposition 1's condition never held",) if n == 0 else ()),
-               *kwargs.pop("caveats", ()))
+    evidence = (f"{ok} of {n} full-rank steps reproduced to rounding (‖L_p⁻¹(μ(DMF) − μ(CMF))‖ within the step's "
+                "rounding bound, as the audit judges a step, and the bound at most "
+                f"{RESOLVABLE_GAP:.2g} prior standard deviations); largest gap there "
+                f"{_num(g['max_gap_size_resolved'])} (bound up to {_num(g['max_gap_bound_resolved'])}) prior standard "
+                f"deviations; {outside} step(s) beyond their bound"
+                + ("" if g["max_gap_ratio_outside"] is None else
+                   f" (up to {_num(g['max_gap_ratio_outside'])} × the bound)")
+                + f"; {unresolved} unresolved; largest one-step ‖μ(DMF) − μ(CMF)‖ {_num(g['max_when_full_rank'])} "
+                f"(relative to the update {_num(g['max_relative_when_full_rank'])}); recursive filters: largest "
+                f"‖μ(DMF) − μ(CMF)‖ = {_num(results['max_equivalence_gap'][family])}, one step amplifies a "
+                f"{sensitivity['probe']:g} relative nudge of the prior mean to {_num(sensitivity['median'])} (median); "
+                f"largest |DMF − CMF| of the per-step curves {_num(float(curves.max()))}")
+    caveats = list(kwargs.pop("caveats", ()))
+    if n == 0:
+        caveats.insert(0, "no step had full column rank: Proposition 1's condition never held")
+    if unresolved:
+        rho = g["unresolved_max_smallest_correlation"]
+        caveats.insert(0, (
+            f"{unresolved} full-rank step(s) unresolved: their rounding bound exceeds {RESOLVABLE_GAP:.2g} prior "
+            f"standard deviations (up to {_num(g['max_gap_bound_unresolved'])}), so the arithmetic cannot tell DMF "
+            f"from CMF there (largest gap {_num(g['max_gap_size_unresolved'])}); the smaller σ_min(Cₓᵧᵐ) of the two "
+            f"sensors was at most {_num(g['unresolved_max_smallest_singular_value'])}"
+            + (f" and the smaller canonical correlation at most {_num(rho)}: just above the rule's τ" if rho is not None
+               else ": a cross covariance the rule calls full rank however small it is against the state's and "
+                    "the output's spreads")
+            + " — its pseudo-inverse in eq. 35 multiplies the rounding of μₑᵐ − μₚᵐ"))
     return ctx.record(f"dmf-equals-cmf/{family}",
                       f"{family}: DMF = CMF when the rank condition holds (eq. 35 from the same central prediction)",
-                      source, verdict, float(n - ok), 0.0, evidence, caveats=tuple(caveats), theorem=PROPOSITION_1,
+                      source, verdict, float(outside), 0.0, evidence, caveats=tuple(caveats), theorem=PROPOSITION_1,
                       **kwargs)

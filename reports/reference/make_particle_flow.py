@@ -57,7 +57,7 @@ def main(runs_dir: Path) -> None:
         f"paper: {bearing.PAPER_RUNS}); each interpretation at its experiment's count. Runs that would decide the "
         "undecided verdicts as run, were the observed mean and spread the true ones: "
         + ("; ".join(undecided) or "none") + "."))
-    write_page(section, HERE)
+    write_page(section, HERE, list(results.values()))
 
 
 if __name__ == "__main__":
