@@ -197,16 +197,30 @@ def test_undecided_paired_claims_state_the_runs_that_would_decide_and_timing_is_
         assert rcc.evidence.count(" / RCC-CI-") == 3  # CMF, DMF and CW each against RCC-CI
 
 
-def test_a_full_rank_step_outside_rounding_names_its_smallest_canonical_correlation():
+def test_proposition_1_is_judged_per_step_as_the_audit_judges_it():
+    """One full-rank step doctored beyond its rounding bound makes the claim NOT held; one whose bound
+    does not resolve the comparison is left out and named, with its smallest canonical correlation."""
     params = ct2d.Params(**TINY)
     record = ct2d.run_one(params, np.random.SeedSequence(4))
     fam = record.families["GP-ADF"]
     k = next(i for i, holds in enumerate(fam.condition_holds) if holds)
-    gap = list(fam.one_step_gap)
-    gap[k] = 1e3 * (fam.gap_scale[k] + 1.0)  # far outside rounding on one full-rank step
-    doctored = dataclasses.replace(record, families={**record.families,
-                                                     "GP-ADF": dataclasses.replace(fam, one_step_gap=tuple(gap))})
-    claim = _claim(ct2d.summarize(params, [doctored]), "ct2d/dmf-equals-cmf/GP-ADF")
+
+    def doctored(**series):
+        changed = dataclasses.replace(fam, **{name: tuple(v) for name, v in series.items()})
+        return ct2d.summarize(params, [dataclasses.replace(record, families={**record.families, "GP-ADF": changed})])
+
+    plain = _claim(ct2d.summarize(params, [record]), "ct2d/dmf-equals-cmf/GP-ADF")
+    assert plain.verdict == "held" and plain.statistic == 0.0 and plain.group == "Proposition 1"
+    beyond = list(fam.gap_size)
+    beyond[k] = 2.0 * fam.gap_bound[k] + 1e-300  # beyond its own rounding bound
+    claim = _claim(doctored(gap_size=beyond), "ct2d/dmf-equals-cmf/GP-ADF")
+    assert claim.verdict == "NOT held" and claim.statistic == 1.0
+    loose = list(fam.gap_bound)
+    loose[k] = 1e-3  # a bound that cannot resolve the comparison: the step decides nothing
+    body = doctored(gap_bound=loose)
+    claim = _claim(body, "ct2d/dmf-equals-cmf/GP-ADF")
     rho = min(min(fam.correlations[key][k]) for key in fam.correlations)
-    assert claim.verdict == "NOT held" and claim.statistic == 1.0 and claim.group == "Proposition 1"
-    assert f"the smaller canonical correlation at most {rho:.3g}" in claim.evidence
+    assert claim.verdict == "held" and body["one_step_gap"]["GP-ADF"]["full_rank_steps_unresolved"] == 1
+    assert f"the smaller canonical correlation at most {rho:.3g}" in claim.caveats[0]
+    everything = doctored(gap_bound=[1e-3] * len(loose))  # no resolved step: nothing decided
+    assert _claim(everything, "ct2d/dmf-equals-cmf/GP-ADF").verdict == "not decidable"

@@ -17,10 +17,13 @@ methods (:data:`gpfverify.contract.fusion.METHODS`) — for each filter family F
 Per step and method the run records ‖x − x̂‖² (for the RMSE, eq. 45) and the squared Mahalanobis
 distance (x − x̂)ᵀC⁻¹(x − x̂) (eq. 44 as written), and its own computation time — CPU time of the
 process (:data:`CPU_CLOCK`), which other processes on a busy machine perturb far less than wall
-time. For the equivalence analysis it records the singular values of every local C_xy^m and the
-rank decision of the rule eq. 35 is run with (the canonical-correlation rule unless another is
-given), the recursive gap ‖μ_DMF − μ_CMF‖ between the two fused filters,
-the one-step gap of eq. 35 against CMF *from the same central prediction*, and the full audit
+time. For the equivalence analysis it records the singular values of every local C_xy^m (and,
+under the canonical rule, the canonical correlations) and the rank decision of the rule eq. 35 is
+run with (the canonical-correlation rule unless another is given), the recursive gap
+‖μ_DMF − μ_CMF‖ between the two fused filters, the one-step gap of eq. 35 against CMF *from the
+same central prediction* with the audit's measure of it and its rounding bound (both in prior
+standard deviations: :func:`~gpfverify.fusion.exactness.gap_size`,
+:func:`~gpfverify.fusion.exactness.equivalence_tolerance`), and the full audit
 (:func:`~gpfverify.audit.audit_case`: gap actual vs closed-form prediction, exact or not) of every
 step on which a rank condition failed.
 
