@@ -191,3 +191,20 @@ def test_the_runs_needed_table_reads_the_verdicts_at_each_run_count():
     assert rows[0] == "40 or fewer"
     assert rows[1] == "more than 200, at most 1000"  # it was another verdict (held) at 200
     assert rows[2] == "undecided: about 4200 runs would decide it, more than the paper's 1000"
+
+
+def test_every_not_held_row_names_the_interpretations_tried_and_the_health_of_the_filters():
+    tried = (Interpretation("numpy-rank", {"rank_rule": "numpy"}, "NOT held", 1.0),
+             Interpretation("rmse", {"metric": "squared-error"}, "held", -1.0))
+    claims = [_record("NOT held", ident="x/a", interpretations=tried,
+                      caveats=("NEES check failed: CMF-GP-UKF optimistic",)),
+              _record("NOT held", ident="x/b"), _record("NOT held", timing=True, ident="x/t"),
+              _record("held", ident="x/h", interpretations=tried)]
+    rows = {row_id: row for table in claim_tables(claims, "Claims") for row_id, row in zip(table.row_ids, table.rows)}
+    first = rows["claim-x-a"][-1]
+    assert "interpretations tried: depends on the interpretation: NOT held under as run, numpy-rank; held under " \
+           "rmse" in first and "a failed health check of the filters compared is among its caveats" in first
+    assert "no other documented reading was tried" in rows["claim-x-b"][-1]
+    assert "no failed health check is recorded" in rows["claim-x-b"][-1]
+    assert "no filter health gates" in rows["claim-x-t"][-1]
+    assert "interpretations tried" not in rows["claim-x-h"][-1]  # only NOT held verdicts carry the note

@@ -124,22 +124,41 @@ class Claim:
     evidence: str
 
 
+#: words by which a claim's caveat reports a failed health check (divergence, NEES, particle degeneracy)
+HEALTH_WORDS = ("health", "NEES", "diverge", "N_eff")
+
+
+def not_held_note(record: ClaimRecord) -> str:
+    """What a NOT held verdict is read with: the interpretations it was tried under
+    (:func:`~gpfverify.contract.interpretations.robustness`) and the health of the filters it
+    compares (whether its caveats report a failed check)."""
+    tried = robustness(record) or "no other documented reading was tried"
+    failed = any(word in caveat for caveat in record.caveats for word in HEALTH_WORDS)
+    health = ("a failed health check of the filters compared is among its caveats" if failed else
+              "no failed health check is recorded for the filters compared" if record.group != "timing" else
+              "a claim on CPU times, which no filter health gates")
+    return f"NOT held — interpretations tried: {tried}; health: {health}"
+
+
 def claim_records_table(records, caption: str = "Claims checked") -> Table:
     """Claim records (:class:`gpfverify.contract.ClaimRecord`, as stored in ``results.json``) as a
     table: claim, where the paper makes it, verdict (coloured, with one caution mark when it rests
-    on fewer runs than the paper or on wall-clock timing), evidence and the record's caveats. Rows
-    are anchored by the record's ``id`` so that the summary links to them."""
+    on fewer runs than the paper or on measured times), evidence and the record's caveats — for a
+    NOT held verdict also the interpretations it was tried under and the health of the filters it
+    compares (:func:`not_held_note`). Rows are anchored by the record's ``id`` so that the summary
+    links to them."""
     rows, ids = [], []
     for r in records:
         evidence = r.evidence
         if r.verdict == "undecided" and r.runs_to_decide:
             evidence += (f" About {r.runs_to_decide} runs would decide it, were the mean and spread seen "
                          "here the true ones.")
+        notes = [*r.caveats, *((not_held_note(r),) if r.verdict == "NOT held" else ())]
         rows.append([r.claim + (f" ({r.setting})" if r.setting else ""), r.source,
-                     VerdictCell(r.verdict, tuple(r.cautions)), evidence, "; ".join(r.caveats)])
+                     VerdictCell(r.verdict, tuple(r.cautions)), evidence, "; ".join(notes)])
         ids.append(claim_anchor(r))
     headers = ["claim", "source", "verdict", "evidence", "caveats"]
-    if not any(r.caveats for r in records):  # no empty column
+    if not any(row[-1] for row in rows):  # no empty column
         headers, rows = headers[:-1], [row[:-1] for row in rows]
     return Table(headers, rows, caption, tuple(ids), "claims")
 

@@ -12,7 +12,6 @@ from collections.abc import Sequence
 from pathlib import Path
 
 from gpfverify.contract.claims import ClaimRecord, read_claims
-from gpfverify.contract.interpretations import robustness
 from gpfverify.experiments.runner import read_manifest, results_of
 from gpfverify.experiments.sensitivity import merge_saved
 from gpfverify.report.document import Paragraph, Section, Table
@@ -85,35 +84,14 @@ def provenance_paragraph(page_dir: Path) -> Paragraph:
                      + " (each folder's manifest.json has the full provenance).")
 
 
-#: words by which a claim's caveat reports a failed health check (divergence, NEES, particle degeneracy)
-HEALTH_WORDS = ("health", "NEES", "diverge", "N_eff")
-
-
-def not_held_paragraph(results: Sequence[dict]) -> Paragraph | None:
-    """Each NOT held verdict with the readings it was tried under (:func:`robustness`) and the
-    health caveats it carries; None when no verdict is NOT held."""
-    said = []
-    for claim in (c for r in results for c in read_claims(r) if c.verdict == "NOT held"):
-        tried = robustness(claim) or "no other documented reading was tried"
-        health = [c for c in claim.caveats if any(w in c for w in HEALTH_WORDS)]
-        said.append(f"{claim.claim}{f' ({claim.setting})' if claim.setting else ''}: {tried}; "
-                    + ("health: " + " / ".join(health) if health else "its record carries no failed health check"))
-    if not said:
-        return None
-    return Paragraph("NOT held verdicts, the readings each was tried under and the health of the filters compared "
-                     "(from the claim records): " + "; ".join(f"({i}) {s}" for i, s in enumerate(said, 1)) + ".")
-
-
 def write_page(section: Section, page_dir: Path, results: Sequence[dict] = ()) -> Path:
     """The page as ``README.md`` in ``page_dir``, opening with its verdicts counted per group
-    (accuracy, the theorem checked on the runs, timing: :class:`~gpfverify.report.inputs.VerdictCounts`),
-    with the NOT held verdicts' readings and health (from ``results``) and the commit its runs were
-    made at."""
+    (accuracy, the theorem checked on the runs, timing: :class:`~gpfverify.report.inputs.VerdictCounts`
+    of the claims in ``results``), closing with the commit its runs were made at. (Each NOT held
+    verdict's readings and health are in its row: :func:`gpfverify.report.document.not_held_note`.)"""
     claims = [c for r in results for c in read_claims(r)]
     if claims:
         section.blocks.insert(0, verdicts_paragraph(VerdictCounts.of(claims)))
-    if (paragraph := not_held_paragraph(results)) is not None:
-        section.add(paragraph)
     section.add(provenance_paragraph(page_dir))
     path = page_dir / "README.md"
     path.write_text(to_markdown(section, page_dir), encoding="utf-8")
