@@ -16,8 +16,8 @@ the verdict under each interpretation tried. Verdicts:
 
 from __future__ import annotations
 
-from dataclasses import dataclass
 from collections.abc import Iterable
+from dataclasses import dataclass
 from typing import Any, Literal
 
 import numpy as np
