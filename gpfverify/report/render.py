@@ -17,7 +17,7 @@ import re
 from collections.abc import Iterable
 from pathlib import Path
 
-from gpfverify.contract.claims import ACCURACY, VERDICTS
+from gpfverify.contract.claims import ACCURACY, TIMING, VERDICTS
 from gpfverify.contract.interpretations import is_robust, robustness
 from gpfverify.contract.papers import PAPERS
 from gpfverify.report import cjk_font
@@ -291,10 +291,12 @@ def run_table(summary: SectionSummary) -> Table:
 
 
 def verdicts_paragraph(counts: VerdictCounts) -> Paragraph:
-    """A page's verdicts counted per group, and why the groups are apart."""
-    return Paragraph(f"Verdicts on this page: {counts.groups_text()}. Counted apart: the paper's accuracy claims "
-                     "(the headline), its theorem checked on the runs, and its timing claims (CPU times compared "
-                     "as paired per-run ratios).")
+    """A page's verdicts counted per group, and what each group present holds."""
+    words = {ACCURACY: "the paper's accuracy claims (the headline)", TIMING: "its timing claims (CPU times "
+             "compared as paired per-run ratios)"}
+    groups = [words.get(g.group, f"{g.group}, the paper's theorem checked on the runs") for g in counts.groups]
+    return Paragraph(f"Verdicts on this page: {counts.groups_text()}." + (
+        f" Counted apart: {', '.join(groups[:-1])} and {groups[-1]}." if len(groups) > 1 else ""))
 
 
 def header_blocks(summary: SectionSummary) -> list:
