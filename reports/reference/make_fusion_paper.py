@@ -61,7 +61,9 @@ def command(name: str, results: dict) -> str:
     tried = [i for c in read_claims(results) for i in c.interpretations if i.name != AS_RUN]
     names = list(dict.fromkeys(i.name for i in tried))
     which = "all" if set(names) == {s.name for s in module.INTERPRETATIONS} else ",".join(names)
-    counts = ", ".join(str(n) for n in sorted({i.n for i in tried if i.n})) or str(results["runs"])
+    # the interpretations with runs of their own ran fewer; those that read the main run's runs have its count
+    counts = ", ".join(str(n) for n in sorted({i.n for i in tried if i.n and i.n != results["runs"]})) \
+        or str(results["runs"])
     return (COMMANDS[name].replace("INTERPRETED", counts).replace("WHICH", which)
             .replace("RUNS", str(results["runs"])))
 
