@@ -294,9 +294,9 @@ def verdicts_paragraph(counts: VerdictCounts) -> Paragraph:
     """A page's verdicts counted per group, and what each group present holds."""
     words = {ACCURACY: "the paper's accuracy claims (the headline)", TIMING: "its timing claims (CPU times "
              "compared as paired per-run ratios)"}
-    groups = [words.get(g.group, f"{g.group}, the paper's theorem checked on the runs") for g in counts.groups]
+    groups = [words.get(g.group, f"{g.group} (the paper's theorem, checked on the runs)") for g in counts.groups]
     return Paragraph(f"Verdicts on this page: {counts.groups_text()}." + (
-        f" Counted apart: {', '.join(groups[:-1])} and {groups[-1]}." if len(groups) > 1 else ""))
+        f" Counted apart: {'; '.join(groups)}." if len(groups) > 1 else ""))
 
 
 def header_blocks(summary: SectionSummary) -> list:

@@ -61,6 +61,9 @@ def command(name: str, results: dict) -> str:
     tried = [i for c in read_claims(results) for i in c.interpretations if i.name != AS_RUN]
     names = list(dict.fromkeys(i.name for i in tried))
     which = "all" if set(names) == {s.name for s in module.INTERPRETATIONS} else ",".join(names)
+    if not names:
+        options = OPTIONS[name]
+        return f"gpfverify reproduce {name.split('-')[0]} {options}--runs {results['runs']} --seed 1 --out OUT/{name}"
     # the interpretations with runs of their own ran fewer; those that read the main run's runs have its count
     counts = ", ".join(str(n) for n in sorted({i.n for i in tried if i.n and i.n != results["runs"]})) \
         or str(results["runs"])
