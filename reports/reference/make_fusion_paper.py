@@ -21,11 +21,13 @@ from pathlib import Path
 from reference_pages import recompute_into, runs_needed_table, verdicts_by_run_count, write_page
 
 from gpfverify.contract.claims import AS_RUN, ClaimRecord, read_claims
-from gpfverify.contract.serial import to_json
 from gpfverify.contract.ct2d import Params as CT2DParams
+from gpfverify.contract.serial import to_json
 from gpfverify.experiments import ct2d, ungm1d
+from gpfverify.experiments.runner import read_manifest, results_of
 from gpfverify.report.render import to_html
 from gpfverify.report.sections import fusion_ct2d, fusion_ungm1d
+from gpfverify.report.sections.fusion_paper import rank_rules_table
 
 HERE = Path(__file__).resolve().parent
 #: the caption's explanation of the runs-needed tables
@@ -99,6 +101,37 @@ def by_run_count(name: str, runs_dir: Path | None, results: dict) -> dict[int, l
             for n, claims in json.loads(path.read_text(encoding="utf-8")).items()}
 
 
+#: each folder's Proposition 1 judgement under each rank rule read, committed next to its results
+RANK_RULES = "rank-rules.json"
+
+
+def equivalence_by_setting(name: str, results: dict) -> dict[str, dict]:
+    """``{setting label: {family: one_step_gap}}`` of one folder's results.json."""
+    if name.startswith("ct2d"):
+        return {CT2DParams.from_json(results["params"]).label: results["one_step_gap"]}
+    return {f"σ² = {float(k):g}": r["one_step_gap"] for k, r in fusion_ungm1d.by_noise(results).items()}
+
+
+def rank_rule_readings(name: str, runs_dir: Path | None, results: dict) -> dict[str, dict]:
+    """Proposition 1 step by step as run (the canonical rule; also on the first runs, as many as the
+    numpy-rank interpretation ran) and under numpy's rule (computed from the saved runs and committed,
+    or read back from the committed file)."""
+    path = target(name) / RANK_RULES
+    if runs_dir is None:
+        return json.loads(path.read_text(encoding="utf-8")) if path.exists() else {}
+    module = ct2d if name.startswith("ct2d") else ungm1d
+    readings = {f"canonical, as run, {results['runs_ok']} runs": equivalence_by_setting(name, results)}
+    numpy_path = runs_dir / name / "interpretations" / "numpy-rank" / "results.json"
+    if numpy_path.is_file():
+        numpy = json.loads(numpy_path.read_text(encoding="utf-8"))
+        if numpy["runs"] < results["runs"]:
+            first = results_of(module, runs_dir / name, read_manifest(runs_dir / name), numpy["runs"])
+            readings[f"canonical, as run, first {first['runs_ok']} runs"] = equivalence_by_setting(name, first)
+        readings[f"numpy-rank, {numpy['runs_ok']} runs"] = equivalence_by_setting(name, numpy)
+    path.write_text(json.dumps(readings, indent=1, ensure_ascii=False), encoding="utf-8")
+    return readings
+
+
 def main(runs_dir: Path | None) -> None:
     found: dict[str, dict] = {}
     for name in COMMANDS:
@@ -107,14 +140,21 @@ def main(runs_dir: Path | None) -> None:
             found[name] = recompute_into(runs_dir / name, module, target(name))
         elif (results := committed(name)) is not None:
             found[name] = results
-    ladders = {name: by_run_count(name, runs_dir if runs_dir is not None and (runs_dir / name).is_dir() else None, r)
-               for name, r in found.items()}
+    source = {name: runs_dir if runs_dir is not None and (runs_dir / name).is_dir() else None for name in found}
+    ladders = {name: by_run_count(name, source[name], r) for name, r in found.items()}
+    rules = {name: rank_rule_readings(name, source[name], r) for name, r in found.items()}
     made = "python reports/reference/make_fusion_paper.py OUT (or --committed: from the committed results.json)"
     sections = []
     commands = [command(n, r) for n, r in found.items() if n.startswith("ct2d")]
     ct = {CT2DParams.from_json(r["params"]).label: r for n, r in found.items() if n.startswith("ct2d")}
     if ct:
         section = fusion_ct2d.render(ct, HERE / "ct2d", command=f"{'; '.join(commands)}; then {made}")
+        readings: dict[str, dict] = {}
+        for name in (n for n in found if n.startswith("ct2d")):
+            for reading, by_label in rules[name].items():
+                readings.setdefault(reading, {}).update(by_label)
+        if readings:
+            section.add(rank_rules_table(readings))
         for name, r in found.items():
             if name.startswith("ct2d") and ladders[name]:
                 section.add(runs_needed_table(r, ladders[name], "The runs each claim needed — "
@@ -123,6 +163,8 @@ def main(runs_dir: Path | None) -> None:
     if "ungm1d-sweep" in found:
         r = found["ungm1d-sweep"]
         section = fusion_ungm1d.render(r, HERE / "ungm1d", command=f"{command('ungm1d-sweep', r)}; then {made}")
+        if rules["ungm1d-sweep"]:
+            section.add(rank_rules_table(rules["ungm1d-sweep"]))
         if ladders["ungm1d-sweep"]:
             section.add(runs_needed_table(r, ladders["ungm1d-sweep"], f"The runs each claim needed: {RUNS_NEEDED}"))
         sections.append(section)
