@@ -93,10 +93,11 @@ def simulate(model, steps=12, seed=5):
     return model.simulate(steps, np.random.default_rng(seed), x0=X0)
 
 
-def assert_agree(means, covs, ref_means, ref_covs, circular_state=()):
+def assert_agree(means, covs, ref_means, ref_covs):
     rtol = algebra_rtol(max(np.linalg.cond(c) for c in ref_covs))
     diff = means - ref_means
-    np.testing.assert_allclose(diff, 0.0, rtol=0, atol=rtol * (np.abs(ref_means).max() + np.sqrt(np.abs(ref_covs).max())))
+    scale = np.abs(ref_means).max() + np.sqrt(np.abs(ref_covs).max())
+    np.testing.assert_allclose(diff, 0.0, rtol=0, atol=rtol * scale)
     np.testing.assert_allclose(covs, ref_covs, rtol=0, atol=rtol * np.abs(ref_covs).max())
 
 
@@ -121,7 +122,8 @@ def test_two_unscented_filters_equal_filterpys_across_the_bearing_cut(alpha, bet
     R_radar, R_fix = np.diag([4.0, 0.02**2]), 4.0 * np.eye(2)
     system = adapter.system_from_filters([unscented(range_bearing, R_radar, alpha, beta, kappa, **angle),
                                           unscented(position, R_fix, alpha, beta, kappa)])
-    assert system.family == "ukf" and (system.params.alpha, system.params.beta, system.params.kappa) == (alpha, beta, kappa)
+    assert system.family == "ukf"
+    assert (system.params.alpha, system.params.beta, system.params.kappa) == (alpha, beta, kappa)
     assert system.model.sensor_circular == ((1,), ())  # read off residual_z
     _, ys = simulate(system.model)
     bearings = ys[:, 1]
