@@ -61,7 +61,8 @@ from gpfverify.angles import difference, wrap, wrap_components
 from gpfverify.filters.records import Gaussian
 from gpfverify.fusion.case import CentralPrediction, FusionCase, LocalReport, sensor_blocks
 from gpfverify.fusion.centralized import cmf_update
-from gpfverify.strategies import correlated_estimates, estimates_across_the_cut, fusion_cases, saving_case_on_failure
+from gpfverify.strategies import (KINDS, correlated_estimates, estimates_across_the_cut, fusion_cases,
+                                  saving_case_on_failure)
 from gpfverify.strategies.fusion import case_of_estimates
 from gpfverify.tolerances import algebra_rtol
 
@@ -241,11 +242,9 @@ class CaseRuleSuite(_Suite):
         return self._rtol(np.linalg.cond(case.central.C_y) * np.linalg.cond(case.central.C_p) * locals_)
 
     def _case(self, data, kinds=None) -> FusionCase:
-        options = dict(state_dim=st.integers(*self.state_dim), sensors=st.integers(*self.sensors),
-                       max_condition=self.max_condition)
-        if kinds is not None:
-            options["kinds"] = st.sampled_from(kinds)
-        return data.draw(fusion_cases(**options), label="case").case
+        return data.draw(fusion_cases(state_dim=st.integers(*self.state_dim), sensors=st.integers(*self.sensors),
+                                      kinds=st.sampled_from(KINDS if kinds is None else kinds),
+                                      max_condition=self.max_condition), label="case").case
 
     def _property_reduces_to_cmf_when_the_rank_condition_holds(self, data):
         case = self._case(data, kinds=("full",))
