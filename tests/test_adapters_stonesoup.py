@@ -333,3 +333,24 @@ def test_check_says_what_a_stone_soup_system_lacks(tmp_path):
     (tmp_path / "tracker.py").write_text(SYSTEM_FILE)
     with pytest.raises(InputError, match=r"tracker.py:no_interval: .*exactly one datetime.timedelta"):
         load_system(f"{tmp_path / 'tracker.py'}:no_interval")
+
+
+def test_the_objects_of_a_stone_soup_tracker_are_found_by_type():
+    """A tracker's parts as a script has them: a hypothesiser holding the predictor (the transition
+    model) and an updater without a model of its own (multi-sensor detections carry theirs), an
+    initiator with the prior — and a measurement model of its own, which converts detections and is
+    not a sensor — and the radars."""
+    from stonesoup.hypothesiser.distance import DistanceHypothesiser
+    from stonesoup.initiator.simple import SimpleMeasurementInitiator
+    from stonesoup.measures import Mahalanobis
+
+    radars = [bearing_range(WEST), bearing_range(EAST)]
+    hypothesiser = DistanceHypothesiser(UnscentedKalmanPredictor(cv_model()), UnscentedKalmanUpdater(None),
+                                        Mahalanobis())
+    initiator = SimpleMeasurementInitiator(prior_state(), LinearGaussian(ndim_state=4, mapping=(0, 2),
+                                                                         noise_covar=np.eye(2)))
+    model = adapter.system_from_objects([hypothesiser, initiator, radars, DT])
+    assert [s.name for s in model.sensors] == ["CartesianToBearingRange 0", "CartesianToBearingRange 1"]
+    np.testing.assert_array_equal(model.prior_mean, np.asarray(prior_state().state_vector, float).ravel())
+    x = np.random.default_rng(1).normal(size=(3, 4))
+    np.testing.assert_array_equal(model.h(x), system(radars).h(x))

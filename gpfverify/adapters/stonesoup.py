@@ -154,8 +154,8 @@ def state_space_model(transition_model: TransitionModel, measurement_models: Seq
 # -- recognising a Stone Soup system among the objects of a script ---------------------------------
 
 #: attributes through which Stone Soup components hold the models and the prior
-_HOLDERS = ("transition_model", "measurement_model", "prior_state", "predictor", "updater", "initiator",
-            "data_associator", "hypothesiser", "sensors")
+_HOLDERS = ("transition_model", "measurement_model", "predictor", "updater", "initiator", "data_associator",
+            "hypothesiser", "sensors")
 
 
 @dataclass
@@ -183,7 +183,9 @@ class _Found:
         elif isinstance(obj, (list, tuple, set, frozenset)):
             for value in obj:
                 self.add(value, seen)
-        elif isinstance(obj, Base):  # a predictor, updater, initiator, tracker or sensor
+        elif isinstance(obj, Base) and hasattr(obj, "prior_state"):  # an initiator: its prior only (its
+            self.add(obj.prior_state, seen)  # measurement model converts detections, it is not a sensor)
+        elif isinstance(obj, Base):  # a predictor, updater, hypothesiser, tracker or sensor
             for attribute in _HOLDERS:
                 self.add(getattr(obj, attribute, None), seen)
 
