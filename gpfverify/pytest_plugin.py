@@ -2,8 +2,6 @@
 gpfverify is installed, so it imports nothing but pytest and the standard library when it loads
 and does nothing unless asked.
 
-* ``--hypothesis-profile ci|dev|thorough`` names gpfverify's hypothesis profiles
-  (:mod:`gpfverify.strategies.profiles`, registered only when a profile is named).
 * ``--gpfverify-cases DIR``: write the shrunk counterexample of every failing gpfverify property
   (the suites of :mod:`gpfverify.testing`, and any property using
   :func:`gpfverify.strategies.saving_case_on_failure`) as a fusion case file in DIR, which
@@ -14,7 +12,9 @@ and does nothing unless asked.
   ``--gpfverify-cases``, or None).
 
 The property suites themselves are classes to subclass with your rule: ``from gpfverify.testing
-import EstimateRuleSuite, CaseRuleSuite`` (docs/ecosystem.md).
+import EstimateRuleSuite, CaseRuleSuite`` (docs/ecosystem.md). The plugin registers no hypothesis
+profile (it would replace a project's own of the same name): a ``conftest.py`` that imports
+:mod:`gpfverify.strategies.profiles` makes ``--hypothesis-profile ci|dev|thorough`` gpfverify's.
 """
 
 from __future__ import annotations
@@ -35,13 +35,10 @@ def pytest_addoption(parser: pytest.Parser) -> None:
                          "file in DIR (gpfverify audit reads it)")
 
 
-@pytest.hookimpl(tryfirst=True)  # before hypothesis's plugin loads the profile named on the command line
 def pytest_configure(config: pytest.Config) -> None:
     folder = config.getoption("gpfverify_cases", None)
     if folder:
         os.environ[CASES_VARIABLE] = str(Path(folder).resolve())
-    if config.getoption("hypothesis_profile", None):  # gpfverify's profiles (ci, dev, thorough) by name
-        import gpfverify.strategies.profiles  # noqa: F401  (registers them; hypothesis only when asked)
 
 
 @pytest.fixture(scope="session")

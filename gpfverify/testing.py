@@ -43,7 +43,8 @@ Class attributes set the draws: ``sensors`` and ``state_dim`` (inclusive ranges)
 (of the drawn covariances), ``angles``. The tolerances are rounding bounds scaled by the drawn
 problem's conditioning (:func:`gpfverify.tolerances.algebra_rtol`); ``rtol_factor`` multiplies them
 for a rule that is known to lose more (say why where you set it). The active hypothesis profile
-sets the number of examples (``--hypothesis-profile ci|dev|thorough``).
+sets the number of examples (``--hypothesis-profile NAME``; ``import gpfverify.strategies.profiles``
+in a ``conftest.py`` registers gpfverify's ``ci``, ``dev`` and ``thorough``).
 """
 
 from __future__ import annotations

@@ -5,7 +5,6 @@ itself (pytester, in a child process where the plugin loads from its ``pytest11`
   its shrunk counterexample as a fusion case that ``gpfverify audit`` reads — printed in the report,
   and written as a file with ``--gpfverify-cases DIR``; a property a rule keeps passes (here the
   order of the sensors; examples/test_my_fusion_rule.py runs whole suites that pass);
-* ``--hypothesis-profile ci`` names gpfverify's profile without a conftest (the plugin registers it);
 * the plugin cannot break or slow another project's test run: loading it imports neither numpy nor
   hypothesis, and a test that names none of its fixtures gets none of them.
 """
@@ -61,6 +60,7 @@ def _audit(path: Path) -> dict:
 @pytest.mark.slow
 def test_failing_properties_print_and_write_case_files_that_audit_reads(pytester):
 
+    pytester.makeconftest("import gpfverify.strategies.profiles  # gpfverify's ci profile, as a user registers it\n")
     cases = pytester.path / "cases"
     # the two properties these rules break, and one the estimate rule keeps (whole suites that pass run
     # in examples/test_my_fusion_rule.py; a case suite's examples cost more, so one property of it here)
