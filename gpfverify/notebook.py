@@ -12,8 +12,10 @@ page renderers as the reports (:mod:`gpfverify.report`), so a notebook says what
 * :func:`claims_html` — claim records: the report's claims table.
 
 Figures are drawn with matplotlib (Agg) into a temporary folder and embedded in the HTML.
-Progress bars (:func:`progress_shown`) are drawn on a terminal and in a notebook, where rich shows
-them as a live output (with ``ipywidgets`` installed: ``pip install 'gpfverify[notebook]'``).
+Progress bars (:func:`progress_shown`: the runs of
+:func:`~gpfverify.experiments.runner.run_experiment`, the blocks of
+:func:`~gpfverify.commands.audit.audit_run_file`) are drawn on a terminal and in a notebook, where
+rich shows them as a live output (with ``ipywidgets`` installed: ``pip install 'gpfverify[notebook]'``).
 """
 
 from __future__ import annotations
