@@ -79,10 +79,11 @@ def case_audit_html(audit) -> str:
 
 
 def claims_html(records: Iterable) -> str:
-    """The report's table of claim records (verdict, statistic, threshold, evidence, caveats)."""
-    from gpfverify.report.document import Section, claim_records_table
+    """The report's tables of claim records (verdict, statistic, threshold, evidence, caveats), one per
+    group as on the pages (accuracy, a theorem checked on the runs, timing)."""
+    from gpfverify.report.document import Section, claim_tables
 
-    return _fragment([Section("claims", "Claims").add(claim_records_table(list(records)))])
+    return _fragment([Section("claims", "Claims").add(*claim_tables(list(records), "Claims"))])
 
 
 def progress_shown(stream=None) -> bool:

@@ -498,7 +498,7 @@ def without_timing(results: dict) -> dict:
 
 
 def _separate_timing_claims(body: dict) -> None:
-    """Claims that compare wall-clock times (``"timing": true``) differ between executions like the
+    """Claims that compare measured times (``"timing": true``) differ between executions like the
     times they rest on: they go to ``"timing_claims"``, a timing field, and ``"claims"`` keeps the
     rest (:func:`gpfverify.contract.claims.read_claims` reads both)."""
     claims = body.get("claims")
