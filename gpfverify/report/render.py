@@ -376,13 +376,13 @@ def summary_table(summaries: Iterable[SectionSummary]) -> Table:
                          Chips(tuple((c.status, f"{c.claim}: {c.status}", certificate_anchor(c.claim), False)
                                      for c in s.certificates), f"{len(s.certificates)} certificates")])
     for group in total.groups:
-        robust, tried = robust_total.get(group.group, [0, 0])
+        robust, tried_count = robust_total.get(group.group, [0, 0])
         cautioned = sum(1 for s in ordered for c in s.claims if c.group == group.group and c.cautions)
         rows.append([Cell("all", "total"), Cell("every section", "total"), Cell(group.group, "group total"),
                      *[_count_cell(group.counts[v], v, "total") for v in VERDICTS],
                      *[_count_cell(0, k, "total") for k in STATUSES],
                      Cell(f"{CAUTION_MARK} {cautioned}" if cautioned else 0, "count total"),
-                     Cell(f"{robust} of {tried}" if tried else "—", "count total"), ""])
+                     Cell(f"{robust} of {tried_count}" if tried_count else "—", "count total"), ""])
     if any(total.proofs.values()):
         rows.append([Cell("all", "total"), Cell("every section", "total"), Cell("proofs", "group total"),
                      *[_count_cell(0, v, "total") for v in VERDICTS],
