@@ -1,13 +1,7 @@
-"""The false-claim suite: claims that are false, written in every route the proof engine's API
-offers, each of which the engine must refuse (status not "proved", or the construction raises).
-Where a claim is an identity, the test also shows it false on an exact instance (it is a real
-error, not a true statement the engine happens to miss).
-
-Routes: normal-form rewriting, chains, lemmas, the theory's declarations (hypotheses, definitions,
-inverses, pseudo-inverses, left inverses, partitions, stated facts), instantiation, induction,
-traces and size bounds, identities at listed sizes, counterexamples, the certificate record itself,
-and the statement's words (its hypotheses and its scope).
-"""
+"""How the proof engine decides, beyond the false-claim suite (tests/test_false_claims.py): rules
+compare by identity, a hypothesis is carried into the statement, the engine draws general
+instances and counts every check, a stated fact is at most "checked", no inverse can be formed
+outside a declaration, and instantiation and induction refuse what they cannot justify."""
 
 from __future__ import annotations
 
@@ -16,21 +10,16 @@ import sympy as sp
 
 from gpfverify.errors import InputError
 from gpfverify.symbolic import dimension_free as fusion
-from gpfverify.symbolic import gp_claims
 from gpfverify.symbolic import word_algebra as wa
 from gpfverify.symbolic.argument import Argument, is_identically_zero
 from gpfverify.symbolic.certificate import Certificate
-from gpfverify.symbolic.polynomial import Fraction, generic_matrix, inverse, lift, polynomial_ring
 from gpfverify.symbolic.theory import Theory
 from gpfverify.symbolic.word_algebra import identity, zero
+from tests.test_false_claims import A_ZERO, AT_ONE
 
 T = fusion.T
 A, Ap, C, Ci, G, L = fusion.A, fusion.Ap, fusion.C, fusion.Ci, fusion.G, fusion.Lf
 I_l = fusion.I_l
-#: hypotheses of the false claims below (issued once: a theory's rules are fixed objects)
-A_ZERO = T.hypothesis("C_xy^m = 0 (a false-claim test)", A, zero(fusion.n, fusion.l), "C_xy^m = 0")
-AT_ONE = T.hypothesis("μ_DMF = μ_CMF at one measurement (a false-claim test)", fusion.D, fusion.CMF_N,
-                      "μ_DMF = μ_CMF at one measurement")
 
 
 def verdict(statement: str, *results, theory=T, also=(), sizes=()):
@@ -53,33 +42,12 @@ def false_on_an_instance(lhs, rhs, in_force=frozenset(), theory=T) -> bool:
 
 # ---- the rules a proof applies ---------------------------------------------------------------------
 
-def test_a_rule_the_proof_applies_but_no_theory_issued_is_refused():
-    """DMF = CMF with (C_xy^m)⁺ replaced by (C_xy^m)ᵀ, proved with a hand-made "axiom" A⁺ = Aᵀ
-    that the author did not list anywhere: the engine walks the rules the proof applied."""
-    planted = fusion.PLANTED_TRANSPOSE  # G_m C_y^m Aᵀ = G_m C_y^m A⁺, made by hand
-    rules = [*fusion.ONE_SENSOR, fusion.projector_is_identity(), planted]
-    lhs = fusion.dmf_term(pinv=A.T)
-    proof = wa.prove_by_normal_form(lhs, fusion.cmf_term(), rules)
-    assert proof.proved and planted in proof.used  # the rewriting itself goes through ...
-    v = verdict("DMF with Aᵀ equals CMF when every C_xy^m has full column rank", proof)
-    assert v.status != "proved" and any("not issued" in r for r in v.reasons)  # ... the engine refuses it
-    assert false_on_an_instance(lhs, fusion.cmf_term(), {fusion.C_SPD, fusion.FULL_RANK})
-
-
 def test_a_look_alike_of_an_issued_rule_is_not_that_rule():
     """Rules compare by identity: a copy of the true Penrose equation built by hand is not issued."""
     copy = wa.Rule(fusion.PENROSE[0].name, fusion.PENROSE[0].lhs, fusion.PENROSE[0].rhs, "axiom")
     proof = wa.prove_by_normal_form(A * Ap * A * Ap, A * Ap, [copy])
     assert proof.proved and refused("AA⁺AA⁺ = AA⁺", proof)
     assert not refused("AA⁺AA⁺ = AA⁺", wa.prove_by_normal_form(A * Ap * A * Ap, A * Ap, [fusion.PENROSE[0]]))
-
-
-def test_an_axiom_true_only_at_full_rank_cannot_prove_prop1_for_any_rank():
-    """A⁺A = I as an axiom (it holds on full-rank instances): not issued by any declaration."""
-    planted = wa.Rule("A⁺A = I", Ap * A, I_l, "axiom")
-    proof = wa.prove_by_normal_form(fusion.dmf_term(), fusion.cmf_term(), fusion.ONE_SENSOR + [planted])
-    assert proof.proved and refused("DMF equals CMF for every measurement, for any rank of C_xy^m", proof)
-    assert false_on_an_instance(fusion.dmf_term(), fusion.cmf_term(), {fusion.C_SPD})
 
 
 def test_the_same_equation_as_a_hypothesis_is_carried_into_the_statement():
@@ -102,20 +70,6 @@ def test_a_lemma_whose_rule_is_not_its_proofs_conclusion_is_refused():
     assert used.proved and refused("A⁺A = I when C_xy^m has full column rank", used)
     with pytest.raises(InputError):
         wa.lemma("unproved", wa.prove_by_normal_form(Ap * A, I_l, list(fusion.PENROSE)))
-
-
-def test_a_chain_step_that_applies_no_rule_or_the_wrong_one_is_refused():
-    assert not wa.prove_by_chain([(Ap * A, None), (I_l, fusion.PENROSE[0])]).proved
-    assert not wa.prove_by_chain([(Ap * A, None), (I_l, None)]).proved
-    assert not wa.prove_by_chain([(Ap * A, None)]).proved  # no step at all
-
-
-def test_a_proof_mixing_two_theories_rules_is_refused():
-    foreign = Theory("another theory")
-    x = foreign.general("C_xy^m", fusion.n, fusion.l)
-    xp, penrose = foreign.pinv("(C_xy^m)⁺", x)
-    proof = wa.prove_by_normal_form(A * Ap * A * Ap, A * Ap, [penrose[0]])  # the letters' names coincide
-    assert proof.proved and refused("AA⁺AA⁺ = AA⁺", proof)
 
 
 # ---- instances: what an assumption is checked on -------------------------------------------------
@@ -155,19 +109,6 @@ def test_instances_are_general_unless_a_hypothesis_says_otherwise():
 
 # ---- stated facts and traces ------------------------------------------------------------------------
 
-def test_a_trace_identity_true_only_for_diagonal_matrices_is_refused_and_false_on_general_instances():
-    """tr(WVU) = tr(VWU) holds for diagonal (commuting) matrices only."""
-    facts = Theory("traces")
-    n = sp.Symbol("n", integer=True, positive=True)
-    w, v, u = (facts.general(name, n, n) for name in "WVU")
-    lhs, rhs = wa.trace(w * v * u), wa.trace(v * w * u)
-    assert not wa.prove_trace_identity(lhs, rhs, []).proved
-    assert wa.prove_trace_identity(lhs, wa.trace(u * w * v), []).proved  # cyclic: true
-    fact = facts.fact("tr(WVU) = tr(VWU)", lhs, rhs)
-    assert not facts.check(fact, frozenset(), (1, 2, 3, 4)).holds
-    assert false_on_an_instance(lhs, rhs, theory=facts)
-
-
 def test_a_claim_resting_on_a_stated_fact_is_at_most_checked():
     """A stated fact is checked on general instances, never proved: even the true AA⁺A = A, stated
     as a fact instead of taken from the pseudo-inverse's declaration, leaves its claim "checked";
@@ -185,16 +126,6 @@ def test_a_claim_resting_on_a_stated_fact_is_at_most_checked():
     wrong = wa.prove_by_normal_form(w * u * a, u * w * a, [commute])
     v_wrong = verdict("WVA = VWA", wrong, theory=facts)
     assert wrong.proved and v_wrong.status == "refuted" and not v_wrong.facts[0].passed
-
-
-def test_a_proof_object_made_by_hand_is_replayed_not_believed():
-    forged = wa.Proof("A⁺A = I", Ap * A, I_l, True, (), "trust me", method="normal form")
-    assert refused("A⁺A = I", forged)
-    copied = wa.prove_by_normal_form(A * Ap * A * Ap, A * Ap, [fusion.PENROSE[0]])
-    copied.lhs = Ap * A  # a real proof's record edited to claim something else
-    copied.rhs = I_l
-    assert refused("A⁺A = I", copied)
-    assert false_on_an_instance(Ap * A, I_l)
 
 
 def test_full_column_rank_does_not_give_a_bound_smaller_than_d():
@@ -246,24 +177,7 @@ def test_the_inverse_of_a_rank_r_product_rests_on_its_invertibility():
     assert all(i.sizes[r] >= i.sizes[fusion.n] for i in theory.instances(proof.premises))
 
 
-def test_a_symmetry_declared_by_hand_is_refused():
-    """zᵀR⁻¹u = uᵀR⁻¹z for R⁻¹ = (ΣΞ + I)⁻¹, which is not symmetric."""
-    g = gp_claims
-    lhs, rhs = g._quad(g.zv, g.Ri, g.uv), g._quad(g.uv, g.Ri, g.zv)
-    assert not wa.prove_by_normal_form(lhs, rhs, []).proved  # no letter is its own transpose
-    proof = wa.prove_by_normal_form(lhs, rhs, [g.PLANTED_R_SYMMETRIC])
-    assert proof.proved and refused("zᵀR⁻¹u = uᵀR⁻¹z", proof, theory=g.GP)
-    assert false_on_an_instance(lhs, rhs, {g.LAM, g.LAM_B, g.SIG}, g.GP)
-
-
 # ---- definitions, instantiation, induction -----------------------------------------------------------
-
-def test_a_letter_cannot_be_redefined():
-    with pytest.raises(InputError):
-        T.define("C_y^m", identity(fusion.l))  # C_y^m := I would make every C_y^m the identity
-    with pytest.raises(InputError):
-        T.general("C_xy^m", fusion.n, fusion.l)
-
 
 def test_a_hypothesis_about_one_measurement_cannot_be_instantiated_at_another():
     """Φ_(N) = 0 from "μ_DMF = μ_CMF at one measurement": refused (the hypothesis pins y_(N))."""
@@ -299,50 +213,7 @@ def test_an_induction_whose_base_or_step_proves_something_else_is_refused():
         T.induction("x", fusion.FULL_RANK, wrong_base, wrong_base, base_map, base_map)
 
 
-def test_the_induction_step_needs_the_one_sensor_rules():
-    """Without P = I the step N → N + 1 of "DMF = CMF" is not proved (and is false at deficient rank)."""
-    step = wa.prove_by_normal_form(fusion.D + fusion.dmf_term(),
-                                   fusion.G_next * (fusion.y_next - fusion.mu_next),
-                                   fusion.ONE_SENSOR + fusion.STACKING + [fusion.IH_EXACT])
-    assert not step.proved
-    assert false_on_an_instance(step.lhs, step.rhs, {fusion.C_SPD, fusion.IH_EXACT})
-
-
 # ---- identities at listed sizes, counterexamples, the record -----------------------------------------
-
-def test_a_false_identity_at_listed_sizes_is_refuted():
-    c = generic_matrix("c", 2, 2)
-    ring = polynomial_ring(c)
-    lifted = Fraction.of(lift(c, ring))
-    assert verdict("C·C = I", sizes=[("n = 2", lifted @ lifted - Fraction.of(lift(sp.eye(2), ring)))]
-                   ).status == "refuted"
-    assert verdict("C⁻¹·C = I", sizes=[("n = 2", inverse(lifted) @ lifted - Fraction.of(lift(sp.eye(2), ring)))]
-                   ).status == "proved"
-    with pytest.raises(ZeroDivisionError):  # no inverse of a matrix singular for every value
-        inverse(Fraction.of(lift(sp.Matrix([[c[0, 0], c[0, 0]], [c[0, 0], c[0, 0]]]), ring)))
-
-
-def test_listed_sizes_cannot_claim_every_dimension():
-    """The identity C⁻¹C = I at n = 2 stated "for any dimension", or with a note that says so."""
-    c = generic_matrix("c", 2, 2)
-    ring = polynomial_ring(c)
-    lifted = Fraction.of(lift(c, ring))
-    residual = inverse(lifted) @ lifted - Fraction.of(lift(sp.eye(2), ring))
-    assert refused("C⁻¹C = I in any dimension", sizes=[("n = 2", residual)])
-    argument = Argument("x", "C⁻¹C = I", "test")
-    argument.at_sizes("C⁻¹C = I", "n = 2", residual)
-    argument.note("so the UKF equals the KF for every D")
-    assert argument.verdict().status != "proved"
-
-
-def test_a_counterexample_that_is_not_one_does_not_refute():
-    argument = Argument("x", "C·C⁻¹ = I fails", "test")
-    c = generic_matrix("c", 2, 2)
-    ring = polynomial_ring(c)
-    lifted = Fraction.of(lift(c, ring))
-    argument.refute("at a generic C", nonzero=(lifted @ inverse(lifted) - Fraction.of(lift(sp.eye(2), ring)),))
-    assert argument.verdict().status != "refuted"
-
 
 def test_an_author_cannot_declare_a_certificate_proved():
     with pytest.raises(ValueError):

@@ -322,6 +322,8 @@ class _Oriented:
 
 
 def _versions(rule: Rule) -> list[_Oriented]:
+    if not isinstance(rule.lhs, Expr):  # a rule about traces rewrites traces only (trace_normal_form)
+        return []
     # a rule whose transpose is its own reverse (Cᵀ = C, (AA⁺)ᵀ = AA⁺) is used one way only
     both = [_Oriented(rule.lhs, rule.rhs, rule)]
     if not rule.lhs.T == rule.rhs:
@@ -554,11 +556,21 @@ def trace(expr: Expr) -> Scalar:
 
 
 def trace_normal_form(scalar: Scalar, rules: list[Rule], max_steps: int = 5000) -> tuple[Scalar, dict]:
-    """Rewrite inside every trace, at every cyclic position, with the oriented rules."""
+    """Rewrite inside every trace, at every cyclic position, with the oriented rules; a rule about
+    traces whose left side is one trace tr(w) replaces that trace."""
     oriented = [v for rule in rules for v in _versions(rule)]
+    whole = [r for r in rules if isinstance(r.lhs, Scalar) and len(r.lhs.terms) == 1 and r.lhs.terms[0][0]
+             and r.lhs.terms[0][1] == 1]
     used: dict = {}
     current = scalar
     for _ in range(max_steps):
+        swap = next(((word, coeff, r) for word, coeff in current.terms for r in whole
+                     if _word_key(word) == _word_key(r.lhs.terms[0][0])), None)
+        if swap is not None:
+            word, coeff, r = swap
+            current = current - Scalar.of({word: coeff}) + r.rhs * coeff
+            used[r] = used.get(r, 0) + 1
+            continue
         step = None
         for word, coeff in current.terms:
             for form in _cyclic_forms(word) if word else ():
