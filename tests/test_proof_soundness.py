@@ -229,3 +229,26 @@ def test_every_residual_type_has_one_zero_test():
     assert not is_identically_zero(())  # an empty residual is not a proof
     with pytest.raises(InputError):
         is_identically_zero("0")
+
+
+def test_an_opaque_letter_built_from_what_it_is_declared_not_to_depend_on_is_refused():
+    """Q_(N) = Z_(N) y_(N) is declared a function of Z_(N) alone; the induction that builds it adds
+    W y at each step, so the declaration is false and the induction refused (and Q_(N) keeps
+    counting as a function of every letter)."""
+    n, l, big, k = sp.symbols("n l K k", integer=True, positive=True)
+    theory = Theory("stacked measurements")
+    z, y_n = theory.general("Z", n, big), theory.general("y_(N)", big, k)
+    q = theory.general("Q", n, k, opaque=True, depends_on=(z,))
+    w, y = theory.general("W", n, l), theory.general("y", l, k)
+    (s1, s2), selectors = theory.partition("S", (big, l))
+    z_next, z_def = theory.define("Z_(N+1)", z * s1.T + w * s2.T)
+    y_next, y_def = theory.define("y_(N+1)", s1 * y_n + s2 * y)
+    hypothesis = theory.hypothesis("Q = Z y_(N)", q, z * y_n, "induction hypothesis", realise={"Q": z * y_n},
+                                   induction=True)
+    base = wa.prove_by_normal_form(w * y, w * y, [])
+    step = wa.prove_by_normal_form(q + w * y, z_next * y_next, [*selectors, z_def, y_def, hypothesis])
+    assert base.proved and step.proved
+    with pytest.raises(InputError, match="declared not to depend on"):
+        theory.induction("Q for every N", hypothesis, base, step, {"Q": w * y, "Z": w, "y_(N)": y},
+                         {"Q": q + w * y, "Z": z_next, "y_(N)": y_next}, {big: l}, {big: big + l})
+    assert theory.depends_on("Q") == frozenset(theory.declarations)

@@ -148,11 +148,13 @@ class Theory:
         self.derived: list[Rule] = []
         #: letters that stand for a function of others not written out: never instantiated
         self.opaque: set[str] = set()
+        #: an opaque letter -> the letters it is declared a function of; trusted only once an
+        #: induction that builds it has verified it (:meth:`induction`)
+        self.claimed: dict[str, frozenset] = {}
+        self.verified: dict[str, frozenset] = {}
         #: hypothesis -> how it shapes the draw: [("full column rank", letter), ("realise", {name: Expr}),
         #: ("needs", letter)]
         self.effects: dict[Rule, list] = {}
-        #: letter name -> general letters an opaque letter is a function of
-        self.depends: dict[str, frozenset] = {}
         #: hypotheses of induction steps (discharged by :meth:`induction`, never a statement's)
         self.induction_hypotheses: set[Rule] = set()
         self._cache: dict = {}
@@ -172,12 +174,13 @@ class Theory:
 
     def general(self, name: str, rows, cols, opaque: bool = False, depends_on: tuple = ()) -> Expr:
         """A matrix about which nothing is known. ``opaque``: it stands for a function of other
-        letters that is not written out (a sum over sensors): it is never instantiated, and
-        ``depends_on`` names what it is a function of (it cannot be kept when those are)."""
+        letters that is not written out (a sum over sensors); it is never instantiated, and it is
+        taken to depend on every letter until an induction that builds it verifies ``depends_on``
+        (the letters it is a function of)."""
         letter = self._declare(name, "general", symbol(name, rows, cols))
-        self.depends[name] = frozenset(self._names(depends_on))
         if opaque:
             self.opaque.add(name)
+            self.claimed[name] = frozenset(self._names(depends_on))
         return letter
 
     def symmetric(self, name: str, size, phrase: str = "") -> tuple[Expr, Rule]:
@@ -363,11 +366,12 @@ class Theory:
         return rule
 
     def depends_on(self, name: str) -> frozenset:
-        """The letters ``name``'s value is a function of (through every declaration)."""
+        """The letters ``name``'s value is a function of (through every declaration); an opaque
+        letter, of every letter."""
         decl = self.declarations[name]
-        direct = set(self.depends.get(name, ()))
-        if decl.kind in ("inverse", "pinv", "left_inverse", "defined"):
-            direct |= set(decl.of.letters)
+        if name in self.opaque:
+            return self.verified.get(name, frozenset(self.declarations))
+        direct = set()
         out = set(direct)
         for other in direct:
             if other != name:
@@ -439,8 +443,31 @@ class Theory:
                 raise InputError(f"induction {name}: the premise {premise.name!r} constrains an induction letter")
         if hypothesis in base.premises:
             raise InputError(f"induction {name}: the base uses the induction hypothesis")
+        self._verify_dependencies(name, base_map, step_map)
         derivation = Induction(hypothesis, base, step, _show_map(base_map, base_sizes), _show_map(step_map, step_sizes))
         return self._derive(Rule(name, hypothesis.lhs, hypothesis.rhs, "induction", frozenset(others), derivation))
+
+    def _closure(self, letters) -> set:
+        out = set(letters)
+        for x in letters:
+            if x not in self.opaque:
+                out |= self.depends_on(x)
+        return out
+
+    def _verify_dependencies(self, name: str, base_map: dict, step_map: dict) -> None:
+        """An opaque induction letter X declared a function of ``depends_on`` only: no other
+        (non-opaque) induction letter f may enter X's images — at N = 1, X's letters share none
+        with f's; at N + 1, X's image contains neither f nor what f's image adds (selectors
+        aside). By induction X is then a function of its declared letters and the sensors' own."""
+        selectors = {k for k, d in self.declarations.items() if d.kind == "selector"}
+        for x in self.opaque & set(base_map) & set(step_map):
+            others = [f for f in base_map if f not in self.opaque and f not in self.claimed[x] and f in step_map]
+            base_x, step_x = self._closure(base_map[x].letters), self._closure(step_map[x].letters)
+            for f in others:
+                added = self._closure(step_map[f].letters) - selectors - {f}
+                if base_x & self._closure(base_map[f].letters) or step_x & (added | {f}):
+                    raise InputError(f"induction {name}: {x} is built from {f}, which it is declared not to depend on")
+            self.verified[x] = self.claimed[x]
 
     # ---- instances ---------------------------------------------------------------------------
     def free_sizes(self) -> list[sp.Symbol]:

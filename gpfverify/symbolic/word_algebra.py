@@ -443,14 +443,19 @@ def _failed(statement: str, lhs, rhs, reason: str, relation: str = "=") -> Proof
     return Proof(statement, lhs, rhs, False, (), f"no proof: {reason}", relation)
 
 
-def prove_by_normal_form(lhs: Expr, rhs: Expr, rules: list[Rule], statement: str = "") -> Proof:
+def _by_rewriting(lhs, rhs, rules: list[Rule], statement: str, rewrite, method: str) -> Proof:
+    """lhs = rhs iff ``rewrite`` takes lhs − rhs to zero with ``rules``."""
     statement = statement or f"{lhs} = {rhs}"
     try:
-        result, used = normal_form(lhs - rhs, rules)
+        result, used = rewrite(lhs - rhs, rules)
     except (NotTerminating, ShapeError) as err:
         return _failed(statement, lhs, rhs, str(err))
     trace = f"lhs − rhs rewrites to {result} using " + ", ".join(f"{r.name}×{k}" for r, k in used.items())
-    return Proof(statement, lhs, rhs, result.is_zero, tuple(used), trace, method="normal form")
+    return Proof(statement, lhs, rhs, result.is_zero, tuple(used), trace, method=method)
+
+
+def prove_by_normal_form(lhs: Expr, rhs: Expr, rules: list[Rule], statement: str = "") -> Proof:
+    return _by_rewriting(lhs, rhs, rules, statement, normal_form, "normal form")
 
 
 def prove_by_chain(chain: list[tuple[Expr, Rule | None]], statement: str = "") -> Proof:
@@ -594,13 +599,7 @@ def trace_normal_form(scalar: Scalar, rules: list[Rule], max_steps: int = 5000) 
 
 
 def prove_trace_identity(lhs: Scalar, rhs: Scalar, rules: list[Rule], statement: str = "") -> Proof:
-    statement = statement or f"{lhs} = {rhs}"
-    try:
-        result, used = trace_normal_form(lhs - rhs, rules)
-    except (NotTerminating, ShapeError) as err:
-        return _failed(statement, lhs, rhs, str(err))
-    trace_text = f"lhs − rhs rewrites to {result} using " + ", ".join(f"{r.name}×{k}" for r, k in used.items())
-    return Proof(statement, lhs, rhs, result.is_zero, tuple(used), trace_text, method="trace")
+    return _by_rewriting(lhs, rhs, rules, statement, trace_normal_form, "trace")
 
 
 def prove_size_bound(smaller, larger, squares: list[tuple], rules: list[Rule], statement: str = "") -> Proof:
