@@ -252,3 +252,16 @@ def test_an_opaque_letter_built_from_what_it_is_declared_not_to_depend_on_is_ref
         theory.induction("Q for every N", hypothesis, base, step, {"Q": w * y, "Z": w, "y_(N)": y},
                          {"Q": q + w * y, "Z": z_next, "y_(N)": y_next}, {big: l}, {big: big + l})
     assert theory.depends_on("Q") == frozenset(theory.declarations)
+
+
+def test_no_symbolic_route_builds_sympy_matrix_expressions():
+    """sympy's MatrixSymbol products cancel M·M⁻¹ when formed, whatever M is: no proof module uses
+    them (matrices of symbolic size are word-algebra letters; explicit sizes are exact matrices)."""
+    from pathlib import Path
+
+    import gpfverify.symbolic
+
+    folder = Path(gpfverify.symbolic.__file__).parent
+    offenders = [p.name for p in folder.glob("*.py")
+                 if any(token in p.read_text(encoding="utf-8") for token in ("MatrixSymbol", "MatMul", "Inverse("))]
+    assert not offenders

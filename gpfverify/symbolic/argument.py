@@ -60,9 +60,13 @@ def _any_of(noun: str) -> re.Pattern:
 
 
 def _zero_expression(e: sp.Basic) -> bool:
-    """Expanded to 0 (cheap), or else 0 as a rational function (cancel after together). Both are
-    exact, so "not zero" means the expression is not identically zero."""
-    return sp.expand(e) == 0 or sp.cancel(sp.together(e)) == 0
+    """0 as a rational function: by expansion when every denominator is a monomial (a polynomial
+    in the symbols and their inverses, where expanding cancels everything), else by cancel after
+    together. Both are exact, so "not zero" means the expression is not identically zero."""
+    sums_below = any(p.exp.is_negative and isinstance(p.base, sp.Add) for p in e.atoms(sp.Pow))
+    if not sums_below and sp.expand(e) == 0:
+        return True
+    return sp.cancel(sp.together(e)) == 0
 
 
 def is_identically_zero(residual) -> bool:
@@ -97,6 +101,15 @@ def nonzero_at_a_point(residual, seed: int = 20191126) -> bool:
     value = residual.xreplace(point)
     entries = list(value) if isinstance(value, sp.MatrixBase) else [value]
     return any(sp.nsimplify(sp.simplify(e)) != 0 for e in entries)
+
+
+def _scope_of(labels) -> str:
+    """Listed sizes as one phrase: "D = 1", "D = 2" → "D ∈ {1, 2}"; labels of other forms are listed."""
+    groups: dict = {}
+    for label in dict.fromkeys(labels):
+        name, _, value = label.partition(" = ")
+        groups.setdefault(name if value else label, []).append(value)
+    return "; ".join(f"{name} ∈ {{{', '.join(values)}}}" if all(values) else name for name, values in groups.items())
 
 
 def _derived(rule: Rule) -> str:
@@ -325,7 +338,7 @@ class Argument:
         if results:
             scope = ANY_DIMENSION
         elif sizes:
-            scope = "; ".join(dict.fromkeys(s.sizes for s in sizes))
+            scope = _scope_of(s.sizes for s in sizes)
         else:
             scope = ""
             reasons.append("nothing establishes the claim")
