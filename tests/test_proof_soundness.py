@@ -186,6 +186,7 @@ def test_a_hypothesis_about_one_measurement_cannot_be_instantiated_at_another():
         wa.prove_by_normal_form(fusion.dmf_term(), fusion.cmf_term() + fusion.Phi * (fusion.y - fusion.my),
                                 fusion.ONE_SENSOR + [fusion.PHI]),
         fusion.ONE_SENSOR + [fusion.PHI], gap=True)
+    assert T.depends_on("Φ_(N)") == {"G_(N)"}  # verified by the induction that built it
     pointwise = wa.lemma("pointwise", wa.prove_by_chain([(fusion.GAP_N, None), (fusion.D - fusion.CMF_N, gap),
                                                         (zero(fusion.n, fusion.k), AT_ONE)]))
     with pytest.raises(InputError, match="holds at one value"):
@@ -265,3 +266,17 @@ def test_no_symbolic_route_builds_sympy_matrix_expressions():
     offenders = [p.name for p in folder.glob("*.py")
                  if any(token in p.read_text(encoding="utf-8") for token in ("MatrixSymbol", "MatMul", "Inverse("))]
     assert not offenders
+
+
+def test_instantiation_expands_what_is_defined_from_the_letter_and_refuses_what_is_not():
+    """μ_e^m := μ_p^m + C_xy^m (C_y^m)⁻¹(y^m − μ_y^m) follows y^m when y^m is instantiated; the
+    pseudo-inverse cannot follow C_xy^m, so instantiating C_xy^m in a rule that mentions it is refused."""
+    assert T.depends_on("μ_e^m") >= {"y^m", "C_xy^m", "(C_y^m)⁻¹", "C_y^m"}
+    assert T.depends_on("(C_xy^m)⁺") == {"C_xy^m"}
+    update = wa.lemma("μ_e^m − μ_p^m = C_xy^m(C_y^m)⁻¹(y^m − μ_y^m)", wa.prove_by_normal_form(
+        fusion.me - fusion.mp, A * Ci * (fusion.y - fusion.my), [fusion.LOCAL_UPDATE]))
+    at_prediction = T.instantiate(update, {"y^m": fusion.my})
+    assert at_prediction.lhs == zero(fusion.n, fusion.k) and at_prediction.rhs == zero(fusion.n, fusion.k)
+    projector = wa.lemma("AA⁺A = A", wa.prove_by_normal_form(A * Ap * A, A, [fusion.PENROSE[0]]))
+    with pytest.raises(InputError, match="no definition to expand"):
+        T.instantiate(projector, {"C_xy^m": G})

@@ -43,8 +43,8 @@ from sympy.polys.matrices import DomainMatrix
 from gpfverify.errors import InputError
 from gpfverify.symbolic.certificate import Certificate
 from gpfverify.symbolic.polynomial import Fraction
-from gpfverify.symbolic.theory import (FACT_SIZE_VALUES, Induction, Instantiation, RuleCheck, Theory,
-                                       size_counterexample)
+from gpfverify.symbolic.theory import (FACT_SIZE_VALUES, SIZE_VALUES, Induction, Instantiation, RuleCheck,
+                                       Theory, size_counterexample)
 from gpfverify.symbolic import word_algebra as wa
 from gpfverify.symbolic.word_algebra import ControlResult, Expr, Proof, Rule, Scalar
 
@@ -357,6 +357,9 @@ class Argument:
             status = "checked"
         else:
             status = "proved"
+        if status != "proved" and scope == ANY_DIMENSION:  # what was shown, not what was aimed at
+            scope = ("false on an exact instance" if refuted else
+                     f"checked on exact instances, sizes {SIZE_VALUES[0]}..{SIZE_VALUES[-1]} (not proved)")
         return Verdict(self.claim, status, scope, tuple(sorted(hypotheses, key=lambda h: h.name)), checks,
                        fact_checks, reasons, shown)
 

@@ -368,10 +368,10 @@ class Theory:
     def depends_on(self, name: str) -> frozenset:
         """The letters ``name``'s value is a function of (through every declaration); an opaque
         letter, of every letter."""
-        decl = self.declarations[name]
         if name in self.opaque:
             return self.verified.get(name, frozenset(self.declarations))
-        direct = set()
+        decl = self.declarations[name]
+        direct = set(decl.of.letters) if decl.kind in ("inverse", "pinv", "left_inverse", "defined") else set()
         out = set(direct)
         for other in direct:
             if other != name:
@@ -448,10 +448,16 @@ class Theory:
         return self._derive(Rule(name, hypothesis.lhs, hypothesis.rhs, "induction", frozenset(others), derivation))
 
     def _closure(self, letters) -> set:
-        out = set(letters)
-        for x in letters:
-            if x not in self.opaque:
-                out |= self.depends_on(x)
+        """``letters`` and everything their declarations are built from, opaque letters as leaves."""
+        out, todo = set(), list(letters)
+        while todo:
+            x = todo.pop()
+            if x in out:
+                continue
+            out.add(x)
+            decl = self.declarations[x]
+            if x not in self.opaque and decl.kind in ("inverse", "pinv", "left_inverse", "defined"):
+                todo.extend(decl.of.letters)
         return out
 
     def _verify_dependencies(self, name: str, base_map: dict, step_map: dict) -> None:
