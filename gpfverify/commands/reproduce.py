@@ -28,7 +28,7 @@ PROGRESS_SECONDS = 30.0
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("experiment", choices=sorted(EXPERIMENTS), help="which experiment")
+    parser.add_argument("experiment", nargs="?", choices=sorted(EXPERIMENTS), help="which experiment")
     # experiment-specific options are added once the name is known (see run)
     parser.add_argument("rest", nargs=argparse.REMAINDER, help=argparse.SUPPRESS)
 
@@ -139,18 +139,29 @@ def claims_text(results: dict) -> str:
     return "\n".join(lines)
 
 
-def run(args: argparse.Namespace) -> int:
+def experiment_parser(name: str) -> argparse.ArgumentParser:
+    """The parser of ``gpfverify reproduce NAME ...``: the common options and the experiment's,
+    generated from its Params."""
     from gpfverify.cli import OneLineParser, plain_help
     from gpfverify.contract.params import add_arguments as add_params_arguments
+
+    module = importlib.import_module(EXPERIMENTS[name])
+    parser = OneLineParser(prog=f"gpfverify reproduce {name}", description=plain_help(module.__doc__))
+    add_common_arguments(parser, quick_runs(module), module.DEFAULT_RUNS)
+    add_params_arguments(parser, module.Params)
+    return parser
+
+
+def run(args: argparse.Namespace) -> int:
     from gpfverify.contract.params import from_arguments
     from gpfverify.errors import InputError
     from gpfverify.experiments.runner import make_executor, run_experiment
 
+    if args.experiment is None:
+        raise InputError(f"name the experiment to run, one of {', '.join(sorted(EXPERIMENTS))} "
+                         "(gpfverify reproduce NAME --help for its options)")
     module = importlib.import_module(EXPERIMENTS[args.experiment])
-    sub = OneLineParser(prog=f"gpfverify reproduce {args.experiment}", description=plain_help(module.__doc__))
-    add_common_arguments(sub, quick_runs(module), module.DEFAULT_RUNS)
-    add_params_arguments(sub, module.Params)  # the options are generated from the experiment's Params
-    opts = sub.parse_args(args.rest)
+    opts = experiment_parser(args.experiment).parse_args(args.rest)
     if opts.paper_scale and opts.runs is not None:
         raise InputError("--paper-scale runs the paper's count: not together with --runs")
     runs = module.DEFAULT_RUNS if opts.paper_scale else opts.runs or quick_runs(module)

@@ -28,7 +28,7 @@ import numpy as np
 from gpfverify.angles import difference
 from gpfverify.consistency import Consistency
 from gpfverify.contract.check import FilterName, Params, RunRecord
-from gpfverify.errors import InputError
+from gpfverify.errors import CaseFileError, InputError
 from gpfverify.filters.families import GP_FAMILIES
 from gpfverify.filters.records import Gaussian
 from gpfverify.audit import rank_rule_to_dict
@@ -69,13 +69,25 @@ def params_for(system: str, filter: FilterName = "ukf", steps: int = 50, measure
                   rank_rule=parse_rank_rule(rank_rule).spec)
 
 
-def _load_npz(path: str, what: str) -> dict[str, np.ndarray]:
+def _load_npz(path: str, what: str, expects: str) -> dict[str, np.ndarray]:
     """The arrays of a user's npz file, read by :func:`gpfverify.userfiles.read_npz` (a regular
-    file, every declared size checked before anything is decompressed)."""
+    file, every declared size checked before anything is decompressed); a file that is not an npz
+    archive is refused naming the format ``expects`` describes (and, for a JSON file, what reads
+    it)."""
     try:
         return read_npz(path)
     except OSError as exc:
         raise InputError(f"cannot read {what} {path}: {exc.strerror or exc}") from None
+    except CaseFileError as exc:
+        if Path(path).suffix.lower() in (".json", ".jsonl"):
+            raise InputError(f"{path} is a {Path(path).suffix} file, not an npz archive (an audit run file or "
+                             f"fusion case? 'gpfverify audit' reads those): {what} must be {expects}") from None
+        raise InputError(f"{exc}; {what} must be {expects}") from None
+
+
+#: what ``--training`` expects, for error messages
+TRAINING_FORMAT = ("a training file (TRAIN.npz: x (n, D) consecutive states and y (n, L) their stacked "
+                   "measurements)")
 
 
 def measurements_format(model) -> str:
@@ -87,7 +99,7 @@ def measurements_format(model) -> str:
 def logged_measurements(path: str, model) -> tuple[np.ndarray | None, np.ndarray]:
     """(truth x (T, D) or None, measurements y (T, L)) from a measurements file (``y`` required;
     docs/check-format.md). Not an audit run file: that one is refused saying which is which."""
-    data = _load_npz(path, "measurements")
+    data = _load_npz(path, "--measurements", measurements_format(model))
     if "central_mu_p" in data:
         raise InputError(f"{path} is an audit run file of fusion cases ('gpfverify audit' reads it): "
                          f"--measurements expects {measurements_format(model)}")
@@ -108,10 +120,10 @@ def _gp_model(model, params: Params, rng: np.random.Generator):
     if params.training is None:
         return learn_gp_model(model, params.train, rng, restarts=params.restarts,
                               fit_points=params.fit_points)
-    data = _load_npz(params.training, "training data")
+    data = _load_npz(params.training, "--training", TRAINING_FORMAT)
     name = Path(params.training).name
     if "x" not in data or "y" not in data:
-        raise InputError(f"{name} needs arrays 'x' (n, D) and 'y' (n, L)")
+        raise InputError(f"{name} needs arrays 'x' (n, D) and 'y' (n, L): --training must be {TRAINING_FORMAT}")
     x = as_array(data["x"], f"{name}: x", shape=(None, model.state_dim))
     y = as_array(data["y"], f"{name}: y", shape=(x.shape[0], model.measurement_dim))
     return fit_gp_model(x[:-1], x[1:], x, [y[:, b] for b in model.blocks], rng, restarts=params.restarts,
