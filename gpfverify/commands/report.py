@@ -175,8 +175,12 @@ def run_section(ctx: ReportContext, slug: str, progress: Callable[[str], None]) 
                                executor=executor, show_progress=False, on_run=on_run)
                 if profile.interpretations:
                     progress(f"{where}: interpretations {', '.join(profile.interpretations)}")
+
+                    def named(spec: str, done: int, total: int, where: str = where) -> None:
+                        on_run(done, total, where=f"{where}, interpretation {spec}")
+
                     run_interpretations(module, setting.params, select(module, ",".join(profile.interpretations)),
-                                        profile.runs, ctx.seed, run_dir, executor, on_run=on_run)
+                                        profile.runs, ctx.seed, run_dir, executor, on_run=named)
             if not last[1]:
                 progress(f"{where}: every run saved by an earlier build with the same settings, reused")
             entries.append(RunEntry(name, setting.label, setting.tag, f"{folder}/run/results.json"))

@@ -80,27 +80,23 @@ def duration(seconds: float) -> str:
 
 
 def progress_lines(name: str, say: Callable[[str], None], header: str = "",
-                   clock: Callable[[], float] = time.monotonic):
+                   clock: Callable[[], float] = time.monotonic, started: float | None = None):
     """``on_run(saved, total)`` for the runner: ``header`` (what runs; said once the runs have
     started, so that a refused command prints only its error) and the estimated time left after
     the first saved run, then a line every :data:`PROGRESS_FRACTION` of the runs (and at least every
-    :data:`PROGRESS_SECONDS`), each with the time left at the rate so far. A count that starts again
-    (the interpretations, each a sequence of runs after the main one) starts the clock again at the
-    end of the previous sequence."""
-    started = last_line = last_call = clock()
-    before: int | None = None  # runs saved before this command (--resume), or before this sequence
-    last_saved = last_share = -1
+    :data:`PROGRESS_SECONDS`), each with the time left at the rate so far; the clock starts now or
+    at ``started``."""
+    started = last_line = clock() if started is None else started
+    before: int | None = None  # runs saved before this command (--resume)
+    last_share = -1
 
     def on_run(saved: int, total: int) -> None:
-        nonlocal started, before, last_line, last_call, last_saved, last_share
+        nonlocal before, last_line, last_share
         now = clock()
         if before is None:
             before = saved - 1
             if header:
                 say(header)
-        elif saved <= last_saved:  # the next sequence of runs (an interpretation) began after the last one
-            started, before, last_share = last_call, saved - 1, -1
-        last_call, last_saved = now, saved
         new = saved - before
         left = (total - saved) * (now - started) / max(new, 1)
         share = int(saved / total / PROGRESS_FRACTION)
@@ -113,6 +109,24 @@ def progress_lines(name: str, say: Callable[[str], None], header: str = "",
         else:
             return
         last_line, last_share = now, share
+
+    return on_run
+
+
+def interpretation_lines(name: str, say: Callable[[str], None],
+                         clock: Callable[[], float] = time.monotonic) -> Callable[[str, int, int], None]:
+    """``on_run(interpretation, saved, total)`` for the interpretations, run one after the other:
+    :func:`progress_lines` of each, naming it (``ct2d, interpretation initial-cov-wide: ...``), its
+    clock started when the previous one saved its last run (or now, for the first)."""
+    lines: dict[str, Callable[[int, int], None]] = {}
+    last = [clock()]
+
+    def on_run(interpretation: str, saved: int, total: int) -> None:
+        if interpretation not in lines:
+            lines[interpretation] = progress_lines(f"{name}, interpretation {interpretation}", say, clock=clock,
+                                                   started=last[0])
+        lines[interpretation](saved, total)
+        last[0] = clock()
 
     return on_run
 
@@ -192,7 +206,7 @@ def run(args: argparse.Namespace) -> int:
         if specs:
             say(f"{args.experiment}: interpretations {', '.join(s.name for s in specs)}")
             results = run_interpretations(module, params, specs, runs, opts.seed, stage, executor,
-                                          on_run=None if terminal else progress_lines(args.experiment, say),
+                                          on_run=None if terminal else interpretation_lines(args.experiment, say),
                                           interpretation_runs=opts.interpretation_runs)
     print(f"{args.experiment}: {results['runs_ok']} of {results['runs']} runs ok -> {opts.out / 'results.json'}",
           file=sys.stderr if results["failed_runs"] else sys.stdout)

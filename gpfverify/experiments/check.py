@@ -194,6 +194,9 @@ def _record(model, fused, ys: np.ndarray, truth: np.ndarray | None) -> RunRecord
                          "branch_offsets": s.branch_offsets.tolist(),
                          "branch_offset_count": int(np.count_nonzero(s.branch_offsets))} for s in audit.sensors],
             "means": {m: step.estimate(m).mean.tolist() for m in fused_by},
+            "covs": {m: step.estimate(m).cov.tolist() for m in fused_by},
+            "repaired_mean": (audit.repaired_dmf_mean.tolist() if audit.repaired_dmf_mean is not None
+                              and any(s.repair_dim for s in audit.sensors) else None),
             "failed": dict(step.failed),
             "local_means": [r.mu_e.tolist() for r in step.local],
             "seconds": {**step.seconds, "local": list(step.local_seconds)},
@@ -203,6 +206,7 @@ def _record(model, fused, ys: np.ndarray, truth: np.ndarray | None) -> RunRecord
         }
         if truth is not None:
             x = truth[t]
+            entry["truth"] = x.tolist()
             entry["sq_err"] = {m: float(np.sum(difference(x, step.estimate(m).mean, model.circular_state) ** 2))
                                for m in fused_by}
             entry["nees"] = {m: float(v[t]) for m, v in errors["nees"].items() if t in v}
@@ -218,7 +222,7 @@ def step_record_bytes(model, methods: Sequence[str]) -> int:
     the step's fusion case (the joint covariance of state and outputs, centre and each sensor) and
     the estimates, as Python floats in lists (32 bytes each), and 2 kB of fixed fields."""
     d, total = model.state_dim, model.measurement_dim
-    floats = 3 * (d + total) ** 2 + (len(methods) + len(model.sensors) + 4) * d
+    floats = 3 * (d + total) ** 2 + (len(methods) + len(model.sensors) + 6) * d + len(methods) * d * d
     return 32 * floats + 2048
 
 
@@ -283,6 +287,17 @@ def _average(kind: str, values: np.ndarray, dof: int) -> dict:
             "level": test.level, "fraction_inside": test.fraction_inside, "verdict": test.verdict()}
 
 
+def _trajectory(steps: Sequence[dict], methods: Sequence[str]) -> dict:
+    """The first run's trajectory: the truth (None when unknown), every method's mean and covariance
+    per step (None at a step where it failed) and the repaired DMF mean at the steps whose audit
+    proposes a repair (:attr:`gpfverify.audit.CaseAudit.repaired_dmf_mean`; CMF's mean to rounding)."""
+    return {"k": [e["k"] for e in steps],
+            "truth": [e["truth"] for e in steps] if all("truth" in e for e in steps) else None,
+            "means": {m: [e["means"].get(m) for e in steps] for m in methods},
+            "covs": {m: [e["covs"].get(m) for e in steps] for m in methods},
+            "repaired": [{"k": e["k"], "mean": e["repaired_mean"]} for e in steps if e["repaired_mean"] is not None]}
+
+
 def summarize(params: Params, results: list[RunRecord]) -> dict:
     """The results.json body (CONTRACT "Checking a user's own system" keys first)."""
     model = load_system(params.system)
@@ -322,6 +337,7 @@ def summarize(params: Params, results: list[RunRecord]) -> dict:
                           "local": float(np.mean([sum(e["seconds"]["local"]) for e in every]))},
         "timing_keys": list(TIMING_KEYS),
         "truth_known": all(r.truth_known for r in results),
+        "trajectory": _trajectory(first, methods),
     }
     nis = np.array([[e["nis"]["cmf"] for e in steps] for steps in steps_by_run])
     out["nis"] = {"cmf": _average("NIS", nis, model.measurement_dim),
