@@ -50,6 +50,7 @@ def redundant_check(tmp_path_factory):
     return out, json.loads((out / "results.json").read_text())
 
 
+@pytest.mark.slow
 def test_the_trajectory_is_the_first_runs_truth_and_estimates(redundant_check):
     _, results = redundant_check
     trajectory = results["trajectory"]
@@ -67,6 +68,7 @@ def test_the_trajectory_is_the_first_runs_truth_and_estimates(redundant_check):
     assert trajectory["repaired"], "the redundant sensor loses rank: some step needs a repair"
 
 
+@pytest.mark.slow
 def test_the_check_page_shows_the_trajectory_with_the_repaired_estimate(redundant_check):
     out, results = redundant_check
     html = (out / "report.html").read_text(encoding="utf-8")

@@ -24,6 +24,8 @@ HERE = Path(__file__).parent
 sys.path.insert(0, str(HERE))  # the suite imports in importlib mode: the helper beside it
 import layout_pages  # noqa: E402
 
+pytestmark = pytest.mark.slow  # renders real pages and measures them in a browser
+
 WINDOW = 1024  # px
 REM = 16  # px, the browsers' default root font size
 BROWSER = layout_pages.browser()

@@ -21,6 +21,8 @@ from gpfverify.contract.claims import read_claims
 from gpfverify.contract.serial import to_json
 from gpfverify.experiments import EXPERIMENTS
 
+pytestmark = pytest.mark.slow  # one run of every committed reference experiment
+
 REFERENCE = Path(__file__).resolve().parents[1] / "reports" / "reference"
 COMMITTED = sorted(REFERENCE.rglob("results.json"))
 #: parameters shortened for the one run here; the claims a run emits do not depend on them
