@@ -6,8 +6,7 @@ text and input nested too deeply each end as exit status 2 and exactly one line
 ``gpfverify COMMAND: error: ...`` on stderr. A closed output pipe (``gpfverify audit RUN | head -3``)
 ends as exit status 2 too (the output is incomplete, as ``set -o pipefail`` should see) but quietly:
 the reader closed it on purpose, like ``head`` does, and an error line would only interrupt what it
-printed. Numeric
-options must be finite (``inf``/``nan`` are refused by the parser). Warnings raised while a
+printed. Numeric options must be finite (``inf``/``nan`` are refused by the parser). Warnings raised while a
 command runs (numpy's floating-point RuntimeWarnings, for instance) are collected instead of
 printed: dropped when the command fails (its one line says what went wrong), summarised in one
 line when it succeeds. Anything else is a bug: one line asking for a report, exit status 1, and

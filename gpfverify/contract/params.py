@@ -6,7 +6,7 @@ offers it. From that one declaration come
 
 * validation when an instance is made (``__post_init__``): types, bounds, choices, then the
   class's own :meth:`Params.check` — an invalid value raises :class:`~gpfverify.errors.InputError`
-  naming the option as the command line spells it (``--kappa must be at least 3, got 2``);
+  naming the option as the command line spells it (``--train-points must be at least 3, got 2``);
 * the command-line options of ``gpfverify reproduce NAME`` (:func:`add_arguments`,
   :func:`from_arguments`): ``--field-name`` with the field's type, default and help — or the
   field's ``flag`` where the record's name is not the option's (one meaning has one option name
@@ -193,7 +193,7 @@ def add_arguments(parser: argparse.ArgumentParser, cls: type[Params], only: tupl
             kwargs["metavar"] = field.metadata["flag"].upper().replace("-", "_")
         if item is not None:  # a tuple: --name V1 V2 ... (read back as a tuple by the Params)
             shown = " ".join(f"{v:g}" if isinstance(v, float) else str(v) for v in default) or "none"
-            kwargs["nargs"], tp = nargs, item
+            kwargs["nargs"], tp, optional = nargs, item, False
         else:
             tp, optional = _scalar_type(hints[field.name])
             shown = "none" if default is None else f"{default:g}" if isinstance(default, float) else str(default)
@@ -204,7 +204,7 @@ def add_arguments(parser: argparse.ArgumentParser, cls: type[Params], only: tupl
             kwargs["choices"] = list(typing.get_args(tp))
             kwargs["type"] = type(typing.get_args(tp)[0])
         else:
-            kwargs["type"] = _optional_parser(tp) if item is None and optional else tp
+            kwargs["type"] = _optional_parser(tp) if optional else tp
             if item is None and field.metadata.get("choices") is not None:
                 kwargs["choices"] = list(field.metadata["choices"])
         add_deprecated(parser, deprecated, parser.add_argument(*names, **kwargs))
