@@ -21,6 +21,7 @@ class Params(Params):  # noqa: F811 - the experiment's own Params, as every expe
     shift: float = option(0.0, "mean of the draws")
     fail_run: int = option(-1, "index of a run that raises (-1: none)")
     interrupt_run: int = option(-1, "index of a run that is interrupted as by Ctrl-C (-1: none)")
+    limit: float = option(1.0, "the claim: each run's mean is below this")
 
 
 @dataclass(frozen=True)
@@ -30,8 +31,11 @@ class RunRecord:
 
 PROFILES = {"quick": Profile(3, (Setting("", "default", Params()),)),
             "full": Profile(DEFAULT_RUNS, (Setting("", "default", Params()),))}
+#: "wide-strict" reads the runs of "wide" with another limit (no runs of its own)
+SUMMARY_FIELDS = frozenset({"limit"})
 INTERPRETATIONS = (InterpretationSpec("shifted", {"shift": 10.0}, "draws centred at 10"),
-                   InterpretationSpec("wide", {"scale": 3.0}, "draws three times wider"))
+                   InterpretationSpec("wide", {"scale": 3.0}, "draws three times wider"),
+                   InterpretationSpec("wide-strict", {"scale": 3.0, "limit": -5.0}, "wide draws, a stricter claim"))
 
 
 def run_one(params: Params, seed) -> RunRecord:
@@ -45,7 +49,7 @@ def run_one(params: Params, seed) -> RunRecord:
 
 def summarize(params: Params, records: list[RunRecord]) -> dict:
     x = np.array([r.x for r in records])
-    above = PairedDifference.of(x.mean(axis=1), np.ones(len(records)))  # mean below 1?
+    above = PairedDifference.of(x.mean(axis=1), np.full(len(records), params.limit))  # mean below the limit?
     claim = ClaimRecord("the draws' mean is below 1", "toy", above.verdict, above.mean, above.atol, above.n,
                         "paired difference of each run's mean and 1", id="toy/mean-below-1", paper=PAPER,
                         paper_n=DEFAULT_RUNS)
