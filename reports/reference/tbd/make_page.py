@@ -25,15 +25,17 @@ from reference_pages import recompute_into, write_page  # type: ignore[import-no
 from gpfverify.experiments import tbd  # noqa: E402
 from gpfverify.contract.claims import read_claims  # noqa: E402
 from gpfverify.report.document import Paragraph, Table  # noqa: E402
-from gpfverify.report.sections.tbd import render  # noqa: E402
+from gpfverify.report.sections.tbd import grid_only, render  # noqa: E402
 
 
 def main(run_dir: Path, command: str) -> None:
     results = recompute_into(run_dir, tbd, HERE / "run")
     # every interpretation tried: those with runs of their own and the summary-only ones (the detection
     # definitions), whose results.json recompute_into has just written from the main run's runs
+    # (the birth proposals read with other detection definitions are in the page's birth × detection grid)
     tried = [(spec, json.loads((run_dir / "interpretations" / spec.name / "results.json").read_text("utf-8")))
-             for spec in tbd.INTERPRETATIONS if (run_dir / "interpretations" / spec.name / "results.json").is_file()]
+             for spec in tbd.INTERPRETATIONS if (run_dir / "interpretations" / spec.name / "results.json").is_file()
+             and not grid_only(spec.changes)]
     section = render(results, HERE)
     section.add(_runs_to_decide_table(results, tried))
     section.add(Paragraph(f"Made by `{command}`, then `python reports/reference/tbd/make_page.py RUN_DIR "
