@@ -95,7 +95,7 @@ def _render_pff1d(section: Section, results: dict, folder: Path, setting: str) -
                       f"benchmark), N = {p.particles}, Δλ = {p.gamma_dlambda:g}"))
     section.add(Figure(_fig2(p, gamma, runs, folder / "pff_fig2_gamma.png"),
                        f"Fig. 2: RMSE per step under gamma process noise for each R ({p.main_spacing} λ-steps)"))
-    section.add(*_health_blocks("pff1d", results))
+    section.add(*health_blocks("pff1d", results))
 
 
 def table1_blocks(results: dict, folder: Path) -> list:
@@ -221,7 +221,7 @@ def _render_bearing(section: Section, results: dict, folder: Path) -> None:
                       f"(Δλ = {b.dlambda:g}, {b.spacing} λ-steps)"))
     section.add(Figure(_fig3(results, keys, b.switch_time, folder / "pff_fig3_bearing.png"),
                        "Fig. 3: position RMSE per step, bearing-only tracking (the turn starts at the dashed line)"))
-    section.add(*_health_blocks("bearing", results))
+    section.add(*health_blocks("bearing", results))
 
 
 def _bearing_interpretations(b: bearing_contract.Params) -> list[list[str]]:
@@ -253,7 +253,7 @@ def _fig3(results: dict, keys: list[str], switch_time: float, path: Path) -> Pat
 
 # ----------------------------------------------------------------------------- health and sensitivity
 
-def _health_blocks(name: str, results: dict) -> list:
+def health_blocks(name: str, results: dict) -> list:
     """The health checks of a run (results.json "health"): the failed ones in full, the passed
     ones counted; nothing for results written before the checks existed."""
     if "health" not in results:
