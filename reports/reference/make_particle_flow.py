@@ -70,7 +70,8 @@ def main(runs_dir: Path) -> None:
     section.blocks.insert(1, Paragraph(
         f"Scale: pff1d ran {runs['pff1d']} runs (the paper: {pff1d.PAPER_RUNS}) on the paper's whole Table-1 grid "
         "(Q ∈ {0.1, 1, 10}, R ∈ {0.1, 1}, Δλ ∈ {0.1, 0.01, 0.001}, uniform and exponential λ-steps), the Fig. 1(b) "
-        f"cell Q = 1, R = 0.1 included, and the gamma case at every R; bearing {runs['bearing']} runs (the "
+        f"cell Q = 1, R = 0.1 included, and the gamma case at every R; the same grid on the second model "
+        f"({SECOND_MODEL}) at the same count with uniform λ-steps; bearing {runs['bearing']} runs (the "
         f"paper: {bearing.PAPER_RUNS}); each interpretation at its experiment's count. Runs that would decide the "
         "undecided verdicts as run, were the observed mean and spread the true ones: "
         + ("; ".join(undecided) or "none") + "."))
