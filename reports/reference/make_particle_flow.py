@@ -9,7 +9,7 @@ verdicts under each interpretation are merged into the main one, which is copied
 manifest) to ``reports/reference/particle-flow/<experiment>/``, and the page is written to
 ``reports/reference/particle-flow/README.md`` with its figures. The Table-1 grid on the second
 model (the interpretation vdm-gaussian) is rendered next to the main one, and its results.json
-copied to ``.../pff1d/vdm-gaussian/``. An experiment whose folder is not in RUNS_DIR keeps its
+copied with its manifest to ``.../pff1d/vdm-gaussian/``. An experiment whose folder is not in RUNS_DIR keeps its
 committed results (the page states the commit each was made at). The per-run files are not
 committed.
 """
@@ -56,7 +56,8 @@ def main(runs_dir: Path) -> None:
     if second.is_file():
         target = HERE / "pff1d" / SECOND_MODEL
         target.mkdir(parents=True, exist_ok=True)
-        shutil.copy(second, target / "results.json")
+        for name in ("results.json", "manifest.json"):
+            shutil.copy(second.parent / name, target / name)
     if (HERE / "pff1d" / SECOND_MODEL / "results.json").is_file():
         section.blocks[-1:-1] = _second_model_blocks(
             json.loads((HERE / "pff1d" / SECOND_MODEL / "results.json").read_text(encoding="utf-8")))
