@@ -147,8 +147,8 @@ def _detection_blocks(p: Params, claims: list[ClaimRecord]) -> list:
         "('settled') or only the last frame counts. (3) No position gate is mentioned, and §3.2's account of the "
         "low-SNR limit — many false measurements resembling the target — is an account of false alarms, not of "
         "detections in the wrong place. The most plausible reading is therefore the one run here, 'frames'; "
-        "'settled' and 'last-frame' are the readings most favourable to the paper, tried above with the verdicts "
-        "and run counts they need."))
+        "'settled' and 'last-frame' are the detection readings most favourable to the paper, tried above with every "
+        "birth proposal run, with the verdicts and run counts they need."))
     return blocks
 
 

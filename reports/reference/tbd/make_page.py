@@ -6,8 +6,8 @@ RUN_DIR is the output folder of COMMAND, a ``gpfverify reproduce tbd ... --inter
 command (stated on the page). The main ``results.json`` and that of every interpretation in
 ``RUN_DIR/interpretations/NAME/`` are recomputed from their saved runs with the current summary,
 the verdicts under each interpretation merged into the main claims (as ``--interpretations``
-does), and the page goes to ``reports/reference/tbd/`` with its figures, the merged results and
-the manifest to ``.../tbd/run/``. (``make_single.py tbd`` would recompute the main results only
+does; the birth readings' runs read with every detection definition too), and the page goes to
+``reports/reference/tbd/`` with its figures, the merged results and the manifest to ``.../tbd/run/``. (``make_single.py tbd`` would recompute the main results only
 and drop the interpretations.)
 """
 
