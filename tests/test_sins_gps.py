@@ -337,10 +337,12 @@ def test_params_and_run_records_round_trip(tiny_run):
 def test_profiles():
     assert PROFILES["quick"].runs == 2 and PROFILES["quick"].settings[0].params.particles == 20
     assert PROFILES["full"].runs == sins_gps.DEFAULT_RUNS == 20 and PROFILES["full"].settings[0].params == Params()
-    # the report tries the model error within the claims' reach and the healthy configuration
+    # the report tries the model error within the claims' reach, the healthy configuration and the
+    # mis-specified Q
     names = {spec.name for spec in sins_gps.INTERPRETATIONS}
     for profile in PROFILES.values():
-        assert set(profile.interpretations) == {"scale-factor-1000ppm", "point-proposal-q-x1000"} <= names
+        assert set(profile.interpretations) == {"scale-factor-1000ppm", "point-proposal-q-x1000",
+                                                "q-misspecified"} <= names
 
 
 @pytest.mark.parametrize("changes, option", [
