@@ -309,15 +309,22 @@ def test_the_gain_claim_is_shown_under_every_birth_proposal_and_detection_readin
                            Interpretation("birth-uniform", uniform, "undecided", 0.9, 2000, 7000),
                            Interpretation("birth-uniform-detection-last-frame", {**uniform, "detection": "last-frame"},
                                           "held", 1.4, 2000),
+                           Interpretation("detection-settled-3", {"detection": "settled", "settle_frames": 3},
+                                          "NOT held", 0.7, 3000),
+                           Interpretation("detection-settled-5", {"detection": "settled", "settle_frames": 5},
+                                          "NOT held", 0.86, 3000),
                            Interpretation(AS_RUN, {}, "NOT held", 0.55, 2000),
                            Interpretation("snr-energy", {"snr_convention": "energy"}, "NOT held", 0.47, 200)))
     blocks = tbd_section._detection_blocks(Params(), [gain])
     grid = next(b for b in blocks if isinstance(b, Table))
-    assert grid.headers == ["birth proposal", "detection 'frames'", "detection 'last-frame'"]
+    # the two settled readings (3 and 5 frames left out) are two columns
+    assert grid.headers == ["birth proposal", "detection 'frames'", "detection 'last-frame'",
+                            "detection 'settled, 3 frames'", "detection 'settled, 5 frames'"]
     assert grid.rows == [
         ["cells above 1σ, 10 % uniform (3000 runs)", "0.57 dB: NOT held",
-         "1.11 dB: undecided, about 19000 runs would decide"],
-        ["uniform over the image (2000 runs)", "0.9 dB: undecided, about 7000 runs would decide", "1.4 dB: held"]]
+         "1.11 dB: undecided, about 19000 runs would decide", "0.7 dB: NOT held", "0.86 dB: NOT held"],
+        ["uniform over the image (2000 runs)", "0.9 dB: undecided, about 7000 runs would decide", "1.4 dB: held",
+         "—", "—"]]
     favourable = next(b.text for b in blocks if isinstance(b, Paragraph) and "most favourable" in b.text)
     assert "'uniform over the image' with detection 'last-frame'" in favourable and "1.4 dB over 2000 runs: held" \
         in favourable

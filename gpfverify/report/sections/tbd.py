@@ -179,8 +179,9 @@ def _gain_grid(p: Params, gain: ClaimRecord) -> list | None:
     gain — the one most favourable to the paper — and the runs each rests on; None when no detection
     reading was tried."""
     readable = SUMMARY_FIELDS | set(BIRTH_FIELDS) | set(GAIN_METHODS_ONLY)
-    readings = [_Reading(_birth_words(p, {}), p.detection, gain.verdict, gain.statistic, gain.n, gain.runs_to_decide)]
-    readings += [_Reading(_birth_words(p, i.params), i.params.get("detection", p.detection), i.verdict, i.statistic,
+    readings = [_Reading(_birth_words(p, {}), _detection_words(p, {}), gain.verdict, gain.statistic, gain.n,
+                         gain.runs_to_decide)]
+    readings += [_Reading(_birth_words(p, i.params), _detection_words(p, i.params), i.verdict, i.statistic,
                           i.n, i.runs_to_decide)
                  for i in gain.interpretations if i.name != AS_RUN and set(i.params) <= readable]
     if len(readings) == 1:
@@ -206,6 +207,17 @@ def _gain_grid(p: Params, gain: ClaimRecord) -> list | None:
             f"{best.runs} runs: {best.verdict}{decide} (each reading decided on its own runs by the rule above; "
             "picking the largest of the readings' gains leans towards the paper)."))
     return blocks
+
+
+def _detection_words(p: Params, changes: dict) -> str:
+    """The detection definition of a reading with the setting it takes (the run's own where
+    ``changes`` leave it): 'settled' with its frames left out, 'track' with its gate."""
+    detection = changes.get("detection", p.detection)
+    if detection == "settled":
+        return f"settled, {changes.get('settle_frames', p.settle_frames)} frames"
+    if detection == "track":
+        return f"track, gate {fmt(changes.get('detection_gate', p.detection_gate))}"
+    return detection
 
 
 def _birth_words(p: Params, changes: dict) -> str:
