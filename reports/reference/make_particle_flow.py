@@ -32,8 +32,10 @@ from gpfverify.report.sections import particle_flow
 HERE = Path(__file__).resolve().parent / particle_flow.SLUG
 #: folder name -> the exact command that made it (run from the repository root, OUT = RUNS_DIR)
 COMMANDS = {
-    "pff1d": "gpfverify reproduce pff1d --runs 30 --seed 1 --workers 2 --interpretations vdm-gaussian,"
-             "measurement-linear,noise-as-std,exponential-1.2,exponential-1.5,li-coates-29 --out OUT/pff1d",
+    "pff1d": "gpfverify reproduce pff1d --runs 30 --seed 1 --resume --interpretations vdm-gaussian --out OUT/pff1d; "
+             "the interpretations measurement-linear and noise-as-std at 20 runs each with the same seed through the "
+             "Python API (gpfverify.experiments.runner.run_experiment into OUT/pff1d/interpretations/NAME; "
+             "--interpretations measurement-linear,noise-as-std --interpretation-runs 20 does the same)",
     "bearing": "gpfverify reproduce bearing --runs 200 --seed 1 --workers 2 --interpretations all --out OUT/bearing",
 }
 MODULES = {"pff1d": pff1d, "bearing": bearing}
@@ -73,10 +75,22 @@ def main(runs_dir: Path) -> None:
         "(Q ∈ {0.1, 1, 10}, R ∈ {0.1, 1}, Δλ ∈ {0.1, 0.01, 0.001}, uniform and exponential λ-steps), the Fig. 1(b) "
         f"cell Q = 1, R = 0.1 included, and the gamma case at every R; the same grid on the second model "
         f"({SECOND_MODEL}) at the same count with uniform λ-steps; bearing {runs['bearing']} runs (the "
-        f"paper: {bearing.PAPER_RUNS}); each interpretation at its experiment's count. Runs that would decide the "
+        f"paper: {bearing.PAPER_RUNS}); the interpretations at " + _interpretation_runs(results) + ". Runs that "
+        "would decide the "
         "undecided verdicts as run, were the observed mean and spread the true ones: "
         + ("; ".join(undecided) or "none") + "."))
     write_page(section, HERE, list(results.values()))
+
+
+def _interpretation_runs(results: dict) -> str:
+    """Each experiment's interpretations with the runs each rests on (from the merged claims)."""
+    from gpfverify.contract.claims import AS_RUN, read_claims
+
+    said = []
+    for name, r in results.items():
+        runs = {i.name: i.n or r["runs_ok"] for c in read_claims(r) for i in c.interpretations if i.name != AS_RUN}
+        said.append(f"{name}: " + (", ".join(f"{k} {n} runs" for k, n in runs.items()) or "none"))
+    return "; ".join(said)
 
 
 def _second_model_blocks(results: dict) -> list:

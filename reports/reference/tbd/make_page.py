@@ -7,8 +7,9 @@ command (stated on the page). The main ``results.json`` and that of every interp
 ``RUN_DIR/interpretations/NAME/`` are recomputed from their saved runs with the current summary,
 the verdicts under each interpretation merged into the main claims (as ``--interpretations``
 does; the birth readings' runs read with every detection definition too), and the page goes to
-``reports/reference/tbd/`` with its figures, the merged results and the manifest to ``.../tbd/run/``. (``make_single.py tbd`` would recompute the main results only
-and drop the interpretations.)
+``reports/reference/tbd/`` with its figures, the merged results and the manifest to
+``.../tbd/run/``; it states the runs the birth readings rest on and how to continue them. (``make_single.py
+tbd`` would recompute the main results only and drop the interpretations.)
 """
 
 from __future__ import annotations
@@ -24,8 +25,9 @@ from reference_pages import recompute_into, write_page  # type: ignore[import-no
 
 from gpfverify.experiments import tbd  # noqa: E402
 from gpfverify.contract.claims import read_claims  # noqa: E402
+from gpfverify.contract.tbd import BIRTH_INTERPRETATIONS  # noqa: E402
 from gpfverify.report.document import Paragraph, Table  # noqa: E402
-from gpfverify.report.sections.tbd import grid_only, render  # noqa: E402
+from gpfverify.report.sections.tbd import GAIN_CLAIM, grid_only, render  # noqa: E402
 
 
 def main(run_dir: Path, command: str) -> None:
@@ -38,9 +40,33 @@ def main(run_dir: Path, command: str) -> None:
              and not grid_only(spec.changes)]
     section = render(results, HERE)
     section.add(_runs_to_decide_table(results, tried))
+    if (note := _birth_runs_note(results)) is not None:
+        section.add(note)
     section.add(Paragraph(f"Made by `{command}`, then `python reports/reference/tbd/make_page.py RUN_DIR "
                           "\"COMMAND\"`."))
     write_page(section, HERE, [results])
+
+
+#: the runs each birth reading was to have (its gain's spread shrinks as 1/√runs)
+BIRTH_RUNS_PLANNED = 2000
+
+
+def _birth_runs_note(results: dict) -> Paragraph | None:
+    """How many runs the birth readings rest on, and how to continue them when they fell short of
+    :data:`BIRTH_RUNS_PLANNED`; None when no birth reading was run."""
+    gain = next(c for c in read_claims(results) if c.id == GAIN_CLAIM)
+    runs = sorted({i.n or results["runs_ok"] for i in gain.interpretations
+                   if any(i.name == s.name for s in BIRTH_INTERPRETATIONS)})
+    if not runs:
+        return None
+    names = ",".join(s.name for s in BIRTH_INTERPRETATIONS)
+    rest = f"The birth readings rest on {' and '.join(map(str, runs))} runs each"
+    if max(runs) >= BIRTH_RUNS_PLANNED:
+        return Paragraph(rest + ".")
+    return Paragraph(
+        f"{rest}, short of the {BIRTH_RUNS_PLANNED} planned in the time the runs had. `gpfverify reproduce tbd "
+        f"--runs {BIRTH_RUNS_PLANNED} --seed 1 --resume --interpretations {names} --out RUN_DIR` continues them "
+        "(the main run first: an interpretation runs at most as many runs as the main run).")
 
 
 def _runs_to_decide_table(results: dict, tried: list) -> Table:
