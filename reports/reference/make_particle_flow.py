@@ -33,9 +33,9 @@ HERE = Path(__file__).resolve().parent / particle_flow.SLUG
 #: folder name -> the exact command that made it (run from the repository root, OUT = RUNS_DIR)
 COMMANDS = {
     "pff1d": "gpfverify reproduce pff1d --runs 30 --seed 1 --resume --interpretations vdm-gaussian --out OUT/pff1d; "
-             "the interpretations measurement-linear and noise-as-std at 20 runs each with the same seed through the "
+             "the interpretations measurement-linear and noise-as-std at 10 runs each with the same seed through the "
              "Python API (gpfverify.experiments.runner.run_experiment into OUT/pff1d/interpretations/NAME; "
-             "--interpretations measurement-linear,noise-as-std --interpretation-runs 20 does the same)",
+             "--interpretations measurement-linear,noise-as-std --interpretation-runs 10 does the same)",
     "bearing": "gpfverify reproduce bearing --runs 200 --seed 1 --workers 2 --interpretations all --out OUT/bearing",
 }
 MODULES = {"pff1d": pff1d, "bearing": bearing}
