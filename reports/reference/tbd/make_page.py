@@ -42,6 +42,7 @@ def main(run_dir: Path, command: str) -> None:
     section.add(_runs_to_decide_table(results, tried))
     if (note := _birth_runs_note(results)) is not None:
         section.add(note)
+        section.add(_birth_health(run_dir))
     section.add(Paragraph(f"Made by `{command}`, then `python reports/reference/tbd/make_page.py RUN_DIR "
                           "\"COMMAND\"`."))
     write_page(section, HERE, [results])
@@ -67,6 +68,32 @@ def _birth_runs_note(results: dict) -> Paragraph | None:
         f"{rest}, short of the {BIRTH_RUNS_PLANNED} planned in the time the runs had. `gpfverify reproduce tbd "
         f"--runs {BIRTH_RUNS_PLANNED} --seed 1 --resume --interpretations {names} --out RUN_DIR` continues them "
         "(the main run first: an interpretation runs at most as many runs as the main run).")
+
+
+def _birth_health(run_dir: Path) -> Paragraph:
+    """Each birth reading's SNR-gain verdict under every detection definition with the health of the
+    filters it compares, from the readings' own results.json (a failed check withholds the verdict:
+    the grid's "not decidable")."""
+    said = []
+    for birth in BIRTH_INTERPRETATIONS:
+        names = [birth.name] + [s.name for s in tbd.INTERPRETATIONS if s.name.startswith(f"{birth.name}-")]
+        verdicts, health = [], "not run"
+        for name in names:
+            path = run_dir / "interpretations" / name / "results.json"
+            if not path.is_file():
+                continue
+            gain = next(c for c in read_claims(json.loads(path.read_text("utf-8"))) if c.id == GAIN_CLAIM)
+            withheld = next((c for c in gain.caveats if c.startswith("verdict withheld")), None)
+            # "verdict withheld (would be 'X'): ..." -> "would be 'X'"
+            verdicts.append(f"{name}: {gain.verdict}" + (f" ({withheld.split('(', 1)[1].split(')', 1)[0]})"
+                                                         if withheld else ""))
+            if name == birth.name:
+                failed = [c for c in gain.caveats if " — " in c and not c.startswith("health of the filters")]
+                health = "; ".join(failed) if failed else "every check passed"
+        said.append(f"{birth.name}, health of PF-TBD and TPFTBD at N = 2000: {health}; the gain claim "
+                    + ", ".join(verdicts))
+    return Paragraph("The birth readings' filters and verdicts (a failed health check withholds the verdict, which "
+                     "the grid shows as not decidable): " + " — ".join(said) + ".")
 
 
 def _runs_to_decide_table(results: dict, tried: list) -> Table:
