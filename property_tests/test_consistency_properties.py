@@ -106,8 +106,10 @@ def test_nees_and_nis_are_the_quadratic_forms_averaged_with_their_degrees_of_fre
     truth = means + errors + 2.0 * np.pi * turns
     want = _quadratic_forms(errors, covs)
     cond = max(np.linalg.cond(p) for p in covs.reshape(-1, *covs.shape[-2:]))
-    # truth − means rounds relative to the operands' size, and the form amplifies by 1/λ_min(P)
+    # truth − means rounds relative to the operands' size, wrapping an angle difference relative to
+    # 2π; the form amplifies by 1/λ_min(P)
     size = np.abs(truth) + np.abs(means)
+    size[..., list(circular)] += 2.0 * np.pi
     tol = algebra_rtol(cond) * np.einsum("...i,...i->...", size, size) / np.linalg.eigvalsh(covs)[..., 0]
     nees = Consistency.from_estimates(truth, means, covs, circular_state=circular)
     nis = Consistency.nis(truth, means, covs, circular=circular)
