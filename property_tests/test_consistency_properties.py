@@ -125,7 +125,8 @@ def test_nees_and_nis_are_the_quadratic_forms_averaged_with_their_degrees_of_fre
         assert np.all(np.abs(test.values - want.mean(axis=axis)) <= tol.max())
         assert (test.samples, test.dim, test.dof, test.level) == (samples, dim, samples * dim, level)
         tail = (1.0 - level) / 2.0
-        bounds = (scipy.stats.chi2.ppf(tail, samples * dim) / samples, scipy.stats.chi2.isf(tail, samples * dim) / samples)
+        dof = samples * dim
+        bounds = (scipy.stats.chi2.ppf(tail, dof) / samples, scipy.stats.chi2.isf(tail, dof) / samples)
         np.testing.assert_allclose((test.lower, test.upper), bounds, rtol=algebra_rtol(), atol=0)
 
 
@@ -144,7 +145,8 @@ def test_simulated_consistent_errors_fall_inside_at_the_level_and_are_rejected_a
     inside, rejected = [], []  # per repeat: the fraction of averages inside, the fraction of rejections
     for _ in range(REPEATS):
         errors = rng.standard_normal((runs, steps, dim)) @ factor.T
-        result = Consistency.from_estimates(errors, np.zeros_like(errors), np.broadcast_to(cov, (runs, steps, dim, dim)))
+        covs = np.broadcast_to(cov, (runs, steps, dim, dim))
+        result = Consistency.from_estimates(errors, np.zeros_like(errors), covs)
         tests = (result.average_over_runs(level), result.average_over_time(level))
         inside.append(np.mean(np.concatenate([t.inside for t in tests])))
         rejected.append(np.mean([not t.passed(alpha) for t in tests]))
@@ -190,7 +192,8 @@ def test_conservativeness_statistic_is_the_largest_generalised_eigenvalue(drawn,
     assert result.statistic == result.eigenvalues[-1]
     assert (result.samples, result.dim, result.level) == (runs, dim, level)
     t = np.sqrt(-2.0 * np.log(1.0 - level))
-    np.testing.assert_allclose(result.bound, (np.sqrt(runs) + np.sqrt(dim) + t) ** 2 / runs, rtol=algebra_rtol(), atol=0)
+    bound = (np.sqrt(runs) + np.sqrt(dim) + t) ** 2 / runs
+    np.testing.assert_allclose(result.bound, bound, rtol=algebra_rtol(), atol=0)
     if top is None:
         assert result.direction is None
         return

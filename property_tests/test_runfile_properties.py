@@ -61,7 +61,8 @@ def runs(draw):
 
 def assert_same_case(got: FusionCase, want: FusionCase, where: str) -> None:
     for name in ("mu_p", "C_p", "mu_y", "C_y", "C_xy"):
-        np.testing.assert_array_equal(getattr(got.central, name), getattr(want.central, name), err_msg=f"{where} {name}")
+        np.testing.assert_array_equal(getattr(got.central, name), getattr(want.central, name),
+                                      err_msg=f"{where} {name}")
     assert got.central.sizes == want.central.sizes and got.central.circular == want.central.circular, where
     assert got.circular_state == want.circular_state, where
     assert len(got.locals) == len(want.locals), where

@@ -56,8 +56,9 @@ def point_spread(model: TbdModel, states: np.ndarray) -> np.ndarray:
     amp = model.cell_size**2 * states[:, 4] / (2.0 * np.pi * model.blur**2)
     dx = cells[None, :] - states[:, [0]]
     dy = cells[None, :] - states[:, [2]]
-    near_x = np.abs(np.arange(model.grid_size)[None, :] - np.rint(states[:, [0]] / model.cell_size)) <= model.patch_radius
-    near_y = np.abs(np.arange(model.grid_size)[None, :] - np.rint(states[:, [2]] / model.cell_size)) <= model.patch_radius
+    index = np.arange(model.grid_size)[None, :]
+    near_x = np.abs(index - np.rint(states[:, [0]] / model.cell_size)) <= model.patch_radius
+    near_y = np.abs(index - np.rint(states[:, [2]] / model.cell_size)) <= model.patch_radius
     gx = np.where(near_x, np.exp(-dx**2 / (2 * model.blur**2)), 0.0)
     gy = np.where(near_y, np.exp(-dy**2 / (2 * model.blur**2)), 0.0)
     return amp[:, None, None] * gx[:, :, None] * gy[:, None, :]

@@ -25,13 +25,16 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy.special import logsumexp
 
+from gpfverify.errors import NumericalError
 from gpfverify.filters import sr_ukf
 from gpfverify.filters.gpsr_upf import GPResidualModel, gpsr_upf_step, sr_ukf_proposal
+from gpfverify.filters.records import Gaussian
 from gpfverify.filters.resampling import Particles
 from gpfverify.filters.sr_ukf import SqrtGaussian, cholupdate, qr_factor, sr_ukf_step
+from gpfverify.filters.ukf import ukf_step
 from gpfverify.filters.upf import ukf_proposal, upf_step
 from gpfverify.gp.residual import ResidualGP
-from gpfverify.models import linear_model
+from gpfverify.models import Sensor, StateSpaceModel, linear_model
 from gpfverify.strategies import (batched_beliefs, gaussian_processes, linear_gaussian_models, scaled_examples,
                                   sigma_params, spd_matrices)
 from gpfverify.strategies.matrices import float_arrays, log_uniform, unit_floats
@@ -127,8 +130,65 @@ def test_sr_ukf_is_the_kalman_filter_for_a_batch_of_beliefs(model, data):
         wm, _ = params.weights(dim)
         tol = algebra_rtol(kalman_condition(want[1], model.R, model.H) * np.abs(wm).sum()) + record.jitter
         names = ("mu_p", "C_p", "mu_y", "C_y", "C_xy", "mu_e", "C_e")
-        scale = max(np.abs(beliefs.mean).max(), np.abs(model.y).max(), np.abs(want[1]).max(), np.abs(want[3]).max(), 1.0)
+        scale = max(np.abs(beliefs.mean).max(), np.abs(model.y).max(), np.abs(want[1]).max(), np.abs(want[3]).max(),
+                    1.0)
         for name, value in zip(names, want):
+            np.testing.assert_allclose(getattr(got, name), value, rtol=0, atol=tol * scale,
+                                       err_msg=f"{name} compiled={compiled}")
+
+
+@st.composite
+def mildly_nonlinear_models(draw):
+    """x_k = A x + a sin(x) + w, y = C x + b tanh(B x) + v with |a|, |b| ≤ 0.3: curved enough that the
+    zeroth sigma point's deviation from the mean is not zero (on a linear map it is, whatever its weight)."""
+    dim, size = draw(st.integers(1, 3)), draw(st.integers(1, 3))
+    A, C, B = (draw(float_arrays(shape, -1.2, 1.2)) for shape in ((dim, dim), (size, dim), (size, dim)))
+    a, b = draw(unit_floats(-0.3, 0.3)), draw(unit_floats(-0.3, 0.3))
+    Q = draw(spd_matrices(dim, 1e2, log_uniform(1e-2, 0.3)))
+    R = draw(spd_matrices(size, 1e2, log_uniform(1e-2, 0.3)))
+
+    def f(x, k):
+        return x @ A.T + a * np.sin(x)
+
+    def h(x, k):
+        return x @ C.T + b * np.tanh(x @ B.T)
+
+    return StateSpaceModel(f, Q, [Sensor(h, R)], np.zeros(dim), np.eye(dim)), draw(float_arrays((size,), -3.0, 3.0))
+
+
+@given(problem=mildly_nonlinear_models(), data=st.data())
+def test_sr_ukf_is_the_covariance_form_ukf_on_nonlinear_models(problem, data):
+    """The same sigma points (the factors are the Cholesky factors of the UKF's covariances), so the
+    same numbers to rounding for every valid (α, β, κ) — including a negative zeroth weight w_c0,
+    whose rank-one downdate is exercised here. Where the UKF's own covariance is indefinite the
+    SR-UKF must refuse (NumericalError) or report the jitter it added, never return a factor of
+    something else."""
+    model, y = problem
+    dim = model.state_dim
+    params = data.draw(sigma_params(dim, min_alpha=0.5), label="sigma params")
+    beliefs = data.draw(batched_beliefs(dim, max_variance=1.0), label="beliefs")
+    want = ukf_step(Gaussian(beliefs.mean, beliefs.cov), model, y, params=params)
+    lowest = min(np.linalg.eigvalsh(getattr(want, name)).min() / np.abs(getattr(want, name)).max()
+                 for name in ("C_p", "C_y", "C_e"))
+    wm, _ = params.weights(dim)
+    rounding = algebra_rtol(np.abs(wm).sum() * max(np.max(np.linalg.cond(want.C_p)), np.max(np.linalg.cond(want.C_y))))
+    for compiled in PATHS:
+        with cholupdate_path(compiled):
+            try:
+                record = sr_ukf_step(SqrtGaussian(beliefs.mean, np.linalg.cholesky(beliefs.cov)), model, y,
+                                     params=params)
+            except NumericalError:
+                assert lowest <= rounding, ("refused a definite step", lowest)
+                continue
+        if lowest <= -rounding:
+            assert record.jitter > 0, ("an indefinite UKF covariance factored without jitter", lowest)
+            continue
+        got = record.to_record()
+        cond = max(np.max(np.linalg.cond(want.C_e)), np.max(np.linalg.cond(want.C_y)))
+        tol = algebra_rtol(cond * np.abs(wm).sum()) + record.jitter
+        for name in ("mu_p", "C_p", "mu_y", "C_y", "C_xy", "mu_e", "C_e"):
+            value = getattr(want, name)
+            scale = max(np.abs(value).max(), np.abs(beliefs.mean).max(), np.abs(y).max(), 1.0)
             np.testing.assert_allclose(getattr(got, name), value, rtol=0, atol=tol * scale,
                                        err_msg=f"{name} compiled={compiled}")
 
@@ -230,7 +290,8 @@ def test_gpsr_upf_weights_use_the_gp_corrected_transition_with_its_predictive_va
     dim = model.F.shape[0]
     belief = data.draw(particle_beliefs(dim), label="particles")
     gp = data.draw(gaussian_processes(input_dim=1, output_dim=1), label="GP")
-    source, output = data.draw(st.integers(0, dim - 1), label="input"), data.draw(st.integers(0, dim - 1), label="output")
+    source = data.draw(st.integers(0, dim - 1), label="input")
+    output = data.draw(st.integers(0, dim - 1), label="output")
     residual = ResidualGP(gp, (source,), 0, (output,))
     corrected = GPResidualModel(linear_model(model.F, model.H, model.Q, model.R), transition=residual)
     step = gpsr_upf_step(belief, corrected, model.y, rng=np.random.default_rng(seed), resample_threshold=0.0)
@@ -250,4 +311,5 @@ def test_gpsr_upf_weights_use_the_gp_corrected_transition_with_its_predictive_va
     want -= logsumexp(want)
     conds = [np.linalg.cond(model.R), max(np.linalg.cond(c) for c in q),
              max(np.linalg.cond(s) ** 2 for s in factors)]
-    np.testing.assert_allclose(step.weighted.log_weights, want, rtol=0, atol=2 * _log_weight_tolerance(terms, conds).max())
+    tol = _log_weight_tolerance(terms, conds)
+    np.testing.assert_allclose(step.weighted.log_weights, want, rtol=0, atol=2 * tol.max())
