@@ -8,7 +8,10 @@
 * weights across steps, without resampling: w_{i,k} ∝ w_{i,k−1} p(y_k | x_{i,k}), the previous
   weights carried, not reset; the estimate is the weighted mean and covariance of the set;
 * one step from particles drawn from N(μ, C): the weighted mean is the Kalman posterior mean within
-  Monte Carlo error (delta-method standard error of a self-normalised importance-sampling mean).
+  Monte Carlo error (delta-method standard error of a self-normalised importance-sampling mean);
+* the densities the weights are made of, absolutely (normalising hides a constant): log p(y | x_i),
+  log p(x_i | x_prev,i) and the per-row batched Gaussian log density are scipy's multivariate normal
+  log densities.
 """
 
 import numpy as np
@@ -17,10 +20,11 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy.special import logsumexp
 
+from gpfverify.filters.likelihoods import batched_gaussian_logpdf, measurement_loglik, transition_logpdf
 from gpfverify.filters.pf import pf_step
 from gpfverify.filters.resampling import Particles
 from gpfverify.models import linear_model
-from gpfverify.strategies import linear_gaussian_models, scaled_examples
+from gpfverify.strategies import linear_gaussian_models, scaled_examples, spd_matrices
 from gpfverify.strategies.matrices import float_arrays
 from gpfverify.tolerances import algebra_rtol, monte_carlo_atol
 
@@ -36,6 +40,34 @@ def _magnitude(x, mean, cov):
     """Size of the quadratic form (x − m)ᵀC⁻¹(x − m) as the rounding sees it: (|x| + |m|)² / λ_min."""
     size = np.abs(x) + np.abs(mean)
     return np.einsum("ni,ni->n", size, size) / np.linalg.eigvalsh(cov)[0]
+
+
+def _logpdf_tol(x, mean, cov):
+    """Rounding of log N(x; m, C): the quadratic form's size and |log|C|| + L log 2π, through cond(C)."""
+    size = _magnitude(x, mean, cov) + abs(np.linalg.slogdet(cov)[1]) + cov.shape[0] * np.log(2 * np.pi)
+    return algebra_rtol(np.linalg.cond(cov)) * (size + 1.0)
+
+
+@given(model=linear_gaussian_models(max_condition=1e2), count=st.integers(1, 12), data=st.data())
+def test_the_filters_log_densities_are_scipys_gaussian_log_densities(model, count, data):
+    dim, size = model.F.shape[0], model.H.shape[0]
+    x_prev = data.draw(float_arrays((count, dim), -3.0, 3.0), label="previous particles")
+    x = data.draw(float_arrays((count, dim), -3.0, 3.0), label="particles")
+    system = linear_model(model.F, model.H, model.Q, model.R)
+    want = np.array([scipy.stats.multivariate_normal(model.H @ xi, model.R).logpdf(model.y) for xi in x])
+    got = measurement_loglik(system, model.y, x, 1)
+    tol = _logpdf_tol(np.broadcast_to(model.y, (count, size)), x @ model.H.T, model.R)
+    assert np.all(np.abs(got - want) <= tol), (got, want, tol)
+    want = np.array([scipy.stats.multivariate_normal(model.F @ xp, model.Q).logpdf(xi) for xp, xi in zip(x_prev, x)])
+    got = transition_logpdf(system, x, x_prev, 1)
+    tol = _logpdf_tol(x, x_prev @ model.F.T, model.Q)
+    assert np.all(np.abs(got - want) <= tol), (got, want, tol)
+    covs = [data.draw(spd_matrices(size, 1e2), label=f"C_{i}") for i in range(count)]
+    residuals = data.draw(float_arrays((count, size), -3.0, 3.0), label="residuals")
+    want = np.array([scipy.stats.multivariate_normal(np.zeros(size), c).logpdf(r) for r, c in zip(residuals, covs)])
+    got = batched_gaussian_logpdf(residuals, np.array(covs), "C")
+    tol = np.array([_logpdf_tol(r[None], np.zeros((1, size)), c)[0] for r, c in zip(residuals, covs)])
+    assert np.all(np.abs(got - want) <= tol), (got, want, tol)
 
 
 @given(model=linear_gaussian_models(max_condition=1e2), count=st.integers(2, 30), seed=st.integers(0, 2**32 - 1),

@@ -18,6 +18,12 @@ Steps start inside the asymptotic range, Δλ ρ ≤ 1/8 with ρ = λ_max(P Hᵀ
 error by 2^(1 − CONVERGENCE_ORDER_ATOL) (the Richardson error by 2^(2 − CONVERGENCE_ORDER_ATOL)),
 up to a rounding floor algebra_rtol(cond) per step.
 
+Each EDH λ-step on its own: the particles advance by x ← x + Δλ (A x + b) with A(λ), b(λ) at the
+step's middle, the coefficients here from the Gaussian λ-path in information form — P_λ =
+(P⁻¹ + λ HᵀR⁻¹H)⁻¹, A = −½ P_λ HᵀR⁻¹H, m(λ) = P_λ (P⁻¹ x̄₀ + λ HᵀR⁻¹ z) and b = dm/dλ − A m with
+dm/dλ = P_λ HᵀR⁻¹ (z − H m) (the exact flow carries the path's mean) — not the closed forms the
+library writes.
+
 The EDH step's parallel EKF covariance is the Kalman filter's covariance (information form here).
 """
 
@@ -98,6 +104,46 @@ def test_flow_end_points_converge_at_first_order_and_extrapolate_at_second_order
     assert norms[1] <= first * norms[0] + floor and norms[2] <= first * norms[1] + floor, norms
     richardson = [np.linalg.norm(2.0 * e[1] - e[0]), np.linalg.norm(2.0 * e[2] - e[1])]
     assert richardson[1] <= second * richardson[0] + floor, (richardson, norms)
+
+
+@st.composite
+def step_schedules(draw):
+    """1–6 positive λ-steps of unequal sizes (ratios up to 10) summing to 1."""
+    sizes = np.array(draw(st.lists(st.floats(0.1, 1.0), min_size=1, max_size=6), label="step sizes"))
+    return sizes / sizes.sum()
+
+
+def edh_coefficients_on_the_gaussian_path(lam, P, H, R, z, x0_mean):
+    """A(λ), b(λ) of the exact flow of N(x̄₀, P) towards the posterior of z, from the λ-path in
+    information form (module docstring)."""
+    dim = P.shape[0]
+    info_gain = H.T @ np.linalg.solve(R, np.column_stack([H, z]))  # [HᵀR⁻¹H, HᵀR⁻¹z]
+    HtRinvH, HtRinvz = info_gain[:, :dim], info_gain[:, dim]
+    to_path = np.eye(dim) + lam * P @ HtRinvH  # P_λ = (I + λ P HᵀR⁻¹H)⁻¹ P
+    P_lam = np.linalg.solve(to_path, P)
+    A = -0.5 * P_lam @ HtRinvH
+    m = np.linalg.solve(to_path, x0_mean + lam * P @ HtRinvz)
+    dm = P_lam @ (HtRinvz - HtRinvH @ m)
+    return A, dm - A @ m
+
+
+@settings(max_examples=scaled_examples(0.5))
+@given(problem=flow_problems(), steps=step_schedules(), scale=log_uniform(0.5, 2.0))
+def test_each_edh_step_is_the_euler_step_of_the_gaussian_path_flow_at_its_middle(problem, steps, scale):
+    particles, H, R, z = problem
+    dim = particles.shape[1]
+    P = scale * particle_moments(particles)[1]  # the flow's covariance need not be the particles'
+    model = linear_model(np.eye(dim), H, np.eye(dim), R)
+    got = edh_update(particles, P, model, z, 1, steps)
+    want, x0_mean, lam_start, size = particles.copy(), particles.mean(axis=0), 0.0, np.abs(particles).max()
+    for dlam in steps:
+        A, b = edh_coefficients_on_the_gaussian_path(lam_start + 0.5 * dlam, P, H, R, z, x0_mean)
+        drift = want @ A.T
+        want = want + dlam * (drift + b)
+        lam_start += dlam
+        size = max(size, np.abs(want).max(), np.abs(drift).max(), np.abs(b).max())  # what each step rounds
+    tol = algebra_rtol(np.linalg.cond(P) * np.linalg.cond(R)) * len(steps)
+    np.testing.assert_allclose(got, want, rtol=0, atol=tol * size)
 
 
 @given(model=linear_gaussian_models(max_condition=1e2), seed=st.integers(0, 2**32 - 1), data=st.data())

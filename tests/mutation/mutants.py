@@ -325,10 +325,7 @@ MUTANTS: tuple[Mutant, ...] = (
     Mutant("Gaussian log density: log|C| counted twice", "likelihoods", "gpfverify/filters/likelihoods.py",
            "return whitened_gaussian_logpdf(white, logdet).reshape(residuals.shape[:-1])",
            "return whitened_gaussian_logpdf(white, 2.0 * logdet).reshape(residuals.shape[:-1])",
-           BOOTSTRAP + SIGMA_PF,
-           note="equivalent for every filter: the one covariance R (or Q) of a model gives every particle the same "
-                "log|C|, a constant that normalising the weights removes; only an absolute density shows it "
-                "(tests/test_pf.py compares gaussian_logpdf with scipy, an example test)"),
+           BOOTSTRAP + SIGMA_PF),
     # the bootstrap PF and the adaptive resampling rule
     Mutant("bootstrap PF: previous weights dropped", "bootstrap PF", "gpfverify/filters/pf.py",
            "return reweight_and_resample(x, belief.log_weights + measurement_loglik(model, y, x, k), rng,",
@@ -358,10 +355,7 @@ MUTANTS: tuple[Mutant, ...] = (
            "cross = (x - x.mean(axis=0)).T @ (hx - h_mean) / (n - 1)",
            FLOWS),
     Mutant("EDH: A and b at the start of each λ-step instead of its middle", "flows", "gpfverify/filters/flows.py",
-           "lam = lam_start + 0.5 * dlam", "lam = lam_start", FLOWS,
-           note="consistent: A(λ) and b(λ) at the start of the step are still a first-order scheme converging "
-                "to the same end point (the order and the Richardson extrapolation hold; only the error "
-                "constant moves, which no property pins down)"),
+           "lam = lam_start + 0.5 * dlam", "lam = lam_start", FLOWS),
     Mutant("EDH: b without the (I + 2λA) factor", "flows", "gpfverify/filters/flows.py",
            "b = (eye + 2 * lam * A) @ (", "b = (eye + lam * A) @ (", FLOWS),
     Mutant("EDH: A with H P Hᵀ + R instead of λ H P Hᵀ + R", "flows", "gpfverify/filters/flows.py",
