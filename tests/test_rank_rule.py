@@ -288,9 +288,10 @@ def test_audit_run_takes_the_rule():
     assert all(s.rank_rule == DEFAULT_RANK_RULE for s in audit_run(cases).steps)
 
 
-def test_model_fusion_keeps_numpys_rule_by_default():
-    """dmf_step/run_fusion default to numpy's rule (the experiments' reference numbers); a rule can
-    be chosen, and run_fusion's audit uses the DMF step's rule."""
+def test_model_fusion_defaults_to_the_canonical_rule_and_the_experiments_pass_theirs():
+    """dmf_step/run_fusion default to the canonical rule, the one default of every entry point; a
+    rule can be chosen (numpy's, the experiments' reference rule), and run_fusion's audit uses the
+    DMF step's rule; both rules fuse this full-rank linear system alike."""
     from gpfverify.fusion.model_fusion import run_fusion
     from gpfverify.models import linear_model
 
@@ -298,9 +299,29 @@ def test_model_fusion_keeps_numpys_rule_by_default():
                          np.diag([0.5, 0.3, 0.4]), prior_mean=[1.0, 0.5], prior_cov=np.eye(2), sizes=(2, 1))
     ys = np.random.default_rng(28).normal(size=(3, 3))
     default = run_fusion(model, ys, family="kf", methods=("cmf", "dmf"))
-    assert all(s.dmf.result.rank_rule.name == "numpy" and s.audit.rank_rule.name == "numpy" for s in default.steps)
-    chosen = run_fusion(model, ys, family="kf", methods=("cmf", "dmf"), rank_rule="canonical")
     assert all(s.dmf.result.rank_rule == DEFAULT_RANK_RULE and s.audit.rank_rule == DEFAULT_RANK_RULE
-               for s in chosen.steps)
+               for s in default.steps)
+    chosen = run_fusion(model, ys, family="kf", methods=("cmf", "dmf"), rank_rule="numpy")
+    assert all(s.dmf.result.rank_rule.name == "numpy" and s.audit.rank_rule.name == "numpy" for s in chosen.steps)
     np.testing.assert_allclose(chosen.means("dmf"), default.means("dmf"), rtol=0,
                                atol=algebra_rtol(1e3) * np.abs(default.means("cmf")).max())
+
+
+@pytest.mark.parametrize("options, expected", [({}, RankRule("numpy")),
+                                               ({"rank_tol": 1e-9}, RankRule("absolute", 1e-9)),
+                                               ({"rank_rule": "canonical"}, DEFAULT_RANK_RULE)])
+def test_the_experiments_give_eq_35_their_own_rule(monkeypatch, options, expected):
+    """The papers' experiments name the rule eq. 35 uses (numpy's by default, absolute with
+    --rank-tol): a change of the library's default does not change their numbers."""
+    from gpfverify.experiments import fusion_run, ungm1d
+    from gpfverify.fusion.model_fusion import dmf_step
+
+    seen = []
+
+    def spy(*args, **kwargs):
+        seen.append(kwargs.get("rank_rule"))
+        return dmf_step(*args, **kwargs)
+
+    monkeypatch.setattr(fusion_run, "dmf_step", spy)
+    ungm1d.run_one(ungm1d.Params(train=15, test_steps=2, sweep=(), **options), np.random.SeedSequence(3))
+    assert seen and all(rule == expected for rule in seen), seen

@@ -234,8 +234,9 @@ class KernelSplit:
     ``pinv`` (l, D) the truncated generalised inverse A_m with A_m C_xy^m = P_m, ``kernel_basis``
     N_m (l, l − r) and ``cokernel`` Ñ_m (l, l − r) with I − P_m = N_m Ñ_mᵀ (None: Ñ_m = N_m,
     the orthogonal SVD split). Canonical splits also carry the ``correlations`` ρ, the
-    ``covariance`` used (:data:`COVARIANCE_LOCAL` / :data:`COVARIANCE_CENTRAL`) and the
-    ``whitening``."""
+    ``covariance`` used (:data:`COVARIANCE_LOCAL` / :data:`COVARIANCE_CENTRAL`), the
+    ``whitening`` and the ``whitened_inverse`` A_m = L_y⁻ᵀ V_r diag(ρ_r)⁻¹ U_rᵀ L_p⁻¹ (the unit-free
+    variant's; ``pinv`` itself unless the rank was lost)."""
 
     rank: RankReport
     pinv: np.ndarray
@@ -245,6 +246,7 @@ class KernelSplit:
     correlations: np.ndarray | None = None
     covariance: str | None = None
     whitening: CanonicalCorrelations | None = None
+    whitened_inverse: np.ndarray | None = None
 
     @property
     def whitened_kernel(self) -> np.ndarray | None:
@@ -310,13 +312,14 @@ def canonical_split(cross_cov: np.ndarray, prior_cov: np.ndarray, cov_y: np.ndar
     _, s, _ = _cross_cov_svd(cross_cov)
     rank, rule = RankReport(r, s, float(tol), cross_cov.shape), RankRule("canonical", float(tol))
     d, l = cross_cov.shape
+    v_r, v_perp = cc.v[:, :r], cc.v[:, r:]
+    whitened = cc.y_from_whitened(v_r / rho[:r]) @ cc.x_dual(cc.u[:, :r]).T if r else np.zeros((l, d))
     if unit_free or r == l:
-        v_r, v_perp = cc.v[:, :r], cc.v[:, r:]
-        pinv = cc.y_from_whitened(v_r / rho[:r]) @ cc.x_dual(cc.u[:, :r]).T if r else np.zeros((l, d))
-        return KernelSplit(rank, pinv, cc.y_from_whitened(v_perp), cc.y_factor_times(v_perp), rule, rho,
-                           covariance, cc)
+        return KernelSplit(rank, whitened, cc.y_from_whitened(v_perp), cc.y_factor_times(v_perp), rule, rho,
+                           covariance, cc, whitened)
     u, sg, vt = graded_svd(cross_cov)
-    return KernelSplit(rank, _moore_penrose_at_rank(u, sg, vt, r), vt[r:].T, None, rule, rho, covariance, cc)
+    return KernelSplit(rank, _moore_penrose_at_rank(u, sg, vt, r), vt[r:].T, None, rule, rho, covariance, cc,
+                       whitened)
 
 
 def sensor_prior_covariance(local: LocalReport, central_cov: np.ndarray | None = None
@@ -557,44 +560,40 @@ def local_consistency_residual(case: FusionCase, m: int) -> np.ndarray:
     return change - local.C_xy @ whitened_innovation(local, case.local_measurement(m))
 
 
-def reconstruction_error(split: KernelSplit, local: LocalReport, factor: np.ndarray, change: np.ndarray) -> float:
-    """e_m: the whitened size ‖L_y^mᵀ δr_m‖ of the computed error of eq. 35's reconstruction
-    r_m = A_m (μ_e^m − μ_p^m), per eps (docs/fusion-definitions.md, "Rounding bound"), for the route
-    that computed A_m (``factor`` L_y^m, ``change`` μ_e^m − μ_p^m):
-
-    * the whitened left inverse (canonical rule, full column rank; the unit-free variant):
-      :func:`~gpfverify.fusion.rounding.left_inverse_error`, unit-free;
-    * the Moore–Penrose inverse of the Jacobi SVD (canonical rule, rank lost): an error of the
-      computed SVD within eps |C_xy^m| (componentwise) moves r_m by −A_m δC r_m and by a rotation of
-      the kernel, (I − P_m) δCᵀ A_mᵀ r_m; the rotation lies in the kernel, which G_m C_y^m annuls
-      when DMF is exact (the case the bound is for), so e_m = ‖ |L_yᵀ A_m| (|C_xy^m| |r_m| + |μ_e^m − μ_p^m|) ‖
-      (the product's own rounding included);
-    * numpy's SVD (numpy and absolute rules): :func:`~gpfverify.fusion.rounding.svd_inverse_error`."""
-    r = split.rank.rank
-    if not r:
-        return 0.0
-    recovered = split.pinv @ change
-    cc = split.whitening
-    if cc is None or split.rule.name != "canonical":
-        return float(svd_inverse_error(split.rank.singular_values[None], r, factor[None], recovered[None])[0])
-    rho = split.correlations
-    assert rho is not None  # every canonical split carries its correlations
-    if split.cokernel is not None or r == local.mu_y.shape[0]:  # the whitened left inverse
-        condition = _factor_conditions(cc) * (1.0 + float(rho[0] / rho[r - 1]))
-        return float(left_inverse_error(np.array([condition]), factor[None], recovered[None])[0])
-    return float(sla.norm(np.abs(factor.T @ split.pinv) @ (np.abs(local.C_xy) @ np.abs(recovered) + np.abs(change))))
-
-
 def sensor_terms(case: FusionCase, sensor: SensorExactness) -> SensorTerms:
-    """Sensor m's operands of the step's rounding bound (one step, B = 1)."""
+    """Sensor m's operands of the step's rounding bound (one step, B = 1; docs/fusion-definitions.md,
+    "Rounding bound"). The bound is the step's rounding *when DMF is exact*; there G_m C_y^m annuls
+    every kernel component, so eq. 35's Moore–Penrose inverse and the whitened one move the state
+    alike, and a canonical split's operands are those of the whitened one, A_m = L_y⁻ᵀ V_r
+    diag(ρ_r)⁻¹ U_rᵀ L_p⁻¹, whose magnitudes do not change with units. Its reconstruction error
+    e_m: :func:`~gpfverify.fusion.rounding.left_inverse_error` (two triangular solves with the
+    equilibrated factors and the canonical SVD, amplified by ρ_1/ρ_r), plus, when the rank was lost
+    and the Jacobi SVD computed eq. 35's inverse, that SVD's componentwise backward error carried by
+    A_m, ‖ |L_yᵀ A_m| (|C_xy^m| |r_m| + |μ_e^m − μ_p^m|) ‖. Under the SVD rules the operands are
+    numpy's SVD's own (:func:`~gpfverify.fusion.rounding.svd_inverse_error`; they depend on units,
+    as those rules do)."""
     local = case.locals[sensor.index]
     split = sensor.split
     factor = sensor_factor(split, local.C_y)
     change = difference(local.mu_e, local.mu_p, case.circular_state)
+    inverse = split.pinv if split.whitened_inverse is None else split.whitened_inverse
+    recovered = inverse @ change
+    r = split.rank.rank
+    if not r:
+        error = 0.0
+    elif split.whitened_inverse is None:
+        error = float(svd_inverse_error(split.rank.singular_values[None], r, factor[None], recovered[None])[0])
+    else:
+        rho = split.correlations
+        assert split.whitening is not None and rho is not None  # a canonical split
+        condition = _factor_conditions(split.whitening) * (1.0 + float(rho[0] / rho[r - 1]))
+        error = float(left_inverse_error(np.array([condition]), factor[None], recovered[None])[0])
+        if inverse is not split.pinv:  # the Jacobi SVD's Moore–Penrose inverse
+            error += float(sla.norm(np.abs(factor.T @ inverse) @ (np.abs(local.C_xy) @ np.abs(recovered)
+                                                                   + np.abs(change))))
     return SensorTerms(case.central.blocks[sensor.index], local.mu_y[None], local.mu_p[None], local.mu_e[None],
-                       local.C_y[None], local.C_xy[None], split.pinv[None], (split.pinv @ change)[None], factor[None],
-                       np.array([correlation_condition(local.C_y)]),
-                       np.array([reconstruction_error(split, local, factor, change)]))
+                       local.C_y[None], local.C_xy[None], inverse[None], recovered[None], factor[None],
+                       np.array([correlation_condition(local.C_y)]), np.array([error]))
 
 
 def equivalence_tolerance(case: FusionCase, gain: np.ndarray, sensors: tuple[SensorExactness, ...],
@@ -622,7 +621,8 @@ def rescaled_case(case: FusionCase, state_scale, output_scale) -> FusionCase:
     (D positive numbers) and S_y = diag(output_scale) (L, stacked; sensor m's block scales its
     outputs), e.g. 1e6 on a bearing for radians → microradians. Means scale as their variable,
     covariances as S C S; the case's absolute ``rank_tol`` is kept as it is (it has no units to
-    follow). Angle outputs must keep scale 1 (wrapping is in radians): InputError otherwise."""
+    follow). Angle outputs and angle state components must keep scale 1 (wrapping is in radians):
+    InputError otherwise."""
     s_x = np.asarray(state_scale, dtype=float)
     s_y = np.asarray(output_scale, dtype=float)
     c = case.central
@@ -633,8 +633,11 @@ def rescaled_case(case: FusionCase, state_scale, output_scale) -> FusionCase:
         raise InputError("scales must be finite and positive")
     if c.circular and np.any(s_y[list(c.circular)] != 1.0):
         raise InputError(f"angle outputs {list(c.circular)} must keep scale 1 (wrapping is in radians)")
+    if c.circular_state and np.any(s_x[list(c.circular_state)] != 1.0):
+        raise InputError(f"angle state components {list(c.circular_state)} must keep scale 1 (wrapping is in radians)")
     central = CentralPrediction(s_x * c.mu_p, c.C_p * np.outer(s_x, s_x), s_y * c.mu_y,
-                                c.C_y * np.outer(s_y, s_y), c.C_xy * np.outer(s_x, s_y), c.sizes, c.circular)
+                                c.C_y * np.outer(s_y, s_y), c.C_xy * np.outer(s_x, s_y), c.sizes, c.circular,
+                                c.circular_state)
     reports = []
     for block, r in zip(c.blocks, case.locals):
         s_m = s_y[block]

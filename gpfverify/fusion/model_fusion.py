@@ -45,7 +45,7 @@ from gpfverify.filters.sigma_points import SigmaParams
 from gpfverify.fusion.case import CentralPrediction, FusionCase, LocalReport, sensor_blocks, split_circular
 from gpfverify.fusion.distributed import DMFResult, dmf_update
 from gpfverify.fusion.names import FUSION_RULES, canonical_rule, canonical_rules
-from gpfverify.fusion.exactness import NUMPY_RANK_RULE, RankRule, resolve_rank_rule
+from gpfverify.fusion.exactness import RankRule, resolve_rank_rule
 from gpfverify.models.learned import GPModel
 from gpfverify.models.system import StateSpaceModel, require_model
 from gpfverify.validate import as_matrix, as_vector
@@ -121,13 +121,13 @@ def dmf_step(belief: Gaussian, model, y=None, *, local_records: Sequence[StepRec
     """One distributed-fusion cycle (eq. 35) from the fused ``belief``: ``local_records[m]`` is
     sensor m's step record from its own filter; ``y`` (stacked, optional) is kept in the case for
     the gap diagnostics only. The rank rule is ``rank_rule``, else the absolute ``rank_tol``
-    (also stored as the case's ``rank_tol``), else **numpy's rule** σ_max · max(D, l_m) · eps —
-    this module's default, unlike the library's and the audit's (canonical), so that the paper's
-    experiments keep their reference numbers; ``result.rank_rule`` says which decided."""
+    (also stored as the case's ``rank_tol``), else the canonical rule (the default of every entry
+    point, :data:`~gpfverify.fusion.exactness.DEFAULT_RANK_RULE`); ``result.rank_rule`` says which
+    decided."""
     _, central = central_prediction(belief, model, k=k, family=family, params=params)
     stacked = None if y is None else as_vector(y, "y", int(sum(central.sizes)))
     case = FusionCase(central, local_reports(local_records, central), stacked, rank_tol)
-    rule = resolve_rank_rule(None, rank_rule, rank_tol, default=NUMPY_RANK_RULE)
+    rule = resolve_rank_rule(None, rank_rule, rank_tol)
     result, seconds = _timed(dmf_update, case, rank_rule=rule)
     record = StepRecord(central.mu_p, central.C_p, central.mu_y, central.C_y, central.C_xy, result.mean, result.cov)
     return DMFStep(record, case, result, seconds)
@@ -270,7 +270,7 @@ def run_fusion(model, ys, *, family: str = "ukf", methods: Sequence[str] = DEFAU
     chosen baselines (a baseline that fails at a step is recorded in ``FusionStep.failed`` and the run
     goes on); ``rcc_size`` is RCC-CI's ellipsoid size c (default χ²_D(0.99)). Priors default
     to the model's (a GPModel has none: then both are required). ``rank_rule``/``rank_tol`` as in
-    :func:`dmf_step` (default numpy's rule); the per-step audit uses the same rule."""
+    :func:`dmf_step` (default the canonical rule); the per-step audit uses the same rule."""
     chosen = model_family(family, model, params)
     methods = _checked_methods(methods, audit)
     ys = as_matrix(ys, "ys", None, model.measurement_dim)
