@@ -238,5 +238,5 @@ def _sensor_audit(t: int, m: int, c: _SensorColumns, rule: RankRule, dim: int, z
         condition_number=c.condition_number[t], gap_gain_norm=0.0, exactness_tol=0.0, exact=True,
         repair_basis=_zeros(c.size, 0), repair_message=_zeros(c.size),
         local_consistency_residual=c.residual[t], consistency_tol=c.consistency_tol[t],
-        gap_contribution=zero_state, branch_offsets=_zeros(c.size, dtype=int), rank_rule=rule,
-        canonical_correlations=c.correlations[t], covariance=c.covariance[t])
+        gap_contribution=zero_state, gap_contribution_size=0.0, branch_offsets=_zeros(c.size, dtype=int),
+        rank_rule=rule, canonical_correlations=c.correlations[t], covariance=c.covariance[t])

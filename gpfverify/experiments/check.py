@@ -52,12 +52,13 @@ CONSISTENCY_LEVEL = 0.95
 
 def params_for(system: str, filter: FilterName = "ukf", steps: int = 50, measurements: str | None = None,
                training: str | None = None, train: int = 200, fit_points: int | None = 200,
-               restarts: int = 2, methods=("cmf", "dmf", "cc", "ci"), rank_rule: str = "canonical") -> Params:
+               restarts: int = 2, methods=("cmf", "dmf", "cc", "ci"), rank_rule: str = "canonical",
+               ci_criterion: str = "trace") -> Params:
     """The parameters of a check, validated, with the paths made absolute and the rank rule in its
     canonical spelling. ``rank_rule`` is a :func:`~gpfverify.fusion.exactness.parse_rank_rule`
     string: the unit-free canonical-correlation rule by default (``"canonical[:TAU]"``),
-    ``"absolute:TOL"`` or ``"numpy"``. A ``training`` file with a filter that learns nothing is
-    refused rather than ignored."""
+    ``"absolute:TOL"`` or ``"numpy"``; ``ci_criterion`` CI's weight criterion, ``"trace"`` or
+    ``"det"``. A ``training`` file with a filter that learns nothing is refused rather than ignored."""
     path, name = split_spec(system)
     if training is not None and filter not in GP_FAMILIES:
         raise InputError(f"--training is learned from by the GP filters ({', '.join(GP_FAMILIES)}) only; "
@@ -66,7 +67,7 @@ def params_for(system: str, filter: FilterName = "ukf", steps: int = 50, measure
                   measurements=None if measurements is None else str(Path(measurements).resolve()),
                   training=None if training is None else str(Path(training).resolve()),
                   train=train, fit_points=fit_points, restarts=restarts, methods=tuple(methods),
-                  rank_rule=parse_rank_rule(rank_rule).spec)
+                  rank_rule=parse_rank_rule(rank_rule).spec, ci_criterion=ci_criterion)
 
 
 def _load_npz(path: str, what: str) -> dict[str, np.ndarray]:
@@ -131,7 +132,8 @@ def run_one(params: Params, seed: np.random.SeedSequence) -> RunRecord:
     prior = Gaussian(model.prior_mean, model.prior_cov)
     fusion_model = _gp_model(model, params, train_rng) if params.filter in GP_FAMILIES else model
     fused = run_fusion(fusion_model, ys, family=params.filter, methods=params.methods,
-                       rank_rule=params.rank_rule, local_priors=[prior] * len(model.sensors),
+                       rank_rule=params.rank_rule, ci_criterion=params.ci_criterion,
+                       local_priors=[prior] * len(model.sensors),
                        fused_prior=prior)
     return _record(model, fused, ys, truth)
 
@@ -170,12 +172,14 @@ def _record(model, fused, ys: np.ndarray, truth: np.ndarray | None) -> RunRecord
             "gap_size": float(audit.gap_size), "gap_bound": float(audit.gap_bound),
             "repaired_gap_norm": float(np.linalg.norm(audit.repaired_dmf_mean - audit.cmf_mean)),
             "recursive_gap_norm": float(np.linalg.norm(step.estimate("dmf").mean - step.estimate("cmf").mean)),
+            "unit_dependence": audit.unit_dependence,
             "condition_holds": bool(audit.condition_holds), "exact": bool(audit.exact),
             "sensors": [{"index": s.index, "rank": int(s.rank), "cols": s.cols,
                          "full_column_rank": bool(s.full_column_rank), "exact": bool(s.exact),
                          "repair_dim": int(s.repair_dim), "singular_values": s.singular_values.tolist(),
                          "tol": float(s.tol),
                          "gap_share": float(np.linalg.norm(s.gap_contribution)),
+                         "gap_share_size": float(s.gap_contribution_size),
                          "min_canonical_correlation": (None if s.canonical_correlations is None
                                                        or not s.canonical_correlations.size
                                                        else float(s.canonical_correlations.min())),
@@ -303,8 +307,11 @@ def summarize(params: Params, results: list[RunRecord]) -> dict:
         "gap_size": [[e["gap_size"] for e in steps] for steps in steps_by_run],
         "gap_bound": [[e["gap_bound"] for e in steps] for steps in steps_by_run],
         "recursive_gap_norm": [[e["recursive_gap_norm"] for e in steps] for steps in steps_by_run],
+        "unit_dependence": [[e["unit_dependence"] for e in steps] for steps in steps_by_run],
+        "max_unit_dependence": max((e["unit_dependence"] for e in every if e["unit_dependence"] is not None),
+                                   default=None),
         **{key: _per_sensor(steps_by_run, key)
-           for key in ("rank", "full_column_rank", "exact", "repair_dim", "gap_share", "tol",
+           for key in ("rank", "full_column_rank", "exact", "repair_dim", "gap_share", "gap_share_size", "tol",
                        "min_canonical_correlation", "branch_offset_count")},
         "time_per_step": {**{m: float(np.mean([e["seconds"][m] for e in every])) for m in methods},
                           "local": float(np.mean([sum(e["seconds"]["local"]) for e in every]))},

@@ -214,22 +214,23 @@ def _attempt(rule: Callable, beliefs: Sequence) -> tuple[object, str | None, flo
 
 
 def _baselines(methods: Sequence[str], rcc_size: float | None,
-               circular_state: Sequence[int]) -> dict[str, Callable]:
+               circular_state: Sequence[int], ci_criterion: str = "trace") -> dict[str, Callable]:
     """The requested baselines as functions of the local posteriors, averaging the angle state
-    components ``circular_state`` on the circle (convex solvers imported only when requested)."""
+    components ``circular_state`` on the circle, CI and ICI with the weight criterion
+    ``ci_criterion`` (convex solvers imported only when requested)."""
     out: dict[str, Callable[[Sequence], FusedEstimate | RccCiResult]] = {}
     if "cc" in methods:
         from gpfverify.fusion.convex import convex_combination
         out["cc"] = partial(convex_combination, circular_state=circular_state)
     if "ci" in methods:
         from gpfverify.fusion.ci import covariance_intersection
-        out["ci"] = partial(covariance_intersection, circular_state=circular_state)
+        out["ci"] = partial(covariance_intersection, criterion=ci_criterion, circular_state=circular_state)
     if "rcc-ci" in methods:
         from gpfverify.fusion.rcc_ci import rcc_ci
         out["rcc-ci"] = partial(rcc_ci, c=rcc_size, on_empty="enlarge", circular_state=circular_state)
     if "ici" in methods:
         from gpfverify.fusion.ci import inverse_covariance_intersection
-        out["ici"] = partial(inverse_covariance_intersection, circular_state=circular_state)
+        out["ici"] = partial(inverse_covariance_intersection, criterion=ci_criterion, circular_state=circular_state)
     if "ei" in methods:
         from gpfverify.fusion.ellipsoidal import ellipsoidal_intersection
         out["ei"] = partial(ellipsoidal_intersection, circular_state=circular_state)
@@ -264,19 +265,23 @@ def run_fusion(model, ys, *, family: str = "ukf", methods: Sequence[str] = DEFAU
                params: SigmaParams = SigmaParams(), rank_tol: float | None = None,
                local_priors: Sequence[Gaussian] | None = None, fused_prior: Gaussian | None = None,
                audit: bool = True, rcc_size: float | None = None,
-               rank_rule: RankRule | str | None = None) -> FusionRun:
+               rank_rule: RankRule | str | None = None, ci_criterion: str = "trace") -> FusionRun:
     """Filter the stacked measurements ``ys`` (T, L) — ``ys[t]`` at step k = first_k + t — with
     every sensor's local filter, CMF and DMF (each its own recursion from ``fused_prior``) and the
     chosen baselines (a baseline that fails at a step is recorded in ``FusionStep.failed`` and the run
-    goes on); ``rcc_size`` is RCC-CI's ellipsoid size c (default χ²_D(0.99)). Priors default
-    to the model's (a GPModel has none: then both are required). ``rank_rule``/``rank_tol`` as in
+    goes on); ``rcc_size`` is RCC-CI's ellipsoid size c (default χ²_D(0.99)); ``ci_criterion`` the
+    weight criterion of CI and ICI: "trace" (the default; minimises the trace of the fused bound,
+    which depends on the units of the state components) or "det" (its determinant: unit-free).
+    Priors default to the model's (a GPModel has none: then both are required). ``rank_rule``/``rank_tol`` as in
     :func:`dmf_step` (default the canonical rule); the per-step audit uses the same rule."""
     chosen = model_family(family, model, params)
     methods = _checked_methods(methods, audit)
     ys = as_matrix(ys, "ys", None, model.measurement_dim)
     local_beliefs, fused = _priors(model, local_priors, fused_prior)
     sensor_models = [model.sensor_model(m) for m in range(len(model.sizes))]
-    baselines = _baselines(methods, rcc_size, model.circular_state)
+    if ci_criterion not in ("trace", "det"):
+        raise InputError(f"ci_criterion must be 'trace' or 'det', got {ci_criterion!r}")
+    baselines = _baselines(methods, rcc_size, model.circular_state, ci_criterion)
     cmf_belief = dmf_belief = fused
     steps = []
     for t, y in enumerate(ys):
