@@ -78,9 +78,9 @@ def test_a_sensor_with_more_outputs_than_states_is_found_and_repaired():
     inexact = [e for r in records for e in r.steps if not e["exact"]]
     assert inexact and results["exact_steps"] == results["total_steps"] - len(inexact)
     for e in inexact:
-        assert e["gap_norm"] > e["gap_bound"]                       # a real gap, not rounding
+        assert e["gap_size"] > e["gap_bound"]                       # a real gap, not rounding (prior sd both)
         assert e["sensors"][1]["repair_dim"] == 1 and e["sensors"][0]["repair_dim"] == 0
-        assert e["repaired_gap_norm"] <= e["gap_bound"]             # the repair message restores CMF
+        assert e["repaired_gap_size"] <= e["gap_bound"]             # the repair message restores CMF
 
 
 def test_logged_measurements_with_and_without_truth(tmp_path):

@@ -33,7 +33,7 @@ from gpfverify.filters.families import GP_FAMILIES
 from gpfverify.filters.records import Gaussian
 from gpfverify.audit import rank_rule_to_dict
 from gpfverify.fusion.case import case_from_dict, case_to_dict
-from gpfverify.fusion.exactness import parse_rank_rule
+from gpfverify.fusion.exactness import gap_size, parse_rank_rule
 from gpfverify.fusion.model_fusion import run_fusion
 from gpfverify.fusion.runfile import write_run
 from gpfverify.models import fit_gp_model, learn_gp_model
@@ -171,6 +171,8 @@ def _record(model, fused, ys: np.ndarray, truth: np.ndarray | None) -> RunRecord
             "predicted_gap_norm": float(np.linalg.norm(audit.predicted_gap)),
             "gap_size": float(audit.gap_size), "gap_bound": float(audit.gap_bound),
             "repaired_gap_norm": float(np.linalg.norm(audit.repaired_dmf_mean - audit.cmf_mean)),
+            "repaired_gap_size": gap_size(step.dmf.case, difference(audit.repaired_dmf_mean, audit.cmf_mean,
+                                                                    model.circular_state)),
             "recursive_gap_norm": float(np.linalg.norm(step.estimate("dmf").mean - step.estimate("cmf").mean)),
             "unit_dependence": audit.unit_dependence,
             "condition_holds": bool(audit.condition_holds), "exact": bool(audit.exact),
