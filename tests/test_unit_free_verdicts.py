@@ -23,7 +23,7 @@ from gpfverify.fusion.model_fusion import run_fusion
 from gpfverify.fusion.runfile import open_run, write_run
 from gpfverify.fusion.synthetic import random_case
 from gpfverify.rng import generator
-from gpfverify.tolerances import EPS
+from gpfverify.tolerances import EPS, SOLVER_TOL
 
 HERE = Path(__file__).parent
 sys.path.insert(0, str(HERE))                       # the suite imports in importlib mode: helpers beside it
@@ -192,3 +192,24 @@ def test_a_saturated_sensor_is_exact_in_every_unit(length, rate):
         assert saturated.gap_gain_norm <= floor
         assert saturated.exact and not saturated.full_column_rank
         assert not eight.exact and eight.gap_gain_norm > 1e6 * eight.exactness_tol
+
+
+def _ci_means(length: float, criterion: str) -> np.ndarray:
+    """CI's fused means of the robot (without the 8-output sensor) in units where a metre is
+    ``length``, back in metres."""
+    model = unicycle(length, 1.0, NAMES[:4])
+    _, ys = model.simulate(5, generator(np.random.SeedSequence(8)))
+    run = run_fusion(model, ys, methods=("cmf", "dmf", "ci"), audit=False, ci_criterion=criterion)
+    units = np.array([length, length, 1.0, length, 1.0])
+    return run.means("ci") / units
+
+
+def test_the_determinant_criterion_makes_ci_unit_free_and_the_trace_criterion_does_not():
+    """The same robot in metres and in kilometres: CI with the determinant criterion gives the same
+    estimate (to the solver's accuracy, in prior standard deviations of the metre run), the trace
+    criterion a different one — the dependence the check page states."""
+    prior_sd = np.sqrt(np.diag(unicycle().prior_cov))
+    det = np.abs(_ci_means(1.0, "det") - _ci_means(1e-3, "det")) / prior_sd
+    trace = np.abs(_ci_means(1.0, "trace") - _ci_means(1e-3, "trace")) / prior_sd
+    assert det.max() <= SOLVER_TOL
+    assert trace.max() > 1e3 * SOLVER_TOL
