@@ -40,7 +40,8 @@ leaves DMF exact. Full column rank needs l_m ≤ D (rank C_xy^m ≤ min(D, l_m))
 
 Rank rules (:class:`RankRule`). Which singular directions of C_xy^m count as rank is a choice:
 
-* ``canonical`` (the library and audit default, τ = :data:`~gpfverify.tolerances.CANONICAL_RANK_TOL`):
+* ``canonical`` (the one default of the library, check, audit and fuse;
+  τ = :data:`~gpfverify.tolerances.CANONICAL_RANK_TOL`):
   the canonical correlations of state and sensor output under the sensor's predicted joint,
   ρ_i = σ_i(K_m), K_m = L_p⁻¹ C_xy^m L_y⁻ᵀ with C_p^m = L_p L_pᵀ, C_y^m = L_y L_yᵀ (Cholesky
   factors of the equilibrated matrices, triangular solves; :func:`~gpfverify.linalg.canonical_correlations`);
@@ -62,7 +63,12 @@ Moore–Penrose inverse of C_xy^m truncated at r in C_xy^m's own SVD C_xy^m = U 
 A_m = (C_xy^m)⁺ = V_r S_r⁻¹ U_rᵀ, P_m = A_m C_xy^m = V_r V_rᵀ (orthogonal), N_m = V_⊥ orthonormal
 (``kernel_split``, and ``canonical_split`` by default). With full column rank this is a left inverse
 and DMF does not depend on units; when the rank is lost it does ((S_x C S_y)⁺ ≠ S_y⁻¹ C⁺ S_x⁻¹
-for a rank-deficient C), and the audit says by how much (docs/fusion-definitions.md).
+for a rank-deficient C), and the audit says by how much (docs/fusion-definitions.md). Under the
+canonical rule the computation's rounding does not depend on units either: at full column rank the
+left inverse applied is the whitened one below (equal to (C_xy^m)⁺ on range(C_xy^m), where
+μ_e^m − μ_p^m lies), and when the rank is lost C_xy^m's own SVD comes from the Jacobi SVD
+(:func:`~gpfverify.linalg.graded_svd`), accurate for matrices graded by units on both sides. The
+SVD rules keep numpy's SVD (the experiments' reference numbers, bit for bit).
 
 The unit-free variant (``canonical_split(..., unit_free=True)``; never reported as DMF) truncates in
 the whitened coordinates instead. Let K_m = U diag(ρ) Vᵀ (full SVD), r the rank, and
@@ -75,14 +81,16 @@ replaced by Ñ_mᵀ w_m = V_⊥ᵀ L_y⁻¹ (y^m ⊖ μ_y^m), the dropped canoni
 For a consistent report A_m returns the minimum-C_y^m-norm solution of C_xy^m w = μ_e^m − μ_p^m, and
 under rescaling A_m → S_y⁻¹ A_m S_x⁻¹: its mean and gap transform as states do.
 
-Exactness verdict (every rule; docs/fusion-definitions.md). The residual
-‖L_p⁻¹ G_m C_y^m N_m Ñ_mᵀ L_y⁻ᵀ‖₂ (L_p, L_y the factors of the central C_p and of C_y^m) is the gap
-in prior standard deviations of the fused state per unit whitened innovation; the sensor is exact
-when it is within the rounding bound of its own computation (the computed G, the computed kernel's
-angle eps·σ_1/σ_r, and the fused estimate's own rounding ‖ |L_p⁻¹| |μ_p| ‖) and that bound resolves
-the condition (at most :data:`~gpfverify.tolerances.RESOLVABLE_GAP`). The gap's own rounding bound,
-in the same units, is :func:`equivalence_tolerance`; "reproduced" compares the observed
-:func:`gap_size` with it.
+Exactness verdict (every rule; docs/fusion-definitions.md). The gap gain
+R_m = ‖L_p⁻¹ G_m C_y^m Π_m L_y⁻ᵀ‖₂ (L_p, L_y the factors of the central C_p and of C_y^m, Π_m the
+projector onto the kernel the rule dropped, in the metric the rule decides in: whitened for the
+canonical rule, Π_m = L_y⁻ᵀ V_⊥ V_⊥ᵀ L_yᵀ; C_xy^m's own for the SVD rules, Π_m = N_m N_mᵀ) is the gap in
+prior standard deviations of the fused state per unit whitened innovation; the sensor is exact
+when it is within the rounding bound of its computation
+(:func:`~gpfverify.fusion.rounding.exactness_bound`: the fused estimate's own rounding, the computed
+G and the computed kernel's angle) and that bound resolves the condition (at most
+:data:`~gpfverify.tolerances.RESOLVABLE_GAP`). The gap's own rounding bound, in the same units, is
+:func:`equivalence_tolerance`; "reproduced" compares the observed :func:`gap_size` with it.
 
 Repair. The part of w_m that eq. 35 cannot recover is its kernel component (I − P_m) w_m: μ_e^m −
 μ_p^m determines w_m only on range(P_m). The repair message (:func:`repair_message`) is that
