@@ -100,7 +100,12 @@ class CheckData:
         # the gap and its rounding bound in prior standard deviations (docs/fusion-definitions.md)
         self.gap = np.asarray(results["gap_size"], dtype=float)              # (R, T)
         self.bound = np.asarray(results["gap_bound"], dtype=float)
-        self.recursive = np.asarray(results["recursive_gap_norm"], dtype=float)
+        # the drift of the recursive filters beside the one-step gap, in one unit: prior standard
+        # deviations (recursive_gap_size), or state units for results written before it
+        self.drift_in_prior_sd = "recursive_gap_size" in results
+        self.recursive = np.asarray(results["recursive_gap_size" if self.drift_in_prior_sd else "recursive_gap_norm"],
+                                    dtype=float)
+        self.one_step = self.gap if self.drift_in_prior_sd else np.asarray(results["gap_norm"], dtype=float)
         self.full = np.asarray(results["full_column_rank"], dtype=bool)       # (R, T, N)
         self.exact = np.asarray(results["exact"], dtype=bool)
         self.rank = np.asarray(results["rank"], dtype=int)
@@ -169,6 +174,16 @@ def _repair_words(sizes: np.ndarray) -> str:
     return f"{sizes.min()}–{sizes.max()} numbers"
 
 
+def _exact_anyway_words(exact: int, lost: int) -> str:
+    """How many of the ``lost`` steps where a sensor lost rank it was exact at, from the counts."""
+    if exact == lost:
+        return f"exact anyway at all {_plural(lost, 'step')} (the lost directions carried no gain)"
+    if exact:
+        return (f"exact anyway at {exact} of those {lost} steps (the lost directions carried no gain there) and "
+                f"not at {lost - exact}")
+    return "not exact at any of them"
+
+
 def _share_unit(d: CheckData) -> str:
     return " prior standard deviations" if d.share_in_prior_sd else " (state units)"
 
@@ -194,13 +209,7 @@ def _sensor_sentence(d: CheckData, m: int) -> str | None:
     exact_anyway = int((lost & d.exact[:, :, m]).sum())
     inexact = lost & ~d.exact[:, :, m]
     n_inexact = int(inexact.sum())
-    if exact_anyway == n_lost:
-        text += f"; its report was exact anyway at all {_plural(n_lost, 'step')} (the lost directions carried no gain)"
-    elif exact_anyway:
-        text += (f"; its report was exact anyway at {exact_anyway} of those {n_lost} steps (the lost directions "
-                 f"carried no gain there) and not at {n_inexact}")
-    else:
-        text += "; its report was not exact at any of them"
+    text += "; its report was " + _exact_anyway_words(exact_anyway, n_lost)
     if n_inexact:
         share = d.share[:, :, m][inexact]
         text += (f" (its share of the gap up to {_g(share.max())}{_share_unit(d)}); sending its repair "
@@ -306,8 +315,9 @@ def _rule_sentence(d: CheckData) -> str:
     span = (f"the tolerances it gave ranged from {_g(tols.min())} to {_g(tols.max())}" if tols.size
             and tols.min() != tols.max() else f"tolerance {_g(tols.max())}" if tols.size and not stated else "")
     return (f"Every rank verdict was decided by the {rule}" + (f"; {span}" if span else "") +
-            ". A sensor is exact when the directions its rank decision drops carry no gain "
-            "(‖G_m C_y^m N_m‖₂ at rounding level), a step when every sensor is. The rounding bound is the "
+            ". A sensor is exact when the directions its rank decision drops carry no gain (its gap gain "
+            "‖L_p⁻¹ G_m C_y^m Π_m L_y⁻ᵀ‖₂, prior standard deviations per unit whitened innovation, at the "
+            "rounding level of the fused estimate), a step when every sensor is. The rounding bound is the "
             "first-order bound on the DMF − CMF gap, in prior standard deviations, that rounding in the "
             "step's own CMF and DMF arithmetic can produce when DMF is exact; a gap within it counts as DMF "
             "reproducing CMF (derivation: docs/fusion-definitions.md, 'Rounding bound and \"reproduced\"').")
@@ -334,11 +344,13 @@ def _unit_sentences(d: CheckData) -> list[str]:
     criterion = (d.r.get("params") or {}).get("ci_criterion", "trace")
     weighted = [m.upper() for m in ("ci", "ici") if m in methods]
     if weighted and criterion == "trace":
-        out.append(f"{' and '.join(weighted)} weigh the local estimates by the trace criterion, which adds the "
-                   "variances of state components in different units: their estimates change with the units "
+        verb, their = ("weighs", "its estimate changes") if len(weighted) == 1 else ("weigh", "their estimates change")
+        out.append(f"{' and '.join(weighted)} {verb} the local estimates by the trace criterion, which adds the "
+                   f"variances of state components in different units: {their} with the units "
                    "(--ci-criterion det, the determinant criterion, does not).")
     elif weighted:
-        out.append(f"{' and '.join(weighted)} weigh the local estimates by the determinant criterion, which does "
+        verb = "weighs" if len(weighted) == 1 else "weigh"
+        out.append(f"{' and '.join(weighted)} {verb} the local estimates by the determinant criterion, which does "
                    "not depend on units.")
     if "rcc-ci" in methods:
         out.append("RCC-CI's Chebyshev centre measures distances with the Euclidean norm of the state, so its "
@@ -501,13 +513,17 @@ def equivalence_sections(results: dict, fig_dir: Path, fig_prefix: str = FIGURES
                                               threshold, "rank rule threshold"),
                        "Smallest canonical correlation per step and sensor (unit-free: a correlation near 0 means "
                        "an output direction carries almost no information about the state)"))
-    path, floor = ef.plot_drift(d.ks, d.recursive, d.gap, fig_dir / "drift.png", d.run_labels)
-    gap.add(Figure(path, "Recursive drift: ‖μ_DMF − μ_CMF‖ of the two filters, each from its own previous posterior "
-                         "(solid), against the one-step gap (dashed), log scale"
-                   + (f"; zeros drawn at {_g(floor)}" if (d.gap <= 0).any() or (d.recursive <= 0).any() else "")))
-    gap.add(Paragraph(f"The recursive filters ended at most {_g(float(d.recursive.max()))} apart (largest over "
-                      f"steps and runs; {_g(float(np.median(d.recursive[:, -1])))} at the last step, median of runs). "
-                      "Where every step is exact this drift is rounding carried through the recursion; where "
+    quantity = ef.GAP_IN_PRIOR_SD if d.drift_in_prior_sd else ef.GAP_IN_STATE_UNITS
+    unit = "prior standard deviations" if d.drift_in_prior_sd else "state units"
+    path, floor = ef.plot_drift(d.ks, d.recursive, d.one_step, fig_dir / "drift.png", d.run_labels, quantity)
+    gap.add(Figure(path, f"Recursive drift: {quantity[0]} of the two filters, each from its own previous posterior "
+                         f"(solid), against the one-step gap (dashed), both in {unit} of the step's central "
+                         "prediction, log scale"
+                   + (f"; zeros drawn at {_g(floor)}" if (d.one_step <= 0).any() or (d.recursive <= 0).any()
+                      else "")))
+    gap.add(Paragraph(f"The recursive filters ended at most {_g(float(d.recursive.max()))} {unit} apart (largest "
+                      f"over steps and runs; {_g(float(np.median(d.recursive[:, -1])))} at the last step, median of "
+                      "runs). Where every step is exact this drift is rounding carried through the recursion; where "
                       "steps are inexact it accumulates their gaps."))
 
     acc = Section("accuracy", "Accuracy and consistency")
@@ -677,8 +693,7 @@ def audit_summary_paragraphs(run_audit: dict) -> list[str]:
                      "can never hold for this sensor")
         bad = lost & ~a.exact[:, m]
         if lost.any():
-            text += (f"; exact anyway at {int((lost & a.exact[:, m]).sum())} of those {int(lost.sum())} steps, not "
-                     f"at {int(bad.sum())}")
+            text += "; " + _exact_anyway_words(int((lost & a.exact[:, m]).sum()), int(lost.sum()))
         if bad.any():
             shares = a.share[bad, m]
             if np.isfinite(shares).any():
@@ -755,10 +770,13 @@ def run_audit_sections(run_audit: dict, fig_dir: Path) -> list[Section]:
                            "that direction")))
     step_rows = [[s.get("k"), "yes" if s["condition_holds"] else "no", "yes" if s["exact"] else "no",
                   _g(s["gap_norm"], 3) if s.get("gap_norm") is not None else "—",
+                  _g(s["gap_size"], 3) if s.get("gap_size") is not None else "—",
+                  _g(s["gap_bound"], 2) if s.get("gap_bound") is not None else "—",
                   ", ".join(str(x["index"]) for x in s["sensors"] if not x["full_column_rank"]) or "none",
                   "; ".join(s.get("notes") or [])] for s in a.steps if not (s["exact"] and s["condition_holds"])]
     if step_rows:
-        figs.add(Table(["k", "rank condition", "exact", "‖gap‖", "sensors without full rank", "notes"],
+        figs.add(Table(["k", "rank condition", "exact", "‖gap‖ (state units)", "gap (prior sd)",
+                        "rounding bound (prior sd)", "sensors without full rank", "notes"],
                        step_rows[:MAX_STEP_ROWS], f"Steps where the rank condition failed or DMF is not exact "
                        f"({len(step_rows)} of {a.T})"))
     summary = a.summary
