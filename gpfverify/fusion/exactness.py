@@ -579,7 +579,8 @@ def sensor_terms(case: FusionCase, sensor: SensorExactness) -> SensorTerms:
     and the Jacobi SVD computed eq. 35's inverse, that SVD's componentwise backward error carried by
     A_m, ‖ |L_yᵀ A_m| (|C_xy^m| |r_m| + |μ_e^m − μ_p^m|) ‖. Under the SVD rules the operands are
     numpy's SVD's own (:func:`~gpfverify.fusion.rounding.svd_inverse_error`; they depend on units,
-    as those rules do)."""
+    as those rules do). A sensor with a kernel adds the gap its exactness bound lets through,
+    τ_m ‖z_m‖ (needs ``case.y``)."""
     local = case.locals[sensor.index]
     split = sensor.split
     factor = sensor_factor(split, local.C_y)
@@ -599,9 +600,14 @@ def sensor_terms(case: FusionCase, sensor: SensorExactness) -> SensorTerms:
         if inverse is not split.pinv:  # the Jacobi SVD's Moore–Penrose inverse
             error += float(sla.norm(np.abs(factor.T @ inverse) @ (np.abs(local.C_xy) @ np.abs(recovered)
                                                                    + np.abs(change))))
+    accepted = None
+    if split.kernel_basis.shape[1]:  # the gap an exact-judged kernel may leave: τ_m ‖z_m‖
+        innovation = difference(case.local_measurement(sensor.index), local.mu_y, local.circular)
+        whitened = sla.solve_triangular(factor, innovation, lower=True, check_finite=False)   # z_m = L_y⁻¹ (…)
+        accepted = np.array([sensor.tol * float(sla.norm(whitened))])
     return SensorTerms(case.central.blocks[sensor.index], local.mu_y[None], local.mu_p[None], local.mu_e[None],
                        local.C_y[None], local.C_xy[None], inverse[None], recovered[None], factor[None],
-                       np.array([correlation_condition(local.C_y)]), np.array([error]))
+                       np.array([correlation_condition(local.C_y)]), np.array([error]), accepted)
 
 
 def equivalence_tolerance(case: FusionCase, gain: np.ndarray, sensors: tuple[SensorExactness, ...],

@@ -30,7 +30,9 @@ componentwise in state units,
 and the reconstruction r_m itself, computed with an error of whitened size ‖L_y^mᵀ δr_m‖ ≤ e_m eps
 (e_m depends on the route that computed A_m: :func:`gpfverify.fusion.exactness.reconstruction_error`),
 which G_m C_y^m = (G_m L_y^m) L_y^mᵀ maps into the state: ‖L_p⁻¹ G_m L_y^m‖₂ e_m. The sum is multiplied by (D + L) eps
-(D + L operations in sequence, each rounding by at most eps relative to what it handles).
+(:func:`~gpfverify.tolerances.rounding_bound`: D + L operations in sequence). A sensor that lost
+rank is judged exact when its gap gain R_m is within its exactness bound τ_m (below), not only
+when it is zero; the gap such a sensor may still leave, τ_m ‖z_m‖, is added.
 
 Exactness bound (:func:`exactness_bound`), on sensor m's gap gain R_m (the gap per unit whitened
 innovation through the kernel its rank rule dropped): the fused estimate's own rounding, which a
@@ -53,7 +55,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from gpfverify.tolerances import EPS
+from gpfverify.tolerances import rounding_bound
 
 
 def _abs_times(a: np.ndarray, b: np.ndarray) -> np.ndarray:
@@ -61,9 +63,17 @@ def _abs_times(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return np.einsum("bij,bj->bi", np.abs(a), b)
 
 
+def vector_norms(a: np.ndarray) -> np.ndarray:
+    """‖a_b‖₂ of every row of (B, n), scaled by the row's largest entry first (as BLAS's nrm2), so
+    that entries of 1e-200 do not underflow when squared."""
+    largest = np.max(np.abs(a), axis=1, initial=0.0)
+    scale = np.where(largest > 0, largest, 1.0)
+    return largest * np.sqrt(np.sum((a / scale[:, None]) ** 2, axis=1))
+
+
 def whitened_sizes(factor_y: np.ndarray, r: np.ndarray) -> np.ndarray:
     """‖L_yᵀ r‖ (B,) of (B, l, l) factors and (B, l) vectors: a w-space vector's whitened size."""
-    return np.linalg.norm(np.einsum("bji,bj->bi", factor_y, r), axis=1)
+    return vector_norms(np.einsum("bji,bj->bi", factor_y, r))
 
 
 def left_inverse_error(condition: np.ndarray, factor_y: np.ndarray, r: np.ndarray) -> np.ndarray:
@@ -106,7 +116,7 @@ class FusedRounding:
     def whitened_size(self, magnitudes: np.ndarray) -> np.ndarray:
         """‖ |L_p⁻¹| m ‖₂ of entrywise magnitudes m ≥ 0 (B, D) → (B,): the largest whitened size of
         a state error whose entries are at most m."""
-        return np.linalg.norm(_abs_times(self.inverse, magnitudes), axis=1)
+        return vector_norms(_abs_times(self.inverse, magnitudes))
 
     def whitened_gain(self, block: slice, factor_y: np.ndarray) -> np.ndarray:
         """‖L_p⁻¹ G_m L_y^m‖₂ (B,): how many prior standard deviations the fused mean moves per unit
@@ -126,7 +136,9 @@ class SensorTerms:
     ``reconstruction`` A_m (B, l, D) eq. 35 applied and what it gave, ``recovered``
     r_m = A_m (μ_e^m − μ_p^m) (B, l); ``factor_y`` L_y^m (B, l, l); ``cov_y_condition`` κ(C_y^m)
     (B,), the condition of its correlation matrix; ``reconstruction_error`` e_m (B,), the whitened
-    size of r_m's computed error per eps (module docstring)."""
+    size of r_m's computed error per eps (module docstring); ``accepted_gap`` (B,) the gap a sensor
+    with a kernel may leave while judged exact, its exactness bound times its whitened innovation's
+    size ‖z_m‖ (None: no kernel)."""
 
     block: slice
     mu_y: np.ndarray
@@ -139,6 +151,7 @@ class SensorTerms:
     factor_y: np.ndarray
     cov_y_condition: np.ndarray
     reconstruction_error: np.ndarray
+    accepted_gap: np.ndarray | None = None
 
 
 def gap_bound(fused: FusedRounding, y: np.ndarray, sensors: Sequence[SensorTerms]) -> np.ndarray:
@@ -147,6 +160,7 @@ def gap_bound(fused: FusedRounding, y: np.ndarray, sensors: Sequence[SensorTerms
     gain = fused.gain
     magnitudes = 2.0 * np.abs(fused.mu_p) + _abs_times(gain, np.abs(y) + np.abs(fused.mu_y))
     reconstruction = np.zeros(gain.shape[0])
+    accepted = np.zeros(gain.shape[0])
     for s in sensors:
         g_m = gain[:, :, s.block]
         r = s.recovered
@@ -156,7 +170,9 @@ def gap_bound(fused: FusedRounding, y: np.ndarray, sensors: Sequence[SensorTerms
         innovation = np.abs(s.mu_y) + np.abs(fused.mu_y[:, s.block]) + _abs_times(s.cov_y, np.abs(r))
         magnitudes = magnitudes + _abs_times(g_m, innovation) + _abs_times(carried, own)
         reconstruction = reconstruction + fused.whitened_gain(s.block, s.factor_y) * s.reconstruction_error
-    return fused.operations * EPS * (fused.whitened_size(magnitudes) + reconstruction)
+        if s.accepted_gap is not None:
+            accepted = accepted + s.accepted_gap
+    return rounding_bound(fused.whitened_size(magnitudes) + reconstruction, fused.operations) + accepted
 
 
 def estimate_floor(fused: FusedRounding, central_factor_y: np.ndarray) -> np.ndarray:
@@ -174,4 +190,4 @@ def exactness_bound(fused: FusedRounding, floor: np.ndarray, gain_condition: np.
     correlation matrix (B,), ``factor_y`` L_y^m, ``obliqueness`` ω_m and ``kernel_angle`` θ_m (B,)."""
     gain_term = fused.componentwise_gain(block, factor_y) * gain_condition * obliqueness
     kernel_term = fused.whitened_gain(block, factor_y) * kernel_angle
-    return fused.operations * EPS * (floor + gain_term + kernel_term)
+    return rounding_bound(floor + gain_term + kernel_term, fused.operations)
