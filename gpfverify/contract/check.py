@@ -15,6 +15,8 @@ from gpfverify.fusion.names import CHOICES_TEXT, canonical_rules
 
 #: the Gaussian families a check can run (gpfverify.filters.families.FAMILY_NAMES)
 FilterName = Literal["kf", "ekf", "ukf", "gp-adf", "gp-ukf"]
+#: CI's weight criteria (gpfverify.fusion.ci.CRITERIA)
+CiCriterion = Literal["trace", "det"]
 
 
 @dataclass(frozen=True)
@@ -35,7 +37,7 @@ class Params(ParamsBase):
     methods: tuple[str, ...] = option(("cmf", "dmf", "cc", "ci"), "fusion rules run (cmf and dmf always; "
                                       "canonical names, an alias such as cw recorded as cc)")
     rank_rule: str = option("canonical", "rank rule of eq. 35: canonical[:TAU], absolute:TOL or numpy")
-    ci_criterion: Literal["trace", "det"] = option(
+    ci_criterion: CiCriterion = option(
         "trace", "the weight criterion of CI (and ICI): trace (depends on the units of the state components) or "
         "det (unit-free)")
 

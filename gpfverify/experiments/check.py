@@ -27,7 +27,7 @@ import numpy as np
 
 from gpfverify.angles import difference
 from gpfverify.consistency import Consistency
-from gpfverify.contract.check import FilterName, Params, RunRecord
+from gpfverify.contract.check import CiCriterion, FilterName, Params, RunRecord
 from gpfverify.errors import InputError
 from gpfverify.filters.families import GP_FAMILIES
 from gpfverify.filters.records import Gaussian
@@ -53,7 +53,7 @@ CONSISTENCY_LEVEL = 0.95
 def params_for(system: str, filter: FilterName = "ukf", steps: int = 50, measurements: str | None = None,
                training: str | None = None, train: int = 200, fit_points: int | None = 200,
                restarts: int = 2, methods=("cmf", "dmf", "cc", "ci"), rank_rule: str = "canonical",
-               ci_criterion: str = "trace") -> Params:
+               ci_criterion: CiCriterion = "trace") -> Params:
     """The parameters of a check, validated, with the paths made absolute and the rank rule in its
     canonical spelling. ``rank_rule`` is a :func:`~gpfverify.fusion.exactness.parse_rank_rule`
     string: the unit-free canonical-correlation rule by default (``"canonical[:TAU]"``),
