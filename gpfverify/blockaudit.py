@@ -13,10 +13,13 @@ audit takes the common path:
 * every factorisation succeeds without jitter.
 
 There the formulas are those of :mod:`gpfverify.fusion.exactness` and :mod:`gpfverify.audit` with
-their ranks fixed: canonical correlations ρ = σ(L_p⁻¹ C_xy L_y⁻ᵀ) of equilibrated Cholesky
-factors, G = C_xy C_y⁻¹, A_m = (C_xy^m)⁺ = V S⁻¹ U_lᵀ, eq. 35's mean
+their ranks fixed: canonical correlations ρ = σ(L_p⁻¹ C_xy L_y⁻ᵀ) = σ(U diag(ρ) Vᵀ) of equilibrated
+Cholesky factors, G = C_xy C_y⁻¹, eq. 35's left inverse A_m as the rule's split applies it (the
+canonical rule: the whitened one, L_y⁻ᵀ V diag(ρ)⁻¹ Uᵀ L_p⁻¹, whose rounding does not depend on
+units; the SVD rules: V S⁻¹ U_lᵀ from numpy's SVD), eq. 35's mean
 μ_p + G [(μ_y^m − μ_y(m)) + C_y^m A_m (μ_e^m − μ_p^m)]_m, CMF's μ_p + G (y − μ_y), and the
-rounding bound of :func:`~gpfverify.fusion.exactness.equivalence_tolerance`. Every other step
+rounding bound of :func:`gpfverify.fusion.rounding.gap_bound` — the same function the per-step
+audit calls, here over the block's step axis. Every other step
 (a sensor that lost rank, no y, angles, a factorisation that needs jitter) is left to
 :func:`~gpfverify.audit.audit_case`, which stays the one definition of the audit: the tests
 compare the two routes field by field (tests/test_audit_batched.py).
