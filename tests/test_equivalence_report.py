@@ -7,6 +7,8 @@ from __future__ import annotations
 import copy
 import json
 import re
+import subprocess
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -263,3 +265,21 @@ def test_the_check_page_says_what_depends_on_units(redundant):
     det = copy.deepcopy(redundant)
     det["params"]["ci_criterion"] = "det"
     assert any("determinant criterion, which does not depend on units" in p for p in summary_paragraphs(det))
+
+
+def test_every_key_check_writes_is_documented(tmp_path):
+    """docs/check-format.md names every key of results.json and of a saved run's step entry
+    (``means`` included), so a user can tell one-step numbers from recursive ones; the page says
+    which are which."""
+    doc = (ROOT / "docs" / "check-format.md").read_text(encoding="utf-8")
+    proc = subprocess.run([sys.executable, "-m", "gpfverify", "check",
+                           str(ROOT / "examples" / "three_sensor_system.py:tracker"), "--steps", "2",
+                           "--out", str(tmp_path / "o")], capture_output=True, text=True)
+    assert proc.returncode == 0, proc.stderr
+    results = json.loads((tmp_path / "o" / "results.json").read_text(encoding="utf-8"))
+    run = json.loads(next((tmp_path / "o" / "runs").glob("run-*.json")).read_text(encoding="utf-8"))
+    keys = set(results) | set(run["result"]["steps"][0])
+    undocumented = sorted(k for k in keys if f"`{k}`" not in doc)
+    assert not undocumented, undocumented
+    readme = (tmp_path / "o" / "README.md").read_text(encoding="utf-8")
+    assert "One-step numbers" in readme and "Recursive numbers" in readme and '("means")' in readme
