@@ -13,8 +13,9 @@ them: a magnitude vector m of a state quantity becomes S_x m, and its whitened s
 ‖ |L_p⁻¹| m ‖₂ (|·| entrywise) stays the same, because |L_p⁻¹| becomes |L_p⁻¹| S_x⁻¹. Every
 term below is such a whitened componentwise magnitude, or a norm of a whitened matrix
 (L_p⁻¹ G_m L_y^m, canonical correlations, condition numbers of equilibrated factors), which do
-not change either. The one exception is the Moore–Penrose inverse of a sensor that lost rank
-(and the unit-dependent rank rules' SVD): its own sensitivity changes with units, as it does.
+not change either. Under the canonical rule the reconstruction's operands are the whitened
+inverse's (:func:`gpfverify.fusion.exactness.sensor_terms`); under the SVD rank rules, which depend
+on units, numpy's SVD's own condition σ_1/σ_r enters and changes with units, as those rules do.
 
 Gap bound (:func:`gap_bound`), when DMF is exact, on ‖L_p⁻¹(μ_DMF − μ_CMF)‖: G = C_xy C_y⁻¹ is
 shared by both rules, so its rounding cancels to first order; what rounds independently is,
@@ -28,8 +29,9 @@ componentwise in state units,
   of its correlation matrix), which eq. 35 carries into the state by |G_m C_y^m A_m|;
 
 and the reconstruction r_m itself, computed with an error of whitened size ‖L_y^mᵀ δr_m‖ ≤ e_m eps
-(e_m depends on the route that computed A_m: :func:`gpfverify.fusion.exactness.reconstruction_error`),
-which G_m C_y^m = (G_m L_y^m) L_y^mᵀ maps into the state: ‖L_p⁻¹ G_m L_y^m‖₂ e_m. The sum is multiplied by (D + L) eps
+(e_m depends on the route that computed A_m: :func:`left_inverse_error`, :func:`svd_inverse_error`,
+:func:`gpfverify.fusion.exactness.sensor_terms`), which G_m C_y^m = (G_m L_y^m) L_y^mᵀ maps into
+the state: ‖L_p⁻¹ G_m L_y^m‖₂ e_m. The sum is multiplied by (D + L) eps
 (:func:`~gpfverify.tolerances.rounding_bound`: D + L operations in sequence). A sensor that lost
 rank is judged exact when its gap gain R_m is within its exactness bound τ_m (below), not only
 when it is zero; the gap such a sensor may still leave, τ_m ‖z_m‖, is added.
