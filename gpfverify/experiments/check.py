@@ -353,7 +353,7 @@ def results_of_run(fused, truth: np.ndarray | None = None, system: str = "") -> 
         raise InputError("the check's results need a run_fusion result with its model and ys, CMF, DMF and the audit")
     rule = fused.steps[0].audit.rank_rule
     params = Params(system=system, filter=fused.family, steps=len(fused.steps), methods=fused.methods,
-                    rank_rule=rule.spec)
+                    rank_rule=rule.spec, ci_criterion=fused.ci_criterion)
     record = _record(fused.model, fused, fused.ys, truth)
     return {"experiment": NAME, "runs": 1, "seed": None, "runs_ok": 1, "failed_runs": [], "params": params.to_json(),
             **summarize(params, [record], fused.model)}
