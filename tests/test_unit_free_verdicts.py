@@ -23,7 +23,7 @@ from gpfverify.fusion.model_fusion import run_fusion
 from gpfverify.fusion.runfile import open_run, write_run
 from gpfverify.fusion.synthetic import random_case
 from gpfverify.rng import generator
-from gpfverify.tolerances import EPS, SOLVER_TOL
+from gpfverify.tolerances import ALGEBRA_RTOL, EPS, SOLVER_TOL
 
 HERE = Path(__file__).parent
 sys.path.insert(0, str(HERE))                       # the suite imports in importlib mode: helpers beside it
@@ -116,6 +116,10 @@ def test_random_rescalings_keep_every_verdict(metres):
 
 
 def test_the_batched_audit_gives_the_same_verdicts_in_any_units(tmp_path):
+    """Random full-rank steps and their random rescalings audited as one block: every step
+    reproduced, and each rescaled step's bound the unscaled one's (in exact arithmetic the bound is
+    the same number; the two computations differ by rounding of well-conditioned whitenings), small
+    enough that a 1e-8 prior-SD error is beyond it."""
     rng = np.random.default_rng(13)
     cases = [random_case(rng, 4, (2, 2, 1)) for _ in range(6)]
     scaled = [_random_rescaling(c, rng) for c in cases]
@@ -123,6 +127,9 @@ def test_the_batched_audit_gives_the_same_verdicts_in_any_units(tmp_path):
         [block] = list(reader.blocks())
     batched = block_audits(block.block, audit_case(cases[0]).rank_rule)
     assert all(b is not None and b.exact and b.reproduced for b in batched), [b and b.gap_size for b in batched]
+    for plain, other in zip(batched[:6], batched[6:]):
+        assert other.gap_bound == pytest.approx(plain.gap_bound, rel=ALGEBRA_RTOL)
+        assert plain.gap_bound < 1e-8 / 10
 
 
 def _planted(case, size: float) -> tuple[float, float, float]:
