@@ -10,8 +10,8 @@ options must be finite (``inf``/``nan`` are refused by the parser). Warnings rai
 command runs (numpy's floating-point RuntimeWarnings, for instance) are collected instead of
 printed: dropped when the command fails (its one line says what went wrong), summarised in one
 line when it succeeds. Anything else is a bug: one line asking for a report, exit status 1, and
-the traceback only with ``GPFVERIFY_DEBUG=1``. Run as a program, the command runs in a child
-process that reports its exit status to gpfverify's (:mod:`gpfverify.supervise`).
+the traceback only with ``GPFVERIFY_DEBUG=1``. Run as a program (:func:`program`), the command
+runs in a child process that reports its exit status to gpfverify's (:mod:`gpfverify.supervise`).
 
 Each subcommand lives in its own module under :mod:`gpfverify.commands` with
 ``add_arguments(parser)`` and ``run(args) -> int``; modules are imported only when their command
@@ -30,6 +30,7 @@ import shutil
 import signal
 import sys
 import warnings
+from typing import NoReturn
 
 from gpfverify import __version__, provenance, supervise
 from gpfverify.errors import GpfverifyError
@@ -284,33 +285,34 @@ def _ignore_further_interrupts() -> None:
         signal.signal(signal.SIGTERM, signal.SIG_IGN)
 
 
-def main(argv: list[str] | None = None) -> int:
-    """Run one command (see the module docstring); stderr is :class:`_Diagnostics` meanwhile.
-    Called as the program (``argv`` None), the command runs in a child process
-    (:mod:`gpfverify.supervise`) and the signal handlers it sets stay until the process ends;
-    called from Python with ``argv``, it runs in the calling process and the handlers are
-    restored on return."""
+def program() -> NoReturn:
+    """``gpfverify`` run as a program (the console script, ``python -m gpfverify``): the command runs
+    in a child process that reports its exit status as its last act (:mod:`gpfverify.supervise`),
+    and this process ends with that status. Ends the process."""
     _occupy_closed_standard_fds()  # before the pipe to the child takes a free descriptor
-    if argv is None:
-        args = sys.argv[1:]
-        command = args[0] if args and args[0] in COMMANDS else "gpfverify"
-        code = supervise.start(command)
-        if code is not None:  # the parent: the command ran in the child
-            return code
+    args = sys.argv[1:]
+    command = args[0] if args and args[0] in COMMANDS else "gpfverify"
+    code = supervise.start(command)
+    if code is None:  # the process running the command
         try:
-            code = _run(argv)
+            code = main()
         except SystemExit as exc:  # argparse: --help, --version, a usage error (printed already)
             code = exc.code if isinstance(exc.code, int) else int(exc.code is not None)
         except BaseException:  # GPFVERIFY_DEBUG=1: the traceback, and no second line from the parent
             supervise.note("exit", "1")
             raise
-        return supervise.finish(command, code)
-    return _run(argv)
+        code = supervise.finish(command, code)
+    sys.exit(code)
 
 
-def _run(argv: list[str] | None) -> int:
+def main(argv: list[str] | None = None) -> int:
+    """Run one command (see the module docstring) in this process; stderr is
+    :class:`_Diagnostics` meanwhile. Called with ``argv`` None (the program, :func:`program`), the
+    signal handlers it sets stay until the process ends; called from Python with ``argv``, they
+    are restored on return."""
     saved = sys.stderr
     handlers = {s: signal.getsignal(s) for s in (signal.SIGINT, signal.SIGTERM)}
+    _occupy_closed_standard_fds()
     sys.stderr = _Diagnostics(saved if saved is not None else open(os.devnull, "w"))
     try:
         return _main(argv)
@@ -346,7 +348,7 @@ def _main(argv: list[str] | None) -> int:
             sys.stdout.flush()  # a closed pipe shows here, inside the boundary
         except KeyboardInterrupt as exc:
             _ignore_further_interrupts()
-            print(f"gpfverify {command}: {_with_notes('interrupted', exc)}", file=sys.stderr)
+            print(f"gpfverify {command}: {one_line(_with_notes('interrupted', exc))}", file=sys.stderr)
             return 130
         except SystemExit:  # argparse: usage error (one line) or --help
             raise
@@ -367,4 +369,4 @@ def _main(argv: list[str] | None) -> int:
 
 
 if __name__ == "__main__":  # pragma: no cover
-    sys.exit(main())
+    program()
