@@ -352,25 +352,6 @@ def output_folder(out: Path, keep: bool = True, wait: bool = False) -> Iterator[
         supervise.note("done", str(stage))
 
 
-def discard_stage(stage: str | Path) -> bool:
-    """Remove a staging folder whose command ended without finishing (the process running it
-    was ended by code it ran), unless another command holds it; whether it was removed."""
-    import fcntl
-
-    try:
-        fd = os.open(stage, os.O_RDONLY | getattr(os, "O_DIRECTORY", 0) | getattr(os, "O_NOFOLLOW", 0))
-    except OSError:
-        return not os.path.lexists(stage)
-    try:
-        fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
-        shutil.rmtree(stage, ignore_errors=True)
-    except OSError:
-        return False
-    finally:
-        os.close(fd)
-    return not os.path.lexists(stage)
-
-
 def final_path(path: Path, stage: Path, out: Path) -> Path:
     """Where ``path`` (inside the staging folder) will be once the folder is committed as ``out``:
     for messages and records that name output files."""

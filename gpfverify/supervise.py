@@ -8,13 +8,13 @@ process cannot catch its own end: it would leave with status 0 and no result. So
 forks before it imports anything else (:func:`start`):
 
 * the child runs the command. :func:`note` tells the parent what it is doing that matters if it
-  ends abruptly (``user``: the user's code it runs; ``stage``/``done``: a staging folder of
-  :mod:`gpfverify.outputs` in use). Its last act, :func:`finish`, writes its exit status (the
-  sentinel) and flushes its streams; threads still running that are not daemons (a system
-  file's) get :data:`THREAD_GRACE_SECONDS` to end, and then it ends without them, saying so in one
-  note line when the command succeeded.
+  ends abruptly: ``user``, the user's code it runs (as messages name it); ``stage`` and ``done``,
+  a staging folder it holds locked with ``flock`` (:mod:`gpfverify.outputs`) and the end of it.
+  Its last act, :func:`finish`, writes its exit status (the sentinel) and flushes its streams;
+  threads still running that are not daemons (a system file's) get :data:`THREAD_GRACE_SECONDS`
+  to end, and then it ends without them, saying so in one note line when the command succeeded.
   It dies with the parent (``PR_SET_PDEATHSIG``), so killing gpfverify kills the command.
-* the parent, which imports and runs nothing else, waits for the child and exits with the status
+* the parent, which runs nothing else, waits for the child and exits with the status
   of the sentinel. A child that ends without one ends the command with one line: status 2 when
   the user's code had run in it (named in the line; when it ended the process, the command's
   staging folder is removed, so ``--out`` is as it was) or when it was killed (SIGKILL: out of
@@ -49,7 +49,7 @@ GRACE_SECONDS = 10.0
 PARENT_POLL_SECONDS = 0.2
 
 _channel: int | None = None  # the child's end of the pipe to the parent
-_noted: set[tuple[str, str]] = set()
+_users: set[str] = set()  # the user's code already named to the parent
 _SIGNALS = {signal.SIGINT, signal.SIGTERM, signal.SIGCHLD}
 _CRASHES = {signal.SIGSEGV, signal.SIGBUS, signal.SIGILL, signal.SIGFPE, signal.SIGABRT}
 
@@ -78,13 +78,12 @@ def start(command: str) -> int | None:
 
 
 def note(kind: str, text: str) -> None:
-    """Tell the parent (if this process is a supervised child) ``kind``: ``user`` (the user's code
-    that runs here, as messages name it), ``stage`` or ``done`` (a staging folder's path)."""
-    if _channel is None or (kind, text) in _noted:
+    """Tell the parent, if this process is a supervised child, ``kind`` (module docstring):
+    ``user`` (said once per text), ``stage``, ``done`` or ``exit``."""
+    if _channel is None or (kind == "user" and text in _users):
         return
-    _noted.add((kind, text))
-    if kind == "done":
-        _noted.discard(("stage", text))
+    if kind == "user":
+        _users.add(text)
     with contextlib.suppress(OSError):
         os.write(_channel, kind.encode() + b":" + os.fsencode(text) + b"\0")
 
@@ -203,9 +202,7 @@ def _outcome(command: str, records: dict[str, list[str]], status: int) -> int:
             _say(f"gpfverify {command}: internal error: the process running the command {how} (a bug: please "
                  "report it)")
             return 1
-        from gpfverify.outputs import discard_stage  # the user's code ended it: nothing of the command is kept
-
-        kept = [path for path in left if not discard_stage(path)]
+        kept = [path for path in left if not _discard(path)]  # the user's code ended it: nothing is kept
         _say(f"gpfverify {command}: error: {user} {how} (os._exit, or an exit from a thread it started or from "
              f"compiled code){'; --out was left as it was' if left and not kept else ''}")
         return 2
@@ -217,6 +214,26 @@ def _outcome(command: str, records: dict[str, list[str]], status: int) -> int:
     _say(f"gpfverify {command}: error: the process running {user or 'the command'} {how}"
          f"{'; the runs it had saved are kept for the next command on --out' if left else ''}")
     return 2
+
+
+def _discard(folder: str) -> bool:
+    """Remove a staging folder the child left (``stage`` noted, no ``done``) unless another process
+    holds its lock by now (a command that waited for it); whether it is gone."""
+    import fcntl
+    import shutil
+
+    try:
+        fd = os.open(folder, os.O_RDONLY | os.O_DIRECTORY | os.O_NOFOLLOW)
+    except OSError:
+        return not os.path.lexists(folder)
+    try:
+        fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        shutil.rmtree(folder, ignore_errors=True)
+    except OSError:
+        return False
+    finally:
+        os.close(fd)
+    return not os.path.lexists(folder)
 
 
 def _say(line: str) -> None:
