@@ -201,6 +201,7 @@ def _lock(stage: Path, out: Path, wait: bool) -> int:
     (:class:`_Busy` when another command holds it and ``wait`` is false)."""
     import fcntl
 
+    said = False
     while True:
         with contextlib.suppress(FileExistsError):
             stage.mkdir()
@@ -219,8 +220,9 @@ def _lock(stage: Path, out: Path, wait: bool) -> int:
             except BlockingIOError:
                 if not wait:
                     raise _Busy from None
-                print(f"waiting for the other gpfverify command writing {out} to finish", file=sys.stderr)
-                wait = False  # say it once
+                if not said:
+                    print(f"waiting for the other gpfverify command writing {out} to finish", file=sys.stderr)
+                    said = True
                 fcntl.flock(fd, fcntl.LOCK_EX)
             try:  # still the folder at that name (its owner may have committed it as DIR or removed it)
                 same = os.path.samestat(os.fstat(fd), os.lstat(stage))
