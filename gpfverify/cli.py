@@ -292,17 +292,15 @@ def program() -> NoReturn:
     _occupy_closed_standard_fds()  # before the pipe to the child takes a free descriptor
     args = sys.argv[1:]
     command = args[0] if args and args[0] in COMMANDS else "gpfverify"
-    code = supervise.start(command)
-    if code is None:  # the process running the command
-        try:
-            code = main()
-        except SystemExit as exc:  # argparse: --help, --version, a usage error (printed already)
-            code = exc.code if isinstance(exc.code, int) else int(exc.code is not None)
-        except BaseException:  # GPFVERIFY_DEBUG=1: the traceback, and no second line from the parent
-            supervise.note("exit", "1")
-            raise
-        code = supervise.finish(command, code)
-    sys.exit(code)
+    supervise.start(command)  # from here on: the process running the command
+    try:
+        code = main()
+    except SystemExit as exc:  # argparse: --help, --version, a usage error (printed already)
+        code = exc.code if isinstance(exc.code, int) else int(exc.code is not None)
+    except BaseException:  # GPFVERIFY_DEBUG=1: the traceback, and no second line from the parent
+        supervise.note("exit", "1")
+        raise
+    sys.exit(supervise.finish(command, code))
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -54,27 +54,28 @@ _SIGNALS = {signal.SIGINT, signal.SIGTERM, signal.SIGCHLD}
 _CRASHES = {signal.SIGSEGV, signal.SIGBUS, signal.SIGILL, signal.SIGFPE, signal.SIGABRT}
 
 
-def start(command: str) -> int | None:
-    """Fork (module docstring). In the parent: wait for the child and return the command's exit
-    status. In the child, and where this is not done: None (the command runs in this process)."""
+def start(command: str) -> None:
+    """Fork (module docstring). The parent waits for the child and ends the process with the
+    command's exit status (at once: it has nothing to clean up); the child, and the process
+    where this is not done, returns to run the command."""
     global _channel
     if not sys.platform.startswith("linux"):
-        return None
+        return
     blocked = signal.pthread_sigmask(signal.SIG_BLOCK, _SIGNALS)  # from before the fork: none is lost
     try:
         read_end, write_end = os.pipe()
         pid = os.fork()
     except OSError:  # no process to spare: run the command here
         signal.pthread_sigmask(signal.SIG_SETMASK, blocked)
-        return None
+        return
     if pid == 0:
         os.close(read_end)
         signal.pthread_sigmask(signal.SIG_SETMASK, blocked)
         _channel = write_end
         exit_with_parent(os.getppid())
-        return None
+        return
     os.close(write_end)
-    return _wait(command, pid, read_end)
+    HARD_EXIT(_wait(command, pid, read_end))
 
 
 def note(kind: str, text: str) -> None:
