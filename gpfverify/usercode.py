@@ -40,7 +40,6 @@ from typing import Any, TypeVar
 from gpfverify import supervise
 from gpfverify.errors import InputError
 
-HARD_EXIT = supervise.HARD_EXIT
 Handler = TypeVar("Handler", bound=Callable[..., Any])
 
 
