@@ -37,13 +37,14 @@ def descendants(pid: int) -> set[int]:
     return found
 
 
+def command_line(pid: int) -> str:
+    """The command line of ``pid`` ("" once it has ended)."""
+    try:
+        return Path(f"/proc/{pid}/cmdline").read_text(errors="replace")
+    except OSError:
+        return ""
+
+
 def pool_workers(pid: int) -> list[int]:
     """The worker processes of a process pool started under ``pid`` (not the resource tracker)."""
-    found = []
-    for child in sorted(descendants(pid)):
-        try:
-            if "spawn_main" in Path(f"/proc/{child}/cmdline").read_text(errors="replace"):
-                found.append(child)
-        except OSError:  # ended meanwhile
-            continue
-    return found
+    return [child for child in sorted(descendants(pid)) if "spawn_main" in command_line(child)]

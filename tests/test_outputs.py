@@ -716,7 +716,7 @@ def test_a_killed_resource_tracker_costs_one_note_line_at_most(tmp_path):
     import signal
     import time
 
-    from processes import descendants
+    from processes import command_line, descendants
 
     (tmp_path / "slow.py").write_text(SLOW_SYSTEM)
     proc = subprocess.Popen([sys.executable, "-m", "gpfverify", "check", "slow.py:system", "--steps", "30",
@@ -724,8 +724,7 @@ def test_a_killed_resource_tracker_costs_one_note_line_at_most(tmp_path):
                             cwd=tmp_path, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     deadline, tracker = time.monotonic() + 60, []
     while time.monotonic() < deadline and not (tracker and len(pool_workers(proc.pid)) == 2):
-        tracker = [pid for pid in descendants(proc.pid)
-                   if "resource_tracker" in Path(f"/proc/{pid}/cmdline").read_text(errors="replace")]
+        tracker = [pid for pid in descendants(proc.pid) if "resource_tracker" in command_line(pid)]
         time.sleep(0.05)
     os.kill(tracker[0], signal.SIGKILL)
     out, err = proc.communicate(timeout=300)
