@@ -32,6 +32,7 @@ and when gpfverify is called from Python, the command runs in the calling proces
 from __future__ import annotations
 
 import contextlib
+import gc
 import os
 import signal
 import sys
@@ -64,6 +65,7 @@ def start(command: str) -> None:
     blocked = signal.pthread_sigmask(signal.SIG_BLOCK, _SIGNALS)  # from before the fork: none is lost
     try:
         read_end, write_end = os.pipe()
+        gc.freeze()  # the objects made so far stay out of the child's collections: no copies of their pages
         pid = os.fork()
     except OSError:  # no process to spare: run the command here
         signal.pthread_sigmask(signal.SIG_SETMASK, blocked)
