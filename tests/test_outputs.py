@@ -22,6 +22,8 @@ from gpfverify.outputs import FILE_LIST, PARTIAL, sibling
 from gpfverify.fusion.synthetic import random_case
 from gpfverify.tolerances import algebra_rtol
 
+pytestmark = pytest.mark.slow  # each test runs commands in subprocesses, some killed mid-run
+
 HERE = Path(__file__).parent
 sys.path.insert(0, str(HERE))  # the suite imports in importlib mode: the helper beside it
 from processes import pool_workers  # noqa: E402

@@ -17,6 +17,7 @@ from gpfverify.audit import (RANK_RULE_DEFAULT, RunAudit, audit_case, audit_to_d
 from gpfverify.cli import RANK_RULE_HELP, positive_int, rank_rule_text
 from gpfverify.errors import InputError
 from gpfverify.fusion.runfile import run_format
+from gpfverify.notebook import progress_shown
 from gpfverify.outputs import add_wait_argument, final_path, out_path, output_folder
 from gpfverify.report.document import integer_ranges
 from gpfverify.runaudit import copy_out, spool, stream_audit, table_header, table_row
@@ -24,8 +25,8 @@ from gpfverify.runaudit import copy_out, spool, stream_audit, table_header, tabl
 EPILOG = ("FILE formats: a single fusion case (.json) is described in docs/fusion-case-format.md; "
           "a run of cases, one per step (.jsonl: one case per line with an optional integer \"k\"; "
           ".npz: arrays stacked over the steps), in docs/run-file-format.md. JSON Schemas: "
-          "docs/schemas/. A run prints {\"steps\": [...], \"summary\": {...}} with --json, a per-step "
-          "table and the summary otherwise.")
+          "docs/schemas/. A run prints one verdict line, {\"steps\": [...], \"summary\": {...}} with --json, "
+          "the per-step table and the summary with --table.")
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -34,6 +35,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="a fusion case (.json; docs/fusion-case-format.md) or a run file (.jsonl, "
                              ".npz; docs/run-file-format.md)")
     parser.add_argument("--json", action="store_true", help="print one JSON object instead of text")
+    parser.add_argument("--table", action="store_true",
+                        help="run files: print the per-step table and the summary instead of the one verdict line "
+                             "(the report page of --out has both)")
     parser.add_argument("--rank-tol", type=float, default=None, metavar="TOL",
                         help="absolute singular-value tolerance for the rank of each C_xy^m; overrides "
                              f"the case's 'rank_tol'; default: {RANK_RULE_DEFAULT}")
@@ -65,16 +69,26 @@ def _audit(case, rank_tol, rank_rule, sensitivity):
     return audit_case(case, rank_tol, sensitivity=sensitivity, rank_rule=rank_rule)
 
 
-def audit_run_file(path, rank_rule=None, rank_tol: float | None = None, sensitivity: bool = False):
+def audit_run_file(path, rank_rule=None, rank_tol: float | None = None, sensitivity: bool = False,
+                   show_progress: bool | None = None):
     """Audit every step of a run file (or a single case file, as one step):
     ``(RunAudit, steps, summary)`` with ``steps[t]`` the ``audit --json`` object of step t plus
     its ``"k"`` and ``summary`` as printed by ``audit --json``. ``rank_rule`` is a rule object or a
     string for ``parse_rank_rule``; ``rank_tol`` (absolute) overrides every case's ``rank_tol``;
     without either, each case's ``rank_tol`` or the audit's default rule decides. Holds the whole
-    run: for long runs use :func:`gpfverify.runaudit.stream_audit`.
+    run: for long runs use :func:`gpfverify.runaudit.stream_audit`. ``show_progress`` draws a
+    progress bar (default: on a terminal and in a Jupyter notebook).
     Raises :class:`~gpfverify.errors.CaseFileError` for a malformed file."""
-    summary, steps, audits = stream_audit(path, None, form="none", rank_rule=_resolve_rank_rule(rank_rule),
-                                          rank_tol=rank_tol, sensitivity=sensitivity, keep=True)
+    with _progress(progress_shown() if show_progress is None else show_progress) as progress:
+        task = progress.add_task("audit", total=None) if progress is not None else None
+
+        def on_block(done: int, total: int | None) -> None:
+            if progress is not None:
+                progress.update(task, completed=done, total=total)
+
+        summary, steps, audits = stream_audit(path, None, form="none", rank_rule=_resolve_rank_rule(rank_rule),
+                                              rank_tol=rank_tol, sensitivity=sensitivity, on_block=on_block,
+                                              keep=True)
     return RunAudit(tuple(audits)), steps, summary
 
 
@@ -102,6 +116,34 @@ def format_summary(summary: dict) -> str:
     return "\n".join(lines)
 
 
+def verdict_line(summary: dict) -> str:
+    """The one line ``audit RUN`` prints: at how many steps DMF was exact and the rank condition
+    held, the sensors that lost full column rank (where, and where not exact), the largest gap
+    and the rank rule — rendered from the run audit's summary record."""
+    total, exact, held = summary["steps"], summary["exact_steps"], summary["condition_held_steps"]
+    steps = f"{total} step{'s' if total != 1 else ''}"
+    if exact == total:
+        line = f"DMF exact at all {steps}"
+    else:
+        line = f"DMF NOT exact at {total - exact} of {steps}"
+    line += f" (the rank condition held at {'all' if held == total else held}"
+    for s in summary["sensors"]:
+        if s["rank_lost_steps"]:
+            bad = s["rank_lost_not_exact_steps"]
+            line += (f"; sensor {s['index']} lost full column rank at k = {integer_ranges(s['rank_lost_steps'], '-')}"
+                     + (f", not exact at k = {integer_ranges(bad, '-')}" if bad else ", exact anyway"))
+    line += ")"
+    if summary["max_gap_norm"] is None:
+        line += "; no step has y, so the gap is not evaluated"
+    else:
+        line += (f"; largest |DMF - CMF| {summary['max_gap_norm']:.3g} at k = {summary['max_gap_k']} "
+                 f"({summary['steps_with_y']} step(s) with y)")
+    rule = summary["rank_rule"]
+    rules = rule if isinstance(rule, list) else [rule]
+    text = "; ".join(r.get("description", str(r)) if isinstance(r, dict) else str(r) for r in rules)
+    return line + f"; rank rule: {text}."
+
+
 def format_run(steps: list[dict], summary: dict) -> str:
     """Per-step table and summary of a run audit (text output)."""
     return "\n".join([table_header(), *(table_row(s) for s in steps), "", format_summary(summary)])
@@ -122,14 +164,14 @@ def _audit_run(args: argparse.Namespace) -> None:
 
     check_workers(args.workers)
     rule = _resolve_rank_rule(args.rank_rule)
-    form = "json" if args.json else "text"
+    form = "json" if args.json else "text" if args.table else "none"
     parallel = args.workers > 1 or args.scheduler is not None
     with contextlib.ExitStack() as stack:
         # the folder first: refused (or locked) before the audit costs anything
         stage = stack.enter_context(output_folder(args.out, keep=False, wait=args.wait)) if args.out else None
         out = stack.enter_context(spool())
         executor = stack.enter_context(make_executor(args.workers, args.scheduler)) if parallel else None
-        progress = stack.enter_context(_progress(sys.stderr.isatty()))
+        progress = stack.enter_context(_progress(progress_shown()))
         task = progress.add_task("audit", total=None) if progress is not None else None
 
         def on_block(done: int, total: int | None) -> None:
@@ -141,6 +183,8 @@ def _audit_run(args: argparse.Namespace) -> None:
                                          in_flight, on_block, keep=args.out is not None)
         if form == "text":
             out.write(("\n" + format_summary(summary) + "\n").encode())
+        elif form == "none":
+            out.write((verdict_line(summary) + "\n").encode())
         if stage is not None:
             from gpfverify.report.equivalence import write_run_audit_report
 

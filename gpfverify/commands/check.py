@@ -1,7 +1,8 @@
 """``gpfverify check SYSTEM.py:NAME``: does DMF reproduce CMF on your system, at every step, and why
 (not)? Simulated runs (truth known) or your logged measurements; every step audited.
 
-The system file defines NAME, a gpfverify.models.StateSpaceModel (format: docs/models.md).
+The system file defines NAME, a gpfverify.models.StateSpaceModel (format: docs/models.md), or Stone
+Soup models or filterpy filters, taken as they are (docs/ecosystem.md).
 Results go to --out DIR (results.json, the per-run records and the equivalence report) or, with
 --json alone, to stdout.
 """
@@ -16,6 +17,8 @@ import tempfile
 from pathlib import Path
 
 from gpfverify.cli import RANK_RULE_HELP, fusion_rules, rank_rule_text
+from gpfverify.contract.check import Params
+from gpfverify.contract.params import add_arguments as add_params_arguments
 from gpfverify.filters.families import FAMILY_NAMES
 from gpfverify.fusion.names import CHOICES_TEXT
 from gpfverify.outputs import add_wait_argument, out_path, output_folder
@@ -28,7 +31,8 @@ DEFAULT_STEPS = 50
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("system", metavar="SYSTEM.py:NAME",
-                        help="a Python file and the name of the StateSpaceModel it defines (docs/models.md)")
+                        help="a Python file and the name of the StateSpaceModel it defines (docs/models.md), "
+                             "or of its Stone Soup models or filterpy filters (docs/ecosystem.md)")
     parser.add_argument("--filter", default="ukf", choices=[f for f in FAMILY_NAMES if f != "kf"],
                         help="the Gaussian family of every local filter and of the centre (default ukf)")
     parser.add_argument("--steps", type=int, default=None,
@@ -41,11 +45,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              "an audit run file)")
     parser.add_argument("--training", metavar="TRAIN.npz", default=None,
                         help="GP families: learn from your samples, x (n, D) consecutive states and y (n, L)")
-    parser.add_argument("--train", type=int, default=200,
-                        help="GP families: samples drawn from the system to learn from (default 200)")
-    parser.add_argument("--fit-points", type=int, default=200,
-                        help="GP families: at most this many samples for the evidence maximisation (default 200)")
-    parser.add_argument("--restarts", type=int, default=2, help="GP families: optimiser starts (default 2)")
+    # the GP options as check's Params declares them (--train-points: one name in every command)
+    add_params_arguments(parser, Params, only=("train", "fit_points", "restarts"))
     parser.add_argument("--methods", type=fusion_rules, default=("cmf", "dmf", "cc", "ci"), metavar="RULES",
                         help=f"comma-separated fusion rules among {CHOICES_TEXT}, the same names as fuse's "
                              "(cmf and dmf always; default cmf,dmf,cc,ci)")
