@@ -338,9 +338,9 @@ def test_a_second_command_asked_to_wait_writes_after_the_first(tmp_path):
     assert sorted(os.listdir(tmp_path)) == ["RUN.jsonl", "out", "slow.py"]
 
 
-@pytest.mark.parametrize("name", ["n" * 240, "n" * 255, "é" * 127, "x"], ids=["240", "255", "254-utf8", "1"])
-def test_long_output_folder_names_work_and_leave_no_sibling(tmp_path, capsys, name):
-    run = _run_file(tmp_path)
+def test_a_240_byte_output_folder_name_works_and_leaves_no_sibling(tmp_path, capsys):
+    """(Any name up to 255 bytes: the fuzz test of tests/test_error_boundary.py.)"""
+    run, name = _run_file(tmp_path), "n" * 240
     assert len(os.fsencode(sibling(tmp_path / name, PARTIAL).name)) <= 255
     for _ in range(2):  # written, then rewritten
         code, _, err = _main(["audit", run, "--out", tmp_path / name], capsys)
