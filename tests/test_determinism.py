@@ -3,8 +3,9 @@
 whose workers are separate processes) and after a SIGKILL and ``--resume`` — checked end to end
 through the command line on a small ct2d (RCC-CI included, whose solver once depended on the
 process's earlier solves) and a small ungm1d. The SIGKILL also checks that neither the command's
-process, nor a worker process, nor the resource tracker outlives the killed main process; a worker killed alone ends the command
-with exit status 2 and one line, its saved runs kept in --out for ``--resume``."""
+process, nor a worker process, nor the resource tracker outlives the killed main process; a worker
+killed alone ends the command with exit status 2 and one line, its saved runs kept in --out for
+``--resume``."""
 
 import json
 import os

@@ -555,6 +555,7 @@ def test_print_in_the_system_file_goes_to_stderr(tmp_path, workers):
 THREAD_EXIT = "t = __import__('threading').Thread(target=os._exit, args=(0,)); t.start(); t.join()"
 POSIX_EXIT = "__import__('posix')._exit(0)"
 C_EXIT = "__import__('ctypes').CDLL(None).exit(0)"
+POSIX_THREAD_EXIT = THREAD_EXIT.replace("os._exit", "__import__('posix')._exit")
 
 
 @pytest.mark.parametrize("workers", ["1", "2"])
@@ -581,7 +582,7 @@ def test_a_thread_started_at_import_that_ends_the_process_mid_run_is_an_error_of
 
 @pytest.mark.parametrize("call, where", [(POSIX_EXIT, "at_import"), (POSIX_EXIT, "in_measurement"),
                                          (C_EXIT, "in_measurement"),
-                                         (THREAD_EXIT.replace("os._exit", "__import__('posix')._exit"), "in_measurement")],
+                                         (POSIX_THREAD_EXIT, "in_measurement")],
                          ids=["posix-import", "posix-run", "C-exit-run", "posix-thread-run"])
 def test_an_exit_gpfverify_cannot_intercept_is_still_an_error_of_the_system_file(tmp_path, call, where):
     """posix._exit, C's exit() and a thread calling either end the process running the command
