@@ -16,9 +16,9 @@ While :func:`guarded` is active:
 * an exception that is not an :class:`Exception` (a :class:`BaseException` subclass, a
   ``KeyboardInterrupt`` the code raises itself) becomes a :class:`UserCodeError` naming it:
   exit status 2 and one line, not "a bug" and not "interrupted". A Ctrl-C or SIGTERM is told apart
-  by the exception gpfverify's own signal handler raises (:class:`Interrupted`); under a handler
-  that is not gpfverify's (the Python API in a notebook), every ``KeyboardInterrupt`` is taken for
-  an interruption;
+  by the exception gpfverify's own signal handler raises (:class:`Interrupted`); in a worker
+  process, which ignores SIGINT, every ``KeyboardInterrupt`` is the code's own; under a handler
+  that is not gpfverify's (the Python API in a notebook), every one is taken for an interruption;
 * the current folder is restored when the block ends, so a system file that calls
   ``os.chdir`` moves none of gpfverify's relative paths (``--out`` is resolved before the code
   runs anyway).
@@ -54,24 +54,22 @@ class UserExit(UserCodeError):
 
 
 class Interrupted(KeyboardInterrupt):
-    """Ctrl-C or SIGTERM, raised by gpfverify's own signal handler (:func:`raise_interrupted`)."""
+    """Ctrl-C or SIGTERM, raised by gpfverify's own signal handler (:func:`marks_interrupts`)."""
 
 
 def marks_interrupts(handler: Handler) -> Handler:
-    """``handler`` marked as one whose KeyboardInterrupts are :class:`Interrupted` (for a handler
-    that does more than :func:`raise_interrupted`)."""
+    """``handler``, a SIGINT/SIGTERM handler, marked as one whose KeyboardInterrupts are
+    :class:`Interrupted`."""
     handler.raises_interrupted = True  # type: ignore[attr-defined]
     return handler
 
 
-@marks_interrupts
-def raise_interrupted(signum, frame):
-    """A SIGINT/SIGTERM handler that raises :class:`Interrupted`."""
-    raise Interrupted
-
-
 def _interruptions_are_marked() -> bool:
-    return getattr(signal.getsignal(signal.SIGINT), "raises_interrupted", False)
+    """Whether a Ctrl-C is told apart from a KeyboardInterrupt the user's code raises: SIGINT's
+    handler is a marked one (:func:`marks_interrupts`), or SIGINT is ignored (a worker process,
+    which no Ctrl-C interrupts)."""
+    handler = signal.getsignal(signal.SIGINT)
+    return handler is signal.SIG_IGN or getattr(handler, "raises_interrupted", False)
 
 
 def system_file(spec: str) -> str:

@@ -505,17 +505,19 @@ def test_fuzz_output_folder_names_up_to_the_longest_a_folder_may_have(tmp_path, 
     st.sampled_from([KeyboardInterrupt("mine"), KeyboardInterrupt(), GeneratorExit(), SystemExit(0), SystemExit(3),
                      SystemExit("bye"), SystemExit(None)]),
     st.builds(lambda name, text: type(name, (BaseException,), {})(text),
-              st.from_regex(r"[A-Z][a-z]{1,8}", fullmatch=True), st.text(max_size=20))))
-def test_fuzz_what_user_code_raises_that_is_not_an_exception_is_its_error(raised):
+              st.from_regex(r"[A-Z][a-z]{1,8}", fullmatch=True), st.text(max_size=20))),
+       in_worker=st.booleans())
+def test_fuzz_what_user_code_raises_that_is_not_an_exception_is_its_error(raised, in_worker):
     """gpfverify.usercode.guarded turns every BaseException that is not an Exception — an exit, a
-    KeyboardInterrupt the code raised itself (under gpfverify's signal handler), any other — into a
-    UserCodeError naming the user's code and the exception, and lets gpfverify's own interruption
-    and ordinary exceptions through unchanged."""
+    KeyboardInterrupt the code raised itself (under gpfverify's signal handler, or in a worker
+    process, which ignores SIGINT), any other — into a UserCodeError naming the user's code and the
+    exception, and lets gpfverify's own interruption and ordinary exceptions through unchanged."""
     import signal
 
-    from gpfverify.usercode import Interrupted, UserCodeError, guarded, raise_interrupted
+    from gpfverify.cli import _interrupt
+    from gpfverify.usercode import Interrupted, UserCodeError, guarded
 
-    saved = signal.signal(signal.SIGINT, raise_interrupted)
+    saved = signal.signal(signal.SIGINT, signal.SIG_IGN if in_worker else _interrupt)
     try:
         with pytest.raises(UserCodeError) as caught:
             with guarded("the system file mine.py"):

@@ -655,14 +655,32 @@ system = StateSpaceModel(transition=np.eye(2), process_cov=0.1 * np.eye(2),
                          prior_mean=[0.0, 0.0], prior_cov=np.eye(2))
 '''
 
+#: a system whose measurement function, in a worker process, waits until the file ``go`` exists
+#: in the folder the check started in: its runs finish only when a test lets them
+HELD_SYSTEM = '''
+import multiprocessing, os, time
+import numpy as np
+from gpfverify.models import Sensor, StateSpaceModel
+GO = os.path.abspath('go')
+def h(x):
+    while multiprocessing.parent_process() is not None and not os.path.exists(GO):
+        time.sleep(0.02)
+    return x[:, :1]
+system = StateSpaceModel(transition=np.eye(2), process_cov=0.1 * np.eye(2),
+                         sensors=[Sensor(np.eye(2), np.eye(2)), Sensor(h, [[1.0]])],
+                         prior_mean=[0.0, 0.0], prior_cov=np.eye(2))
+'''
 
-def _slow_check(tmp_path):
-    """A check with two workers whose runs take seconds, started in its own process; returns once a
-    worker is running."""
-    (tmp_path / "slow.py").write_text(SLOW_SYSTEM)
+
+def _slow_check(tmp_path, system=SLOW_SYSTEM, session=False):
+    """A check with two workers whose runs take seconds (or, with :data:`HELD_SYSTEM`, wait for
+    ``go``), started in its own process (``session``: in a session of its own, as a terminal
+    starts it); returns once a worker is running."""
+    (tmp_path / "slow.py").write_text(system)
     proc = subprocess.Popen([sys.executable, "-m", "gpfverify", "check", "slow.py:system", "--steps", "400",
                              "--runs", "4", "--workers", "2", "--methods", "cmf,dmf", "--out", "out"],
-                            cwd=tmp_path, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+                            cwd=tmp_path, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            start_new_session=session)
     import time
 
     deadline = time.monotonic() + 60
@@ -701,15 +719,24 @@ def _assert_one_true_interrupt_line(err, start, out_dir, runs):
 
 
 @pytest.mark.skipif(not sys.platform.startswith("linux"), reason="reads /proc")
-@pytest.mark.parametrize("signum", ["SIGINT", "SIGTERM"])
-def test_an_interruption_before_any_run_finished_is_one_true_line(tmp_path, signum):
+@pytest.mark.parametrize("signum, to_group", [("SIGINT", True), ("SIGINT", False), ("SIGTERM", False)],
+                         ids=["Ctrl-C", "kill-INT", "kill-TERM"])
+def test_an_interruption_before_any_run_finished_is_one_true_line(tmp_path, signum, to_group):
+    """``check --workers 2`` whose runs cannot finish (they wait for a file never made), stopped by
+    Ctrl-C (SIGINT to the whole process group, workers included, as a terminal sends it) or by
+    ``kill`` of gpfverify's process: one line, saying nothing was kept, and nothing written."""
     import signal
 
-    proc = _slow_check(tmp_path)
-    proc.send_signal(getattr(signal, signum))
-    _, err = proc.communicate(timeout=60)
-    assert proc.returncode == 130 and "Traceback" not in err, err
-    _assert_one_true_interrupt_line(err, "gpfverify check: interrupted", tmp_path / "out", 4)
+    proc = _slow_check(tmp_path, HELD_SYSTEM, session=to_group)
+    if to_group:
+        os.killpg(proc.pid, getattr(signal, signum))
+    else:
+        proc.send_signal(getattr(signal, signum))
+    out, err = proc.communicate(timeout=60)
+    assert proc.returncode == 130 and out == "", err
+    assert err.strip().splitlines() == [
+        f"gpfverify check: interrupted; no run had finished; nothing was written to {tmp_path / 'out'}"], err
+    assert sorted(os.listdir(tmp_path)) == ["slow.py"]
 
 
 @pytest.mark.skipif(not sys.platform.startswith("linux"), reason="reads /proc")

@@ -46,7 +46,7 @@ from gpfverify.errors import InputError, WorkerLost
 from gpfverify.notebook import progress_shown
 from gpfverify.runtime import BLAS_THREAD_VARS
 from gpfverify.supervise import exit_with_parent
-from gpfverify.usercode import UserCodeError, guarded, raise_interrupted, system_file
+from gpfverify.usercode import UserCodeError, guarded, system_file
 
 #: a key of ``results.json`` (at any depth) whose value is a measured time, not a result
 TIMING_KEY = re.compile(r"time_per|seconds|machine_load|timing_claims")
@@ -104,8 +104,8 @@ def make_executor(workers: int = 1, scheduler: str | None = None):
     import multiprocessing as mp
 
     _quiet_manager_thread_on_interrupt()
-    pool = ProcessPoolExecutor(max_workers=workers, mp_context=mp.get_context("spawn"),
-                               initializer=_start_worker, initargs=(os.getpid(),))
+    pool = _WorkerPool(max_workers=workers, mp_context=mp.get_context("spawn"),
+                       initializer=_start_worker, initargs=(os.getpid(),))
     try:
         yield pool
     except BaseException:
@@ -134,6 +134,23 @@ def make_executor(workers: int = 1, scheduler: str | None = None):
                 os.environ.pop(k, None)
             else:
                 os.environ[k] = v
+
+
+class _WorkerPool(ProcessPoolExecutor):
+    """A local process pool whose worker processes start with SIGINT blocked, as multiprocessing
+    starts its resource tracker: a Ctrl-C from the terminal reaches every process, and one reaching
+    a worker while Python starts it (before :func:`_start_worker` runs) would print a traceback
+    (ProcessPoolExecutor starts its workers as tasks are submitted). A Ctrl-C reaching this process
+    meanwhile waits until the worker is started, then stops the command as usual."""
+
+    def submit(self, fn, /, *args, **kwargs):
+        import signal
+
+        blocked = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
+        try:
+            return super().submit(fn, *args, **kwargs)
+        finally:
+            signal.pthread_sigmask(signal.SIG_SETMASK, blocked)
 
 
 #: how long a worker may take to end once the pool is shut down before it is stopped
@@ -246,12 +263,14 @@ def _start_worker(parent_pid: int) -> None:
     """Worker initializer: the worker ends as soon as its parent (the main process, which started
     it) is gone, killed by any signal (:func:`gpfverify.supervise.exit_with_parent`; the
     multiprocessing resource tracker exits by itself once every process holding its pipe is
-    gone), and a Ctrl-C raises :class:`~gpfverify.usercode.Interrupted`, as in the main process, so
-    that a KeyboardInterrupt the user's code raises itself is told apart."""
+    gone), and ignores Ctrl-C (SIGINT, blocked until now: :class:`_WorkerPool`): the main process
+    stops the command and its workers, and a KeyboardInterrupt in a worker is then always one the
+    user's code raised itself (:func:`gpfverify.usercode.guarded`)."""
     import signal
 
     exit_with_parent(parent_pid)
-    signal.signal(signal.SIGINT, raise_interrupted)
+    signal.signal(signal.SIGINT, signal.SIG_IGN)  # a Ctrl-C pending since the worker started is dropped
+    signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT})
 
 
 def _in_flight_limit(executor: Executor) -> int:
