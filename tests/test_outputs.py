@@ -314,28 +314,43 @@ def test_a_second_command_on_the_same_folder_is_refused_in_one_line(tmp_path, ca
     assert sorted(os.listdir(tmp_path)) == ["RUN.jsonl", "out"]
 
 
-def test_a_second_command_asked_to_wait_writes_after_the_first(tmp_path):
-    """A running check holds --out; ``audit --wait`` on the same folder starts, waits (one line
-    saying so), and writes its report once the check has committed: the folder ends as the audit's,
-    and the check's results were complete when it committed."""
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="reads /proc")
+def test_a_second_command_on_a_folder_being_written_is_refused_or_waits(tmp_path):
+    """A running check holds --out (its run held until the file ``go`` exists): a second check and
+    an audit on the same folder are each refused in one line, changing nothing; ``audit --wait``
+    says once that it waits, and writes its report once the check has committed: the folder ends
+    as the audit's, and the check's results were complete when it committed."""
     import time
 
-    (tmp_path / "slow.py").write_text(SLOW_SYSTEM)
+    (tmp_path / "held.py").write_text(HELD_SYSTEM)
     run = _run_file(tmp_path)
-    first = subprocess.Popen([sys.executable, "-m", "gpfverify", "check", "slow.py:system", "--steps", "40",
-                              "--methods", "cmf,dmf", "--json", "--out", "out"], cwd=tmp_path,
-                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-    deadline = time.monotonic() + 60
-    while time.monotonic() < deadline and not list(tmp_path.glob(".gpfverify-partial-out-*")):
-        time.sleep(0.05)
-    second = subprocess.run([sys.executable, "-m", "gpfverify", "audit", str(run), "--json", "--out", "out",
-                             "--wait"], cwd=tmp_path, capture_output=True, text=True, timeout=300)
-    out, err = first.communicate(timeout=300)
+    check = [sys.executable, "-m", "gpfverify", "check", "held.py:system", "--steps", "5", "--workers", "2",
+             "--methods", "cmf,dmf", "--json", "--out", "out"]
+    audit = [sys.executable, "-m", "gpfverify", "audit", str(run), "--json", "--out", "out"]
+    first = subprocess.Popen(check, cwd=tmp_path, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        deadline = time.monotonic() + 60
+        while time.monotonic() < deadline and not pool_workers(first.pid):  # the run is under way
+            time.sleep(0.05)
+        for argv in (check, audit):
+            refused = subprocess.run(argv, cwd=tmp_path, capture_output=True, text=True, timeout=120)
+            assert refused.returncode == 2 and refused.stdout == "", refused.stderr
+            assert refused.stderr.strip().splitlines() == [
+                f"gpfverify {argv[3]}: error: --out {tmp_path / 'out'} is being written by another gpfverify command; "
+                "wait for it to finish (or pass --wait), or choose another folder"]
+        assert first.poll() is None and not (tmp_path / "out").exists()
+        second = subprocess.Popen([*audit, "--wait"], cwd=tmp_path, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                                  text=True)
+        waiting = f"waiting for the other gpfverify command writing {tmp_path / 'out'} to finish\n"
+        assert second.stderr.readline() == waiting
+    finally:
+        (tmp_path / "go").touch()
+    out, err = first.communicate(timeout=120)
     assert first.returncode == 0 and json.loads(out)["runs_ok"] == 1, err
-    assert second.returncode == 0, second.stderr
-    assert second.stderr.startswith(f"waiting for the other gpfverify command writing {tmp_path / 'out'}")
+    out, err = second.communicate(timeout=120)
+    assert second.returncode == 0 and json.loads(out)["summary"], err
     assert (tmp_path / "out" / "audit.json").is_file() and not (tmp_path / "out" / "results.json").exists()
-    assert sorted(os.listdir(tmp_path)) == ["RUN.jsonl", "out", "slow.py"]
+    assert sorted(os.listdir(tmp_path)) == ["RUN.jsonl", "go", "held.py", "out"]
 
 
 def test_a_240_byte_output_folder_name_works_and_leaves_no_sibling(tmp_path, capsys):
@@ -348,19 +363,37 @@ def test_a_240_byte_output_folder_name_works_and_leaves_no_sibling(tmp_path, cap
     assert sorted(os.listdir(tmp_path)) == sorted(["RUN.jsonl", name])
 
 
-def test_report_from_a_folder_renders_again_after_it_was_killed(tmp_path, capsys):
-    """``report --from DIR --out page`` killed while it wrote (its staging folder left unlocked,
-    half-written), then run again, twice: each run writes the page and no hidden folder remains."""
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="reads /proc")
+def test_a_sigkilled_report_from_a_folder_renders_again(tmp_path):
+    """``report --from DIR --out page`` SIGKILLed while it writes the page (its staging folder left
+    behind, unlocked and half-written; the process running the command dies with it), then run
+    again, twice: each run writes the page and no hidden folder remains."""
+    import signal
+    import time
+
+    from processes import alive, descendants
+
     source = _reproduced(tmp_path)
-    page = tmp_path / "page"
-    stale = sibling(page, PARTIAL)
-    (stale / "ungm1d" / "ungm1d-reproduce" / "run").mkdir(parents=True)
-    (stale / "ungm1d" / "ungm1d-reproduce" / "run" / "manifest.json").write_text("{")  # what a copy left
+    argv = [sys.executable, "-m", "gpfverify", "report", "--from", source.name, "--out", "page"]
+    killed = subprocess.Popen(argv, cwd=tmp_path, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    deadline, processes = time.monotonic() + 120, set()
+    while time.monotonic() < deadline and killed.poll() is None and not list(tmp_path.glob(f"{PARTIAL}page-*/*")):
+        processes |= descendants(killed.pid)
+        time.sleep(0.01)
+    processes |= descendants(killed.pid)
+    assert killed.poll() is None, "the report finished before it could be killed"
+    killed.send_signal(signal.SIGKILL)
+    killed.wait(timeout=10)
+    deadline = time.monotonic() + 15
+    while time.monotonic() < deadline and any(alive(pid) for pid in processes):
+        time.sleep(0.05)
+    assert processes and not any(alive(pid) for pid in processes)
+    assert list(tmp_path.glob(f"{PARTIAL}page-*/*")) and not (tmp_path / "page").exists()
     for _ in range(2):
-        code, out, err = _main(["report", "--from", source, "--out", page], capsys)
-        assert code == 0 and "report.html" in out, err
+        rerun = subprocess.run(argv, cwd=tmp_path, capture_output=True, text=True, timeout=300)
+        assert rerun.returncode == 0 and "report.html" in rerun.stdout and rerun.stderr == "", rerun.stderr
         assert sorted(os.listdir(tmp_path)) == ["page", "ungm1d"]
-    assert (page / "report.html").stat().st_size > 0
+    assert (tmp_path / "page" / "report.html").stat().st_size > 0
 
 
 def test_resuming_onto_a_full_disk_is_one_plain_line(tmp_path, capsys, monkeypatch):
