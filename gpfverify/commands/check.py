@@ -54,6 +54,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help=RANK_RULE_HELP + " Default canonical: a user's system has its own units, and "
                              "the canonical rule does not depend on them (reproduce defaults to numpy, the "
                              "papers' rule, to reproduce their numbers).")
+    add_params_arguments(parser, Params, only=("ci_criterion",))
     parser.add_argument("--out", type=out_path, default=None, help="output folder (results.json, runs/, report)")
     add_wait_argument(parser)
     parser.add_argument("--json", action="store_true", help="print results.json to stdout")
@@ -81,7 +82,7 @@ def run(args: argparse.Namespace) -> int:
     params = check.params_for(args.system, args.filter, DEFAULT_STEPS if args.steps is None else args.steps,
                               args.measurements,
                               args.training, args.train, args.fit_points, args.restarts, args.methods,
-                              args.rank_rule)
+                              args.rank_rule, args.ci_criterion)
     with guarded(system_file(params.system)):  # the system file's print() to stderr, its exits reported
         model = load_system(params.system)  # fail before anything is written
     if params.measurements is not None:

@@ -52,7 +52,7 @@ from gpfverify.filters.records import Gaussian, StepRecord
 from gpfverify.filters.sigma_points import SigmaParams
 from gpfverify.fusion.centralized import cmf_update
 from gpfverify.fusion.convex import convex_combination
-from gpfverify.fusion.exactness import parse_rank_rule
+from gpfverify.fusion.exactness import RankRule, parse_rank_rule
 from gpfverify.fusion.model_fusion import cmf_step, dmf_step
 from gpfverify.fusion.rcc_ci import rcc_ci
 from gpfverify.health import HealthCheck, decide, divergence_check, nees_values_check
@@ -153,8 +153,11 @@ def run_family(family: str, models: GPModel, data: FusionData, local_starts: Seq
                fused_start: Gaussian, sigma: SigmaParams, rcc_size: float | None,
                rank_tol: float | None, rcc_on_empty: str = "enlarge", rank_rule: str = "numpy") -> FamilyRun:
     """Filter the test segment with the six methods of one family; per-step records (see module
-    docstring). ``rank_rule``: "numpy" (with ``rank_tol``: absolute) or "canonical"."""
-    rule = None if rank_rule == "numpy" else rank_rule  # None: dmf_step's numpy rule, or rank_tol
+    docstring). ``rank_rule``: a :func:`~gpfverify.fusion.exactness.parse_rank_rule` string ("numpy",
+    "canonical[:TAU]", "absolute:TOL"); with ``rank_tol`` the numpy rule becomes the absolute one.
+    The rule is passed to eq. 35 explicitly: the library's default is not the experiments'."""
+    rule = (RankRule("absolute", rank_tol) if rank_rule == "numpy" and rank_tol is not None
+            else parse_rank_rule(rank_rule))
     ys_local = data.test_measurements
     ys = data.stacked_test_measurements()
     steps = ys.shape[0]
@@ -183,7 +186,7 @@ def run_family(family: str, models: GPModel, data: FusionData, local_starts: Seq
         locals_ = [r.posterior for r in records]
         cmf = clock.run(cmf_key, k, cmf_step, cmf_belief, models, ys[k], k=k + 1, family=family, params=sigma)
         dmf = clock.run(dmf_key, k, dmf_step, dmf_belief, models, ys[k], local_records=records, k=k + 1,
-                        family=family, params=sigma, rank_tol=rank_tol, rank_rule=rule)
+                        family=family, params=sigma, rank_rule=rule)
         cmf_belief, dmf_belief = cmf.posterior, dmf.record.posterior
         cw = clock.run(cw_key, k, convex_combination, locals_, models.circular_state)
         rcc, enlarged = clock.run(rcc_key, k, _rcc_ci, locals_, rcc_size, rcc_on_empty, models.circular_state)
