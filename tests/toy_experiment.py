@@ -9,6 +9,7 @@ import numpy as np
 
 from gpfverify.contract import ClaimRecord, Params, PairedDifference, Profile, Setting, option
 from gpfverify.contract.interpretations import InterpretationSpec
+from gpfverify.usercode import Interrupted
 
 NAME = "toy"
 PAPER = "seed000"
@@ -42,7 +43,7 @@ def run_one(params: Params, seed) -> RunRecord:
     if seed.spawn_key[-1] == params.fail_run:
         raise RuntimeError("planned failure")
     if seed.spawn_key[-1] == params.interrupt_run:
-        raise KeyboardInterrupt  # as if the user pressed Ctrl-C during this run
+        raise Interrupted  # as gpfverify's signal handler raises it when the user presses Ctrl-C
     rng = np.random.default_rng(seed)
     return RunRecord(tuple((params.shift + params.scale * rng.standard_normal(3)).tolist()))
 
