@@ -34,7 +34,8 @@ only on range(P_m); the kernel component (I − P_m) w_m = N_m Ñ_mᵀ w_m is lo
 :func:`audit_run` applies the same audit to every step of a filter run.
 
 With y, each sensor's own share of the gap, 2π G_m n_m − G_m C_y^m k_m, says which sensor's
-report drives it. n_m are the *branch offsets* of its angle outputs
+report drives it (``gap_contribution`` in state units, ``gap_contribution_size`` its size in prior
+standard deviations, the unit of ``gap_size``). n_m are the *branch offsets* of its angle outputs
 (:func:`~gpfverify.fusion.exactness.branch_offsets`): where the separately wrapped eq. 35 terms
 wrap(μ_y^m − μ_y(m)) + wrap(y^m − μ_y^m) leave (−π, π], DMF's innovation differs from CMF's
 wrap(y^m − μ_y(m)) by 2π; the audit reports them per sensor and in a note, and the predicted gap
@@ -65,6 +66,7 @@ from gpfverify.fusion.exactness import (COVARIANCE_CENTRAL, COVARIANCE_LOCAL, DE
                                         resolve_rank_rule, sensor_gap, sensor_prior_covariance,
                                         whitened_innovation)
 from gpfverify.linalg import correlation_condition
+from gpfverify.runtime import one_blas_thread
 from gpfverify.tolerances import algebra_rtol
 
 if TYPE_CHECKING:  # casadi is imported only when sensitivities are asked for
@@ -98,6 +100,7 @@ class SensorAudit:
     local_consistency_residual: float | None = None
     consistency_tol: float | None = None
     gap_contribution: np.ndarray | None = None
+    gap_contribution_size: float | None = None
     sensitivity: SensorSensitivity | None = None
     branch_offsets: np.ndarray | None = None
     rank_rule: RankRule | None = None
@@ -229,6 +232,7 @@ def _unit_free_variant(case: FusionCase, rule: RankRule, dmf: DMFResult) -> tupl
     return variant, gap_size(case, difference(dmf.mean, variant, case.circular_state), dmf.scale)
 
 
+@one_blas_thread
 def audit_case(case: FusionCase, rank_tol: float | None = None, sensitivity: bool = False,
                rank_rule: RankRule | str | None = None) -> CaseAudit:
     """The rank-condition audit of one case under ``rank_rule`` (a :class:`RankRule` or its string,
@@ -248,7 +252,7 @@ def audit_case(case: FusionCase, rank_tol: float | None = None, sensitivity: boo
     sensors, messages = [], []
     for s in dmf.sensors:
         rank = s.split.rank
-        message = contribution = offset = None
+        message = contribution = offset = contribution_size = None
         residual = None
         if has_y:
             y_m = case.local_measurement(s.index)
@@ -257,6 +261,7 @@ def audit_case(case: FusionCase, rank_tol: float | None = None, sensitivity: boo
             residual = float(np.linalg.norm(local_consistency_residual(case, s.index)))
             offset = offsets[s.index]
             contribution = sensor_gap(case, s, dmf.gain, offset)
+            contribution_size = gap_size(case, contribution, dmf.scale)
         rho, covariance = _correlations(case, s.index, s.split)
         sensors.append(SensorAudit(
             index=s.index, rows=rank.shape[0], cols=rank.shape[1], rank=rank.rank,
@@ -265,7 +270,7 @@ def audit_case(case: FusionCase, rank_tol: float | None = None, sensitivity: boo
             repair_basis=s.split.kernel_basis, repair_message=message,
             local_consistency_residual=residual,
             consistency_tol=_consistency_tol(case, s.index) if has_y else None,
-            gap_contribution=contribution, sensitivity=jacobians[s.index],
+            gap_contribution=contribution, gap_contribution_size=contribution_size, sensitivity=jacobians[s.index],
             branch_offsets=offset, rank_rule=rule, canonical_correlations=rho,
             covariance=covariance))
     unit_free_mean, unit_dependence = _unit_free_variant(case, rule, dmf)
@@ -307,6 +312,7 @@ def _measurement_fields(s: SensorAudit) -> dict:
     return {"repair_message": s.repair_message.tolist(),
             "local_consistency_residual": s.local_consistency_residual,
             "gap_contribution": s.gap_contribution.tolist(),
+            "gap_contribution_size": s.gap_contribution_size,
             "branch_offsets": s.branch_offsets.tolist()}
 
 

@@ -13,10 +13,13 @@ audit takes the common path:
 * every factorisation succeeds without jitter.
 
 There the formulas are those of :mod:`gpfverify.fusion.exactness` and :mod:`gpfverify.audit` with
-their ranks fixed: canonical correlations ρ = σ(L_p⁻¹ C_xy L_y⁻ᵀ) of equilibrated Cholesky
-factors, G = C_xy C_y⁻¹, A_m = (C_xy^m)⁺ = V S⁻¹ U_lᵀ, eq. 35's mean
+their ranks fixed: canonical correlations ρ = σ(L_p⁻¹ C_xy L_y⁻ᵀ) = σ(U diag(ρ) Vᵀ) of equilibrated
+Cholesky factors, G = C_xy C_y⁻¹, eq. 35's left inverse A_m as the rule's split applies it (the
+canonical rule: the whitened one, L_y⁻ᵀ V diag(ρ)⁻¹ Uᵀ L_p⁻¹, whose rounding does not depend on
+units; the SVD rules: V S⁻¹ U_lᵀ from numpy's SVD), eq. 35's mean
 μ_p + G [(μ_y^m − μ_y(m)) + C_y^m A_m (μ_e^m − μ_p^m)]_m, CMF's μ_p + G (y − μ_y), and the
-rounding bound of :func:`~gpfverify.fusion.exactness.equivalence_tolerance`. Every other step
+rounding bound of :func:`gpfverify.fusion.rounding.gap_bound` — the same function the per-step
+audit calls, here over the block's step axis. Every other step
 (a sensor that lost rank, no y, angles, a factorisation that needs jitter) is left to
 :func:`~gpfverify.audit.audit_case`, which stays the one definition of the audit: the tests
 compare the two routes field by field (tests/test_audit_batched.py).
@@ -31,7 +34,9 @@ import numpy as np
 
 from gpfverify.audit import CaseAudit, SensorAudit
 from gpfverify.fusion.caseblock import CaseBlock
+from gpfverify.fusion import rounding
 from gpfverify.fusion.exactness import COVARIANCE_CENTRAL, COVARIANCE_LOCAL, RankRule
+from gpfverify.fusion.rounding import SensorTerms
 from gpfverify.tolerances import ALGEBRA_RTOL, ALGEBRA_SAFETY, EPS
 
 
@@ -53,14 +58,46 @@ def _equilibrated(cov: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return d, np.linalg.cholesky(cov / (d[:, :, None] * d[:, None, :]))
 
 
-def _canonical(cov_x: np.ndarray, cov_y: np.ndarray, cross: np.ndarray):
-    """(ρ, d_x, L_x, d_y, L_y) of :func:`gpfverify.linalg.canonical_correlations` at every step."""
+@dataclass(frozen=True)
+class _Canonical:
+    """:func:`gpfverify.linalg.canonical_correlations` at every step: K = U diag(ρ) Vᵀ of
+    K = L_x⁻¹ C L_y⁻ᵀ with L = diag(d) L_c the equilibrated factors."""
+
+    correlations: np.ndarray
+    u: np.ndarray
+    vt: np.ndarray
+    scale_x: np.ndarray
+    factor_x: np.ndarray
+    scale_y: np.ndarray
+    factor_y: np.ndarray
+
+    def left_inverse(self) -> np.ndarray:
+        """A = L_y⁻ᵀ V diag(ρ)⁻¹ Uᵀ L_x⁻¹ (B, l, D) for a full-column-rank C (the canonical split's,
+        :func:`gpfverify.fusion.exactness.canonical_split`)."""
+        cols = self.vt.shape[1]
+        v = np.swapaxes(self.vt, 1, 2) / self.correlations[:, None, :cols]
+        left = np.linalg.solve(np.swapaxes(self.factor_y, 1, 2), v) / self.scale_y[:, :, None]        # L_y⁻ᵀ V/ρ
+        right = (np.linalg.solve(np.swapaxes(self.factor_x, 1, 2), self.u[:, :, :cols])
+                 / self.scale_x[:, :, None])                                                          # L_x⁻ᵀ U_l
+        return left @ np.swapaxes(right, 1, 2)
+
+    def left_inverse_condition(self) -> np.ndarray:
+        """(κ(L_x,c) + κ(L_y,c)) (1 + ρ_1/ρ_l) (B,): the left inverse's rounding per unit of its result
+        (:func:`gpfverify.fusion.rounding.left_inverse_error`)."""
+        rho = self.correlations
+        whitenings = np.linalg.cond(self.factor_x) + np.linalg.cond(self.factor_y)
+        return whitenings * (1.0 + rho[:, 0] / rho[:, -1])
+
+
+def _canonical(cov_x: np.ndarray, cov_y: np.ndarray, cross: np.ndarray) -> _Canonical:
+    """:class:`_Canonical` of (C_x, C_y, C_xy) at every step."""
     dx, lx = _equilibrated(cov_x)
     dy, ly = _equilibrated(cov_y)
     scaled = cross / (dx[:, :, None] * dy[:, None, :])
     left = _solve_lower(lx, scaled)                                       # L_xc⁻¹ C
     k = np.swapaxes(_solve_lower(ly, np.swapaxes(left, 1, 2)), 1, 2)      # … L_yc⁻ᵀ
-    return np.linalg.svd(k, compute_uv=False), dx, lx, dy, ly
+    u, rho, vt = np.linalg.svd(k, full_matrices=True)
+    return _Canonical(rho, u, vt, dx, lx, dy, ly)
 
 
 def _spd_condition(cov: np.ndarray) -> np.ndarray:
@@ -115,14 +152,11 @@ def _block_audits(block: CaseBlock, rule: RankRule) -> list[CaseAudit | None]:
     y = block.y
     mu_p, c_p = block.mu_p, _sym(block.C_p)
     dpx, lpx = _equilibrated(c_p)  # L_p = diag(d_p) L_pc: the gap in prior standard deviations
-    # FusedScale: L_p⁻¹ a = L_pc⁻¹ (a / d_p); |L_p⁻¹| formed once per step
-    abs_inverse = np.abs(_solve_lower(lpx, np.broadcast_to(np.eye(dim), (steps, dim, dim)) / dpx[:, :, None]))
+    inverse = _solve_lower(lpx, np.broadcast_to(np.eye(dim), (steps, dim, dim)) / dpx[:, :, None])  # L_p⁻¹
     gain = np.swapaxes(np.linalg.solve(_sym(block.C_y), np.swapaxes(block.C_xy, 1, 2)), 1, 2)  # C_xy C_y⁻¹
 
     ok = ~np.all(np.isnan(y), axis=1)
-    parts, per_sensor = [], []
-    magnitudes = 2.0 * np.abs(mu_p) + np.einsum("bij,bj->bi", np.abs(gain), np.abs(y) + np.abs(block.mu_y))
-    reconstruction = np.zeros((steps, dim))
+    parts, per_sensor, terms = [], [], []
     start = 0
     for size, local in zip(block.sizes, block.locals):
         cols = slice(start, start + size)
@@ -136,41 +170,39 @@ def _block_audits(block: CaseBlock, rule: RankRule) -> list[CaseAudit | None]:
         else:
             has_c_e = np.zeros(steps, dtype=bool)
             prior = c_p
-        rho, _, _, _, _ = _canonical(prior, c_y, c_xy)
+        canonical = _canonical(prior, c_y, c_xy)
         u, s, vt = np.linalg.svd(c_xy, full_matrices=True)
-        full, tol = _decides_full_rank(rule, rho, s, (dim, size))
+        full, tol = _decides_full_rank(rule, canonical.correlations, s, (dim, size))
         ok &= full
-        pinv = (np.swapaxes(vt, 1, 2) / s[:, None, :]) @ np.swapaxes(u[:, :, :size], 1, 2)   # V S⁻¹ U_lᵀ
+        factor_y = canonical.scale_y[:, :, None] * canonical.factor_y                          # L_y^m
         change = local.mu_e - local.mu_p
-        recovered = np.einsum("bij,bj->bi", pinv, change)
-        c_y_recovered = np.einsum("bij,bj->bi", c_y, recovered)
-        parts.append(local.mu_y - block.mu_y[:, cols] + c_y_recovered)
+        if rule.name == "canonical":  # the canonical split's left inverse, unit-free rounding
+            pinv = canonical.left_inverse()
+            recovered = np.einsum("bij,bj->bi", pinv, change)
+            error = rounding.left_inverse_error(canonical.left_inverse_condition(), factor_y, recovered)
+        else:                         # numpy's SVD, as the SVD rules' split
+            pinv = (np.swapaxes(vt, 1, 2) / s[:, None, :]) @ np.swapaxes(u[:, :, :size], 1, 2)   # V S⁻¹ U_lᵀ
+            recovered = np.einsum("bij,bj->bi", pinv, change)
+            error = rounding.svd_inverse_error(s, size, factor_y, recovered)
+        parts.append(local.mu_y - block.mu_y[:, cols] + np.einsum("bij,bj->bi", c_y, recovered))
         w = np.linalg.solve(c_y, (y[:, cols] - local.mu_y)[:, :, None])[:, :, 0]
         residual = np.linalg.norm(change - np.einsum("bij,bj->bi", c_xy, w), axis=1)
         corr_cond = _spd_condition(c_y)
         scale = (np.linalg.norm(change, axis=1) + np.linalg.norm(local.mu_e, axis=1)
                  + np.linalg.norm(local.mu_p, axis=1))
-        # the rounding bound's terms (equivalence_tolerance)
-        g_m = gain[:, :, cols]
-        carried = np.abs(g_m @ c_y @ pinv)
-        report = np.abs(local.mu_e) + np.abs(local.mu_p) + corr_cond[:, None] * np.abs(change)
-        innovation = np.abs(local.mu_y) + np.abs(block.mu_y[:, cols]) + np.abs(c_y_recovered)
-        magnitudes = magnitudes + np.einsum("bij,bj->bi", np.abs(g_m), innovation) \
-            + np.einsum("bij,bj->bi", carried, report)
+        terms.append(SensorTerms(cols, local.mu_y, local.mu_p, local.mu_e, c_y, c_xy, pinv, recovered, factor_y,
+                                 corr_cond, error))
         range_condition = s[:, 0] / s[:, -1]
-        reconstruction = reconstruction + range_condition[:, None] * np.abs(np.einsum("bij,bj->bi", g_m, c_y_recovered))
         per_sensor.append(_SensorColumns(
-            size, s, rho, tol.tolist(), np.where(s[:, -1] != 0.0, range_condition, np.inf).tolist(),
+            size, s, canonical.correlations, tol.tolist(),
+            np.where(s[:, -1] != 0.0, range_condition, np.inf).tolist(),
             residual.tolist(), (_algebra_rtol(corr_cond) * scale).tolist(),
             [COVARIANCE_LOCAL if given else COVARIANCE_CENTRAL for given in has_c_e.tolist()]))
     dmf = mu_p + np.einsum("bij,bj->bi", gain, np.concatenate(parts, axis=1))
     cmf = mu_p + np.einsum("bij,bj->bi", gain, y - block.mu_y)
     gap = dmf - cmf
-    gap_size = np.linalg.norm(_solve_lower(lpx, (gap / dpx)[:, :, None])[:, :, 0], axis=1)
-    operations = dim + block.mu_y.shape[1]
-    total = (np.linalg.norm(np.einsum("bij,bj->bi", abs_inverse, magnitudes), axis=1)
-             + np.linalg.norm(np.einsum("bij,bj->bi", abs_inverse, reconstruction), axis=1))
-    gap_bound = operations * EPS * total
+    gap_size = np.linalg.norm(np.einsum("bij,bj->bi", inverse, gap), axis=1)
+    gap_bound = rounding.gap_bound(rounding.FusedRounding(inverse, gain, mu_p, block.mu_y), y, terms)
     zero_state = _zeros(dim)
     sizes, bounds = gap_size.tolist(), gap_bound.tolist()
     return [CaseAudit(tuple(_sensor_audit(t, m, c, rule, dim, zero_state) for m, c in enumerate(per_sensor)),
@@ -209,5 +241,5 @@ def _sensor_audit(t: int, m: int, c: _SensorColumns, rule: RankRule, dim: int, z
         condition_number=c.condition_number[t], gap_gain_norm=0.0, exactness_tol=0.0, exact=True,
         repair_basis=_zeros(c.size, 0), repair_message=_zeros(c.size),
         local_consistency_residual=c.residual[t], consistency_tol=c.consistency_tol[t],
-        gap_contribution=zero_state, branch_offsets=_zeros(c.size, dtype=int), rank_rule=rule,
-        canonical_correlations=c.correlations[t], covariance=c.covariance[t])
+        gap_contribution=zero_state, gap_contribution_size=0.0, branch_offsets=_zeros(c.size, dtype=int),
+        rank_rule=rule, canonical_correlations=c.correlations[t], covariance=c.covariance[t])

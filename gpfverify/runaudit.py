@@ -51,6 +51,7 @@ class BlockAudit:
     sensor_exact: np.ndarray
     gap_norm: np.ndarray
     rank_rules: list
+    reproduced: np.ndarray | None = None
     json: bytes = b""
     text: str = ""
     steps: list[dict] | None = None
@@ -88,6 +89,7 @@ def audits_block(ks, audits: list[CaseAudit], form: str = "none", keep: bool = F
         sensor_exact=np.array([[s.exact for s in a.sensors] for a in audits], dtype=bool),
         gap_norm=np.array([np.nan if a.gap is None else np.linalg.norm(a.gap) for a in audits]),
         rank_rules=rules,
+        reproduced=np.array([a.reproduced is True for a in audits], dtype=bool),
         json=b", ".join(_ENCODER.encode(s) for s in steps) if form == "json" else b"",
         text="".join(table_row(s) + "\n" for s in steps) if form == "text" else "",
         steps=steps if keep else None, audits=audits if keep else None)
@@ -141,6 +143,7 @@ class RunSummary:
     condition_held: int = 0
     exact: int = 0
     with_y: int = 0
+    reproduced: int = 0
     max_gap: float | None = None
     max_gap_k: int | None = None
     rules: list = field(default_factory=list)
@@ -153,6 +156,8 @@ class RunSummary:
         self.exact += int(block.exact.sum())
         measured = ~np.isnan(block.gap_norm)
         self.with_y += int(measured.sum())
+        if block.reproduced is not None:
+            self.reproduced += int(block.reproduced.sum())
         if measured.any():
             i = int(np.nanargmax(block.gap_norm))
             if self.max_gap is None or block.gap_norm[i] > self.max_gap:
@@ -174,7 +179,8 @@ class RunSummary:
 
         return {
             "steps": self.steps, "condition_held_steps": self.condition_held, "exact_steps": self.exact,
-            "steps_with_y": self.with_y, "max_gap_norm": self.max_gap, "max_gap_k": self.max_gap_k,
+            "steps_with_y": self.with_y, "reproduced_steps": self.reproduced,
+            "max_gap_norm": self.max_gap, "max_gap_k": self.max_gap_k,
             "sensors": [{"index": m, "rank_lost_steps": ks(self.lost[m]),
                          "rank_lost_not_exact_steps": ks(self.lost_not_exact[m])} for m in range(len(self.lost))],
             "rank_rule": run_rank_rule(self.rules),

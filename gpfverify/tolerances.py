@@ -103,13 +103,13 @@ def learned_model_rtol(n_train: int, sigmas: float = MONTE_CARLO_SIGMAS) -> floa
     return sigmas * float(np.sqrt(2.0 / n_train))
 
 
-def rounding_bound(magnitude: float, operations: int) -> float:
+def rounding_bound(magnitude, operations: int):
     """First-order rounding bound of a computation: ``operations`` IEEE operations in sequence,
     each rounding by at most eps relative to the ``magnitude`` of what it handles (the sum of the
-    operands' sizes, already multiplied by the condition numbers that amplify them). No floor:
-    the bound of an exact computation on zeros is zero (docs/fusion-definitions.md derives the
-    fusion step's magnitudes)."""
-    return float(operations) * EPS * float(magnitude)
+    operands' sizes, already multiplied by the condition numbers that amplify them; a number or an
+    array of them). No floor: the bound of an exact computation on zeros is zero
+    (docs/fusion-definitions.md derives the fusion step's magnitudes)."""
+    return operations * EPS * np.asarray(magnitude, dtype=float)
 
 
 def numpy_rank_tol(singular_values, shape) -> float:

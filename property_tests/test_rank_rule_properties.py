@@ -27,10 +27,16 @@ from gpfverify.audit import audit_case
 from gpfverify.fusion.case import CentralPrediction, FusionCase, LocalReport
 from gpfverify.fusion.centralized import fusion_gain
 from gpfverify.fusion.distributed import dmf_update
-from gpfverify.fusion.exactness import range_condition_number, repair_message, rescaled_case
+from gpfverify.fusion.exactness import repair_message, rescaled_case
 from gpfverify.strategies import fusion_cases
 from gpfverify.strategies.matrices import log_uniform
 from gpfverify.tolerances import RESOLVABLE_GAP, algebra_rtol
+
+
+def _range_condition(split) -> float:
+    """σ_1/σ_r over the singular values of C_xy^m the split keeps (1 when it keeps none)."""
+    s = split.rank.singular_values[: split.rank.rank]
+    return float(s[0] / s[-1]) if s.size else 1.0
 
 
 def _correlation_condition(cov: np.ndarray) -> float:
@@ -48,7 +54,7 @@ def gap_rounding_bound(case, dmf) -> np.ndarray:
     gain = np.abs(dmf.gain)
     parts, kappa = [], _correlation_condition(c.C_y)
     for s, block, local in zip(dmf.sensors, c.blocks, case.locals):
-        kappa = max(kappa, range_condition_number(s.split) * _correlation_condition(local.C_y))
+        kappa = max(kappa, _range_condition(s.split) * _correlation_condition(local.C_y))
         parts.append(np.abs(local.mu_y) + np.abs(c.mu_y[block]) + np.abs(case.local_measurement(s.index))
                      + np.abs(local.C_y) @ np.abs(s.split.pinv) @ (np.abs(local.mu_e) + np.abs(local.mu_p)))
     return algebra_rtol(kappa) * (np.abs(c.mu_p) + gain @ np.concatenate(parts))

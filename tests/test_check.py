@@ -78,9 +78,9 @@ def test_a_sensor_with_more_outputs_than_states_is_found_and_repaired():
     inexact = [e for r in records for e in r.steps if not e["exact"]]
     assert inexact and results["exact_steps"] == results["total_steps"] - len(inexact)
     for e in inexact:
-        assert e["gap_norm"] > e["gap_bound"]                       # a real gap, not rounding
+        assert e["gap_size"] > e["gap_bound"]                       # a real gap, not rounding (prior sd both)
         assert e["sensors"][1]["repair_dim"] == 1 and e["sensors"][0]["repair_dim"] == 0
-        assert e["repaired_gap_norm"] <= e["gap_bound"]             # the repair message restores CMF
+        assert e["repaired_gap_size"] <= e["gap_bound"]             # the repair message restores CMF
 
 
 def test_logged_measurements_with_and_without_truth(tmp_path):
@@ -181,3 +181,24 @@ def test_the_rank_rule_is_unit_free_by_default_and_recorded():
     assert np.all((correlations >= 0) & (correlations <= 1))
     with pytest.raises(check.InputError, match="unknown rank rule"):
         check.params_for(REDUNDANT, rank_rule="sigma-max")
+
+
+def test_the_ci_criterion_is_chosen_recorded_and_applied(tmp_path):
+    """--ci-criterion det reaches CI: recorded in results.json, CI's estimate at every step is the
+    determinant-optimal CI of that step's local posteriors (as saved in the run), not the
+    trace-optimal one, and the page names the criterion."""
+    from gpfverify.filters.records import Gaussian
+    from gpfverify.fusion.ci import covariance_intersection
+
+    proc = _cli(TRACKER, "--steps", 3, "--methods", "cmf,dmf,ci", "--ci-criterion", "det", "--out", tmp_path / "o")
+    assert proc.returncode == 0, proc.stderr
+    results = json.loads((tmp_path / "o" / "results.json").read_text(encoding="utf-8"))
+    assert results["params"]["ci_criterion"] == "det"
+    run = json.loads(next((tmp_path / "o" / "runs").glob("run-*.json")).read_text(encoding="utf-8"))
+    for step in run["result"]["steps"]:
+        local = [Gaussian(np.array(mu), np.array(report["C_e"]))
+                 for mu, report in zip(step["local_means"], step["case"]["locals"])]
+        det, trace = (covariance_intersection(local, c).mean for c in ("det", "trace"))
+        np.testing.assert_allclose(step["means"]["ci"], det, rtol=0, atol=algebra_rtol() * np.abs(det).max())
+        assert np.abs(det - trace).max() > 1e3 * algebra_rtol() * np.abs(det).max()
+    assert "determinant criterion" in (tmp_path / "o" / "README.md").read_text(encoding="utf-8")

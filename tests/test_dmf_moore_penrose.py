@@ -106,3 +106,37 @@ def test_the_command_line_reports_eq_35(index, tmp_path, capsys):
     code, out, err = _cli(["fuse", str(path), "--method", "dmf", "--json"], capsys)
     assert code == 0 and err == ""
     np.testing.assert_allclose(json.loads(out)["mean"], oracle["dmf"], rtol=0, atol=oracle["tol"])
+
+
+@pytest.mark.parametrize("rule, zero_rank", [("canonical", False), ("numpy", False), ("absolute:1e300", True)])
+def test_fuse_takes_the_rank_rule_and_names_it(rule, zero_rank, tmp_path, capsys):
+    """fuse --method dmf --rank-rule RULE: eq. 35 at the rank RULE decides — the known ranks for
+    canonical and numpy here, none for an absolute tolerance above every singular value — and the
+    rule named in the output, in text and JSON."""
+    case, ranks = list(_cases())[3]
+    oracle = _oracle(case, [0] * len(ranks) if zero_rank else ranks)
+    path = tmp_path / "case.json"
+    path.write_text(json.dumps(case_to_dict(case)))
+    code, out, err = _cli(["fuse", str(path), "--method", "dmf", "--rank-rule", rule, "--json"], capsys)
+    assert code == 0 and err == ""
+    result = json.loads(out)
+    np.testing.assert_allclose(result["mean"], oracle["dmf"], rtol=0, atol=oracle["tol"])
+    assert result["rank_rule"]["name"] == rule.split(":")[0]
+    code, out, err = _cli(["fuse", str(path), "--method", "dmf", "--rank-rule", rule], capsys)
+    named = {"canonical": "rank rule: canonical correlations", "numpy": "rank rule: numpy matrix_rank rule",
+             "absolute:1e300": "rank rule: explicit absolute tolerance 1e+300"}[rule]
+    assert code == 0 and named in out, out
+
+
+def test_fuse_names_the_ci_criterion_once_and_keeps_its_old_spelling(tmp_path, capsys):
+    case, _ = list(_cases())[1]
+    path = tmp_path / "case.json"
+    path.write_text(json.dumps(case_to_dict(case)))
+    outputs = []
+    for option in ("--ci-criterion", "--criterion"):
+        code, out, err = _cli(["fuse", str(path), "--method", "ci", option, "det", "--json"], capsys)
+        assert code == 0 and err == ""
+        outputs.append(json.loads(out))
+    assert outputs[0] == outputs[1] and outputs[0]["criterion"] == "det"
+    code, out, err = _cli(["fuse", str(path), "--method", "cc", "--rank-rule", "numpy"], capsys)
+    assert code == 2 and len(err.strip().splitlines()) == 1 and "--method dmf" in err

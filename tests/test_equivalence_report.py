@@ -7,6 +7,8 @@ from __future__ import annotations
 import copy
 import json
 import re
+import subprocess
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -100,9 +102,12 @@ def test_redundant_report(redundant, tmp_path):
     full = np.asarray(redundant["full_column_rank"], bool)
     lost = int((~full[:, :, 1]).sum())
     sensor_exact = np.asarray(redundant["exact"], bool)[:, :, 1]
-    assert f"exact anyway at {int((~full[:, :, 1] & sensor_exact).sum())} of those {lost} steps" in sensor_1[0]
+    anyway = int((~full[:, :, 1] & sensor_exact).sum())
+    expected = ("not exact at any of them" if anyway == 0 else f"exact anyway at all {lost} steps" if anyway == lost
+                else f"exact anyway at {anyway} of those {lost} steps")
+    assert expected in sensor_1[0]
     # every inexact step explained: one row per step judged not exact (or above its bound)
-    gap, bound = np.asarray(redundant["gap_norm"]), np.asarray(redundant["gap_bound"])
+    gap, bound = np.asarray(redundant["gap_size"]), np.asarray(redundant["gap_bound"])
     flagged = int((~np.asarray(redundant["exact"], bool).all(axis=2) | (gap > bound)).sum())
     assert f"({flagged} of {total})" in readme
     assert "Every inexact step is explained" in readme
@@ -155,7 +160,8 @@ def test_run_audit_report(tmp_path):
     _assert_complete(out, ["gap.png", "verdicts.png", "singular-values.png"])
     assert json.loads((out / "audit.json").read_text(encoding="utf-8")) == tracker_audit
     readme = (out / "README.md").read_text(encoding="utf-8")
-    assert f"DMF reproduces CMF at all {len(tracker_audit['steps'])} steps" in readme
+    assert all(step["reproduced"] for step in tracker_audit["steps"])
+    assert f"DMF reproduced CMF at all {len(tracker_audit['steps'])} steps with y" in readme
     assert "l_m > D:" not in readme
     _assert_self_contained((out / "report.html").read_text(encoding="utf-8"), out)
 
@@ -166,5 +172,132 @@ def test_run_audit_report(tmp_path):
     readme = (out / "README.md").read_text(encoding="utf-8")
     assert readme.count(LM_GT_D) == 1
     inexact = sum(not s["exact"] for s in redundant_audit["steps"])
-    assert f"DMF differs from CMF at {inexact} of {len(redundant_audit['steps'])} steps" in readme
+    differed = sum(not s["reproduced"] for s in redundant_audit["steps"])
+    steps = len(redundant_audit["steps"])
+    assert f"DMF differed from CMF beyond rounding at {differed} of the {steps} steps with y" in readme
+    assert f"DMF was exact at {steps - inexact} of the {steps} steps" in readme
     _assert_self_contained((out / "report.html").read_text(encoding="utf-8"), out)
+
+
+def test_a_sensors_share_of_the_gap_is_in_the_gap_s_unit(redundant):
+    """results.json's gap_share_size is in prior standard deviations, as gap_size: where one sensor
+    alone is judged not exact (and no angle output has a branch offset) its share is the whole gap,
+    so the two agree to rounding in any units, and the page reads 100 %."""
+    share = np.asarray(redundant["gap_share_size"], float)         # (R, T, N)
+    gap = np.asarray(redundant["gap_size"], float)                 # (R, T)
+    exact = np.asarray(redundant["exact"], bool)
+    alone = (~exact).sum(axis=2) == 1
+    assert alone.any()
+    for r, t in zip(*np.nonzero(alone)):
+        m = int(np.flatnonzero(~exact[r, t])[0])
+        assert share[r, t, m] == pytest.approx(gap[r, t], rel=1e-9)
+    [explained] = [p for p in summary_paragraphs(redundant) if p.startswith("Every inexact step is explained")]
+    spans = re.findall(r"its share of the gap: ([0-9]+) %(?: to ([0-9]+) %)?", explained)
+    assert spans and all(low == "100" and high in ("", "100") for low, high in spans), explained
+
+
+def _verdict(**counts) -> str:
+    from gpfverify.contract.check import verdict_sentence
+
+    results = {"runs_ok": 1, "branch_offset_steps": 0, "max_gap": 1.0, "max_gap_size": 1e-3, **counts}
+    return verdict_sentence(results)
+
+
+def test_the_headline_is_rendered_from_the_counts():
+    """"exact anyway" only when every step was exact; a step reproduced without being exact is said
+    so; a step that differed names how many were not exact."""
+    assert "exact anyway" in _verdict(total_steps=50, condition_held_steps=0, exact_steps=50, reproduced_steps=50)
+    quiet = _verdict(total_steps=50, condition_held_steps=0, exact_steps=0, reproduced_steps=50)
+    assert "exact anyway" not in quiet and "DMF was exact at 0 of the 50" in quiet
+    assert "the gap stayed within rounding" in quiet
+    differed = _verdict(total_steps=50, condition_held_steps=0, exact_steps=0, reproduced_steps=0)
+    assert differed.startswith("DMF differed from CMF beyond rounding at 50 of 50 steps (50 not exact)")
+    assert "exact anyway" not in differed
+
+
+def test_the_audit_page_draws_what_the_rule_in_force_decides_on(tmp_path, monkeypatch):
+    """Under the canonical rule the decision figure is the canonical correlations with τ, and the
+    singular values are drawn without a tolerance line; under numpy's rule the singular values with
+    the tolerance that decided."""
+    from gpfverify.audit import audit_to_dict
+    from gpfverify.fusion import run_fusion
+    from gpfverify.report import equivalence_figures as ef
+    from gpfverify.rng import generator
+    from gpfverify.systems import load_system
+
+    model = load_system(str(ROOT / "examples" / "redundant_sensor_system.py:system"))
+    _, ys = model.simulate(4, generator(np.random.SeedSequence(4)))
+    drawn = {}
+    original = ef.plot_min_per_sensor
+
+    def spy(ks, values, labels, path, ylabel, title, threshold=None, threshold_label="threshold"):
+        drawn[path.name] = threshold
+        return original(ks, values, labels, path, ylabel, title, threshold, threshold_label)
+
+    monkeypatch.setattr(ef, "plot_min_per_sensor", spy)
+    for rule in ("canonical", "numpy"):
+        run = run_fusion(model, ys, rank_rule=rule, methods=("cmf", "dmf"))
+        records = [{"k": step.k, **audit_to_dict(step.audit)} for step in run.steps]
+        audit = {"steps": records, "summary": {"rank_rule": records[0]["rank_rule"]}}
+        drawn.clear()
+        write_run_audit_report(audit, tmp_path / rule)
+        readme = (tmp_path / rule / "README.md").read_text(encoding="utf-8")
+        if rule == "canonical":
+            assert drawn["canonical.png"] == pytest.approx(records[0]["rank_rule"]["tol"])
+            assert drawn["singular-values.png"] is None
+            assert "the canonical rank rule in force decides on these" in readme
+            assert "below it the rank verdict drops" not in readme
+        else:
+            tols = [[x["tol"] for x in step["sensors"]] for step in records]
+            np.testing.assert_array_equal(drawn["singular-values.png"], tols)
+            assert drawn["canonical.png"] is None
+            assert "the rank tolerance of the rule in force (dashed): below it the rank verdict drops" in readme
+
+
+def test_the_check_page_says_what_depends_on_units(redundant):
+    """The Moore–Penrose DMF's unit dependence at rank-deficient steps, with its size from
+    results.json; CI's trace criterion; the determinant criterion said to be unit-free."""
+    paragraphs = summary_paragraphs(redundant)
+    dependence = [v for run in redundant["unit_dependence"] for v in run if v is not None]
+    assert dependence and redundant["max_unit_dependence"] == max(dependence)
+    [units] = [p for p in paragraphs if "Moore–Penrose inverse depends on the units" in p]
+    assert f"up to {max(dependence):.2g} prior standard deviations" in units
+    assert any("trace criterion" in p and "--ci-criterion det" in p for p in paragraphs)
+    det = copy.deepcopy(redundant)
+    det["params"]["ci_criterion"] = "det"
+    assert any("determinant criterion, which does not depend on units" in p for p in summary_paragraphs(det))
+
+
+def test_every_key_check_writes_is_documented(tmp_path):
+    """docs/check-format.md names every key of results.json and of a saved run's step entry
+    (``means`` included), so a user can tell one-step numbers from recursive ones; the page says
+    which are which."""
+    doc = (ROOT / "docs" / "check-format.md").read_text(encoding="utf-8")
+    proc = subprocess.run([sys.executable, "-m", "gpfverify", "check",
+                           str(ROOT / "examples" / "three_sensor_system.py:tracker"), "--steps", "2",
+                           "--out", str(tmp_path / "o")], capture_output=True, text=True)
+    assert proc.returncode == 0, proc.stderr
+    results = json.loads((tmp_path / "o" / "results.json").read_text(encoding="utf-8"))
+    run = json.loads(next((tmp_path / "o" / "runs").glob("run-*.json")).read_text(encoding="utf-8"))
+    keys = set(results) | set(run["result"]["steps"][0])
+    undocumented = sorted(k for k in keys if f"`{k}`" not in doc)
+    assert not undocumented, undocumented
+    readme = (tmp_path / "o" / "README.md").read_text(encoding="utf-8")
+    assert "One-step numbers" in readme and "Recursive numbers" in readme and '("means")' in readme
+
+
+def test_a_fusion_run_shown_as_a_page_names_its_ci_criterion():
+    """run_fusion's ci_criterion travels with the run to the results a notebook renders."""
+    from gpfverify.experiments.check import results_of_run
+    from gpfverify.fusion import run_fusion
+    from gpfverify.rng import generator
+    from gpfverify.scenarios.three_sensor import three_sensor_model
+
+    model = three_sensor_model()
+    _, ys = model.simulate(2, generator(np.random.SeedSequence(4)))
+    for criterion in ("trace", "det"):
+        run = run_fusion(model, ys, methods=("cmf", "dmf", "ci"), ci_criterion=criterion)
+        results = results_of_run(run)
+        assert results["params"]["ci_criterion"] == criterion
+        words = "trace criterion" if criterion == "trace" else "determinant criterion"
+        assert any(words in p for p in summary_paragraphs(results))

@@ -95,11 +95,36 @@ def test_empty_intersection_is_a_clear_error_or_a_documented_enlargement():
     far = [Gaussian(np.zeros(2), np.eye(2)), Gaussian(np.array([10.0, 0.0]), np.eye(2))]
     # two unit balls 10 apart meet first at the midpoint, squared distance 5² = 25
     assert rcc.smallest_intersecting_size(far) == pytest.approx(25.0, rel=SOLVER_TOL)
-    with pytest.raises(SolverError, match=r"do not intersect at size c = 9\.21.*c >= 25"):
+    with pytest.raises(SolverError, match=r"do not intersect at size c = 9\.21\d* \(the default, the 0\.99 quantile "
+                                          r"of chi-square with 2 degrees of freedom\); the smallest size at which "
+                                          r"they do is c = 25(\.0*)?$"):
         rcc.rcc_ci(far)
+    with pytest.raises(SolverError, match=r"do not intersect at size c = 3; the smallest size at which they do is "
+                                          r"c = 25(\.0*)?$"):
+        rcc.rcc_ci(far, c=3.0)
     res = rcc.rcc_ci(far, on_empty="enlarge")
     assert res.enlarged and res.c == pytest.approx(rcc.EMPTY_GROWTH * 25.0, rel=SOLVER_TOL)
     np.testing.assert_allclose(res.mean, [5.0, 0.0], atol=ARGMAX_TOL * 10)
+
+
+@pytest.mark.parametrize("on_empty", ["error", "enlarge"])
+def test_a_solver_that_finds_no_centre_where_the_ellipsoids_meet_says_so(monkeypatch, on_empty):
+    """A primal that reports infeasibility at a size where the ellipsoids do meet (c_min below the
+    size tried: a badly scaled problem) is a solver failure, and the message names the size tried —
+    the default χ²_D(0.99) quantile when none was given — and the smallest that works, which is
+    below it, never a size above the smallest one as if it were too small."""
+    ests = _estimates(2, 3, 2)
+    c_min = rcc.smallest_intersecting_size(ests)
+    default = rcc.default_size(ests[0].mean.shape[0])
+    assert c_min < default  # these ellipsoids meet at the default size
+    infeasible = conic.ConicSolution("infeasible", float("nan"), (), ())
+    monkeypatch.setattr(rcc, "_solve_parametrised", lambda *args: infeasible)
+    with pytest.raises(SolverError) as raised:
+        rcc.rcc_ci(ests, on_empty=on_empty)
+    message = str(raised.value)
+    assert f"no centre at size c = {default:.6g} (the default" in message
+    assert f"intersect for every c >= {c_min:.6g}" in message
+    assert "not an empty intersection" in message
 
 
 def test_problem_is_compiled_once_and_re_solved():

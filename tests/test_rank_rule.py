@@ -21,13 +21,20 @@ from gpfverify.fusion.distributed import dmf_update
 from gpfverify.fusion import exactness
 from gpfverify.fusion.exactness import (COVARIANCE_CENTRAL, COVARIANCE_LOCAL, DEFAULT_RANK_RULE, RankRule,
                                         analyse_sensors, equivalence_tolerance, parse_rank_rule,
-                                        range_condition_number, repair_message, rescaled_case,
+                                        repair_message, rescaled_case,
                                         resolve_rank_rule, sensor_split, whitened_innovation)
 from gpfverify.fusion.synthetic import random_case
 from gpfverify.linalg import canonical_correlations
 from gpfverify.tolerances import CANONICAL_RANK_TOL, EPS, algebra_rtol
 
 MICRO = 1e6  # radians -> microradians
+
+
+def _range_condition(split) -> float:
+    """σ_1/σ_r over the singular values of C_xy^m the split keeps (1 when it keeps none)."""
+    s = split.rank.singular_values[: split.rank.rank]
+    return float(s[0] / s[-1]) if s.size else 1.0
+
 
 
 def linear_case(c_p, h, r, mu_p, mu_y_offset, z) -> FusionCase:
@@ -171,7 +178,8 @@ def test_unit_free_split_is_an_oblique_projector_with_the_gap_formula():
     local = case.locals[0]
     split = sensor_split(local, DEFAULT_RANK_RULE, case.central.C_p, unit_free=True)
     p = split.pinv @ local.C_xy
-    tol = algebra_rtol(split.condition * np.linalg.cond(local.C_y))
+    rho, r = split.correlations, split.rank.rank
+    tol = algebra_rtol(rho[0] / rho[r - 1] * split.whitening.whitening_condition * np.linalg.cond(local.C_y))
     np.testing.assert_allclose(p @ p, p, atol=tol)
     np.testing.assert_allclose(local.C_y @ p, (local.C_y @ p).T, atol=tol * np.linalg.norm(local.C_y))
     np.testing.assert_allclose(np.eye(5) - p, split.kernel_basis @ split.cokernel.T, atol=tol)
@@ -195,7 +203,7 @@ def test_moore_penrose_split_is_the_orthogonal_projector_at_the_decided_rank():
     assert split.rank.rank == r
     _, _, vt = np.linalg.svd(local.C_xy)
     p = split.pinv @ local.C_xy
-    tol = algebra_rtol(range_condition_number(split))
+    tol = algebra_rtol(_range_condition(split))
     np.testing.assert_allclose(p, vt[:r].T @ vt[:r], atol=tol)
     np.testing.assert_allclose(np.eye(5) - p, split.kernel_basis @ split.kernel_basis.T, atol=tol)
     dmf = dmf_update(case)
@@ -280,9 +288,10 @@ def test_audit_run_takes_the_rule():
     assert all(s.rank_rule == DEFAULT_RANK_RULE for s in audit_run(cases).steps)
 
 
-def test_model_fusion_keeps_numpys_rule_by_default():
-    """dmf_step/run_fusion default to numpy's rule (the experiments' reference numbers); a rule can
-    be chosen, and run_fusion's audit uses the DMF step's rule."""
+def test_model_fusion_defaults_to_the_canonical_rule_and_the_experiments_pass_theirs():
+    """dmf_step/run_fusion default to the canonical rule, the one default of every entry point; a
+    rule can be chosen (numpy's, the experiments' reference rule), and run_fusion's audit uses the
+    DMF step's rule; both rules fuse this full-rank linear system alike."""
     from gpfverify.fusion.model_fusion import run_fusion
     from gpfverify.models import linear_model
 
@@ -290,9 +299,29 @@ def test_model_fusion_keeps_numpys_rule_by_default():
                          np.diag([0.5, 0.3, 0.4]), prior_mean=[1.0, 0.5], prior_cov=np.eye(2), sizes=(2, 1))
     ys = np.random.default_rng(28).normal(size=(3, 3))
     default = run_fusion(model, ys, family="kf", methods=("cmf", "dmf"))
-    assert all(s.dmf.result.rank_rule.name == "numpy" and s.audit.rank_rule.name == "numpy" for s in default.steps)
-    chosen = run_fusion(model, ys, family="kf", methods=("cmf", "dmf"), rank_rule="canonical")
     assert all(s.dmf.result.rank_rule == DEFAULT_RANK_RULE and s.audit.rank_rule == DEFAULT_RANK_RULE
-               for s in chosen.steps)
+               for s in default.steps)
+    chosen = run_fusion(model, ys, family="kf", methods=("cmf", "dmf"), rank_rule="numpy")
+    assert all(s.dmf.result.rank_rule.name == "numpy" and s.audit.rank_rule.name == "numpy" for s in chosen.steps)
     np.testing.assert_allclose(chosen.means("dmf"), default.means("dmf"), rtol=0,
                                atol=algebra_rtol(1e3) * np.abs(default.means("cmf")).max())
+
+
+@pytest.mark.parametrize("options, expected", [({}, RankRule("numpy")),
+                                               ({"rank_tol": 1e-9}, RankRule("absolute", 1e-9)),
+                                               ({"rank_rule": "canonical"}, DEFAULT_RANK_RULE)])
+def test_the_experiments_give_eq_35_their_own_rule(monkeypatch, options, expected):
+    """The papers' experiments name the rule eq. 35 uses (numpy's by default, absolute with
+    --rank-tol): a change of the library's default does not change their numbers."""
+    from gpfverify.experiments import fusion_run, ungm1d
+    from gpfverify.fusion.model_fusion import dmf_step
+
+    seen = []
+
+    def spy(*args, **kwargs):
+        seen.append(kwargs.get("rank_rule"))
+        return dmf_step(*args, **kwargs)
+
+    monkeypatch.setattr(fusion_run, "dmf_step", spy)
+    ungm1d.run_one(ungm1d.Params(train=15, test_steps=2, sweep=(), **options), np.random.SeedSequence(3))
+    assert seen and all(rule == expected for rule in seen), seen

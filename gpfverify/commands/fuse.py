@@ -8,7 +8,7 @@ import json
 
 import numpy as np
 
-from gpfverify.cli import fusion_rule
+from gpfverify.cli import RANK_RULE_HELP, fusion_rule, rank_rule_text
 from gpfverify.errors import InputError
 from gpfverify.fusion.case import load_case
 from gpfverify.fusion.methods import fuse_case
@@ -20,8 +20,14 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--method", required=True, type=fusion_rule, metavar="RULE",
                         help=f"fusion rule: {CHOICES_TEXT}")
     parser.add_argument("--json", action="store_true", help="print one JSON object instead of text")
-    parser.add_argument("--criterion", choices=("trace", "det"), default="trace",
-                        help="CI/ICI weight criterion (default trace)")
+    parser.add_argument("--ci-criterion", "--criterion", dest="ci_criterion", choices=("trace", "det"),
+                        default="trace",
+                        help="CI's and ICI's weight criterion: trace (default; minimises the fused bound's trace, "
+                             "which depends on the units of the state components) or det (its determinant: "
+                             "unit-free); --criterion is the same option")
+    parser.add_argument("--rank-rule", type=rank_rule_text, default=None, metavar="RULE",
+                        help=RANK_RULE_HELP + " For --method dmf; default the case's 'rank_tol' (absolute), else "
+                             "canonical, as audit and check. The output names the rule that decided.")
     parser.add_argument("--rcc-size", "--c", dest="rcc_size", type=float, default=None, metavar="C",
                         help="RCC-CI ellipsoid size c (default: the chi-square 0.99 quantile with D degrees "
                              "of freedom); the same option as reproduce's")
@@ -38,13 +44,18 @@ def _text(result: dict) -> str:
     for key in ("weights", "c", "criterion", "enlarged", "primal_dual_discrepancy", "condition_holds", "exact"):
         if key in result:
             lines.append(f"{key}: {result[key]}")
+    if "rank_rule" in result:
+        lines.append(f"rank rule: {result['rank_rule']['description']}")
     return "\n".join(lines)
 
 
 def run(args: argparse.Namespace) -> int:
     if args.rcc_size is not None and not args.rcc_size > 0:
         raise InputError(f"--rcc-size must be > 0, got {args.rcc_size}")
-    result = fuse_case(load_case(args.case), args.method, args.criterion, args.rcc_size, args.rcc_on_empty)
+    if args.rank_rule is not None and args.method != "dmf":
+        raise InputError(f"--rank-rule decides eq. 35's ranks: it applies to --method dmf, not {args.method}")
+    result = fuse_case(load_case(args.case), args.method, args.ci_criterion, args.rcc_size, args.rcc_on_empty,
+                       rank_rule=args.rank_rule)
     if not all(np.isfinite(result[key]).all() for key in ("mean", "cov")):
         raise InputError(f"{args.method} gave a non-finite result on this case: its numbers are too "
                          "large or too small in combination")

@@ -15,6 +15,8 @@ from gpfverify.fusion.names import CHOICES_TEXT, canonical_rules
 
 #: the Gaussian families a check can run (gpfverify.filters.families.FAMILY_NAMES)
 FilterName = Literal["kf", "ekf", "ukf", "gp-adf", "gp-ukf"]
+#: CI's weight criteria (gpfverify.fusion.ci.CRITERIA)
+CiCriterion = Literal["trace", "det"]
 
 
 @dataclass(frozen=True)
@@ -36,6 +38,9 @@ class Params(ParamsBase):
     methods: tuple[str, ...] = option(("cmf", "dmf", "cc", "ci"), "fusion rules run (cmf and dmf always; "
                                       "canonical names, an alias such as cw recorded as cc)")
     rank_rule: str = option("canonical", "rank rule of eq. 35: canonical[:TAU], absolute:TOL or numpy")
+    ci_criterion: CiCriterion = option(
+        "trace", "the weight criterion of CI (and ICI): trace (depends on the units of the state components) or "
+        "det (unit-free)")
 
     def check(self) -> None:
         object.__setattr__(self, "methods", canonical_rules(self.methods))  # InputError for unknown names
@@ -54,18 +59,23 @@ class RunRecord:
 
 
 def verdict_sentence(results: dict) -> str:
-    """The one plain-words verdict of a check, rendered from results.json's counts by the console
-    line and the report page alike: DMF = CMF to rounding (the one-step gap within the step's
-    rounding bound, docs/fusion-definitions.md) at how many steps, and why not elsewhere; each
-    baseline that failed at some steps, with the first failure's step and reason."""
+    """The one plain-words verdict of a check, rendered from results.json's counts only (the console
+    line and the report page alike): DMF = CMF to rounding (the one-step gap within the step's
+    rounding bound, docs/fusion-definitions.md) at how many steps, how many of those had the rank
+    condition and how many were exact, and why not elsewhere; each baseline that failed at some
+    steps, with the first failure's step and reason."""
     total, held = results["total_steps"], results["condition_held_steps"]
-    reproduced, inexact = results["reproduced_steps"], total - results["exact_steps"]
+    reproduced, exact = results["reproduced_steps"], results["exact_steps"]
+    inexact = total - exact
     runs = results["runs_ok"]
     where = f"{total} steps" + (f" of {runs} runs" if runs > 1 else "")
     if reproduced == total:
         verdict = f"DMF reproduced CMF at all {where}"
-        if held < total:
+        if held < total and inexact == 0:
             verdict += f" (the rank condition failed at {total - held}, exact anyway)"
+        elif inexact:
+            verdict += (f" (the rank condition failed at {total - held}; DMF was exact at {exact} of the {total}, "
+                        f"and at the {inexact} where it was not the gap stayed within rounding)")
     else:
         reasons = [f"{inexact} not exact"] if inexact else []
         if results["branch_offset_steps"]:

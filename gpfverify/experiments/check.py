@@ -27,13 +27,13 @@ import numpy as np
 
 from gpfverify.angles import difference
 from gpfverify.consistency import Consistency
-from gpfverify.contract.check import FilterName, Params, RunRecord
+from gpfverify.contract.check import CiCriterion, FilterName, Params, RunRecord
 from gpfverify.errors import CaseFileError, InputError
 from gpfverify.filters.families import GP_FAMILIES
 from gpfverify.filters.records import Gaussian
 from gpfverify.audit import rank_rule_to_dict
 from gpfverify.fusion.case import case_from_dict, case_to_dict
-from gpfverify.fusion.exactness import parse_rank_rule
+from gpfverify.fusion.exactness import gap_size, parse_rank_rule
 from gpfverify.fusion.model_fusion import run_fusion
 from gpfverify.fusion.runfile import write_run
 from gpfverify.models import fit_gp_model, learn_gp_model
@@ -52,12 +52,13 @@ CONSISTENCY_LEVEL = 0.95
 
 def params_for(system: str, filter: FilterName = "ukf", steps: int = 50, measurements: str | None = None,
                training: str | None = None, train: int = 200, fit_points: int | None = 200,
-               restarts: int = 2, methods=("cmf", "dmf", "cc", "ci"), rank_rule: str = "canonical") -> Params:
+               restarts: int = 2, methods=("cmf", "dmf", "cc", "ci"), rank_rule: str = "canonical",
+               ci_criterion: CiCriterion = "trace") -> Params:
     """The parameters of a check, validated, with the paths made absolute and the rank rule in its
     canonical spelling. ``rank_rule`` is a :func:`~gpfverify.fusion.exactness.parse_rank_rule`
     string: the unit-free canonical-correlation rule by default (``"canonical[:TAU]"``),
-    ``"absolute:TOL"`` or ``"numpy"``. A ``training`` file with a filter that learns nothing is
-    refused rather than ignored."""
+    ``"absolute:TOL"`` or ``"numpy"``; ``ci_criterion`` CI's weight criterion, ``"trace"`` or
+    ``"det"``. A ``training`` file with a filter that learns nothing is refused rather than ignored."""
     path, name = split_spec(system)
     if training is not None and filter not in GP_FAMILIES:
         raise InputError(f"--training is learned from by the GP filters ({', '.join(GP_FAMILIES)}) only; "
@@ -66,7 +67,7 @@ def params_for(system: str, filter: FilterName = "ukf", steps: int = 50, measure
                   measurements=None if measurements is None else str(Path(measurements).resolve()),
                   training=None if training is None else str(Path(training).resolve()),
                   train=train, fit_points=fit_points, restarts=restarts, methods=tuple(methods),
-                  rank_rule=parse_rank_rule(rank_rule).spec)
+                  rank_rule=parse_rank_rule(rank_rule).spec, ci_criterion=ci_criterion)
 
 
 def _load_npz(path: str, what: str, expects: str) -> dict[str, np.ndarray]:
@@ -143,7 +144,8 @@ def run_one(params: Params, seed: np.random.SeedSequence) -> RunRecord:
     prior = Gaussian(model.prior_mean, model.prior_cov)
     fusion_model = _gp_model(model, params, train_rng) if params.filter in GP_FAMILIES else model
     fused = run_fusion(fusion_model, ys, family=params.filter, methods=params.methods,
-                       rank_rule=params.rank_rule, local_priors=[prior] * len(model.sensors),
+                       rank_rule=params.rank_rule, ci_criterion=params.ci_criterion,
+                       local_priors=[prior] * len(model.sensors),
                        fused_prior=prior)
     return _record(model, fused, ys, truth)
 
@@ -181,13 +183,19 @@ def _record(model, fused, ys: np.ndarray, truth: np.ndarray | None) -> RunRecord
             "predicted_gap_norm": float(np.linalg.norm(audit.predicted_gap)),
             "gap_size": float(audit.gap_size), "gap_bound": float(audit.gap_bound),
             "repaired_gap_norm": float(np.linalg.norm(audit.repaired_dmf_mean - audit.cmf_mean)),
+            "repaired_gap_size": gap_size(step.dmf.case, difference(audit.repaired_dmf_mean, audit.cmf_mean,
+                                                                    model.circular_state)),
             "recursive_gap_norm": float(np.linalg.norm(step.estimate("dmf").mean - step.estimate("cmf").mean)),
+            "recursive_gap_size": gap_size(step.dmf.case, difference(step.estimate("dmf").mean,
+                                                                     step.estimate("cmf").mean, model.circular_state)),
+            "unit_dependence": audit.unit_dependence,
             "condition_holds": bool(audit.condition_holds), "exact": bool(audit.exact),
             "sensors": [{"index": s.index, "rank": int(s.rank), "cols": s.cols,
                          "full_column_rank": bool(s.full_column_rank), "exact": bool(s.exact),
                          "repair_dim": int(s.repair_dim), "singular_values": s.singular_values.tolist(),
                          "tol": float(s.tol),
                          "gap_share": float(np.linalg.norm(s.gap_contribution)),
+                         "gap_share_size": float(s.gap_contribution_size),
                          "min_canonical_correlation": (None if s.canonical_correlations is None
                                                        or not s.canonical_correlations.size
                                                        else float(s.canonical_correlations.min())),
@@ -331,8 +339,12 @@ def summarize(params: Params, results: list[RunRecord], model=None) -> dict:
         "gap_size": [[e["gap_size"] for e in steps] for steps in steps_by_run],
         "gap_bound": [[e["gap_bound"] for e in steps] for steps in steps_by_run],
         "recursive_gap_norm": [[e["recursive_gap_norm"] for e in steps] for steps in steps_by_run],
+        "recursive_gap_size": [[e["recursive_gap_size"] for e in steps] for steps in steps_by_run],
+        "unit_dependence": [[e["unit_dependence"] for e in steps] for steps in steps_by_run],
+        "max_unit_dependence": max((e["unit_dependence"] for e in every if e["unit_dependence"] is not None),
+                                   default=None),
         **{key: _per_sensor(steps_by_run, key)
-           for key in ("rank", "full_column_rank", "exact", "repair_dim", "gap_share", "tol",
+           for key in ("rank", "full_column_rank", "exact", "repair_dim", "gap_share", "gap_share_size", "tol",
                        "min_canonical_correlation", "branch_offset_count")},
         "time_per_step": {**{m: float(np.mean([e["seconds"][m] for e in every])) for m in methods},
                           "local": float(np.mean([sum(e["seconds"]["local"]) for e in every]))},
@@ -369,7 +381,7 @@ def results_of_run(fused, truth: np.ndarray | None = None, system: str = "") -> 
         raise InputError("the check's results need a run_fusion result with its model and ys, CMF, DMF and the audit")
     rule = fused.steps[0].audit.rank_rule
     params = Params(system=system, filter=fused.family, steps=len(fused.steps), methods=fused.methods,
-                    rank_rule=rule.spec)
+                    rank_rule=rule.spec, ci_criterion=fused.ci_criterion)
     record = _record(fused.model, fused, fused.ys, truth)
     return {"experiment": NAME, "runs": 1, "seed": None, "runs_ok": 1, "failed_runs": [], "params": params.to_json(),
             **summarize(params, [record], fused.model)}

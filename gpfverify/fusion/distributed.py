@@ -13,9 +13,8 @@ it, whichever rule decided the rank (the default ``canonical`` rule decides it w
 inverse itself depends on units when the rank is lost, docs/fusion-definitions.md). The unit-free
 variant (``unit_free=True``, canonical rule only) truncates in the whitened coordinates instead; it
 is reported under its own name, never as DMF. Default rule: an explicit ``rank_rule``, else an
-explicit ``rank_tol`` (absolute), else the case's ``rank_tol`` (absolute), else canonical.
-(:func:`gpfverify.fusion.model_fusion.dmf_step` defaults to numpy's rule instead, for the
-experiments' reference numbers.)
+explicit ``rank_tol`` (absolute), else the case's ``rank_tol`` (absolute), else canonical — the
+one default of every entry point (the experiments pass their rule explicitly).
 
 Computed as μ_p + G v with v stacked from the per-sensor terms (one product with G). ⊖ wraps the
 angle outputs (``locals[m].circular``) to (−π, π]; the local update already wrapped y^m − μ_y^m.
@@ -38,6 +37,7 @@ from gpfverify.fusion.case import FusionCase
 from gpfverify.fusion.centralized import fused_covariance, fusion_gain
 from gpfverify.fusion.exactness import (FusedScale, RankRule, SensorExactness, analyse_sensors, fused_scale,
                                         resolve_rank_rule)
+from gpfverify.runtime import one_blas_thread
 
 
 @dataclass(frozen=True)
@@ -66,6 +66,7 @@ class DMFResult:
         return all(s.exact for s in self.sensors)
 
 
+@one_blas_thread
 def dmf_update(case: FusionCase, repair_messages: Sequence[np.ndarray] | None = None,
                rank_tol: float | None = None, rank_rule: RankRule | str | None = None,
                unit_free: bool = False) -> DMFResult:

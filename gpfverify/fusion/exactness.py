@@ -40,7 +40,8 @@ leaves DMF exact. Full column rank needs l_m ≤ D (rank C_xy^m ≤ min(D, l_m))
 
 Rank rules (:class:`RankRule`). Which singular directions of C_xy^m count as rank is a choice:
 
-* ``canonical`` (the library and audit default, τ = :data:`~gpfverify.tolerances.CANONICAL_RANK_TOL`):
+* ``canonical`` (the one default of the library, check, audit and fuse;
+  τ = :data:`~gpfverify.tolerances.CANONICAL_RANK_TOL`):
   the canonical correlations of state and sensor output under the sensor's predicted joint,
   ρ_i = σ_i(K_m), K_m = L_p⁻¹ C_xy^m L_y⁻ᵀ with C_p^m = L_p L_pᵀ, C_y^m = L_y L_yᵀ (Cholesky
   factors of the equilibrated matrices, triangular solves; :func:`~gpfverify.linalg.canonical_correlations`);
@@ -62,7 +63,12 @@ Moore–Penrose inverse of C_xy^m truncated at r in C_xy^m's own SVD C_xy^m = U 
 A_m = (C_xy^m)⁺ = V_r S_r⁻¹ U_rᵀ, P_m = A_m C_xy^m = V_r V_rᵀ (orthogonal), N_m = V_⊥ orthonormal
 (``kernel_split``, and ``canonical_split`` by default). With full column rank this is a left inverse
 and DMF does not depend on units; when the rank is lost it does ((S_x C S_y)⁺ ≠ S_y⁻¹ C⁺ S_x⁻¹
-for a rank-deficient C), and the audit says by how much (docs/fusion-definitions.md).
+for a rank-deficient C), and the audit says by how much (docs/fusion-definitions.md). Under the
+canonical rule the computation's rounding does not depend on units either: at full column rank the
+left inverse applied is the whitened one below (equal to (C_xy^m)⁺ on range(C_xy^m), where
+μ_e^m − μ_p^m lies), and when the rank is lost C_xy^m's own SVD comes from the Jacobi SVD
+(:func:`~gpfverify.linalg.graded_svd`), accurate for matrices graded by units on both sides. The
+SVD rules keep numpy's SVD (the experiments' reference numbers, bit for bit).
 
 The unit-free variant (``canonical_split(..., unit_free=True)``; never reported as DMF) truncates in
 the whitened coordinates instead. Let K_m = U diag(ρ) Vᵀ (full SVD), r the rank, and
@@ -75,14 +81,16 @@ replaced by Ñ_mᵀ w_m = V_⊥ᵀ L_y⁻¹ (y^m ⊖ μ_y^m), the dropped canoni
 For a consistent report A_m returns the minimum-C_y^m-norm solution of C_xy^m w = μ_e^m − μ_p^m, and
 under rescaling A_m → S_y⁻¹ A_m S_x⁻¹: its mean and gap transform as states do.
 
-Exactness verdict (every rule; docs/fusion-definitions.md). The residual
-‖L_p⁻¹ G_m C_y^m N_m Ñ_mᵀ L_y⁻ᵀ‖₂ (L_p, L_y the factors of the central C_p and of C_y^m) is the gap
-in prior standard deviations of the fused state per unit whitened innovation; the sensor is exact
-when it is within the rounding bound of its own computation (the computed G, the computed kernel's
-angle eps·σ_1/σ_r, and the fused estimate's own rounding ‖ |L_p⁻¹| |μ_p| ‖) and that bound resolves
-the condition (at most :data:`~gpfverify.tolerances.RESOLVABLE_GAP`). The gap's own rounding bound,
-in the same units, is :func:`equivalence_tolerance`; "reproduced" compares the observed
-:func:`gap_size` with it.
+Exactness verdict (every rule; docs/fusion-definitions.md). The gap gain
+R_m = ‖L_p⁻¹ G_m C_y^m Π_m L_y⁻ᵀ‖₂ (L_p, L_y the factors of the central C_p and of C_y^m, Π_m the
+projector onto the kernel the rule dropped, in the metric the rule decides in: whitened for the
+canonical rule, Π_m = L_y⁻ᵀ V_⊥ V_⊥ᵀ L_yᵀ; C_xy^m's own for the SVD rules, Π_m = N_m N_mᵀ) is the gap in
+prior standard deviations of the fused state per unit whitened innovation; the sensor is exact
+when it is within the rounding bound of its computation
+(:func:`~gpfverify.fusion.rounding.exactness_bound`: the fused estimate's own rounding, the computed
+G and the computed kernel's angle) and that bound resolves the condition (at most
+:data:`~gpfverify.tolerances.RESOLVABLE_GAP`). The gap's own rounding bound, in the same units, is
+:func:`equivalence_tolerance`; "reproduced" compares the observed :func:`gap_size` with it.
 
 Repair. The part of w_m that eq. 35 cannot recover is its kernel component (I − P_m) w_m: μ_e^m −
 μ_p^m determines w_m only on range(P_m). The repair message (:func:`repair_message`) is that
@@ -108,9 +116,11 @@ from gpfverify.angles import TWO_PI, difference, wrap
 from gpfverify.errors import InputError, NumericalError
 from gpfverify.fusion.case import CentralPrediction, FusionCase, LocalReport
 from gpfverify.fusion.centralized import fusion_gain
+from gpfverify.fusion.rounding import (FusedRounding, SensorTerms, estimate_floor, exactness_bound, gap_bound,
+                                      left_inverse_error, svd_inverse_error)
 from gpfverify.linalg import (CanonicalCorrelations, RankReport, canonical_correlations, correlation_condition,
-                              equilibrated_cholesky, right_solve_spd, solve_spd, symmetrize)
-from gpfverify.tolerances import CANONICAL_RANK_TOL, RESOLVABLE_GAP, numpy_rank_tol, rounding_bound
+                              equilibrated_cholesky, graded_svd, right_solve_spd, solve_spd, symmetrize)
+from gpfverify.tolerances import CANONICAL_RANK_TOL, RESOLVABLE_GAP, numpy_rank_tol
 
 #: the rank rules :class:`RankRule` knows
 RULE_NAMES: tuple[str, ...] = ("canonical", "absolute", "numpy")
@@ -233,7 +243,8 @@ class KernelSplit:
     N_m (l, l − r) and ``cokernel`` Ñ_m (l, l − r) with I − P_m = N_m Ñ_mᵀ (None: Ñ_m = N_m,
     the orthogonal SVD split). Canonical splits also carry the ``correlations`` ρ, the
     ``covariance`` used (:data:`COVARIANCE_LOCAL` / :data:`COVARIANCE_CENTRAL`), the
-    ``whitening`` and a ``condition`` number of the reconstruction."""
+    ``whitening`` and the ``whitened_inverse`` A_m = L_y⁻ᵀ V_r diag(ρ_r)⁻¹ U_rᵀ L_p⁻¹ (the unit-free
+    variant's; ``pinv`` itself unless the rank was lost)."""
 
     rank: RankReport
     pinv: np.ndarray
@@ -243,7 +254,15 @@ class KernelSplit:
     correlations: np.ndarray | None = None
     covariance: str | None = None
     whitening: CanonicalCorrelations | None = None
-    condition: float | None = None
+    whitened_inverse: np.ndarray | None = None
+
+    @property
+    def whitened_kernel(self) -> np.ndarray | None:
+        """V_⊥ (l, l − r): the dropped canonical directions, an orthonormal basis of the kernel in
+        the whitened output coordinates z = L_y⁻¹ y (canonical splits; None for the SVD rules)."""
+        if self.whitening is None or self.rule.name != "canonical":
+            return None
+        return self.whitening.v[:, self.rank.rank:]
 
     @property
     def dual_basis(self) -> np.ndarray:
@@ -283,23 +302,32 @@ def canonical_split(cross_cov: np.ndarray, prior_cov: np.ndarray, cov_y: np.ndar
                     tol: float = CANONICAL_RANK_TOL, covariance: str | None = None,
                     unit_free: bool = False) -> KernelSplit:
     """Split of C_xy^m (D, l) at the rank the canonical correlations under C_p^m (D, D) and C_y^m
-    (l, l) decide, rank = #{ρ_i > tol} (a unit-free decision). DMF's inverse is then (C_xy^m)⁺
-    truncated at that rank in C_xy^m's own SVD (eq. 35 as written; N_m = V_⊥ orthonormal); with
-    ``unit_free`` the truncation is done in the whitened coordinates instead (module docstring,
-    "The unit-free variant"; solves, no inverses)."""
+    (l, l) decide, rank = #{ρ_i > tol} (a unit-free decision), computed so that its rounding does
+    not depend on units either (module docstring, "Kernel split"):
+
+    * full column rank: eq. 35's inverse drops nothing and is a left inverse; the one applied is
+      A_m = L_y⁻ᵀ V diag(ρ)⁻¹ Uᵀ L_p⁻¹ from the canonical SVD (solves, no inverses), which equals
+      (C_xy^m)⁺ on range(C_xy^m), where μ_e^m − μ_p^m lies;
+    * rank lost: (C_xy^m)⁺ truncated at that rank in C_xy^m's own SVD (eq. 35 as written; N_m = V_⊥
+      orthonormal), the SVD computed by :func:`~gpfverify.linalg.graded_svd`;
+    * ``unit_free``: the truncation in the whitened coordinates instead (module docstring, "The
+      unit-free variant").
+
+    The recorded singular values are numpy's, as under every rule."""
     cc = canonical_correlations(prior_cov, cov_y, cross_cov, ("C_p^m", "C_y^m"))
     rho = cc.correlations
     r = int(np.sum(rho > tol))
-    u, s, vt = _cross_cov_svd(cross_cov)
+    _, s, _ = _cross_cov_svd(cross_cov)
     rank, rule = RankReport(r, s, float(tol), cross_cov.shape), RankRule("canonical", float(tol))
-    if not unit_free:
-        return KernelSplit(rank, _moore_penrose_at_rank(u, s, vt, r), vt[r:].T, None, rule, rho, covariance, cc)
     d, l = cross_cov.shape
     v_r, v_perp = cc.v[:, :r], cc.v[:, r:]
-    pinv = cc.y_from_whitened(v_r / rho[:r]) @ cc.x_dual(cc.u[:, :r]).T if r else np.zeros((l, d))
-    condition = (float(rho[0] / rho[r - 1]) if r else 1.0) * cc.whitening_condition
-    return KernelSplit(rank, pinv, cc.y_from_whitened(v_perp), cc.y_factor_times(v_perp), rule, rho, covariance,
-                       cc, condition)
+    whitened = cc.y_from_whitened(v_r / rho[:r]) @ cc.x_dual(cc.u[:, :r]).T if r else np.zeros((l, d))
+    if unit_free or r == l:
+        return KernelSplit(rank, whitened, cc.y_from_whitened(v_perp), cc.y_factor_times(v_perp), rule, rho,
+                           covariance, cc, whitened)
+    u, sg, vt = graded_svd(cross_cov)
+    return KernelSplit(rank, _moore_penrose_at_rank(u, sg, vt, r), vt[r:].T, None, rule, rho, covariance, cc,
+                       whitened)
 
 
 def sensor_prior_covariance(local: LocalReport, central_cov: np.ndarray | None = None
@@ -371,35 +399,27 @@ class SensorExactness:
 class FusedScale:
     """The centre's step in its own units (docs/fusion-definitions.md, "Rounding bound"):
     ``whitening`` holds the canonical correlations of the central prediction, so that L_p⁻¹
-    measures a state difference in prior standard deviations (unit-free); ``update`` is
-    ρ_max = ‖L_p⁻¹ C_xy L_y⁻ᵀ‖₂, how many prior standard deviations the fused mean moves per unit
-    whitened innovation; ``condition`` the central whitenings' condition, which G = C_xy C_y⁻¹
-    inherits."""
+    measures a state difference in prior standard deviations (unit-free)."""
 
     whitening: CanonicalCorrelations
-
-    @property
-    def update(self) -> float:
-        rho = self.whitening.correlations
-        return float(rho[0]) if rho.size else 0.0
-
-    @property
-    def condition(self) -> float:
-        return self.whitening.whitening_condition
 
     def whiten(self, a: np.ndarray) -> np.ndarray:
         """L_p⁻¹ a."""
         return self.whitening.whiten_x(np.asarray(a, dtype=float))
 
     @functools.cached_property
-    def _abs_inverse(self) -> np.ndarray:
-        """|L_p⁻¹| entrywise (formed once per step: every rounding magnitude goes through it)."""
-        return np.abs(self.whiten(np.eye(self.whitening.u.shape[0])))
+    def inverse(self) -> np.ndarray:
+        """L_p⁻¹ (D, D), formed once per step: every rounding magnitude goes through it."""
+        return self.whiten(np.eye(self.whitening.u.shape[0]))
 
-    def componentwise(self, magnitudes: np.ndarray) -> float:
-        """‖ |L_p⁻¹| m ‖₂ for entrywise magnitudes m ≥ 0 of a state vector: the largest whitened
-        size of any vector whose entries are at most m (componentwise rounding errors)."""
-        return float(sla.norm(self._abs_inverse @ magnitudes))
+    @property
+    def factor_y(self) -> np.ndarray:
+        """L_y (L, L), the central C_y's equilibrated factor diag(d) L_c."""
+        return self.whitening.scale_y[:, None] * self.whitening.factor_y
+
+    def rounding(self, gain: np.ndarray, central: CentralPrediction) -> FusedRounding:
+        """This step as a :class:`~gpfverify.fusion.rounding.FusedRounding` of one step."""
+        return FusedRounding(self.inverse[None], gain[None], central.mu_p[None], central.mu_y[None])
 
 
 def fused_scale(central: CentralPrediction) -> FusedScale:
@@ -411,30 +431,51 @@ def _norm2(a: np.ndarray) -> float:
     return float(np.linalg.norm(a, 2)) if a.size else 0.0
 
 
-def _exactness_evidence(scale: FusedScale, gain_times_cov: np.ndarray, cov_y: np.ndarray, split: KernelSplit,
-                        prior_mean: np.ndarray) -> tuple[float, float]:
-    """(residual, bound) of the kernel-inclusion condition for one sensor (module docstring,
-    "Exactness verdict"): residual = ‖L_p⁻¹ G_m C_y^m N_m Ñ_mᵀ L_y⁻ᵀ‖₂, the gap in prior standard
-    deviations per unit whitened innovation, and the rounding bound of its computation: the
-    computed G (ρ_max · κ_G · ‖L_yᵀN_m‖), the computed kernel, whose angle to the decided one is
-    eps·σ_1/σ_r (‖L_p⁻¹ G_m C_y^m V_r‖ σ_1/σ_r), both times ‖L_y⁻¹Ñ_m‖, and the rounding of the
-    fused estimate itself (‖ |L_p⁻¹| |μ_p| ‖: a gap below it cannot be told from the estimate's
-    last digits)."""
-    basis = split.kernel_basis
-    if not basis.shape[1]:
-        return 0.0, 0.0
-    # the canonical split already factored C_y^m (the same equilibrated Cholesky)
+def _factor_conditions(whitening: CanonicalCorrelations) -> float:
+    """κ(L_p,c) + κ(L_y,c): how much the two equilibrated whitenings of the canonical SVD can
+    amplify rounding (unit-free)."""
+    return sum(float(np.linalg.cond(f)) if f.size else 1.0 for f in (whitening.factor_x, whitening.factor_y))
+
+
+def sensor_factor(split: KernelSplit, cov_y: np.ndarray) -> np.ndarray:
+    """L_y^m = diag(d) L_c (l, l), the equilibrated Cholesky factor of C_y^m (the canonical split's
+    own, else factored here)."""
     whitening = split.whitening
     d_y, l_y = ((whitening.scale_y, whitening.factor_y) if whitening is not None
                 else equilibrated_cholesky(cov_y, "local C_y"))
-    dual = sla.solve_triangular(l_y, split.dual_basis / d_y[:, None], lower=True, check_finite=False)  # L_y⁻¹ Ñ_m
-    lifted = l_y.T @ (d_y[:, None] * basis)                                                          # L_yᵀ N_m
-    residual = _norm2(scale.whiten(gain_times_cov @ basis) @ dual.T)
-    s, r = split.rank.singular_values, split.rank.rank
-    kept = _norm2(scale.whiten(gain_times_cov @ split.pinv @ split.pinv.T)) * s[0] * s[r - 1] if r else 0.0
-    magnitude = ((scale.update * scale.condition * _norm2(lifted) + kept) * _norm2(dual)
-                 + scale.componentwise(np.abs(prior_mean)))
-    return residual, rounding_bound(magnitude, cov_y.shape[0] + gain_times_cov.shape[0])
+    return d_y[:, None] * l_y
+
+
+def _exactness_evidence(fused: FusedRounding, floor: np.ndarray, gain_condition: float, block: slice,
+                        gain_times_cov: np.ndarray, cov_y: np.ndarray, split: KernelSplit) -> tuple[float, float]:
+    """(residual, bound) of the kernel-inclusion condition for one sensor (module docstring,
+    "Exactness verdict"): residual R_m = ‖L_p⁻¹ G_m C_y^m Π_m L_y⁻ᵀ‖₂, the gap in prior standard
+    deviations per unit whitened innovation through the kernel projector Π_m of the rank rule, and
+    its rounding bound :func:`~gpfverify.fusion.rounding.exactness_bound`. The canonical rule
+    decides and projects in whitened coordinates (Π_m = L_y⁻ᵀ V_⊥ V_⊥ᵀ L_yᵀ: ω_m = 1, and V_⊥ from
+    the canonical SVD, θ_m = (κ(L_p,c) + κ(L_y,c)) ρ_1/ρ_r); the SVD rules in C_xy^m's own
+    coordinates (Π_m = N_m N_mᵀ: ω_m = ‖L_yᵀN_m‖ ‖L_y⁻¹N_m‖, θ_m = σ_1/σ_r ‖L_y‖ ‖L_y⁻¹N_m‖)."""
+    basis = split.kernel_basis
+    if not basis.shape[1]:
+        return 0.0, 0.0
+    factor = sensor_factor(split, cov_y)
+    whitened_gain = fused.inverse[0] @ fused.gain[0, :, block] @ factor                      # L_p⁻¹ G_m L_y^m
+    r = split.rank.rank
+    kernel = split.whitened_kernel
+    if kernel is not None:
+        assert split.whitening is not None and split.correlations is not None  # a canonical split
+        residual = _norm2(whitened_gain @ kernel)
+        rho = split.correlations
+        obliqueness, angle = 1.0, (_factor_conditions(split.whitening) * float(rho[0] / rho[r - 1]) if r else 0.0)
+    else:
+        dual = sla.solve_triangular(factor, split.dual_basis, lower=True, check_finite=False)  # L_y⁻¹ N_m
+        residual = _norm2(whitened_gain @ (factor.T @ basis) @ dual.T)
+        s = split.rank.singular_values
+        obliqueness = _norm2(factor.T @ basis) * _norm2(dual)
+        angle = float(s[0] / s[r - 1]) * _norm2(factor) * _norm2(dual) if r else 0.0
+    bound = exactness_bound(fused, floor, np.array([gain_condition]), block, factor[None],
+                            np.array([obliqueness]), np.array([angle]))
+    return residual, float(bound[0])
 
 
 def analyse_sensors(case: FusionCase, gain: np.ndarray, rank_tol: float | None = None,
@@ -446,11 +487,19 @@ def analyse_sensors(case: FusionCase, gain: np.ndarray, rank_tol: float | None =
     rule = resolve_rank_rule(case, rank_rule, rank_tol)
     central = case.central
     scale = fused_scale(central) if scale is None else scale
+    fused = scale.rounding(gain, central)
+    floor = gain_condition = None  # the estimate's own rounding, computed when a sensor has a kernel
     out = []
     for m, (block, local) in enumerate(zip(central.blocks, case.locals)):
         split = sensor_split(local, rule, central.C_p, unit_free)
         gain_times_cov = gain[:, block] @ local.C_y
-        residual, tol = _exactness_evidence(scale, gain_times_cov, local.C_y, split, central.mu_p)
+        residual = tol = 0.0
+        if split.kernel_basis.shape[1]:
+            if floor is None or gain_condition is None:
+                floor = estimate_floor(fused, scale.factor_y[None])
+                gain_condition = correlation_condition(central.C_y)
+            residual, tol = _exactness_evidence(fused, floor, gain_condition, block, gain_times_cov, local.C_y,
+                                                split)
         out.append(SensorExactness(m, split, gain_times_cov @ split.kernel_basis, residual, tol))
     return tuple(out)
 
@@ -519,45 +568,60 @@ def local_consistency_residual(case: FusionCase, m: int) -> np.ndarray:
     return change - local.C_xy @ whitened_innovation(local, case.local_measurement(m))
 
 
-def range_condition_number(split: KernelSplit) -> float:
-    """How much the reconstruction A_m (μ_e^m − μ_p^m) can amplify rounding: σ_1 / σ_r over the
-    kept singular values (1 when none is kept); for the unit-free variant's split
-    (ρ_1 / ρ_r) · cond(L_p) · cond(L_y) of the equilibrated whitening factors."""
-    if split.condition is not None:
-        return split.condition
-    s = split.rank.singular_values[: split.rank.rank]
-    return float(s[0] / s[-1]) if s.size else 1.0
+def sensor_terms(case: FusionCase, sensor: SensorExactness) -> SensorTerms:
+    """Sensor m's operands of the step's rounding bound (one step, B = 1; docs/fusion-definitions.md,
+    "Rounding bound"). The bound is the step's rounding *when DMF is exact*; there G_m C_y^m annuls
+    every kernel component, so eq. 35's Moore–Penrose inverse and the whitened one move the state
+    alike, and a canonical split's operands are those of the whitened one, A_m = L_y⁻ᵀ V_r
+    diag(ρ_r)⁻¹ U_rᵀ L_p⁻¹, whose magnitudes do not change with units. Its reconstruction error
+    e_m: :func:`~gpfverify.fusion.rounding.left_inverse_error` (two triangular solves with the
+    equilibrated factors and the canonical SVD, amplified by ρ_1/ρ_r), plus, when the rank was lost
+    and the Jacobi SVD computed eq. 35's inverse, that SVD's componentwise backward error carried by
+    A_m, ‖ |L_yᵀ A_m| (|C_xy^m| |r_m| + |μ_e^m − μ_p^m|) ‖. Under the SVD rules the operands are
+    numpy's SVD's own (:func:`~gpfverify.fusion.rounding.svd_inverse_error`; they depend on units,
+    as those rules do). A sensor with a kernel adds the gap its exactness bound lets through,
+    τ_m ‖z_m‖ (needs ``case.y``)."""
+    local = case.locals[sensor.index]
+    split = sensor.split
+    factor = sensor_factor(split, local.C_y)
+    change = difference(local.mu_e, local.mu_p, case.circular_state)
+    inverse = split.pinv if split.whitened_inverse is None else split.whitened_inverse
+    recovered = inverse @ change
+    r = split.rank.rank
+    if not r:
+        error = 0.0
+    elif split.whitened_inverse is None:
+        error = float(svd_inverse_error(split.rank.singular_values[None], r, factor[None], recovered[None])[0])
+    else:
+        rho = split.correlations
+        assert split.whitening is not None and rho is not None  # a canonical split
+        condition = _factor_conditions(split.whitening) * (1.0 + float(rho[0] / rho[r - 1]))
+        error = float(left_inverse_error(np.array([condition]), factor[None], recovered[None])[0])
+        if inverse is not split.pinv:  # the Jacobi SVD's Moore–Penrose inverse
+            error += float(sla.norm(np.abs(factor.T @ inverse) @ (np.abs(local.C_xy) @ np.abs(recovered)
+                                                                   + np.abs(change))))
+    accepted = None
+    if split.kernel_basis.shape[1]:  # the gap an exact-judged kernel may leave: τ_m ‖z_m‖
+        innovation = difference(case.local_measurement(sensor.index), local.mu_y, local.circular)
+        whitened = sla.solve_triangular(factor, innovation, lower=True, check_finite=False)   # z_m = L_y⁻¹ (…)
+        accepted = np.array([sensor.tol * float(sla.norm(whitened))])
+    return SensorTerms(case.central.blocks[sensor.index], local.mu_y[None], local.mu_p[None], local.mu_e[None],
+                       local.C_y[None], local.C_xy[None], inverse[None], recovered[None], factor[None],
+                       np.array([correlation_condition(local.C_y)]), np.array([error]), accepted)
 
 
 def equivalence_tolerance(case: FusionCase, gain: np.ndarray, sensors: tuple[SensorExactness, ...],
                           scale: FusedScale | None = None) -> float:
     """Rounding bound on ‖L_p⁻¹(μ_DMF − μ_CMF)‖₂, in prior standard deviations, when DMF is exact
-    at the rank rule used (docs/fusion-definitions.md, "Rounding bound"). With G shared by both
-    rules (its rounding cancels in the difference to first order), the operands that round
-    independently are, entrywise: μ_p (in both sums); G's products with DMF's stacked innovation
-    |μ_y^m| + |μ_y(m)| + |C_y^m A_m(μ_e^m − μ_p^m)| and with CMF's |y| + |μ_y|; the report's own
-    rounding |μ_e^m| + |μ_p^m| + κ(C_y^m)|μ_e^m − μ_p^m| (the local update is a solve with C_y^m)
-    carried into the state by |G_m C_y^m A_m|; and the reconstruction A_m, whose relative error
-    σ_1/σ_r · eps multiplies its contribution G_m C_y^m A_m(μ_e^m − μ_p^m). Each is whitened entrywise
-    (:meth:`FusedScale.componentwise`, unit-free) and the sum goes to
-    :func:`~gpfverify.tolerances.rounding_bound` with D + L operations. Needs ``case.y``."""
+    at the rank rule used (docs/fusion-definitions.md, "Rounding bound";
+    :func:`~gpfverify.fusion.rounding.gap_bound`, the same function the batched audit uses).
+    Needs ``case.y``."""
     c = case.central
     scale = fused_scale(c) if scale is None else scale
     if case.y is None:
         raise InputError("the rounding bound of the gap needs the measurement y")
-    magnitudes = 2.0 * np.abs(c.mu_p) + np.abs(gain) @ (np.abs(case.y) + np.abs(c.mu_y))
-    reconstruction = np.zeros(case.state_dim)
-    for s, block, local in zip(sensors, c.blocks, case.locals):
-        change = difference(local.mu_e, local.mu_p, case.circular_state)
-        recovered = s.split.pinv @ change
-        carried = np.abs(gain[:, block] @ local.C_y @ s.split.pinv)
-        report = np.abs(local.mu_e) + np.abs(local.mu_p) + correlation_condition(local.C_y) * np.abs(change)
-        innovation = np.abs(local.mu_y) + np.abs(c.mu_y[block]) + np.abs(local.C_y @ recovered)
-        magnitudes = magnitudes + np.abs(gain[:, block]) @ innovation + carried @ report
-        contribution = np.abs(gain[:, block] @ (local.C_y @ recovered))
-        reconstruction = reconstruction + range_condition_number(s.split) * contribution
-    total = scale.componentwise(magnitudes) + scale.componentwise(reconstruction)
-    return rounding_bound(total, case.state_dim + c.mu_y.shape[0])
+    bound = gap_bound(scale.rounding(gain, c), case.y[None], [sensor_terms(case, s) for s in sensors])
+    return float(bound[0])
 
 
 def gap_size(case: FusionCase, gap: np.ndarray, scale: FusedScale | None = None) -> float:
@@ -571,7 +635,8 @@ def rescaled_case(case: FusionCase, state_scale, output_scale) -> FusionCase:
     (D positive numbers) and S_y = diag(output_scale) (L, stacked; sensor m's block scales its
     outputs), e.g. 1e6 on a bearing for radians → microradians. Means scale as their variable,
     covariances as S C S; the case's absolute ``rank_tol`` is kept as it is (it has no units to
-    follow). Angle outputs must keep scale 1 (wrapping is in radians): InputError otherwise."""
+    follow). Angle outputs and angle state components must keep scale 1 (wrapping is in radians):
+    InputError otherwise."""
     s_x = np.asarray(state_scale, dtype=float)
     s_y = np.asarray(output_scale, dtype=float)
     c = case.central
@@ -582,8 +647,11 @@ def rescaled_case(case: FusionCase, state_scale, output_scale) -> FusionCase:
         raise InputError("scales must be finite and positive")
     if c.circular and np.any(s_y[list(c.circular)] != 1.0):
         raise InputError(f"angle outputs {list(c.circular)} must keep scale 1 (wrapping is in radians)")
+    if c.circular_state and np.any(s_x[list(c.circular_state)] != 1.0):
+        raise InputError(f"angle state components {list(c.circular_state)} must keep scale 1 (wrapping is in radians)")
     central = CentralPrediction(s_x * c.mu_p, c.C_p * np.outer(s_x, s_x), s_y * c.mu_y,
-                                c.C_y * np.outer(s_y, s_y), c.C_xy * np.outer(s_x, s_y), c.sizes, c.circular)
+                                c.C_y * np.outer(s_y, s_y), c.C_xy * np.outer(s_x, s_y), c.sizes, c.circular,
+                                c.circular_state)
     reports = []
     for block, r in zip(c.blocks, case.locals):
         s_m = s_y[block]

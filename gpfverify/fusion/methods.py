@@ -39,9 +39,12 @@ def _local_estimates(case: FusionCase, method: str) -> list[Gaussian]:
 
 
 def fuse_case(case: FusionCase, method: str, criterion: str = "trace", c: float | None = None,
-              on_empty: str = "error") -> dict:
+              on_empty: str = "error", rank_rule=None) -> dict:
     """The ``fuse --json`` object for one method (any accepted spelling; the object names the
-    canonical one)."""
+    canonical one). ``criterion``: the weight criterion of CI and ICI ("trace", which depends on the
+    units of the state components, or "det", unit-free). ``rank_rule`` (dmf): a
+    :class:`~gpfverify.fusion.exactness.RankRule` or its string, default the case's ``rank_tol``
+    (absolute), else canonical; the object names the rule that decided (``"rank_rule"``)."""
     method = canonical_rule(method)
     extra: dict = {}
     angles = case.circular_state
@@ -51,9 +54,12 @@ def fuse_case(case: FusionCase, method: str, criterion: str = "trace", c: float 
             raise CaseFileError("method cmf needs the stacked measurement 'y' in the case file")
         fused = cmf_update(case.central, case.y)
     elif method == "dmf":
-        dmf = dmf_update(case)
+        dmf = dmf_update(case, rank_rule=rank_rule)
         fused = dmf
-        extra = {"condition_holds": dmf.condition_holds, "exact": dmf.exact}
+        assert dmf.rank_rule is not None  # dmf_update records the rule that decided
+        extra = {"condition_holds": dmf.condition_holds, "exact": dmf.exact,
+                 "rank_rule": {"name": dmf.rank_rule.name, "tol": dmf.rank_rule.tol,
+                               "description": dmf.rank_rule.describe()}}
     elif method == "cc":
         fused = convex_combination(_local_estimates(case, method), angles)
     elif method == "ci":

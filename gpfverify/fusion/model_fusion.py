@@ -45,7 +45,7 @@ from gpfverify.filters.sigma_points import SigmaParams
 from gpfverify.fusion.case import CentralPrediction, FusionCase, LocalReport, sensor_blocks, split_circular
 from gpfverify.fusion.distributed import DMFResult, dmf_update
 from gpfverify.fusion.names import FUSION_RULES, canonical_rule, canonical_rules
-from gpfverify.fusion.exactness import NUMPY_RANK_RULE, RankRule, resolve_rank_rule
+from gpfverify.fusion.exactness import RankRule, resolve_rank_rule
 from gpfverify.models.learned import GPModel
 from gpfverify.models.system import StateSpaceModel, require_model
 from gpfverify.validate import as_matrix, as_vector
@@ -122,14 +122,13 @@ def dmf_step(belief: Gaussian, model, y=None, *, local_records: Sequence[StepRec
     """One distributed-fusion cycle (eq. 35) from the fused ``belief``: ``local_records[m]`` is
     sensor m's step record from its own filter; ``y`` (stacked, optional) is kept in the case for
     the gap diagnostics only. The rank rule is ``rank_rule``, else the absolute ``rank_tol``
-    (also stored as the case's ``rank_tol``), else **numpy's rule** σ_max · max(D, l_m) · eps —
-    this module's default, unlike the library's and the audit's (canonical), so that the paper's
-    experiments keep their reference numbers; ``result.rank_rule`` says which decided. ``clock``
-    times eq. 35 (wall-clock by default; the experiments pass a CPU clock)."""
+    (also stored as the case's ``rank_tol``), else the canonical rule (the default of every entry
+    point, :data:`~gpfverify.fusion.exactness.DEFAULT_RANK_RULE`); ``result.rank_rule`` says which
+    decided. ``clock`` times eq. 35 (wall-clock by default; the experiments pass a CPU clock)."""
     _, central = central_prediction(belief, model, k=k, family=family, params=params)
     stacked = None if y is None else as_vector(y, "y", int(sum(central.sizes)))
     case = FusionCase(central, local_reports(local_records, central), stacked, rank_tol)
-    rule = resolve_rank_rule(None, rank_rule, rank_tol, default=NUMPY_RANK_RULE)
+    rule = resolve_rank_rule(None, rank_rule, rank_tol)
     result, seconds = _timed(dmf_update, case, rank_rule=rule, clock=clock)
     record = StepRecord(central.mu_p, central.C_p, central.mu_y, central.C_y, central.C_xy, result.mean, result.cov)
     return DMFStep(record, case, result, seconds)
@@ -173,14 +172,15 @@ class FusionStep:
 @dataclass(frozen=True)
 class FusionRun:
     """A fusion run: the ``family``, the ``methods`` run and one :class:`FusionStep` per measurement;
-    ``model`` and ``ys`` what it ran on. In a notebook it shows as ``gpfverify check``'s page
-    (:func:`gpfverify.notebook.fusion_run_html`)."""
+    ``model`` and ``ys`` what it ran on, ``ci_criterion`` CI's weight criterion. In a notebook it
+    shows as ``gpfverify check``'s page (:func:`gpfverify.notebook.fusion_run_html`)."""
 
     family: str
     methods: tuple[str, ...]
     steps: tuple[FusionStep, ...]
     model: object = field(default=None, repr=False, compare=False)
     ys: np.ndarray | None = field(default=None, repr=False, compare=False)
+    ci_criterion: str = "trace"
 
     def _repr_html_(self) -> str:
         from gpfverify.notebook import fusion_run_html
@@ -225,22 +225,23 @@ def _attempt(rule: Callable, beliefs: Sequence) -> tuple[object, str | None, flo
 
 
 def _baselines(methods: Sequence[str], rcc_size: float | None,
-               circular_state: Sequence[int]) -> dict[str, Callable]:
+               circular_state: Sequence[int], ci_criterion: str = "trace") -> dict[str, Callable]:
     """The requested baselines as functions of the local posteriors, averaging the angle state
-    components ``circular_state`` on the circle (convex solvers imported only when requested)."""
+    components ``circular_state`` on the circle, CI and ICI with the weight criterion
+    ``ci_criterion`` (convex solvers imported only when requested)."""
     out: dict[str, Callable[[Sequence], FusedEstimate | RccCiResult]] = {}
     if "cc" in methods:
         from gpfverify.fusion.convex import convex_combination
         out["cc"] = partial(convex_combination, circular_state=circular_state)
     if "ci" in methods:
         from gpfverify.fusion.ci import covariance_intersection
-        out["ci"] = partial(covariance_intersection, circular_state=circular_state)
+        out["ci"] = partial(covariance_intersection, criterion=ci_criterion, circular_state=circular_state)
     if "rcc-ci" in methods:
         from gpfverify.fusion.rcc_ci import rcc_ci
         out["rcc-ci"] = partial(rcc_ci, c=rcc_size, on_empty="enlarge", circular_state=circular_state)
     if "ici" in methods:
         from gpfverify.fusion.ci import inverse_covariance_intersection
-        out["ici"] = partial(inverse_covariance_intersection, circular_state=circular_state)
+        out["ici"] = partial(inverse_covariance_intersection, criterion=ci_criterion, circular_state=circular_state)
     if "ei" in methods:
         from gpfverify.fusion.ellipsoidal import ellipsoidal_intersection
         out["ei"] = partial(ellipsoidal_intersection, circular_state=circular_state)
@@ -275,19 +276,23 @@ def run_fusion(model, ys, *, family: str = "ukf", methods: Sequence[str] = DEFAU
                params: SigmaParams = SigmaParams(), rank_tol: float | None = None,
                local_priors: Sequence[Gaussian] | None = None, fused_prior: Gaussian | None = None,
                audit: bool = True, rcc_size: float | None = None,
-               rank_rule: RankRule | str | None = None) -> FusionRun:
+               rank_rule: RankRule | str | None = None, ci_criterion: str = "trace") -> FusionRun:
     """Filter the stacked measurements ``ys`` (T, L) — ``ys[t]`` at step k = first_k + t — with
     every sensor's local filter, CMF and DMF (each its own recursion from ``fused_prior``) and the
     chosen baselines (a baseline that fails at a step is recorded in ``FusionStep.failed`` and the run
-    goes on); ``rcc_size`` is RCC-CI's ellipsoid size c (default χ²_D(0.99)). Priors default
-    to the model's (a GPModel has none: then both are required). ``rank_rule``/``rank_tol`` as in
-    :func:`dmf_step` (default numpy's rule); the per-step audit uses the same rule."""
+    goes on); ``rcc_size`` is RCC-CI's ellipsoid size c (default χ²_D(0.99)); ``ci_criterion`` the
+    weight criterion of CI and ICI: "trace" (the default; minimises the trace of the fused bound,
+    which depends on the units of the state components) or "det" (its determinant: unit-free).
+    Priors default to the model's (a GPModel has none: then both are required). ``rank_rule``/``rank_tol`` as in
+    :func:`dmf_step` (default the canonical rule); the per-step audit uses the same rule."""
     chosen = model_family(family, model, params)
     methods = _checked_methods(methods, audit)
     ys = as_matrix(ys, "ys", None, model.measurement_dim)
     local_beliefs, fused = _priors(model, local_priors, fused_prior)
     sensor_models = [model.sensor_model(m) for m in range(len(model.sizes))]
-    baselines = _baselines(methods, rcc_size, model.circular_state)
+    if ci_criterion not in ("trace", "det"):
+        raise InputError(f"ci_criterion must be 'trace' or 'det', got {ci_criterion!r}")
+    baselines = _baselines(methods, rcc_size, model.circular_state, ci_criterion)
     cmf_belief = dmf_belief = fused
     steps = []
     for t, y in enumerate(ys):
@@ -318,7 +323,7 @@ def run_fusion(model, ys, *, family: str = "ukf", methods: Sequence[str] = DEFAU
             step_audit = _audit(dmf)
         steps.append(FusionStep(k, local, cmf, dmf, fused_estimates, step_audit,
                                 seconds, tuple(s for _, s in timed), failed))
-    return FusionRun(family, methods, tuple(steps), model, ys)
+    return FusionRun(family, methods, tuple(steps), model, ys, ci_criterion)
 
 
 def _audit(dmf: DMFStep) -> CaseAudit:

@@ -75,6 +75,13 @@ def default_size(dim: int) -> float:
     return float(chi2.ppf(DEFAULT_CONFIDENCE, dim))
 
 
+def _size_words(c: float, given: bool, dim: int) -> str:
+    """'size c = 15.1 (the default, the 0.99 quantile of χ²_5)' or 'size c = 3'."""
+    return f"size c = {c:.6g}" + ("" if given else
+                                  f" (the default, the {DEFAULT_CONFIDENCE:g} quantile of chi-square with {dim} "
+                                  "degrees of freedom)")
+
+
 @dataclass(frozen=True)
 class RccCiResult:
     """``mean`` (CI form from the duals), ``cov`` = (Σω_mP_m⁻¹)⁻¹, ``weights`` ω (N,), ``alpha``
@@ -270,7 +277,9 @@ def rcc_ci(estimates: Sequence, c: float | None = None, on_empty: str = "error",
     if on_empty not in ("error", "enlarge"):
         raise InputError(f"on_empty must be 'error' or 'enlarge', got {on_empty!r}")
     dim = checked[0].mean.shape[0]
+    given = c is not None
     c = default_size(dim) if c is None else _checked_size(c)
+    first = c
     info = information_form(checked)
     enlarged = False
     while True:
@@ -285,9 +294,15 @@ def rcc_ci(estimates: Sequence, c: float | None = None, on_empty: str = "error",
         if "infeasible" not in status:
             raise SolverError(f"RCC-CI primal ended with status {status}")
         c_min = smallest_intersecting_size(checked)
+        tried = (f"size c = {c:.6g} ({EMPTY_GROWTH:g} × the smallest intersecting size, tried after "
+                 f"{_size_words(first, given, dim)} found none)" if enlarged else _size_words(c, given, dim))
+        if c >= c_min:  # they meet at this size: the solver, not the ellipsoids, failed
+            raise SolverError(f"RCC-CI: the solver found no centre at {tried} (status {status}), although the "
+                              f"local ellipsoids intersect for every c >= {c_min:.6g}: a badly scaled problem, "
+                              "not an empty intersection")
         if on_empty == "error" or enlarged:
-            raise SolverError(f"RCC-CI: the local ellipsoids do not intersect at size c = {c:.6g}; "
-                              f"they do for c >= {c_min:.6g}")
+            raise SolverError(f"RCC-CI: the local ellipsoids do not intersect at {tried}; "
+                              f"the smallest size at which they do is c = {c_min:.6g}")
         c, enlarged = EMPTY_GROWTH * c_min, True
     xi = _centre(norm, solution)
     assert xi is not None  # a solved status carries the primal's values

@@ -100,12 +100,20 @@ class CheckData:
         # the gap and its rounding bound in prior standard deviations (docs/fusion-definitions.md)
         self.gap = np.asarray(results["gap_size"], dtype=float)              # (R, T)
         self.bound = np.asarray(results["gap_bound"], dtype=float)
-        self.recursive = np.asarray(results["recursive_gap_norm"], dtype=float)
+        # the drift of the recursive filters beside the one-step gap, in one unit: prior standard
+        # deviations (recursive_gap_size), or state units for results written before it
+        self.drift_in_prior_sd = "recursive_gap_size" in results
+        self.recursive = np.asarray(results["recursive_gap_size" if self.drift_in_prior_sd else "recursive_gap_norm"],
+                                    dtype=float)
+        self.one_step = self.gap if self.drift_in_prior_sd else np.asarray(results["gap_norm"], dtype=float)
         self.full = np.asarray(results["full_column_rank"], dtype=bool)       # (R, T, N)
         self.exact = np.asarray(results["exact"], dtype=bool)
         self.rank = np.asarray(results["rank"], dtype=int)
         self.repair = np.asarray(results["repair_dim"], dtype=int)
-        self.share = np.asarray(results["gap_share"], dtype=float)
+        # each sensor's share of the gap in prior standard deviations, the unit of the gap itself
+        # (results.json's gap_share is in state units; older results have only that)
+        self.share_in_prior_sd = "gap_share_size" in results
+        self.share = np.asarray(results["gap_share_size" if self.share_in_prior_sd else "gap_share"], dtype=float)
         self.tol = np.asarray(results["tol"], dtype=float)
         offsets = results.get("branch_offset_count")
         self.branch = (np.asarray(offsets, dtype=int) if offsets is not None
@@ -166,6 +174,20 @@ def _repair_words(sizes: np.ndarray) -> str:
     return f"{sizes.min()}–{sizes.max()} numbers"
 
 
+def _exact_anyway_words(exact: int, lost: int) -> str:
+    """How many of the ``lost`` steps where a sensor lost rank it was exact at, from the counts."""
+    if exact == lost:
+        return f"exact anyway at all {_plural(lost, 'step')} (the lost directions carried no gain)"
+    if exact:
+        return (f"exact anyway at {exact} of those {lost} steps (the lost directions carried no gain there) and "
+                f"not at {lost - exact}")
+    return "not exact at any of them"
+
+
+def _share_unit(d: CheckData) -> str:
+    return " prior standard deviations" if d.share_in_prior_sd else " (state units)"
+
+
 def _sensor_sentence(d: CheckData, m: int) -> str | None:
     lost = ~d.full[:, :, m]
     n_lost = int(lost.sum())
@@ -187,12 +209,10 @@ def _sensor_sentence(d: CheckData, m: int) -> str | None:
     exact_anyway = int((lost & d.exact[:, :, m]).sum())
     inexact = lost & ~d.exact[:, :, m]
     n_inexact = int(inexact.sum())
-    text += f"; its report was exact anyway at {exact_anyway} of those {n_lost} steps"
-    if exact_anyway:
-        text += " (the lost directions carried no gain there)"
+    text += "; its report was " + _exact_anyway_words(exact_anyway, n_lost)
     if n_inexact:
         share = d.share[:, :, m][inexact]
-        text += (f" and not at {n_inexact} (its share of the gap up to {_g(share.max())}); sending its repair "
+        text += (f" (its share of the gap up to {_g(share.max())}{_share_unit(d)}); sending its repair "
                  f"message — {_repair_words(d.repair[:, :, m][inexact])} per step, the part of its whitened "
                  "innovation in the lost directions — restores CMF")
     return text + "."
@@ -226,8 +246,9 @@ def summary_paragraphs(results: dict) -> list[str]:
         parts = []
         for culprits, where in sorted(groups.items(), key=lambda kv: -len(kv[1])):
             rs, ts = np.array(where).T
-            fraction = np.array([d.share[r, t, list(culprits)].max() / d.gap[r, t] if d.gap[r, t] > 0 else np.nan
-                                 for r, t in where])
+            # a share over the gap, both in prior standard deviations (older results: no fraction)
+            fraction = np.array([d.share[r, t, list(culprits)].max() / d.gap[r, t]
+                                 if d.gap[r, t] > 0 and d.share_in_prior_sd else np.nan for r, t in where])
             who = " and ".join(d.sensor_label(m) for m in culprits)
             part = f"at {_plural(len(where), 'step')} {who} {'was' if len(culprits) == 1 else 'were'} judged not exact"
             if np.isfinite(fraction).any():
@@ -273,6 +294,7 @@ def summary_paragraphs(results: dict) -> list[str]:
                       + "rounding amplified by ill-conditioned moments")
                    + " — audit that step (gpfverify audit) to see the singular values.")
     out.append(_rule_sentence(d))
+    out += _unit_sentences(d)
     if d.canonical is not None:
         mins = np.nanmin(d.canonical, axis=(0, 1))
         out.append("Smallest canonical correlation of state and sensor output over all steps: "
@@ -293,18 +315,56 @@ def _rule_sentence(d: CheckData) -> str:
     span = (f"the tolerances it gave ranged from {_g(tols.min())} to {_g(tols.max())}" if tols.size
             and tols.min() != tols.max() else f"tolerance {_g(tols.max())}" if tols.size and not stated else "")
     return (f"Every rank verdict was decided by the {rule}" + (f"; {span}" if span else "") +
-            ". A sensor is exact when the directions its rank decision drops carry no gain "
-            "(‖G_m C_y^m N_m‖₂ at rounding level), a step when every sensor is. The rounding bound is the "
+            ". A sensor is exact when the directions its rank decision drops carry no gain (its gap gain "
+            "‖L_p⁻¹ G_m C_y^m Π_m L_y⁻ᵀ‖₂, prior standard deviations per unit whitened innovation, at the "
+            "rounding level of the fused estimate), a step when every sensor is. The rounding bound is the "
             "first-order bound on the DMF − CMF gap, in prior standard deviations, that rounding in the "
             "step's own CMF and DMF arithmetic can produce when DMF is exact; a gap within it counts as DMF "
             "reproducing CMF (derivation: docs/fusion-definitions.md, 'Rounding bound and \"reproduced\"').")
+
+
+def _unit_sentences(d: CheckData) -> list[str]:
+    """What on this page depends on the units of the state and output components, and by how much
+    where results.json measured it: eq. 35's Moore–Penrose inverse where a sensor lost rank, a rank
+    rule on singular values, CI's trace criterion, RCC-CI (docs/fusion-definitions.md, "Units")."""
+    out = []
+    rule = d.r.get("rank_rule") or {}
+    if isinstance(rule, dict) and rule.get("name") in ("numpy", "absolute"):
+        out.append(f"The {rule['name']} rank rule decides on the singular values of C_xy^m, which change with "
+                   "the units of the state and output components: the rank verdicts above hold in these units "
+                   "(--rank-rule canonical decides without them).")
+    dependence = [v for run in d.r.get("unit_dependence") or [] for v in run if v is not None]
+    if dependence:
+        out.append(f"At {_plural(len(dependence), 'step')} a sensor lost rank, and there eq. 35's Moore–Penrose "
+                   "inverse depends on the units of the state and output components: in these units DMF was up to "
+                   f"{_g(max(dependence))} prior standard deviations (median {_g(float(np.median(dependence)))}) "
+                   "from the unit-free variant of DMF (truncated in whitened coordinates), the estimate no change "
+                   "of units moves. In other units DMF lies at its own distance from that variant, which this one "
+                   "does not bound: a change of units moves DMF by at most the sum of the two distances.")
+    methods = list((d.r.get("params") or {}).get("methods") or [])
+    criterion = (d.r.get("params") or {}).get("ci_criterion", "trace")
+    weighted = [m.upper() for m in ("ci", "ici") if m in methods]
+    if weighted and criterion == "trace":
+        verb, their = ("weighs", "its estimate changes") if len(weighted) == 1 else ("weigh", "their estimates change")
+        out.append(f"{' and '.join(weighted)} {verb} the local estimates by the trace criterion, which adds the "
+                   f"variances of state components in different units: {their} with the units "
+                   "(--ci-criterion det, the determinant criterion, does not).")
+    elif weighted:
+        verb = "weighs" if len(weighted) == 1 else "weigh"
+        out.append(f"{' and '.join(weighted)} {verb} the local estimates by the determinant criterion, which does "
+                   "not depend on units.")
+    if "rcc-ci" in methods:
+        out.append("RCC-CI's Chebyshev centre measures distances with the Euclidean norm of the state, so its "
+                   "estimate changes with the units of the state components.")
+    return out
 
 
 # -- tables ----------------------------------------------------------------------------------------
 
 def sensor_table(d: CheckData) -> Table:
     headers = ["sensor", "name", "outputs l_m", "angle outputs (indices from 0)", "l_m > D", "steps full rank",
-               "steps exact", "largest share of gap", "repair size (numbers per step)", "rank tolerance"]
+               "steps exact", "largest share of gap" + (" (prior sd)" if d.share_in_prior_sd else " (state units)"),
+               "repair size (numbers per step)", "rank tolerance"]
     if d.canonical is not None:
         headers.append("smallest canonical correlation")
     rows = []
@@ -336,13 +396,15 @@ def inexact_table(d: CheckData) -> Table | None:
                      "no" if culprits.size else "yes",
                      ", ".join(str(m) for m in lost) or "none",
                      "; ".join(f"sensor {m}: {_g(d.share[r, t, m], 3)}"
-                               + (f" ({100 * d.share[r, t, m] / d.gap[r, t]:.0f} %)" if d.gap[r, t] > 0 else "")
+                               + (f" ({100 * d.share[r, t, m] / d.gap[r, t]:.0f} %)"
+                                  if d.gap[r, t] > 0 and d.share_in_prior_sd else "")
                                for m in culprits) or "— (every sensor exact)",
                      ", ".join(f"{d.repair[r, t, m]}" for m in culprits) or "0"])
     caption = (f"Steps judged not exact, or with a gap above the rounding bound ({len(where)} of {d.total})"
                + (f"; the first {MAX_STEP_ROWS} listed" if len(where) > MAX_STEP_ROWS else ""))
-    return Table(["run", "k", "gap (prior sd)", "rounding bound", "exact", "sensors without full rank",
-                  "share of the gap (sensors not exact)", "repair numbers"], rows, caption)
+    return Table(["run", "k", "gap (prior sd)", "rounding bound (prior sd)", "exact", "sensors without full rank",
+                  "share of the gap (sensors not exact" + (", prior sd)" if d.share_in_prior_sd else ", state units)"),
+                  "repair numbers"], rows, caption)
 
 
 def method_table(d: CheckData) -> Table:
@@ -379,7 +441,8 @@ def method_table(d: CheckData) -> Table:
         first = next(iter(r["nees"].values()))
         band = (f"; ANEES band: the {100 * first['level']:.0f} % two-sided χ² band of the average of "
                 f"{first['runs']} χ²_{first['dof']} values, [{_g(first['band'][0], 3)}, {_g(first['band'][1], 3)}]")
-    return Table(headers, rows, "Estimates: RMSE = sqrt of the mean squared error over all steps and runs" + band
+    return Table(headers, rows, "Estimates of the recursive filters (each method from its own previous posterior): "
+                 "RMSE = sqrt of the mean squared error over all steps and runs" + band
                  + "; times are wall-clock on the machine that made the run")
 
 
@@ -392,6 +455,7 @@ def settings_table(results: dict, d: CheckData) -> Table:
             ["seed", results.get("seed", "—")],
             ["methods", ", ".join(p.get("methods") or [])],
             ["rank rule", rank_rule_text(results.get("rank_rule"), p.get("rank_tol"))],
+            ["CI weight criterion", p.get("ci_criterion", "trace")],
             ["measurements", p.get("measurements") or "simulated from the system"],
             ["truth known", "yes" if results.get("truth_known") else "no"]]
     if str(p.get("filter", "")).startswith("gp"):
@@ -422,8 +486,11 @@ def equivalence_sections(results: dict, fig_dir: Path, fig_prefix: str = FIGURES
     head.add(Paragraph(f"System `{system}`, filter family {results.get('filter', '?')}, {d.runs_ok} "
                        f"run(s) × {d.steps} steps. DMF is the distributed rule of Liao et al. 2019, eq. 35 "
                        "(each sensor sends its local posterior); CMF fuses the stacked measurements at the centre. "
-                       "The one-step gap compares both from the same central prediction; the recursive filters "
-                       "each run from their own previous posterior."))
+                       "One-step numbers — the gap, its rounding bound, the rank and exactness verdicts, the shares "
+                       "and the repair sizes — compare both rules from the same central prediction, DMF's (the "
+                       "centre predicts from DMF's previous posterior; the audit applies CMF's update to it). "
+                       "Recursive numbers — the drift, RMSE, NEES and the estimates in runs/run-NNNNNN.json "
+                       "(\"means\") — come from each method's own filter, run from its own previous posterior."))
     head.add(sensor_table(d))
 
     gap = Section("gap", "The gap per step")
@@ -447,13 +514,17 @@ def equivalence_sections(results: dict, fig_dir: Path, fig_prefix: str = FIGURES
                                               threshold, "rank rule threshold"),
                        "Smallest canonical correlation per step and sensor (unit-free: a correlation near 0 means "
                        "an output direction carries almost no information about the state)"))
-    path, floor = ef.plot_drift(d.ks, d.recursive, d.gap, fig_dir / "drift.png", d.run_labels)
-    gap.add(Figure(path, "Recursive drift: ‖μ_DMF − μ_CMF‖ of the two filters, each from its own previous posterior "
-                         "(solid), against the one-step gap (dashed), log scale"
-                   + (f"; zeros drawn at {_g(floor)}" if (d.gap <= 0).any() or (d.recursive <= 0).any() else "")))
-    gap.add(Paragraph(f"The recursive filters ended at most {_g(float(d.recursive.max()))} apart (largest over "
-                      f"steps and runs; {_g(float(np.median(d.recursive[:, -1])))} at the last step, median of runs). "
-                      "Where every step is exact this drift is rounding carried through the recursion; where "
+    quantity = ef.GAP_IN_PRIOR_SD if d.drift_in_prior_sd else ef.GAP_IN_STATE_UNITS
+    unit = "prior standard deviations" if d.drift_in_prior_sd else "state units"
+    path, floor = ef.plot_drift(d.ks, d.recursive, d.one_step, fig_dir / "drift.png", d.run_labels, quantity)
+    gap.add(Figure(path, f"Recursive drift: {quantity[0]} of the two filters, each from its own previous posterior "
+                         f"(solid), against the one-step gap (dashed), both in {unit} of the step's central "
+                         "prediction, log scale"
+                   + (f"; zeros drawn at {_g(floor)}" if (d.one_step <= 0).any() or (d.recursive <= 0).any()
+                      else "")))
+    gap.add(Paragraph(f"The recursive filters ended at most {_g(float(d.recursive.max()))} {unit} apart (largest "
+                      f"over steps and runs; {_g(float(np.median(d.recursive[:, -1])))} at the last step, median of "
+                      "runs). Where every step is exact this drift is rounding carried through the recursion; where "
                       "steps are inexact it accumulates their gaps."))
 
     acc = Section("accuracy", "Accuracy and consistency")
@@ -576,8 +647,17 @@ class AuditData:
                                    else np.nan for s in self.steps], dtype=float)
         self.step_exact = np.array([bool(s["exact"]) for s in self.steps])
         self.step_held = np.array([bool(s["condition_holds"]) for s in self.steps])
-        self.share = np.array([[np.linalg.norm(s["gap_contribution"]) if s.get("gap_contribution") is not None
-                                else np.nan for s in step["sensors"]] for step in self.steps], dtype=float)
+        # each sensor's share of the gap in prior standard deviations (gap_contribution_size; a run audit
+        # written before it had only the share in state units)
+        self.share_in_prior_sd = any("gap_contribution_size" in x for step in self.steps for x in step["sensors"])
+        key = "gap_contribution_size" if self.share_in_prior_sd else "gap_contribution"
+        self.share = np.array([[np.nan if x.get(key) is None else float(np.linalg.norm(x[key]))
+                                for x in step["sensors"]] for step in self.steps], dtype=float)
+        self.gap_size = np.array([np.nan if s.get("gap_size") is None else s["gap_size"] for s in self.steps],
+                                 dtype=float)
+        self.reproduced = [s.get("reproduced") for s in self.steps]             # True, False or None (no y)
+        rule = self.summary.get("rank_rule", self.steps[0].get("rank_rule") if self.steps else None)
+        self.rule_name = rule.get("name") if isinstance(rule, dict) else None
 
 
 def audit_summary_paragraphs(run_audit: dict) -> list[str]:
@@ -586,16 +666,23 @@ def audit_summary_paragraphs(run_audit: dict) -> list[str]:
     out = []
     with_y = np.isfinite(a.gap)
     exact, held = int(a.step_exact.sum()), int(a.step_held.sum())
-    if exact == a.T:
-        head = f"DMF reproduces CMF at all {_plural(a.T, 'step')} of the run (every sensor judged exact"
-        head += ")" if held == a.T else f"; the rank condition failed at {a.T - held} of them, exact anyway)"
+    measured = int(with_y.sum())
+    reproduced = int(sum(r is True for r in a.reproduced))
+    if measured:
+        head = (f"DMF reproduced CMF at all {_plural(measured, 'step')} with y" if reproduced == measured else
+                f"DMF differed from CMF beyond rounding at {measured - reproduced} of the {_plural(measured, 'step')} "
+                "with y")
+        head += f" (of {_plural(a.T, 'step')} in the run)" if measured < a.T else ""
+        head += (f"; DMF was exact at {exact} of the {a.T} steps and the rank condition held at {held}"
+                 if exact < a.T or held < a.T else "; every step exact, the rank condition held at every one")
     else:
-        head = (f"DMF differs from CMF at {a.T - exact} of {_plural(a.T, 'step')} of the run (judged not exact) and "
-                f"reproduces it at {exact}; " + ("the rank condition never held" if held == 0 else
-                                                 f"the rank condition held at {held}"))
+        head = (f"DMF is exact at {exact} of {_plural(a.T, 'step')} of the run and the rank condition held at {held}"
+                if exact < a.T else f"DMF is exact at all {_plural(a.T, 'step')} of the run"
+                + ("" if held == a.T else f" (the rank condition failed at {a.T - held}, exact anyway)"))
     if with_y.any():
         t = int(np.nanargmax(a.gap))
-        head += f"; largest observed gap {_g(a.gap[t])} at k = {a.ks[t]} ({int(with_y.sum())} step(s) with y)"
+        head += f"; largest observed gap {_g(a.gap[t])} at k = {a.ks[t]}" + (
+            f" ({_g(a.gap_size[t])} prior standard deviations)" if np.isfinite(a.gap_size[t]) else "")
     else:
         head += "; no step carries y, so the gap itself cannot be evaluated (only how large it can be)"
     out.append(head + ".")
@@ -612,12 +699,12 @@ def audit_summary_paragraphs(run_audit: dict) -> list[str]:
                      "can never hold for this sensor")
         bad = lost & ~a.exact[:, m]
         if lost.any():
-            text += (f"; exact anyway at {int((lost & a.exact[:, m]).sum())} of those {int(lost.sum())} steps, not "
-                     f"at {int(bad.sum())}")
+            text += "; " + _exact_anyway_words(int((lost & a.exact[:, m]).sum()), int(lost.sum()))
         if bad.any():
             shares = a.share[bad, m]
             if np.isfinite(shares).any():
-                text += f" (its share of the gap up to {_g(np.nanmax(shares))})"
+                unit = " prior standard deviations" if a.share_in_prior_sd else " (state units)"
+                text += f" (its share of the gap up to {_g(np.nanmax(shares))}{unit})"
             text += f"; its repair message, {_repair_words(a.repair[bad, m])} per step, restores CMF"
         out.append(text + ".")
     rule = a.summary.get("rank_rule", a.steps[0].get("rank_rule") if a.steps else None)
@@ -640,7 +727,8 @@ def run_audit_sections(run_audit: dict, fig_dir: Path) -> list[Section]:
                      int(a.repair[:, m].max()) if a.T else 0,
                      _g(float(np.nanmin(a.sigma_min[:, m])), 3)]
                     + ([_g(float(np.nanmin(a.canonical[:, m])), 3)] if a.canonical is not None else []))
-    head.add(Table(["sensor", "outputs l_m", "l_m > D", "steps full rank", "steps exact", "largest share of gap",
+    head.add(Table(["sensor", "outputs l_m", "l_m > D", "steps full rank", "steps exact",
+                    "largest share of gap" + (" (prior sd)" if a.share_in_prior_sd else " (state units)"),
                     "largest repair size", "smallest singular value of C_xy^m"]
                    + (["smallest canonical correlation"] if a.canonical is not None else []), rows,
                    f"Sensors (state dimension D = {int(a.rows[0, 0]) if a.n else '?'})"))
@@ -662,24 +750,39 @@ def run_audit_sections(run_audit: dict, fig_dir: Path) -> list[Section]:
     if a.repair.any():
         figs.add(Figure(ef.plot_repair(a.ks, a.repair, labels, fig_dir / "repair.png"),
                         "Repair message size per step and sensor (numbers the sensor would add to restore CMF)"))
+    canonical_rule = a.rule_name == "canonical"
+    if a.canonical is not None:
+        threshold = _rule_threshold(a.summary.get("rank_rule")) if canonical_rule else None
+        figs.add(Figure(ef.plot_min_per_sensor(a.ks, a.canonical, labels, fig_dir / "canonical.png",
+                                               "smallest canonical correlation",
+                                               "smallest canonical correlation"
+                                               + (" and the rank rule's threshold τ (dashed)" if canonical_rule
+                                                  else ""),
+                                               threshold, "threshold τ"),
+                        "Smallest canonical correlation of state and output per step and sensor (unit-free)"
+                        + (": the canonical rank rule in force decides on these — a direction whose correlation is "
+                           "at or below τ (dashed) is dropped" if canonical_rule else
+                           ": what the canonical rule would decide on; the rule in force decides on the singular "
+                           "values below")))
     if np.isfinite(a.sigma_min).any():
         figs.add(Figure(ef.plot_min_per_sensor(a.ks, a.sigma_min, labels, fig_dir / "singular-values.png",
-                                               "σ_min(C_xy^m)", "smallest singular value of C_xy^m and its rank "
-                                               "tolerance (dashed)", a.tol, "tolerance"),
-                        "Smallest singular value of each sensor's cross covariance C_xy^m per step, and the rank "
-                        "tolerance (dashed): below it the rank verdict drops that direction"))
-    if a.canonical is not None:
-        threshold = _rule_threshold(a.summary.get("rank_rule"))
-        figs.add(Figure(ef.plot_min_per_sensor(a.ks, a.canonical, labels, fig_dir / "canonical.png",
-                                               "smallest canonical correlation", "smallest canonical correlation",
-                                               threshold, "rank rule threshold"),
-                        "Smallest canonical correlation of state and output per step and sensor (unit-free)"))
+                                               "σ_min(C_xy^m)", "smallest singular value of C_xy^m"
+                                               + ("" if canonical_rule else " and its rank tolerance (dashed)"),
+                                               None if canonical_rule else a.tol, "tolerance"),
+                        "Smallest singular value of each sensor's cross covariance C_xy^m per step"
+                        + (" (in the case's units; the canonical rule in force does not decide on it: see the "
+                           "canonical correlations above)" if canonical_rule else
+                           ", and the rank tolerance of the rule in force (dashed): below it the rank verdict drops "
+                           "that direction")))
     step_rows = [[s.get("k"), "yes" if s["condition_holds"] else "no", "yes" if s["exact"] else "no",
                   _g(s["gap_norm"], 3) if s.get("gap_norm") is not None else "—",
+                  _g(s["gap_size"], 3) if s.get("gap_size") is not None else "—",
+                  _g(s["gap_bound"], 2) if s.get("gap_bound") is not None else "—",
                   ", ".join(str(x["index"]) for x in s["sensors"] if not x["full_column_rank"]) or "none",
                   "; ".join(s.get("notes") or [])] for s in a.steps if not (s["exact"] and s["condition_holds"])]
     if step_rows:
-        figs.add(Table(["k", "rank condition", "exact", "‖gap‖", "sensors without full rank", "notes"],
+        figs.add(Table(["k", "rank condition", "exact", "‖gap‖ (state units)", "gap (prior sd)",
+                        "rounding bound (prior sd)", "sensors without full rank", "notes"],
                        step_rows[:MAX_STEP_ROWS], f"Steps where the rank condition failed or DMF is not exact "
                        f"({len(step_rows)} of {a.T})"))
     summary = a.summary

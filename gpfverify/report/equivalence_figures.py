@@ -203,15 +203,18 @@ def plot_consistency(ks, nees: dict | None, nis_cmf: dict, nis_local: list[dict]
     return save(fig, path)
 
 
-def plot_drift(ks, recursive: np.ndarray, one_step: np.ndarray, path: Path, run_labels=None) -> tuple[Path, float]:
-    """‖μ_DMF − μ_CMF‖ of the two recursive filters (each from its own previous posterior) against
-    the one-step gap, log scale."""
+def plot_drift(ks, recursive: np.ndarray, one_step: np.ndarray, path: Path, run_labels=None,
+               quantity: tuple[str, str] = GAP_IN_PRIOR_SD) -> tuple[Path, float]:
+    """The difference of the two recursive filters (each from its own previous posterior) against
+    the one-step gap, both as ``quantity`` says (:data:`GAP_IN_PRIOR_SD` or
+    :data:`GAP_IN_STATE_UNITS`), log scale."""
     floor = log_floor(recursive, one_step)
     fig, axes = new_figure(width=9.0, height=3.8)
     ax = axes[0, 0]
     _runs_plot(ax, ks, one_step, "0.5", "one-step gap", floor, "--", run_labels)
     _runs_plot(ax, ks, recursive, "tab:purple", "recursive DMF − CMF", floor, "-", run_labels)
-    _log_steps_axes(ax, "‖μ_DMF − μ_CMF‖", "drift of the recursive filters")
+    _log_steps_axes(ax, quantity[0] + (" (prior sd)" if quantity is GAP_IN_PRIOR_SD else " (state units)"),
+                    "drift of the recursive filters")
     return save(fig, path), floor
 
 
