@@ -137,6 +137,12 @@ class CaseAudit:
     unit_free_dmf_mean: np.ndarray | None = None
     unit_dependence: float | None = None
 
+    def _repr_html_(self) -> str:
+        """In a notebook: the text ``gpfverify audit CASE.json`` prints (:func:`format_audit`)."""
+        from gpfverify.notebook import case_audit_html
+
+        return case_audit_html(self)
+
     @property
     def reproduced(self) -> bool | None:
         """Whether DMF equals CMF to the rounding bound of the step (``gap_size`` ≤ ``gap_bound``,
@@ -411,6 +417,11 @@ class RunAudit:
     predicted_gap_norm (T,) (NaN where a step has no y)."""
 
     steps: tuple[CaseAudit, ...]
+
+    def _repr_html_(self) -> str:
+        from gpfverify.notebook import run_audit_html
+
+        return run_audit_html(self)
 
     def _per_sensor(self, attr: str, dtype=float) -> np.ndarray:
         return np.array([[getattr(s, attr) for s in step.sensors] for step in self.steps], dtype=dtype)

@@ -70,13 +70,19 @@ def audit_block(run_block: RunBlock, rank_rule=None, rank_tol: float | None = No
     audits = [audit if audit is not None else
               audit_case(run_block.block.case(t), rank_tol, sensitivity=sensitivity, rank_rule=rank_rule)
               for t, audit in enumerate(batched)]
-    steps = [{"k": int(k), **audit_to_dict(a)} for k, a in zip(run_block.ks, audits)]
+    return audits_block(run_block.ks, audits, form, keep)
+
+
+def audits_block(ks, audits: list[CaseAudit], form: str = "none", keep: bool = False) -> BlockAudit:
+    """The :class:`BlockAudit` of the audits of steps ``ks`` (``form`` and ``keep`` as in
+    :func:`audit_block`)."""
+    steps = [{"k": int(k), **audit_to_dict(a)} for k, a in zip(ks, audits)]
     rules: list = []
     for s in steps:
         if s["rank_rule"] not in rules:
             rules.append(s["rank_rule"])
     return BlockAudit(
-        ks=np.asarray(run_block.ks, dtype=np.int64),
+        ks=np.asarray(ks, dtype=np.int64),
         condition_holds=np.array([a.condition_holds for a in audits], dtype=bool),
         exact=np.array([a.exact for a in audits], dtype=bool),
         full_column_rank=np.array([[s.full_column_rank for s in a.sensors] for a in audits], dtype=bool),

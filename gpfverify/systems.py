@@ -3,7 +3,8 @@
 ``SYSTEM.py`` is imported as a module of its own, with its folder first on ``sys.path`` while it
 loads and while ``NAME()`` builds the model (so helper modules next to it import; ``sys.path`` is
 restored afterwards); ``NAME`` must be a
-:class:`~gpfverify.models.StateSpaceModel` or a function of no arguments returning one. Every
+:class:`~gpfverify.models.StateSpaceModel`, Stone Soup models or filterpy filters
+(:func:`gpfverify.adapters.as_state_space_model`), or a function of no arguments returning one. Every
 failure — no such file, the file raising while it is imported, no such name, not a model, a model
 function that raises or returns the wrong shape when the model is built — is an
 :class:`~gpfverify.errors.InputError` whose message names the file and the cause in one line.
@@ -17,6 +18,7 @@ import sys
 from contextlib import contextmanager
 from pathlib import Path
 
+from gpfverify.adapters import as_state_space_model
 from gpfverify.errors import GpfverifyError, InputError
 from gpfverify.models import StateSpaceModel
 
@@ -71,6 +73,4 @@ def load_system(spec: str) -> StateSpaceModel:
             raise InputError(f"{path.name}:{name}(): {exc}") from exc
         except Exception as exc:
             raise InputError(f"{path.name}:{name}() raised {type(exc).__name__}: {exc}") from exc
-    if not isinstance(model, StateSpaceModel):
-        raise InputError(f"{path.name}:{name} is a {type(model).__name__}, not a gpfverify.models.StateSpaceModel")
-    return model
+    return as_state_space_model(model, f"{path.name}:{name}")

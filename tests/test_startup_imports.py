@@ -7,6 +7,8 @@ from pathlib import Path
 
 EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
 HEAVY = ("matplotlib", "cvxpy")
+#: optional extras: loaded only for a system made of their objects (gpfverify.adapters)
+EXTRAS = ("stonesoup", "filterpy")
 
 
 def _imported_modules(args: list[str], cwd: Path) -> set[str]:
@@ -21,7 +23,8 @@ def test_check_json_with_the_default_methods_imports_no_plotting_and_no_conic_so
     modules = _imported_modules(["check", str(EXAMPLES / "three_sensor_system.py") + ":tracker",
                                  "--steps", "2", "--json"], tmp_path)
     assert "gpfverify.experiments.check" in modules and "numpy" in modules  # the parse saw the run
-    assert {m.split(".")[0] for m in modules}.isdisjoint(HEAVY)
+    assert {m.split(".")[0] for m in modules}.isdisjoint(HEAVY + EXTRAS)
+    assert "gpfverify.adapters" in modules and "gpfverify.adapters.stonesoup" not in modules
 
 
 def test_check_with_out_writes_its_figures_with_matplotlib(tmp_path):

@@ -17,6 +17,7 @@ from gpfverify.audit import (RANK_RULE_DEFAULT, RunAudit, audit_case, audit_to_d
 from gpfverify.cli import RANK_RULE_HELP, positive_int, rank_rule_text
 from gpfverify.errors import InputError
 from gpfverify.fusion.runfile import run_format
+from gpfverify.notebook import progress_shown
 from gpfverify.outputs import check_out, final_path, out_path, output_folder
 from gpfverify.report.document import integer_ranges
 from gpfverify.runaudit import copy_out, spool, stream_audit, table_header, table_row
@@ -64,16 +65,26 @@ def _audit(case, rank_tol, rank_rule, sensitivity):
     return audit_case(case, rank_tol, sensitivity=sensitivity, rank_rule=rank_rule)
 
 
-def audit_run_file(path, rank_rule=None, rank_tol: float | None = None, sensitivity: bool = False):
+def audit_run_file(path, rank_rule=None, rank_tol: float | None = None, sensitivity: bool = False,
+                   show_progress: bool | None = None):
     """Audit every step of a run file (or a single case file, as one step):
     ``(RunAudit, steps, summary)`` with ``steps[t]`` the ``audit --json`` object of step t plus
     its ``"k"`` and ``summary`` as printed by ``audit --json``. ``rank_rule`` is a rule object or a
     string for ``parse_rank_rule``; ``rank_tol`` (absolute) overrides every case's ``rank_tol``;
     without either, each case's ``rank_tol`` or the audit's default rule decides. Holds the whole
-    run: for long runs use :func:`gpfverify.runaudit.stream_audit`.
+    run: for long runs use :func:`gpfverify.runaudit.stream_audit`. ``show_progress`` draws a
+    progress bar (default: on a terminal and in a Jupyter notebook).
     Raises :class:`~gpfverify.errors.CaseFileError` for a malformed file."""
-    summary, steps, audits = stream_audit(path, None, form="none", rank_rule=_resolve_rank_rule(rank_rule),
-                                          rank_tol=rank_tol, sensitivity=sensitivity, keep=True)
+    with _progress(progress_shown() if show_progress is None else show_progress) as progress:
+        task = progress.add_task("audit", total=None) if progress is not None else None
+
+        def on_block(done: int, total: int | None) -> None:
+            if progress is not None:
+                progress.update(task, completed=done, total=total)
+
+        summary, steps, audits = stream_audit(path, None, form="none", rank_rule=_resolve_rank_rule(rank_rule),
+                                              rank_tol=rank_tol, sensitivity=sensitivity, on_block=on_block,
+                                              keep=True)
     return RunAudit(tuple(audits)), steps, summary
 
 
@@ -126,7 +137,7 @@ def _audit_run(args: argparse.Namespace) -> None:
     with contextlib.ExitStack() as stack:
         out = stack.enter_context(spool())
         executor = stack.enter_context(make_executor(args.workers, args.scheduler)) if parallel else None
-        progress = stack.enter_context(_progress(sys.stderr.isatty()))
+        progress = stack.enter_context(_progress(progress_shown()))
         task = progress.add_task("audit", total=None) if progress is not None else None
 
         def on_block(done: int, total: int | None) -> None:

@@ -1,7 +1,8 @@
 """``gpfverify check SYSTEM.py:NAME``: does DMF reproduce CMF on your system, at every step, and why
 (not)? Simulated runs (truth known) or your logged measurements; every step audited.
 
-The system file defines NAME, a gpfverify.models.StateSpaceModel (format: docs/models.md).
+The system file defines NAME, a gpfverify.models.StateSpaceModel (format: docs/models.md), or Stone
+Soup models or filterpy filters, taken as they are (docs/ecosystem.md).
 Results go to --out DIR (results.json, the per-run records and the equivalence report) or, with
 --json alone, to stdout.
 """
@@ -28,7 +29,8 @@ DEFAULT_STEPS = 50
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("system", metavar="SYSTEM.py:NAME",
-                        help="a Python file and the name of the StateSpaceModel it defines (docs/models.md)")
+                        help="a Python file and the name of the StateSpaceModel it defines (docs/models.md), "
+                             "or of its Stone Soup models or filterpy filters (docs/ecosystem.md)")
     parser.add_argument("--filter", default="ukf", choices=[f for f in FAMILY_NAMES if f != "kf"],
                         help="the Gaussian family of every local filter and of the centre (default ukf)")
     parser.add_argument("--steps", type=int, default=None,

@@ -98,6 +98,12 @@ class ClaimRecord:
     def from_json(cls, data: Any) -> ClaimRecord:
         return from_json(cls, data, "claim")
 
+    def _repr_html_(self) -> str:
+        """In a notebook: the report's claims table with this record (:func:`gpfverify.notebook.claims_html`)."""
+        from gpfverify.notebook import claims_html
+
+        return claims_html([self])
+
     @property
     def cautions(self) -> list[str]:
         """Why a reader should hold this verdict loosely: fewer runs than the paper, wall-clock."""

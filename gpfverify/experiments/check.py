@@ -279,9 +279,10 @@ def _average(kind: str, values: np.ndarray, dof: int) -> dict:
             "level": test.level, "fraction_inside": test.fraction_inside, "verdict": test.verdict()}
 
 
-def summarize(params: Params, results: list[RunRecord]) -> dict:
-    """The results.json body (CONTRACT "Checking a user's own system" keys first)."""
-    model = load_system(params.system)
+def summarize(params: Params, results: list[RunRecord], model=None) -> dict:
+    """The results.json body (CONTRACT "Checking a user's own system" keys first); ``model`` the
+    system (default: loaded from ``params.system``)."""
+    model = load_system(params.system) if model is None else model
     rule = parse_rank_rule(params.rank_rule)
     steps_by_run = [r.steps for r in results]
     first = steps_by_run[0]
@@ -340,3 +341,19 @@ def summarize(params: Params, results: list[RunRecord]) -> dict:
         out["local_nees"] = [_average("NEES", local_nees[:, :, m], d) for m in range(len(model.sensors))]
     return out
 
+
+
+def results_of_run(fused, truth: np.ndarray | None = None, system: str = "") -> dict:
+    """The results of a check made of one :func:`~gpfverify.fusion.run_fusion` result on a
+    :class:`~gpfverify.models.StateSpaceModel` (it must have run CMF and DMF with the audit): what
+    :func:`summarize` gives for one run, with the header fields of ``results.json`` (so that the
+    equivalence page renders it, :func:`gpfverify.notebook.fusion_run_html`); ``truth`` (T, D)
+    adds RMSE and NEES; ``system`` names it."""
+    if fused.model is None or fused.ys is None or fused.steps[0].audit is None or "cmf" not in fused.methods:
+        raise InputError("the check's results need a run_fusion result with its model and ys, CMF, DMF and the audit")
+    rule = fused.steps[0].audit.rank_rule
+    params = Params(system=system, filter=fused.family, steps=len(fused.steps), methods=fused.methods,
+                    rank_rule=rule.spec)
+    record = _record(fused.model, fused, fused.ys, truth)
+    return {"experiment": NAME, "runs": 1, "seed": None, "runs_ok": 1, "failed_runs": [], "params": params.to_json(),
+            **summarize(params, [record], fused.model)}

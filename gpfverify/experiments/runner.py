@@ -44,6 +44,7 @@ from gpfverify import provenance
 from gpfverify.contract.params import Params
 from gpfverify.contract.serial import from_json, to_json
 from gpfverify.errors import InputError, WorkerLost
+from gpfverify.notebook import progress_shown
 from gpfverify.runtime import BLAS_THREAD_VARS
 from gpfverify.usercode import HARD_EXIT, UserExit, guarded, system_file
 
@@ -318,7 +319,8 @@ def run_experiment(module: ModuleType | str, params: Params, runs: int, seed: in
     """Run (or finish) ``runs`` Monte Carlo runs of an experiment and write ``results.json``.
 
     ``params`` is the experiment's ``Params`` (see :mod:`gpfverify.contract.experiment`);
-    ``on_run(saved, runs)`` is called after every saved run (progress off a terminal)."""
+    ``on_run(saved, runs)`` is called after every saved run (progress off a terminal);
+    ``show_progress`` draws rich's progress bar (default: on a terminal and in a Jupyter notebook)."""
     module = importlib.import_module(module) if isinstance(module, str) else module
     name = module.NAME
     if isinstance(runs, bool) or not isinstance(runs, int) or runs < 1:
@@ -339,7 +341,7 @@ def run_experiment(module: ModuleType | str, params: Params, runs: int, seed: in
     (out_dir / "runs").mkdir(parents=True, exist_ok=True)
     _check_manifest(out_dir, manifest, resume)
     pending = [i for i in range(runs) if not _is_ok(_run_path(out_dir, i))]
-    show = sys.stderr.isatty() if show_progress is None else show_progress
+    show = progress_shown() if show_progress is None else show_progress
     with contextlib.ExitStack() as stack:
         if executor is None:
             executor = stack.enter_context(make_executor(1))

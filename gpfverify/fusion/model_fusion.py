@@ -170,11 +170,20 @@ class FusionStep:
 
 @dataclass(frozen=True)
 class FusionRun:
-    """A fusion run: the ``family``, the ``methods`` run and one :class:`FusionStep` per measurement."""
+    """A fusion run: the ``family``, the ``methods`` run and one :class:`FusionStep` per measurement;
+    ``model`` and ``ys`` what it ran on. In a notebook it shows as ``gpfverify check``'s page
+    (:func:`gpfverify.notebook.fusion_run_html`)."""
 
     family: str
     methods: tuple[str, ...]
     steps: tuple[FusionStep, ...]
+    model: object = field(default=None, repr=False, compare=False)
+    ys: np.ndarray | None = field(default=None, repr=False, compare=False)
+
+    def _repr_html_(self) -> str:
+        from gpfverify.notebook import fusion_run_html
+
+        return fusion_run_html(self)
 
     def means(self, method: str) -> np.ndarray:
         """Fused means of ``method`` at every step, (T, D)."""
@@ -312,7 +321,7 @@ def run_fusion(model, ys, *, family: str = "ukf", methods: Sequence[str] = DEFAU
             step_audit = _audit(dmf)
         steps.append(FusionStep(k, local, cmf, dmf, fused_estimates, step_audit,
                                 seconds, tuple(s for _, s in timed), failed))
-    return FusionRun(family, methods, tuple(steps))
+    return FusionRun(family, methods, tuple(steps), model, ys)
 
 
 def _audit(dmf: DMFStep) -> CaseAudit:

@@ -220,6 +220,17 @@ def to_html(sections: list[Section], title: str) -> str:
     return _page(title, "", listed, {}, None)
 
 
+def to_fragment(sections: list[Section]) -> str:
+    """``sections`` as one HTML fragment for a notebook's output cell: the page's blocks and words,
+    with only the page's verdict colours and figure width, scoped to the fragment (the notebook keeps
+    its own styles)."""
+    root = _STYLE.split(":root{", 1)[1].split("}", 1)[0]
+    scoped = [f".gpfverify-report{{{root}}}"] + [f".gpfverify-report {line}" for line in _STYLE.splitlines()
+                                                 if line.startswith((".v-", "td.verdict", "img{"))]
+    return (f"<div class=\"gpfverify-report\"><style>{''.join(scoped)}</style>"
+            + "".join(_fragment(s) for s in sections) + "</div>")
+
+
 def _fragment(section: Section) -> str:
     return (f'<section id="{esc(section.slug)}"><h2>{inline(_text(section.title))}</h2>'
             + "".join(_html_block(b) for b in section.blocks) + "</section>")

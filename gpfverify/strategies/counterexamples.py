@@ -26,8 +26,10 @@ from hypothesis import note
 from hypothesis.control import current_build_context
 
 from gpfverify.fusion.case import FusionCase, case_to_dict
+from gpfverify.pytest_plugin import CASES_VARIABLE as ENVIRONMENT_VARIABLE  # one name: set by --gpfverify-cases
 
-ENVIRONMENT_VARIABLE = "GPFVERIFY_COUNTEREXAMPLES"
+#: what precedes a counterexample case's JSON in a failure report (``show=True``)
+CASE_PREFIX = "gpfverify fusion case:"
 
 
 def counterexample_dir() -> Path | None:
@@ -51,12 +53,19 @@ def write_case(case: FusionCase, name: str, directory: Path) -> Path:
 
 
 @contextmanager
-def saving_case_on_failure(case: FusionCase, name: str):
-    """Save ``case`` as a counterexample file when the wrapped block raises (see module docstring)."""
+def saving_case_on_failure(case: FusionCase, name: str, show: bool = False):
+    """Save ``case`` as a counterexample file when the wrapped block raises (see module docstring);
+    with ``show``, also note the case itself, one line of JSON after ``gpfverify fusion case:``, in
+    the failure report (so that it reaches the user when no directory is set)."""
     try:
         yield
     except BaseException:
         if _final_or_outside_hypothesis():
+            if show:
+                try:
+                    note(f"{CASE_PREFIX} {json.dumps(case_to_dict(case))}")
+                except Exception:  # outside a hypothesis test there is nothing to note to
+                    pass
             directory = counterexample_dir()
             if directory is not None:
                 path = write_case(case, name, directory)

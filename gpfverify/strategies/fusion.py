@@ -136,3 +136,40 @@ def fusion_case_files(**options) -> st.SearchStrategy[dict]:
     """Fusion cases as JSON-able dicts in exactly the CONTRACT.md format (the keyword options are
     those of :func:`fusion_cases`)."""
     return fusion_cases(**options).map(DrawnCase.to_dict)
+
+
+def case_of_estimates(estimates, circular_state=()) -> FusionCase:
+    """Local estimates (x_m, P_m) as one fusion step whose sensors' posteriors are exactly them, so
+    that ``gpfverify fuse CASE --method cc|ci|rcc-ci`` fuses these estimates and ``gpfverify audit``
+    reads the step. Each sensor m measures the whole state, y^m = x + v^m, with independent noise
+    R_m = P_m + P_m (C_p − P_m)⁻¹ P_m under the common prior N(μ_p, C_p), μ_p the estimates' mean
+    (on the circle for ``circular_state``) and C_p = 2 λ I, λ the largest eigenvalue of any P_m: then
+    C_p ≻ P_m, C_p − C_p (C_p + R_m)⁻¹ C_p = P_m, and y^m = μ_p + (C_p + R_m) C_p⁻¹ (x_m ⊖ μ_p)
+    updates the prior to x_m. Angle state components are angle outputs of every sensor."""
+    from gpfverify.angles import difference, weighted_mean, wrap_components
+
+    means = np.array([np.asarray(e.mean, dtype=float) for e in estimates])
+    covs = [np.asarray(e.cov, dtype=float) for e in estimates]
+    n, d = means.shape
+    circular_state = tuple(int(i) for i in circular_state)
+    mu_p = weighted_mean(means, np.full(n, 1.0 / n), circular_state)
+    c_p = 2.0 * max(float(np.linalg.eigvalsh(p)[-1]) for p in covs) * np.eye(d)
+    reports, ys, blocks = [], [], []
+    for x_m, p_m in zip(means, covs):
+        r_m = p_m + p_m @ np.linalg.solve(c_p - p_m, p_m)
+        r_m = 0.5 * (r_m + r_m.T)
+        c_y = c_p + r_m
+        y_m = wrap_components(mu_p + c_y @ np.linalg.solve(c_p, difference(x_m, mu_p, circular_state)),
+                              circular_state)
+        ys.append(y_m)
+        blocks.append(c_y)
+        reports.append(LocalReport(mu_p=mu_p, mu_y=mu_p, C_y=c_y, C_xy=c_p, mu_e=x_m, C_e=p_m,
+                                   circular=circular_state))
+    c_y_all = np.kron(np.ones((n, n)), c_p)
+    for m, c_y in enumerate(blocks):
+        c_y_all[m * d:(m + 1) * d, m * d:(m + 1) * d] = c_y
+    central = CentralPrediction(mu_p=mu_p, C_p=c_p, mu_y=np.tile(mu_p, n), C_y=c_y_all,
+                                C_xy=np.tile(c_p, (1, n)), sizes=(d,) * n,
+                                circular=tuple(m * d + i for m in range(n) for i in circular_state),
+                                circular_state=circular_state)
+    return FusionCase(central, tuple(reports), np.concatenate(ys))

@@ -1,0 +1,98 @@
+"""gpfverify's results in a Jupyter notebook: the HTML that ``_repr_html_`` shows, made by the same
+page renderers as the reports (:mod:`gpfverify.report`), so a notebook says what the pages say.
+
+* :func:`fusion_run_html` — a :func:`~gpfverify.fusion.run_fusion` result on a
+  :class:`~gpfverify.models.StateSpaceModel` with CMF, DMF and the audit: the page of
+  ``gpfverify check`` for that one run (verdict, sensors, gap per step against its rounding bound,
+  consistency; RMSE and NEES when the truth is given). A run without them: its fused means.
+* :func:`run_audit_html` — a :class:`~gpfverify.audit.RunAudit`: the page of ``gpfverify audit
+  RUN --out DIR`` (steps numbered from 0).
+* :func:`case_audit_html` — a :class:`~gpfverify.audit.CaseAudit`: what ``gpfverify audit CASE.json``
+  prints.
+* :func:`claims_html` — claim records: the report's claims table.
+
+Figures are drawn with matplotlib (Agg) into a temporary folder and embedded in the HTML.
+Progress bars (:func:`progress_shown`: the runs of
+:func:`~gpfverify.experiments.runner.run_experiment`, the blocks of
+:func:`~gpfverify.commands.audit.audit_run_file`) are drawn on a terminal and in a notebook, where
+rich shows them as a live output (with ``ipywidgets`` installed: ``pip install 'gpfverify[notebook]'``).
+"""
+
+from __future__ import annotations
+
+import html
+import sys
+import tempfile
+from collections.abc import Iterable
+from pathlib import Path
+
+
+def _fragment(sections) -> str:
+    from gpfverify.report.render import to_fragment
+
+    return to_fragment(sections)
+
+
+def fusion_run_html(fused, truth=None, system: str = "run_fusion") -> str:
+    """The check page of one :func:`~gpfverify.fusion.run_fusion` result (module docstring)."""
+    from gpfverify.experiments.check import results_of_run
+    from gpfverify.models.system import StateSpaceModel
+
+    if (isinstance(fused.model, StateSpaceModel) and fused.ys is not None and fused.steps[0].audit is not None
+            and "cmf" in fused.methods):
+        from gpfverify.report.equivalence import equivalence_sections
+
+        results = results_of_run(fused, truth, system)
+        with tempfile.TemporaryDirectory(prefix="gpfverify-notebook-") as folder:
+            return _fragment(equivalence_sections(results, Path(folder)))
+    from gpfverify.report.document import Paragraph, Section, Table
+
+    last = fused.steps[-1]
+    section = Section("run", f"run_fusion: {fused.family}, {len(fused.steps)} steps")
+    section.add(Paragraph("The check's page needs CMF, DMF and the audit on a StateSpaceModel; this run shows "
+                          "its fused means at the last step."),
+                Table(["method", f"mean at k = {last.k}"],
+                      [[m, "—" if m in last.failed else ", ".join(f"{v:.4g}" for v in last.estimate(m).mean)]
+                       for m in fused.methods], "Fused means"))
+    return _fragment([section])
+
+
+def run_audit_html(run_audit) -> str:
+    """The page of a run audit (module docstring)."""
+    from gpfverify.report.equivalence import run_audit_sections
+    from gpfverify.runaudit import RunSummary, audits_block
+
+    block = audits_block(range(len(run_audit.steps)), list(run_audit.steps), keep=True)
+    summary = RunSummary()
+    summary.add(block)
+    result = summary.result()
+    with tempfile.TemporaryDirectory(prefix="gpfverify-notebook-") as folder:
+        return _fragment(run_audit_sections({"steps": block.steps, "summary": result,
+                                             "rank_rule": result["rank_rule"]}, Path(folder)))
+
+
+def case_audit_html(audit) -> str:
+    """What ``gpfverify audit CASE.json`` prints for this audit (module docstring)."""
+    from gpfverify.audit import format_audit
+
+    return f'<div class="gpfverify-report"><pre>{html.escape(format_audit(audit))}</pre></div>'
+
+
+def claims_html(records: Iterable) -> str:
+    """The report's table of claim records (verdict, statistic, threshold, evidence, caveats)."""
+    from gpfverify.report.document import Section, claim_records_table
+
+    return _fragment([Section("claims", "Claims").add(claim_records_table(list(records)))])
+
+
+def progress_shown(stream=None) -> bool:
+    """Whether a progress bar is drawn: on a terminal, and in a Jupyter notebook (rich draws it as a
+    live output cell there). Off a terminal elsewhere (a log file, CI) it is not."""
+    stream = sys.stderr if stream is None else stream
+    if stream.isatty():
+        return True
+    if "ipykernel" not in sys.modules:  # no kernel loaded: not a notebook, and no import of rich needed
+        return False
+    from rich.console import Console
+
+    return Console().is_jupyter

@@ -1,0 +1,57 @@
+"""The ``gpfverify`` pytest plugin (entry point ``pytest11``): loaded by every pytest run once
+gpfverify is installed, so it imports nothing but pytest and the standard library when it loads
+and does nothing unless asked.
+
+* ``--gpfverify-cases DIR``: write the shrunk counterexample of every failing gpfverify property
+  (the suites of :mod:`gpfverify.testing`, and any property using
+  :func:`gpfverify.strategies.saving_case_on_failure`) as a fusion case file in DIR, which
+  ``gpfverify audit`` reads. Without it the case is printed in the failure report only.
+* Fixtures, each used only by a test that names it: ``gpfverify_strategies`` (the
+  :mod:`gpfverify.strategies` module, for ``data.draw(...)`` inside a ``@given(st.data())`` test;
+  session-scoped, so hypothesis accepts it) and ``gpfverify_cases`` (the folder given by
+  ``--gpfverify-cases``, or None).
+
+The property suites themselves are classes to subclass with your rule: ``from gpfverify.testing
+import EstimateRuleSuite, CaseRuleSuite`` (docs/ecosystem.md). The plugin registers no hypothesis
+profile (it would replace a project's own of the same name): a ``conftest.py`` that imports
+:mod:`gpfverify.strategies.profiles` makes ``--hypothesis-profile ci|dev|thorough`` gpfverify's.
+"""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import pytest
+
+#: the environment variable through which the folder reaches the properties (and worker processes)
+CASES_VARIABLE = "GPFVERIFY_COUNTEREXAMPLES"
+
+
+def pytest_addoption(parser: pytest.Parser) -> None:
+    group = parser.getgroup("gpfverify", "gpfverify property suites")
+    group.addoption("--gpfverify-cases", metavar="DIR", default=None,
+                    help="write the shrunk counterexample of each failing gpfverify property as a fusion case "
+                         "file in DIR (gpfverify audit reads it)")
+
+
+def pytest_configure(config: pytest.Config) -> None:
+    folder = config.getoption("gpfverify_cases", None)
+    if folder:
+        os.environ[CASES_VARIABLE] = str(Path(folder).resolve())
+
+
+@pytest.fixture(scope="session")
+def gpfverify_strategies():
+    """The :mod:`gpfverify.strategies` module (hypothesis strategies for correlated estimates,
+    fusion cases, models)."""
+    import gpfverify.strategies
+
+    return gpfverify.strategies
+
+
+@pytest.fixture(scope="session")
+def gpfverify_cases(pytestconfig: pytest.Config) -> Path | None:
+    """The folder failing gpfverify properties write their case files to (``--gpfverify-cases``)."""
+    folder = pytestconfig.getoption("gpfverify_cases", None)
+    return Path(folder).resolve() if folder else None

@@ -1,0 +1,112 @@
+"""Results in a notebook (``_repr_html_``) say what the pages say, because the pages' renderers make them:
+
+* a run_fusion result shows the check page of the same run: the verdict sentence and the summary that
+  ``gpfverify check --measurements`` writes for the same system and measurements;
+* a RunAudit shows the page ``gpfverify audit RUN --out`` writes for the same steps;
+* a CaseAudit shows what ``gpfverify audit CASE.json`` prints; a claim record the report's claims table;
+* progress bars are drawn on a terminal and in a Jupyter kernel, not in a log file.
+"""
+
+from __future__ import annotations
+
+import builtins
+import html
+import json
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from gpfverify.fusion import run_fusion
+from gpfverify.fusion.runfile import write_run
+from gpfverify.notebook import progress_shown
+
+ROOT = Path(__file__).resolve().parents[1]
+TRACKER = f"{ROOT / 'examples' / 'three_sensor_system.py'}:tracker"
+
+
+@pytest.fixture(scope="module")
+def tracker_run():
+    from gpfverify.systems import load_system
+
+    model = load_system(TRACKER)
+    _, ys = model.simulate(6, np.random.default_rng(3))
+    return model, ys, run_fusion(model, ys, family="ukf", methods=("cmf", "dmf", "cc", "ci"), rank_rule="canonical")
+
+
+def _words(text: str) -> str:
+    """A paragraph as the pages render it (the one renderer, given this paragraph alone)."""
+    from gpfverify.report.document import Paragraph, Section
+    from gpfverify.report.render import to_fragment
+
+    alone = to_fragment([Section("p", "p").add(Paragraph(text))])
+    return alone[alone.index("<p>"):alone.rindex("</p>") + 4]
+
+
+def test_a_fusion_run_shows_the_check_page_of_the_same_run(tracker_run, tmp_path, capsys):
+    from gpfverify.cli import main
+    from gpfverify.contract.check import verdict_sentence
+    from gpfverify.report.equivalence import summary_paragraphs
+
+    model, ys, fused = tracker_run
+    np.savez(tmp_path / "m.npz", y=ys)
+    assert main(["check", TRACKER, "--measurements", str(tmp_path / "m.npz"), "--json"]) == 0
+    results = json.loads(capsys.readouterr().out)
+    page = fused._repr_html_()
+    assert _words(verdict_sentence(results)) in page
+    for paragraph in summary_paragraphs(results)[1:]:
+        assert _words(paragraph) in page
+    assert page.count("<img") >= 3  # the gap, the verdict strip, the consistency figures
+
+
+def test_a_run_audit_shows_the_audit_page_of_the_same_steps(tracker_run, tmp_path):
+    from gpfverify.commands.audit import audit_run_file
+    from gpfverify.report.equivalence import audit_summary_paragraphs
+
+    _, _, fused = tracker_run
+    path = write_run(tmp_path / "run.jsonl", [s.dmf.case for s in fused.steps])  # steps k = 0, 1, ...
+    _, steps, summary = audit_run_file(path, rank_rule="canonical")
+    page = fused.audit._repr_html_()
+    for paragraph in audit_summary_paragraphs({"steps": steps, "summary": summary}):
+        assert _words(paragraph) in page
+
+
+def test_a_case_audit_and_a_claim_show_what_the_command_and_the_report_show(tracker_run):
+    from gpfverify.audit import format_audit
+    from gpfverify.contract.claims import ClaimRecord
+
+    _, _, fused = tracker_run
+    audit = fused.steps[0].audit
+    assert html.escape(format_audit(audit)) in audit._repr_html_()
+    claim = ClaimRecord("DMF reproduces CMF", "Liao et al. 2019, Proposition 1", "NOT held", 0.3, 0.0, 10,
+                        "largest gap 0.3")
+    shown = claim._repr_html_()
+    assert "v-not-held" in shown and "DMF reproduces CMF" in shown and "largest gap 0.3" in shown
+
+
+def test_a_run_without_the_audit_shows_its_fused_means(tracker_run):
+    model, ys, _ = tracker_run
+    fused = run_fusion(model, ys, family="ukf", methods=("cc",), audit=False)
+    page = fused._repr_html_()
+    assert "Fused means" in page and ", ".join(f"{v:.4g}" for v in fused.means("cc")[-1]) in page
+
+
+class _Stream:
+    def __init__(self, tty: bool):
+        self.tty = tty
+
+    def isatty(self) -> bool:
+        return self.tty
+
+
+class ZMQInteractiveShell:
+    """The class name by which rich recognises a Jupyter kernel's shell."""
+
+
+def test_progress_is_drawn_on_a_terminal_and_in_a_notebook_only(monkeypatch):
+    monkeypatch.delitem(sys.modules, "ipykernel", raising=False)
+    assert progress_shown(_Stream(True)) and not progress_shown(_Stream(False))
+    monkeypatch.setitem(sys.modules, "ipykernel", type(sys)("ipykernel"))
+    monkeypatch.setattr(builtins, "get_ipython", lambda: ZMQInteractiveShell(), raising=False)
+    assert progress_shown(_Stream(False))  # a notebook: rich draws the bar as a live output
