@@ -3,7 +3,13 @@ PYTHON ?= python3
 VENV   := .venv
 BIN    := $(VENV)/bin
 
-.PHONY: report test install clean
+# test processes: one per core (pytest-xdist's "auto"); TEST_WORKERS=0 runs the suite in this one process
+TEST_WORKERS ?= auto
+# each test file runs whole in one process (its module fixtures, an experiment run, made once)
+PYTEST := MPLBACKEND=Agg $(BIN)/python -m pytest -p no:cacheprovider --hypothesis-profile=ci \
+          -n $(TEST_WORKERS) --dist loadfile
+
+.PHONY: report test test-fast install clean
 
 $(BIN)/python:
 	@echo "creating a virtual environment in $(VENV) (first run only)..."
@@ -33,7 +39,12 @@ report: $(VENV)/.runtime-installed
 test: $(VENV)/.test-installed
 	$(BIN)/ruff check gpfverify
 	$(BIN)/mypy
-	MPLBACKEND=Agg $(BIN)/python -m pytest -p no:cacheprovider --hypothesis-profile=ci
+	$(PYTEST)
+
+# the inner loop: every test but those marked slow (subprocesses, experiment runs, the browser)
+test-fast: $(VENV)/.test-installed
+	$(BIN)/ruff check gpfverify
+	$(PYTEST) -m "not slow"
 
 clean:
 	rm -rf $(VENV) reports/quick

@@ -62,7 +62,7 @@ def breakdown(record: FusionRun) -> dict[str, float]:
 
 
 def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser = argparse.ArgumentParser(allow_abbrev=False, description=__doc__.splitlines()[0])
     parser.add_argument("--runs", type=int, default=3, help="runs of ours timed (median)")
     parser.add_argument("--out", type=Path)
     args = parser.parse_args()

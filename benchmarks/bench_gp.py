@@ -55,7 +55,7 @@ def reference_moments(X, Y, ell, s2, n2, mu, sigma):
 
 
 def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser = argparse.ArgumentParser(allow_abbrev=False, description=__doc__.splitlines()[0])
     parser.add_argument("--out", type=Path)
     parser.add_argument("--repeats", type=int, default=30)
     args = parser.parse_args()

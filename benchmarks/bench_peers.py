@@ -784,7 +784,7 @@ def cpu() -> str:
 
 
 def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser = argparse.ArgumentParser(allow_abbrev=False, description=__doc__.splitlines()[0])
     parser.add_argument("--repeats", type=int, default=41, help="timed blocks per side (median)")
     parser.add_argument("--ct2d-runs", type=int, default=3)
     parser.add_argument("--quick", action="store_true", help="few repeats, no ct2d run")

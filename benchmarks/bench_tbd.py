@@ -111,7 +111,7 @@ def run_vectorised(images, model, config, seed, second_seed):
 
 
 def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser = argparse.ArgumentParser(allow_abbrev=False, description=__doc__.splitlines()[0])
     parser.add_argument("--particles", type=int, default=2000)
     parser.add_argument("--repeats", type=int, default=5)
     parser.add_argument("--reference-frames", type=int, default=3,

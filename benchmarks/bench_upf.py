@@ -73,7 +73,7 @@ def _downdate_case(particles: int):
 
 
 def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser = argparse.ArgumentParser(allow_abbrev=False, description=__doc__.splitlines()[0])
     parser.add_argument("--particles", type=int, nargs="+", default=[20, 50])
     parser.add_argument("--repeats", type=int, default=15)
     parser.add_argument("--out", type=Path)

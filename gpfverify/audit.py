@@ -66,6 +66,7 @@ from gpfverify.fusion.exactness import (COVARIANCE_CENTRAL, COVARIANCE_LOCAL, DE
                                         resolve_rank_rule, sensor_gap, sensor_prior_covariance,
                                         whitened_innovation)
 from gpfverify.linalg import correlation_condition
+from gpfverify.runtime import one_blas_thread
 from gpfverify.tolerances import algebra_rtol
 
 if TYPE_CHECKING:  # casadi is imported only when sensitivities are asked for
@@ -231,6 +232,7 @@ def _unit_free_variant(case: FusionCase, rule: RankRule, dmf: DMFResult) -> tupl
     return variant, gap_size(case, difference(dmf.mean, variant, case.circular_state), dmf.scale)
 
 
+@one_blas_thread
 def audit_case(case: FusionCase, rank_tol: float | None = None, sensitivity: bool = False,
                rank_rule: RankRule | str | None = None) -> CaseAudit:
     """The rank-condition audit of one case under ``rank_rule`` (a :class:`RankRule` or its string,

@@ -2,9 +2,11 @@
 
 One error boundary (:func:`main`) for every command: a :class:`~gpfverify.errors.GpfverifyError`,
 an operating-system error (a missing or unwritable file, ``--out`` naming a file), undecodable
-text, input nested too deeply, and a closed output pipe (``gpfverify audit CASE | head -3``) each
-end as exit status 2 and exactly one line ``gpfverify COMMAND: error: ...`` on stderr. Numeric
-options must be finite (``inf``/``nan`` are refused by the parser). Warnings raised while a
+text and input nested too deeply each end as exit status 2 and exactly one line
+``gpfverify COMMAND: error: ...`` on stderr. A closed output pipe (``gpfverify audit RUN | head -3``)
+ends as exit status 2 too (the output is incomplete, as ``set -o pipefail`` should see) but quietly:
+the reader closed it on purpose, like ``head`` does, and an error line would only interrupt what it
+printed. Numeric options must be finite (``inf``/``nan`` are refused by the parser). Warnings raised while a
 command runs (numpy's floating-point RuntimeWarnings, for instance) are collected instead of
 printed: dropped when the command fails (its one line says what went wrong), summarised in one
 line when it succeeds. Anything else is a bug: one line asking for a report, exit status 1, and
@@ -44,7 +46,12 @@ COMMANDS: dict[str, tuple[str, str]] = {
 
 
 class OneLineParser(argparse.ArgumentParser):
-    """argparse that reports a usage error as one line and exit status 2."""
+    """argparse that reports a usage error as one line and exit status 2, and takes every option
+    by its full name only (``allow_abbrev=False``: ``--train`` is not silently ``--training-start-var``)."""
+
+    def __init__(self, *args, **kwargs) -> None:
+        kwargs.setdefault("allow_abbrev", False)
+        super().__init__(*args, **kwargs)
 
     def error(self, message: str):  # noqa: D401 - argparse API
         self.exit(2, f"{self.prog}: error: {one_line(message)}\n")
@@ -138,9 +145,16 @@ def build_parser() -> argparse.ArgumentParser:
                                                          "implemented, verified, reproduced.")
     parser.add_argument("--version", action="version", version=f"gpfverify {__version__}")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=OneLineParser)
-    sub.required = True
     for name, (_module, help_text) in COMMANDS.items():
         sub.add_parser(name, help=help_text, add_help=False)
+    return parser
+
+
+def command_parser(command: str) -> OneLineParser:
+    """The parser of one subcommand (``gpfverify COMMAND ...``), its options added by its module."""
+    module = importlib.import_module(COMMANDS[command][0])
+    parser = OneLineParser(prog=f"gpfverify {command}", description=COMMANDS[command][1])
+    module.add_arguments(parser)
     return parser
 
 
@@ -156,8 +170,6 @@ def _user_error(exc: BaseException) -> str | None:
     """The one-line message for an error the user caused, or None for a bug."""
     if isinstance(exc, GpfverifyError):
         return str(exc)
-    if isinstance(exc, BrokenPipeError):
-        return "the output was closed before everything was written (broken pipe)"
     if isinstance(exc, OSError):
         where = " ".join(f"{name}" for name in (exc.filename, exc.filename2) if name is not None)
         return f"{exc.strerror or exc}" + (f": {where}" if where else "")
@@ -289,13 +301,13 @@ def _main(argv: list[str] | None) -> int:
     parser = build_parser()
     known, rest = parser.parse_known_args(argv[:1] if argv and argv[0] in COMMANDS else argv)
     command = known.command
+    if command is None:
+        parser.error(f"name a command, one of {', '.join(COMMANDS)} (gpfverify COMMAND --help for its options)")
     with warnings.catch_warnings(record=True) as caught:
         try:
             _refuse_closed_stdout()
             module = importlib.import_module(COMMANDS[command][0])
-            sub = OneLineParser(prog=f"gpfverify {command}", description=COMMANDS[command][1])
-            module.add_arguments(sub)
-            args = sub.parse_args(argv[1:])
+            args = command_parser(command).parse_args(argv[1:])
             with _float_errors(command):
                 code = int(module.run(args) or 0)
             sys.stdout.flush()  # a closed pipe shows here, inside the boundary
@@ -306,8 +318,9 @@ def _main(argv: list[str] | None) -> int:
         except SystemExit:  # argparse: usage error (one line) or --help
             raise
         except BaseException as exc:  # noqa: BLE001 - the one error boundary of the command line
-            if isinstance(exc, BrokenPipeError):
+            if isinstance(exc, BrokenPipeError):  # the reader stopped reading (| head): it knows, so no line
                 _silence_stdout()
+                return 2
             message = _user_error(exc)
             if message is not None:
                 print(f"gpfverify {command}: error: {one_line(message)}", file=sys.stderr)

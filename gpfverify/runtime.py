@@ -8,7 +8,8 @@ process keeps a core busy, 9.3 s with one thread). So:
 * processes started by the command line and the Monte Carlo workers use one BLAS thread unless
   the user has set the thread variables (:func:`default_single_blas_thread`);
 * in the Python API, where the user's process and its BLAS are the user's, the hot entry points
-  (filter steps and runs, model learning, GP fitting, fusion runs) are decorated with
+  (filter steps and runs, model learning, GP fitting, fusion runs, eq. 35 and the audit of a
+  fusion step) are decorated with
   :func:`one_blas_thread`: BLAS is limited to one thread for the duration of the call (with
   threadpoolctl) and restored afterwards, so the user's settings outside gpfverify's calls are
   untouched. Nested calls pay nothing; a user who set a thread variable is obeyed.

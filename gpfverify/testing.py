@@ -43,8 +43,10 @@ Class attributes set the draws: ``sensors`` and ``state_dim`` (inclusive ranges)
 (of the drawn covariances), ``angles``. The tolerances are rounding bounds scaled by the drawn
 problem's conditioning (:func:`gpfverify.tolerances.algebra_rtol`); ``rtol_factor`` multiplies them
 for a rule that is known to lose more (say why where you set it). The active hypothesis profile
-sets the number of examples (``--hypothesis-profile NAME``; ``import gpfverify.strategies.profiles``
-in a ``conftest.py`` registers gpfverify's ``ci``, ``dev`` and ``thorough``).
+sets the number of examples and everything else but the wall-clock checks, which a loaded
+machine would fail (no deadline, no too-slow health check): ``--hypothesis-profile NAME``;
+``import gpfverify.strategies.profiles`` in a ``conftest.py`` registers gpfverify's ``ci``, ``dev``
+and ``thorough``.
 """
 
 from __future__ import annotations
@@ -55,7 +57,7 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
-from hypothesis import given, note
+from hypothesis import HealthCheck, given, note, settings
 from hypothesis import strategies as st
 
 from gpfverify.angles import difference, wrap, wrap_components
@@ -122,7 +124,9 @@ def _test(cls: type, name: str, prop: Callable) -> Callable:
 
     test.__name__, test.__qualname__, test.__doc__ = name, f"{cls.__qualname__}.{name}", prop.__doc__
     test.__module__ = cls.__module__
-    return given(data=st.data())(test)
+    # wall-clock limits say nothing about a rule on a busy machine: no deadline, no too-slow
+    # health check; everything else (examples, database, derandomisation) is the active profile's
+    return settings(deadline=None, suppress_health_check=[HealthCheck.too_slow])(given(data=st.data())(test))
 
 
 class EstimateRuleSuite(_Suite):

@@ -107,9 +107,19 @@ def test_summary_names_the_steps_where_a_sensor_lost_rank(tmp_path, capsys):
         gaps = [s["gap_norm"] for s in data["steps"] if "gap_norm" in s]   # the steps' own, checked above
         assert len(gaps) == 3 and summary["max_gap_norm"] == max(gaps)
         assert summary["max_gap_k"] == ks[int(np.argmax([np.linalg.norm(a.gap) for a in audits[:3]]))]
-    code, out, _ = _cli(["audit", str(tmp_path / "run.jsonl")], capsys)
+    code, out, _ = _cli(["audit", str(tmp_path / "run.jsonl"), "--table"], capsys)
     assert code == 0 and "sensor 0: lost full column rank at k = 2, 5; not exact at k = 2" in out
     assert "steps: 4;" in out and f"at k = {ks[int(np.argmax(gaps))]}" in out
+    assert len(out.splitlines()) > 4 + 3  # the per-step table and the summary
+    # without --table: the one verdict line, the same counts (summary above, counted here from the audits)
+    code, out, _ = _cli(["audit", str(tmp_path / "run.jsonl")], capsys)
+    inexact_steps = 4 - sum(a.exact for a in audits)
+    held = sum(a.condition_holds for a in audits)
+    assert code == 0 and len(out.splitlines()) == 1
+    assert out.startswith(f"DMF NOT exact at {inexact_steps} of 4 steps (the rank condition held at {held}; "
+                          if inexact_steps else "DMF exact at all 4 steps")
+    assert "sensor 0 lost full column rank at k = 2, 5, not exact at k = 2" in out
+    assert f"largest |DMF - CMF| {max(gaps):.3g} at k = {ks[int(np.argmax(gaps))]} (3 step(s) with y)" in out
 
 
 @pytest.mark.parametrize("name", ["run.jsonl", "run.npz"])

@@ -2,7 +2,9 @@
 ``fuse``, ``check`` and ``run_fusion``; one ``--rank-rule`` syntax in ``check``, ``audit`` and
 ``reproduce``; RCC-CI's options spelled and defaulted alike in ``fuse`` and ``reproduce``."""
 
+import argparse
 import json
+import re
 from pathlib import Path
 
 import numpy as np
@@ -125,3 +127,128 @@ def test_fuse_rcc_options_have_reproduces_names_and_default(tmp_path, capsys):
     for flag in ("--rcc-size", "--c"):  # the old spelling stays
         code, out, _ = _run(["fuse", near, "--method", "rcc-ci", flag, "40", "--json"], capsys)
         assert code == 0 and json.loads(out)["c"] == 40.0
+
+
+# ---- options by their full names only, one name per meaning ------------------------------------
+
+from gpfverify.cli import COMMANDS, command_parser  # noqa: E402
+from gpfverify.commands.reproduce import experiment_parser  # noqa: E402
+from gpfverify.experiments import EXPERIMENTS  # noqa: E402
+
+#: what each parser needs besides the option under test, so that only that option can be refused
+REQUIRED = {"check": ["sys.py:m"], "audit": ["case.json"], "fuse": ["case.json", "--method", "cc"],
+            "prove": ["--out", "o"], "props": ["--out", "o"], "report": []}
+
+
+def _parsers():
+    """(name, parser, required arguments) for every subcommand and every experiment of reproduce."""
+    for command in COMMANDS:
+        if command != "reproduce":
+            yield command, command_parser(command), REQUIRED[command]
+    for name in EXPERIMENTS:
+        yield f"reproduce {name}", experiment_parser(name), ["--out", "o"]
+
+
+def _long_options(parser):
+    return [(s, action) for action in parser._actions for s in action.option_strings
+            if s.startswith("--") and s not in ("--help",)]
+
+
+@pytest.mark.parametrize("name,parser,required", list(_parsers()), ids=lambda v: v if isinstance(v, str) else "")
+def test_no_option_is_taken_by_a_prefix_of_its_name(name, parser, required, capsys):
+    """argparse's prefix matching would take ``--train 60`` as ``--training-start-var 60``: every
+    long option of every parser, cut by one letter, is refused as unrecognized."""
+    options = _long_options(parser)
+    assert options, name
+    for option, action in options:
+        prefix = option[:-1]
+        if any(s == prefix for s, _ in options):
+            continue  # the prefix is another option's full name
+        value = [] if action.nargs == 0 else ["1"]
+        with pytest.raises(SystemExit) as exc:
+            parser.parse_args([*required, prefix, *value])
+        err = capsys.readouterr().err
+        assert exc.value.code == 2 and f"unrecognized arguments: {prefix}" in err, (name, option, err)
+
+
+#: (parser, Params field) -> the one option name of its meaning
+ONE_NAME = {
+    **{(p, f): "--train-points" for p, f in [("check", "train"), ("reproduce ungm1d", "train"),
+                                              ("reproduce ct2d", "kappa"), ("reproduce gpadf-scalar", "train_points"),
+                                              ("reproduce moments", "train_points"),
+                                              ("reproduce sins-gps", "train_points")]},
+    **{(p, f): "--sigma-kappa" for p, f in [("reproduce ct2d", "sigma_kappa"), ("reproduce ungm1d", "sigma_kappa"),
+                                             ("reproduce gpadf-scalar", "kappa")]},
+}
+
+
+#: how the help of a training-sample count begins (not "at most this many training samples ... for the fit")
+COUNT_OF_TRAINING_SAMPLES = r"(gp families: )?(gp )?(training (samples|points)|samples drawn from the system)"
+
+
+def test_the_training_sample_count_and_the_sigma_point_kappa_have_one_name_everywhere():
+    parsers = {name: parser for name, parser, _ in _parsers()}
+    for (name, dest), option in ONE_NAME.items():
+        actions = [a for a in parsers[name]._actions if a.dest == dest and a.help != argparse.SUPPRESS]
+        assert len(actions) == 1 and actions[0].option_strings[0] == option, (name, dest)
+    # no other option of any parser is a training count or a sigma-point κ under another name
+    for name, parser in parsers.items():
+        for action in parser._actions:
+            text = (action.help or "").lower()
+            if action.help != argparse.SUPPRESS and re.match(COUNT_OF_TRAINING_SAMPLES, text):
+                assert action.option_strings[0] == "--train-points", (name, action.option_strings)
+            if action.help != argparse.SUPPRESS and text.startswith("sigma-point κ"):
+                assert action.option_strings[0] == "--sigma-kappa", (name, action.option_strings)
+
+
+@pytest.mark.parametrize("name,old,new,dest,value", [
+    ("check", "--train", "--train-points", "train", "40"),
+    ("reproduce ungm1d", "--train", "--train-points", "train", "40"),
+    ("reproduce gpadf-scalar", "--kappa", "--sigma-kappa", "kappa", "0.5"),
+])
+def test_an_older_name_still_works_with_one_note_on_stderr(name, old, new, dest, value, capsys):
+    parser = {n: p for n, p, _ in _parsers()}[name]
+    required = REQUIRED.get(name, ["--out", "o"])
+    before = getattr(parser.parse_args([*required, new, value]), dest)
+    assert capsys.readouterr().err == ""
+    after = getattr(parser.parse_args([*required, old, value]), dest)
+    err = capsys.readouterr().err
+    assert after == before == type(before)(value)
+    assert err.count("\n") == 1 and f"{old} is deprecated" in err and new in err
+
+
+def test_the_contract_command_of_ct2d_keeps_kappa_without_a_note(capsys):
+    """CONTRACT.md's ``reproduce ct2d --kappa 300 --omega 0.0698 ...``: κ training samples, as before."""
+    from gpfverify.contract import ct2d
+    from gpfverify.contract.params import from_arguments
+
+    opts = experiment_parser("ct2d").parse_args(["--kappa", "300", "--omega", "0.0698", "--runs", "20", "--seed", "1",
+                                                 "--out", "o"])
+    assert capsys.readouterr().err == ""
+    assert from_arguments(ct2d.Params, opts) == ct2d.Params(kappa=300, omega=0.0698)
+    opts = experiment_parser("ct2d").parse_args(["--train-points", "60", "--out", "o"])
+    assert from_arguments(ct2d.Params, opts).kappa == 60
+
+
+def test_a_value_out_of_bounds_is_named_by_the_option_the_user_typed():
+    with pytest.raises(InputError, match="--train-points must be at least 3"):
+        Ungm1dParams(train=2)
+
+
+@pytest.mark.parametrize("argv", [["reproduce"], []], ids=["reproduce", "no command"])
+def test_a_missing_name_is_one_line_listing_the_choices(argv, capsys):
+    code, out, err = _run(argv, capsys)
+    assert code == 2 and out == "" and len(err.strip().splitlines()) == 1
+    names = sorted(EXPERIMENTS) if argv else list(COMMANDS)
+    assert all(n in err for n in names), err
+
+
+@pytest.mark.parametrize("suffix", [".jsonl", ".npz"])
+def test_check_names_the_measurement_format_when_given_another_file(tmp_path, capsys, suffix):
+    path = tmp_path / f"run{suffix}"
+    path.write_text('{"central": {}}\n')
+    code, out, err = _run(["check", REDUNDANT, "--measurements", str(path), "--json"], capsys)
+    assert code == 2 and out == "" and len(err.strip().splitlines()) == 1
+    assert "MEASUREMENTS.npz: y (T, " in err and "optional truth x" in err and "zip" not in err.split(";")[-1]
+    if suffix == ".jsonl":
+        assert "gpfverify audit" in err and "File is not a zip file" not in err

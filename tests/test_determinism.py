@@ -22,7 +22,7 @@ pytestmark = pytest.mark.slow
 
 EXPERIMENTS = {
     "ct2d": ["ct2d", "--kappa", "12", "--omega", "0.0698", "--test-steps", "3", "--fit-points", "12"],
-    "ungm1d": ["ungm1d", "--train", "15", "--test-steps", "3", "--sweep", "2"],
+    "ungm1d": ["ungm1d", "--train-points", "15", "--test-steps", "3", "--sweep", "2"],
 }
 RUNS, SEED = "3", "11"
 

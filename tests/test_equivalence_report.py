@@ -52,7 +52,8 @@ def _assert_self_contained(html: str, out: Path) -> None:
     sources = re.findall(r'src="([^"]*)"', html)
     assert len(sources) == len(list((out / "figures").glob("*.png")))
     assert all(s.startswith("data:image/png;base64,") for s in sources)
-    assert "href=\"http" not in html and "<link" not in html and "<script" not in html
+    assert "href=\"http" not in html and "<link" not in html and not re.search(r"<script[^>]*\bsrc=", html)
+    assert html.count("<script>") == 1  # the one inline script: stacks a table too wide for the window
 
 
 def _assert_complete(out: Path, pngs: list[str]) -> None:
@@ -283,3 +284,20 @@ def test_every_key_check_writes_is_documented(tmp_path):
     assert not undocumented, undocumented
     readme = (tmp_path / "o" / "README.md").read_text(encoding="utf-8")
     assert "One-step numbers" in readme and "Recursive numbers" in readme and '("means")' in readme
+
+
+def test_a_fusion_run_shown_as_a_page_names_its_ci_criterion():
+    """run_fusion's ci_criterion travels with the run to the results a notebook renders."""
+    from gpfverify.experiments.check import results_of_run
+    from gpfverify.fusion import run_fusion
+    from gpfverify.rng import generator
+    from gpfverify.scenarios.three_sensor import three_sensor_model
+
+    model = three_sensor_model()
+    _, ys = model.simulate(2, generator(np.random.SeedSequence(4)))
+    for criterion in ("trace", "det"):
+        run = run_fusion(model, ys, methods=("cmf", "dmf", "ci"), ci_criterion=criterion)
+        results = results_of_run(run)
+        assert results["params"]["ci_criterion"] == criterion
+        words = "trace criterion" if criterion == "trace" else "determinant criterion"
+        assert any(words in p for p in summary_paragraphs(results))

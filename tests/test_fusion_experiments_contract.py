@@ -44,7 +44,7 @@ def test_run_records_and_claims_round_trip():
 
 
 @pytest.mark.parametrize("make, option", [
-    (lambda: ct2d.Params(kappa=2), "--kappa"),
+    (lambda: ct2d.Params(kappa=2), "--train-points"),
     (lambda: ct2d.Params(test_steps=0), "--test-steps"),
     (lambda: ct2d.Params(fit_points=2), "--fit-points"),
     (lambda: ct2d.Params(process_noise_var=-1.0), "--process-noise-var"),
@@ -53,7 +53,7 @@ def test_run_records_and_claims_round_trip():
     (lambda: ct2d.Params(sensor_positions=((0.0, 1.0),)), "sensor_positions"),
     (lambda: ungm1d.Params(sweep=(1.0, float("inf"))), "--sweep"),
     (lambda: ungm1d.Params(system_noise_var=0.0), "--system-noise-var"),
-    (lambda: ungm1d.Params(train=2), "--train"),
+    (lambda: ungm1d.Params(train=2), "--train-points"),
     (lambda: ungm1d.Params(measurement_noise_var=-0.01), "--measurement-noise-var"),
 ])
 def test_invalid_params_name_the_option(make, option):
@@ -62,9 +62,9 @@ def test_invalid_params_name_the_option(make, option):
 
 
 @pytest.mark.parametrize("name, options", [
-    ("ct2d", ["--kappa", "--omega", "--test-steps", "--perturbation-mean", "--perturbation-std", "--rank-tol",
+    ("ct2d", ["--train-points", "--kappa", "--omega", "--test-steps", "--perturbation-mean", "--perturbation-std", "--rank-tol",
               "--fit-points", "--rcc-size", "--sigma-kappa", "--process-noise-var", "--bearing-noise-var"]),
-    ("ungm1d", ["--system-noise-var", "--sweep", "--measurement-noise-var", "--prior-var", "--train",
+    ("ungm1d", ["--system-noise-var", "--sweep", "--measurement-noise-var", "--prior-var", "--train-points",
                 "--test-steps", "--fit-points"]),
 ])
 def test_reproduce_help_shows_the_generated_options(name, options):

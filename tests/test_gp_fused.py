@@ -192,6 +192,7 @@ def _moments_in_a_process(env_features: str | None) -> dict:
     return json.loads(out.stdout)
 
 
+@pytest.mark.slow
 @needs_numba
 def test_the_vector_width_setting_changes_speed_not_results():
     """On a processor with AVX-512 gpfverify turns LLVM's 256-bit preference off for its kernels,
@@ -210,6 +211,7 @@ def test_the_vector_width_setting_changes_speed_not_results():
         assert np.all(np.abs(a - b) <= tol * np.abs(b).max()), key
 
 
+@pytest.mark.slow
 @needs_numba
 def test_the_vector_width_setting_leaves_a_users_numba_alone():
     """Once numba has compiled code in the process (its code generator is fixed), or when the user

@@ -68,10 +68,11 @@ def small_results(tmp_path_factory):
 
 def test_params_validate_every_option():
     assert Params() == Params.from_json(json.loads(json.dumps(Params().to_json())))
-    for option, bad in (("prior_std", -1.0), ("domain", 0.0), ("train_points", 1), ("restarts", 0),
-                        ("alpha", 0.0), ("kappa", -1.0)):
-        with pytest.raises(InputError, match="--" + option.replace("_", "-")):
-            Params(**{option: bad})
+    for field, bad, option in (("prior_std", -1.0, "--prior-std"), ("domain", 0.0, "--domain"),
+                               ("train_points", 1, "--train-points"), ("restarts", 0, "--restarts"),
+                               ("alpha", 0.0, "--alpha"), ("kappa", -1.0, "--sigma-kappa")):
+        with pytest.raises(InputError, match=option):
+            Params(**{field: bad})
     with pytest.raises(InputError, match="--restarts"):
         Params().replace(restarts=0)  # overrides are validated too
 
@@ -158,7 +159,7 @@ def test_reproduce_help_lists_the_generated_options(capsys):
     assert exit_info.value.code == 0
     out = capsys.readouterr().out
     for option in ("--train-points", "--test-points", "--prior-std", "--system-noise-std",
-                   "--measurement-noise-std", "--domain", "--restarts", "--alpha", "--beta", "--kappa"):
+                   "--measurement-noise-std", "--domain", "--restarts", "--alpha", "--beta", "--sigma-kappa"):
         assert option in out
 
 
@@ -169,7 +170,7 @@ def test_command_line_run_and_errors(tmp_path, capsys):
     results = json.loads((out / "results.json").read_text())
     assert results["table"]["GP-ADF"]["cases"] == 20 and results["seed"] == 4
     capsys.readouterr()
-    for bad in (["--prior-std", "-1"], ["--kappa", "-2"]):
+    for bad in (["--prior-std", "-1"], ["--sigma-kappa", "-2"]):
         assert main(["reproduce", "gpadf-scalar", *bad, "--out", str(tmp_path / "bad")]) == 2
         err = capsys.readouterr().err.strip().splitlines()
         assert len(err) == 1 and bad[0] in err[0]

@@ -22,6 +22,8 @@ from gpfverify.outputs import FILE_LIST
 from gpfverify.fusion.synthetic import random_case
 from gpfverify.tolerances import algebra_rtol
 
+pytestmark = pytest.mark.slow  # each test runs commands in subprocesses, some killed mid-run
+
 HERE = Path(__file__).parent
 LINEAR_SYSTEM = '''
 import numpy as np

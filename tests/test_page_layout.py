@@ -1,5 +1,7 @@
-"""The report page's summary table fits a 1024 px window: checked by the page's layout rules
-(its CSS), and measured in a headless browser when /usr/bin/chromium is installed. Markdown
+"""Every table of the real pages — the report of every section, the check page and the audit page —
+fits a 1024 px window, wrapping or stacked, with no sentence squeezed into a sliver: measured in a
+headless browser (a Chromium on PATH or playwright's; Debian: ``apt-get install -y chromium``).
+The summary table's layout rules (its CSS) are checked without a browser too. Markdown
 code spans render as HTML, never as raw backticks. Chinese text renders with the CJK font the
 page embeds: its subset covers every CJK character of gpfverify's sources (read with fontTools),
 and a browser loads it."""
@@ -8,6 +10,7 @@ import base64
 import re
 import shutil
 import subprocess
+import sys
 from pathlib import Path
 
 import pytest
@@ -18,9 +21,18 @@ from gpfverify.report.document import Paragraph, Section
 from gpfverify.report.render import _STYLE, inline, to_html
 
 HERE = Path(__file__).parent
+sys.path.insert(0, str(HERE))  # the suite imports in importlib mode: the helper beside it
+import layout_pages  # noqa: E402
+
+pytestmark = pytest.mark.slow  # renders real pages and measures them in a browser
+
 WINDOW = 1024  # px
 REM = 16  # px, the browsers' default root font size
-CHROMIUM = Path("/usr/bin/chromium")
+BROWSER = layout_pages.browser()
+needs_browser = pytest.mark.skipif(BROWSER is None, reason="no headless browser (chromium, chromium-browser, "
+                                   "google-chrome on PATH, or playwright's); Debian: apt-get install -y chromium")
+#: a cell holding a sentence is at least this wide (px): 7.5 rem, about fifteen characters a line
+READABLE = 7.5 * REM
 
 
 @pytest.fixture(scope="module")
@@ -67,21 +79,42 @@ def test_the_summary_tables_layout_rules_fit_a_1024_px_window(page):
     assert forced <= column, (forced, column)
 
 
-@pytest.mark.skipif(not CHROMIUM.exists(), reason="no headless browser at /usr/bin/chromium")
-def test_the_summary_table_fits_a_1024_px_window_in_a_browser(page, tmp_path):
-    measured = tmp_path / "measured.html"
-    probe = ("<script>const t=document.querySelector('table.summary').getBoundingClientRect();"
-             "document.title='right='+Math.ceil(t.right)+' width='+window.innerWidth</script>")
-    measured.write_text(page.read_text(encoding="utf-8").replace("</body>", probe + "</body>"), encoding="utf-8")
-    proc = subprocess.run([str(CHROMIUM), "--headless", "--no-sandbox", "--disable-gpu",
-                           f"--window-size={WINDOW},768", "--dump-dom", measured.as_uri()],
-                          capture_output=True, text=True, timeout=120)
-    found = re.search(r"<title>right=(\d+) width=(\d+)</title>", proc.stdout)
-    assert found, proc.stderr[-2000:]
-    assert int(found.group(1)) <= int(found.group(2))
-    subprocess.run([str(CHROMIUM), "--headless", "--no-sandbox", "--disable-gpu", f"--window-size={WINDOW},900",
-                    f"--screenshot={tmp_path / 'summary.png'}", page.as_uri()], capture_output=True, timeout=120)
-    assert (tmp_path / "summary.png").stat().st_size > 0
+@pytest.fixture(scope="module")
+def real_pages(tmp_path_factory) -> dict[str, Path]:
+    """The three kinds of page as the commands write them (the report from stored results)."""
+    folder = tmp_path_factory.mktemp("pages")
+    (folder / "report").mkdir()
+    return {"report": layout_pages.report_page(folder / "report"), "check": layout_pages.check_page(folder / "check"),
+            "audit": layout_pages.audit_page(folder / "audit")}
+
+
+@needs_browser
+@pytest.mark.parametrize("kind", ["report", "check", "audit"])
+def test_every_table_of_every_page_fits_a_1024_px_window(real_pages, kind, tmp_path):
+    """Each table ends within the main column (no sideways scroll), no cell's text overflows it,
+    and a cell holding a sentence keeps a readable width (the claim column was 85 px once)."""
+    measured = layout_pages.measure(BROWSER, real_pages[kind], WINDOW, tmp_path)
+    assert measured["window"] == WINDOW
+    tables = measured["tables"]
+    assert len(tables) >= {"report": 40, "check": 3, "audit": 2}[kind]  # every table of the page is measured
+    for table in tables:
+        where = (kind, table["i"], table["caption"])
+        assert table["right"] <= table["limit"] and not table["scroll"], (where, table["right"], table["limit"])
+        assert not [c["text"] for c in table["cells"] if c["over"]], where
+        squeezed = [(c["w"], c["text"]) for c in table["cells"] if c["chars"] >= 40 and " " in c["text"]
+                    and c["w"] < READABLE]
+        assert not squeezed, (where, squeezed)
+
+
+@needs_browser
+def test_a_table_too_wide_for_the_window_is_stacked_and_one_that_fits_is_not(real_pages, tmp_path):
+    """The check page's per-sensor table is stacked at 1024 px (one block per sensor, each value
+    beside its column's name) and is a table again at 1600 px; the page's tables are the same
+    elements either way."""
+    narrow = layout_pages.measure(BROWSER, real_pages["check"], WINDOW, tmp_path)["tables"]
+    wide = layout_pages.measure(BROWSER, real_pages["check"], 1600, tmp_path)["tables"]
+    assert "stacked" in narrow[0]["cls"] and "stacked" not in wide[0]["cls"]
+    assert [t["caption"] for t in narrow] == [t["caption"] for t in wide]
 
 
 def test_markdown_code_spans_render_as_html_code():
@@ -127,7 +160,7 @@ def test_a_page_embeds_the_cjk_font_only_when_it_shows_cjk_text():
     assert base64.b64decode(data) == cjk_font.FONT.read_bytes()
 
 
-@pytest.mark.skipif(not CHROMIUM.exists(), reason="no headless browser at /usr/bin/chromium")
+@needs_browser
 def test_a_browser_loads_the_embedded_cjk_font_for_the_pages_chinese_text(page, tmp_path):
     """The page's face named gpfverify-cjk loads in the browser and every Chinese character on the
     page is among those the browser was asked to draw with it (no system CJK font needed)."""
@@ -137,7 +170,7 @@ def test_a_browser_loads_the_embedded_cjk_font_for_the_pages_chinese_text(page, 
              "'faces='+faces.filter(f=>f.family.replace(/\"/g,'')==='gpfverify-cjk'&&f.status==='loaded').length"
              "+' chars='+text.length;});</script>")
     measured.write_text(page.read_text(encoding="utf-8").replace("</body>", probe + "</body>"), encoding="utf-8")
-    proc = subprocess.run([str(CHROMIUM), "--headless", "--no-sandbox", "--disable-gpu", "--virtual-time-budget=5000",
+    proc = subprocess.run([*BROWSER, "--headless", "--no-sandbox", "--disable-gpu", "--virtual-time-budget=5000",
                            "--dump-dom", measured.as_uri()], capture_output=True, text=True, timeout=120)
     found = re.search(r"<title>faces=(\d+) chars=(\d+)</title>", proc.stdout)
     assert found, proc.stderr[-2000:]

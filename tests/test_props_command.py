@@ -8,6 +8,8 @@ import textwrap
 
 import pytest
 
+pytestmark = pytest.mark.slow  # runs the property suite in-process
+
 SUITE = textwrap.dedent('''
     from hypothesis import given
     from gpfverify.strategies import fusion_cases, saving_case_on_failure

@@ -21,10 +21,12 @@ from gpfverify.contract.claims import read_claims
 from gpfverify.contract.serial import to_json
 from gpfverify.experiments import EXPERIMENTS
 
+pytestmark = pytest.mark.slow  # one run of every committed reference experiment
+
 REFERENCE = Path(__file__).resolve().parents[1] / "reports" / "reference"
 COMMITTED = sorted(REFERENCE.rglob("results.json"))
 #: parameters shortened for the one run here; the claims a run emits do not depend on them
-SHORTER = {"sins-gps": {"duration": 150.0}}
+SHORTER = {"sins-gps": {"duration": 150.0}, "pff1d": {"particles": 10, "steps": 10}}
 
 
 def _page_of(results_path: Path) -> Path:

@@ -27,9 +27,9 @@ def test_markdown_and_html_escape_and_render_every_block(tmp_path):
     assert "**more <detail>** xₖ₊₁ & y" in md
     page = to_html([section], "t")
     assert "a &lt; b &amp; c" in page and "Demo &lt;page&gt;" in page
-    assert '<tr id="row-1"><td class="verdict v-not-held">' in page
+    assert '<tr id="row-1"><td data-label="verdict" class="verdict v-not-held">' in page
     assert '<div class="caution" title="rests on 2 runs">⚠ rests on 2 runs</div>' in page
-    assert '<td class="count">3</td>' in page and '<a href="#demo">Page &lt;b&gt;</a>' in page
+    assert '<td data-label="cell" class="count">3</td>' in page and '<a href="#demo">Page &lt;b&gt;</a>' in page
     assert "<details><summary>more &lt;detail&gt;</summary><p>xₖ₊₁ &amp; y</p></details>" in page
 
 

@@ -8,6 +8,7 @@ from __future__ import annotations
 import ast
 import io
 import json
+import re
 import shutil
 import sys
 import types
@@ -144,7 +145,9 @@ def test_title_and_sticky_table_of_contents(report):
     assert targets == ["#summary", "#what-was-run", "#alpha", "#beta", "#proofs", "#references", "#provenance"]
     for target in targets:  # every entry leads somewhere on the page
         assert page.find_all(id=target[1:])
-    assert not page.find_all("script") and not page.find_all("link")  # one file, works offline
+    # one file, works offline: no script or style sheet loaded from elsewhere (the one inline script
+    # stacks a table too wide for the window)
+    assert not [s for s in page.find_all("script") if "src" in s.attrs] and not page.find_all("link")
 
 
 def test_summary_table_counts_every_verdict_per_section(report):
@@ -328,6 +331,21 @@ def test_progress_lines_and_heartbeat():
                      "[report  1:15] ... still working (76 s since the last line: ct2d: ct2d κ = 300 (1 of 4): 2 runs)"]
 
 
+def test_the_builds_time_left_follows_its_own_pace_and_drops_reused_work():
+    from gpfverify.commands.report import Eta
+
+    now = [100.0]
+    eta = Eta({"a": 4.0, "b": 12.0, "render": 4.0}, clock=lambda: now[0])
+    assert eta.seconds_left() is None and eta.suffix() == ""  # no pace before any work
+    now[0] += 30.0
+    eta.ran("a", 2.0)  # 2 of 20 units in 30 s: 15 s a unit, 18 units left
+    assert eta.seconds_left() == 18 * 15.0
+    eta.ran("a", 2.0)
+    eta.finished("a")
+    eta.finished("b")  # every run of b reused from an earlier build: not left, and not done here
+    assert eta.seconds_left() == 4.0 * 30.0 / 4.0 and eta.suffix() == " (about 30 s left in all)"
+
+
 def test_report_command_runs_a_toy_section_with_progress(monkeypatch, tmp_path, capsys):
     """The command runs a (typed) toy experiment at its quick profile into the section folder,
     prints one line per event, renders the page and ends with where it is and the counts."""
@@ -353,6 +371,10 @@ def test_report_command_runs_a_toy_section_with_progress(monkeypatch, tmp_path, 
     assert any("toy/toy-typed, small (setting 1 of 2): 3 runs" in line for line in lines)
     assert any("toy/toy-typed, large (setting 2 of 2): run 3 of 3 saved" in line for line in lines)
     assert any("toy: rendering the page" in line for line in lines)
+    # once a run is saved, section and run lines end with the build's time left
+    saved = [line for line in lines if " saved" in line]
+    assert saved and all(re.search(r"\(about .* left in all\)$", line) for line in saved)
+    assert re.search(r"rendering the pages \(about .* left in all\)$", out, re.M)
     assert f"The report: {tmp_path / 'report.html'}" in out
     records = [c for r in load_section(tmp_path, "toy").results for c in read_claims(r)]
     held = sum(c.verdict == "held" for c in records)

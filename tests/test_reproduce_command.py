@@ -10,7 +10,7 @@ from pathlib import Path
 import pytest
 
 from gpfverify.cli import main
-from gpfverify.commands.reproduce import PROGRESS_FRACTION, progress_lines
+from gpfverify.commands.reproduce import PROGRESS_FRACTION, interpretation_lines, progress_lines
 from gpfverify.experiments import EXPERIMENTS
 
 HERE = Path(__file__).parent
@@ -110,16 +110,18 @@ def test_help_shows_no_sphinx_markup(experiment, capsys):
     assert not re.search(r":(mod|func|class|meth|data|attr):`|``", out), out
 
 
-def test_progress_of_each_interpretation_times_its_own_runs():
-    """The interpretations run after the main run through the same progress callback, each
-    counting its runs from one again: its first run's time is its own, not the time since the
-    command started."""
+def test_progress_of_each_interpretation_names_it_and_times_its_own_runs():
+    """The interpretations run one after the other, each counting its runs from one again: its
+    lines name it, and its first run's time is its own, not the time since the first one started."""
     lines, now = [], [0.0]
-    on_run = progress_lines("exp", lines.append, clock=lambda: now[0])
-    for seconds_per_run in (2.0, 60.0):  # the main run, then an interpretation thirty times slower
+    on_run = interpretation_lines("exp", lines.append, clock=lambda: now[0])
+    for name, seconds_per_run in (("fast", 2.0), ("slow", 60.0)):  # the second thirty times slower
         for saved in range(1, 11):
             now[0] += seconds_per_run
-            on_run(saved, 10)
+            on_run(name, saved, 10)
     firsts = [line for line in lines if "first run took" in line]
-    assert firsts == ["exp: first run took 2 s; estimated time left for the other 9: 18 s",
-                      "exp: first run took 1 min 0 s; estimated time left for the other 9: 9 min 0 s"]
+    assert firsts == ["exp, interpretation fast: first run took 2 s; estimated time left for the other 9: 18 s",
+                      "exp, interpretation slow: first run took 1 min 0 s; estimated time left for the other 9: "
+                      "9 min 0 s"]
+    assert all(line.startswith(("exp, interpretation fast: ", "exp, interpretation slow: ")) for line in lines)
+    assert lines[-1] == "exp, interpretation slow: 10 of 10 runs saved (100 %), about 0 s left"

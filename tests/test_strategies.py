@@ -118,6 +118,7 @@ def test_case_files_validate_and_local_posteriors_are_the_local_update(data):
                                    rtol=0, atol=algebra_rtol(np.linalg.cond(local.C_y)) * (1 + np.abs(local.mu_e).max()))
 
 
+@pytest.mark.slow
 @settings(max_examples=3, deadline=None)
 @given(drawn=fusion_cases(kinds="deficient"))
 def test_the_audit_command_reads_drawn_case_files(drawn, tmp_path_factory):
@@ -151,6 +152,7 @@ def test_sigma_params_are_valid_and_psd_matrices_psd(dim, data):
     assert np.linalg.eigvalsh(sigma)[0] >= -algebra_rtol() * 10.0
 
 
+@pytest.mark.slow
 def test_failing_property_saves_its_shrunk_case(tmp_path, monkeypatch):
     monkeypatch.setenv(ENVIRONMENT_VARIABLE, str(tmp_path))
 

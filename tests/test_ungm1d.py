@@ -22,7 +22,7 @@ FIXTURE = Path(__file__).parent / "fixtures" / "ungm1d" / "results.json"
 @pytest.fixture(scope="module")
 def cli_results(tmp_path_factory):
     out = tmp_path_factory.mktemp("ungm1d")
-    code = main(["reproduce", "ungm1d", "--train", "15", "--test-steps", "3", "--sweep", "2",
+    code = main(["reproduce", "ungm1d", "--train-points", "15", "--test-steps", "3", "--sweep", "2",
                  "--runs", "2", "--seed", "1", "--out", str(out)])
     assert code == 0
     return json.loads((out / "results.json").read_text())
@@ -130,7 +130,7 @@ def test_metric_readings_are_summary_only_interpretations(tmp_path):
     """The square-root Mahalanobis form and the RMSE read the same runs: their claims compare the
     per-run means of |x − x̂|/σ and ‖x − x̂‖², recomputed here from the saved runs."""
     out = tmp_path / "run"
-    assert main(["reproduce", "ungm1d", "--train", "15", "--test-steps", "3", "--sweep", "2", "--runs", "3",
+    assert main(["reproduce", "ungm1d", "--train-points", "15", "--test-steps", "3", "--sweep", "2", "--runs", "3",
                  "--seed", "1", "--out", str(out), "--interpretations", "mahalanobis-root,rmse"]) == 0
     assert not (out / "interpretations" / "rmse" / "runs").exists()
     saved = [json.loads(p.read_text())["result"]["settings"]["1.0"]["families"]["GP-ADF"]

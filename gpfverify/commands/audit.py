@@ -25,8 +25,8 @@ from gpfverify.runaudit import copy_out, spool, stream_audit, table_header, tabl
 EPILOG = ("FILE formats: a single fusion case (.json) is described in docs/fusion-case-format.md; "
           "a run of cases, one per step (.jsonl: one case per line with an optional integer \"k\"; "
           ".npz: arrays stacked over the steps), in docs/run-file-format.md. JSON Schemas: "
-          "docs/schemas/. A run prints {\"steps\": [...], \"summary\": {...}} with --json, a per-step "
-          "table and the summary otherwise.")
+          "docs/schemas/. A run prints one verdict line, {\"steps\": [...], \"summary\": {...}} with --json, "
+          "the per-step table and the summary with --table.")
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -35,6 +35,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="a fusion case (.json; docs/fusion-case-format.md) or a run file (.jsonl, "
                              ".npz; docs/run-file-format.md)")
     parser.add_argument("--json", action="store_true", help="print one JSON object instead of text")
+    parser.add_argument("--table", action="store_true",
+                        help="run files: print the per-step table and the summary instead of the one verdict line "
+                             "(the report page of --out has both)")
     parser.add_argument("--rank-tol", type=float, default=None, metavar="TOL",
                         help="absolute singular-value tolerance for the rank of each C_xy^m; overrides "
                              f"the case's 'rank_tol'; default: {RANK_RULE_DEFAULT}")
@@ -112,6 +115,34 @@ def format_summary(summary: dict) -> str:
     return "\n".join(lines)
 
 
+def verdict_line(summary: dict) -> str:
+    """The one line ``audit RUN`` prints: at how many steps DMF was exact and the rank condition
+    held, the sensors that lost full column rank (where, and where not exact), the largest gap
+    and the rank rule — rendered from the run audit's summary record."""
+    total, exact, held = summary["steps"], summary["exact_steps"], summary["condition_held_steps"]
+    steps = f"{total} step{'s' if total != 1 else ''}"
+    if exact == total:
+        line = f"DMF exact at all {steps}"
+    else:
+        line = f"DMF NOT exact at {total - exact} of {steps}"
+    line += f" (the rank condition held at {'all' if held == total else held}"
+    for s in summary["sensors"]:
+        if s["rank_lost_steps"]:
+            bad = s["rank_lost_not_exact_steps"]
+            line += (f"; sensor {s['index']} lost full column rank at k = {integer_ranges(s['rank_lost_steps'], '-')}"
+                     + (f", not exact at k = {integer_ranges(bad, '-')}" if bad else ", exact anyway"))
+    line += ")"
+    if summary["max_gap_norm"] is None:
+        line += "; no step has y, so the gap is not evaluated"
+    else:
+        line += (f"; largest |DMF - CMF| {summary['max_gap_norm']:.3g} at k = {summary['max_gap_k']} "
+                 f"({summary['steps_with_y']} step(s) with y)")
+    rule = summary["rank_rule"]
+    rules = rule if isinstance(rule, list) else [rule]
+    text = "; ".join(r.get("description", str(r)) if isinstance(r, dict) else str(r) for r in rules)
+    return line + f"; rank rule: {text}."
+
+
 def format_run(steps: list[dict], summary: dict) -> str:
     """Per-step table and summary of a run audit (text output)."""
     return "\n".join([table_header(), *(table_row(s) for s in steps), "", format_summary(summary)])
@@ -132,7 +163,7 @@ def _audit_run(args: argparse.Namespace) -> None:
 
     check_workers(args.workers)
     rule = _resolve_rank_rule(args.rank_rule)
-    form = "json" if args.json else "text"
+    form = "json" if args.json else "text" if args.table else "none"
     parallel = args.workers > 1 or args.scheduler is not None
     with contextlib.ExitStack() as stack:
         out = stack.enter_context(spool())
@@ -149,6 +180,8 @@ def _audit_run(args: argparse.Namespace) -> None:
                                          in_flight, on_block, keep=args.out is not None)
         if form == "text":
             out.write(("\n" + format_summary(summary) + "\n").encode())
+        elif form == "none":
+            out.write((verdict_line(summary) + "\n").encode())
         if args.out is not None:
             from gpfverify.report.equivalence import write_run_audit_report
 

@@ -17,6 +17,8 @@ import tempfile
 from pathlib import Path
 
 from gpfverify.cli import RANK_RULE_HELP, fusion_rules, rank_rule_text
+from gpfverify.contract.check import Params
+from gpfverify.contract.params import add_arguments as add_params_arguments
 from gpfverify.filters.families import FAMILY_NAMES
 from gpfverify.fusion.names import CHOICES_TEXT
 from gpfverify.outputs import check_out, out_path, output_folder
@@ -43,11 +45,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              "an audit run file)")
     parser.add_argument("--training", metavar="TRAIN.npz", default=None,
                         help="GP families: learn from your samples, x (n, D) consecutive states and y (n, L)")
-    parser.add_argument("--train", type=int, default=200,
-                        help="GP families: samples drawn from the system to learn from (default 200)")
-    parser.add_argument("--fit-points", type=int, default=200,
-                        help="GP families: at most this many samples for the evidence maximisation (default 200)")
-    parser.add_argument("--restarts", type=int, default=2, help="GP families: optimiser starts (default 2)")
+    # the GP options as check's Params declares them (--train-points: one name in every command)
+    add_params_arguments(parser, Params, only=("train", "fit_points", "restarts"))
     parser.add_argument("--methods", type=fusion_rules, default=("cmf", "dmf", "cc", "ci"), metavar="RULES",
                         help=f"comma-separated fusion rules among {CHOICES_TEXT}, the same names as fuse's "
                              "(cmf and dmf always; default cmf,dmf,cc,ci)")
@@ -55,10 +54,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help=RANK_RULE_HELP + " Default canonical: a user's system has its own units, and "
                              "the canonical rule does not depend on them (reproduce defaults to numpy, the "
                              "papers' rule, to reproduce their numbers).")
-    parser.add_argument("--ci-criterion", choices=("trace", "det"), default="trace",
-                        help="CI's weight criterion (and ICI's): trace (default; minimises the fused bound's "
-                             "trace, which depends on the units of the state components) or det (its "
-                             "determinant: unit-free)")
+    add_params_arguments(parser, Params, only=("ci_criterion",))
     parser.add_argument("--out", type=out_path, default=None, help="output folder (results.json, runs/, report)")
     parser.add_argument("--json", action="store_true", help="print results.json to stdout")
     parser.add_argument("--resume", action="store_true", help="continue the runs saved in --out")

@@ -5,8 +5,9 @@ and the proofs, then render the verification report from the files they wrote
 Progress is one line per event with the elapsed time, on a terminal or not (``make report``, CI
 logs): each setting started, every tenth run saved (and at least every ten seconds), each proof,
 each page rendered; a heartbeat line says what is still running after
-:data:`HEARTBEAT_SECONDS` without news. The command ends with where the report is and the verdict
-counts."""
+:data:`HEARTBEAT_SECONDS` without news. Once work has been done, section and run lines end with
+the time the whole build has left (:class:`Eta`). The command ends with where the report is and the
+verdict counts."""
 
 from __future__ import annotations
 
@@ -52,6 +53,20 @@ CERTIFICATES = "certificates.json"
 HEARTBEAT_SECONDS = 20.0
 #: a run line at least this often while runs are being saved (besides every tenth run)
 RUN_LINE_SECONDS = 10.0
+#: seconds one run of each experiment's quick settings took (its interpretations' runs included),
+#: for the build's time left (:class:`Eta`); only their ratios count — the pace of the build itself
+#: scales them. Measured in one quick build (21 min 39 s) on a 2-core Intel Xeon under a load
+#: average of 13–20; an experiment without an entry counts as :data:`DEFAULT_RUN_SECONDS`.
+RUN_SECONDS: dict[str, float] = {
+    "moments": 7.0, "gpadf-scalar": 0.4, "ungm1d": 3.5, "ct2d": 2.4, "tbd": 6.2, "pff1d": 14.0, "bearing": 1.3,
+    "sins-gps": 72.0,
+}
+DEFAULT_RUN_SECONDS = 5.0
+#: seconds of the proofs section at the quick profile's small sizes (the full profile's large ones
+#: count :data:`LARGE_PROOFS` times as much, a guess) and of rendering the pages, on the same scale
+PROOF_SECONDS = 117.0
+LARGE_PROOFS = 10.0
+RENDER_SECONDS = 86.0
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -69,6 +84,66 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--from", dest="from_dir", type=Path, default=None, metavar="DIR",
                         help="render one 'gpfverify reproduce NAME --out DIR' folder as a page instead of "
                              "running anything (into --out, default DIR-report)")
+
+
+class Eta:
+    """The time the whole build has left: every item of work (a setting's runs with those of its
+    interpretations, the proofs, the rendering) weighed in :data:`RUN_SECONDS` and the like; the
+    work done so far in this build and the time it took give the pace, which turns the weight
+    still to do into seconds. Runs reused from an earlier build are work not left, not work done."""
+
+    def __init__(self, planned: dict[str, float], clock: Callable[[], float] = time.monotonic):
+        self.left = dict(planned)
+        self.done = 0.0
+        self.clock = clock
+        self.started = clock()
+
+    def ran(self, item: str, weight: float) -> None:
+        """``weight`` of ``item`` was done (a run saved)."""
+        self.left[item] = max(0.0, self.left[item] - weight)
+        self.done += weight
+
+    def finished(self, item: str, ran: bool = False) -> None:
+        """``item`` is over; what was not done of it was reused (or, ``ran``, done now)."""
+        if ran:
+            self.done += self.left[item]
+        self.left[item] = 0.0
+
+    def seconds_left(self) -> float | None:
+        """The estimate, or None before any work was done."""
+        if self.done <= 0:
+            return None
+        return sum(self.left.values()) * (self.clock() - self.started) / self.done
+
+    def suffix(self) -> str:
+        """`` (about 3 min 10 s left in all)`` for a progress line, or nothing yet."""
+        left = self.seconds_left()
+        return "" if left is None else f" (about {_duration(left)} left in all)"
+
+
+def plan(ctx: ReportContext, selected: list[str]) -> dict[str, float]:
+    """The work of a build (:class:`Eta`): per setting, its runs and those of its interpretations
+    that run (a summary-only one reads the main runs) at :data:`RUN_SECONDS`; the proofs; the
+    rendering."""
+    from gpfverify.experiments import EXPERIMENTS
+    from gpfverify.experiments.sensitivity import select, summary_only
+
+    work: dict[str, float] = {}
+    for slug in selected:
+        if slug == PROOFS:
+            work[PROOFS] = PROOF_SECONDS * (1.0 if ctx.quick else LARGE_PROOFS)
+            continue
+        for name in SECTION_EXPERIMENTS[slug]:
+            module = importlib.import_module(EXPERIMENTS[name])
+            profile = module.PROFILES[ctx.profile]
+            with_runs = 1
+            if profile.interpretations:
+                specs = select(module, ",".join(profile.interpretations))
+                with_runs += sum(not summary_only(module, spec) for spec in specs)
+            for setting in profile.settings:
+                work[f"{name}-{setting.tag}"] = profile.runs * with_runs * RUN_SECONDS.get(name, DEFAULT_RUN_SECONDS)
+    work["render"] = RENDER_SECONDS
+    return work
 
 
 class Progress:
@@ -138,7 +213,7 @@ class ReportContext:
         return self.profile == "quick"
 
 
-def run_section(ctx: ReportContext, slug: str, progress: Callable[[str], None]) -> SectionRuns:
+def run_section(ctx: ReportContext, slug: str, progress: Callable[[str], None], eta: Eta) -> SectionRuns:
     """Run every setting of the section's experiments at the report's profile into
     ``<out>/<slug>/<experiment>-<tag>/run`` (reusing runs saved there with the same settings), with
     the profile's interpretations in ``run/interpretations/<name>``, and write the section's
@@ -163,11 +238,15 @@ def run_section(ctx: ReportContext, slug: str, progress: Callable[[str], None]) 
             step = max(1, profile.runs // 10)
             last = [time.monotonic(), 0.0]  # time of the last line, runs saved now
 
-            def on_run(done: int, total: int, where: str = where, step: int = step, last: list = last) -> None:
+            item, weight = folder, RUN_SECONDS.get(name, DEFAULT_RUN_SECONDS)
+
+            def on_run(done: int, total: int, where: str = where, step: int = step, last: list = last,
+                       item: str = item, weight: float = weight) -> None:
                 now = time.monotonic()
                 last[1] += 1
+                eta.ran(item, weight)
                 if done == total or done % step == 0 or now - last[0] >= RUN_LINE_SECONDS:
-                    progress(f"{where}: run {done} of {total} saved")
+                    progress(f"{where}: run {done} of {total} saved{eta.suffix()}")
                     last[0] = now
 
             with make_executor(ctx.workers) as executor:
@@ -175,8 +254,13 @@ def run_section(ctx: ReportContext, slug: str, progress: Callable[[str], None]) 
                                executor=executor, show_progress=False, on_run=on_run)
                 if profile.interpretations:
                     progress(f"{where}: interpretations {', '.join(profile.interpretations)}")
+
+                    def named(spec: str, done: int, total: int, where: str = where) -> None:
+                        on_run(done, total, where=f"{where}, interpretation {spec}")
+
                     run_interpretations(module, setting.params, select(module, ",".join(profile.interpretations)),
-                                        profile.runs, ctx.seed, run_dir, executor, on_run=on_run)
+                                        profile.runs, ctx.seed, run_dir, executor, on_run=named)
+            eta.finished(item)
             if not last[1]:
                 progress(f"{where}: every run saved by an earlier build with the same settings, reused")
             entries.append(RunEntry(name, setting.label, setting.tag, f"{folder}/run/results.json"))
@@ -234,12 +318,15 @@ def _duration(seconds: float) -> str:
 def build(ctx: ReportContext, only: list[str] | None, progress: Progress) -> Path:
     """Run what the selected sections render, then render the report; returns the HTML path."""
     selected = [s for s in SECTIONS if not only or s in only]
+    eta = Eta(plan(ctx, selected))
     for number, slug in enumerate(selected, 1):
-        progress(f"section {number} of {len(selected)}: {slug}")
+        progress(f"section {number} of {len(selected)}: {slug}{eta.suffix()}")
         if slug == PROOFS:
             run_proofs(ctx, progress)
+            eta.finished(PROOFS, ran=True)
         else:
-            run_section(ctx, slug, progress)
+            run_section(ctx, slug, progress, eta)
+    progress(f"rendering the pages{eta.suffix()}")
     return build_report(ctx.out_dir, only, progress)
 
 

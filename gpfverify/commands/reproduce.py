@@ -28,7 +28,7 @@ PROGRESS_SECONDS = 30.0
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("experiment", choices=sorted(EXPERIMENTS), help="which experiment")
+    parser.add_argument("experiment", nargs="?", choices=sorted(EXPERIMENTS), help="which experiment")
     # experiment-specific options are added once the name is known (see run)
     parser.add_argument("rest", nargs=argparse.REMAINDER, help=argparse.SUPPRESS)
 
@@ -80,27 +80,23 @@ def duration(seconds: float) -> str:
 
 
 def progress_lines(name: str, say: Callable[[str], None], header: str = "",
-                   clock: Callable[[], float] = time.monotonic):
+                   clock: Callable[[], float] = time.monotonic, started: float | None = None):
     """``on_run(saved, total)`` for the runner: ``header`` (what runs; said once the runs have
     started, so that a refused command prints only its error) and the estimated time left after
     the first saved run, then a line every :data:`PROGRESS_FRACTION` of the runs (and at least every
-    :data:`PROGRESS_SECONDS`), each with the time left at the rate so far. A count that starts again
-    (the interpretations, each a sequence of runs after the main one) starts the clock again at the
-    end of the previous sequence."""
-    started = last_line = last_call = clock()
-    before: int | None = None  # runs saved before this command (--resume), or before this sequence
-    last_saved = last_share = -1
+    :data:`PROGRESS_SECONDS`), each with the time left at the rate so far; the clock starts now or
+    at ``started``."""
+    started = last_line = clock() if started is None else started
+    before: int | None = None  # runs saved before this command (--resume)
+    last_share = -1
 
     def on_run(saved: int, total: int) -> None:
-        nonlocal started, before, last_line, last_call, last_saved, last_share
+        nonlocal before, last_line, last_share
         now = clock()
         if before is None:
             before = saved - 1
             if header:
                 say(header)
-        elif saved <= last_saved:  # the next sequence of runs (an interpretation) began after the last one
-            started, before, last_share = last_call, saved - 1, -1
-        last_call, last_saved = now, saved
         new = saved - before
         left = (total - saved) * (now - started) / max(new, 1)
         share = int(saved / total / PROGRESS_FRACTION)
@@ -113,6 +109,24 @@ def progress_lines(name: str, say: Callable[[str], None], header: str = "",
         else:
             return
         last_line, last_share = now, share
+
+    return on_run
+
+
+def interpretation_lines(name: str, say: Callable[[str], None],
+                         clock: Callable[[], float] = time.monotonic) -> Callable[[str, int, int], None]:
+    """``on_run(interpretation, saved, total)`` for the interpretations, run one after the other:
+    :func:`progress_lines` of each, naming it (``ct2d, interpretation initial-cov-wide: ...``), its
+    clock started when the previous one saved its last run (or now, for the first)."""
+    lines: dict[str, Callable[[int, int], None]] = {}
+    last = [clock()]
+
+    def on_run(interpretation: str, saved: int, total: int) -> None:
+        if interpretation not in lines:
+            lines[interpretation] = progress_lines(f"{name}, interpretation {interpretation}", say, clock=clock,
+                                                   started=last[0])
+        lines[interpretation](saved, total)
+        last[0] = clock()
 
     return on_run
 
@@ -139,18 +153,29 @@ def claims_text(results: dict) -> str:
     return "\n".join(lines)
 
 
-def run(args: argparse.Namespace) -> int:
+def experiment_parser(name: str) -> argparse.ArgumentParser:
+    """The parser of ``gpfverify reproduce NAME ...``: the common options and the experiment's,
+    generated from its Params."""
     from gpfverify.cli import OneLineParser, plain_help
     from gpfverify.contract.params import add_arguments as add_params_arguments
+
+    module = importlib.import_module(EXPERIMENTS[name])
+    parser = OneLineParser(prog=f"gpfverify reproduce {name}", description=plain_help(module.__doc__))
+    add_common_arguments(parser, quick_runs(module), module.DEFAULT_RUNS)
+    add_params_arguments(parser, module.Params)
+    return parser
+
+
+def run(args: argparse.Namespace) -> int:
     from gpfverify.contract.params import from_arguments
     from gpfverify.errors import InputError
     from gpfverify.experiments.runner import make_executor, run_experiment
 
+    if args.experiment is None:
+        raise InputError(f"name the experiment to run, one of {', '.join(sorted(EXPERIMENTS))} "
+                         "(gpfverify reproduce NAME --help for its options)")
     module = importlib.import_module(EXPERIMENTS[args.experiment])
-    sub = OneLineParser(prog=f"gpfverify reproduce {args.experiment}", description=plain_help(module.__doc__))
-    add_common_arguments(sub, quick_runs(module), module.DEFAULT_RUNS)
-    add_params_arguments(sub, module.Params)  # the options are generated from the experiment's Params
-    opts = sub.parse_args(args.rest)
+    opts = experiment_parser(args.experiment).parse_args(args.rest)
     if opts.paper_scale and opts.runs is not None:
         raise InputError("--paper-scale runs the paper's count: not together with --runs")
     runs = module.DEFAULT_RUNS if opts.paper_scale else opts.runs or quick_runs(module)
@@ -181,7 +206,7 @@ def run(args: argparse.Namespace) -> int:
         if specs:
             say(f"{args.experiment}: interpretations {', '.join(s.name for s in specs)}")
             results = run_interpretations(module, params, specs, runs, opts.seed, stage, executor,
-                                          on_run=None if terminal else progress_lines(args.experiment, say),
+                                          on_run=None if terminal else interpretation_lines(args.experiment, say),
                                           interpretation_runs=opts.interpretation_runs)
     print(f"{args.experiment}: {results['runs_ok']} of {results['runs']} runs ok -> {opts.out / 'results.json'}",
           file=sys.stderr if results["failed_runs"] else sys.stdout)

@@ -30,7 +30,8 @@ class Params(ParamsBase):
     steps: int = option(50, "steps per simulated run", minimum=1)
     measurements: str | None = option(None, "logged measurements RUN.npz (absolute path) instead of simulating")
     training: str | None = option(None, "GP families: training file TRAIN.npz (absolute path)")
-    train: int = option(200, "GP families: samples drawn from the system to learn from", minimum=2)
+    train: int = option(200, "GP families: samples drawn from the system to learn from", minimum=2,
+                        flag="train-points", deprecated=("train",))
     fit_points: int | None = option(200, "GP families: at most this many samples for the evidence maximisation",
                                     minimum=2)
     restarts: int = option(2, "GP families: optimiser starts", minimum=1)

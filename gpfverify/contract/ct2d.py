@@ -58,7 +58,8 @@ class Params(FusionParams):
     """The constant-turn experiment's parameters (see the module docstring); the defaults are the
     paper's headline setting κ = 300, Ω = 2π/90."""
 
-    kappa: int = option(300, "training samples κ (paper: 300, 30, 60)", minimum=3)
+    kappa: int = option(300, "training samples κ (paper: 300, 30, 60); --kappa, the paper's symbol, is the same "
+                        "option", minimum=3, flag="train-points", aliases=("kappa",))
     omega: float = option(OMEGA_SMALL, "turn rate Ω in rad/s (paper: 2π/90 ≈ 0.0698 and 0.5)")
     test_steps: int = option(50, "test steps filtered after the training samples", minimum=1)
     sensor_positions: tuple[tuple[float, float], ...] = option(

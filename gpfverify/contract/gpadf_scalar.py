@@ -47,7 +47,7 @@ class Params(ParamsBase):
     alpha: float = option(1.0, "sigma-point spread α (UKF, GP-UKF)", above=0.0)
     beta: float = option(0.0, "sigma-point β (prior-knowledge weight of the centre point)")
     kappa: float = option(2.0, "sigma-point κ; the scalar state needs α²(1 + κ) > 0, i.e. κ > -1",
-                          above=-1.0)
+                          above=-1.0, flag="sigma-kappa", deprecated=("kappa",))
 
 
 PROFILES: dict[str, Profile] = {

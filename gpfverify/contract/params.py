@@ -6,9 +6,14 @@ offers it. From that one declaration come
 
 * validation when an instance is made (``__post_init__``): types, bounds, choices, then the
   class's own :meth:`Params.check` — an invalid value raises :class:`~gpfverify.errors.InputError`
-  naming the option as the command line spells it (``--kappa must be at least 3, got 2``);
+  naming the option as the command line spells it (``--train-points must be at least 3, got 2``);
 * the command-line options of ``gpfverify reproduce NAME`` (:func:`add_arguments`,
-  :func:`from_arguments`): ``--field-name`` with the field's type, default and help;
+  :func:`from_arguments`): ``--field-name`` with the field's type, default and help — or the
+  field's ``flag`` where the record's name is not the option's (one meaning has one option name
+  in every command: the training-sample count is ``--train-points`` everywhere, the sigma-point κ
+  ``--sigma-kappa``, while the record keeps the paper's symbol, ``kappa``, so that results written
+  before read the same); older spellings stay accepted as ``aliases`` (a name a published command
+  line uses, silently) or ``deprecated`` (with a one-line note on stderr);
 * the record in ``results.json`` and ``manifest.json`` (:meth:`Params.to_json`), read back with
   :meth:`Params.from_json` — numbers and lists only, never prose: a constant the paper fixes is a
   field with its value (``process_noise_var = 5.0``), not a sentence describing it.
@@ -19,6 +24,7 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import math
+import sys
 import types
 import typing
 from typing import Any, Literal, Self, Union
@@ -28,20 +34,55 @@ from gpfverify.errors import InputError
 
 
 def option(default: Any, help: str, *, minimum: float | None = None, maximum: float | None = None,
-           above: float | None = None, choices: tuple | None = None, cli: bool = True) -> Any:
+           above: float | None = None, choices: tuple | None = None, cli: bool = True,
+           flag: str | None = None, aliases: tuple[str, ...] = (), deprecated: tuple[str, ...] = ()) -> Any:
     """A field of a :class:`Params` dataclass: ``default`` (immutable: tuples, not lists), the
     ``help`` text of its command-line option and of the documentation, bounds (``minimum`` ≤ value
     ≤ ``maximum``, value > ``above``; for a tuple, every entry) or ``choices`` checked on every
     instance, and whether the command line offers it (``cli``; scalar fields and tuples of scalars,
-    ``--snr 2 4 6``, are offered)."""
+    ``--snr 2 4 6``, are offered). ``flag`` is the option's name when it is not the field's
+    (``flag="train-points"`` for a field ``kappa``); ``aliases`` are further names the option keeps
+    without comment (one a published command line uses), ``deprecated`` older names it still takes
+    with a note on stderr (all without their leading ``--``)."""
     return dataclasses.field(default=default, metadata={
         "help": help, "minimum": minimum, "maximum": maximum, "above": above, "choices": choices,
-        "cli": cli})
+        "cli": cli, "flag": flag, "aliases": aliases, "deprecated": deprecated})
 
 
 def flag_name(name: str) -> str:
-    """The command-line spelling of a field: ``test_steps`` -> ``--test-steps``."""
+    """The command-line spelling of a field name without a ``flag`` of its own: ``test_steps`` ->
+    ``--test-steps`` (:func:`field_flag` for any field)."""
     return "--" + name.replace("_", "-")
+
+
+def field_flag(field: dataclasses.Field) -> str:
+    """The command-line option of a field: its ``flag`` or its name with dashes."""
+    return "--" + field.metadata["flag"] if field.metadata.get("flag") else flag_name(field.name)
+
+
+class DeprecatedOption(argparse.Action):
+    """An older name of an option, still accepted: stores into the option's ``dest`` as the option
+    does and prints one note on stderr naming the option's name now."""
+
+    def __init__(self, option_strings, dest, *, current: str, **kwargs) -> None:
+        self.current = current
+        super().__init__(option_strings, dest, **kwargs)
+
+    def __call__(self, parser, namespace, values, option_string=None) -> None:
+        print(f"{parser.prog}: note: {option_string} is deprecated, the same option is now {self.current}",
+              file=sys.stderr)
+        setattr(namespace, self.dest, values)
+
+
+def add_deprecated(parser: argparse.ArgumentParser, names: tuple[str, ...], option: argparse.Action) -> None:
+    """Accept each of ``names`` (with their ``--``) as a deprecated spelling of ``option``, an
+    argument already added to ``parser`` that stores one value (or a list, ``nargs``); hidden from
+    ``--help``, whose text of ``option`` names them."""
+    same = {key: getattr(option, key) for key in ("type", "nargs", "choices", "metavar")
+            if getattr(option, key) is not None}
+    for name in names:
+        parser.add_argument(name, dest=option.dest, action=DeprecatedOption, current=option.option_strings[0],
+                            default=argparse.SUPPRESS, help=argparse.SUPPRESS, **same)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -53,7 +94,7 @@ class Params:
         for field in dataclasses.fields(self):
             value = getattr(self, field.name)
             # the typed reader checks the type and turns lists into tuples
-            checked = from_json(hints[field.name], to_json(value), flag_name(field.name))
+            checked = from_json(hints[field.name], to_json(value), field_flag(field))
             if checked != value or type(checked) is not type(value):
                 object.__setattr__(self, field.name, checked)
             _check_bounds(field, checked)
@@ -77,7 +118,7 @@ class Params:
 
 
 def _check_bounds(field: dataclasses.Field, value: Any) -> None:
-    meta, name = field.metadata, flag_name(field.name)
+    meta, name = field.metadata, field_flag(field)
     if value is None or not meta:
         return
     if meta.get("choices") is not None and value not in meta["choices"]:
@@ -134,39 +175,39 @@ def cli_fields(cls: type[Params]) -> list[dataclasses.Field]:
             and (_scalar_type(hints[f.name])[0] is not None or _sequence_type(hints[f.name])[0] is not None)]
 
 
-def add_arguments(parser: argparse.ArgumentParser, cls: type[Params]) -> None:
-    """One option per command-line field of ``cls`` (defaults shown in the help)."""
+def add_arguments(parser: argparse.ArgumentParser, cls: type[Params], only: tuple[str, ...] | None = None) -> None:
+    """One option per command-line field of ``cls`` (or of the fields named in ``only``; defaults
+    shown in the help), by its :func:`field_flag`, its ``aliases`` and its ``deprecated`` names."""
     hints = typing.get_type_hints(cls)
     defaults = cls()
     for field in cli_fields(cls):
+        if only is not None and field.name not in only:
+            continue
         default = getattr(defaults, field.name)
+        names = [field_flag(field), *(f"--{a}" for a in field.metadata.get("aliases", ()))]
+        deprecated = tuple(f"--{a}" for a in field.metadata.get("deprecated", ()))
+        formerly = f"; formerly {', '.join(deprecated)}" if deprecated else ""
         item, nargs = _sequence_type(hints[field.name])
+        kwargs: dict[str, Any] = {"dest": field.name, "default": default}
+        if field.metadata.get("flag"):  # argparse would name the value after the field
+            kwargs["metavar"] = field.metadata["flag"].upper().replace("-", "_")
         if item is not None:  # a tuple: --name V1 V2 ... (read back as a tuple by the Params)
             shown = " ".join(f"{v:g}" if isinstance(v, float) else str(v) for v in default) or "none"
-            many: dict[str, Any] = {"dest": field.name, "default": default, "nargs": nargs,
-                                    "help": f"{field.metadata.get('help', '')} (default {shown})"}
-            if typing.get_origin(item) is Literal:
-                many.update(choices=list(typing.get_args(item)), type=type(typing.get_args(item)[0]))
-            else:
-                many["type"] = item
-            parser.add_argument(flag_name(field.name), **many)
-            continue
-        tp, optional = _scalar_type(hints[field.name])
-        shown = "none" if default is None else f"{default:g}" if isinstance(default, float) else str(default)
-        help_text = f"{field.metadata.get('help', '')} (default {shown})"
+            kwargs["nargs"], tp, optional = nargs, item, False
+        else:
+            tp, optional = _scalar_type(hints[field.name])
+            shown = "none" if default is None else f"{default:g}" if isinstance(default, float) else str(default)
+        kwargs["help"] = f"{field.metadata.get('help', '')} (default {shown}{formerly})"
         if tp is bool:
-            parser.add_argument(flag_name(field.name), dest=field.name, action=argparse.BooleanOptionalAction,
-                                default=default, help=help_text)
-            continue
-        kwargs: dict[str, Any] = {"dest": field.name, "default": default, "help": help_text}
-        if typing.get_origin(tp) is Literal:
+            kwargs["action"] = argparse.BooleanOptionalAction
+        elif typing.get_origin(tp) is Literal:
             kwargs["choices"] = list(typing.get_args(tp))
             kwargs["type"] = type(typing.get_args(tp)[0])
         else:
             kwargs["type"] = _optional_parser(tp) if optional else tp
-            if field.metadata.get("choices") is not None:
+            if item is None and field.metadata.get("choices") is not None:
                 kwargs["choices"] = list(field.metadata["choices"])
-        parser.add_argument(flag_name(field.name), **kwargs)
+        add_deprecated(parser, deprecated, parser.add_argument(*names, **kwargs))
 
 
 def _optional_parser(tp: type) -> Any:
@@ -184,5 +225,5 @@ def from_arguments(cls: type[Params], args: argparse.Namespace) -> Params:
 def describe(cls: type[Params]) -> list[tuple[str, str, str]]:
     """(option, default, help) for every field, for documentation pages."""
     defaults = cls()
-    return [(flag_name(f.name) if f in cli_fields(cls) else f.name, repr(getattr(defaults, f.name)),
+    return [(field_flag(f) if f in cli_fields(cls) else f.name, repr(getattr(defaults, f.name)),
              f.metadata.get("help", "")) for f in dataclasses.fields(cls)]

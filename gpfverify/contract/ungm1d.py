@@ -53,7 +53,8 @@ class Params(FusionParams):
                               above=0)
     trajectory_start_var: float = option(1.0, "the trajectory starts at x₁ ~ N(0, v); this is v (interpretation)",
                                          above=0)
-    train: int = option(200, "training samples at the start of each trajectory", minimum=3)
+    train: int = option(200, "training samples at the start of each trajectory", minimum=3, flag="train-points",
+                        deprecated=("train",))
     test_steps: int = option(50, "test steps filtered after the training samples", minimum=1)
     mahalanobis: Literal["squared", "root"] = option(
         "squared", "the Mahalanobis distance of eq. 44: 'squared' as written, (x − x̂)ᵀC⁻¹(x − x̂); 'root' its "

@@ -28,7 +28,7 @@ import numpy as np
 from gpfverify.angles import difference
 from gpfverify.consistency import Consistency
 from gpfverify.contract.check import CiCriterion, FilterName, Params, RunRecord
-from gpfverify.errors import InputError
+from gpfverify.errors import CaseFileError, InputError
 from gpfverify.filters.families import GP_FAMILIES
 from gpfverify.filters.records import Gaussian
 from gpfverify.audit import rank_rule_to_dict
@@ -70,13 +70,25 @@ def params_for(system: str, filter: FilterName = "ukf", steps: int = 50, measure
                   rank_rule=parse_rank_rule(rank_rule).spec, ci_criterion=ci_criterion)
 
 
-def _load_npz(path: str, what: str) -> dict[str, np.ndarray]:
+def _load_npz(path: str, what: str, expects: str) -> dict[str, np.ndarray]:
     """The arrays of a user's npz file, read by :func:`gpfverify.userfiles.read_npz` (a regular
-    file, every declared size checked before anything is decompressed)."""
+    file, every declared size checked before anything is decompressed); a file that is not an npz
+    archive is refused naming the format ``expects`` describes (and, for a JSON file, what reads
+    it)."""
     try:
         return read_npz(path)
     except OSError as exc:
         raise InputError(f"cannot read {what} {path}: {exc.strerror or exc}") from None
+    except CaseFileError as exc:
+        if Path(path).suffix.lower() in (".json", ".jsonl"):
+            raise InputError(f"{path} is a {Path(path).suffix} file, not an npz archive (an audit run file or "
+                             f"fusion case? 'gpfverify audit' reads those): {what} must be {expects}") from None
+        raise InputError(f"{exc}; {what} must be {expects}") from None
+
+
+#: what ``--training`` expects, for error messages
+TRAINING_FORMAT = ("a training file (TRAIN.npz: x (n, D) consecutive states and y (n, L) their stacked "
+                   "measurements)")
 
 
 def measurements_format(model) -> str:
@@ -88,7 +100,7 @@ def measurements_format(model) -> str:
 def logged_measurements(path: str, model) -> tuple[np.ndarray | None, np.ndarray]:
     """(truth x (T, D) or None, measurements y (T, L)) from a measurements file (``y`` required;
     docs/check-format.md). Not an audit run file: that one is refused saying which is which."""
-    data = _load_npz(path, "measurements")
+    data = _load_npz(path, "--measurements", measurements_format(model))
     if "central_mu_p" in data:
         raise InputError(f"{path} is an audit run file of fusion cases ('gpfverify audit' reads it): "
                          f"--measurements expects {measurements_format(model)}")
@@ -109,10 +121,10 @@ def _gp_model(model, params: Params, rng: np.random.Generator):
     if params.training is None:
         return learn_gp_model(model, params.train, rng, restarts=params.restarts,
                               fit_points=params.fit_points)
-    data = _load_npz(params.training, "training data")
+    data = _load_npz(params.training, "--training", TRAINING_FORMAT)
     name = Path(params.training).name
     if "x" not in data or "y" not in data:
-        raise InputError(f"{name} needs arrays 'x' (n, D) and 'y' (n, L)")
+        raise InputError(f"{name} needs arrays 'x' (n, D) and 'y' (n, L): --training must be {TRAINING_FORMAT}")
     x = as_array(data["x"], f"{name}: x", shape=(None, model.state_dim))
     y = as_array(data["y"], f"{name}: y", shape=(x.shape[0], model.measurement_dim))
     return fit_gp_model(x[:-1], x[1:], x, [y[:, b] for b in model.blocks], rng, restarts=params.restarts,
@@ -190,6 +202,9 @@ def _record(model, fused, ys: np.ndarray, truth: np.ndarray | None) -> RunRecord
                          "branch_offsets": s.branch_offsets.tolist(),
                          "branch_offset_count": int(np.count_nonzero(s.branch_offsets))} for s in audit.sensors],
             "means": {m: step.estimate(m).mean.tolist() for m in fused_by},
+            "covs": {m: step.estimate(m).cov.tolist() for m in fused_by},
+            "repaired_mean": (audit.repaired_dmf_mean.tolist() if audit.repaired_dmf_mean is not None
+                              and any(s.repair_dim for s in audit.sensors) else None),
             "failed": dict(step.failed),
             "local_means": [r.mu_e.tolist() for r in step.local],
             "seconds": {**step.seconds, "local": list(step.local_seconds)},
@@ -199,6 +214,7 @@ def _record(model, fused, ys: np.ndarray, truth: np.ndarray | None) -> RunRecord
         }
         if truth is not None:
             x = truth[t]
+            entry["truth"] = x.tolist()
             entry["sq_err"] = {m: float(np.sum(difference(x, step.estimate(m).mean, model.circular_state) ** 2))
                                for m in fused_by}
             entry["nees"] = {m: float(v[t]) for m, v in errors["nees"].items() if t in v}
@@ -214,7 +230,7 @@ def step_record_bytes(model, methods: Sequence[str]) -> int:
     the step's fusion case (the joint covariance of state and outputs, centre and each sensor) and
     the estimates, as Python floats in lists (32 bytes each), and 2 kB of fixed fields."""
     d, total = model.state_dim, model.measurement_dim
-    floats = 3 * (d + total) ** 2 + (len(methods) + len(model.sensors) + 4) * d
+    floats = 3 * (d + total) ** 2 + (len(methods) + len(model.sensors) + 6) * d + len(methods) * d * d
     return 32 * floats + 2048
 
 
@@ -279,6 +295,17 @@ def _average(kind: str, values: np.ndarray, dof: int) -> dict:
             "level": test.level, "fraction_inside": test.fraction_inside, "verdict": test.verdict()}
 
 
+def _trajectory(steps: Sequence[dict], methods: Sequence[str]) -> dict:
+    """The first run's trajectory: the truth (None when unknown), every method's mean and covariance
+    per step (None at a step where it failed) and the repaired DMF mean at the steps whose audit
+    proposes a repair (:attr:`gpfverify.audit.CaseAudit.repaired_dmf_mean`; CMF's mean to rounding)."""
+    return {"k": [e["k"] for e in steps],
+            "truth": [e["truth"] for e in steps] if all("truth" in e for e in steps) else None,
+            "means": {m: [e["means"].get(m) for e in steps] for m in methods},
+            "covs": {m: [e["covs"].get(m) for e in steps] for m in methods},
+            "repaired": [{"k": e["k"], "mean": e["repaired_mean"]} for e in steps if e["repaired_mean"] is not None]}
+
+
 def summarize(params: Params, results: list[RunRecord], model=None) -> dict:
     """The results.json body (CONTRACT "Checking a user's own system" keys first); ``model`` the
     system (default: loaded from ``params.system``)."""
@@ -323,6 +350,7 @@ def summarize(params: Params, results: list[RunRecord], model=None) -> dict:
                           "local": float(np.mean([sum(e["seconds"]["local"]) for e in every]))},
         "timing_keys": list(TIMING_KEYS),
         "truth_known": all(r.truth_known for r in results),
+        "trajectory": _trajectory(first, methods),
     }
     nis = np.array([[e["nis"]["cmf"] for e in steps] for steps in steps_by_run])
     out["nis"] = {"cmf": _average("NIS", nis, model.measurement_dim),
@@ -353,7 +381,7 @@ def results_of_run(fused, truth: np.ndarray | None = None, system: str = "") -> 
         raise InputError("the check's results need a run_fusion result with its model and ys, CMF, DMF and the audit")
     rule = fused.steps[0].audit.rank_rule
     params = Params(system=system, filter=fused.family, steps=len(fused.steps), methods=fused.methods,
-                    rank_rule=rule.spec)
+                    rank_rule=rule.spec, ci_criterion=fused.ci_criterion)
     record = _record(fused.model, fused, fused.ys, truth)
     return {"experiment": NAME, "runs": 1, "seed": None, "runs_ok": 1, "failed_runs": [], "params": params.to_json(),
             **summarize(params, [record], fused.model)}

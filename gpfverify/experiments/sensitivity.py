@@ -12,6 +12,7 @@ An interpretation that changes only how the runs are *read* — parameters the e
 from __future__ import annotations
 
 import dataclasses
+import functools
 import json
 from collections.abc import Callable, Sequence
 from concurrent.futures import Executor
@@ -120,13 +121,14 @@ def _merged_on_equal_counts(module: ModuleType, run_dir: Path, main: dict,
 
 def run_interpretations(module: ModuleType, params: Params, specs: Sequence[InterpretationSpec], runs: int,
                         seed: int, out_dir: Path, executor: Executor,
-                        on_run: Callable[[int, int], None] | None = None,
+                        on_run: Callable[[str, int, int], None] | None = None,
                         interpretation_runs: int | None = None) -> dict:
     """Run every interpretation next to the main run in ``out_dir`` (which must hold its
     ``results.json``; a summary-only one reads the main run's runs, :func:`summary_results`) and
     rewrite that file with the merged claims; returns it. ``interpretation_runs``: the runs of each
     interpretation with runs of its own (default ``runs``); on fewer runs than the main run, each
-    claim's verdict under it is compared with the main run's on as many (its first) runs."""
+    claim's verdict under it is compared with the main run's on as many (its first) runs.
+    ``on_run(name, saved, runs)`` after every run saved, with the interpretation's name."""
     from gpfverify.experiments.runner import _atomic_write_json, run_experiment
 
     main_path = Path(out_dir) / "results.json"
@@ -140,8 +142,8 @@ def run_interpretations(module: ModuleType, params: Params, specs: Sequence[Inte
             continue
         changed = params.replace(**spec.changes)
         results = run_experiment(module, changed, interpretation_runs or runs, seed,
-                                 Path(out_dir) / "interpretations" / spec.name,
-                                 resume=True, executor=executor, on_run=on_run)
+                                 Path(out_dir) / "interpretations" / spec.name, resume=True, executor=executor,
+                                 on_run=None if on_run is None else functools.partial(on_run, spec.name))
         tried.append((spec, results))
     merged = _merged_on_equal_counts(module, Path(out_dir), main, tried)
     _atomic_write_json(main_path, merged)

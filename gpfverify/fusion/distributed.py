@@ -37,6 +37,7 @@ from gpfverify.fusion.case import FusionCase
 from gpfverify.fusion.centralized import fused_covariance, fusion_gain
 from gpfverify.fusion.exactness import (FusedScale, RankRule, SensorExactness, analyse_sensors, fused_scale,
                                         resolve_rank_rule)
+from gpfverify.runtime import one_blas_thread
 
 
 @dataclass(frozen=True)
@@ -65,6 +66,7 @@ class DMFResult:
         return all(s.exact for s in self.sensors)
 
 
+@one_blas_thread
 def dmf_update(case: FusionCase, repair_messages: Sequence[np.ndarray] | None = None,
                rank_tol: float | None = None, rank_rule: RankRule | str | None = None,
                unit_free: bool = False) -> DMFResult:

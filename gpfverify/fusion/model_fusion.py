@@ -171,14 +171,15 @@ class FusionStep:
 @dataclass(frozen=True)
 class FusionRun:
     """A fusion run: the ``family``, the ``methods`` run and one :class:`FusionStep` per measurement;
-    ``model`` and ``ys`` what it ran on. In a notebook it shows as ``gpfverify check``'s page
-    (:func:`gpfverify.notebook.fusion_run_html`)."""
+    ``model`` and ``ys`` what it ran on, ``ci_criterion`` CI's weight criterion. In a notebook it
+    shows as ``gpfverify check``'s page (:func:`gpfverify.notebook.fusion_run_html`)."""
 
     family: str
     methods: tuple[str, ...]
     steps: tuple[FusionStep, ...]
     model: object = field(default=None, repr=False, compare=False)
     ys: np.ndarray | None = field(default=None, repr=False, compare=False)
+    ci_criterion: str = "trace"
 
     def _repr_html_(self) -> str:
         from gpfverify.notebook import fusion_run_html
@@ -321,7 +322,7 @@ def run_fusion(model, ys, *, family: str = "ukf", methods: Sequence[str] = DEFAU
             step_audit = _audit(dmf)
         steps.append(FusionStep(k, local, cmf, dmf, fused_estimates, step_audit,
                                 seconds, tuple(s for _, s in timed), failed))
-    return FusionRun(family, methods, tuple(steps), model, ys)
+    return FusionRun(family, methods, tuple(steps), model, ys, ci_criterion)
 
 
 def _audit(dmf: DMFStep) -> CaseAudit:

@@ -527,6 +527,11 @@ def equivalence_sections(results: dict, fig_dir: Path, fig_prefix: str = FIGURES
                       "steps are inexact it accumulates their gaps."))
 
     acc = Section("accuracy", "Accuracy and consistency")
+    if results.get("trajectory"):  # results written before it was recorded have none
+        from gpfverify.report.check_trajectory import plot_trajectory, trajectory_caption
+
+        acc.add(Figure(plot_trajectory(results["trajectory"], fig_dir / "trajectory.png"),
+                       trajectory_caption(results["trajectory"])))
     if results.get("truth_known") and "rmse" in results:
         acc.add(Figure(ef.plot_rmse(d.ks, results["rmse"], results["local_rmse"],
                                     [f"local, {lab}" for lab in labels], fig_dir / "rmse.png"),

@@ -65,6 +65,22 @@ def _md_cell(value) -> str:
     return text.replace("|", "\\|").replace("\n", " ")
 
 
+#: a cell with at least this many characters of text is prose: it keeps a readable width (``td.prose``)
+PROSE_CHARS = 40
+
+
+def _labelled(cell: str, label: str) -> str:
+    """A ``<td ...>`` with its column's header as ``data-label`` (shown beside the value when the
+    table is stacked, :data:`_FIT_SCRIPT`) and the class ``prose`` when it holds a sentence."""
+    text = re.sub(r"<[^>]*>", "", cell)
+    prose = len(text) >= PROSE_CHARS and " " in text
+    if prose and cell.startswith('<td class="'):
+        cell = '<td class="prose ' + cell[len('<td class="'):]
+    elif prose:
+        cell = '<td class="prose"' + cell[3:]
+    return "<td" + label + cell[3:]
+
+
 def _html_cell(value) -> str:
     if isinstance(value, VerdictCell):
         caution = ""
@@ -123,9 +139,11 @@ def _html_block(block) -> str:
         return f"<p>{inline(_text(block.text))}</p>"
     if isinstance(block, Table):
         head = "".join(f"<th>{inline(_text(h))}</th>" for h in block.headers)
+        labels = [f' data-label="{esc(_text(h))}"' for h in block.headers]
         ids = list(block.row_ids) + [""] * (len(block.rows) - len(block.row_ids))
         body = "".join((f'<tr id="{esc(row_id)}">' if row_id else "<tr>")
-                       + "".join(_html_cell(c) for c in row) + "</tr>" for row, row_id in zip(block.rows, ids))
+                       + "".join(_labelled(_html_cell(c), label) for c, label in zip(row, labels)) + "</tr>"
+                       for row, row_id in zip(block.rows, ids))
         cap = f"<caption>{inline(_text(block.caption))}</caption>" if block.caption else ""
         css = f' class="{esc(block.css)}"' if block.css else ""
         return (f'<div class="table-wrap"><table{css}>{cap}<thead><tr>{head}</tr></thead>'
@@ -167,6 +185,14 @@ h2{margin-top:2.2rem;border-bottom:2px solid #e3e6ea;padding-bottom:.2rem}
 section,tr[id]{scroll-margin-top:1rem}
 .paper-line{color:var(--muted);margin-top:-.3rem}
 .table-wrap{overflow-x:auto}
+td.prose{min-width:8rem}
+table.stacked,table.stacked tbody,table.stacked tr,table.stacked td{display:block;width:auto;min-width:0}
+table.stacked thead{display:none}table.stacked caption{display:block}
+table.stacked tr{border:1px solid var(--line);border-radius:4px;margin:.5rem 0}
+table.stacked td{display:grid;grid-template-columns:minmax(6rem,28%) minmax(0,1fr);gap:.6rem;border:0;
+border-bottom:1px solid #eef0f3;overflow-wrap:anywhere}
+table.stacked td::before{content:attr(data-label);font-weight:600;color:var(--muted)}
+table.stacked td.chips{display:block}table.stacked td.chips::before{display:block}
 table{border-collapse:collapse;margin:.8rem 0;font-size:.92rem}
 td,th{border:1px solid var(--line);padding:.25rem .5rem;text-align:left;vertical-align:top}
 th{background:#eef0f3}
@@ -535,7 +561,16 @@ def _page(title: str, preamble: str, listed: dict, summaries: dict[str, SectionS
     style = (cjk_font.font_face_css() if cjk_font.page_needs_font(body) else "") + _STYLE
     return (f"<!DOCTYPE html><html lang='en'><head><meta charset='utf-8'>"
             f"<meta name='viewport' content='width=device-width, initial-scale=1'><title>{esc(title)}</title>"
-            f"<style>{style}</style></head>{body}")
+            f"<style>{style}</style></head>{body.replace('</body>', _FIT_SCRIPT + '</body>')}")
+
+
+#: tables wrap their text (``td.prose`` keeps a readable width); a table that still does not fit
+#: its column is stacked, one block per row with each value beside its column's name, and is
+#: measured again whenever the window changes (without scripts it scrolls sideways instead)
+_FIT_SCRIPT = ("<script>(function(){function fit(){document.querySelectorAll('.table-wrap').forEach(function(w){"
+               "var t=w.querySelector('table');t.classList.remove('stacked');"
+               "if(t.getBoundingClientRect().width>w.clientWidth+1)t.classList.add('stacked');});}"
+               "addEventListener('load',fit);addEventListener('resize',fit);})();</script>")
 
 
 def read_summaries(out_dir: Path, order: list[str]) -> list[SectionSummary]:

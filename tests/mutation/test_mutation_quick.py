@@ -9,6 +9,8 @@ import pytest
 from tests.mutation.mutants import MUTANTS
 from tests.mutation.run_mutants import ROOT, apply, make_copy, run_tests, verdict
 
+pytestmark = pytest.mark.slow  # runs properties on mutated copies of the package
+
 KILL_TABLE = ROOT / "reports" / "mutation" / "kill_table.json"
 
 
