@@ -1,4 +1,5 @@
-"""A sensor with more outputs than states (l_m > D) never has a full-column-rank C_xy^m.
+"""A sensor with more outputs than states (l_m > D) never has a full-column-rank C_xy^m: full
+column rank gives D − l_m = tr((I − AA⁺)ᵀ(I − AA⁺)) ≥ 0 in every dimension.
 
 Run: ``python proofs/prove_full_rank_needs_l_le_d.py [small|large]``. Collected by pytest."""
 

@@ -1,5 +1,6 @@
-"""The uncertain-input kernel integrals of GP moment matching (seed 000 eq. 8–11, 20) for D = 1,
-by symbolic integration against the Gaussian.
+"""The uncertain-input kernel integrals of GP moment matching (seed 000 eq. 8–11, 20) with a full
+input covariance, by exact iterated integration against the Gaussian for D = 1, 2 (and 3 in the
+large size), with the matrix identities behind the closed forms proved for a symbolic D.
 
 Run: ``python proofs/prove_gp_moment_integrals.py [small|large]``. Collected by pytest."""
 

@@ -1,5 +1,5 @@
-"""The unscented transform is exact for affine maps (symbolic sigma points), so UKF = KF on
-linear models.
+"""At the listed sizes, the unscented transform is exact for affine maps (symbolic sigma points),
+so UKF = KF on linear models.
 
 Run: ``python proofs/prove_ukf_equals_kf_linear.py [small|large]``. Collected by pytest."""
 

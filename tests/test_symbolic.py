@@ -12,9 +12,10 @@ from gpfverify.cli import main
 from gpfverify.errors import InputError
 from gpfverify.symbolic.certificate import Certificate
 from gpfverify.symbolic.claims import CLAIMS, run_claim
-from gpfverify.symbolic.fusion_claims import build_sensor, cofactor_kernel_vector, random_point
+from gpfverify.symbolic.fusion_claims import build_sensor, random_point
 from gpfverify.symbolic.fusion_forms import cmf_term, dmf_term, predicted_gap_term
 from gpfverify.symbolic import dimension_free, gp_claims, word_algebra as wa
+from gpfverify.symbolic.argument import Argument
 from gpfverify.symbolic.polynomial import Fraction, generic_symmetric, identity, inverse, lift, polynomial_ring
 from gpfverify.symbolic.ukf_claims import unscented_moments
 from gpfverify.tolerances import algebra_rtol
@@ -63,12 +64,6 @@ def test_symbolic_fusion_terms_match_numpy_formulas_at_a_point(rank):
         assert np.abs(gap).max() > 0  # the point really is a rank-deficient case with a gap
 
 
-def test_cofactor_vector_spans_the_kernel_of_a_numeric_wide_matrix():
-    a = sp.Matrix([[1, 2, 3], [4, 5, 7]])
-    v = cofactor_kernel_vector(a)
-    assert a * v == sp.zeros(2, 1) and any(v)
-
-
 def test_moment_integral_equality_rejects_a_sign_flipped_cross_moment():
     """The old log-based test accepted exp(2·diff) = 1 for diff = ±iπ, i.e. a flipped sign."""
     setting = gp_claims.Setting.of(1)
@@ -87,26 +82,39 @@ def test_word_algebra_needs_the_stated_rules():
     does not give A⁺A = I; a chain step that applies no rule is refused."""
     d = dimension_free
     lhs, rhs = d.dmf_term() - d.cmf_term(), d.gap_term()
-    assert wa.prove_by_normal_form(lhs, rhs, d.C_RULES + [d.LOCAL_UPDATE]).proved
+    assert wa.prove_by_normal_form(lhs, rhs, d.ONE_SENSOR).proved
     assert not wa.prove_by_normal_form(lhs, rhs, [d.LOCAL_UPDATE]).proved
-    assert not wa.prove_by_normal_form(d.Ap * d.A, d.I_l, d.PENROSE).proved
-    bogus = wa.prove_by_chain([(d.Ap * d.A, None), (d.I_l, d.PENROSE[0].name)], d.PENROSE)
-    assert not bogus.proved
+    assert not wa.prove_by_normal_form(d.Ap * d.A, d.I_l, list(d.PENROSE)).proved
+    assert not wa.prove_by_chain([(d.Ap * d.A, None), (d.I_l, d.PENROSE[0])]).proved
     with pytest.raises(wa.ShapeError):
         _ = d.A * d.A  # n×l times n×l
 
 
-def test_word_algebra_rules_are_checked_on_instances():
+def test_the_theory_checks_its_rules_on_exact_instances():
+    """Every issued rule holds on the engine's instances of its own hypotheses; a wrong equation
+    fails on the general instances, and the instances that satisfy it (as a hypothesis) are those
+    with C_xy^m = 0, where A⁺ = A⁺AA⁺AA⁺ + A⁺ does hold."""
     d = dimension_free
-    wrong = wa.Rule("wrong Penrose", d.Ap * d.A * d.Ap, d.Ap * d.A * d.Ap * d.A * d.Ap + d.Ap, "axiom")
-    checked = d.check_rules(d.PENROSE + [wrong], {})
-    assert all(checked.verdicts[r.name] for r in d.PENROSE) and not checked.verdicts["wrong Penrose"]
-    assert not checked.holds
+    for rule in [*d.PENROSE, *d.C_INVERSE, d.LOCAL_UPDATE, d.PHI, *d.SELECTORS]:
+        check = d.T.check(rule, rule.premises)
+        assert check.passed, str(check)
+    wrong = d.T.hypothesis("a wrong Penrose equation (test)", d.Ap * d.A * d.Ap, d.Ap * d.A * d.Ap * d.A * d.Ap + d.Ap,
+                           "a wrong Penrose equation")
+    assert not d.T.check(wrong, frozenset()).holds
+    satisfying = d.T.instances(frozenset({wrong}))
+    assert satisfying and all(i.values["C_xy^m"].is_zero_matrix for i in satisfying)
 
 
 def test_a_proof_whose_negative_control_is_accepted_is_not_a_proof(tmp_path, monkeypatch, capsys):
-    c = Certificate("x", "s", "m", "proved", "d", negative_controls=({"mutant": "sign", "rejected": False},))
-    assert c.status == "checked" and c.detail.startswith("NOT A PROOF")
+    d = dimension_free
+    argument = Argument("x", "A⁺A = I when C_xy^m has full column rank", "m", d.T)
+    argument.conclude(d.projector_is_identity().derivation)
+    evidence = argument.verdict()
+    c = Certificate("x", "s", "m", "proved", "d", negative_controls=({"mutant": "sign", "rejected": False},),
+                    evidence=evidence)
+    with pytest.raises(ValueError):  # a verdict on another claim is not evidence
+        Certificate("y", "s", "m", "proved", "d", evidence=evidence)
+    assert evidence.status == "proved" and c.status == "checked" and c.detail.startswith("NOT A PROOF")
     assert c.to_json()["negative_controls"] == [{"mutant": "sign", "rejected": False}]
     import gpfverify.symbolic.claims as claims_module
 
@@ -119,13 +127,13 @@ def test_a_proof_whose_negative_control_is_accepted_is_not_a_proof(tmp_path, mon
                                    "full-rank-needs-l-le-D"])
 def test_contract_claims_have_scope_and_rejected_controls(claim):
     record = run_claim(claim, "small").to_json()
-    scope = f"checked on D ≤ {dimension_free.FACT_MAX_D}" if claim == "full-rank-needs-l-le-D" else "any dimension"
-    assert record["status"] == "proved" and (record["scope"] == scope or record["scope"].endswith("; " + scope))
+    assert record["status"] == "proved" and record["scope"] == "any dimension"
     controls = record["negative_controls"]
     assert len(controls) >= 3 and all(c["rejected"] for c in controls)
-    # every mutant is shown false on an exact instance (it is a real error), one control plants a rule
+    # every mutant is shown false on an exact instance (it is a real error)
     assert all(c["false_on_instance"] for c in controls)
-    assert any(c["mutant"].startswith("planted unsound rule") for c in controls)
+    # every check the engine ran counts its instances, and none ran on none
+    assert record["checks"] and all(c["instances"] > 0 and c["holds"] for c in record["checks"])
 
 
 def test_unscented_transform_is_not_exact_for_a_quadratic_map():
@@ -173,8 +181,8 @@ def test_proofs_page_lists_every_certificate_with_its_status():
     from gpfverify.report.document import Table
     from gpfverify.report.sections.proofs import render
 
-    records = [Certificate("a", "s", "m", "proved", "d").to_json(),
-               Certificate("b", "s", "m", "refuted", "d").to_json()]
+    records = [{"claim": "a", "statement": "s", "method": "m", "status": "proved", "detail": "d"},
+               {"claim": "b", "statement": "s", "method": "m", "status": "refuted", "detail": "d"}]
     section = render(records)
     table = next(b for b in section.blocks if isinstance(b, Table))
     assert [row[:2] for row in table.rows] == [["a", "proved"], ["b", "refuted"]]

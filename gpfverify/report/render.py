@@ -411,8 +411,9 @@ def references_blocks() -> list:
 _LEGEND = ("Colours: held (green) — our runs agree with the paper's claim; NOT held (red) — they contradict "
            "it beyond the Monte Carlo error; undecided (amber) — the Monte Carlo interval contains the "
            "threshold, more runs would decide; not decidable (grey) — the runs as made cannot decide it. "
-           "Proofs: proved (exact symbolic argument), refuted (an exact counterexample to the statement), "
-           f"checked (two implementations agree numerically). {CAUTION_MARK} marks a verdict that rests on "
+           "Proofs: proved (exact symbolic argument the engine checked), refuted (an exact counterexample to "
+           "the statement), checked (agreement on exact instances or of two implementations to a tolerance — "
+           f"not a proof). {CAUTION_MARK} marks a verdict that rests on "
            "fewer runs than the paper used or on wall-clock timing (which depends on the machine and its "
            "load): hold it loosely.")
 

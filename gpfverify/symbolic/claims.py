@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import importlib
 from collections.abc import Callable
+from functools import cache
 
 from gpfverify.errors import InputError
 from gpfverify.symbolic.certificate import SIZES, Certificate
@@ -33,9 +34,16 @@ def claim_function(claim: str) -> Callable[[str], Certificate]:
 
 
 def run_claim(claim: str, size: str = "small") -> Certificate:
-    """Run one claim's proof (or check) at ``size`` and return its certificate."""
+    """Run one claim's proof (or check) at ``size`` and return its certificate (computed once per
+    process: the engine is deterministic and a certificate is immutable)."""
     if size not in SIZES:
         raise InputError(f"size must be one of {SIZES}, got {size!r}")
+    claim_function(claim)  # an unknown claim is an InputError, not a cached failure
+    return _run(claim, size)
+
+
+@cache
+def _run(claim: str, size: str) -> Certificate:
     certificate = claim_function(claim)(size)
     if certificate.claim != claim:  # a registry entry pointing at the wrong function
         raise InputError(f"claim {claim!r} produced a certificate for {certificate.claim!r}")

@@ -36,11 +36,14 @@ def render(certificates: list[dict], out_dir: Path | None = None) -> Section:
     counts = Counter(c.status for c in infos)
     section = Section(SLUG, TITLE)
     section.add(
-        Paragraph("Each statement is checked by exact symbolic computation (proved; or refuted by an exact "
-                  "counterexample) or by numerical agreement of two independent implementations within a stated "
-                  "tolerance (checked). A proof must also reject its negative controls — deliberately wrong "
-                  "variants of the statement (a sign, a transpose, a dropped term) — or it is demoted; a proof "
-                  "that uses a textbook fact it does not prove lists it as a stated fact. "
+        Paragraph("A statement is proved when the proof engine accepts it: every rule the proof applies was "
+                  "issued by a declaration (and checked on exact instances) or derived, every hypothesis it rests "
+                  "on is written into the statement, and its scope is what the proof covers (any dimension, or "
+                  "the sizes listed). It is refuted by an exact counterexample, and checked when it holds on exact "
+                  "instances or two independent implementations agree within a stated tolerance — checked is not "
+                  "a proof (the detail says why). A proof must also reject its negative controls — deliberately "
+                  "wrong variants of the statement (a sign, a transpose, a dropped term, a dropped hypothesis, a "
+                  "rule no declaration issued) — or it is demoted; a stated fact (checked, not proved) is listed. "
                   "Statements expected to be false are kept and shown as refuted. Totals: "
                   + ", ".join(f"{counts[s]} {s}" for s in STATUSES) + "."),
         Table(["claim", "status", "statement", "scope", "stated facts (used, not proved)", "method",
