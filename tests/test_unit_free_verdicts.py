@@ -5,7 +5,8 @@ every state and output component by 1e-8…1e8 (angles keep radians) get the sam
 and "reproduced" verdicts; a DMF error planted at 1e-8 prior standard deviations is beyond rounding
 in every unit; the rounding bound holds against the same step recomputed in 50 digits and stays
 within a stated factor of that real rounding; a saturated sensor whose gap is at the fused
-estimate's rounding is exact."""
+estimate's rounding is exact; where the 8-output sensor lost rank, DMF in other units is within
+the two units' distances to the unit-free variant, which the distance in one unit does not bound."""
 
 from __future__ import annotations
 
@@ -23,7 +24,7 @@ from gpfverify.fusion.model_fusion import run_fusion
 from gpfverify.fusion.runfile import open_run, write_run
 from gpfverify.fusion.synthetic import random_case
 from gpfverify.rng import generator
-from gpfverify.tolerances import EPS, SOLVER_TOL
+from gpfverify.tolerances import ALGEBRA_RTOL, EPS, SOLVER_TOL
 
 HERE = Path(__file__).parent
 sys.path.insert(0, str(HERE))                       # the suite imports in importlib mode: helpers beside it
@@ -85,13 +86,18 @@ def test_a_robot_whose_only_rank_loss_is_exact_reproduces_cmf_in_every_unit(leng
         assert not a.condition_holds and a.exact and a.reproduced, (a.gap_size, a.gap_bound)
 
 
-def _random_rescaling(case, rng):
-    """Every component ×10^U(−8, 8), angle outputs and angle state components ×1."""
+def _random_scales(case, rng) -> tuple[np.ndarray, np.ndarray]:
+    """(state, output) scales: every component ×10^U(−8, 8), angle outputs and angle state
+    components ×1."""
     states = 10.0 ** rng.uniform(-8, 8, case.state_dim)
     states[list(case.circular_state)] = 1.0
     outputs = 10.0 ** rng.uniform(-8, 8, case.central.mu_y.size)
     outputs[list(case.central.circular)] = 1.0
-    return rescaled_case(case, states, outputs)
+    return states, outputs
+
+
+def _random_rescaling(case, rng):
+    return rescaled_case(case, *_random_scales(case, rng))
 
 
 def _logged_steps(metres) -> list:
@@ -116,6 +122,10 @@ def test_random_rescalings_keep_every_verdict(metres):
 
 
 def test_the_batched_audit_gives_the_same_verdicts_in_any_units(tmp_path):
+    """Random full-rank steps and their random rescalings audited as one block: every step
+    reproduced, and each rescaled step's bound the unscaled one's (in exact arithmetic the bound is
+    the same number; the two computations differ by rounding of well-conditioned whitenings), small
+    enough that a 1e-8 prior-SD error is beyond it."""
     rng = np.random.default_rng(13)
     cases = [random_case(rng, 4, (2, 2, 1)) for _ in range(6)]
     scaled = [_random_rescaling(c, rng) for c in cases]
@@ -123,6 +133,9 @@ def test_the_batched_audit_gives_the_same_verdicts_in_any_units(tmp_path):
         [block] = list(reader.blocks())
     batched = block_audits(block.block, audit_case(cases[0]).rank_rule)
     assert all(b is not None and b.exact and b.reproduced for b in batched), [b and b.gap_size for b in batched]
+    for plain, other in zip(batched[:6], batched[6:]):
+        assert other.gap_bound == pytest.approx(plain.gap_bound, rel=ALGEBRA_RTOL)
+        assert plain.gap_bound < 1e-8 / 10
 
 
 def _planted(case, size: float) -> tuple[float, float, float]:
@@ -213,3 +226,23 @@ def test_the_determinant_criterion_makes_ci_unit_free_and_the_trace_criterion_do
     trace = np.abs(_ci_means(1.0, "trace") - _ci_means(1e-3, "trace")) / prior_sd
     assert det.max() <= SOLVER_TOL
     assert trace.max() > 1e3 * SOLVER_TOL
+
+
+def test_the_unit_dependence_bounds_how_far_a_change_of_units_moves_dmf_only_with_the_other_units_own(metres):
+    """What the check page and the docs say of the Moore–Penrose DMF where the 8-output sensor lost
+    rank: rescaled back, DMF in other units is within the sum of the two units' distances to the
+    unit-free variant (the triangle inequality through the estimate no change of units moves), and
+    the distance in metres alone does not bound the move (some rescaling moves DMF further)."""
+    rng = np.random.default_rng(16)
+    moved_beyond = 0
+    for step in metres.steps[:4]:
+        case, audit = step.dmf.case, step.audit
+        assert audit.unit_dependence is not None and audit.unit_dependence < 1e-5
+        for _ in range(10):
+            states, outputs = _random_scales(case, rng)
+            other = audit_case(rescaled_case(case, states, outputs))
+            move = gap_size(case, difference(other.dmf_mean / states, audit.dmf_mean, case.circular_state))
+            sides = audit.unit_dependence + other.unit_dependence
+            assert move <= sides + audit.gap_bound + other.gap_bound
+            moved_beyond += move > 1.0
+    assert moved_beyond

@@ -336,10 +336,11 @@ def _unit_sentences(d: CheckData) -> list[str]:
     dependence = [v for run in d.r.get("unit_dependence") or [] for v in run if v is not None]
     if dependence:
         out.append(f"At {_plural(len(dependence), 'step')} a sensor lost rank, and there eq. 35's Moore–Penrose "
-                   "inverse depends on the units of the state and output components: the unit-free variant of DMF "
-                   f"(truncated in whitened coordinates) was up to {_g(max(dependence))} prior standard deviations "
-                   f"from DMF (median {_g(float(np.median(dependence)))}) — about how far a change of units can "
-                   "move DMF at those steps.")
+                   "inverse depends on the units of the state and output components: in these units DMF was up to "
+                   f"{_g(max(dependence))} prior standard deviations (median {_g(float(np.median(dependence)))}) "
+                   "from the unit-free variant of DMF (truncated in whitened coordinates), the estimate no change "
+                   "of units moves. In other units DMF lies at its own distance from that variant, which this one "
+                   "does not bound: a change of units moves DMF by at most the sum of the two distances.")
     methods = list((d.r.get("params") or {}).get("methods") or [])
     criterion = (d.r.get("params") or {}).get("ci_criterion", "trace")
     weighted = [m.upper() for m in ("ci", "ici") if m in methods]
