@@ -1,11 +1,14 @@
 """Proposition 1 of seed 000 and what the toolkit establishes around it, on drawn fusion cases.
 
 Oracle: CMF on the centre's joint Gaussian (an independent route to the same fused mean), the
-closed-form gap, and the cases' designed ranks. Every comparison of two exact-algebra routes uses
-:func:`dmf_error_bound`, a rounding bound scaled by the conditioning the audit reports.
+closed-form gap, and the cases' designed ranks. Comparisons of DMF with CMF use
+:func:`dmf_error_bound`, the library's rounding bound (which the audit states and a property holds
+it to); the comparison of the observed gap with the closed form uses a rounding bound derived here
+from the case's conditioning (:func:`dmf_rounding` + :func:`closed_form_rounding`), so that it does
+not rest on the bound under test.
 
 * full column rank ⇒ DMF = CMF (to the bound), and the audit says so;
-* any ranks ⇒ observed gap DMF − CMF = closed-form gap (to the bound); repaired DMF = CMF;
+* any ranks ⇒ observed gap DMF − CMF = closed-form gap (to the derived bound); repaired DMF = CMF;
 * gap = 0 for every measurement ⇔ ker C_xy^m ⊆ ker G_m C_y^m (the audit's exactness verdict
   brackets the observed gap map); ``decoupled`` sensors are deficient yet exact, and one whose
   decoupled component leaks into the other sensor's noise by ε is called exact only within rounding;
@@ -25,6 +28,7 @@ from hypothesis import event, example, given
 from hypothesis.control import currently_in_test_context
 from hypothesis import strategies as st
 
+from gpfverify.angles import difference
 from gpfverify.audit import audit_case
 from gpfverify.fusion.case import FusionCase, LocalReport, load_case
 from gpfverify.fusion.distributed import dmf_update
@@ -96,9 +100,54 @@ def closed_form_rounding(case: FusionCase) -> float:
     return rounding_bound(float(sla.norm(whitened)), case.state_dim + case.central.mu_y.shape[0])
 
 
+def dmf_rounding(case: FusionCase, ranks) -> float:
+    """First-order rounding bound, in prior standard deviations, of the fused means eq. 35 computes
+    (DMF, its repaired form) and CMF, derived here from the problem's conditioning (no library
+    bound). Per state component, eps times:
+
+    * the local reports' own rounding: μ_e^m = μ_p^m + C_xy^m (C_y^m)⁻¹(y^m − μ_y^m) rounds by
+      |μ_e^m| + |μ_p^m| + κ(C_y^m)|μ_e^m − μ_p^m| (κ of C_y^m equilibrated), carried into the
+      state by |G_m C_y^m A_m|, A_m = (C_xy^m)⁺ at the audit's rank r;
+    * the pseudo-inverse: an SVD is exact for C_xy^m + E, ‖E‖ ≤ eps σ_1, and to first order
+      A_m c changes by ‖A_m‖(2‖E‖‖A_m c‖ + ‖E‖‖(I − C_xy^m A_m)c‖/(σ_r − σ_{r+1})) (Wedin; the
+      second term is the rotation of the kept singular subspace, c = μ_e^m − μ_p^m), carried by
+      the rows of G_m C_y^m — A_m's relative error is σ_1/σ_r, and with an independent local prior
+      G_m C_y^m A_m need not shrink it: a drawn case with σ_r/σ_1 = 1e-6 and an independent prior
+      shows DMF 2.6e-9 prior sd from CMF in double precision while the case is exact to 2e-17 in
+      60-digit arithmetic (regressions/gap-closed-form-and-repair--pinv-reconstruction.json);
+    * the sums and products: |G|(|μ_y^m| + |μ_y(m)| + |C_y^m A_m c|), |G|(|y| + |μ_y|), |μ_p|.
+
+    The gain's own rounding cancels between DMF and CMF (they share it); where it does not cancel,
+    in the gap itself, :func:`closed_form_rounding` counts it. Whitened by |L_p⁻¹| with D + L
+    operations (:func:`~gpfverify.tolerances.rounding_bound`)."""
+    c = case.central
+    gain = np.linalg.solve(c.C_y, c.C_xy.T).T
+    magnitude = 2.0 * np.abs(c.mu_p) + np.abs(gain) @ (np.abs(case.y) + np.abs(c.mu_y))
+    for rank, block, local in zip(ranks, c.blocks, case.locals):
+        u, s, vt = np.linalg.svd(local.C_xy)
+        pinv = (vt[:rank].T / s[:rank]) @ u[:, :rank].T
+        change = difference(local.mu_e, local.mu_p, case.circular_state)
+        recovered = pinv @ change
+        g_m = gain[:, block]
+        carried = g_m @ local.C_y
+        unit = np.sqrt(np.diag(local.C_y))
+        report = (np.abs(local.mu_e) + np.abs(local.mu_p)
+                  + np.linalg.cond(local.C_y / np.outer(unit, unit)) * np.abs(change))
+        magnitude += np.abs(carried @ pinv) @ report
+        magnitude += np.abs(g_m) @ (np.abs(local.mu_y) + np.abs(c.mu_y[block]) + np.abs(local.C_y @ recovered))
+        if rank:
+            following = s[rank] if rank < s.size else 0.0
+            outside = np.linalg.norm(change - local.C_xy @ recovered)
+            moved = (s[0] / s[rank - 1]) * (2.0 * np.linalg.norm(recovered)
+                                            + outside / (s[rank - 1] - following))
+            magnitude += np.linalg.norm(carried, axis=1) * moved
+    whitened = np.abs(np.linalg.inv(np.linalg.cholesky(c.C_p))) @ magnitude
+    return rounding_bound(float(sla.norm(whitened)), case.state_dim + c.mu_y.shape[0])
+
+
 def check_gap_closed_form_and_repair(case: FusionCase) -> None:
     audit = audit_case(case)
-    bound = dmf_error_bound(case) + closed_form_rounding(case)
+    bound = dmf_rounding(case, [s.rank for s in audit.sensors]) + closed_form_rounding(case)
     assert prior_sd(case, audit.gap - audit.predicted_gap) <= bound
     assert prior_sd(case, audit.repaired_dmf_mean - audit.cmf_mean) <= bound
     assert [s.repair_dim for s in audit.sensors] == [s.cols - s.rank for s in audit.sensors]
@@ -179,8 +228,8 @@ def test_dmf_exact_iff_kernel_inclusion(drawn):
     with saving_case_on_failure(drawn.case, "exact-iff-kernel-inclusion"):
         check_exact_iff_kernel_inclusion(drawn.case)
         audit = audit_case(drawn.case)
-        if drawn.exact_by_design:
-            assert audit.exact
+        if drawn.exact_by_design:  # the step's verdict and every sensor's, as the audit reports them
+            assert audit.exact and all(s.exact for s in audit.sensors), [s.exact for s in audit.sensors]
         assert audit.condition_holds == drawn.condition_holds_by_design
 
 

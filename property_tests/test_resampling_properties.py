@@ -1,5 +1,6 @@
 """Systematic resampling as a randomised algorithm: over the generator's draws its counts are
-unbiased, E[count_i] = n w_i (Kitagawa 1996), and every draw gives ⌊n w_i⌋ or ⌈n w_i⌉.
+unbiased, E[count_i] = n w_i (Kitagawa 1996), and every draw gives ⌊n w_i⌋ or ⌈n w_i⌉; and the
+adaptive rule of every particle filter's step at any threshold (resample when N_eff < t N).
 
 Each count lies in an interval of length 1 (checked on every draw), so the mean of R draws is
 within Hoeffding's :func:`~gpfverify.tolerances.bounded_mean_atol` of n w_i — no estimate of the
@@ -11,6 +12,7 @@ one uniform per particle is unbiased but leaves floor/ceil.
 import numpy as np
 from hypothesis import given, settings
 from hypothesis import strategies as st
+from scipy.special import logsumexp
 
 from gpfverify.filters.resampling import reweight_and_resample, systematic_resample
 from gpfverify.strategies import scaled_examples
@@ -51,3 +53,41 @@ def test_a_resampling_step_keeps_every_particle_in_expectation(counts, seed):
     np.testing.assert_allclose(np.exp(step.posterior.log_weights), 1.0 / weights.size, rtol=4 * EPS)
     bias = np.abs(np.mean(copies, axis=0) - weights.size * weights)
     assert np.all(bias <= bounded_mean_atol(1.0, DRAWS) + weights.size**2 * EPS), bias
+
+
+@given(log_w=st.lists(st.one_of(st.just(-np.inf), st.floats(-30.0, 5.0)), min_size=1, max_size=20)
+       .filter(lambda v: max(v) > -np.inf),
+       threshold=st.one_of(st.floats(0.0, 1.5), st.just(1.0)), seed=st.integers(0, 2**32 - 1))
+def test_reweight_and_resample_resamples_exactly_below_the_effective_sample_size_threshold(log_w, threshold, seed):
+    """At any threshold t: N_eff = (Σ w)² / Σ w² (computed here with scipy's logsumexp) decides —
+    resample when t ≥ 1 or N_eff < t N; a resampled set is equally weighted and every particle is
+    one of the weighted set carrying its own covariance factor; otherwise the weighted set is kept.
+    The weighted set's log weights are normalised and the estimate is its weighted moments, taken
+    before resampling. Thresholds within rounding of N_eff/N may go either way."""
+    log_w = np.array(log_w)
+    n = log_w.size
+    particles = np.column_stack([np.arange(n, dtype=float), np.arange(n, dtype=float) ** 2])
+    factors = np.arange(n, dtype=float)[:, None, None] * np.eye(2) + np.eye(2)
+    step = reweight_and_resample(particles, log_w, np.random.default_rng(seed), threshold, factors)
+    # exp and the sums lose n eps relative to the log weights' size
+    rounding = 8 * n * EPS * (1.0 + np.abs(log_w[np.isfinite(log_w)]).max())
+    normalised = log_w - logsumexp(log_w)
+    np.testing.assert_allclose(step.weighted.log_weights, normalised, rtol=0, atol=rounding)
+    ess = float(np.exp(2.0 * logsumexp(log_w) - logsumexp(2.0 * log_w)))
+    assert abs(step.ess - ess) <= rounding * ess
+    w = np.exp(normalised)
+    mean = w @ particles
+    scale = float(n * n)  # the particles' largest entry
+    np.testing.assert_allclose(step.mean, mean, rtol=0, atol=rounding * scale)
+    np.testing.assert_allclose(step.cov, (particles - mean).T @ ((particles - mean) * w[:, None]), rtol=0,
+                               atol=rounding * scale**2)
+    if abs(ess - threshold * n) > rounding * n:  # else the comparison may go either way
+        assert step.resampled == (threshold >= 1.0 or ess < threshold * n), (ess, threshold, n)
+    if step.resampled:
+        idx = step.posterior.particles[:, 0].astype(int)
+        np.testing.assert_array_equal(step.posterior.particles, particles[idx])
+        np.testing.assert_array_equal(step.posterior.sqrt_covs, factors[idx])
+        np.testing.assert_array_equal(step.posterior.log_weights, np.full(n, -np.log(n)))
+        assert np.all(w[idx] > 0)
+    else:
+        assert step.posterior is step.weighted
