@@ -11,9 +11,13 @@ rounding by it). Some floats are rounding noise in both routes, or carry an erro
 relative to their own size, and are compared by what bounds them instead (computed here from the
 case, by numpy, not by the code under test):
 
+* the means where there is a y (CMF's, DMF's, the repaired one): to ``rtol`` times the sizes they
+  are summed from, |μ_p| + |C_xy| |C_y⁻¹ (y ⊖ μ_y)| + Σ_m |g_m| (g_m sensor m's share of the gap),
+  or relative (a mean that cancels to 1e-33 is rounding noise of those sizes);
 * the gap μ_DMF − μ_CMF, its norms, the predicted gap and each sensor's share of it (state units):
   each route subtracts its own two means (or sums the sensors' shares of their difference), so the
-  routes differ by at most the means' own rounding, ``rtol · (‖μ_DMF‖₁ + ‖μ_CMF‖₁)``;
+  routes differ by at most the means' own rounding, ``rtol · (‖μ_DMF‖₁ + ‖μ_CMF‖₁)``, or agree
+  relative (the means may vanish where a share does not);
 * sizes in prior standard deviations of what is rounding noise where it vanishes — a sensor's
   share of the gap, the distance of the unit-free variant's mean from DMF's — to ``rtol`` times the
   whitened size of the means they are differences of, ‖ |L_p⁻¹| (|μ| + |μ'|) ‖ (L_p the Cholesky
@@ -50,7 +54,9 @@ GAP_FIELDS = ("gap", "predicted_gap", "gap_norm", "gap_residual")
 PRIOR_SD_FIELDS = ("gap_size", "prediction_error")
 #: fields whose values the notes render (to 3 significant digits)
 NOTE_FIELDS = ("unit_dependence", "prediction_error", "gap_bound")
-OWN_RULE_FIELDS = (*GAP_FIELDS, *PRIOR_SD_FIELDS, "unit_dependence", "notes", "sensors")
+#: means compared by the sizes they are summed from where there is a y (relative without one)
+MEAN_FIELDS = ("cmf_mean", "dmf_mean", "repaired_dmf_mean")
+OWN_RULE_FIELDS = (*MEAN_FIELDS, *GAP_FIELDS, *PRIOR_SD_FIELDS, "unit_dependence", "notes", "sensors")
 OWN_RULE_SENSOR_FIELDS = ("singular_values", "canonical_correlations", "condition_number", "repair_basis",
                           "repair_message", "gap_gain_norm", "local_consistency_residual", "gap_contribution",
                           "gap_contribution_size")
@@ -71,9 +77,11 @@ def _leaves_equal(expected, got, path: str, rtol: float) -> None:
         assert type(expected) is type(got) and expected == got, (path, expected, got)
 
 
-def _within(expected, got, atol: float, path: str) -> None:
-    np.testing.assert_allclose(np.asarray(got, dtype=float), np.asarray(expected, dtype=float), rtol=0, atol=atol,
-                               err_msg=path)
+def _within(expected, got, atol, path: str, rtol: float = 0.0) -> None:
+    """Elementwise within ``atol`` plus ``rtol`` times the larger of the two values."""
+    a, b = np.asarray(expected, dtype=float), np.asarray(got, dtype=float)
+    slack = atol + rtol * np.maximum(np.abs(a), np.abs(b))
+    assert a.shape == b.shape and bool(np.all(np.abs(a - b) <= slack)), (path, expected, got, atol, rtol)
 
 
 def step_rtol(step: dict) -> float:
@@ -102,6 +110,15 @@ class _Scales:
     def state(self) -> float:
         """rtol · (‖μ_DMF‖₁ + ‖μ_CMF‖₁)."""
         return self.rtol * float(self.means.sum())
+
+    def mean_terms(self, sensors: list) -> np.ndarray:
+        """rtol · (|μ_p| + |C_xy| |C_y⁻¹ (y ⊖ μ_y)| + Σ_m |g_m|): the sizes CMF's mean is summed
+        from, and the sensors' shares g_m of the gap that DMF's and the repaired mean differ from it by."""
+        c = self.case.central
+        weights = np.linalg.solve(c.C_y, difference(self.case.y, c.mu_y, c.circular))
+        shares = sum((np.abs(np.asarray(s["gap_contribution"], dtype=float)) for s in sensors),
+                     np.zeros(len(c.mu_p)))
+        return self.rtol * (np.abs(c.mu_p) + np.abs(c.C_xy) @ np.abs(weights) + shares)
 
     def whitened(self, magnitudes: np.ndarray) -> float:
         """rtol · ‖ |L_p⁻¹| m ‖."""
@@ -144,9 +161,9 @@ def _same_sensor(m: int, a: dict, b: dict, scales: _Scales) -> None:
     assert abs(a["gap_gain_norm"] - b["gap_gain_norm"]) <= gain_slack, (path, a["gap_gain_norm"], b["gap_gain_norm"])
     if "repair_message" not in a:
         return
-    _within(a["repair_message"], b["repair_message"], scales.innovation(m), f"{path}.repair_message")
-    _within(a["gap_contribution"], b["gap_contribution"], scales.state(), f"{path}.gap_contribution")
-    share_slack = scales.whitened(scales.means)
+    _within(a["repair_message"], b["repair_message"], scales.innovation(m), f"{path}.repair_message", rtol)
+    _within(a["gap_contribution"], b["gap_contribution"], scales.state(), f"{path}.gap_contribution", rtol)
+    share_slack = scales.whitened(scales.means) + rtol * max(a["gap_contribution_size"], b["gap_contribution_size"])
     assert abs(a["gap_contribution_size"] - b["gap_contribution_size"]) <= share_slack, (path, a, b)
     assert abs(a["local_consistency_residual"] - b["local_consistency_residual"]) <= consistency_slack(
         scales.case, m), (path, a, b)
@@ -177,10 +194,17 @@ def assert_same_audit(expected: dict, got: dict, case: FusionCase) -> None:
     for m, (a, b) in enumerate(zip(expected["sensors"], got["sensors"])):
         _same_sensor(m, a, b, scales)
     if not scales.has_y:
+        _leaves_equal({k: expected[k] for k in MEAN_FIELDS if k in expected},
+                      {k: got[k] for k in MEAN_FIELDS if k in got}, "", rtol)
         return
+    terms = scales.mean_terms(expected["sensors"])
+    for key in MEAN_FIELDS:
+        if key in expected:
+            _within(expected[key], got[key], terms, key, rtol)
     for key in ("gap", "predicted_gap"):
-        _within(expected[key], got[key], scales.state(), key)
+        _within(expected[key], got[key], scales.state(), key, rtol)
     for key in ("gap_norm", "gap_residual"):
-        assert abs(got[key] - expected[key]) <= scales.state(), (key, expected[key], got[key])
+        slack = scales.state() + rtol * max(abs(got[key]), abs(expected[key]))
+        assert abs(got[key] - expected[key]) <= slack, (key, expected[key], got[key])
     for key in PRIOR_SD_FIELDS:
         assert abs(got[key] - expected[key]) <= max(expected["gap_bound"], got["gap_bound"]), (key, expected, got)
