@@ -1,5 +1,3 @@
-import sys
+from gpfverify.cli import program
 
-from gpfverify.cli import main
-
-sys.exit(main())
+program()

@@ -1,16 +1,19 @@
 """Command line: parse, call, print. User errors exit with status 2 and one line on stderr.
 
-One error boundary (:func:`main`) for every command: a :class:`~gpfverify.errors.GpfverifyError`,
-an operating-system error (a missing or unwritable file, ``--out`` naming a file), undecodable
-text and input nested too deeply each end as exit status 2 and exactly one line
-``gpfverify COMMAND: error: ...`` on stderr. A closed output pipe (``gpfverify audit RUN | head -3``)
-ends as exit status 2 too (the output is incomplete, as ``set -o pipefail`` should see) but quietly:
-the reader closed it on purpose, like ``head`` does, and an error line would only interrupt what it
-printed. Numeric options must be finite (``inf``/``nan`` are refused by the parser). Warnings raised while a
+One error boundary (:func:`main`) for every command: a :class:`~gpfverify.errors.GpfverifyError`
+(the user's code failing included, :mod:`gpfverify.usercode`), an operating-system error (a
+missing or unwritable file, ``--out`` naming a file, a full disk), undecodable text and input
+nested too deeply each end as exit status 2 and exactly one line ``gpfverify COMMAND: error: ...``
+on stderr; the notes an exception gathered on its way (what was kept of an interrupted command's
+runs) end that same line. A closed output pipe (``gpfverify audit RUN | head -3``) ends as exit
+status 2 too (the output is incomplete, as ``set -o pipefail`` should see) but quietly: the reader
+closed it on purpose, like ``head`` does, and an error line would only interrupt what it printed.
+Numeric options must be finite (``inf``/``nan`` are refused by the parser). Warnings raised while a
 command runs (numpy's floating-point RuntimeWarnings, for instance) are collected instead of
 printed: dropped when the command fails (its one line says what went wrong), summarised in one
 line when it succeeds. Anything else is a bug: one line asking for a report, exit status 1, and
-the traceback only with ``GPFVERIFY_DEBUG=1``.
+the traceback only with ``GPFVERIFY_DEBUG=1``. Run as a program (:func:`program`), the command
+runs in a child process that reports its exit status to gpfverify's (:mod:`gpfverify.supervise`).
 
 Each subcommand lives in its own module under :mod:`gpfverify.commands` with
 ``add_arguments(parser)`` and ``run(args) -> int``; modules are imported only when their command
@@ -25,13 +28,16 @@ import importlib
 import math
 import os
 import re
+import shutil
 import signal
 import sys
 import warnings
+from typing import NoReturn
 
-from gpfverify import __version__, provenance
+from gpfverify import __version__, provenance, supervise
 from gpfverify.errors import GpfverifyError
 from gpfverify.runtime import default_single_blas_thread
+from gpfverify.usercode import Interrupted, marks_interrupts
 
 #: command name -> (module, one-line help)
 COMMANDS: dict[str, tuple[str, str]] = {
@@ -158,18 +164,22 @@ def command_parser(command: str) -> OneLineParser:
     return parser
 
 
+@marks_interrupts
 def _interrupt(signum, frame):
-    """Ctrl-C (SIGINT) and SIGTERM stop the command; from the first one on, further ones are
-    ignored, so that a second Ctrl-C cannot cut short the clean-up the first started (stopping the
-    workers, keeping the saved runs, the one "interrupted" line)."""
+    """Ctrl-C (SIGINT) and SIGTERM stop the command (:class:`~gpfverify.usercode.Interrupted`);
+    from the first one on, further ones are ignored, so that a second Ctrl-C cannot cut short the
+    clean-up the first started (stopping the workers, keeping the saved runs, the one
+    "interrupted" line)."""
     _ignore_further_interrupts()
-    raise KeyboardInterrupt
+    raise Interrupted
 
 
 def _user_error(exc: BaseException) -> str | None:
     """The one-line message for an error the user caused, or None for a bug."""
     if isinstance(exc, GpfverifyError):
         return str(exc)
+    if isinstance(exc, shutil.Error) and exc.args and isinstance(exc.args[0], list) and exc.args[0]:
+        return _copy_error(exc.args[0])  # copytree's list of (source, destination, why)
     if isinstance(exc, OSError):
         where = " ".join(f"{name}" for name in (exc.filename, exc.filename2) if name is not None)
         return f"{exc.strerror or exc}" + (f": {where}" if where else "")
@@ -181,6 +191,22 @@ def _user_error(exc: BaseException) -> str | None:
         return (f"numerical overflow ({exc}): the input's numbers are too large or too small in "
                 "combination")
     return None
+
+
+def _copy_error(failures: list) -> str:
+    """The first failure of a folder copy (``shutil.Error``: (source, destination, reason) each, the
+    reason an OSError as text) and how many files failed."""
+    source, _, reason = failures[0] if isinstance(failures[0], tuple) and len(failures[0]) == 3 \
+        else (None, None, failures[0])
+    code = re.match(r"\[Errno (\d+)\] ", str(reason))
+    what = os.strerror(int(code.group(1))) if code else str(reason)
+    more = f" (and {len(failures) - 1} more files)" if len(failures) > 1 else ""
+    return f"{what}: {source} could not be copied{more}" if source else f"{what}{more}"
+
+
+def _with_notes(message: str, exc: BaseException) -> str:
+    """``message`` followed by the notes ``exc`` gathered (:meth:`BaseException.add_note`)."""
+    return "; ".join([message, *getattr(exc, "__notes__", ())])
 
 
 #: commands that read one user case: a floating-point overflow there is the input's fault
@@ -271,10 +297,29 @@ def _ignore_further_interrupts() -> None:
         signal.signal(signal.SIGTERM, signal.SIG_IGN)
 
 
+def program() -> NoReturn:
+    """``gpfverify`` run as a program (the console script, ``python -m gpfverify``): the command runs
+    in a child process that reports its exit status as its last act (:mod:`gpfverify.supervise`),
+    and this process ends with that status. Ends the process."""
+    _occupy_closed_standard_fds()  # before the pipe to the child takes a free descriptor
+    args = sys.argv[1:]
+    command = args[0] if args and args[0] in COMMANDS else "gpfverify"
+    supervise.start(command)  # from here on: the process running the command
+    try:
+        code = main()
+    except SystemExit as exc:  # argparse: --help, --version, a usage error (printed already)
+        code = exc.code if isinstance(exc.code, int) else int(exc.code is not None)
+    except BaseException:  # GPFVERIFY_DEBUG=1: the traceback, and no second line from the parent
+        supervise.note("exit", "1")
+        raise
+    sys.exit(supervise.finish(command, code))
+
+
 def main(argv: list[str] | None = None) -> int:
-    """Run one command (see the module docstring); stderr is :class:`_Diagnostics` meanwhile.
-    Called as the program (``argv`` None), the signal handlers it sets stay until the process
-    ends; called from Python with ``argv``, they are restored on return."""
+    """Run one command (see the module docstring) in this process; stderr is
+    :class:`_Diagnostics` meanwhile. Called with ``argv`` None (the program, :func:`program`), the
+    signal handlers it sets stay until the process ends; called from Python with ``argv``, they
+    are restored on return."""
     saved = sys.stderr
     handlers = {s: signal.getsignal(s) for s in (signal.SIGINT, signal.SIGTERM)}
     _occupy_closed_standard_fds()
@@ -311,9 +356,9 @@ def _main(argv: list[str] | None) -> int:
             with _float_errors(command):
                 code = int(module.run(args) or 0)
             sys.stdout.flush()  # a closed pipe shows here, inside the boundary
-        except KeyboardInterrupt:
+        except KeyboardInterrupt as exc:
             _ignore_further_interrupts()
-            print(f"gpfverify {command}: interrupted", file=sys.stderr)
+            print(f"gpfverify {command}: {one_line(_with_notes('interrupted', exc))}", file=sys.stderr)
             return 130
         except SystemExit:  # argparse: usage error (one line) or --help
             raise
@@ -323,7 +368,7 @@ def _main(argv: list[str] | None) -> int:
                 return 2
             message = _user_error(exc)
             if message is not None:
-                print(f"gpfverify {command}: error: {one_line(message)}", file=sys.stderr)
+                print(f"gpfverify {command}: error: {one_line(_with_notes(message, exc))}", file=sys.stderr)
                 return 2
             if os.environ.get("GPFVERIFY_DEBUG"):
                 raise
@@ -335,4 +380,4 @@ def _main(argv: list[str] | None) -> int:
 
 
 if __name__ == "__main__":  # pragma: no cover
-    sys.exit(main())
+    program()

@@ -118,9 +118,14 @@ def nees_values_check(subject: str, nees, dim: int, level: float = 0.95) -> Heal
 
 def decide(verdict: Verdict, checks: Sequence[HealthCheck]) -> tuple[Verdict, tuple[str, ...]]:
     """The verdict with the health checks applied: unchanged when every check passed, else
-    ``"not decidable"``; the caveats name each failed check."""
+    ``"not decidable"``; the caveats name each failed check. A "NOT held" that stands says in a caveat
+    that the filters it compares passed, with each check's numbers: it is a finding about working
+    filters."""
     failed = [c for c in checks if not c.passed]
     if not failed:
+        if verdict == "NOT held" and checks:
+            return verdict, ("health of the filters compared: every check passed — "
+                             + "; ".join(f"{c.subject}: {c.name}, {c.detail}" for c in checks),)
         return verdict, ()
     caveats = tuple(f"{c.subject}: {c.name} — {c.detail}" for c in failed)
     return "not decidable", (f"verdict withheld (would be '{verdict}'): the filters compared did not pass "

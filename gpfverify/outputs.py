@@ -1,44 +1,60 @@
 """Output folders: what ``--out DIR`` may touch, and how a command writes it.
 
 The rule (docs/output-and-errors.md): DIR is written only when it does not exist, is empty, or
-holds only what gpfverify wrote there before; nothing gpfverify did not write is ever changed or
-removed, and a command that fails leaves DIR as it found it.
+holds only what gpfverify wrote there before, all of it writable; nothing gpfverify did not write
+is ever changed or removed, and a command that fails leaves DIR as it found it.
 
-:func:`output_folder` is the one mechanism every command that writes ``--out DIR`` uses:
+:func:`output_folder` is the one routine every command that writes ``--out DIR`` uses, entered
+before the command's work begins:
 
-1. **Check** (before anything runs): ``DIR`` is not ``''``; if it exists it is a folder whose
-   every entry is listed in ``DIR/.gpfverify-files`` (the files gpfverify wrote there, one
-   relative POSIX path per line) — otherwise :class:`~gpfverify.errors.InputError` naming the
-   first foreign entry.
-2. **Stage**: the command writes into a temporary sibling ``.DIR.gpfverify-partial-PID``, which
-   starts as a copy of DIR's gpfverify files (``keep=True``: saved runs to resume, report
-   sections to keep) or empty (``keep=False``: the command rewrites all of its output).
-3. **Commit** on success: the list of files is written into the staging folder, which then
-   replaces DIR by ``rename`` (DIR held only gpfverify's files, re-checked just before).
-   On an error the staging folder is removed and DIR is as it was. On an interruption
-   (Ctrl-C, SIGTERM) or a lost worker process (:class:`~gpfverify.errors.WorkerLost`) the saved
-   runs (``manifest.json`` and ``runs/run-*.json`` at any depth, each written whole) are
-   committed, so ``--resume`` continues them; nothing else is. After a SIGKILL the staging folder
-   stays; the next command on DIR that keeps its files adopts its saved runs and removes it once
-   committed.
+1. **Check**, before anything is created: ``DIR`` is not ``''``, not the current folder nor one
+   containing it; if it exists it is a folder whose every entry is listed in
+   ``DIR/.gpfverify-files`` (the files gpfverify wrote there, one relative POSIX path per line);
+   DIR, everything in it and the folder that will hold it are writable by their permissions (a
+   folder or file made read-only is refused, never replaced — also for root, whom the operating
+   system would let through). Otherwise :class:`~gpfverify.errors.InputError`, one line naming the
+   first entry at fault.
+2. **Lock**: the command's staging folder, the hidden sibling ``.gpfverify-partial-NAME-HASH``
+   (NAME: DIR's name cut to :data:`NAME_CHARS` characters, HASH: 8 hex digits of the whole name,
+   so that a long DIR name still leaves room for its siblings), is created and locked with
+   ``flock`` for as long as the command runs. A second command on DIR is refused in one line, or
+   with ``wait`` waits for the first. An unlocked staging folder was left by a command that was
+   killed (SIGKILL, a power cut; the kernel releases a dead process's locks): its saved runs are
+   moved into DIR as an interruption would have moved them, the rest is removed.
+3. **Stage**: the staging folder starts as a copy of DIR's files (``keep=True``: saved runs to
+   resume, report sections to keep) or empty (``keep=False``: the command rewrites all of it).
+4. **Commit** on success: the list of files is written into the staging folder, which then
+   replaces DIR by ``rename`` (DIR held only gpfverify's files, re-checked just before). On an
+   error the staging folder is removed, and so are the folders made to hold DIR: everything is as
+   it was. On an interruption (Ctrl-C, SIGTERM) or a lost worker process
+   (:class:`~gpfverify.errors.WorkerLost`) the saved runs (``manifest.json`` and
+   ``runs/run-*.json`` at any depth, each written whole) are moved into DIR, so ``--resume``
+   continues them, and a note on the exception says so; nothing else is kept.
 """
 
 from __future__ import annotations
 
 import argparse
 import contextlib
+import errno
+import hashlib
 import os
 import shutil
+import stat
+import sys
 from collections.abc import Iterator
 from pathlib import Path, PurePosixPath
 
+from gpfverify import supervise
 from gpfverify.errors import InputError, WorkerLost
 
 #: the list of files gpfverify wrote in an output folder (its own entry included)
 FILE_LIST = ".gpfverify-files"
-#: prefix of the staging and retired siblings of an output folder
+#: prefixes of the staging and retired siblings of an output folder
 PARTIAL = ".gpfverify-partial-"
 RETIRED = ".gpfverify-retired-"
+#: characters of DIR's name kept in its siblings' names (the hash stands for the whole name)
+NAME_CHARS = 40
 
 
 def out_path(text: str) -> Path:
@@ -49,6 +65,20 @@ def out_path(text: str) -> Path:
 
 
 out_path.__name__ = "folder"  # argparse names the type in "invalid ... value"
+
+
+def add_wait_argument(parser: argparse.ArgumentParser) -> None:
+    """``--wait``, for every command that writes ``--out``."""
+    parser.add_argument("--wait", action="store_true",
+                        help="when another gpfverify command is writing the same --out, wait for it to finish "
+                             "(default: refuse at once)")
+
+
+def sibling(out: Path, prefix: str) -> Path:
+    """The hidden sibling of ``out`` with ``prefix`` (:data:`PARTIAL`, :data:`RETIRED`): short
+    whatever the length of ``out``'s name (module docstring)."""
+    digest = hashlib.sha1(os.fsencode(out.name)).hexdigest()[:8]
+    return out.with_name(f"{prefix}{out.name[:NAME_CHARS]}-{digest}")
 
 
 def _listed(folder: Path) -> set[str]:
@@ -84,8 +114,31 @@ def foreign_entry(folder: Path) -> str | None:
                  if entry not in listed and not (is_folder and entry in parents)), None)
 
 
+def _permits_writing(path: Path) -> bool:
+    """Whether ``path``'s permissions let this user write it (and, a folder, enter it): the
+    permission bits that apply to this user (owner, group or others), whatever the operating
+    system would allow root, and :func:`os.access` (a read-only file system, ACLs)."""
+    info = os.lstat(path)
+    if stat.S_ISLNK(info.st_mode):
+        return True  # a link is never written through; what it is, is checked elsewhere
+    if info.st_uid == os.geteuid():
+        bits = stat.S_IWUSR | (stat.S_IXUSR if stat.S_ISDIR(info.st_mode) else 0)
+    elif info.st_gid == os.getegid() or info.st_gid in os.getgroups():
+        bits = stat.S_IWGRP | (stat.S_IXGRP if stat.S_ISDIR(info.st_mode) else 0)
+    else:
+        bits = stat.S_IWOTH | (stat.S_IXOTH if stat.S_ISDIR(info.st_mode) else 0)
+    return (info.st_mode & bits) == bits and os.access(path, os.W_OK)
+
+
+def _existing_ancestor(path: Path) -> Path:
+    while not path.exists() and path != path.parent:
+        path = path.parent
+    return path
+
+
 def check_out(out: Path) -> None:
-    """Refuse ``out`` unless gpfverify may write it (see the module docstring)."""
+    """Refuse ``out`` unless gpfverify may write it (step 1 of the module docstring); creates
+    nothing."""
     if str(out) == "":
         raise InputError("--out must name a folder, got an empty string")
     if out.exists() and out.is_dir() and Path.cwd().resolve().is_relative_to(out.resolve()):
@@ -97,6 +150,16 @@ def check_out(out: Path) -> None:
         if foreign is not None:
             raise InputError(f"--out {out} holds {foreign}, which gpfverify did not write; choose a new "
                              "or empty folder (gpfverify never changes files it did not write)")
+        read_only = next((entry for entry, _ in [(".", True), *_entries(out)]
+                          if not _permits_writing(out / entry)), None)
+        if read_only is not None:
+            what = "is read-only" if read_only == "." else f"holds {read_only}, which is read-only"
+            raise InputError(f"--out {out} {what}: gpfverify never replaces what cannot be written; make it "
+                             "writable or choose another folder")
+    holder = _existing_ancestor(Path(out).absolute().parent)
+    if not holder.is_dir() or not _permits_writing(holder):
+        raise InputError(f"--out {out} cannot be written: the folder {holder} that would hold it is "
+                         f"{'not a folder' if not holder.is_dir() else 'read-only'}")
 
 
 def _write_list(folder: Path) -> None:
@@ -108,28 +171,79 @@ def _is_saved_run(relative: PurePosixPath) -> bool:
     return relative.name == "manifest.json" or (relative.parent.name == "runs" and relative.match("run-*.json"))
 
 
-def _swap_in(stage: Path, out: Path) -> None:
-    """Replace ``out`` (absent, empty, or gpfverify's files only) by the finished ``stage``."""
-    check_out(out)  # nothing foreign arrived while the command ran
-    if not out.exists():
-        stage.rename(out)
-        return
-    retired = out.with_name(f"{RETIRED}{out.name}-{os.getpid()}")
-    out.rename(retired)
-    try:
-        stage.rename(out)
-    except OSError:
-        retired.rename(out)
-        raise
-    shutil.rmtree(retired, ignore_errors=True)
+def _make_parents(folder: Path) -> list[Path]:
+    """Create ``folder`` and its missing parents; the ones created, outermost first."""
+    missing = []
+    while not folder.exists():
+        missing.append(folder)
+        folder = folder.parent
+    for path in reversed(missing):
+        with contextlib.suppress(FileExistsError):
+            path.mkdir()
+    return missing[::-1]
 
 
-def _salvage_runs(stage: Path, out: Path) -> None:
-    """After an interruption or a lost worker: move the saved runs of ``stage`` into ``out`` (each replaces only
-    its own earlier copy, a file gpfverify wrote) and list them, for ``--resume``."""
+def _remove_made(made: list[Path]) -> None:
+    """Remove the folders :func:`_make_parents` made, innermost first, as long as they are empty."""
+    for path in reversed(made):
+        try:
+            path.rmdir()
+        except OSError:  # something else arrived in it: it stays
+            return
+
+
+class _Busy(Exception):
+    """The staging folder is locked by another command."""
+
+
+def _lock(stage: Path, out: Path, wait: bool) -> int:
+    """Create ``stage`` if need be, lock it and return the descriptor holding the lock
+    (:class:`_Busy` when another command holds it and ``wait`` is false)."""
+    import fcntl
+
+    said = False
+    while True:
+        with contextlib.suppress(FileExistsError):
+            stage.mkdir()
+        try:
+            fd = os.open(stage, os.O_RDONLY | getattr(os, "O_DIRECTORY", 0) | getattr(os, "O_NOFOLLOW", 0))
+        except FileNotFoundError:  # committed or removed by its owner meanwhile
+            continue
+        except OSError as exc:
+            if exc.errno in (errno.ELOOP, errno.ENOTDIR):
+                raise InputError(f"--out {out}: {stage} exists and is not a staging folder gpfverify made; "
+                                 "remove it") from None
+            raise
+        try:
+            try:
+                fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+            except BlockingIOError:
+                if not wait:
+                    raise _Busy from None
+                if not said:
+                    print(f"waiting for the other gpfverify command writing {out} to finish", file=sys.stderr)
+                    said = True
+                fcntl.flock(fd, fcntl.LOCK_EX)
+            try:  # still the folder at that name (its owner may have committed it as DIR or removed it)
+                same = os.path.samestat(os.fstat(fd), os.lstat(stage))
+            except FileNotFoundError:
+                same = False
+            if same:
+                return fd
+        except BaseException:
+            os.close(fd)
+            raise
+        os.close(fd)
+
+
+def _salvage_runs(stage: Path, out: Path) -> int:
+    """Move the saved runs of ``stage`` into ``out`` (each replaces only its own earlier copy, a file
+    gpfverify wrote) and list them, for ``--resume``; the number of finished runs moved (none is
+    moved when no run finished)."""
     runs = [entry for entry, is_folder in _entries(stage) if not is_folder and _is_saved_run(PurePosixPath(entry))]
-    if all(PurePosixPath(entry).name == "manifest.json" for entry in runs):  # no run finished: keep nothing
-        return
+    finished = sum(PurePosixPath(entry).name != "manifest.json" for entry in runs)
+    if not finished:
+        return 0
     check_out(out)
     listed = _listed(out) - {FILE_LIST}
     for entry in runs:
@@ -140,71 +254,104 @@ def _salvage_runs(stage: Path, out: Path) -> None:
     tmp = out / f"{FILE_LIST}.{os.getpid()}"
     tmp.write_text("".join(f"{f}\n" for f in [FILE_LIST, *files]), encoding="utf-8")
     os.replace(tmp, out / FILE_LIST)
+    return finished
 
 
-def _alive(pid: int) -> bool:
+def _clear(folder: Path) -> None:
+    for entry in folder.iterdir():
+        if entry.is_dir() and not entry.is_symlink():
+            shutil.rmtree(entry)
+        else:
+            entry.unlink()
+
+
+def _recover(stage: Path, out: Path) -> None:
+    """Under the lock: finish what a killed command left — its saved runs into DIR, its other files
+    removed; a previous DIR set aside for a commit that did not happen put back."""
+    retired = sibling(out, RETIRED)
+    if retired.exists():
+        if out.exists():
+            shutil.rmtree(retired)
+        else:
+            retired.rename(out)
+    if any(stage.iterdir()):
+        _salvage_runs(stage, out)
+        _clear(stage)
+
+
+def _copy_absent(src: str, dst: str) -> None:
+    if not os.path.lexists(dst):
+        shutil.copy2(src, dst)
+
+
+def _swap_in(stage: Path, out: Path) -> None:
+    """Replace ``out`` (absent, empty, or gpfverify's files only) by the finished ``stage``."""
+    check_out(out)  # nothing foreign arrived while the command ran
+    if not out.exists():
+        stage.rename(out)
+        return
+    retired = sibling(out, RETIRED)
+    out.rename(retired)
     try:
-        os.kill(pid, 0)
-    except ProcessLookupError:
-        return False
-    except OSError:  # exists, owned by someone else
-        return True
-    return True
+        stage.rename(out)
+    except OSError:
+        retired.rename(out)
+        raise
+    shutil.rmtree(retired, ignore_errors=True)
 
 
-def _orphans(out: Path) -> list[Path]:
-    """Staging folders of ``out`` left by a command that was killed (its process is gone)."""
-    found = []
-    for sibling in out.parent.glob(f"{PARTIAL}{out.name}-*"):
-        pid = sibling.name.rsplit("-", 1)[-1]
-        if pid.isdigit() and int(pid) != os.getpid() and not _alive(int(pid)) and sibling.is_dir():
-            found.append(sibling)
-    return sorted(found)
-
-
-def _adopt_runs(orphan: Path, stage: Path) -> None:
-    """Copy the saved runs of a killed command's staging folder into ``stage``."""
-    for entry, is_folder in _entries(orphan):
-        if not is_folder and _is_saved_run(PurePosixPath(entry)):
-            (stage / entry).parent.mkdir(parents=True, exist_ok=True)
-            shutil.copy2(orphan / entry, stage / entry)
+def _kept_note(out: Path, finished: int) -> str:
+    if finished:
+        return f"the saved runs are kept in {out}: run the command again with --resume to continue them"
+    return f"nothing was written to {out}"
 
 
 @contextlib.contextmanager
-def output_folder(out: Path, keep: bool = True) -> Iterator[Path]:
+def output_folder(out: Path, keep: bool = True, wait: bool = False) -> Iterator[Path]:
     """Yield the staging folder a command writes its outputs to; commit it as ``out`` when the
     block ends normally, discard it when the block raises (keeping the saved runs when it was
-    interrupted or lost a worker). ``keep``: start from a copy of ``out``'s files (runs to resume, sections to
-    keep) rather than from an empty folder."""
-    check_out(Path(out))
-    out = Path(out).absolute()
-    parent = out.absolute().parent
-    if not parent.is_dir():
-        parent.mkdir(parents=True)
-    stage = parent / f"{PARTIAL}{out.name}-{os.getpid()}"
-    if stage.exists():
-        shutil.rmtree(stage)
+    interrupted or lost a worker). ``keep``: start from a copy of ``out``'s files (runs to resume,
+    sections to keep) rather than from an empty folder; ``wait``: wait for another command
+    writing ``out`` rather than refuse. Module docstring."""
+    out = Path(out)
+    check_out(out)
+    out = out.absolute()
+    made = _make_parents(out.parent)
+    stage = sibling(out, PARTIAL)
     try:
+        fd = _lock(stage, out, wait)
+    except _Busy:
+        _remove_made(made)
+        raise InputError(f"--out {out} is being written by another gpfverify command; wait for it to finish "
+                         "(or pass --wait), or choose another folder") from None
+    except BaseException:
+        _remove_made(made)
+        raise
+    supervise.note("stage", str(stage))
+    committed = False
+    try:
+        check_out(out)  # again, under the lock: the folder may have changed while this command waited
+        _recover(stage, out)
         if keep and out.is_dir():
-            shutil.copytree(out, stage, symlinks=True)
-        else:
-            stage.mkdir()
-        orphans = _orphans(out) if keep else []
-        for orphan in orphans:  # runs saved before a SIGKILL: --resume continues them
-            _adopt_runs(orphan, stage)
+            shutil.copytree(out, stage, symlinks=True, dirs_exist_ok=True, copy_function=_copy_absent)
         yield stage
         _write_list(stage)
         _swap_in(stage, out)
-        for orphan in orphans:
-            shutil.rmtree(orphan, ignore_errors=True)
-    except (KeyboardInterrupt, WorkerLost):  # interrupted, or a worker lost: the saved runs are kept
+        committed = True
+    except (KeyboardInterrupt, WorkerLost) as exc:  # interrupted, or a worker lost: the saved runs are kept
+        finished = 0
         with contextlib.suppress(OSError, InputError):
             if stage.exists():
-                _salvage_runs(stage, out)
+                finished = _salvage_runs(stage, out)
+        exc.add_note(_kept_note(out, finished))
         raise
     finally:
-        if stage.exists():
+        if not committed:
             shutil.rmtree(stage, ignore_errors=True)
+            if not out.exists():
+                _remove_made(made)
+        os.close(fd)
+        supervise.note("done", str(stage))
 
 
 def final_path(path: Path, stage: Path, out: Path) -> Path:

@@ -17,6 +17,7 @@ import importlib.util
 import sys
 from contextlib import contextmanager
 from pathlib import Path
+from types import ModuleType
 
 from gpfverify.adapters import as_state_space_model
 from gpfverify.errors import GpfverifyError, InputError
@@ -45,26 +46,41 @@ def _folder_on_path(folder: Path):
 def load_system(spec: str) -> StateSpaceModel:
     """The model ``NAME`` defined in ``SYSTEM.py`` (module docstring)."""
     path, name = split_spec(spec)
+    module = _load_module(path)
+    if not hasattr(module, name):
+        raise InputError(f"{path.name} defines no {name!r}")
+    return as_model(getattr(module, name), path, name)
+
+
+def _load_module(path: Path) -> ModuleType:
+    """``SYSTEM.py`` imported once per process (later calls get the same module)."""
     if not path.is_file():
         raise InputError(f"no such file: {path}")
     module_name = "gpfverify_user_system_" + hashlib.sha1(str(path).encode()).hexdigest()[:12]
     module = sys.modules.get(module_name)
-    if module is None:
-        module_spec = importlib.util.spec_from_file_location(module_name, path)
-        if module_spec is None or module_spec.loader is None:
-            raise InputError(f"{path} is not a Python file")
-        module = importlib.util.module_from_spec(module_spec)
-        try:
-            with _folder_on_path(path.parent):
-                module_spec.loader.exec_module(module)
-        except GpfverifyError as exc:
-            raise InputError(f"{path.name}: {exc}") from exc
-        except Exception as exc:  # the user's code
-            raise InputError(f"{path.name} raised {type(exc).__name__} while loading: {exc}") from exc
-        sys.modules[module_name] = module
-    if not hasattr(module, name):
-        raise InputError(f"{path.name} defines no {name!r}")
-    model = getattr(module, name)
+    if module is not None:
+        return module
+    module_spec = importlib.util.spec_from_file_location(module_name, path)
+    if module_spec is None or module_spec.loader is None:
+        raise InputError(f"{path} is not a Python file")
+    module = importlib.util.module_from_spec(module_spec)
+    try:
+        with _folder_on_path(path.parent):
+            module_spec.loader.exec_module(module)
+    except GpfverifyError as exc:
+        raise InputError(f"{path.name}: {exc}") from exc
+    except Exception as exc:  # the user's code
+        raise InputError(f"{path.name} raised {type(exc).__name__} while loading: {exc}") from exc
+    sys.modules[module_name] = module
+    return module
+
+
+def as_model(obj: object, path: Path, name: str) -> StateSpaceModel:
+    """The object ``NAME`` of ``SYSTEM.py`` as a :class:`~gpfverify.models.StateSpaceModel`: a model as
+    it is, a function of no arguments called (with the system's folder on ``sys.path``) and its
+    result taken the same way. The one place where what the system file defines is turned into a
+    model."""
+    model = obj
     if callable(model) and not isinstance(model, StateSpaceModel):
         try:
             with _folder_on_path(path.parent):

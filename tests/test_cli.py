@@ -41,7 +41,8 @@ def test_reproduce_runs_an_experiment_and_refuses_to_overwrite(monkeypatch, tmp_
     capsys.readouterr()  # the progress lines of the first command
     results = json.loads((out / "results.json").read_text())
     assert (results["experiment"], results["runs"], results["seed"]) == ("toy", 3, 4)
-    assert results["params"] == {"scale": 1.0, "shift": 0.0, "fail_run": -1, "interrupt_run": -1}
+    assert results["params"] == {"scale": 1.0, "shift": 0.0, "fail_run": -1, "interrupt_run": -1,
+                                 "limit": 1.0}
     assert cli.main(["reproduce", "toy", "--runs", "3", "--seed", "4", "--out", str(out)]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "--resume" in err[0]

@@ -2,9 +2,10 @@
 ``results.json`` is byte-identical for any ``--workers``, with ``--scheduler`` (a dask cluster
 whose workers are separate processes) and after a SIGKILL and ``--resume`` — checked end to end
 through the command line on a small ct2d (RCC-CI included, whose solver once depended on the
-process's earlier solves) and a small ungm1d. The SIGKILL also checks that no worker process nor
-the resource tracker outlives the killed main process; a worker killed alone ends the command
-with exit status 2 and one line, its saved runs kept in --out for ``--resume``."""
+process's earlier solves) and a small ungm1d. The SIGKILL also checks that neither the command's
+process, nor a worker process, nor the resource tracker outlives the killed main process; a worker
+killed alone ends the command with exit status 2 and one line, its saved runs kept in --out for
+``--resume``."""
 
 import json
 import os
@@ -17,6 +18,9 @@ from pathlib import Path
 import pytest
 
 from gpfverify.experiments.runner import without_timing
+
+sys.path.insert(0, str(Path(__file__).parent))  # the suite imports in importlib mode: the helper beside it
+from processes import alive, descendants, pool_workers  # noqa: E402
 
 pytestmark = pytest.mark.slow
 
@@ -44,29 +48,6 @@ def _canonical(out: Path) -> str:
     results = json.loads((out / "results.json").read_text(encoding="utf-8"))
     assert results["timing_keys"] and "provenance" in results
     return json.dumps(without_timing(results))
-
-
-def _children(pid: int) -> set[int]:
-    """Processes whose parent is ``pid`` (Linux /proc)."""
-    found = set()
-    for entry in Path("/proc").iterdir():
-        if entry.name.isdigit():
-            try:
-                stat = (entry / "stat").read_text()
-            except OSError:
-                continue
-            fields = stat.rsplit(")", 1)[1].split()
-            if int(fields[1]) == pid and fields[0] != "Z":
-                found.add(int(entry.name))
-    return found
-
-
-def _alive(pid: int) -> bool:
-    try:
-        stat = Path(f"/proc/{pid}/stat").read_text()
-    except OSError:
-        return False
-    return stat.rsplit(")", 1)[1].split()[0] != "Z"
 
 
 @pytest.fixture(scope="module")
@@ -103,44 +84,35 @@ def test_sigkill_leaves_no_orphans_and_resume_gives_the_same_bytes(serial, tmp_p
     deadline = time.monotonic() + 120
     try:
         while time.monotonic() < deadline and proc.poll() is None:
-            children |= _children(proc.pid)  # two workers and the resource tracker
+            children |= descendants(proc.pid)  # the command's process, two workers and the resource tracker
             if list(tmp_path.glob(".gpfverify-partial-killed-*/runs/run-*.json")):  # docs/output-and-errors.md
                 break
             time.sleep(0.02)
-        children |= _children(proc.pid)
+        children |= descendants(proc.pid)
         assert proc.poll() is None, "the run finished before it could be killed"
         proc.send_signal(signal.SIGKILL)
         proc.wait(timeout=10)
     finally:
         if proc.poll() is None:
             proc.kill()
-    assert len(children) >= 2
+    assert len(children) >= 3  # the command's process and two workers at least
     deadline = time.monotonic() + 15
-    while time.monotonic() < deadline and any(_alive(pid) for pid in children):
+    while time.monotonic() < deadline and any(alive(pid) for pid in children):
         time.sleep(0.05)
-    orphans = [pid for pid in children if _alive(pid)]
+    orphans = [pid for pid in children if alive(pid)]
     for pid in orphans:  # do not leave them to the rest of the suite
         os.kill(pid, signal.SIGKILL)
     assert not orphans, f"processes outlived the killed main process: {orphans}"
     saved = sorted(p.name for p in tmp_path.glob(".gpfverify-partial-killed-*/runs/run-*.json"))
     assert 1 <= len(saved) < int(RUNS), saved
-    assert not out.exists()  # the killed command's runs wait in its staging folder for --resume
+    assert not out.exists()  # the killed command's runs wait in its staging folder for the next command
     refused = _reproduce(name, out, check=False)  # without --resume: refused, one line
     assert refused.returncode == 2 and len(refused.stderr.strip().splitlines()) == 1
+    # ... which has kept them in --out, as an interruption would have, and removed the staging folder
+    assert sorted(p.name for p in (out / "runs").glob("run-*.json")) == saved
+    assert not list(tmp_path.glob(".gpfverify-*"))
     _reproduce(name, out, "--resume", "--workers", "1")
     assert _canonical(out) == serial[name]
-
-
-def _workers(pid: int) -> list[int]:
-    """The worker processes of the process pool of ``pid`` (not the resource tracker)."""
-    found = []
-    for child in _children(pid):
-        try:
-            if "spawn_main" in Path(f"/proc/{child}/cmdline").read_text(errors="replace"):
-                found.append(child)
-        except OSError:  # ended meanwhile
-            continue
-    return found
 
 
 @pytest.mark.skipif(not sys.platform.startswith("linux"), reason="reads /proc")
@@ -152,11 +124,11 @@ def test_a_killed_worker_keeps_the_saved_runs_and_resume_gives_the_same_bytes(se
     deadline = time.monotonic() + 120
     try:
         while time.monotonic() < deadline and proc.poll() is None:
-            if list(tmp_path.glob(".gpfverify-partial-out-*/runs/run-*.json")) and _workers(proc.pid):
+            if list(tmp_path.glob(".gpfverify-partial-out-*/runs/run-*.json")) and pool_workers(proc.pid):
                 break
             time.sleep(0.02)
         assert proc.poll() is None, "the run finished before a worker could be killed"
-        os.kill(_workers(proc.pid)[0], signal.SIGKILL)
+        os.kill(pool_workers(proc.pid)[0], signal.SIGKILL)
         stdout, stderr = proc.communicate(timeout=60)
     finally:
         if proc.poll() is None:

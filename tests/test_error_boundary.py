@@ -3,6 +3,7 @@ one line on stderr, no traceback, no warning lines, and nothing written — hand
 then hypothesis-generated malformed case files, run files and arguments. Cases at the
 accepted range's bound are fused or refused, never overflowed into warnings."""
 
+import contextlib
 import json
 import subprocess
 import sys
@@ -431,3 +432,127 @@ def test_solver_chatter_never_reaches_the_terminal(tmp_path):
         assert "enlarged: True" in proc.stdout
     assert "could not determine" not in proc.stdout and "ERROR" not in proc.stdout
     assert list(tmp_path.iterdir()) == []
+
+
+def _written_folder(tmp_path: Path, name: str = "out") -> Path:
+    """A fresh folder ``name`` holding what :func:`gpfverify.outputs.output_folder` committed: a file
+    at the top and one in a subfolder."""
+    import tempfile
+
+    from gpfverify.outputs import output_folder
+
+    out = Path(tempfile.mkdtemp(dir=tmp_path)) / name
+    with output_folder(out, keep=False) as stage:
+        (stage / "figures").mkdir()
+        (stage / "figures" / "gap.png").write_bytes(b"png")
+        (stage / "README.md").write_text("the report")
+    return out
+
+
+@settings(max_examples=scaled_examples(0.5), suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(choice=st.lists(st.integers(0, 10**6), min_size=1, max_size=4, unique=True), keep=st.booleans())
+def test_fuzz_read_only_entries_of_a_previous_output_are_refused(tmp_path, choice, keep):
+    """Any entry of gpfverify's own previous output made read-only (the folder itself, a subfolder,
+    a file) makes the next command refuse the folder in one line naming the entry, and leave it as
+    it was (the command line's one line and exit status: tests/test_outputs.py)."""
+    from gpfverify.errors import InputError
+    from gpfverify.outputs import output_folder
+
+    out = _written_folder(tmp_path)
+    entries = sorted([out, *out.rglob("*")])
+    chosen = sorted({entries[i % len(entries)] for i in choice})
+    for path in chosen:
+        path.chmod(path.stat().st_mode & ~0o222)
+    try:
+        before = {p: (p.stat().st_mode, p.read_bytes() if p.is_file() else None) for p in entries}
+        with pytest.raises(InputError, match="read-only") as refused:
+            with output_folder(out, keep=keep):
+                pass  # pragma: no cover - refused on entry
+        message = str(refused.value)
+        assert len(message.splitlines()) == 1
+        if out in chosen:  # the folder itself is looked at first
+            assert f"--out {out} is read-only" in message, message
+        else:
+            assert any(f"holds {p.relative_to(out).as_posix()}, which is read-only" in message for p in chosen), message
+        assert {p: (p.stat().st_mode, p.read_bytes() if p.is_file() else None) for p in entries} == before
+        assert sorted(p.name for p in out.parent.iterdir()) == ["out"]
+    finally:
+        for path in chosen:
+            path.chmod(path.stat().st_mode | 0o200)
+
+
+FOLDER_NAME_CHARACTERS = st.characters(blacklist_categories=("Cs", "Cc"), blacklist_characters="/\\")
+
+
+@settings(max_examples=scaled_examples(0.5), suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(name=st.text(FOLDER_NAME_CHARACTERS, min_size=1, max_size=255).filter(
+    lambda n: len(n.encode()) <= 255 and n not in (".", "..") and n.strip() != ""))
+def test_fuzz_output_folder_names_up_to_the_longest_a_folder_may_have(tmp_path, name):
+    """Every folder name the file system takes (up to 255 bytes) works as --out, twice (written,
+    then rewritten), and leaves no hidden sibling: the staging folder's name stays short (a whole
+    command with a 240-byte name: tests/test_outputs.py)."""
+    from gpfverify.outputs import output_folder
+
+    out = _written_folder(tmp_path, name)
+    with output_folder(out, keep=True) as stage:
+        (stage / "README.md").write_text("rewritten")
+    assert (out / "README.md").read_text() == "rewritten" and (out / "figures" / "gap.png").is_file()
+    assert [p.name for p in out.parent.iterdir()] == [name]
+
+
+@settings(max_examples=scaled_examples(0.5))
+@given(raised=st.one_of(
+    st.sampled_from([KeyboardInterrupt("mine"), KeyboardInterrupt(), GeneratorExit(), SystemExit(0), SystemExit(3),
+                     SystemExit("bye"), SystemExit(None)]),
+    st.builds(lambda name, text: type(name, (BaseException,), {})(text),
+              st.from_regex(r"[A-Z][a-z]{1,8}", fullmatch=True), st.text(max_size=20))),
+       in_worker=st.booleans())
+def test_fuzz_what_user_code_raises_that_is_not_an_exception_is_its_error(raised, in_worker):
+    """gpfverify.usercode.guarded turns every BaseException that is not an Exception — an exit, a
+    KeyboardInterrupt the code raised itself (under gpfverify's signal handler, or in a worker
+    process, which ignores SIGINT), any other — into a UserCodeError naming the user's code and the
+    exception, and lets gpfverify's own interruption and ordinary exceptions through unchanged."""
+    import signal
+
+    from gpfverify.cli import _interrupt
+    from gpfverify.usercode import Interrupted, UserCodeError, guarded
+
+    saved = signal.signal(signal.SIGINT, signal.SIG_IGN if in_worker else _interrupt)
+    try:
+        with pytest.raises(UserCodeError) as caught:
+            with guarded("the system file mine.py"):
+                raise raised
+        message = str(caught.value)
+        assert message.startswith("the system file mine.py ") and len(message.splitlines()) <= 1
+        named = "exit" if isinstance(raised, SystemExit) else type(raised).__name__
+        assert named in message
+        for passing in (Interrupted(), ValueError("ordinary")):
+            with pytest.raises(type(passing)):
+                with guarded("the system file mine.py"):
+                    raise passing
+    finally:
+        signal.signal(signal.SIGINT, saved)
+
+
+@settings(max_examples=scaled_examples(0.3), suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(path=st.lists(st.sampled_from(["a", "b", ".."]), max_size=4), raises=st.booleans())
+def test_fuzz_user_code_that_changes_folder_leaves_the_current_folder_as_it_was(tmp_path, path, raises):
+    import os
+
+    from gpfverify.usercode import guarded
+
+    for name in ("a", "a/b", "a/b/a", "a/b/a/b", "b", "b/a", "b/b", "a/a", "b/a/b"):
+        (tmp_path / name).mkdir(parents=True, exist_ok=True)
+    before = os.getcwd()
+    os.chdir(tmp_path / "a" / "b")
+    try:
+        with contextlib.suppress(RuntimeError):
+            with guarded("the system file mine.py"):
+                for step in path:
+                    with contextlib.suppress(FileNotFoundError):
+                        os.chdir(step)
+                if raises:
+                    raise RuntimeError("after moving")
+        assert os.getcwd() == str(tmp_path / "a" / "b")
+    finally:
+        os.chdir(before)

@@ -60,7 +60,10 @@ def test_nees_passes_a_calibrated_estimate_and_flags_an_overconfident_one():
 def test_decide_withholds_a_verdict_when_a_check_fails():
     good = ess_check("UPF", np.full(10, 0.5), 100)
     bad = ess_check("GPSR-UPF", np.full(10, 0.01), 100)
-    assert decide("NOT held", [good]) == ("NOT held", ())
+    verdict, caveats = decide("NOT held", [good])  # it stands, and says that the filters compared worked
+    assert verdict == "NOT held" and caveats == (f"health of the filters compared: every check passed — UPF: weight "
+                                                 f"collapse, {good.detail}",)
+    assert decide("held", [good]) == ("held", ()) and decide("NOT held", []) == ("NOT held", ())
     verdict, caveats = decide("NOT held", [good, bad])
     assert verdict == "not decidable"
     assert "would be 'NOT held'" in caveats[0] and caveats[1].startswith("GPSR-UPF: weight collapse")

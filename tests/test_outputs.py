@@ -18,13 +18,15 @@ import pytest
 from gpfverify import cli
 from gpfverify.experiments import EXPERIMENTS
 from gpfverify.fusion.runfile import write_run
-from gpfverify.outputs import FILE_LIST
+from gpfverify.outputs import FILE_LIST, PARTIAL, sibling
 from gpfverify.fusion.synthetic import random_case
 from gpfverify.tolerances import algebra_rtol
 
 pytestmark = pytest.mark.slow  # each test runs commands in subprocesses, some killed mid-run
 
 HERE = Path(__file__).parent
+sys.path.insert(0, str(HERE))  # the suite imports in importlib mode: the helper beside it
+from processes import pool_workers  # noqa: E402
 LINEAR_SYSTEM = '''
 import numpy as np
 from gpfverify.models import linear_model
@@ -146,7 +148,10 @@ def test_an_interrupted_reproduce_keeps_its_saved_runs_for_resume(toy, tmp_path,
     out_dir = tmp_path / "out"
     argv = ["reproduce", "toy", "--runs", "3", "--interrupt-run", "2", "--out", out_dir]
     code, _, err = _main(argv, capsys)
-    assert code == 130 and "interrupted" in err
+    assert code == 130
+    assert [line for line in err.splitlines() if line.startswith("gpfverify")] == [  # after the progress lines
+        f"gpfverify reproduce: interrupted; 2 of 3 runs had finished; the saved runs are kept in {out_dir}: run the "
+        "command again with --resume to continue them"], err
     saved = {"manifest.json", "runs/run-000000.json", "runs/run-000001.json"}
     assert set(_snapshot(out_dir)) == saved | {FILE_LIST}
     assert set((out_dir / FILE_LIST).read_text().split()) == saved | {FILE_LIST}
@@ -186,22 +191,225 @@ def test_check_writes_run_files_that_audit_reads(tmp_path, capsys, runs):
         assert [[x["exact"] for x in s["sensors"]] for s in audit["steps"]] == results["exact"][i]
 
 
-def test_resume_adopts_the_runs_of_a_killed_command(toy, tmp_path, capsys):
+def test_the_saved_runs_of_a_killed_command_are_kept_by_the_next_one(toy, tmp_path, capsys):
+    """A SIGKILLed command leaves its staging folder unlocked: the next command on the same --out
+    keeps its saved runs in --out (as an interruption would have) and removes the rest."""
     done = tmp_path / "done"
     assert _main(["reproduce", "toy", "--runs", "2", "--out", done], capsys)[0] == 0
-    child = subprocess.Popen(["true"])
-    child.wait()  # its process id is now free: the "killed" command
-    orphan = tmp_path / f".gpfverify-partial-out-{child.pid}"
-    (orphan / "runs").mkdir(parents=True)
-    for name in ("manifest.json", "runs/run-000000.json"):
-        (orphan / name).write_bytes((done / name).read_bytes())
     out_dir = tmp_path / "out"
-    assert _main(["reproduce", "toy", "--runs", "2", "--out", out_dir], capsys)[0] == 2  # not without --resume
-    assert orphan.is_dir() and not out_dir.exists()
+    stale = sibling(out_dir, PARTIAL)  # as the killed command left it
+    (stale / "runs").mkdir(parents=True)
+    for name in ("manifest.json", "runs/run-000000.json"):
+        (stale / name).write_bytes((done / name).read_bytes())
+    (stale / "report.html").write_text("<html><body>half-writ")
+    code, _, err = _main(["reproduce", "toy", "--runs", "2", "--out", out_dir], capsys)
+    assert code == 2 and "pass --resume" in err  # refused without --resume, the runs kept for it
+    assert not stale.exists() and sorted(os.listdir(tmp_path)) == ["done", "out"]
+    assert sorted(_snapshot(out_dir)) == [FILE_LIST, "manifest.json", "runs/run-000000.json"]
     assert _main(["reproduce", "toy", "--runs", "2", "--out", out_dir, "--resume"], capsys)[0] == 0
     # run 0 is the killed command's file (its own timing), run 1 was computed now
     assert (out_dir / "runs" / "run-000000.json").read_bytes() == (done / "runs" / "run-000000.json").read_bytes()
-    assert not orphan.exists()
+    assert sorted(os.listdir(tmp_path)) == ["done", "out"]
+
+
+# ---- folders that cannot be written, two commands on one folder, long names, a killed page ---------
+
+def _read_only(path: Path) -> None:
+    """``chmod -R a-w path``."""
+    for entry in [path, *path.rglob("*")]:
+        entry.chmod(entry.stat().st_mode & ~0o222)
+
+
+def _writable(path: Path) -> None:
+    """``chmod -R u+w path`` (so that the test's folder can be removed)."""
+    for entry in [path, *path.rglob("*")]:
+        entry.chmod(entry.stat().st_mode | 0o200)
+
+
+@pytest.mark.parametrize("previous", ["empty", "its own output"])
+@pytest.mark.parametrize("command", ["audit", "check", "reproduce", "prove", "report", "props"])
+def test_a_read_only_folder_is_refused_never_replaced(command, previous, toy, tmp_path, capsys):
+    argv = {**_commands(tmp_path), "props": ["props", "-k", "resampl"],  # quick ones, to write a first output
+            "report": ["report", "--from", _reproduced(tmp_path)]}[command]
+    out_dir = tmp_path / "out"
+    if previous == "empty":
+        out_dir.mkdir()
+    else:
+        code, _, err = _main([*argv, "--out", out_dir], capsys)
+        assert code == 0, err
+    _read_only(out_dir)
+    before, modes = _snapshot(out_dir), {p: p.stat().st_mode for p in [out_dir, *out_dir.rglob("*")]}
+    try:
+        code, out, err = _main([*argv, "--out", out_dir], capsys)
+        assert code == 2 and out == "" and len(err.strip().splitlines()) == 1, err
+        assert "is read-only" in err and "never replaces" in err
+        assert _snapshot(out_dir) == before and {p: p.stat().st_mode for p in modes} == modes
+        assert sorted(os.listdir(tmp_path)) == sorted(n for n in os.listdir(tmp_path) if not n.startswith("."))
+    finally:
+        _writable(out_dir)
+
+
+def _reproduced(tmp_path: Path) -> Path:
+    """A folder as ``gpfverify reproduce ungm1d --out DIR`` writes it (its results.json)."""
+    source = tmp_path / "ungm1d"
+    source.mkdir(exist_ok=True)
+    (source / "results.json").write_bytes((HERE / "fixtures" / "ungm1d" / "results.json").read_bytes())
+    return source
+
+
+def test_a_read_only_file_in_a_previous_output_is_refused_by_name(tmp_path, capsys):
+    out_dir, run = tmp_path / "out", _run_file(tmp_path)
+    assert _main(["audit", run, "--out", out_dir], capsys)[0] == 0
+    (out_dir / "README.md").chmod(0o444)
+    before = _snapshot(out_dir)
+    code, _, err = _main(["audit", run, "--out", out_dir], capsys)
+    assert code == 2 and "holds README.md, which is read-only" in err and _snapshot(out_dir) == before
+
+
+def test_a_folder_that_cannot_hold_the_output_is_refused_before_anything_is_made(tmp_path, capsys):
+    parent = tmp_path / "locked"
+    parent.mkdir()
+    _read_only(parent)
+    try:
+        code, _, err = _main(["audit", _run_file(tmp_path), "--out", parent / "new" / "out"], capsys)
+        assert code == 2 and f"the folder {parent} that would hold it is read-only" in err
+        assert list(parent.iterdir()) == []
+    finally:
+        _writable(parent)
+
+
+@pytest.mark.parametrize("bad", [["--seed", "-1"], ["--runs", "0"], ["every run fails"]],
+                         ids=["seed", "runs", "failing"])
+def test_a_refused_check_leaves_no_parent_folder_behind(tmp_path, capsys, bad):
+    if bad == ["every run fails"]:
+        (tmp_path / "raising.py").write_text(RAISING_SYSTEM)
+        argv = ["check", f"{tmp_path / 'raising.py'}:system", "--steps", "5", "--methods", "cmf,dmf"]
+    else:
+        argv = [*_commands(tmp_path)["check"], *bad]
+    before = sorted(os.listdir(tmp_path))
+    code, _, err = _main([*argv, "--out", tmp_path / "new" / "deep" / "out"], capsys)
+    assert code == 2 and len(err.strip().splitlines()) == 1, err
+    assert sorted(os.listdir(tmp_path)) == before  # no new/, no new/deep/
+
+
+def test_a_failed_reproduce_removes_the_folders_it_made_to_hold_its_output(toy, tmp_path, capsys):
+    code, _, err = _main(["reproduce", "toy", "--runs", "1", "--fail-run", "0", "--out", tmp_path / "a" / "b"], capsys)
+    assert code == 2 and "every run of toy failed" in err
+    assert os.listdir(tmp_path) == []
+
+
+def test_a_second_command_on_the_same_folder_is_refused_in_one_line(tmp_path, capsys):
+    from gpfverify.errors import InputError
+    from gpfverify.outputs import output_folder
+
+    out_dir = tmp_path / "out"
+    with output_folder(out_dir, keep=False) as stage:
+        (stage / "first.txt").write_text("the first command's")
+        with pytest.raises(InputError, match="being written by another gpfverify command"):
+            with output_folder(out_dir, keep=True):
+                pass  # pragma: no cover - refused on entry
+        code, out, err = _main(["audit", _run_file(tmp_path), "--out", out_dir], capsys)
+        assert code == 2 and out == "" and len(err.strip().splitlines()) == 1 and "--wait" in err, err
+    assert (out_dir / "first.txt").read_text() == "the first command's"  # committed, untouched by the second
+    assert sorted(os.listdir(tmp_path)) == ["RUN.jsonl", "out"]
+
+
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="reads /proc")
+def test_a_second_command_on_a_folder_being_written_is_refused_or_waits(tmp_path):
+    """A running check holds --out (its run held until the file ``go`` exists): a second check and
+    an audit on the same folder are each refused in one line, changing nothing; ``audit --wait``
+    says once that it waits, and writes its report once the check has committed: the folder ends
+    as the audit's, and the check's results were complete when it committed."""
+    import time
+
+    (tmp_path / "held.py").write_text(HELD_SYSTEM)
+    run = _run_file(tmp_path)
+    check = [sys.executable, "-m", "gpfverify", "check", "held.py:system", "--steps", "5", "--workers", "2",
+             "--methods", "cmf,dmf", "--json", "--out", "out"]
+    audit = [sys.executable, "-m", "gpfverify", "audit", str(run), "--json", "--out", "out"]
+    first = subprocess.Popen(check, cwd=tmp_path, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        deadline = time.monotonic() + 60
+        while time.monotonic() < deadline and not pool_workers(first.pid):  # the run is under way
+            time.sleep(0.05)
+        for argv in (check, audit):
+            refused = subprocess.run(argv, cwd=tmp_path, capture_output=True, text=True, timeout=120)
+            assert refused.returncode == 2 and refused.stdout == "", refused.stderr
+            assert refused.stderr.strip().splitlines() == [
+                f"gpfverify {argv[3]}: error: --out {tmp_path / 'out'} is being written by another gpfverify command; "
+                "wait for it to finish (or pass --wait), or choose another folder"]
+        assert first.poll() is None and not (tmp_path / "out").exists()
+        second = subprocess.Popen([*audit, "--wait"], cwd=tmp_path, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                                  text=True)
+        waiting = f"waiting for the other gpfverify command writing {tmp_path / 'out'} to finish\n"
+        assert second.stderr.readline() == waiting
+    finally:
+        (tmp_path / "go").touch()
+    out, err = first.communicate(timeout=120)
+    assert first.returncode == 0 and json.loads(out)["runs_ok"] == 1, err
+    out, err = second.communicate(timeout=120)
+    assert second.returncode == 0 and json.loads(out)["summary"], err
+    assert (tmp_path / "out" / "audit.json").is_file() and not (tmp_path / "out" / "results.json").exists()
+    assert sorted(os.listdir(tmp_path)) == ["RUN.jsonl", "go", "held.py", "out"]
+
+
+def test_a_240_byte_output_folder_name_works_and_leaves_no_sibling(tmp_path, capsys):
+    """(Any name up to 255 bytes: the fuzz test of tests/test_error_boundary.py.)"""
+    run, name = _run_file(tmp_path), "n" * 240
+    assert len(os.fsencode(sibling(tmp_path / name, PARTIAL).name)) <= 255
+    for _ in range(2):  # written, then rewritten
+        code, _, err = _main(["audit", run, "--out", tmp_path / name], capsys)
+        assert code == 0, err
+    assert sorted(os.listdir(tmp_path)) == sorted(["RUN.jsonl", name])
+
+
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="reads /proc")
+def test_a_sigkilled_report_from_a_folder_renders_again(tmp_path):
+    """``report --from DIR --out page`` SIGKILLed while it writes the page (its staging folder left
+    behind, unlocked and half-written; the process running the command dies with it), then run
+    again, twice: each run writes the page and no hidden folder remains."""
+    import signal
+    import time
+
+    from processes import alive, descendants
+
+    source = _reproduced(tmp_path)
+    argv = [sys.executable, "-m", "gpfverify", "report", "--from", source.name, "--out", "page"]
+    killed = subprocess.Popen(argv, cwd=tmp_path, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    deadline, processes = time.monotonic() + 120, set()
+    while time.monotonic() < deadline and killed.poll() is None and not list(tmp_path.glob(f"{PARTIAL}page-*/*")):
+        processes |= descendants(killed.pid)
+        time.sleep(0.01)
+    processes |= descendants(killed.pid)
+    assert killed.poll() is None, "the report finished before it could be killed"
+    killed.send_signal(signal.SIGKILL)
+    killed.wait(timeout=10)
+    deadline = time.monotonic() + 15
+    while time.monotonic() < deadline and any(alive(pid) for pid in processes):
+        time.sleep(0.05)
+    assert processes and not any(alive(pid) for pid in processes)
+    assert list(tmp_path.glob(f"{PARTIAL}page-*/*")) and not (tmp_path / "page").exists()
+    for _ in range(2):
+        rerun = subprocess.run(argv, cwd=tmp_path, capture_output=True, text=True, timeout=300)
+        assert rerun.returncode == 0 and "report.html" in rerun.stdout and rerun.stderr == "", rerun.stderr
+        assert sorted(os.listdir(tmp_path)) == ["page", "ungm1d"]
+    assert (tmp_path / "page" / "report.html").stat().st_size > 0
+
+
+def test_resuming_onto_a_full_disk_is_one_plain_line(tmp_path, capsys, monkeypatch):
+    import shutil
+
+    system, out_dir = _system(tmp_path), tmp_path / "out"
+    argv = ["check", system, "--steps", "3", "--methods", "cmf,dmf", "--out", out_dir]
+    assert _main(argv, capsys)[0] == 0
+    before = _snapshot(out_dir)
+    monkeypatch.setattr(shutil, "copy2", _enospc)  # copying the folder into its staging folder fails
+    code, _, err = _main([*argv, "--runs", "2", "--resume"], capsys)
+    lines = err.strip().splitlines()
+    assert code == 2 and len(lines) == 1, err
+    assert lines[0].startswith("gpfverify check: error: No space left on device: ") and "[(" not in lines[0], err
+    assert "could not be copied (and " in lines[0]
+    assert _snapshot(out_dir) == before and sorted(os.listdir(tmp_path)) == ["linear.py", "out"]
 
 
 # ---- a full disk, a failing system, a damaged folder: nothing half-written ----------------------
@@ -376,6 +584,96 @@ def test_print_in_the_system_file_goes_to_stderr(tmp_path, workers):
     assert "loading my system" in proc.stderr and "measuring" in proc.stderr
 
 
+#: the measurement function's one-line statements, run from its seventh call on (the runs under way)
+THREAD_EXIT = "t = __import__('threading').Thread(target=os._exit, args=(0,)); t.start(); t.join()"
+POSIX_EXIT = "__import__('posix')._exit(0)"
+C_EXIT = "__import__('ctypes').CDLL(None).exit(0)"
+POSIX_THREAD_EXIT = THREAD_EXIT.replace("os._exit", "__import__('posix')._exit")
+
+
+@pytest.mark.parametrize("workers", ["1", "2"])
+def test_a_thread_of_the_system_file_calling_os_exit_is_an_error_of_that_file(tmp_path, workers):
+    proc = _check_system(tmp_path, "--workers", workers, "--runs", "2", in_measurement=THREAD_EXIT, after=6)
+    assert proc.returncode == 2 and proc.stdout == "", proc.stderr
+    lines = proc.stderr.strip().splitlines()
+    assert len(lines) == 1 and "the system file system.py called os._exit(0) in a thread it started" in lines[0], lines
+    assert sorted(os.listdir(tmp_path)) == ["system.py"]
+
+
+def test_a_thread_started_at_import_that_ends_the_process_mid_run_is_an_error_of_the_system_file(tmp_path):
+    """The thread waits, in the background, until the runs are under way, then calls os._exit(0)
+    while the measurement function sleeps."""
+    at_import = ("import threading, time\nGO = threading.Event()\n"
+                 "threading.Thread(target=lambda: (GO.wait(), os._exit(0)), daemon=True).start()")
+    proc = _check_system(tmp_path, "--runs", "3", at_import=at_import, in_measurement="GO.set(); time.sleep(0.2)",
+                         after=6)
+    assert proc.returncode == 2 and proc.stdout == "", proc.stderr
+    lines = proc.stderr.strip().splitlines()
+    assert len(lines) == 1 and "the system file system.py called os._exit(0) in a thread it started" in lines[0], lines
+    assert sorted(os.listdir(tmp_path)) == ["system.py"]
+
+
+@pytest.mark.parametrize("call, where", [(POSIX_EXIT, "at_import"), (POSIX_EXIT, "in_measurement"),
+                                         (C_EXIT, "in_measurement"),
+                                         (POSIX_THREAD_EXIT, "in_measurement")],
+                         ids=["posix-import", "posix-run", "C-exit-run", "posix-thread-run"])
+def test_an_exit_gpfverify_cannot_intercept_is_still_an_error_of_the_system_file(tmp_path, call, where):
+    """posix._exit, C's exit() and a thread calling either end the process running the command
+    with status 0 and no result: the process gpfverify started reports it, exit status 2, and
+    removes the staging folder (--out as it was: absent)."""
+    proc = _check_system(tmp_path, **{where: call, "after": 6})
+    assert proc.returncode == 2 and proc.stdout == "", proc.stderr
+    lines = proc.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith(
+        "gpfverify check: error: the system file system.py ended the process (exit status 0) before the command "
+        "finished"), lines
+    assert lines[0].endswith("; --out was left as it was") == (where == "in_measurement"), lines
+    assert sorted(os.listdir(tmp_path)) == ["system.py"]
+
+
+def test_a_system_file_killing_its_own_process_is_one_line(tmp_path):
+    proc = _check_system(tmp_path, in_measurement="os.kill(os.getpid(), 9)", after=6)
+    assert proc.returncode == 2 and proc.stdout == ""
+    assert proc.stderr.strip().splitlines() == [
+        "gpfverify check: error: the process running the system file system.py was killed (SIGKILL) before it "
+        "finished; the runs it had saved are kept for the next command on --out"], proc.stderr
+
+
+@pytest.mark.parametrize("workers", ["1", "2"])
+def test_a_thread_the_system_file_leaves_running_does_not_keep_gpfverify_from_ending(tmp_path, workers):
+    at_import = "import threading, time\nthreading.Thread(target=time.sleep, args=(3600,), name='forever').start()"
+    proc = _check_system(tmp_path, "--workers", workers, at_import=at_import)  # timeout=120 s: no hang
+    assert proc.returncode == 0, proc.stderr
+    assert json.loads(proc.stdout)["runs_ok"] == 1 and (tmp_path / "out" / "results.json").is_file()
+    assert "gpfverify check: note: not waiting for 1 thread(s) still running (forever); they end with gpfverify" \
+        in proc.stderr.splitlines(), proc.stderr
+
+
+@pytest.mark.parametrize("workers", ["1", "2"])
+@pytest.mark.parametrize("where", ["at_import", "in_measurement"])
+@pytest.mark.parametrize("raised, named", [("raise KeyboardInterrupt('mine')", "raised KeyboardInterrupt (mine)"),
+                                           ("raise type('Weird', (BaseException,), {})('boom')", "raised Weird (boom)"),
+                                           ("raise GeneratorExit", "raised GeneratorExit")],
+                         ids=["KeyboardInterrupt", "BaseException", "GeneratorExit"])
+def test_an_exception_that_is_not_an_exception_is_an_error_of_the_system_file(tmp_path, raised, named, where,
+                                                                                workers):
+    proc = _check_system(tmp_path, "--workers", workers, **{where: raised, "after": 6})
+    assert proc.returncode == 2 and proc.stdout == "", proc.stderr
+    lines = proc.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("gpfverify check: error: the system file system.py " + named), lines
+    assert sorted(os.listdir(tmp_path)) == ["system.py"]
+
+
+@pytest.mark.parametrize("workers", ["1", "2"])
+def test_a_system_file_that_changes_folder_moves_no_output(tmp_path, workers):
+    (tmp_path / "elsewhere").mkdir()
+    proc = _check_system(tmp_path, "--workers", workers, at_import="os.chdir('elsewhere')",
+                         in_measurement="os.chdir('/')")
+    assert proc.returncode == 0, proc.stderr
+    assert (tmp_path / "out" / "results.json").is_file() and os.listdir(tmp_path / "elsewhere") == []
+    assert "gpfverify check: the report page: out/report.html" in proc.stderr.splitlines()  # still true
+
+
 # ---- signals: a second Ctrl-C, a killed worker ---------------------------------------------------
 
 SLOW_SYSTEM = '''
@@ -390,29 +688,39 @@ system = StateSpaceModel(transition=np.eye(2), process_cov=0.1 * np.eye(2),
                          prior_mean=[0.0, 0.0], prior_cov=np.eye(2))
 '''
 
+#: a system whose measurement function, in a worker process, waits until the file ``go`` exists
+#: in the folder the check started in: its runs finish only when a test lets them
+HELD_SYSTEM = '''
+import multiprocessing, os, time
+import numpy as np
+from gpfverify.models import Sensor, StateSpaceModel
+GO = os.path.abspath('go')
+def h(x):
+    while multiprocessing.parent_process() is not None and not os.path.exists(GO):
+        time.sleep(0.02)
+    return x[:, :1]
+system = StateSpaceModel(transition=np.eye(2), process_cov=0.1 * np.eye(2),
+                         sensors=[Sensor(np.eye(2), np.eye(2)), Sensor(h, [[1.0]])],
+                         prior_mean=[0.0, 0.0], prior_cov=np.eye(2))
+'''
 
-def _slow_check(tmp_path):
-    """A check with two workers whose runs take seconds, started in its own process; returns once a
-    worker is running."""
-    (tmp_path / "slow.py").write_text(SLOW_SYSTEM)
+
+def _slow_check(tmp_path, system=SLOW_SYSTEM, session=False):
+    """A check with two workers whose runs take seconds (or, with :data:`HELD_SYSTEM`, wait for
+    ``go``), started in its own process (``session``: in a session of its own, as a terminal
+    starts it); returns once a worker is running."""
+    (tmp_path / "slow.py").write_text(system)
     proc = subprocess.Popen([sys.executable, "-m", "gpfverify", "check", "slow.py:system", "--steps", "400",
                              "--runs", "4", "--workers", "2", "--methods", "cmf,dmf", "--out", "out"],
-                            cwd=tmp_path, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+                            cwd=tmp_path, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            start_new_session=session)
     import time
 
     deadline = time.monotonic() + 60
-    while time.monotonic() < deadline and len(_workers(proc.pid)) < 2:
+    while time.monotonic() < deadline and len(pool_workers(proc.pid)) < 2:
         time.sleep(0.1)
     time.sleep(1.0)  # the workers are inside their first runs
     return proc
-
-
-def _workers(pid: int) -> list[int]:
-    try:
-        children = Path(f"/proc/{pid}/task/{pid}/children").read_text().split()
-    except OSError:
-        return []
-    return [int(c) for c in children if "spawn_main" in Path(f"/proc/{c}/cmdline").read_text(errors="replace")]
 
 
 @pytest.mark.skipif(not sys.platform.startswith("linux"), reason="reads /proc")
@@ -426,7 +734,66 @@ def test_a_second_ctrl_c_prints_no_traceback(tmp_path):
     proc.send_signal(signal.SIGINT)
     _, err = proc.communicate(timeout=60)
     assert proc.returncode == 130, err
-    assert "Traceback" not in err and err.strip().splitlines()[-1] == "gpfverify check: interrupted", err
+    assert "Traceback" not in err
+    _assert_one_true_interrupt_line(err, "gpfverify check: interrupted", tmp_path / "out", 4)
+
+
+def _assert_one_true_interrupt_line(err, start, out_dir, runs):
+    """``err`` is one line starting with ``start`` that says truly what was kept of the runs."""
+    lines = err.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith(start + "; "), err
+    kept = sorted((out_dir / "runs").glob("run-*.json")) if out_dir.exists() else []
+    if kept:
+        assert f"{len(kept)} of {runs} runs had finished; the saved runs are kept in {out_dir}: run the command " \
+               "again with --resume" in lines[0], err
+    else:
+        assert lines[0] == f"{start}; no run had finished; nothing was written to {out_dir}", err
+        assert sorted(os.listdir(out_dir.parent)) == ["slow.py"]
+
+
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="reads /proc")
+@pytest.mark.parametrize("signum, to_group", [("SIGINT", True), ("SIGINT", False), ("SIGTERM", False)],
+                         ids=["Ctrl-C", "kill-INT", "kill-TERM"])
+def test_an_interruption_before_any_run_finished_is_one_true_line(tmp_path, signum, to_group):
+    """``check --workers 2`` whose runs cannot finish (they wait for a file never made), stopped by
+    Ctrl-C (SIGINT to the whole process group, workers included, as a terminal sends it) or by
+    ``kill`` of gpfverify's process: one line, saying nothing was kept, and nothing written."""
+    import signal
+
+    proc = _slow_check(tmp_path, HELD_SYSTEM, session=to_group)
+    if to_group:
+        os.killpg(proc.pid, getattr(signal, signum))
+    else:
+        proc.send_signal(getattr(signal, signum))
+    out, err = proc.communicate(timeout=60)
+    assert proc.returncode == 130 and out == "", err
+    assert err.strip().splitlines() == [
+        f"gpfverify check: interrupted; no run had finished; nothing was written to {tmp_path / 'out'}"], err
+    assert sorted(os.listdir(tmp_path)) == ["slow.py"]
+
+
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="reads /proc")
+def test_a_killed_resource_tracker_costs_one_note_line_at_most(tmp_path):
+    """multiprocessing's resource tracker SIGKILLed while the workers run: the check completes
+    with its results, and what multiprocessing says about it is one note line, no traceback."""
+    import signal
+    import time
+
+    from processes import command_line, descendants
+
+    (tmp_path / "slow.py").write_text(SLOW_SYSTEM)
+    proc = subprocess.Popen([sys.executable, "-m", "gpfverify", "check", "slow.py:system", "--steps", "30",
+                             "--runs", "4", "--workers", "2", "--methods", "cmf,dmf", "--json"],
+                            cwd=tmp_path, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    deadline, tracker = time.monotonic() + 60, []
+    while time.monotonic() < deadline and not (tracker and len(pool_workers(proc.pid)) == 2):
+        tracker = [pid for pid in descendants(proc.pid) if "resource_tracker" in command_line(pid)]
+        time.sleep(0.05)
+    os.kill(tracker[0], signal.SIGKILL)
+    out, err = proc.communicate(timeout=300)
+    assert proc.returncode == 0, err
+    assert json.loads(out)["runs_ok"] == 4
+    assert "Traceback" not in err and len(err.strip().splitlines()) <= 1, err
 
 
 def test_from_the_first_interrupt_on_further_ones_are_ignored():
@@ -458,10 +825,9 @@ def test_a_killed_worker_is_one_line_and_no_leaked_semaphore_warning(tmp_path):
     import signal
 
     proc = _slow_check(tmp_path)
-    os.kill(_workers(proc.pid)[0], signal.SIGKILL)
+    os.kill(pool_workers(proc.pid)[0], signal.SIGKILL)
     out, err = proc.communicate(timeout=60)
     assert proc.returncode == 2 and out == "", err
-    assert err.strip().splitlines() == ["gpfverify check: error: a worker process ended abruptly (killed by a "
-                                        "signal or out of memory); no run had finished, nothing was written to "
-                                        "--out: run the command again"], err
-    assert sorted(os.listdir(tmp_path)) == ["slow.py"]
+    assert "leaked" not in err
+    _assert_one_true_interrupt_line(err, "gpfverify check: error: a worker process ended abruptly (killed by a "
+                                    "signal or out of memory)", tmp_path / "out", 4)

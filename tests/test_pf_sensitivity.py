@@ -9,6 +9,7 @@ import pytest
 
 from gpfverify.contract.claims import read_claims
 from gpfverify.contract.particle_flow import IE_PFF, PF
+from gpfverify.errors import InputError
 from gpfverify.experiments import bearing, pff1d
 from gpfverify.experiments.particle_methods import (ess_health, flow_steps, paired_comparison, run_method,
                                                     schedule_words)
@@ -116,6 +117,41 @@ def test_the_papers_fig1b_cell_is_a_claim_and_the_linear_measurement_reaches_the
     assert np.allclose(linear.measures[0](x), x)  # one-to-one: y = x
     quadratic = {c: m for c, _, _, m, *_ in pff1d._cases(params)}["ungm"]
     assert np.allclose(quadratic.measures[0](x), x * x / 20.0)
+
+
+def test_the_van_der_merwe_reading_runs_the_table1_grid_on_that_model_with_gaussian_noise():
+    """table_model 'vdm': every cell of the grid is the benchmark of the gamma case (x_k = 1 +
+    sin(0.04π(k − 1)) + x_{k−1}/2 + w_k, y = 0.2x² up to k = 30 and x/2 − 2 after) with w ~ N(0, Q):
+    the model against those equations, its noise against Q by Monte Carlo, the claims' setting naming
+    it; and the reading is compared on the Table-1 claims only."""
+    from gpfverify.contract.pff1d import INTERPRETATIONS
+    from gpfverify.tolerances import MONTE_CARLO_SIGMAS, monte_carlo_atol
+
+    params = pff1d.Params(steps=4, particles=10, table_q=(1.0, 10.0), table_r=(0.1,), dlambda=(0.01,),
+                          spacings=("uniform",), gamma_r=(0.1,), gamma_dlambda=0.1, table_model="vdm")
+    cases = {(c, q): m for c, q, _, m, *_ in pff1d._cases(params)}
+    assert {c for c, _ in cases} == {"vdm", "gamma"}
+    model = cases[("vdm", 10.0)]
+    x = np.array([[-1.5], [0.5], [3.0]])
+    for k in (1, 17, 30, 31, 50):
+        assert np.allclose(model.f(x, k), 1.0 + np.sin(0.04 * np.pi * (k - 1)) + 0.5 * x)
+        assert np.allclose(model.measures[0](x, k), 0.2 * x * x if k <= 30 else 0.5 * x - 2.0)
+    assert np.allclose(model.Q, 10.0) and np.allclose(model.R, 0.1)
+    assert np.allclose(model.prior_mean, 1.0) and np.allclose(model.prior_cov, 0.75)
+    draws = model.sample_transition(np.zeros((40_000, 1)), 5, np.random.default_rng(3))[:, 0] - model.f(
+        np.zeros((1, 1)), 5)[0, 0]
+    assert abs(draws.mean()) <= monte_carlo_atol(draws.std(), draws.size)
+    assert abs(draws.var() - 10.0) <= MONTE_CARLO_SIGMAS * 10.0 * np.sqrt(2.0 / draws.size)
+    res = pff1d.summarize(params, [pff1d.run_one(params, np.random.SeedSequence(i)) for i in range(2)])
+    fig1b = next(c for c in res["claims"] if c.id == "pff1d/ie-pff-beats-pf-and-edh-fig1b/dlambda=0.01")
+    assert fig1b.setting.startswith("vdM-Gaussian, Q = 1, R = 0.1")
+    assert {(r.Q, r.R) for r in res["table1"]} == {(1.0, 0.1), (10.0, 0.1)}
+    vdm = next(s for s in INTERPRETATIONS if s.name == "vdm-gaussian")
+    assert vdm.changes["table_model"] == "vdm"
+    assert [c.id for c in res["claims"] if vdm.bears_on_claim(c.id)] == [
+        c.id for c in res["claims"] if c.id.startswith("pff1d/ie-pff-beats-pf-and-edh")] != []
+    with pytest.raises(InputError, match="--ungm-measurement linear applies to the UNGM only"):
+        params.replace(ungm_measurement="linear")
 
 
 def test_weight_collapse_is_flagged_in_the_experiments_settings():

@@ -108,7 +108,10 @@ def test_interpretations_on_fewer_runs_from_the_command_line(toy, tmp_path, caps
     first3 = read_claims(results_of(toy_experiment, out, read_manifest(out), 3))
     assert baseline.statistic == next(c for c in first3 if c.id == claim.id).statistic
     assert robustness(claim).startswith("at 3 runs each: ")
-    assert [c for c in merge_saved(out, toy_experiment)["claims"]] == results["claims"]
+    # merge_saved adds the readings of the saved runs the command was not asked for (wide-strict reads wide's)
+    again = merge_saved(out, toy_experiment)["claims"]
+    assert [{**c, "interpretations": [i for i in c["interpretations"] if i["name"] != "wide-strict"]}
+            for c in again] == results["claims"]
     capsys.readouterr()
     # refused before any run: more runs than the main run, or no interpretations to run
     for extra in (["--interpretations", "wide", "--interpretation-runs", "31"], ["--interpretation-runs", "3"]):
@@ -148,3 +151,48 @@ def test_robustness_compares_verdicts_on_equal_run_counts():
         "at 200 runs each: depends on the interpretation: held under as run; undecided under late; "
         "as run at 1000 runs: held")
     assert not is_robust(mixed)
+
+
+def test_a_reading_of_another_interpretations_runs_needs_no_runs_of_its_own(toy, tmp_path):
+    """An interpretation that adds summary fields to another's changes reads that interpretation's
+    saved runs (at its run count), and naming it alone runs the other first."""
+    from gpfverify.contract.claims import AS_RUN
+    from gpfverify.contract.serial import from_json
+    from gpfverify.experiments.sensitivity import merge_saved, runs_source, select
+
+    import toy_experiment
+
+    assert [s.name for s in select(toy_experiment, "wide-strict")] == ["wide", "wide-strict"]
+    assert [runs_source(toy_experiment, s) for s in toy_experiment.INTERPRETATIONS] == [None, None, "wide"]
+    out = tmp_path / "run"
+    assert cli.main(["reproduce", "toy", "--runs", "8", "--seed", "2", "--out", str(out),
+                     "--interpretations", "wide-strict", "--interpretation-runs", "5"]) == 0
+    strict_dir = out / "interpretations" / "wide-strict"
+    assert not (strict_dir / "runs").exists() and (out / "interpretations" / "wide" / "runs").is_dir()
+    strict = json.loads((strict_dir / "results.json").read_text())
+    wide_runs = [from_json(toy_experiment.RunRecord, json.loads(p.read_text())["result"])
+                 for p in sorted((out / "interpretations" / "wide" / "runs").glob("run-*.json"))]
+    expected = toy_experiment.summarize(toy_experiment.Params(scale=3.0, limit=-5.0), wide_runs)
+    assert strict["runs"] == 5 and strict["params"]["limit"] == -5.0 and strict["params"]["scale"] == 3.0
+    assert next(c for c in read_claims(strict) if c.id == "toy/mean-below-1").statistic == \
+        next(c for c in expected["claims"] if c.id == "toy/mean-below-1").statistic
+    claim = next(c for c in read_claims(json.loads((out / "results.json").read_text())) if c.id == "toy/mean-below-1")
+    assert {(i.name, i.n) for i in claim.interpretations} == {("wide", 5), ("wide-strict", 5), (AS_RUN, 5)}
+    again = next(c for c in read_claims(merge_saved(out, toy_experiment)) if c.id == claim.id)
+    assert again.interpretations == claim.interpretations
+
+
+def test_a_reading_is_compared_only_on_the_claims_it_bears_on():
+    from gpfverify.contract.interpretations import InterpretationSpec
+    from gpfverify.experiments.sensitivity import merge
+
+    def results(*ids):
+        return {"runs": 4, "claims": [ClaimRecord("c", "s", "held", 1.0, 0.0, 4, "e", id=i).to_json() for i in ids]}
+
+    ids = ("x/fig1/a", "x/fig1/b", "x/fig2", "x/fig10")
+    some = InterpretationSpec("fig1-model", {"m": 1}, "why", bears_on=("x/fig1/", "x/fig2"))
+    every = InterpretationSpec("everything", {"n": 1}, "why")
+    merged = merge(results(*ids), [(some, results(*ids)), (every, results(*ids))])
+    tried = {c.id: [i.name for i in c.interpretations] for c in read_claims(merged)}
+    assert tried == {"x/fig1/a": ["fig1-model", "everything"], "x/fig1/b": ["fig1-model", "everything"],
+                     "x/fig2": ["fig1-model", "everything"], "x/fig10": ["everything"]}

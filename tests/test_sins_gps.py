@@ -32,10 +32,10 @@ from gpfverify.filters.resampling import Particles
 from gpfverify.filters.upf import ukf_proposal, upf_step
 from gpfverify.gp.residual import fit_residual
 from gpfverify.models import Sensor, StateSpaceModel, linear_model
-from gpfverify.scenarios.sins_gps import (ATTITUDE, EARTH_RATE, EQUATORIAL_RADIUS, UNITS, VELOCITY, SinsGpsConfig,
+from gpfverify.scenarios.sins_gps import (ATTITUDE, EARTH_RATE, EQUATORIAL_RADIUS, G0, UNITS, VELOCITY, SinsGpsConfig,
                                           build_models, generate_flight, gravity, measurement_matrix,
                                           training_set)
-from gpfverify.tolerances import algebra_rtol
+from gpfverify.tolerances import MONTE_CARLO_SIGMAS, algebra_rtol
 
 
 @pytest.fixture(scope="module")
@@ -129,6 +129,38 @@ def test_training_targets_carry_the_scale_factor_forcing():
     np.testing.assert_allclose((leftover - forcing).mean(axis=0), 0.0,
                                atol=5 * noise_sd / np.sqrt(len(leftover)) + 1e-5)
     assert abs(leftover[:, 2].mean()) > 100 * noise_sd / np.sqrt(len(leftover))  # the forcing is seen
+
+
+def test_a_misspecified_accelerometer_noise_changes_the_true_velocity_q_alone(scenario):
+    """accel_noise_scale c: the true model's velocity block of Q is c² times the model's (the white
+    accelerometer noise's variance per step, (c · 1e-5 g)² Δt, in closed form), every other entry and
+    the approximate model unchanged; the transitions are not touched."""
+    config, flight, models = scenario
+    noisy = build_models(flight, dataclasses.replace(config, accel_noise_scale=100.0))
+    np.testing.assert_array_equal(noisy.approx.Q, models.approx.Q)
+    np.testing.assert_array_equal(noisy.transitions_true, models.transitions_true)
+    expected = models.true.Q.copy()
+    expected[VELOCITY, VELOCITY] = np.eye(3) * (100.0 * config.accel_white_g_sqrt_hz * G0) ** 2 * config.dt
+    np.testing.assert_allclose(noisy.true.Q, expected, rtol=algebra_rtol())
+    np.testing.assert_allclose(noisy.true.Q[VELOCITY, VELOCITY], 1e4 * models.true.Q[VELOCITY, VELOCITY],
+                               rtol=algebra_rtol())
+    # the ceiling's model: the design noise plus what the model leaves out
+    ceiling = sins_gps.ceiling_model(noisy, noisy.approx)
+    np.testing.assert_allclose(ceiling.Q, noisy.true.Q, rtol=algebra_rtol())
+
+
+def test_the_gp_learns_the_misspecified_velocity_noise_from_the_training_flights():
+    """The residual GP's noise variance on the velocity outputs is the flight's (10⁴ times the model's
+    at accel_noise_scale 100), within the sampling error of a variance from the training points; the
+    approximate model keeps the nominal Q, so only GPSR-UPF carries the learned one."""
+    params = Params(duration=650.0, accel_noise_scale=100.0)
+    config, models, upf_model, gpsr_model, _ = sins_gps.setup(params)
+    true_var = np.diag(models.true.Q)[VELOCITY]
+    learned = gpsr_model.transition.gp.noise_var
+    # a variance estimated from n points: relative standard error √(2/n)
+    np.testing.assert_allclose(learned, true_var, rtol=MONTE_CARLO_SIGMAS * np.sqrt(2.0 / params.train_points))
+    np.testing.assert_array_equal(upf_model.Q, models.approx.Q)
+    assert np.all(np.diag(upf_model.Q)[VELOCITY] < 1e-3 * learned)
 
 
 def test_sr_ukf_equals_kf_over_the_flight(scenario):
@@ -305,10 +337,12 @@ def test_params_and_run_records_round_trip(tiny_run):
 def test_profiles():
     assert PROFILES["quick"].runs == 2 and PROFILES["quick"].settings[0].params.particles == 20
     assert PROFILES["full"].runs == sins_gps.DEFAULT_RUNS == 20 and PROFILES["full"].settings[0].params == Params()
-    # the report tries the model error within the claims' reach and the healthy configuration
+    # the report tries the model error within the claims' reach, the healthy configuration and the
+    # mis-specified Q
     names = {spec.name for spec in sins_gps.INTERPRETATIONS}
     for profile in PROFILES.values():
-        assert set(profile.interpretations) == {"scale-factor-1000ppm", "point-proposal-q-x1000"} <= names
+        assert set(profile.interpretations) == {"scale-factor-1000ppm", "point-proposal-q-x1000",
+                                                "q-misspecified"} <= names
 
 
 @pytest.mark.parametrize("changes, option", [

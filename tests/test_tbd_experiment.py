@@ -16,7 +16,7 @@ from gpfverify.contract.tbd import PROFILES, MethodRun, Params, RunRecord, SnrRu
 from gpfverify.errors import InputError
 from gpfverify.experiments import tbd
 from gpfverify.experiments.runner import run_experiment, without_timing
-from gpfverify.report.document import Figure, Section, Table
+from gpfverify.report.document import Figure, Paragraph, Section, Table
 from gpfverify.report.inputs import load_section
 from gpfverify.report.sections import tbd as tbd_section
 
@@ -291,3 +291,43 @@ def test_detection_definitions_are_summary_only_interpretations(small_run, tmp_p
     gain = next(c for c in read_claims(merged) if c.id == "tbd/snr-gain-equal-n")
     assert {i.name for i in gain.interpretations} == {s.name for s in specs}
     assert all(i.n == 3 for i in gain.interpretations)
+
+
+def test_the_gain_claim_is_shown_under_every_birth_proposal_and_detection_reading():
+    """The grid of the SNR-gain claim: one row per birth proposal (the run's own first), one column
+    per detection definition, each cell the reading's gain and verdict from the claim record, and the
+    verdict under the largest gain named as the one most favourable to the paper; the other
+    interpretations (an SNR convention, the verdict as run on fewer runs) stay out of it, and the
+    birth × detection readings stay out of the sensitivity table."""
+    from gpfverify.contract.claims import AS_RUN, Interpretation
+
+    uniform = {"birth_uniform_share": 1.0, "tpf_particles": [2000], "zeta_sweep": []}
+    gain = ClaimRecord("At equal N = 2000, TPFTBD gains at least 1 dB", "src", "NOT held", 0.57, 1.0, 3000, "e",
+                       id="tbd/snr-gain-equal-n", interpretations=(
+                           Interpretation("detection-last-frame", {"detection": "last-frame"}, "undecided", 1.11, 3000,
+                                          19000),
+                           Interpretation("birth-uniform", uniform, "undecided", 0.9, 2000, 7000),
+                           Interpretation("birth-uniform-detection-last-frame", {**uniform, "detection": "last-frame"},
+                                          "held", 1.4, 2000),
+                           Interpretation("detection-settled-3", {"detection": "settled", "settle_frames": 3},
+                                          "NOT held", 0.7, 3000),
+                           Interpretation("detection-settled-5", {"detection": "settled", "settle_frames": 5},
+                                          "NOT held", 0.86, 3000),
+                           Interpretation(AS_RUN, {}, "NOT held", 0.55, 2000),
+                           Interpretation("snr-energy", {"snr_convention": "energy"}, "NOT held", 0.47, 200)))
+    blocks = tbd_section._detection_blocks(Params(), [gain])
+    grid = next(b for b in blocks if isinstance(b, Table))
+    # the two settled readings (3 and 5 frames left out) are two columns
+    assert grid.headers == ["birth proposal", "detection 'frames'", "detection 'last-frame'",
+                            "detection 'settled, 3 frames'", "detection 'settled, 5 frames'"]
+    assert grid.rows == [
+        ["cells above 1σ, 10 % uniform (3000 runs)", "0.57 dB: NOT held",
+         "1.11 dB: undecided, about 19000 runs would decide", "0.7 dB: NOT held", "0.86 dB: NOT held"],
+        ["uniform over the image (2000 runs)", "0.9 dB: undecided, about 7000 runs would decide", "1.4 dB: held",
+         "—", "—"]]
+    favourable = next(b.text for b in blocks if isinstance(b, Paragraph) and "most favourable" in b.text)
+    assert "'uniform over the image' with detection 'last-frame'" in favourable and "1.4 dB over 2000 runs: held" \
+        in favourable
+    sensitivity = tbd_section._sensitivity_blocks([gain])
+    shown = {name for block in sensitivity if isinstance(block, Table) for row in block.rows for name in row[:1]}
+    assert "birth-uniform" in shown and "birth-uniform-detection-last-frame" not in shown

@@ -6,6 +6,7 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
+from scipy.stats import norm
 
 from gpfverify.errors import InputError
 from gpfverify.filters.resampling import Particles, effective_sample_size, systematic_resample
@@ -13,7 +14,7 @@ from gpfverify.filters.tbd import TbdConfig, TbdModel, filter_sequence, pf_tbd_s
 from gpfverify.filters.tbd.pf import birth_proposal, sample_birth_prior
 from gpfverify.filters.tbd.two_stage import overlapping, second_stage_axes, transfer_particles
 from gpfverify.scenarios.tbd import TbdScenario, noise_std_for_snr, scenario_model, simulate
-from gpfverify.tolerances import algebra_rtol, monte_carlo_atol
+from gpfverify.tolerances import MONTE_CARLO_SIGMAS, algebra_rtol, monte_carlo_atol
 
 SCENARIO = TbdScenario()
 HIGH_SNR_DB = 15.0
@@ -160,6 +161,32 @@ def test_birth_importance_ratio_is_exact():
     ratio = np.exp(log_ratio)
     assert abs(ratio.mean() - 1.0) <= monte_carlo_atol(ratio.std(), ratio.size)
     assert ratio.min() < 1.0 < ratio.max()  # the proposal really favours the bright cells
+
+
+def test_uniform_birth_proposal_is_the_birth_density():
+    """The 'birth-uniform' reading (uniform share 1): every cell equally likely whatever the image,
+    so p_b/q_b = 1 for every birth; the cells' counts pass a χ² test against the uniform law at the
+    project's Monte Carlo level, and a data-driven proposal on the same image fails it."""
+    from scipy.stats import chi2
+
+    rng = np.random.default_rng(5)
+    model = scenario_model(9.0, SCENARIO)
+    image = simulate(model, SCENARIO, rng).images[12]
+    cells = model.cell_count
+    level = 2.0 * norm.sf(MONTE_CARLO_SIGMAS)
+
+    def chi_square(config):
+        states, log_ratio = birth_proposal(model, config, image, rng)
+        index = model.nearest_cell(states[:, 0]) * model.grid_size + model.nearest_cell(states[:, 2])
+        counts = np.bincount(index, minlength=cells)
+        expected = config.n_birth / cells
+        return log_ratio, float(np.sum((counts - expected) ** 2) / expected)
+
+    log_ratio, statistic = chi_square(TbdConfig(80_000, birth_uniform_share=1.0))
+    assert np.all(log_ratio == 0.0)
+    assert statistic < chi2.isf(level, cells - 1)
+    _, statistic = chi_square(TbdConfig(80_000))
+    assert statistic > chi2.isf(level, cells - 1)
 
 
 def test_pf_tbd_resamples_the_merged_set_down_to_n_c_systematically():

@@ -251,3 +251,20 @@ def test_the_page_shows_verdicts_under_each_interpretation_health_and_runs_to_de
     health = tables["Health checks"]
     assert {row[0] for row in health.rows} == {h["method"] for h in stored["health"]}
     assert len(health.headers) == 1 + len(stored["snr_db"])
+
+
+def test_the_birth_readings_run_the_gain_claims_filters_with_the_streams_they_have_beside_the_others():
+    """The birth readings run PF-TBD and TPFTBD at equal N only: each method's runs are the same
+    whether or not the other methods run beside it, so the SNR-gain claim reads the same numbers."""
+    from gpfverify.contract.tbd import BIRTH_INTERPRETATIONS, GAIN_METHODS_ONLY
+
+    reduced = SMALL.replace(tpf_particles=(SMALL.particles,), zeta_sweep=())
+    seed = np.random.SeedSequence(4, spawn_key=(1,))
+    full, alone = tbd.run_one(SMALL, seed), tbd.run_one(reduced, seed)
+    for case_full, case_alone in zip(full.cases, alone.cases):
+        assert set(case_alone.methods) == {"PFTBD-N80", "TPFTBD-N80"}
+        assert all(case_alone.methods[k] == case_full.methods[k] for k in case_alone.methods)
+    for spec in BIRTH_INTERPRETATIONS:
+        assert Params().replace(**spec.changes).tpf_particles == (Params().particles,) == \
+            GAIN_METHODS_ONLY["tpf_particles"]
+        assert spec.bears_on == ("tbd/snr-gain-equal-n",)

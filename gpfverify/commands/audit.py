@@ -18,7 +18,7 @@ from gpfverify.cli import RANK_RULE_HELP, positive_int, rank_rule_text
 from gpfverify.errors import InputError
 from gpfverify.fusion.runfile import run_format
 from gpfverify.notebook import progress_shown
-from gpfverify.outputs import check_out, final_path, out_path, output_folder
+from gpfverify.outputs import add_wait_argument, final_path, out_path, output_folder
 from gpfverify.report.document import integer_ranges
 from gpfverify.runaudit import copy_out, spool, stream_audit, table_header, table_row
 
@@ -49,6 +49,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--out", type=out_path, default=None, metavar="DIR",
                         help="run files: write the report (DIR/report.html, DIR/README.md, figures, "
                              "DIR/audit.json)")
+    add_wait_argument(parser)
     parser.add_argument("--workers", type=positive_int, default=1, metavar="N",
                         help="run files: audit blocks of steps in N processes (same output for any N)")
     parser.add_argument("--scheduler", default=None, metavar="ADDRESS",
@@ -166,6 +167,8 @@ def _audit_run(args: argparse.Namespace) -> None:
     form = "json" if args.json else "text" if args.table else "none"
     parallel = args.workers > 1 or args.scheduler is not None
     with contextlib.ExitStack() as stack:
+        # the folder first: refused (or locked) before the audit costs anything
+        stage = stack.enter_context(output_folder(args.out, keep=False, wait=args.wait)) if args.out else None
         out = stack.enter_context(spool())
         executor = stack.enter_context(make_executor(args.workers, args.scheduler)) if parallel else None
         progress = stack.enter_context(_progress(progress_shown()))
@@ -182,12 +185,11 @@ def _audit_run(args: argparse.Namespace) -> None:
             out.write(("\n" + format_summary(summary) + "\n").encode())
         elif form == "none":
             out.write((verdict_line(summary) + "\n").encode())
-        if args.out is not None:
+        if stage is not None:
             from gpfverify.report.equivalence import write_run_audit_report
 
-            with output_folder(args.out, keep=False) as stage:
-                html = final_path(write_run_audit_report({"steps": steps, "summary": summary,
-                                                          "rank_rule": summary["rank_rule"]}, stage), stage, args.out)
+            html = final_path(write_run_audit_report({"steps": steps, "summary": summary,
+                                                      "rank_rule": summary["rank_rule"]}, stage), stage, args.out)
         copy_out(out)
     if args.out is not None:  # after the audit itself; on stderr when stdout carries JSON
         if args.json:
@@ -210,7 +212,5 @@ def run(args: argparse.Namespace) -> int:
                        args.sensitivity)
         print(json.dumps(audit_to_dict(audit)) if args.json else format_audit(audit))
         return 0
-    if args.out is not None:
-        check_out(args.out)  # before the audit: a refused folder costs nothing
     _audit_run(args)
     return 0

@@ -21,7 +21,7 @@ from gpfverify.contract.check import Params
 from gpfverify.contract.params import add_arguments as add_params_arguments
 from gpfverify.filters.families import FAMILY_NAMES
 from gpfverify.fusion.names import CHOICES_TEXT
-from gpfverify.outputs import check_out, out_path, output_folder
+from gpfverify.outputs import add_wait_argument, out_path, output_folder
 from gpfverify.usercode import guarded, system_file
 
 
@@ -56,6 +56,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              "papers' rule, to reproduce their numbers).")
     add_params_arguments(parser, Params, only=("ci_criterion",))
     parser.add_argument("--out", type=out_path, default=None, help="output folder (results.json, runs/, report)")
+    add_wait_argument(parser)
     parser.add_argument("--json", action="store_true", help="print results.json to stdout")
     parser.add_argument("--resume", action="store_true", help="continue the runs saved in --out")
     parser.add_argument("--workers", type=int, default=1, help="local worker processes (default 1)")
@@ -67,11 +68,17 @@ def run(args: argparse.Namespace) -> int:
     from gpfverify.errors import InputError
     from gpfverify.contract.check import verdict_sentence
     from gpfverify.experiments import check
-    from gpfverify.experiments.runner import make_executor, run_experiment
+    from gpfverify.experiments.runner import check_run_count, check_seed, check_workers, make_executor, run_experiment
     from gpfverify.systems import load_system
 
     if args.measurements is not None and args.steps is not None:
         raise InputError("--measurements filters every row of the file: leave out --steps")
+    check_run_count(args.runs)  # everything that can be refused is refused before anything is written
+    check_seed(args.seed)
+    check_workers(args.workers)
+    if args.out is None and not args.json:
+        raise InputError("give --out DIR (results and report) and/or --json (results on stdout)")
+    out_dir = None if args.out is None else args.out.absolute()  # before the system file can change folder
     params = check.params_for(args.system, args.filter, DEFAULT_STEPS if args.steps is None else args.steps,
                               args.measurements,
                               args.training, args.train, args.fit_points, args.restarts, args.methods,
@@ -84,18 +91,12 @@ def run(args: argparse.Namespace) -> int:
         _, ys = check.logged_measurements(params.measurements, model)
         params = params.replace(steps=len(ys))  # results.json records the file's step count
     check.check_size_fits(model, params.steps, args.runs, params.methods)
-    if args.workers < 1:
-        raise InputError(f"--workers must be at least 1, got {args.workers}")
-    if args.out is None and not args.json:
-        raise InputError("give --out DIR (results and report) and/or --json (results on stdout)")
-    if args.out is not None:
-        check_out(args.out)
     with contextlib.ExitStack() as stack:
-        stack.enter_context(guarded(system_file(params.system)))
-        if args.out is not None:
-            out = stack.enter_context(output_folder(args.out, keep=True))
+        if out_dir is not None:
+            out = stack.enter_context(output_folder(out_dir, keep=True, wait=args.wait))
         else:
             out = Path(stack.enter_context(tempfile.TemporaryDirectory()))
+        stack.enter_context(guarded(system_file(params.system)))
         with make_executor(args.workers, args.scheduler) as executor:
             results = run_experiment(check, params, args.runs, args.seed, out, args.resume, executor)
         if args.out is not None:

@@ -33,7 +33,7 @@ import time
 from pathlib import Path
 
 from gpfverify.errors import InputError
-from gpfverify.outputs import check_out, final_path, out_path, output_folder
+from gpfverify.outputs import add_wait_argument, final_path, out_path, output_folder
 
 PROFILES = ("ci", "dev", "thorough")
 FAILURE_LINES = 40
@@ -52,6 +52,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="hypothesis profile: ci (derandomised, as in make test), dev, "
                              "thorough (many examples, minutes); default ci")
     parser.add_argument("--out", type=out_path, required=True, help="output folder for summary.json")
+    add_wait_argument(parser)
     parser.add_argument("--suite", type=Path, default=None,
                         help="folder of property modules (default: property_tests/ of the source "
                              "tree the package is installed from)")
@@ -173,8 +174,7 @@ def run(args: argparse.Namespace) -> int:
     if not suite.is_dir() or not any(suite.glob("test_*.py")):
         raise InputError(f"no property suite at {suite}: gpfverify props needs the source tree "
                          "(property_tests/) or --suite DIR")
-    check_out(args.out)
-    with output_folder(args.out, keep=False) as stage:
+    with output_folder(args.out, keep=False, wait=args.wait) as stage:
         summary = _run_suite(pytest, suite, stage, args)
         summary["counterexample_files"] = [str(final_path(Path(f), stage, args.out))
                                            for f in summary["counterexample_files"]]

@@ -8,13 +8,14 @@ import json
 import sys
 
 from gpfverify.cli import non_negative_int
-from gpfverify.outputs import check_out, out_path, output_folder
+from gpfverify.outputs import add_wait_argument, out_path, output_folder
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     from gpfverify.symbolic.claims import CLAIMS
 
     parser.add_argument("--out", type=out_path, required=True, help="output folder")
+    add_wait_argument(parser)
     parser.add_argument("--size", choices=("small", "large"), default="large",
                         help="problem sizes: small (seconds, as in the test suite) or large (minutes; default)")
     parser.add_argument("--only", nargs="+", metavar="CLAIM", choices=list(CLAIMS),
@@ -29,16 +30,15 @@ def run(args: argparse.Namespace) -> int:
     from gpfverify.symbolic.claims import run_claims
     from gpfverify.symbolic.crosscheck import run_crosschecks
 
-    check_out(args.out)
     progress = lambda text: print(text, file=sys.stderr)  # noqa: E731
-    certificates = run_claims(args.size, args.only, progress)
-    if not args.no_casadi and not args.only:
-        certificates += run_crosschecks(args.size, seed=args.seed, progress=progress)
-    from gpfverify.provenance import current
+    with output_folder(args.out, keep=False, wait=args.wait) as stage:
+        certificates = run_claims(args.size, args.only, progress)
+        if not args.no_casadi and not args.only:
+            certificates += run_crosschecks(args.size, seed=args.seed, progress=progress)
+        from gpfverify.provenance import current
 
-    provenance = current()  # certificates.json is a list (CONTRACT.md): every record carries it
-    records = [{**c.to_json(), "provenance": provenance} for c in certificates]
-    with output_folder(args.out, keep=False) as stage:
+        provenance = current()  # certificates.json is a list (CONTRACT.md): every record carries it
+        records = [{**c.to_json(), "provenance": provenance} for c in certificates]
         (stage / "certificates.json").write_text(json.dumps(records, indent=2), encoding="utf-8")
         (stage / "README.md").write_text(to_markdown(render(records), stage), encoding="utf-8")
     summary = ", ".join(f"{c.claim}: {c.status}" for c in certificates)

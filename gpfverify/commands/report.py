@@ -26,7 +26,7 @@ from typing import TextIO
 from gpfverify.cli import non_negative_int, positive_int
 from gpfverify.errors import InputError
 from gpfverify.contract.experiment import RunEntry, SectionRuns
-from gpfverify.outputs import check_out, final_path, out_path, output_folder
+from gpfverify.outputs import add_wait_argument, final_path, out_path, output_folder
 from gpfverify.report import SECTIONS, build_report, papers_title
 from gpfverify.report.inputs import counts_line, verdict_counts, write_runs
 from gpfverify.report.render import read_summaries
@@ -74,6 +74,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="the papers' run counts (hours) instead of the quick profile (minutes)")
     parser.add_argument("--out", type=out_path, default=None,
                         help="output folder (default reports/quick or reports/full)")
+    add_wait_argument(parser)
     parser.add_argument("--seed", type=non_negative_int, default=1, help="root seed, an integer >= 0 (default 1)")
     parser.add_argument("--workers", type=positive_int, default=1,
                         help="worker processes for experiments (>= 1; results do not depend on it)")
@@ -338,7 +339,7 @@ def section_of(experiment: str) -> str:
     raise InputError(f"no report section renders the experiment {experiment!r}")
 
 
-def render_reproduced(source: Path, out: Path) -> Path:
+def render_reproduced(source: Path, out: Path, wait: bool = False) -> Path:
     """Render the folder of one ``gpfverify reproduce NAME --out DIR`` run (``source``) as a page
     in ``out``: its results (and interpretations) copied as the section's only run, nothing run.
     Returns the HTML page's path."""
@@ -354,8 +355,7 @@ def render_reproduced(source: Path, out: Path) -> Path:
         raise InputError(f"--from {source}: results.json names no experiment (not a reproduce folder)")
     name = results["experiment"]
     slug = section_of(name)
-    check_out(out)
-    with output_folder(out) as stage:
+    with output_folder(out, keep=False, wait=wait) as stage:  # the page is rendered whole every time
         folder = f"{name}-{REPRODUCED}"
         shutil.copytree(source, stage / slug / folder / "run", ignore=shutil.ignore_patterns("runs", ".*"))
         write_runs(stage, SectionRuns(slug, REPRODUCED, int(results.get("seed", 0)),
@@ -370,15 +370,14 @@ def run(args: argparse.Namespace) -> int:
         if args.full or args.only:
             raise InputError("--from renders a folder that reproduce wrote: not together with --full or --only")
         out = args.out or Path(str(args.from_dir).rstrip("/\\") + "-report")
-        html_path = render_reproduced(args.from_dir, out)
+        html_path = render_reproduced(args.from_dir, out, args.wait)
         print(f"The page: {html_path} (one self-contained page; open it in a browser)\n"
               f"          {out / 'README.md'} (Markdown)")
         return 0
     profile = "full" if args.full else "quick"
     out = args.out or Path("reports") / profile
-    check_out(out)  # before any section runs (and prints progress)
     selected = [s for s in SECTIONS if not args.only or s in args.only]
-    with Progress() as progress, output_folder(out, keep=True) as stage:
+    with output_folder(out, keep=True, wait=args.wait) as stage, Progress() as progress:
         progress(f"building the {profile} report in {out} (seed {args.seed}, {args.workers} worker(s)): "
                  f"{', '.join(selected)}")
         ctx = ReportContext(stage, profile, args.seed, args.workers)

@@ -19,7 +19,7 @@ from collections.abc import Callable
 from pathlib import Path
 
 from gpfverify.experiments import EXPERIMENTS
-from gpfverify.outputs import check_out, out_path, output_folder
+from gpfverify.outputs import add_wait_argument, out_path, output_folder
 
 #: a progress line off a terminal every this fraction of the runs
 PROGRESS_FRACTION = 0.05
@@ -54,6 +54,7 @@ def add_common_arguments(parser: argparse.ArgumentParser, default_runs: int, pap
                         help="output folder (required: every run is saved there as it ends, so that --resume "
                              "can continue and 'gpfverify report --from DIR' can render it)")
     parser.add_argument("--resume", action="store_true", help="continue the runs saved in --out")
+    add_wait_argument(parser)
     parser.add_argument("--workers", type=positive_int, default=1,
                         help="local worker processes, >= 1 (BLAS pinned to 1 thread each; default 1); "
                              "results are the same for any number")
@@ -169,7 +170,7 @@ def experiment_parser(name: str) -> argparse.ArgumentParser:
 def run(args: argparse.Namespace) -> int:
     from gpfverify.contract.params import from_arguments
     from gpfverify.errors import InputError
-    from gpfverify.experiments.runner import make_executor, run_experiment
+    from gpfverify.experiments.runner import check_run_count, make_executor, run_experiment
 
     if args.experiment is None:
         raise InputError(f"name the experiment to run, one of {', '.join(sorted(EXPERIMENTS))} "
@@ -180,7 +181,7 @@ def run(args: argparse.Namespace) -> int:
         raise InputError("--paper-scale runs the paper's count: not together with --runs")
     runs = module.DEFAULT_RUNS if opts.paper_scale else opts.runs or quick_runs(module)
     params = from_arguments(module.Params, opts)
-    check_out(opts.out)
+    check_run_count(runs)  # refused before anything is written
     specs = None
     if opts.interpretations is not None:
         from gpfverify.experiments.sensitivity import run_interpretations, select
@@ -200,7 +201,8 @@ def run(args: argparse.Namespace) -> int:
         scale = f"the paper's: {module.DEFAULT_RUNS}"
     header = f"{args.experiment}: {runs} run(s) ({scale}), {opts.workers} worker(s), into {opts.out}"
     terminal = sys.stderr.isatty()  # there the runner draws a progress bar
-    with output_folder(opts.out, keep=True) as stage, make_executor(opts.workers, opts.scheduler) as executor:
+    with output_folder(opts.out, keep=True, wait=opts.wait) as stage, \
+            make_executor(opts.workers, opts.scheduler) as executor:
         results = run_experiment(module, params, runs, opts.seed, stage, opts.resume, executor,
                                  on_run=None if terminal else progress_lines(args.experiment, say, header))
         if specs:

@@ -20,11 +20,20 @@ from gpfverify.contract.claims import AS_RUN, ClaimRecord, Interpretation, Verdi
 
 @dataclass(frozen=True)
 class InterpretationSpec:
-    """A named reading of the paper: ``changes`` maps ``Params`` field names to values."""
+    """A named reading of the paper: ``changes`` maps ``Params`` field names to values.
+    ``bears_on``: the claim ids (or '/'-ended prefixes of them) the reading is about — a reading of
+    one figure's model says nothing about the claims of another figure whose setting it leaves as
+    run; empty: every claim."""
 
     name: str
     changes: dict[str, Any]
     why: str
+    bears_on: tuple[str, ...] = ()
+
+    def bears_on_claim(self, claim_id: str | None) -> bool:
+        """Is a claim with this id compared under this reading?"""
+        return not self.bears_on or any(claim_id == b or (b.endswith("/") and (claim_id or "").startswith(b))
+                                        for b in self.bears_on)
 
 
 def _groups(claim: ClaimRecord) -> list[tuple[int | None, Verdict, list[Interpretation]]]:

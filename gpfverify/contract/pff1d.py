@@ -31,11 +31,18 @@ from gpfverify.errors import InputError
 NAME = "pff1d"
 #: the paper's Monte Carlo runs (§3.1: "30 次蒙特卡洛仿真")
 PAPER_RUNS = 30
-#: methods of Table 1 (Gaussian UNGM) and of Fig. 2 (gamma noise)
+#: methods of Table 1 (Gaussian noise) and of Fig. 2 (gamma noise)
 TABLE_METHODS: tuple[Method, ...] = (PF, EDH, IE_PFF)
 GAMMA_METHODS: tuple[Method, ...] = (PF, UPF, EDH, IE_PFF)
 
-Case = Literal["ungm", "gamma"]
+#: the 1-D model of the Table-1 grid: the UNGM, or the van der Merwe et al. (2000) benchmark of the
+#: gamma case with Gaussian process noise
+TableModel = Literal["ungm", "vdm"]
+#: a run's cases: the Table-1 grid on its model, and the gamma case
+Case = Literal["ungm", "vdm", "gamma"]
+#: each Table-1 model by name (health subjects, the claims' settings, the report; vdM-Gaussian: the van der
+#: Merwe et al. (2000) benchmark with Gaussian process noise)
+TABLE_MODEL_NAMES: dict[str, str] = {"ungm": "UNGM", "vdm": "vdM-Gaussian"}
 #: how the grid's noise values are read: as variances (the default) or as standard deviations
 NoiseReading = Literal["variance", "std"]
 
@@ -55,9 +62,9 @@ class Params(ParamsBase):
 
     particles: int = option(50, "particles per filter", minimum=2)
     steps: int = option(50, "time steps T", minimum=1)
-    table_q: tuple[float, ...] = option((0.1, 1.0, 10.0), "UNGM process-noise variances Q of the Table-1 grid",
+    table_q: tuple[float, ...] = option((0.1, 1.0, 10.0), "process-noise variances Q of the Table-1 grid",
                                         above=0.0)
-    table_r: tuple[float, ...] = option((0.1, 1.0), "UNGM measurement-noise variances R of the Table-1 grid",
+    table_r: tuple[float, ...] = option((0.1, 1.0), "measurement-noise variances R of the Table-1 grid",
                                         above=0.0)
     dlambda: tuple[float, ...] = option((0.1, 0.01, 0.001), "pseudo-time steps Δλ of the flows (Table-1 grid)",
                                         above=0.0, maximum=1.0)
@@ -66,6 +73,10 @@ class Params(ParamsBase):
     exponential_ratio: float = option(1.2, "ratio of consecutive λ-steps of the exponential schedule", above=0.0)
     exponential_steps: int = option(0, "number of λ-steps of the exponential schedule whatever Δλ (0: round(1/Δλ), "
                                        "as many as the uniform schedule)", minimum=0)
+    table_model: TableModel = option(
+        "ungm", "1-D model of the Table-1 grid (the paper's model text is lost): 'ungm' the univariate growth "
+                "model, 'vdm' the van der Merwe et al. (2000) benchmark of the gamma case with Gaussian process "
+                "noise N(0, Q)")
     noise_values: NoiseReading = option("variance", "how the Q and R values of the grid and of the gamma case's R are "
                                                     "read: variances, or standard deviations (variance = value²)")
     ungm_measurement: Literal["quadratic", "linear"] = option(
@@ -80,7 +91,9 @@ class Params(ParamsBase):
     gamma_shape: float = option(3.0, "shape of the gamma process noise Γ(shape, rate)", above=0.0)
     gamma_rate: float = option(2.0, "rate of the gamma process noise Γ(shape, rate)", above=0.0)
     ungm_prior: Prior = option(Prior(0.0, 1.0), "prior N(mean, var) of x₀ in the UNGM cases", cli=False)
-    gamma_prior: Prior = option(Prior(1.0, 0.75), "prior N(mean, var) of x₀ in the gamma cases", cli=False)
+    gamma_prior: Prior = option(Prior(1.0, 0.75), "prior N(mean, var) of x₀ on the van der Merwe benchmark (the "
+                                                  "gamma cases, and the Table-1 grid under table-model 'vdm')",
+                                cli=False)
 
     def check(self) -> None:
         for name in ("table_q", "table_r", "dlambda", "spacings", "gamma_r"):
@@ -94,6 +107,9 @@ class Params(ParamsBase):
         for name in ("ungm_prior", "gamma_prior"):
             if not getattr(self, name).var > 0:
                 raise InputError(f"{name} variance must be positive, got {getattr(self, name).var}")
+        if self.table_model != "ungm" and self.ungm_measurement != "quadratic":
+            raise InputError(f"--ungm-measurement {self.ungm_measurement} applies to the UNGM only, not to "
+                             f"--table-model {self.table_model}")
 
     @property
     def main_spacing(self) -> Spacing:
@@ -133,6 +149,12 @@ INTERPRETATIONS: tuple[InterpretationSpec, ...] = (
         "the model text is lost; y = x²/20 cannot tell x from −x, so the UNGM posterior is two-peaked, which a flow "
         "with one linear gain for all particles cannot represent and a PF can: the same dynamics with the "
         "one-to-one y = x, uniform λ-steps of the stable Δλ = 0.001"),
+    InterpretationSpec(
+        "vdm-gaussian", {"table_model": "vdm", "spacings": ("uniform",)},
+        "the model text is lost, and §3.1 runs its gamma case on the van der Merwe et al. (2000) benchmark: the "
+        "whole Table-1 grid (every Q, R and Δλ) on that model with Gaussian process noise N(0, Q), the paper's "
+        "uniform λ-steps; it bears on the Table-1 and Fig. 1 claims (the gamma case is the same as run)",
+        bears_on=(f"{NAME}/ie-pff-beats-pf-and-edh-fig1b/", f"{NAME}/ie-pff-beats-pf-and-edh-at-large-q/")),
 )
 
 #: the interpretations every profile tries, each at the profile's run count, so that every verdict of
@@ -172,7 +194,7 @@ class RunRecord:
 
 @dataclass(frozen=True)
 class Table1Row:
-    """One cell × variant of the UNGM grid (``results.json`` "table1")."""
+    """One cell × variant of the Table-1 grid on its model (``results.json`` "table1")."""
 
     Q: float
     R: float
@@ -214,7 +236,7 @@ class GammaEntry:
 
 @dataclass(frozen=True)
 class DivergenceCount:
-    """How often a flow variant diverged over the whole UNGM grid (cells × runs)."""
+    """How often a flow variant diverged over the whole Table-1 grid (cells × runs)."""
 
     method: str
     dlambda: float

@@ -311,6 +311,32 @@ INTERPRETATIONS: tuple[InterpretationSpec, ...] = (
 #: the interpretations every profile tries: those that only read the saved runs differently
 DETECTION_INTERPRETATIONS: tuple[str, ...] = tuple(s.name for s in INTERPRETATIONS if set(s.changes) <= SUMMARY_FIELDS)
 
+#: the filters the ≥ 1 dB claim compares (PF-TBD and TPFTBD at equal N, every SNR): the birth readings
+#: run only these (a method's random streams depend on its particle count alone, so its runs are those it
+#: has beside the other methods)
+GAIN_METHODS_ONLY: dict[str, object] = {"tpf_particles": (2000,), "zeta_sweep": ()}
+#: the birth proposal q_b, which seed 004 does not state (as run: bright cells above 1σ, 10 % spread
+#: uniformly), read two other ways, each with runs of its own of the filters the SNR-gain claim compares
+BIRTH_INTERPRETATIONS: tuple[InterpretationSpec, ...] = (
+    InterpretationSpec(
+        "birth-uniform", {"birth_uniform_share": 1.0, **GAIN_METHODS_ONLY},
+        "seed 004 does not state the birth proposal: births drawn from the birth density p_b itself, uniform over "
+        "the image (no data-driven proposal; p_b/q_b = 1), so that a new target is found by the likelihood alone; "
+        "PF-TBD and TPFTBD at N = 2000 only (the SNR-gain claim's filters)", bears_on=(f"{NAME}/snr-gain-equal-n",)),
+    InterpretationSpec(
+        "birth-threshold-2", {"birth_threshold": 2.0, **GAIN_METHODS_ONLY},
+        "births from the cells brighter than 2σ instead of 1σ (about 2 % of the noise cells instead of 16 %, so "
+        "more of the proposal sits on the target's cells), 10 % spread uniformly as run; PF-TBD and TPFTBD at "
+        "N = 2000 only", bears_on=(f"{NAME}/snr-gain-equal-n",)),
+)
+#: each birth reading read with each detection definition: the birth reading's runs read differently
+#: (no runs of their own; gpfverify.experiments.sensitivity.runs_source)
+BIRTH_DETECTION_INTERPRETATIONS: tuple[InterpretationSpec, ...] = tuple(
+    InterpretationSpec(f"{birth.name}-{detection.name}", {**birth.changes, **detection.changes},
+                       f"the {birth.name} runs with detection as in {detection.name}", birth.bears_on)
+    for birth in BIRTH_INTERPRETATIONS for detection in INTERPRETATIONS if detection.name in DETECTION_INTERPRETATIONS)
+INTERPRETATIONS += BIRTH_INTERPRETATIONS + BIRTH_DETECTION_INTERPRETATIONS
+
 PROFILES: dict[str, Profile] = {
     "quick": Profile(QUICK_RUNS, (Setting("", "quick", QUICK_PARAMS),), DETECTION_INTERPRETATIONS),
     "full": Profile(PAPER_RUNS, (Setting("", "paper", Params()),), DETECTION_INTERPRETATIONS),

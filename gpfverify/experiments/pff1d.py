@@ -1,7 +1,8 @@
 """Particle flow on 1-D nonlinear models (Zhou et al. 2020 §3.1): bootstrap PF, UPF, Daum–Huang
-EDH flow and the innovation-error flow (IE-PFF) — the (Q, R, Δλ) grid of Table 1 on the UNGM and
-the Γ(3, 2) process-noise case of Fig. 2 on the van der Merwe et al. (2000) benchmark (models in
-:mod:`gpfverify.scenarios.growth`). N = 50 particles, T = 50 steps, 30 runs.
+EDH flow and the innovation-error flow (IE-PFF) — the (Q, R, Δλ) grid of Table 1 on the UNGM (or,
+``table_model = "vdm"``, on the van der Merwe et al. (2000) benchmark with Gaussian noise) and the
+Γ(3, 2) process-noise case of Fig. 2 on that benchmark (models in :mod:`gpfverify.scenarios.growth`).
+N = 50 particles, T = 50 steps, 30 runs.
 
 Each run draws one trajectory per (model, Q, R) and filters it with every method; the flows run
 once per (Δλ, spacing): ``uniform`` is the paper's Euler scheme, ``exponential`` the same number of
@@ -31,13 +32,13 @@ from gpfverify.health import HealthCheck, decide
 from gpfverify.contract.methods import Method
 from gpfverify.contract.papers import PAPERS
 from gpfverify.contract.particle_flow import EDH, FLOWS, IE_PFF, PAPER, PF, UPF, Variant
-from gpfverify.contract.pff1d import (GAMMA_METHODS, INTERPRETATIONS, NAME, PAPER_RUNS, PROFILES, TABLE_METHODS, Case,
-                                      DivergenceCount, GammaEntry, Params, Prior, RunRecord, Table1Row,
-                                      VariantRun)
+from gpfverify.contract.pff1d import (GAMMA_METHODS, INTERPRETATIONS, NAME, PAPER_RUNS, PROFILES, TABLE_METHODS,
+                                      TABLE_MODEL_NAMES, Case, DivergenceCount, GammaEntry, Params, Prior, RunRecord,
+                                      Table1Row, VariantRun)
 from gpfverify.experiments.particle_methods import (Comparison, child_rng, divergence_health, ess_health, flow_steps,
                                                     paired_comparison, run_method, schedule_words)
 from gpfverify.models import StateSpaceModel
-from gpfverify.scenarios.growth import gamma_benchmark_model, ungm_model
+from gpfverify.scenarios.growth import gamma_benchmark_model, ungm_model, vdm_gaussian_model
 
 __all__ = ["DEFAULT_RUNS", "INTERPRETATIONS", "NAME", "PAPER", "PROFILES", "Params", "RunRecord", "run_one",
            "summarize"]
@@ -51,6 +52,13 @@ def _with_prior(model: StateSpaceModel, prior: Prior) -> StateSpaceModel:
     return dataclasses.replace(model, prior_mean=np.array([prior.mean]), prior_cov=np.array([[prior.var]]))
 
 
+def _table_model(params: Params, q: float, r: float) -> StateSpaceModel:
+    """The Table-1 model of ``params.table_model`` at grid values Q, R, with its prior."""
+    if params.table_model == "vdm":
+        return _with_prior(vdm_gaussian_model(params.variance(q), params.variance(r)), params.gamma_prior)
+    return _with_prior(ungm_model(params.variance(q), params.variance(r), params.ungm_measurement), params.ungm_prior)
+
+
 def _cases(params: Params) -> Iterator[tuple[Case, float, float, StateSpaceModel, tuple[Method, ...],
                                              tuple[float, ...]]]:
     """(case, Q, R, model, methods, Δλ values) in a fixed order (Q, R as the grid states them; the
@@ -58,9 +66,7 @@ def _cases(params: Params) -> Iterator[tuple[Case, float, float, StateSpaceModel
     come from the model's prior (an interpretation, see the report)."""
     for q in params.table_q:
         for r in params.table_r:
-            model = _with_prior(ungm_model(params.variance(q), params.variance(r), params.ungm_measurement),
-                                params.ungm_prior)
-            yield "ungm", q, r, model, TABLE_METHODS, params.dlambda
+            yield params.table_model, q, r, _table_model(params, q, r), TABLE_METHODS, params.dlambda
     for r in params.gamma_r:
         model = _with_prior(gamma_benchmark_model(params.variance(r), params.gamma_shape, params.gamma_rate),
                             params.gamma_prior)
@@ -125,7 +131,7 @@ def _aggregate(records: list[RunRecord], steps: int) -> dict[tuple[Case, float, 
 
 
 def _subject(case: Case, q: float, r: float, variant: Variant) -> str:
-    where = f"UNGM Q = {q:g}, R = {r:g}" if case == "ungm" else f"gamma case R = {r:g}"
+    where = f"gamma case R = {r:g}" if case == "gamma" else f"{TABLE_MODEL_NAMES[case]} Q = {q:g}, R = {r:g}"
     return f"{variant.label} ({where})"
 
 
@@ -150,7 +156,7 @@ def summarize(params: Params, records: list[RunRecord]) -> dict[str, Any]:
     runs = len(records)
     table = [Table1Row(q, r, v.method.key, v.dlambda, v.spacing, g.mean_rmse, g.diverged, runs, g.seconds,
                        g.rmse, g.run_rmse)
-             for (case, q, r, v), g in agg.items() if case == "ungm"]
+             for (case, q, r, v), g in agg.items() if case == params.table_model]
     gamma: dict[str, dict[str, GammaEntry]] = {}
     for (case, _q, r, v), g in agg.items():
         if case == "gamma":
@@ -174,7 +180,7 @@ def summarize(params: Params, records: list[RunRecord]) -> dict[str, Any]:
 
 
 def _divergences(params: Params, table: list[Table1Row]) -> list[DivergenceCount]:
-    """How often each flow diverged on the UNGM grid, per Δλ and λ-step schedule."""
+    """How often each flow diverged on the Table-1 grid, per Δλ and λ-step schedule."""
     out = []
     for method in FLOWS:
         for dlam in params.dlambda:
@@ -264,12 +270,13 @@ def claims(params: Params, table: list[Table1Row], gamma: dict[str, dict[str, Ga
     ratio, count = params.exponential_ratio, params.exponential_steps
     noise = "" if params.noise_values == "variance" else ", Q and R read as standard deviations"
     noise += "" if params.ungm_measurement == "quadratic" else ", measurement y = x"
+    table_case, table_name = params.table_model, TABLE_MODEL_NAMES[params.table_model]
 
     def parts_at(q: float, rs: tuple[float, ...], dlam: float) -> list[_Part]:
         ie = Variant(IE_PFF, dlam, spacing)
         return [_Part(f"R = {r:g} vs {other.method.key}",
                       paired_comparison(cells[(q, r, ie)].run_rmse, cells[(q, r, other)].run_rmse, level),
-                      (("ungm", q, r, ie), ("ungm", q, r, other)))
+                      ((table_case, q, r, ie), (table_case, q, r, other)))
                 for r in rs for other in (Variant(PF), Variant(EDH, dlam, spacing))]
 
     for dlam in params.dlambda:
@@ -278,11 +285,11 @@ def claims(params: Params, table: list[Table1Row], gamma: dict[str, dict[str, Ga
             q, r = FIG1B_CELL
             out.append(_record(f"ie-pff-beats-pf-and-edh-fig1b/dlambda={dlam:g}",
                                "Large process noise (Fig. 1(b)): IE-PFF is more accurate than PF and PFF (EDH)",
-                               SOURCE_FIG1B, f"UNGM, Q = {q:g}, R = {r:g}, {schedule}{noise}",
+                               SOURCE_FIG1B, f"{table_name}, Q = {q:g}, R = {r:g}, {schedule}{noise}",
                                parts_at(q, (r,), dlam), runs, health))
         out.append(_record(f"ie-pff-beats-pf-and-edh-at-large-q/dlambda={dlam:g}",
                            "IE-PFF is more accurate than PF and PFF (EDH) at large process noise, at every R",
-                           SOURCE_TABLE1, f"UNGM, Q = {q_max:g}, {schedule}{noise}",
+                           SOURCE_TABLE1, f"{table_name}, Q = {q_max:g}, {schedule}{noise}",
                            parts_at(q_max, params.table_r, dlam), runs, health))
 
     def variant(method: Method) -> Variant:

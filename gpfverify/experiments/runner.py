@@ -16,8 +16,8 @@
   run's problem; see :mod:`gpfverify.fusion.rcc_ci`).
 * ``manifest.json`` and ``results.json`` carry the provenance record of
   :mod:`gpfverify.provenance`.
-* Local worker processes exit when the main process dies, whatever the signal (each watches its
-  parent; see :func:`_exit_with_parent`), so a SIGKILL leaves no orphans behind.
+* Local worker processes exit when the main process dies, whatever the signal
+  (:func:`gpfverify.supervise.exit_with_parent`), so a SIGKILL leaves no orphans behind.
 """
 
 from __future__ import annotations
@@ -29,7 +29,6 @@ import json
 import os
 import re
 import sys
-import threading
 import time
 import traceback
 import warnings
@@ -46,13 +45,11 @@ from gpfverify.contract.serial import from_json, to_json
 from gpfverify.errors import InputError, WorkerLost
 from gpfverify.notebook import progress_shown
 from gpfverify.runtime import BLAS_THREAD_VARS
-from gpfverify.usercode import HARD_EXIT, UserExit, guarded, system_file
+from gpfverify.supervise import exit_with_parent
+from gpfverify.usercode import UserCodeError, guarded, system_file
 
 #: a key of ``results.json`` (at any depth) whose value is a measured time, not a result
 TIMING_KEY = re.compile(r"time_per|seconds|machine_load|timing_claims")
-#: how often a local worker checks that its parent is still alive
-PARENT_POLL_SECONDS = 0.2
-
 
 
 class SerialExecutor(Executor):
@@ -107,25 +104,88 @@ def make_executor(workers: int = 1, scheduler: str | None = None):
     import multiprocessing as mp
 
     _quiet_manager_thread_on_interrupt()
-    pool = ProcessPoolExecutor(max_workers=workers, mp_context=mp.get_context("spawn"),
-                               initializer=_exit_with_parent, initargs=(os.getpid(),))
+    pool = _WorkerPool(max_workers=workers, mp_context=mp.get_context("spawn"),
+                       initializer=_start_worker, initargs=(os.getpid(),))
     try:
         yield pool
     except BaseException:
         # interrupted or failed: stop the workers now rather than let them finish (or outlive us);
         # runs already saved stay saved. (ProcessPoolExecutor has no public terminate before 3.14.)
-        for process in list(getattr(pool, "_processes", {}).values()):
-            process.terminate()
+        _quiet_resource_tracker()
+        _stop(pool)
         pool.shutdown(wait=False, cancel_futures=True)
         raise
     else:
-        pool.shutdown(wait=True)
+        # every result is in: a worker that a thread of the user's code keeps alive is not waited for
+        _quiet_resource_tracker()
+        processes = list((getattr(pool, "_processes", None) or {}).values())
+        manager = getattr(pool, "_executor_manager_thread", None)
+        pool.shutdown(wait=False)
+        deadline = time.monotonic() + WORKER_EXIT_SECONDS
+        for process in processes:
+            process.join(max(0.0, deadline - time.monotonic()))
+            if process.is_alive():
+                process.terminate()
+        if manager is not None:
+            manager.join()
     finally:
         for k, v in saved.items():
             if v is None:
                 os.environ.pop(k, None)
             else:
                 os.environ[k] = v
+
+
+class _WorkerPool(ProcessPoolExecutor):
+    """A local process pool whose worker processes start with SIGINT blocked, as multiprocessing
+    starts its resource tracker: a Ctrl-C from the terminal reaches every process, and one reaching
+    a worker while Python starts it (before :func:`_start_worker` runs) would print a traceback
+    (ProcessPoolExecutor starts its workers as tasks are submitted). A Ctrl-C reaching this process
+    meanwhile waits until the worker is started, then stops the command as usual."""
+
+    def submit(self, fn, /, *args, **kwargs):
+        import signal
+
+        blocked = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
+        try:
+            return super().submit(fn, *args, **kwargs)
+        finally:
+            signal.pthread_sigmask(signal.SIG_SETMASK, blocked)
+
+
+#: how long a worker may take to end once the pool is shut down before it is stopped
+WORKER_EXIT_SECONDS = 2.0
+
+
+def _stop(pool: ProcessPoolExecutor) -> None:
+    """Terminate the pool's worker processes that are still running."""
+    for process in list((getattr(pool, "_processes", None) or {}).values()):
+        if process.is_alive():
+            process.terminate()
+
+
+def _quiet_resource_tracker() -> None:
+    """Start multiprocessing's resource tracker again, with its stderr on /dev/null, if it died
+    (someone killed it): started by multiprocessing itself at the next semaphore it releases, it
+    would print a traceback for every semaphore it never saw registered. The warning that it
+    died is raised here, and collected like any other (one note line)."""
+    from multiprocessing import resource_tracker
+
+    try:
+        saved = os.dup(2)
+        null = os.open(os.devnull, os.O_WRONLY)
+    except OSError:
+        return
+    try:
+        sys.stderr.flush()
+        os.dup2(null, 2)
+        resource_tracker.ensure_running()
+    except Exception:  # noqa: BLE001 - the tracker is multiprocessing's affair; the runs are saved
+        pass
+    finally:
+        os.dup2(saved, 2)
+        os.close(saved)
+        os.close(null)
 
 
 _QUIET_MANAGER_INSTALLED = False
@@ -185,6 +245,13 @@ def check_runs_fit(runs: int, bytes_each: int = RUN_RECORD_BYTES) -> None:
                          "memory available now")
 
 
+def check_run_count(runs) -> int:
+    """``runs`` as a run count: an integer >= 1."""
+    if isinstance(runs, bool) or not isinstance(runs, int) or runs < 1:
+        raise InputError(f"--runs must be an integer >= 1, got {runs!r}")
+    return runs
+
+
 def check_seed(seed) -> int:
     """``seed`` as a root seed for ``SeedSequence``: an integer >= 0."""
     if isinstance(seed, bool) or not isinstance(seed, int) or seed < 0:
@@ -192,27 +259,18 @@ def check_seed(seed) -> int:
     return seed
 
 
-def _exit_with_parent(parent_pid: int) -> None:
-    """Worker initializer: a daemon thread ends this process as soon as its parent (the main
-    process, which started it) is gone — killed by any signal, SIGKILL included, when no cleanup
-    of ours can run. On Linux the kernel also delivers SIGKILL at once (``PR_SET_PDEATHSIG``).
-    The multiprocessing resource tracker exits by itself once every process holding its pipe
-    (the main process and these workers) is gone."""
-    if sys.platform.startswith("linux"):
-        with contextlib.suppress(Exception):
-            import ctypes
-            import signal
+def _start_worker(parent_pid: int) -> None:
+    """Worker initializer: the worker ends as soon as its parent (the main process, which started
+    it) is gone, killed by any signal (:func:`gpfverify.supervise.exit_with_parent`; the
+    multiprocessing resource tracker exits by itself once every process holding its pipe is
+    gone), and ignores Ctrl-C (SIGINT, blocked until now: :class:`_WorkerPool`): the main process
+    stops the command and its workers, and a KeyboardInterrupt in a worker is then always one the
+    user's code raised itself (:func:`gpfverify.usercode.guarded`)."""
+    import signal
 
-            ctypes.CDLL(None, use_errno=True).prctl(1, int(signal.SIGKILL), 0, 0, 0)  # PR_SET_PDEATHSIG
-    if os.getppid() != parent_pid:  # the parent died before the prctl took effect
-        HARD_EXIT(1)
-
-    def watch():
-        while os.getppid() == parent_pid:
-            time.sleep(PARENT_POLL_SECONDS)
-        HARD_EXIT(1)
-
-    threading.Thread(target=watch, name="gpfverify-parent-watch", daemon=True).start()
+    exit_with_parent(parent_pid)
+    signal.signal(signal.SIGINT, signal.SIG_IGN)  # a Ctrl-C pending since the worker started is dropped
+    signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT})
 
 
 def _in_flight_limit(executor: Executor) -> int:
@@ -237,7 +295,7 @@ def _execute(module_name: str, params: Params, seed: np.random.SeedSequence, ind
             with guarded(system_file(spec) if spec else f"the code run by {module.NAME}"):
                 record["result"] = to_json(module.run_one(params, seed))
             record["status"] = "ok"
-        except UserExit:  # the user's code tried to end the process: the command stops
+        except UserCodeError:  # the user's code tried to end the process (or to stop it): the command stops
             raise
         except Exception as exc:  # noqa: BLE001 - recorded, counted, reported
             record["status"] = "error"
@@ -293,9 +351,9 @@ def _check_manifest(out_dir: Path, manifest: dict, resume: bool, write: bool = T
         old = read_manifest(out_dir)
         if resume and {k: old.get(k) for k in ("experiment", "seed", "params")} != \
                 {k: manifest[k] for k in ("experiment", "seed", "params")}:
-            raise InputError(f"{out_dir} holds runs of different settings; use a new --out")
+            raise InputError("--out holds runs of different settings; use a new --out")
     elif existing_runs and not resume:
-        raise InputError(f"{out_dir} already holds {len(existing_runs)} saved runs; "
+        raise InputError(f"--out already holds {len(existing_runs)} saved runs; "
                          "pass --resume to continue them or choose a new --out")
     if write:
         _atomic_write_json(path, {**manifest, "provenance": provenance.current()})
@@ -323,8 +381,7 @@ def run_experiment(module: ModuleType | str, params: Params, runs: int, seed: in
     ``show_progress`` draws rich's progress bar (default: on a terminal and in a Jupyter notebook)."""
     module = importlib.import_module(module) if isinstance(module, str) else module
     name = module.NAME
-    if isinstance(runs, bool) or not isinstance(runs, int) or runs < 1:
-        raise InputError(f"--runs must be an integer >= 1, got {runs!r}")
+    check_run_count(runs)
     check_seed(seed)
     check_runs_fit(runs)
     out_dir = Path(out_dir)
@@ -364,8 +421,9 @@ def run_experiment(module: ModuleType | str, params: Params, runs: int, seed: in
                     try:
                         record = future.result()
                     except BrokenExecutor:
-                        saved = sum(_is_ok(_run_path(out_dir, i)) for i in range(runs))
-                        raise WorkerLost(_worker_lost_message(saved, runs)) from None
+                        lost = WorkerLost("a worker process ended abruptly (killed by a signal or out of memory)")
+                        lost.add_note(_finished_note(out_dir, runs))
+                        raise lost from None
                     _atomic_write_json(_run_path(out_dir, record["index"]), record)
                     n_done += 1
                     if on_run is not None:
@@ -373,26 +431,19 @@ def run_experiment(module: ModuleType | str, params: Params, runs: int, seed: in
                     if progress:
                         rate = n_done / max(time.perf_counter() - started, 1e-9)
                         progress.update(task, advance=1, rate=f"{rate:.2f} runs/s")
-        except KeyboardInterrupt:
+        except KeyboardInterrupt as exc:
             for f in in_flight:
                 f.cancel()
-            saved = sum(_is_ok(_run_path(out_dir, i)) for i in range(runs))
-            # the command's --out, not out_dir: the command writes into a staging folder and keeps the
-            # saved runs in --out (gpfverify.outputs)
-            print(f"interrupted: {saved} of {runs} runs saved, kept in --out; run again with --resume to continue",
-                  file=sys.stderr)
+            exc.add_note(_finished_note(out_dir, runs))  # what is kept of them: gpfverify.outputs says
             raise
     return write_results(module, out_dir, manifest)
 
 
-def _worker_lost_message(saved: int, runs: int) -> str:
-    """What a lost worker leaves: the runs saved so far (kept for ``--resume`` by the output folder,
-    :func:`gpfverify.outputs.output_folder`), or nothing when none was."""
-    said = "a worker process ended abruptly (killed by a signal or out of memory)"
-    if not saved:
-        return f"{said}; no run had finished, nothing was written to --out: run the command again"
-    return (f"{said}; the {saved} of {runs} runs saved so far are kept in --out: run the command again with "
-            "--resume to continue them")
+def _finished_note(out_dir: Path, runs: int) -> str:
+    """How many runs had finished when the command was stopped (a note on the exception that
+    stopped it)."""
+    saved = sum(_is_ok(_run_path(out_dir, i)) for i in range(runs))
+    return f"{saved} of {runs} runs had finished" if saved else "no run had finished"
 
 
 def _typed_params(module: ModuleType, params: dict) -> Params:

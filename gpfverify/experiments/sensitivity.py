@@ -7,7 +7,9 @@ has under each — matched by the claim's ``id``.
 An interpretation that changes only how the runs are *read* — parameters the experiment lists in
 ``SUMMARY_FIELDS`` (a detection definition, an error metric) — needs no runs of its own: its
 ``results.json`` is the summary of the main run's saved runs under the changed parameters
-(:func:`summary_results`), at the main run's count whenever it is recomputed."""
+(:func:`summary_results`), at the main run's count whenever it is recomputed. Likewise a reading
+that combines another interpretation's changes with summary fields (a birth proposal read with
+another detection definition) reads that interpretation's runs (:func:`runs_source`)."""
 
 from __future__ import annotations
 
@@ -28,36 +30,55 @@ from gpfverify.errors import InputError
 
 def select(module: ModuleType, wanted: str) -> tuple[InterpretationSpec, ...]:
     """The interpretations named in ``wanted`` ("all" or comma-separated names) among the
-    experiment's ``INTERPRETATIONS``."""
+    experiment's ``INTERPRETATIONS``, each reading of another interpretation's runs after that
+    interpretation (added when not named: :func:`runs_source`)."""
     declared: tuple[InterpretationSpec, ...] = getattr(module, "INTERPRETATIONS", ())
     if not declared:
         raise InputError(f"{module.NAME} declares no interpretations to try")
-    if wanted.strip() == "all":
-        return declared
     by_name = {s.name: s for s in declared}
-    chosen = [n.strip() for n in wanted.split(",") if n.strip()]
+    chosen = list(by_name) if wanted.strip() == "all" else [n.strip() for n in wanted.split(",") if n.strip()]
     unknown = [n for n in chosen if n not in by_name]
     if unknown or not chosen:
         raise InputError(f"--interpretations: unknown {unknown or wanted!r}; choose 'all' or from {list(by_name)}")
-    return tuple(by_name[n] for n in chosen)
+    ordered: list[str] = []
+    for name in chosen:
+        source = runs_source(module, by_name[name])
+        ordered += [n for n in (source, name) if n and n not in ordered]
+    return tuple(by_name[n] for n in ordered)
+
+
+def runs_source(module: ModuleType, spec: InterpretationSpec) -> str | None:
+    """Whose saved runs answer ``spec``: "" the main run's (``spec`` changes only parameters the
+    summary reads, the experiment's ``SUMMARY_FIELDS``), the name of the declared interpretation whose
+    changes are exactly ``spec``'s other changes (``spec`` reads that interpretation's runs another
+    way), or None: ``spec`` needs runs of its own."""
+    fields = frozenset(getattr(module, "SUMMARY_FIELDS", ()))
+    run_changes = {k: v for k, v in spec.changes.items() if k not in fields}
+    if len(run_changes) == len(spec.changes):
+        return None
+    if not run_changes:
+        return ""
+    return next((s.name for s in getattr(module, "INTERPRETATIONS", ()) if s.changes == run_changes), None)
 
 
 def summary_only(module: ModuleType, spec: InterpretationSpec) -> bool:
     """Does ``spec`` change only parameters the summary reads (the experiment's ``SUMMARY_FIELDS``)?
     Then the main run's saved runs answer it."""
-    fields = frozenset(getattr(module, "SUMMARY_FIELDS", ()))
-    return bool(spec.changes) and set(spec.changes) <= fields
+    return runs_source(module, spec) == ""
 
 
 def summary_results(module: ModuleType, run_dir: Path, spec: InterpretationSpec) -> dict:
-    """The ``results.json`` of a summary-only interpretation: the main run's saved runs in
-    ``run_dir`` summarised under its parameters changed by ``spec``, written to
-    ``run_dir/interpretations/<name>/results.json`` and returned."""
+    """The ``results.json`` of an interpretation that reads saved runs (:func:`runs_source`): the
+    main run's runs in ``run_dir`` — or those of the interpretation it reads, in
+    ``run_dir/interpretations/<source>`` — summarised under its parameters changed by ``spec``,
+    written to ``run_dir/interpretations/<name>/results.json`` and returned."""
     from gpfverify.experiments.runner import _atomic_write_json, read_manifest, results_of
 
-    manifest = read_manifest(Path(run_dir))
+    source = runs_source(module, spec)
+    runs_dir = Path(run_dir) / "interpretations" / source if source else Path(run_dir)
+    manifest = read_manifest(runs_dir)
     changed = module.Params.from_json(manifest["params"]).replace(**spec.changes)
-    results = results_of(module, Path(run_dir), {**manifest, "params": changed.to_json()})
+    results = results_of(module, runs_dir, {**manifest, "params": changed.to_json()})
     folder = Path(run_dir) / "interpretations" / spec.name
     folder.mkdir(parents=True, exist_ok=True)
     _atomic_write_json(folder / "results.json", results)
@@ -80,7 +101,8 @@ def merge(main: dict, tried: Sequence[tuple[InterpretationSpec, dict]], as_run: 
     claims = []
     for raw in main.get("claims", []):
         claim = ClaimRecord.from_json(raw)
-        entries = [entry(claim, spec.name, to_json(spec.changes), results) for spec, results in tried]
+        entries = [entry(claim, spec.name, to_json(spec.changes), results) for spec, results in tried
+                   if spec.bears_on_claim(claim.id)]
         entries += [entry(claim, AS_RUN, {}, results) for results in as_run if results.get("runs") in counts]
         claims.append(to_json(dataclasses.replace(claim, interpretations=tuple(e for e in entries if e))))
     return {**main, "claims": claims}
@@ -99,9 +121,10 @@ def merge_saved(run_dir: Path, module: ModuleType) -> dict:
     tried = []
     for spec in getattr(module, "INTERPRETATIONS", ()):
         folder = Path(run_dir) / "interpretations" / spec.name
-        if summary_only(module, spec):
+        source = runs_source(module, spec)
+        if source == "" or source and (Path(run_dir) / "interpretations" / source / "manifest.json").exists():
             tried.append((spec, summary_results(module, Path(run_dir), spec)))
-        elif (folder / "manifest.json").exists():
+        elif source is None and (folder / "manifest.json").exists():
             tried.append((spec, rewrite_results(folder, module)))
     merged = _merged_on_equal_counts(module, Path(run_dir), main, tried)
     _atomic_write_json(Path(run_dir) / "results.json", merged)
@@ -136,8 +159,8 @@ def run_interpretations(module: ModuleType, params: Params, specs: Sequence[Inte
         raise InputError(f"{main_path} is missing: run the experiment before its interpretations")
     main = json.loads(main_path.read_text(encoding="utf-8"))
     tried = []
-    for spec in specs:
-        if summary_only(module, spec):
+    for spec in specs:  # an interpretation whose runs another reads comes first (select)
+        if runs_source(module, spec) is not None:
             tried.append((spec, summary_results(module, Path(out_dir), spec)))
             continue
         changed = params.replace(**spec.changes)

@@ -8,8 +8,9 @@ flights flown from other headings). Both filters use the same particle count, re
 (systematic, N_eff < N_T = threshold · N), prior N(0, P₀) and measurements; the truth starts from
 a draw of N(0, P₀).
 
-Process noise: by default the filters use the scenario's Q (GPSR-UPF takes the velocity rows of
-its Q from the GP predictive variance). ``noise_floor`` (standard deviations per step of φ, δv, δp,
+Process noise: by default the filters use the model's Q, the true one unless ``accel_noise_scale``
+mis-specifies it (GPSR-UPF takes the velocity rows of its Q from the GP predictive variance, which
+learns the true noise of the training flights). ``noise_floor`` (standard deviations per step of φ, δv, δp,
 ε, ∇, default 0) adds the same diagonal floor to both filters' Q, and ``q_inflation`` multiplies
 the filter-design Q (GPSR-UPF: outside the learned block, and (c − 1) Q_vv added to the GP
 variance), tunings the paper does not report. With navigation-grade Q the transition density
@@ -81,7 +82,8 @@ CLAIM_MARGIN = 0.10
 def config_of(params: Params) -> SinsGpsConfig:
     return SinsGpsConfig(duration=params.duration, dt=params.dt, gps_position_sd=params.gps_position_sd,
                          gps_velocity_sd=params.gps_velocity_sd, initial_velocity_sd=params.initial_velocity_sd,
-                         initial_position_sd=params.initial_position_sd, accel_scale_ppm=params.accel_scale_ppm)
+                         initial_position_sd=params.initial_position_sd, accel_scale_ppm=params.accel_scale_ppm,
+                         accel_noise_scale=params.accel_noise_scale)
 
 
 def _floor_cov(floor) -> np.ndarray:
@@ -175,8 +177,10 @@ def _run_filter(method: str, params: Params, upf_model, gpsr_model, prior_cov, y
 
 def ceiling_model(models, design_model):
     """The true-model ceiling's model: the transition that generated the flight with the filter-design
-    noise of ``design_model`` (the SR-UKF's), so that it differs from the SR-UKF by the model error alone."""
-    return models.true.with_noise(process_cov=design_model.Q)
+    noise of ``design_model`` (the SR-UKF's) plus the process noise the inaccurate model leaves out
+    (true Q − model Q, zero unless Q is mis-specified), so that it differs from the SR-UKF by the model
+    error alone."""
+    return models.true.with_noise(process_cov=design_model.Q + (models.true.Q - models.approx.Q))
 
 
 def run_sr_ukf(model_at, prior_cov, ys, truth, process_sqrt=None) -> FilterRun:

@@ -20,8 +20,12 @@ mean 1.5, variance 0.75), the convention of van der Merwe et al., whose Gaussian
 process-noise variance 3/4. The Gaussian approximation a Gaussian filter uses is ``f`` shifted by
 the noise mean and Q = the noise variance; particle filters sample and weight the gamma noise exactly.
 
+**The same benchmark with Gaussian noise** (:func:`vdm_gaussian_model`), a reading of the lost
+model of Table 1: §3.1 runs its gamma case on this model, so its Gaussian cases may use it too,
+with w_k ~ N(0, Q) in place of the gamma noise.
+
 Priors (interpretation; the seed gives none): x₀ ~ N(0, 1) for the UNGM and x₀ ~ N(1, 3/4) for the
-gamma benchmark.
+van der Merwe benchmark.
 """
 
 from __future__ import annotations
@@ -65,16 +69,24 @@ def ungm_model(Q: float, R: float, measurement: str = "quadratic") -> StateSpace
         name="UNGM")
 
 
-def _gamma_drift(x: np.ndarray, k: int) -> np.ndarray:
+def _vdm_drift(x: np.ndarray, k: int) -> np.ndarray:
     return 1.0 + np.sin(GAMMA_OMEGA * np.pi * (k - 1)) + GAMMA_PHI1 * x
 
 
-def _gamma_h(x: np.ndarray, k: int) -> np.ndarray:
+def _vdm_h(x: np.ndarray, k: int) -> np.ndarray:
     return GAMMA_PHI2 * x * x if k <= GAMMA_SWITCH_STEP else GAMMA_PHI3 * x - 2.0
 
 
-def _gamma_h_jacobian(x: np.ndarray, k: int) -> np.ndarray:
+def _vdm_h_jacobian(x: np.ndarray, k: int) -> np.ndarray:
     return np.array([[2.0 * GAMMA_PHI2 * x[0] if k <= GAMMA_SWITCH_STEP else GAMMA_PHI3]])
+
+
+def _vdm_sensor(R: float) -> Sensor:
+    return Sensor(_vdm_h, np.array([[float(R)]]), jacobian=_vdm_h_jacobian, name="switching")
+
+
+def _vdm_jacobian(x: np.ndarray, k: int) -> np.ndarray:
+    return np.array([[GAMMA_PHI1]])
 
 
 def gamma_logpdf(w: np.ndarray, shape: float, rate: float) -> np.ndarray:
@@ -90,13 +102,19 @@ def gamma_benchmark_model(R: float, shape: float = 3.0, rate: float = 2.0) -> St
     noise_mean, noise_var = shape / rate, shape / rate**2
 
     def sampler(x_prev, k, rng):
-        return _gamma_drift(x_prev, k) + rng.gamma(shape, 1.0 / rate, size=x_prev.shape)
+        return _vdm_drift(x_prev, k) + rng.gamma(shape, 1.0 / rate, size=x_prev.shape)
 
     def logpdf(x_new, x_prev, k):
-        return gamma_logpdf(x_new - _gamma_drift(x_prev, k), shape, rate)[:, 0]
+        return gamma_logpdf(x_new - _vdm_drift(x_prev, k), shape, rate)[:, 0]
 
     return StateSpaceModel(
-        lambda x, k: _gamma_drift(x, k) + noise_mean, np.array([[noise_var]]),
-        [Sensor(_gamma_h, np.array([[float(R)]]), jacobian=_gamma_h_jacobian, name="switching")],
-        GAMMA_PRIOR[0], GAMMA_PRIOR[1], transition_jacobian=lambda x, k: np.array([[GAMMA_PHI1]]),
+        lambda x, k: _vdm_drift(x, k) + noise_mean, np.array([[noise_var]]), [_vdm_sensor(R)],
+        GAMMA_PRIOR[0], GAMMA_PRIOR[1], transition_jacobian=_vdm_jacobian,
         transition_sampler=sampler, transition_logpdf=logpdf, name="gamma benchmark")
+
+
+def vdm_gaussian_model(Q: float, R: float) -> StateSpaceModel:
+    """The van der Merwe et al. (2000) benchmark with Gaussian process noise w_k ~ N(0, Q) in place
+    of the gamma noise, measurement-noise variance R and prior N(1, 3/4)."""
+    return StateSpaceModel(_vdm_drift, np.array([[float(Q)]]), [_vdm_sensor(R)], GAMMA_PRIOR[0], GAMMA_PRIOR[1],
+                           transition_jacobian=_vdm_jacobian, name="van der Merwe benchmark, Gaussian noise")

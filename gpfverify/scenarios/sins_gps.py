@@ -38,6 +38,11 @@ manoeuvre dependent):
   knows of φ: in cruise it is a vertical acceleration error s g, beyond the accelerometer-bias
   state's σ = 0.1 mg for s above about 100 ppm, and in manoeuvres it follows the acceleration. The
   residual the GP learns is then Δt ((f^n − f̂^n) × φ + s f^n).
+* process noise (``accel_noise_scale``, default 1, so absent): the flight's accelerometer white
+  noise is this multiple of the value the filters' model assumes, so the velocity block of the true
+  Q is the model's times its square — a mis-specified Q, the error seed 001 says its GP learns
+  ("獲取系統的回歸模型及系統噪聲協方差"): the residual's targets carry the true noise, which the
+  GP's noise variance learns, while the model keeps the nominal Q.
 * measurement: z = [δp; δv] + v (SINS minus GPS) is linear and known, so it is the same in both
   models. (A GPS antenna lever arm would be a measurement mismatch; in a trial with a 3 m lever arm
   under 10 m GPS noise the measurement-residual GP learned nothing useful, so it is left out.)
@@ -118,6 +123,7 @@ class SinsGpsConfig:
     initial_velocity_sd: float = 0.5
     initial_position_sd: float = 10.0
     accel_scale_ppm: float = 0.0
+    accel_noise_scale: float = 1.0
 
     @property
     def steps(self) -> int:
@@ -303,6 +309,8 @@ def build_models(flight: Flight, config: SinsGpsConfig = SinsGpsConfig()) -> Sin
         phi_true[k] = eye + unscale * error_dynamics(flight, k, flight.specific_force[k], config) * scale * config.dt
         phi_approx[k] = eye + unscale * error_dynamics(flight, k, level[k], config) * scale * config.dt
     Q = process_noise(config) / np.outer(UNITS, UNITS)
+    white = config.accel_white_g_sqrt_hz * config.accel_noise_scale
+    true_Q = process_noise(replace(config, accel_white_g_sqrt_hz=white)) / np.outer(UNITS, UNITS)
     H = measurement_matrix()
     R = config.measurement_cov()
     P0 = config.initial_cov()
@@ -314,12 +322,12 @@ def build_models(flight: Flight, config: SinsGpsConfig = SinsGpsConfig()) -> Sin
     def transition(table, offset):
         return lambda x, k: np.einsum("ij,nj->ni", table[k - 1], x) + offset[k - 1]
 
-    def model(table, offset, name):
-        return StateSpaceModel(transition(table, offset), Q, [Sensor(H, R, name="GPS position and velocity")],
+    def model(table, offset, noise, name):
+        return StateSpaceModel(transition(table, offset), noise, [Sensor(H, R, name="GPS position and velocity")],
                                np.zeros(STATE_DIM), P0, transition_jacobian=lambda x, k: table[k - 1], name=name)
 
-    true = model(phi_true, forcing, "true SINS error model")
-    approx = model(phi_approx, np.zeros_like(forcing), "level-flight SINS error model")
+    true = model(phi_true, forcing, true_Q, "true SINS error model")
+    approx = model(phi_approx, np.zeros_like(forcing), Q, "level-flight SINS error model")
     return SinsGpsModels(true, approx, phi_true, phi_approx, forcing, flight.specific_force - level)
 
 

@@ -1,8 +1,9 @@
 """Report page: the particle-flow paper (Zhou et al. 2020) — the innovation-error particle flow
 (IE-PFF) against the bootstrap PF, the UPF and the Daum–Huang exact flow (EDH): Table 1 / Fig. 1
-(UNGM grid), Fig. 2 (gamma process noise), Table 2 / Fig. 3 (bearing-only tracking), with the
-paper's claims as the experiments decided them. Renders the ``pff1d`` and ``bearing`` runs'
-``results.json``; computes nothing."""
+(the grid on its 1-D model), Fig. 2 (gamma process noise), Table 2 / Fig. 3 (bearing-only
+tracking), with the paper's claims as the experiments decided them. Renders the ``pff1d`` and
+``bearing`` runs' ``results.json`` (and :func:`table1_blocks` the grid of any pff1d run, e.g. an
+interpretation's on another model); computes nothing."""
 
 from __future__ import annotations
 
@@ -77,7 +78,6 @@ def _methods_paragraph() -> Paragraph:
 
 def _render_pff1d(section: Section, results: dict, folder: Path, setting: str) -> None:
     p = pff_contract.Params.from_json(results["params"])
-    rows = pff_contract.table1_rows(results)
     gamma = pff_contract.gamma_entries(results)
     runs = results["runs_ok"]
     where = f" ({setting})" if setting else ""
@@ -87,15 +87,7 @@ def _render_pff1d(section: Section, results: dict, folder: Path, setting: str) -
     section.add(Table(["interpretation", "choice"], _pff1d_interpretations(p),
                       "Interpretations, §3.1 (the paper's model equations and parameter lists were lost in "
                       "extraction)"))
-    section.add(Table(["Q", "R", "method", "Δλ", "λ-steps", "mean RMSE", "diverged", "CPU s per run"],
-                      [[r.Q, r.R, r.method, "" if r.dlambda is None else r.dlambda, r.spacing or "", r.mean_rmse,
-                        f"{r.diverged}/{r.runs}", r.time_per_run] for r in rows],
-                      f"Table 1 (UNGM, N = {p.particles}, T = {p.steps}, {runs} runs): RMSE averaged over time, "
-                      "over the runs that did not diverge"))
-    section.add(Paragraph(_divergence_summary(results)))
-    section.add(Figure(_fig1(p, rows, folder / "pff_fig1_ungm.png"),
-                       "Fig. 1: UNGM RMSE per step at the smallest and largest Q of the grid (first R, finest "
-                       f"Δλ, {p.main_spacing} λ-steps); a filter that diverged in every run has no curve"))
+    section.add(*table1_blocks(results, folder))
     gamma_rows = [[r, label, e.mean_rmse, f"{e.diverged}/{runs}", e.time_per_run]
                   for r, entries in gamma.items() for label, e in entries.items()]
     section.add(Table(["R", "method", "mean RMSE", "diverged", "CPU s per run"], gamma_rows,
@@ -103,16 +95,35 @@ def _render_pff1d(section: Section, results: dict, folder: Path, setting: str) -
                       f"benchmark), N = {p.particles}, Δλ = {p.gamma_dlambda:g}"))
     section.add(Figure(_fig2(p, gamma, runs, folder / "pff_fig2_gamma.png"),
                        f"Fig. 2: RMSE per step under gamma process noise for each R ({p.main_spacing} λ-steps)"))
-    section.add(*_health_blocks("pff1d", results))
+    section.add(*health_blocks("pff1d", results))
 
 
-def _divergence_summary(results: dict) -> str:
+def table1_blocks(results: dict, folder: Path) -> list:
+    """Table 1 of a pff1d run on its model (``params.table_model``), its divergence counts and Fig. 1
+    (``pff_fig1_<model>.png`` in ``folder``)."""
+    p = pff_contract.Params.from_json(results["params"])
+    rows = pff_contract.table1_rows(results)
+    name = pff_contract.TABLE_MODEL_NAMES[p.table_model]
+    return [
+        Table(["Q", "R", "method", "Δλ", "λ-steps", "mean RMSE", "diverged", "CPU s per run"],
+              [[r.Q, r.R, r.method, "" if r.dlambda is None else r.dlambda, r.spacing or "", r.mean_rmse,
+                f"{r.diverged}/{r.runs}", r.time_per_run] for r in rows],
+              f"Table 1 ({name}, N = {p.particles}, T = {p.steps}, {results['runs_ok']} runs): RMSE averaged over "
+              "time, over the runs that did not diverge"),
+        Paragraph(_divergence_summary(results, name)),
+        Figure(_fig1(p, rows, folder / f"pff_fig1_{p.table_model}.png"),
+               f"Fig. 1: {name} RMSE per step at the smallest and largest Q of the grid (first R, finest Δλ, "
+               f"{p.main_spacing} λ-steps); a filter that diverged in every run has no curve")]
+
+
+def _divergence_summary(results: dict, name: str) -> str:
     counts = from_json(list[pff_contract.DivergenceCount], results["divergences"], "divergences")
     parts = [f"{c.method} Δλ = {c.dlambda:g} {c.spacing}: {c.diverged}/{c.total}" for c in counts]
-    return ("Divergences over the whole UNGM grid (cells × runs): " + "; ".join(parts) + ". The flows are "
+    return (f"Divergences over the whole {name} grid (cells × runs): " + "; ".join(parts) + ". The flows are "
             "integrated by explicit Euler in λ; on a linear model the particle spread is multiplied by "
             "(1 − Δλ·K·∂h/∂x/2) per step, so a step with Δλ·K·∂h/∂x > 4 amplifies instead of contracting — "
-            "the UNGM's y = x²/20 with small R makes K·∂h/∂x large. Divergence that disappears as Δλ shrinks "
+            "a quadratic measurement (the UNGM's x²/20, the benchmark's 0.2x²) with small R makes K·∂h/∂x "
+            "large. Divergence that disappears as Δλ shrinks "
             "is this instability, not a property of the continuous flow. The stiffness sits at λ = 0: along the "
             "exact flow of a linear model P(λ) = P₀/(1 + λP₀H²/R), so the contraction rate PH²/(2R) falls from "
             "P₀H²/(2R) to about 1/(2λ). A uniform schedule must take every step below 4R/(P₀H²); a geometric one "
@@ -124,13 +135,15 @@ def _pff1d_interpretations(p: pff_contract.Params) -> list[list[str]]:
     def values(xs: tuple) -> str:
         return "{" + ", ".join(f"{x:g}" if isinstance(x, float) else str(x) for x in xs) + "}"
 
+    benchmark = ("van der Merwe et al. (2000): xₖ = 1 + sin(0.04π(k − 1)) + xₖ₋₁/2 + wₖ, yₖ = 0.2xₖ² + vₖ (k ≤ 30), "
+                 f"0.5xₖ − 2 + vₖ (k > 30); prior N({fmt(p.gamma_prior.mean)}, {fmt(p.gamma_prior.var)})")
+    ungm = ("UNGM xₖ = xₖ₋₁/2 + 25xₖ₋₁/(1 + xₖ₋₁²) + 8 cos(1.2k) + wₖ, yₖ = "
+            + ("xₖ²/20" if p.ungm_measurement == "quadratic" else "xₖ") + " + vₖ; x₀ and every filter's prior "
+            f"N({fmt(p.ungm_prior.mean)}, {fmt(p.ungm_prior.var)})")
     return [
-        ["1-D model, Gaussian cases", "UNGM xₖ = xₖ₋₁/2 + 25xₖ₋₁/(1 + xₖ₋₁²) + 8 cos(1.2k) + wₖ, yₖ = xₖ²/20 + vₖ; "
-                                      f"x₀ and every filter's prior N({fmt(p.ungm_prior.mean)}, "
-                                      f"{fmt(p.ungm_prior.var)})"],
-        ["1-D model, gamma case", "van der Merwe et al. (2000): xₖ = 1 + sin(0.04π(k − 1)) + xₖ₋₁/2 + wₖ, "
-                                  "yₖ = 0.2xₖ² + vₖ (k ≤ 30), 0.5xₖ − 2 + vₖ (k > 30); prior "
-                                  f"N({fmt(p.gamma_prior.mean)}, {fmt(p.gamma_prior.var)})"],
+        ["1-D model, Gaussian cases (Table 1)",
+         ungm if p.table_model == "ungm" else f"vdM-Gaussian: {benchmark}, with wₖ ~ N(0, Q)"],
+        ["1-D model, gamma case", benchmark],
         [f"Γ({p.gamma_shape:g}, {p.gamma_rate:g})",
          f"shape {p.gamma_shape:g}, rate {p.gamma_rate:g} (mean {fmt(p.gamma_shape / p.gamma_rate)}, variance "
          f"{fmt(p.gamma_shape / p.gamma_rate ** 2)}); Gaussian approximation (f + mean, Q = variance) for the "
@@ -208,7 +221,7 @@ def _render_bearing(section: Section, results: dict, folder: Path) -> None:
                       f"(Δλ = {b.dlambda:g}, {b.spacing} λ-steps)"))
     section.add(Figure(_fig3(results, keys, b.switch_time, folder / "pff_fig3_bearing.png"),
                        "Fig. 3: position RMSE per step, bearing-only tracking (the turn starts at the dashed line)"))
-    section.add(*_health_blocks("bearing", results))
+    section.add(*health_blocks("bearing", results))
 
 
 def _bearing_interpretations(b: bearing_contract.Params) -> list[list[str]]:
@@ -240,7 +253,7 @@ def _fig3(results: dict, keys: list[str], switch_time: float, path: Path) -> Pat
 
 # ----------------------------------------------------------------------------- health and sensitivity
 
-def _health_blocks(name: str, results: dict) -> list:
+def health_blocks(name: str, results: dict) -> list:
     """The health checks of a run (results.json "health"): the failed ones in full, the passed
     ones counted; nothing for results written before the checks existed."""
     if "health" not in results:

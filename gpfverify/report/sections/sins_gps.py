@@ -47,6 +47,14 @@ def _scale_factor_text(p: Params) -> str:
             "the velocity forcing Δt s fⁿ (a vertical acceleration error s g in cruise)")
 
 
+def _noise_text(p: Params) -> str:
+    if p.accel_noise_scale == 1.0:
+        return ""
+    return (f"; and its process noise is mis-specified: the flight's accelerometer white noise is "
+            f"{fmt(p.accel_noise_scale)} times the model's, so the true velocity block of Q is "
+            f"{fmt(p.accel_noise_scale ** 2)} times the filters' (the GP's noise variance learns it)")
+
+
 def render(results: dict, out_dir: Path) -> Section:
     """The page from one ``results.json`` body; figures go to ``out_dir``."""
     p = Params.from_json(results["params"])
@@ -61,7 +69,8 @@ def render(results: dict, out_dir: Path) -> Section:
         f"{fmt(p.gps_position_sd)} m) and velocity (σ = {fmt(p.gps_velocity_sd)} m/s, our interpretation) "
         f"differences every {fmt(p.dt)} s. Model mismatch (our choice, the paper does not state its own): the "
         "filters' model evaluates the fⁿ × φ coupling with the level-flight specific force [0, 0, g], exact in "
-        "straight level cruise and wrong in every manoeuvre" + _scale_factor_text(p) + ". GPSR-UPF learns the "
+        "straight level cruise and wrong in every manoeuvre" + _scale_factor_text(p) + _noise_text(p)
+        + ". GPSR-UPF learns the "
         f"residual{' Δt (fⁿ − f̂ⁿ) × φ' if not p.accel_scale_ppm else ''} with a "
         f"Gaussian process on (φ, fⁿ − f̂ⁿ) from {p.train_points} transitions of training flights flown from "
         f"headings {', '.join(fmt(h) for h in p.train_headings)}° (the test flight starts at 45°), and uses "
@@ -69,7 +78,7 @@ def render(results: dict, out_dir: Path) -> Section:
     section.add(Paragraph(
         f"Both particle filters: N = {p.particles} particles, systematic resampling when the effective sample "
         f"size N_eff falls below {fmt(p.resample_threshold)} N, prior N(0, P₀), process-noise floor {floor}, "
-        f"filter-design Q = {fmt(p.q_inflation)} × the true Q, each particle's covariance {p.particle_covariance}"
+        f"filter-design Q = {fmt(p.q_inflation)} × the model's Q, each particle's covariance {p.particle_covariance}"
         f", move after resampling: {p.jitter}. "
         "UPF: per-particle UKF proposal on the inaccurate model; GPSR-UPF: per-particle square-root UKF "
         f"proposal on the inaccurate model plus the learned residual. {results['runs_ok']} of {results['runs']} "

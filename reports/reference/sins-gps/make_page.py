@@ -81,7 +81,7 @@ def main(run_dir: Path, command: str, confirm: tuple[Path, str] | None = None) -
     section.add(Paragraph(f"Made by `{command}`{also}, then `python reports/reference/sins-gps/make_page.py RUN_DIR "
                           f"\"COMMAND\"{extra}` (which adds the interpretations' health and errors, and the "
                           "confirmation run's, to the committed results.json)."))
-    write_page(section, HERE)
+    write_page(section, HERE, [results])
 
 
 if __name__ == "__main__":
