@@ -1,112 +1,47 @@
 """The rank-condition audit of a block of steps of one layout, vectorised over the steps.
 
 :func:`gpfverify.audit.audit_case` audits one fusion step; a run file's block (B steps with the
-same state dimension and sensor sizes, :class:`~gpfverify.fusion.caseblock.CaseBlock`) has the
-same small matrices at every step, so the per-step Python around them dominates. This module
-computes the same audit for every step of a block at once with stacked numpy linear algebra
-(one Cholesky, one SVD, one solve per quantity over the leading step axis) wherever the step's
-audit takes the common path:
+same state dimension, sensor sizes and angle components, :class:`~gpfverify.fusion.caseblock.CaseBlock`)
+has the same small matrices at every step, so the per-step Python around them dominates. This
+module computes the same audit for every step of a block at once with stacked numpy linear algebra
+(one Cholesky, one SVD, one solve per quantity over the leading step axis), whatever rank each
+sensor's C_xy^m has at each step, with or without the measurement y, with angle outputs and angle
+state components:
 
-* the measurement y is given, no output or state component is an angle, no sensitivity is asked;
-* every C_xy^m has full column rank under the rank rule (so N_m is empty, DMF is exact,
-  P_m = I, the repair message and the predicted gap are zero and the repaired mean is DMF's);
-* every factorisation succeeds without jitter.
+* each sensor's kernel split, gap gain and exactness evidence
+  (:func:`gpfverify.fusion.blockexactness.analyse_sensor`, per group of steps of one rank);
+* eq. 35's mean μ_p + G [(μ_y^m ⊖ μ_y(m)) + C_y^m A_m (μ_e^m ⊖ μ_p^m)]_m (angle state components
+  wrapped), and where a sensor lost rank under the canonical rule the unit-free variant's mean
+  (A_m the whitened inverse) and its distance from DMF's;
+* with y: CMF's μ_p + G (y ⊖ μ_y), each sensor's whitened innovation w_m = (C_y^m)⁻¹(y^m ⊖ μ_y^m),
+  its repair message k_m = N_m N_mᵀ w_m, branch offsets n_m and share of the gap
+  2π G_m n_m − G_m C_y^m k_m, the repaired mean (A_m (μ_e^m ⊖ μ_p^m) + N_m N_mᵀ k_m in place of the
+  reconstruction), the observed and predicted gaps in prior standard deviations, and the rounding
+  bound of :func:`gpfverify.fusion.rounding.gap_bound` — the same function the per-step audit calls,
+  here over the block's step axis.
 
-There the formulas are those of :mod:`gpfverify.fusion.exactness` and :mod:`gpfverify.audit` with
-their ranks fixed: canonical correlations ρ = σ(L_p⁻¹ C_xy L_y⁻ᵀ) = σ(U diag(ρ) Vᵀ) of equilibrated
-Cholesky factors, G = C_xy C_y⁻¹, eq. 35's left inverse A_m as the rule's split applies it (the
-canonical rule: the whitened one, L_y⁻ᵀ V diag(ρ)⁻¹ Uᵀ L_p⁻¹, whose rounding does not depend on
-units; the SVD rules: V S⁻¹ U_lᵀ from numpy's SVD), eq. 35's mean
-μ_p + G [(μ_y^m − μ_y(m)) + C_y^m A_m (μ_e^m − μ_p^m)]_m, CMF's μ_p + G (y − μ_y), and the
-rounding bound of :func:`gpfverify.fusion.rounding.gap_bound` — the same function the per-step
-audit calls, here over the block's step axis. Every other step
-(a sensor that lost rank, no y, angles, a factorisation that needs jitter) is left to
-:func:`~gpfverify.audit.audit_case`, which stays the one definition of the audit: the tests
-compare the two routes field by field (tests/test_audit_batched.py).
+A block whose steps need something else is left to :func:`~gpfverify.audit.audit_case`, which stays
+the one definition of the audit: a factorisation that needs jitter at some step (the per-step route
+adds it), or sensitivities (casadi, per step). The tests compare the two routes field by field
+(tests/test_audit_batched.py).
 """
 
 from __future__ import annotations
 
-import functools
 from dataclasses import dataclass
 
 import numpy as np
 
+from gpfverify.angles import TWO_PI, difference, wrap, wrap_components
 from gpfverify.audit import CaseAudit, SensorAudit
-from gpfverify.fusion.caseblock import CaseBlock
-from gpfverify.fusion import rounding
-from gpfverify.fusion.exactness import COVARIANCE_CENTRAL, COVARIANCE_LOCAL, RankRule
-from gpfverify.fusion.rounding import SensorTerms
+from gpfverify.fusion.blockexactness import (CentralBlock, SensorBlock, analyse_sensor, apply,
+                                            correlation_conditions, equilibrated, sensor_terms, solve_lower,
+                                            symmetric, transposed)
+from gpfverify.fusion.case import split_circular
+from gpfverify.fusion.caseblock import CaseBlock, LocalBlock
+from gpfverify.fusion.exactness import RankRule
+from gpfverify.fusion.rounding import FusedRounding, SensorTerms, gap_bound
 from gpfverify.tolerances import ALGEBRA_RTOL, ALGEBRA_SAFETY, EPS
-
-
-def _sym(a: np.ndarray) -> np.ndarray:
-    return 0.5 * (a + np.swapaxes(a, -1, -2))
-
-
-def _solve_lower(factor: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """L⁻¹ b over the step axis (LU solves of the triangular factors)."""
-    return np.linalg.solve(factor, b)
-
-
-def _equilibrated(cov: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """(d, L) with cov = diag(d) L Lᵀ diag(d) at every step (:func:`gpfverify.linalg.equilibrated_cholesky`
-    without jitter); LinAlgError when a step's correlation matrix is not positive definite."""
-    cov = _sym(cov)
-    diag = np.diagonal(cov, axis1=1, axis2=2)
-    d = np.sqrt(np.where(diag > 0, diag, 1.0))
-    return d, np.linalg.cholesky(cov / (d[:, :, None] * d[:, None, :]))
-
-
-@dataclass(frozen=True)
-class _Canonical:
-    """:func:`gpfverify.linalg.canonical_correlations` at every step: K = U diag(ρ) Vᵀ of
-    K = L_x⁻¹ C L_y⁻ᵀ with L = diag(d) L_c the equilibrated factors."""
-
-    correlations: np.ndarray
-    u: np.ndarray
-    vt: np.ndarray
-    scale_x: np.ndarray
-    factor_x: np.ndarray
-    scale_y: np.ndarray
-    factor_y: np.ndarray
-
-    def left_inverse(self) -> np.ndarray:
-        """A = L_y⁻ᵀ V diag(ρ)⁻¹ Uᵀ L_x⁻¹ (B, l, D) for a full-column-rank C (the canonical split's,
-        :func:`gpfverify.fusion.exactness.canonical_split`)."""
-        cols = self.vt.shape[1]
-        v = np.swapaxes(self.vt, 1, 2) / self.correlations[:, None, :cols]
-        left = np.linalg.solve(np.swapaxes(self.factor_y, 1, 2), v) / self.scale_y[:, :, None]        # L_y⁻ᵀ V/ρ
-        right = (np.linalg.solve(np.swapaxes(self.factor_x, 1, 2), self.u[:, :, :cols])
-                 / self.scale_x[:, :, None])                                                          # L_x⁻ᵀ U_l
-        return left @ np.swapaxes(right, 1, 2)
-
-    def left_inverse_condition(self) -> np.ndarray:
-        """(κ(L_x,c) + κ(L_y,c)) (1 + ρ_1/ρ_l) (B,): the left inverse's rounding per unit of its result
-        (:func:`gpfverify.fusion.rounding.left_inverse_error`)."""
-        rho = self.correlations
-        whitenings = np.linalg.cond(self.factor_x) + np.linalg.cond(self.factor_y)
-        return whitenings * (1.0 + rho[:, 0] / rho[:, -1])
-
-
-def _canonical(cov_x: np.ndarray, cov_y: np.ndarray, cross: np.ndarray) -> _Canonical:
-    """:class:`_Canonical` of (C_x, C_y, C_xy) at every step."""
-    dx, lx = _equilibrated(cov_x)
-    dy, ly = _equilibrated(cov_y)
-    scaled = cross / (dx[:, :, None] * dy[:, None, :])
-    left = _solve_lower(lx, scaled)                                       # L_xc⁻¹ C
-    k = np.swapaxes(_solve_lower(ly, np.swapaxes(left, 1, 2)), 1, 2)      # … L_yc⁻ᵀ
-    u, rho, vt = np.linalg.svd(k, full_matrices=True)
-    return _Canonical(rho, u, vt, dx, lx, dy, ly)
-
-
-def _spd_condition(cov: np.ndarray) -> np.ndarray:
-    """:func:`gpfverify.linalg.correlation_condition` at every step."""
-    diag = np.diagonal(cov, axis1=1, axis2=2)
-    d = np.sqrt(np.where(diag > 0, diag, 1.0))
-    eig = np.linalg.eigvalsh(cov / (d[:, :, None] * d[:, None, :]))
-    low, high = eig[:, 0], eig[:, -1]
-    return np.where(low > 0, high / np.where(low > 0, low, 1.0), np.inf)
 
 
 def _algebra_rtol(cond: np.ndarray) -> np.ndarray:
@@ -115,131 +50,149 @@ def _algebra_rtol(cond: np.ndarray) -> np.ndarray:
                     np.inf)
 
 
-def _decides_full_rank(rule: RankRule, rho: np.ndarray, s: np.ndarray, shape: tuple[int, int]
-                       ) -> tuple[np.ndarray, np.ndarray]:
-    """(full column rank (B,), the tolerance that decided (B,)) under ``rule``."""
-    cols = shape[1]
-    if rule.name == "canonical":
-        assert rule.tol is not None
-        return np.sum(rho > rule.tol, axis=1) == cols, np.full(rho.shape[0], float(rule.tol))
-    if rule.name == "absolute":
-        assert rule.tol is not None
-        tol = np.full(s.shape[0], float(rule.tol))
-    else:
-        tol = s.max(axis=1, initial=0.0) * max(shape) * EPS
-    return np.sum(s > tol[:, None], axis=1) == cols, tol
-
-
 def block_audits(block: CaseBlock, rule: RankRule) -> list[CaseAudit | None]:
-    """The audit of every step of ``block`` under ``rule`` that takes the common path (module
-    docstring), None for the others (to be audited by :func:`~gpfverify.audit.audit_case`)."""
+    """The audit of every step of ``block`` under ``rule``, or None for every step when the block
+    is left to :func:`~gpfverify.audit.audit_case` (module docstring)."""
     steps = len(block)
-    if (steps == 0 or block.y is None or block.circular or block.circular_state
-            or max(block.sizes, default=0) > block.state_dim):  # l_m > D: never full column rank
-        return [None] * steps
+    if not steps:
+        return []
     try:
-        # steps off the common path (a zero singular value, say) may divide by zero here: their
-        # values are discarded, and the per-step route reports them
+        # a step's quantities that its audit does not report (a kernel's at full rank, y's without y)
+        # may divide by zero here: they are discarded
         with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
             return _block_audits(block, rule)
     except np.linalg.LinAlgError:  # a factor needs jitter at some step: the per-step route decides
         return [None] * steps
 
 
+def _whitened_sizes(inverse: np.ndarray, vectors: np.ndarray) -> np.ndarray:
+    """‖L_p⁻¹ v‖₂ at every step: a state difference in prior standard deviations."""
+    return np.linalg.norm(apply(inverse, vectors), axis=1)
+
+
 def _block_audits(block: CaseBlock, rule: RankRule) -> list[CaseAudit | None]:
-    steps, dim = len(block), block.state_dim
-    assert block.y is not None
-    y = block.y
-    mu_p, c_p = block.mu_p, _sym(block.C_p)
-    dpx, lpx = _equilibrated(c_p)  # L_p = diag(d_p) L_pc: the gap in prior standard deviations
-    inverse = _solve_lower(lpx, np.broadcast_to(np.eye(dim), (steps, dim, dim)) / dpx[:, :, None])  # L_p⁻¹
-    gain = np.swapaxes(np.linalg.solve(_sym(block.C_y), np.swapaxes(block.C_xy, 1, 2)), 1, 2)  # C_xy C_y⁻¹
+    steps, dim, states = len(block), block.state_dim, block.circular_state
+    mu_p, c_p = block.mu_p, symmetric(block.C_p)
+    dpx, lpx = equilibrated(c_p)  # L_p = diag(d_p) L_pc: differences in prior standard deviations
+    inverse = solve_lower(lpx, np.broadcast_to(np.eye(dim), (steps, dim, dim)) / dpx[:, :, None])  # L_p⁻¹
+    gain = transposed(np.linalg.solve(symmetric(block.C_y), transposed(block.C_xy)))               # C_xy C_y⁻¹
+    central = CentralBlock(FusedRounding(inverse, gain, mu_p, block.mu_y), block.C_y)
+    has_y = block.has_y
+    y = np.where(has_y[:, None], block.y, 0.0) if block.y is not None else np.zeros_like(block.mu_y)
+    ends = np.cumsum(block.sizes).tolist()
+    sensors = [_sensor_run(block, c_p, slice(end - size, end), local, angles, rule, central, y)
+               for size, end, local, angles in zip(block.sizes, ends, block.locals,
+                                                   split_circular(block.circular, block.sizes))]
 
-    ok = ~np.all(np.isnan(y), axis=1)
-    parts, per_sensor, terms = [], [], []
-    start = 0
-    for size, local in zip(block.sizes, block.locals):
-        cols = slice(start, start + size)
-        start += size
-        c_y, c_xy = _sym(local.C_y), local.C_xy
-        if local.C_e is not None:
-            solved = np.swapaxes(np.linalg.solve(c_y, np.swapaxes(c_xy, 1, 2)), 1, 2)           # C_xy C_y⁻¹
-            recovered_prior = _sym(local.C_e + solved @ np.swapaxes(c_xy, 1, 2))
-            has_c_e = local.has_C_e
-            prior = np.where(has_c_e[:, None, None], recovered_prior, c_p)
-        else:
-            has_c_e = np.zeros(steps, dtype=bool)
-            prior = c_p
-        canonical = _canonical(prior, c_y, c_xy)
-        u, s, vt = np.linalg.svd(c_xy, full_matrices=True)
-        full, tol = _decides_full_rank(rule, canonical.correlations, s, (dim, size))
-        ok &= full
-        factor_y = canonical.scale_y[:, :, None] * canonical.factor_y                          # L_y^m
-        change = local.mu_e - local.mu_p
-        if rule.name == "canonical":  # the canonical split's left inverse, unit-free rounding
-            pinv = canonical.left_inverse()
-            recovered = np.einsum("bij,bj->bi", pinv, change)
-            error = rounding.left_inverse_error(canonical.left_inverse_condition(), factor_y, recovered)
-        else:                         # numpy's SVD, as the SVD rules' split
-            pinv = (np.swapaxes(vt, 1, 2) / s[:, None, :]) @ np.swapaxes(u[:, :, :size], 1, 2)   # V S⁻¹ U_lᵀ
-            recovered = np.einsum("bij,bj->bi", pinv, change)
-            error = rounding.svd_inverse_error(s, size, factor_y, recovered)
-        parts.append(local.mu_y - block.mu_y[:, cols] + np.einsum("bij,bj->bi", c_y, recovered))
-        w = np.linalg.solve(c_y, (y[:, cols] - local.mu_y)[:, :, None])[:, :, 0]
-        residual = np.linalg.norm(change - np.einsum("bij,bj->bi", c_xy, w), axis=1)
-        corr_cond = _spd_condition(c_y)
-        scale = (np.linalg.norm(change, axis=1) + np.linalg.norm(local.mu_e, axis=1)
-                 + np.linalg.norm(local.mu_p, axis=1))
-        terms.append(SensorTerms(cols, local.mu_y, local.mu_p, local.mu_e, c_y, c_xy, pinv, recovered, factor_y,
-                                 corr_cond, error))
-        range_condition = s[:, 0] / s[:, -1]
-        per_sensor.append(_SensorColumns(
-            size, s, canonical.correlations, tol.tolist(),
-            np.where(s[:, -1] != 0.0, range_condition, np.inf).tolist(),
-            residual.tolist(), (_algebra_rtol(corr_cond) * scale).tolist(),
-            [COVARIANCE_LOCAL if given else COVARIANCE_CENTRAL for given in has_c_e.tolist()]))
-    dmf = mu_p + np.einsum("bij,bj->bi", gain, np.concatenate(parts, axis=1))
-    cmf = mu_p + np.einsum("bij,bj->bi", gain, y - block.mu_y)
-    gap = dmf - cmf
-    gap_size = np.linalg.norm(np.einsum("bij,bj->bi", inverse, gap), axis=1)
-    gap_bound = rounding.gap_bound(rounding.FusedRounding(inverse, gain, mu_p, block.mu_y), y, terms)
-    zero_state = _zeros(dim)
-    sizes, bounds = gap_size.tolist(), gap_bound.tolist()
-    return [CaseAudit(tuple(_sensor_audit(t, m, c, rule, dim, zero_state) for m, c in enumerate(per_sensor)),
-                      rule, True, True, dmf[t], cmf[t], gap[t], zero_state, dmf[t], gap_size=sizes[t],
-                      gap_bound=bounds[t], prediction_error=sizes[t]) if ok[t] else None
-            for t in range(steps)]
+    def fused(parts: list[np.ndarray]) -> np.ndarray:
+        """μ_p + G v, v stacked from the sensors' terms (angle state components wrapped)."""
+        return wrap_components(mu_p + apply(gain, np.concatenate(parts, axis=1)), states)
 
-
-@dataclass(frozen=True)
-class _SensorColumns:
-    """One sensor's per-step results over a block (arrays with the step first, or lists)."""
-
-    size: int
-    singular_values: np.ndarray
-    correlations: np.ndarray
-    tol: list[float]
-    condition_number: list[float]
-    residual: list[float]
-    consistency_tol: list[float]
-    covariance: list[str]
-
-
-@functools.lru_cache(maxsize=64)
-def _zeros(*shape: int, dtype=float) -> np.ndarray:
-    """A read-only array of zeros of ``shape``, shared by every step audit that reports one."""
-    out = np.zeros(shape, dtype=dtype)
-    out.flags.writeable = False
+    dmf = fused([s.dmf_part for s in sensors])
+    full = np.all([s.sensor.rank == s.sensor.size for s in sensors], axis=0)
+    exact = np.all([s.sensor.exact for s in sensors], axis=0)
+    variant = dependence = None
+    if rule.name == "canonical" and not full.all():  # the unit-free variant, where a sensor lost rank
+        variant = fused([s.variant_part for s in sensors])
+        dependence = _whitened_sizes(inverse, difference(dmf, variant, states)).tolist()
+    cmf = wrap_components(mu_p + apply(gain, difference(y, block.mu_y, block.circular)), states)
+    repaired = fused([s.repaired_part for s in sensors])
+    gap = difference(dmf, cmf, states)
+    predicted = np.sum([s.share for s in sensors], axis=0)
+    gap_sizes = _whitened_sizes(inverse, gap).tolist()
+    errors = _whitened_sizes(inverse, difference(gap, predicted, states)).tolist()
+    bounds = gap_bound(central.rounding, y, [s.terms for s in sensors]).tolist()
+    measured, full, exact = has_y.tolist(), full.tolist(), exact.tolist()
+    out: list[CaseAudit | None] = []
+    for t in range(steps):
+        audits = tuple(_sensor_audit(t, m, s, rule, dim, measured[t]) for m, s in enumerate(sensors))
+        variant_t = None if variant is None or full[t] else variant[t]
+        dependence_t = None if dependence is None or full[t] else dependence[t]
+        if not measured[t]:
+            out.append(CaseAudit(audits, rule, full[t], exact[t], dmf[t], unit_free_dmf_mean=variant_t,
+                                 unit_dependence=dependence_t))
+            continue
+        out.append(CaseAudit(audits, rule, full[t], exact[t], dmf[t], cmf[t], gap[t], predicted[t], repaired[t],
+                             gap_size=gap_sizes[t], gap_bound=bounds[t], prediction_error=errors[t],
+                             unit_free_dmf_mean=variant_t, unit_dependence=dependence_t))
     return out
 
 
-def _sensor_audit(t: int, m: int, c: _SensorColumns, rule: RankRule, dim: int, zero_state: np.ndarray
-                  ) -> SensorAudit:
-    """Sensor m's :class:`SensorAudit` at step t (full column rank: no kernel, exact)."""
+def _branch_offsets(local_mu_y: np.ndarray, central_mu_y: np.ndarray, y: np.ndarray, angles) -> np.ndarray:
+    """n_m at every step (:func:`gpfverify.fusion.exactness.branch_offsets`): on each angle output,
+    wrap(μ_y^m − μ_y(m)) + wrap(y^m − μ_y^m) − wrap(y^m − μ_y(m)) = 2π n (zero elsewhere)."""
+    offsets = np.zeros(local_mu_y.shape, dtype=int)
+    if angles:
+        j = list(angles)
+        total = wrap(local_mu_y[:, j] - central_mu_y[:, j]) + wrap(y[:, j] - local_mu_y[:, j])
+        offsets[:, j] = np.rint((total - wrap(total)) / TWO_PI).astype(int)
+    return offsets
+
+
+@dataclass(frozen=True)
+class _SensorRun:
+    """One sensor over a block: its split and evidence, its terms of the fused means (eq. 35's
+    ``dmf_part``, the unit-free variant's, the repaired one's), what needs y (repair ``message``
+    k_m, ``share`` of the gap, branch ``offsets``, the gap bound's ``terms``), and the per-step
+    numbers read into :class:`~gpfverify.audit.SensorAudit` records, as Python lists."""
+
+    sensor: SensorBlock
+    dmf_part: np.ndarray
+    variant_part: np.ndarray
+    repaired_part: np.ndarray
+    message: np.ndarray
+    share: np.ndarray
+    offsets: np.ndarray
+    terms: SensorTerms
+    residual: list[float]
+    consistency_tol: list[float]
+    share_size: list[float]
+    rank: list[int]
+    tol: list[float]
+    condition: list[float]
+    gap_gain: list[float]
+    bound: list[float]
+    exact: list[bool]
+
+
+def _sensor_run(block: CaseBlock, c_p: np.ndarray, cols: slice, local: LocalBlock, angles: tuple[int, ...],
+                rule: RankRule, central: CentralBlock, y: np.ndarray) -> _SensorRun:
+    """Sensor m (columns ``cols``, angle outputs ``angles``) at every step of ``block`` (``c_p`` its
+    central C_p, symmetrised); ``y`` the stacked measurements (zero rows where a step has none,
+    whose results are not reported)."""
+    sensor = analyse_sensor(local, c_p, rule, central, cols)
+    change = difference(local.mu_e, local.mu_p, block.circular_state)
+    predicted_term = difference(local.mu_y, block.mu_y[:, cols], angles)
+    recovered = apply(sensor.pinv, change)
+    innovation = difference(y[:, cols], local.mu_y, angles)
+    w = np.linalg.solve(local.C_y, innovation[:, :, None])[:, :, 0]                               # (C_y^m)⁻¹(…)
+    message = apply(sensor.projector, w)                                                          # k_m = N_m N_mᵀ w_m
+    offsets = _branch_offsets(local.mu_y, block.mu_y[:, cols], y[:, cols], angles)
+    g_m = central.rounding.gain[:, :, cols]
+    share = TWO_PI * apply(g_m, offsets) - apply(g_m @ local.C_y, message)
+    corr_cond = correlation_conditions(local.C_y)
+    size = (np.linalg.norm(local.mu_e - local.mu_p, axis=1) + np.linalg.norm(local.mu_e, axis=1)
+            + np.linalg.norm(local.mu_p, axis=1))
+    s = sensor.singular_values
+    return _SensorRun(
+        sensor, predicted_term + apply(local.C_y, recovered),
+        predicted_term + apply(local.C_y, apply(sensor.reconstruction, change)),
+        predicted_term + apply(local.C_y, recovered + apply(sensor.projector, message)),
+        message, share, offsets, sensor_terms(sensor, local, cols, change, innovation, corr_cond),
+        np.linalg.norm(change - apply(local.C_xy, w), axis=1).tolist(), (_algebra_rtol(corr_cond) * size).tolist(),
+        _whitened_sizes(central.rounding.inverse, share).tolist(), sensor.rank.tolist(), sensor.tol.tolist(),
+        np.where(s[:, -1] != 0.0, s[:, 0] / s[:, -1], np.inf).tolist(), sensor.residual.tolist(),
+        sensor.bound.tolist(), sensor.exact.tolist())
+
+
+def _sensor_audit(t: int, m: int, c: _SensorRun, rule: RankRule, dim: int, measured: bool) -> SensorAudit:
+    """Sensor m's :class:`SensorAudit` at step t."""
+    s, rank, on = c.sensor, c.rank[t], measured
     return SensorAudit(
-        index=m, rows=dim, cols=c.size, rank=c.size, singular_values=c.singular_values[t], tol=c.tol[t],
-        condition_number=c.condition_number[t], gap_gain_norm=0.0, exactness_tol=0.0, exact=True,
-        repair_basis=_zeros(c.size, 0), repair_message=_zeros(c.size),
-        local_consistency_residual=c.residual[t], consistency_tol=c.consistency_tol[t],
-        gap_contribution=zero_state, gap_contribution_size=0.0, branch_offsets=_zeros(c.size, dtype=int),
-        rank_rule=rule, canonical_correlations=c.correlations[t], covariance=c.covariance[t])
+        index=m, rows=dim, cols=s.size, rank=rank, singular_values=s.singular_values[t], tol=c.tol[t],
+        condition_number=c.condition[t], gap_gain_norm=c.gap_gain[t], exactness_tol=c.bound[t],
+        exact=c.exact[t], repair_basis=s.kernel_vectors[t][:, rank:], repair_message=c.message[t] if on else None,
+        local_consistency_residual=c.residual[t] if on else None, consistency_tol=c.consistency_tol[t] if on else None,
+        gap_contribution=c.share[t] if on else None, gap_contribution_size=c.share_size[t] if on else None,
+        branch_offsets=c.offsets[t] if on else None, rank_rule=rule, canonical_correlations=s.correlations[t],
+        covariance=s.covariance[t])

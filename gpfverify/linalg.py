@@ -48,6 +48,32 @@ def all_finite(*arrays: np.ndarray) -> bool:
     return math.isfinite(total) or all(bool(np.isfinite(a).all()) for a in arrays)
 
 
+def _fortran_view(factor: np.ndarray) -> tuple[np.ndarray, bool]:
+    """A Fortran-ordered view of a lower-triangular factor that BLAS/LAPACK read without copying it,
+    and whether it is L (as ``potrf`` returns it) rather than Lᵀ (the transpose of a C-ordered L, an
+    upper factor)."""
+    if factor.flags.f_contiguous:
+        return factor, True
+    return factor.T, False
+
+
+def lower_solve(factor: np.ndarray, b: np.ndarray, transpose: bool = False) -> np.ndarray:
+    """L⁻¹ b (``transpose``: L⁻ᵀ b) for one lower-triangular ``factor`` L and b (n,) or (n, m), by
+    BLAS trsv / trsm on the factor's Fortran-ordered view (a C-ordered L is solved as its upper
+    transpose). Not scipy's ``solve_triangular``: it calls LAPACK's ``trtrs``, which OpenBLAS runs
+    on all its threads whatever the size — on a loaded machine a 4 × 4 solve with two right-hand
+    sides waited about 30 ms for a second thread. A single column (n, 1) goes to trsv as well:
+    OpenBLAS's trsm takes 2.5 times as long for it (54 against 21 µs at n = 300), and the GP-UKF
+    asks for one column at every prediction (the GP variance at the mean)."""
+    view, lower = _fortran_view(factor)
+    trans = int(transpose == lower)  # a view holding Lᵀ solves L x = b as its transposed system
+    if np.ndim(b) == 1:
+        return sla.blas.dtrsv(view, b, lower=int(lower), trans=trans)
+    if np.shape(b)[1] == 1:
+        return sla.blas.dtrsv(view, b[:, 0], lower=int(lower), trans=trans)[:, None]
+    return sla.blas.dtrsm(1.0, view, b, lower=int(lower), trans_a=trans)
+
+
 @dataclass(frozen=True)
 class Cholesky:
     """Lower Cholesky factor of ``A + jitter * I``; ``jitter`` is 0 unless one was needed."""
@@ -65,24 +91,9 @@ class Cholesky:
             raise NumericalError(f"solve with a Cholesky factor failed (potrs info={info})")
         return x
 
-    def _fortran_view(self) -> tuple[np.ndarray, bool]:
-        """A Fortran-ordered view of the factor that BLAS/LAPACK read without copying it, and whether
-        it is L (as ``potrf`` returns it) rather than Lᵀ (the transpose of a C-ordered L, an upper factor)."""
-        if self.factor.flags.f_contiguous:
-            return self.factor, True
-        return self.factor.T, False
-
     def whiten(self, b: np.ndarray) -> np.ndarray:
-        """L⁻¹ b for b (n,) or (n, m), by BLAS trsv / trsm on :meth:`_fortran_view` (Lᵀ is solved as
-        (Lᵀ)ᵀx = b). A single column (n, 1) goes to trsv as well: OpenBLAS's trsm takes 2.5 times
-        as long for it (54 against 21 µs at n = 300), and the GP-UKF asks for one column at
-        every prediction (the GP variance at the mean)."""
-        view, lower = self._fortran_view()
-        if np.ndim(b) == 1:
-            return sla.blas.dtrsv(view, b, lower=int(lower), trans=int(not lower))
-        if np.shape(b)[1] == 1:
-            return sla.blas.dtrsv(view, b[:, 0], lower=int(lower), trans=int(not lower))[:, None]
-        return sla.blas.dtrsm(1.0, view, b, lower=int(lower), trans_a=int(not lower))
+        """L⁻¹ b for b (n,) or (n, m) (:func:`lower_solve`)."""
+        return lower_solve(self.factor, b)
 
     def logdet(self) -> float:
         return 2.0 * float(np.sum(np.log(np.diag(self.factor))))
@@ -90,7 +101,7 @@ class Cholesky:
     def inverse(self) -> np.ndarray:
         """Explicit inverse from the factor (LAPACK potri), for caching outside a hot path
         (e.g. a GP's training matrix) or where the whole inverse is needed (evidence gradients)."""
-        view, lower = self._fortran_view()
+        view, lower = _fortran_view(self.factor)
         inv, info = sla.lapack.dpotri(view, lower=lower)
         if info != 0:
             raise NumericalError(f"inverse from Cholesky factor failed (potri info={info})")
@@ -226,25 +237,34 @@ def numerical_rank(a: np.ndarray, tol: float | None = None) -> RankReport:
 
 def graded_svd(a: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The full SVD ``a = U diag(s) Vᵀ`` (U (m, m), s (min(m, n),) decreasing, Vᵀ (n, n)) by LAPACK's
-    preconditioned one-sided Jacobi SVD ``dgejsv`` with row and column pivoting (JOBA = 'F'; Drmač
-    and Veselić, SIAM J. Matrix Anal. Appl. 29, 2008), which computes it to high relative accuracy
-    for a matrix graded on both sides, a = D₁ B D₂ with D₁, D₂ diagonal and B well conditioned —
-    the form a covariance between variables in different units takes. numpy's SVD (LAPACK
-    ``dgesdd``) is accurate only relative to σ_1: the singular directions of σ_i carry errors of
-    about eps · σ_1/σ_i, and with components in metres and micrometres σ_1/σ_i grows as the square
-    of the units' ratio. A wide matrix is transposed first (``dgejsv`` needs m ≥ n)."""
+    preconditioned one-sided Jacobi SVD ``dgejsv`` with row and column pivoting (Drmač and Veselić,
+    SIAM J. Matrix Anal. Appl. 29, 2008), which computes it to high relative accuracy for a matrix
+    graded on both sides, a = D₁ B D₂ with D₁, D₂ diagonal and B well conditioned — the form a
+    covariance between variables in different units takes. numpy's SVD (LAPACK ``dgesdd``) is
+    accurate only relative to σ_1: the singular directions of σ_i carry errors of about
+    eps · σ_1/σ_i, and with components in metres and micrometres σ_1/σ_i grows as the square of the
+    units' ratio. A wide matrix is transposed first (``dgejsv`` needs m ≥ n).
+
+    The row pivoting (Björck's: rows ordered by non-increasing ∞-norm, what ``dgejsv`` does with
+    JOBA = 'F') is applied here and ``dgejsv`` called with JOBA = 'C' on the sorted rows, which is
+    the same factorisation: ``dgejsv`` applies its own row pivoting with LAPACK's
+    ``dlaswp``, which OpenBLAS runs on all its threads whatever the size (on a loaded machine each
+    call waited about 28 ms for a second thread)."""
     a = np.asarray(a, dtype=float)
     rows, cols = a.shape
     if not a.size or not np.any(a):
         return np.eye(rows), np.zeros(min(rows, cols)), np.eye(cols)
     tall = a if rows >= cols else a.T
     m, n = tall.shape
+    order = np.argsort(-np.max(np.abs(tall), axis=1), kind="stable")
     # a workspace well above LAPACK's minimum: at the minimum dgejsv takes a path a thousand times slower
-    sva, u, v, work, _, info = _dgejsv(tall, joba=2, jobu=1, jobv=0, jobr=0, jobt=0, jobp=0,
-                                       lwork=2 * (m + n) ** 2 + 64)
+    sva, u_sorted, v, work, _, info = _dgejsv(tall[order], joba=0, jobu=1, jobv=0, jobr=0, jobt=0, jobp=0,
+                                              lwork=2 * (m + n) ** 2 + 64)
     if info != 0:
         raise NumericalError(f"the Jacobi SVD (LAPACK dgejsv) failed with info = {info}")
     s = sva * (work[0] / work[1])  # dgejsv returns the singular values scaled to avoid overflow
+    u = np.empty_like(u_sorted)
+    u[order] = u_sorted            # the rows of U in a's order
     return (u, s, v.T) if rows >= cols else (v, s, u.T)
 
 
@@ -281,17 +301,16 @@ class CanonicalCorrelations:
 
     def whiten_x(self, a: np.ndarray) -> np.ndarray:
         """L_x⁻¹ a (a solve, no inverse)."""
-        return sla.solve_triangular(self.factor_x, a / self.scale_x.reshape((-1,) + (1,) * (a.ndim - 1)),
-                                    lower=True, check_finite=False)
+        return lower_solve(self.factor_x, a / self.scale_x.reshape((-1,) + (1,) * (a.ndim - 1)))
 
     def x_dual(self, a: np.ndarray) -> np.ndarray:
         """L_x⁻ᵀ a."""
-        out = sla.solve_triangular(self.factor_x, a, lower=True, trans="T", check_finite=False)
+        out = lower_solve(self.factor_x, a, transpose=True)
         return out / self.scale_x.reshape((-1,) + (1,) * (out.ndim - 1))
 
     def y_from_whitened(self, b: np.ndarray) -> np.ndarray:
         """L_y⁻ᵀ b: whitened y-coordinates back to the dual (C_y⁻¹-scaled) space of w."""
-        out = sla.solve_triangular(self.factor_y, b, lower=True, trans="T", check_finite=False)
+        out = lower_solve(self.factor_y, b, transpose=True)
         return out / self.scale_y.reshape((-1,) + (1,) * (out.ndim - 1))
 
     def y_factor_times(self, b: np.ndarray) -> np.ndarray:
@@ -317,8 +336,8 @@ def canonical_correlations(cov_x: np.ndarray, cov_y: np.ndarray, cross: np.ndarr
     dx, lx = equilibrated_cholesky(cov_x, names[0])
     dy, ly = equilibrated_cholesky(cov_y, names[1])
     scaled = np.asarray(cross, dtype=float) / np.outer(dx, dy)
-    left = sla.solve_triangular(lx, scaled, lower=True, check_finite=False)          # L_xc⁻¹ C
-    k = sla.solve_triangular(ly, left.T, lower=True, check_finite=False).T           # … L_yc⁻ᵀ
+    left = lower_solve(lx, scaled)                                                   # L_xc⁻¹ C
+    k = lower_solve(ly, left.T).T                                                    # … L_yc⁻ᵀ
     u, s, vt = np.linalg.svd(k, full_matrices=True)
     return CanonicalCorrelations(s, u, vt.T, dx, lx, dy, ly)
 

@@ -60,11 +60,11 @@ class BlockAudit:
 
 def audit_block(run_block: RunBlock, rank_rule=None, rank_tol: float | None = None, sensitivity: bool = False,
                 form: str = "json", keep: bool = False) -> BlockAudit:
-    """Audit every step of a block — the steps on the common path all at once
-    (:func:`gpfverify.blockaudit.block_audits`, when one rank rule decides the whole block), the
-    others one by one (:func:`gpfverify.audit.audit_case`) — (``form``: "json" encodes the step
-    objects, "text" the table rows, "none" neither); ``keep`` also returns the step dicts and
-    CaseAudit records."""
+    """Audit every step of a block — all at once (:func:`gpfverify.blockaudit.block_audits`) when
+    one rank rule decides the whole block and no sensitivities are asked for, else one by one
+    (:func:`gpfverify.audit.audit_case`; also a block the batched route leaves) — (``form``: "json"
+    encodes the step objects, "text" the table rows, "none" neither); ``keep`` also returns the step
+    dicts and CaseAudit records."""
     rule = None if sensitivity else block_rule(run_block.block, rank_rule, rank_tol)
     batched = block_audits(run_block.block, rule) if rule is not None else [None] * len(run_block)
     audits = [audit if audit is not None else

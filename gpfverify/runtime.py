@@ -29,7 +29,16 @@ BLAS_THREAD_VARS = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"
                     "VECLIB_MAXIMUM_THREADS", "NUMEXPR_NUM_THREADS")
 
 F = TypeVar("F", bound=Callable[..., Any])
-_state = threading.local()
+
+
+class _Nesting(threading.local):
+    """Per thread: whether a limited call is running (a class default, so reading it costs no
+    failed attribute lookup)."""
+
+    depth = 0
+
+
+_state = _Nesting()
 _controller: Any = None
 _controller_modules = -1
 
@@ -52,12 +61,23 @@ def _blas_controller():
     return _controller
 
 
+def _limit_needed() -> bool:
+    """Whether a call must limit BLAS itself: not when nested in a limited call, nor when the user
+    set a BLAS thread variable (the command line sets them to 1 itself)."""
+    if _state.depth:
+        return False
+    environ = os.environ
+    for var in BLAS_THREAD_VARS:
+        if var in environ:
+            return False
+    return True
+
+
 @contextlib.contextmanager
 def blas_limited() -> Iterator[None]:
-    """BLAS limited to one thread inside the block (module docstring); a no-op when nested, when
-    the user set a BLAS thread variable (the command line sets them to 1 itself) or when
-    threadpoolctl is missing."""
-    if getattr(_state, "depth", 0) or any(var in os.environ for var in BLAS_THREAD_VARS):
+    """BLAS limited to one thread inside the block (module docstring); a no-op when
+    :func:`_limit_needed` says so or when threadpoolctl is missing."""
+    if not _limit_needed():
         yield
         return
     try:
@@ -73,10 +93,14 @@ def blas_limited() -> Iterator[None]:
 
 
 def one_blas_thread(fn: F) -> F:
-    """Decorator: ``fn`` runs with BLAS limited to one thread (:func:`blas_limited`)."""
+    """Decorator: ``fn`` runs with BLAS limited to one thread (:func:`blas_limited`). When no limit
+    is needed the call goes straight through, without a context manager: a Kalman step is about
+    15 µs, and the context manager's enter and exit cost about 2 µs of it."""
 
     @functools.wraps(fn)
     def limited(*args, **kwargs):
+        if not _limit_needed():
+            return fn(*args, **kwargs)
         with blas_limited():
             return fn(*args, **kwargs)
 

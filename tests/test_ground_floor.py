@@ -4,7 +4,8 @@ import numpy as np
 import pytest
 
 from gpfverify.errors import InputError, NumericalError
-from gpfverify.linalg import Cholesky, cholesky, numerical_rank, right_solve_spd, solve_spd
+from gpfverify.linalg import (Cholesky, cholesky, graded_svd, lower_solve, numerical_rank, right_solve_spd,
+                              solve_spd)
 from gpfverify.tolerances import algebra_rtol, monte_carlo_atol
 from gpfverify.validate import as_covariance, as_matrix, as_vector
 
@@ -64,6 +65,37 @@ def test_whiten_is_the_triangular_solve():
             whitened = Cholesky(factor, chol.jitter).whiten(rhs)
             assert whitened.shape == rhs.shape
             np.testing.assert_allclose(whitened, expected, rtol=algebra_rtol(1e2), atol=0)
+            transposed = lower_solve(factor, rhs, transpose=True)
+            assert transposed.shape == rhs.shape
+            np.testing.assert_allclose(transposed, sla.solve_triangular(factor, rhs, lower=True, trans="T"),
+                                       rtol=algebra_rtol(1e2), atol=0)
+
+
+def test_graded_svd_keeps_high_relative_accuracy_under_grading():
+    """a = D₁ B D₂ with B of condition 10 and D₁, D₂ spanning 12 orders of magnitude (tall, wide,
+    square, and of rank one less than full): every singular value to B's relative rounding against
+    a 50-digit SVD (mpmath, an independent route), U and V orthogonal, and a = U S Vᵀ row by row to
+    the rows' own size. numpy's SVD meets this for σ_1 only (its error is relative to σ_1)."""
+    import mpmath
+
+    rng = np.random.default_rng(11)
+    mpmath.mp.dps = 50
+    for rows, cols, rank in ((4, 2, 2), (2, 4, 2), (3, 3, 3), (4, 3, 2), (5, 1, 1)):
+        left, _ = np.linalg.qr(rng.normal(size=(rows, rank)))
+        right, _ = np.linalg.qr(rng.normal(size=(cols, rank)))
+        core = (left * np.geomspace(1.0, 0.1, rank)) @ right.T                       # condition 10 on its range
+        a = np.geomspace(1e-6, 1e6, rows)[:, None] * core * rng.permutation(np.geomspace(1e6, 1e-6, cols))
+        u, s, vt = graded_svd(a)
+        assert u.shape == (rows, rows) and s.shape == (min(rows, cols),) and vt.shape == (cols, cols)
+        exact = sorted((float(x) for x in mpmath.svd_r(mpmath.matrix(a.tolist()), compute_uv=False)), reverse=True)
+        tol = algebra_rtol(10.0 * max(rows, cols))
+        np.testing.assert_allclose(s[:rank], exact[:rank], rtol=tol, atol=0)
+        assert np.all(np.abs(s[rank:]) <= tol * s[rank - 1])                         # the lost direction
+        np.testing.assert_allclose(u @ u.T, np.eye(rows), atol=algebra_rtol())
+        np.testing.assert_allclose(vt @ vt.T, np.eye(cols), atol=algebra_rtol())
+        rebuilt = (u[:, :s.size] * s) @ vt[:s.size]
+        row_size = np.linalg.norm(a, axis=1, keepdims=True)
+        assert np.all(np.abs(rebuilt - a) <= tol * row_size)
 
 
 def test_cholesky_reports_jitter_and_fails_clearly():

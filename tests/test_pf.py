@@ -10,7 +10,7 @@ from scipy.special import logsumexp
 from scipy.stats import multivariate_normal
 
 from gpfverify.errors import InputError
-from gpfverify.filters.likelihoods import gaussian_logpdf, measurement_loglik
+from gpfverify.filters.likelihoods import SUBSTITUTION_MAX_DIM, gaussian_logpdf, measurement_loglik
 from gpfverify.filters.pf import pf_step
 from gpfverify.filters.resampling import (Particles, effective_sample_size, log_sum_exp, needs_resampling,
                                           normalize_log_weights, systematic_resample)
@@ -73,12 +73,15 @@ def test_effective_sample_size_extremes_and_threshold():
         normalize_log_weights(np.full(4, -np.inf))
 
 
-def test_gaussian_logpdf_matches_scipy():
+@pytest.mark.parametrize("dim", [1, 3, SUBSTITUTION_MAX_DIM, SUBSTITUTION_MAX_DIM + 2])
+def test_gaussian_logpdf_matches_scipy(dim):
+    """Both whitening routes (forward substitution over a few components, numpy's solve beyond),
+    with leading axes, against scipy's density."""
     rng = np.random.default_rng(2)
-    a = rng.normal(size=(3, 3))
-    cov = a @ a.T + 0.5 * np.eye(3)
-    r = rng.normal(size=(7, 3))
-    expected = multivariate_normal(np.zeros(3), cov).logpdf(r)
+    a = rng.normal(size=(dim, dim))
+    cov = a @ a.T + 0.5 * np.eye(dim)
+    r = rng.normal(size=(2, 7, dim))
+    expected = multivariate_normal(np.zeros(dim), cov).logpdf(r.reshape(-1, dim)).reshape(2, 7)
     np.testing.assert_allclose(gaussian_logpdf(r, cov), expected, rtol=algebra_rtol(np.linalg.cond(cov)))
 
 

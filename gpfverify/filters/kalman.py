@@ -107,7 +107,10 @@ def kf_step(belief: Gaussian, model, y, *, k: int = 1) -> StepRecord:
     cov = half + half.swapaxes(-1, -2)
     mean = mul(belief.mean, joint.A_T)
     d = joint.state_dim
-    mu_p = wrap_components(mean[..., :d], model.circular_state)
-    mu_y = wrap_components(mean[..., d:], model.circular)
+    mu_p, mu_y = mean[..., :d], mean[..., d:]
+    if model.circular_state:
+        mu_p = wrap_components(mu_p, model.circular_state)
+    if model.circular:
+        mu_y = wrap_components(mu_y, model.circular)
     return condition(mu_p, cov[..., :d, :d], mu_y, cov[..., d:, d:], cov[..., :d, d:], y,
                      model.circular, model.circular_state)

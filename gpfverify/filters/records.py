@@ -11,15 +11,23 @@ from dataclasses import dataclass
 import numpy as np
 
 
-@dataclass(frozen=True)
+# Gaussian and StepRecord are built at every filter step. A frozen dataclass's generated __init__
+# sets each field through object.__setattr__ (about 1 µs for StepRecord's eight on a Xeon, a tenth of
+# a Kalman step); theirs fill __dict__ in one call. Frozen as before: assignment still raises.
+
+
+@dataclass(frozen=True, init=False)
 class Gaussian:
     """N(mean, cov): mean (D,), cov (D, D)."""
 
     mean: np.ndarray
     cov: np.ndarray
 
+    def __init__(self, mean: np.ndarray, cov: np.ndarray):
+        self.__dict__.update(mean=mean, cov=cov)
 
-@dataclass(frozen=True)
+
+@dataclass(frozen=True, init=False)
 class StepRecord:
     """One predict–update cycle of a Gaussian filter.
 
@@ -37,6 +45,10 @@ class StepRecord:
     mu_e: np.ndarray
     C_e: np.ndarray
     jitter: float = 0.0
+
+    def __init__(self, mu_p: np.ndarray, C_p: np.ndarray, mu_y: np.ndarray, C_y: np.ndarray, C_xy: np.ndarray,
+                 mu_e: np.ndarray, C_e: np.ndarray, jitter: float = 0.0):
+        self.__dict__.update(mu_p=mu_p, C_p=C_p, mu_y=mu_y, C_y=C_y, C_xy=C_xy, mu_e=mu_e, C_e=C_e, jitter=jitter)
 
     @property
     def posterior(self) -> Gaussian:

@@ -62,7 +62,7 @@ def condition(mu_p: np.ndarray, C_p: np.ndarray, mu_y, C_y: np.ndarray, C_xy: np
     innovation = difference(y, mu_y, circular) if len(circular) else y - mu_y
     if innovation.shape == chol.shape[:-1] and C_xy.shape[:-2] == chol.shape[:-2]:
         # [C_xy; (y ⊖ μ_y)ᵀ] stacked as rows and transposed: Fortran order, what LAPACK takes
-        solved = solve_lower(chol, np.concatenate([C_xy, innovation[..., None, :]], axis=-2).swapaxes(-1, -2))
+        solved = solve_lower(chol, np.concatenate((C_xy, innovation[..., None, :]), axis=-2).swapaxes(-1, -2))
         gram = matmul_for(solved)(solved.swapaxes(-1, -2), solved)
         shift, spread = gram[..., :-1, -1], gram[..., :-1, :-1]
     else:  # y carries more batch axes than the moments: broadcast the solves

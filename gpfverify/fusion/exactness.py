@@ -119,7 +119,8 @@ from gpfverify.fusion.centralized import fusion_gain
 from gpfverify.fusion.rounding import (FusedRounding, SensorTerms, estimate_floor, exactness_bound, gap_bound,
                                       left_inverse_error, svd_inverse_error)
 from gpfverify.linalg import (CanonicalCorrelations, RankReport, canonical_correlations, correlation_condition,
-                              equilibrated_cholesky, graded_svd, right_solve_spd, solve_spd, symmetrize)
+                              equilibrated_cholesky, graded_svd, lower_solve, right_solve_spd, solve_spd,
+                              symmetrize)
 from gpfverify.tolerances import CANONICAL_RANK_TOL, RESOLVABLE_GAP, numpy_rank_tol
 
 #: the rank rules :class:`RankRule` knows
@@ -468,7 +469,7 @@ def _exactness_evidence(fused: FusedRounding, floor: np.ndarray, gain_condition:
         rho = split.correlations
         obliqueness, angle = 1.0, (_factor_conditions(split.whitening) * float(rho[0] / rho[r - 1]) if r else 0.0)
     else:
-        dual = sla.solve_triangular(factor, split.dual_basis, lower=True, check_finite=False)  # L_y⁻¹ N_m
+        dual = lower_solve(factor, split.dual_basis)                                          # L_y⁻¹ N_m
         residual = _norm2(whitened_gain @ (factor.T @ basis) @ dual.T)
         s = split.rank.singular_values
         obliqueness = _norm2(factor.T @ basis) * _norm2(dual)
@@ -603,7 +604,7 @@ def sensor_terms(case: FusionCase, sensor: SensorExactness) -> SensorTerms:
     accepted = None
     if split.kernel_basis.shape[1]:  # the gap an exact-judged kernel may leave: τ_m ‖z_m‖
         innovation = difference(case.local_measurement(sensor.index), local.mu_y, local.circular)
-        whitened = sla.solve_triangular(factor, innovation, lower=True, check_finite=False)   # z_m = L_y⁻¹ (…)
+        whitened = lower_solve(factor, innovation)                                            # z_m = L_y⁻¹ (…)
         accepted = np.array([sensor.tol * float(sla.norm(whitened))])
     return SensorTerms(case.central.blocks[sensor.index], local.mu_y[None], local.mu_p[None], local.mu_e[None],
                        local.C_y[None], local.C_xy[None], inverse[None], recovered[None], factor[None],
