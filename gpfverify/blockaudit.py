@@ -41,13 +41,7 @@ from gpfverify.fusion.case import split_circular
 from gpfverify.fusion.caseblock import CaseBlock, LocalBlock
 from gpfverify.fusion.exactness import RankRule
 from gpfverify.fusion.rounding import FusedRounding, SensorTerms, gap_bound
-from gpfverify.tolerances import ALGEBRA_RTOL, ALGEBRA_SAFETY, EPS
-
-
-def _algebra_rtol(cond: np.ndarray) -> np.ndarray:
-    """:func:`gpfverify.tolerances.algebra_rtol` elementwise."""
-    return np.where(np.isfinite(cond), np.maximum(ALGEBRA_RTOL, ALGEBRA_SAFETY * EPS * np.maximum(cond, 1.0)),
-                    np.inf)
+from gpfverify.tolerances import algebra_rtols
 
 
 def block_audits(block: CaseBlock, rule: RankRule) -> list[CaseAudit | None]:
@@ -179,7 +173,7 @@ def _sensor_run(block: CaseBlock, c_p: np.ndarray, cols: slice, local: LocalBloc
         predicted_term + apply(local.C_y, apply(sensor.reconstruction, change)),
         predicted_term + apply(local.C_y, recovered + apply(sensor.projector, message)),
         message, share, offsets, sensor_terms(sensor, local, cols, change, innovation, corr_cond),
-        np.linalg.norm(change - apply(local.C_xy, w), axis=1).tolist(), (_algebra_rtol(corr_cond) * size).tolist(),
+        np.linalg.norm(change - apply(local.C_xy, w), axis=1).tolist(), (algebra_rtols(corr_cond) * size).tolist(),
         _whitened_sizes(central.rounding.inverse, share).tolist(), sensor.rank.tolist(), sensor.tol.tolist(),
         np.where(s[:, -1] != 0.0, s[:, 0] / s[:, -1], np.inf).tolist(), sensor.residual.tolist(),
         sensor.bound.tolist(), sensor.exact.tolist())

@@ -67,10 +67,14 @@ JITTER_STEPS: tuple[float, ...] = (0.0, 1e-12, 1e-10, 1e-8, 1e-6)
 def algebra_rtol(condition_number: float = 1.0) -> float:
     """Relative tolerance for exact algebra on a problem with the given condition number:
     ``max(ALGEBRA_RTOL, ALGEBRA_SAFETY * eps * cond)``."""
-    cond = float(condition_number)
-    if not np.isfinite(cond):
-        return float("inf")
-    return max(ALGEBRA_RTOL, ALGEBRA_SAFETY * EPS * max(cond, 1.0))
+    return float(algebra_rtols(float(condition_number)))
+
+
+def algebra_rtols(condition_numbers) -> np.ndarray:
+    """:func:`algebra_rtol` of every condition number of an array (infinite where one is)."""
+    cond = np.asarray(condition_numbers, dtype=float)
+    return np.where(np.isfinite(cond), np.maximum(ALGEBRA_RTOL, ALGEBRA_SAFETY * EPS * np.maximum(cond, 1.0)),
+                    np.inf)
 
 
 def kkt_reject_tol(condition_number: float) -> float:
