@@ -2,8 +2,9 @@
 read and checked (:func:`~gpfverify.fusion.runfile.open_run`), audited — in this process or
 spread over an executor (``--workers``, ``--scheduler``), always in the same fixed blocks so the
 bytes do not depend on the workers — and written in order, while the summary is kept as running
-aggregates (:class:`RunSummary`). Nothing grows with the run's length but the summary's lists of
-step indices where a sensor lost rank.
+aggregates (:class:`RunSummary`). Nothing held in memory grows with the run's length: the
+summary's lists of step indices where a sensor lost rank are spooled like the output
+(:class:`StepIndices`) and written to the JSON a chunk at a time.
 
 The output is assembled in a spooled temporary file (in memory while small, on disk beyond
 :data:`SPOOL_BYTES`) and copied out only when the whole run has been audited, so a file that is
@@ -18,7 +19,7 @@ import shutil
 import sys
 import tempfile
 from collections import deque
-from collections.abc import Callable, Iterable
+from collections.abc import Callable, Iterable, Iterator, Sequence
 from concurrent.futures import Executor, Future
 from dataclasses import dataclass, field
 from typing import IO
@@ -34,6 +35,10 @@ from gpfverify.fusion.runfile import BLOCK_STEPS, RunBlock, open_run
 
 #: output kept in memory before the spool moves to a temporary file
 SPOOL_BYTES = 32 << 20
+#: bytes of one list of step indices kept in memory before it moves to a temporary file
+INDEX_SPOOL_BYTES = 1 << 20
+#: step indices read back at a time from a spooled list
+INDEX_CHUNK = 1 << 16
 
 _ENCODER = msgspec.json.Encoder()
 
@@ -135,6 +140,56 @@ def run_rank_rule(rules: list):
     return list(rules)
 
 
+class StepIndices(Sequence):
+    """Step indices appended in increasing order while a run is audited, as 8-byte integers in a
+    spooled temporary file (memory up to :data:`INDEX_SPOOL_BYTES`, then disk): a read-only
+    sequence of ints whose size in memory does not grow with the run. :meth:`chunks` reads it
+    back as arrays; :meth:`write_json` writes it as a JSON array without building the list."""
+
+    def __init__(self) -> None:
+        self._file = tempfile.SpooledTemporaryFile(max_size=INDEX_SPOOL_BYTES, mode="w+b",
+                                                   prefix="gpfverify-steps-")
+        self._count = 0
+
+    def append(self, ks: np.ndarray) -> None:
+        if ks.size:
+            self._file.seek(0, 2)
+            self._file.write(np.ascontiguousarray(ks, dtype=np.int64).tobytes())
+            self._count += int(ks.size)
+
+    def __len__(self) -> int:
+        return self._count
+
+    def __getitem__(self, index):
+        if isinstance(index, slice):
+            return [self[i] for i in range(*index.indices(self._count))]
+        if index < 0:
+            index += self._count
+        if not 0 <= index < self._count:
+            raise IndexError("step index out of range")
+        self._file.seek(8 * index)
+        return int(np.frombuffer(self._file.read(8), np.int64)[0])
+
+    def chunks(self) -> Iterator[np.ndarray]:
+        """The indices as int64 arrays of up to :data:`INDEX_CHUNK` each, in order."""
+        for start in range(0, self._count, INDEX_CHUNK):
+            self._file.seek(8 * start)
+            yield np.frombuffer(self._file.read(8 * min(INDEX_CHUNK, self._count - start)), np.int64)
+
+    def __iter__(self) -> Iterator[int]:
+        for chunk in self.chunks():
+            yield from chunk.tolist()
+
+    def tolist(self) -> list[int]:
+        return [k for chunk in self.chunks() for k in chunk.tolist()]
+
+    def write_json(self, out: IO[bytes]) -> None:
+        out.write(b"[")
+        for n, chunk in enumerate(self.chunks()):
+            out.write((b"," if n else b"") + ",".join(map(str, chunk.tolist())).encode())
+        out.write(b"]")
+
+
 @dataclass
 class RunSummary:
     """Running aggregates of a run audit; :meth:`result` is the ``summary`` object."""
@@ -147,8 +202,8 @@ class RunSummary:
     max_gap: float | None = None
     max_gap_k: int | None = None
     rules: list = field(default_factory=list)
-    lost: list[list[np.ndarray]] = field(default_factory=list)
-    lost_not_exact: list[list[np.ndarray]] = field(default_factory=list)
+    lost: list[StepIndices] = field(default_factory=list)
+    lost_not_exact: list[StepIndices] = field(default_factory=list)
 
     def add(self, block: BlockAudit) -> None:
         self.steps += len(block.ks)
@@ -167,15 +222,17 @@ class RunSummary:
                 self.rules.append(r)
         if not self.lost:
             n = block.full_column_rank.shape[1]
-            self.lost, self.lost_not_exact = [[] for _ in range(n)], [[] for _ in range(n)]
+            self.lost, self.lost_not_exact = [StepIndices() for _ in range(n)], [StepIndices() for _ in range(n)]
         for m in range(len(self.lost)):
             lost = ~block.full_column_rank[:, m]
             self.lost[m].append(block.ks[lost])
             self.lost_not_exact[m].append(block.ks[lost & ~block.sensor_exact[:, m]])
 
-    def result(self) -> dict:
-        def ks(parts) -> list[int]:
-            return np.concatenate(parts).tolist() if parts else []
+    def result(self, spooled: bool = False) -> dict:
+        """The ``summary`` object; its step-index lists as :class:`StepIndices` (``spooled``, for a
+        run of any length) or as lists of ints."""
+        def ks(indices: StepIndices):
+            return indices if spooled else indices.tolist()
 
         return {
             "steps": self.steps, "condition_held_steps": self.condition_held, "exact_steps": self.exact,
@@ -185,6 +242,28 @@ class RunSummary:
                          "rank_lost_not_exact_steps": ks(self.lost_not_exact[m])} for m in range(len(self.lost))],
             "rank_rule": run_rank_rule(self.rules),
         }
+
+
+def write_summary_json(out: IO[bytes], summary: dict) -> None:
+    """``summary`` (from :meth:`RunSummary.result`) as JSON, its step-index lists written a chunk at
+    a time: the bytes ``msgspec`` writes for the same object with lists."""
+    def write_object(obj: dict) -> None:
+        out.write(b"{")
+        for n, (key, value) in enumerate(obj.items()):
+            out.write((b"," if n else b"") + _ENCODER.encode(key) + b":")
+            if isinstance(value, StepIndices):
+                value.write_json(out)
+            elif key == "sensors":
+                out.write(b"[")
+                for i, sensor in enumerate(value):
+                    out.write(b"," if i else b"")
+                    write_object(sensor)
+                out.write(b"]")
+            else:
+                out.write(_ENCODER.encode(value))
+        out.write(b"}")
+
+    write_object(summary)
 
 
 def _in_order(blocks: Iterable[RunBlock], audit: Callable[[RunBlock], BlockAudit],
@@ -252,10 +331,11 @@ def stream_audit(path, out: IO[bytes] | None, form: str = "json", rank_rule=None
                 kept_audits += result.audits
             if on_block is not None:
                 on_block(summary.steps, reader.steps)
-    result_summary = summary.result()
+    result_summary = summary.result(spooled=not keep)
     if out is not None and form == "json":
-        out.write(b'], "summary": ' + _ENCODER.encode(result_summary) + b', "rank_rule": '
-                  + _ENCODER.encode(result_summary["rank_rule"]) + b"}\n")
+        out.write(b'], "summary": ')
+        write_summary_json(out, result_summary)
+        out.write(b', "rank_rule": ' + _ENCODER.encode(result_summary["rank_rule"]) + b"}\n")
     return result_summary, kept_steps, kept_audits
 
 

@@ -6,6 +6,7 @@ array, writing nothing. An audit never imports cvxpy."""
 import dataclasses
 import io
 import json
+import os
 import subprocess
 import sys
 from pathlib import Path
@@ -416,3 +417,60 @@ def test_a_bad_line_after_the_first_blocks_leaves_stdout_empty(tmp_path, capsys)
         code, out, err = _cli(["audit", str(path), *extra], capsys)
         assert code == 2 and out == "" and err.count("\n") == 1
         assert f"line {BLOCK_STEPS + 3}: locals[1].C_y is not positive" in err
+
+
+def test_step_index_lists_are_spooled_and_written_as_the_same_json(tmp_path, monkeypatch):
+    """Lists of step indices that outgrow memory move to disk and are written a chunk at a time:
+    the same bytes as with everything in memory (here both limits at a few indices)."""
+    import gpfverify.runaudit as runaudit
+
+    path = _long_run(tmp_path, 60)
+    in_memory = io.BytesIO()
+    runaudit.stream_audit(path, in_memory)
+    monkeypatch.setattr(runaudit, "INDEX_SPOOL_BYTES", 16)
+    monkeypatch.setattr(runaudit, "INDEX_CHUNK", 3)
+    spooled = io.BytesIO()
+    summary, _, _ = runaudit.stream_audit(path, spooled, block_steps=7)
+    assert spooled.getvalue() == in_memory.getvalue()
+    lost = summary["sensors"][0]["rank_lost_steps"]
+    assert isinstance(lost, runaudit.StepIndices) and lost._file._rolled  # on disk
+    assert list(lost) == lost.tolist() == [k for k in range(60) if k % 4 in (0, 1)]
+    assert lost[-1] == 57 and lost[1:3] == [1, 4] and len(lost) == 30
+    assert json.loads(spooled.getvalue())["summary"] == audit_run_file(path)[2]
+
+
+def test_the_summary_of_a_long_run_holds_no_list_that_grows_with_it():
+    """10⁶ steps at which both sensors lost rank (every step listed twice per sensor): the summary
+    and its JSON fit in a few MB of traced memory, where 4·10⁶ indices would take 32 MB as arrays
+    and more as Python ints."""
+    import tracemalloc
+
+    from gpfverify.runaudit import BlockAudit, RunSummary, write_summary_json
+
+    steps, block = 1_000_000, 10_000
+    lost = np.zeros((block, 2), bool)
+    sink = open(os.devnull, "wb")
+    tracemalloc.start()
+    try:
+        summary = RunSummary()
+        for start in range(0, steps, block):
+            summary.add(BlockAudit(ks=np.arange(start, start + block), condition_holds=lost[:, 0],
+                                   exact=lost[:, 0], full_column_rank=lost, sensor_exact=lost,
+                                   gap_norm=np.full(block, np.nan), rank_rules=["canonical"]))
+        write_summary_json(sink, summary.result(spooled=True))
+        _, peak = tracemalloc.get_traced_memory()
+    finally:
+        tracemalloc.stop()
+        sink.close()
+    assert summary.steps == steps and len(summary.lost[1]) == steps
+    assert peak < 12e6, f"{peak / 1e6:.1f} MB traced"
+
+
+def test_a_summary_line_shows_the_first_ranges_and_how_many_in_all(tmp_path, capsys):
+    from gpfverify.commands.audit import RANGES_SHOWN
+
+    path = _long_run(tmp_path, 400)  # sensor 0 lost rank at k ≡ 0, 1 (mod 4): 100 ranges
+    code, out, _ = _cli(["audit", str(path)], capsys)
+    shown = ", ".join(f"{k}-{k + 1}" for k in range(0, 4 * RANGES_SHOWN, 4))
+    assert code == 0 and len(out.splitlines()) == 1
+    assert f"sensor 0 lost full column rank at k = {shown}, … (200 in all)" in out

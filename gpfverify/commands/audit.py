@@ -92,6 +92,15 @@ def audit_run_file(path, rank_rule=None, rank_tol: float | None = None, sensitiv
     return RunAudit(tuple(audits)), steps, summary
 
 
+#: ranges of step indices a summary line shows before "…" (every index is in ``--json``)
+RANGES_SHOWN = 20
+
+
+def _steps(ks) -> str:
+    """Step indices as ranges for a summary line, at most :data:`RANGES_SHOWN` of them."""
+    return integer_ranges(ks, "-", RANGES_SHOWN)
+
+
 def format_summary(summary: dict) -> str:
     """The summary of a run audit as text (after the per-step table)."""
     rule = summary["rank_rule"]
@@ -107,9 +116,9 @@ def format_summary(summary: dict) -> str:
                      f"({summary['steps_with_y']} step(s) with y)")
     for s in summary["sensors"]:
         if s["rank_lost_steps"]:
-            lost = integer_ranges(s["rank_lost_steps"], "-")
+            lost = _steps(s["rank_lost_steps"])
             lines.append(f"sensor {s['index']}: lost full column rank at k = {lost}; "
-                         f"not exact at " + (f"k = {integer_ranges(s['rank_lost_not_exact_steps'], '-')}"
+                         f"not exact at " + (f"k = {_steps(s['rank_lost_not_exact_steps'])}"
                                              if s["rank_lost_not_exact_steps"] else "none of them"))
         else:
             lines.append(f"sensor {s['index']}: full column rank at every step")
@@ -130,8 +139,8 @@ def verdict_line(summary: dict) -> str:
     for s in summary["sensors"]:
         if s["rank_lost_steps"]:
             bad = s["rank_lost_not_exact_steps"]
-            line += (f"; sensor {s['index']} lost full column rank at k = {integer_ranges(s['rank_lost_steps'], '-')}"
-                     + (f", not exact at k = {integer_ranges(bad, '-')}" if bad else ", exact anyway"))
+            line += (f"; sensor {s['index']} lost full column rank at k = {_steps(s['rank_lost_steps'])}"
+                     + (f", not exact at k = {_steps(bad)}" if bad else ", exact anyway"))
     line += ")"
     if summary["max_gap_norm"] is None:
         line += "; no step has y, so the gap is not evaluated"

@@ -215,16 +215,23 @@ def fmt(value, digits: int = 4) -> str:
     return str(value)
 
 
-def integer_ranges(values, dash: str = "–") -> str:
-    """Sorted integers as ranges: [1, 2, 3, 7] -> '1–3, 7' (step indices in report text)."""
-    values = [int(v) for v in values]
-    parts, start = [], None
-    for i, v in enumerate(values):
+def integer_ranges(values, dash: str = "–", limit: int | None = None) -> str:
+    """Sorted integers as ranges: [1, 2, 3, 7] -> '1–3, 7' (step indices in report text). With
+    ``limit``, at most that many ranges, then '…' and how many integers there are in all (read
+    lazily: ``values`` may be a long sequence that is never held as a list)."""
+    parts: list[str] = []
+    start = previous = None
+    for v in map(int, values):
+        if previous is not None and v != previous + 1:
+            parts.append(str(start) if start == previous else f"{start}{dash}{previous}")
+            start = None
+            if limit is not None and len(parts) == limit:
+                return ", ".join(parts) + f", … ({len(values)} in all)"
         if start is None:
             start = v
-        if i + 1 == len(values) or values[i + 1] != v + 1:
-            parts.append(str(start) if start == v else f"{start}{dash}{v}")
-            start = None
+        previous = v
+    if previous is not None:
+        parts.append(str(start) if start == previous else f"{start}{dash}{previous}")
     return ", ".join(parts)
 
 
