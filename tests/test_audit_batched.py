@@ -155,6 +155,22 @@ def test_drawn_blocks_are_audited_as_per_step(drawn):
         _assert_routes_agree(cases, rule, Path(directory))
 
 
+def test_outputs_of_very_different_scales_are_audited_as_per_step(tmp_path):
+    """C_y's variances span 1e-9 to 2e7 (a drawn case): the block route's G = C_xy C_y⁻¹ solves with
+    C_y's equilibrated Cholesky factor, as accurate as the per-step route's Cholesky solve (an LU
+    solve of C_y itself left a gap gain of 2.5e-12 on a sensor that lost rank, 1e5 times the
+    per-step route's and beyond its bound: "not exact" where the per-step route says exact)."""
+    from gpfverify.fusion.case import load_case
+
+    case = load_case(Path(__file__).parent / "fixtures" / "cases" / "badly_scaled_outputs.json")
+    variances = np.diag(case.central.C_y)
+    assert variances.max() / variances.min() > 1e15  # the fixture is what it says
+    rule = RankRule("canonical")
+    expected = audit_case(case, rank_rule=rule)
+    assert not all(s.full_column_rank for s in expected.sensors) and expected.exact
+    _assert_routes_agree([case], rule, tmp_path)
+
+
 def _known_component(case: FusionCase, i: int) -> FusionCase:
     """``case`` with state component i known exactly by the centre and every sensor (its rows and
     columns of every state covariance and cross covariance zero): C_p is singular."""

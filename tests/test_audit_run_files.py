@@ -7,6 +7,7 @@ import dataclasses
 import io
 import json
 import os
+import re
 import subprocess
 import sys
 from pathlib import Path
@@ -474,3 +475,27 @@ def test_a_summary_line_shows_the_first_ranges_and_how_many_in_all(tmp_path, cap
     shown = ", ".join(f"{k}-{k + 1}" for k in range(0, 4 * RANGES_SHOWN, 4))
     assert code == 0 and len(out.splitlines()) == 1
     assert f"sensor 0 lost full column rank at k = {shown}, … (200 in all)" in out
+
+
+def test_npz_step_indices_and_rank_tols_are_streamed_block_by_block(tmp_path):
+    """k and a per-step rank_tol are read with the other stacked arrays, a block at a time: a k
+    that stops increasing across two blocks is found with the message of one that does within a
+    block, and per-step rank_tols give the audit of the same steps as lines."""
+    from gpfverify.fusion.runfile import open_run
+
+    cases = [dataclasses.replace(c, rank_tol=1e-3) if t % 2 else c for t, c in enumerate(_synthetic_cases())]
+    write_run(tmp_path / "good.npz", cases, [1, 2, 5, 7])
+    with np.load(tmp_path / "good.npz") as z:
+        good = dict(z)
+    assert good["rank_tol"].shape == (4,)  # stored per step
+    with open_run(tmp_path / "good.npz") as reader:
+        blocks = list(reader.blocks(2))
+    assert [b.ks.tolist() for b in blocks] == [[1, 2], [5, 7]]
+    assert [blocks[1].block.case(t).rank_tol for t in range(2)] == [None, 1e-3]
+    by_lines = audit_run_file(write_run(tmp_path / "good.jsonl", cases, [1, 2, 5, 7]))[2]
+    assert audit_run_file(tmp_path / "good.npz")[2] == by_lines
+    for k, message in (([1, 2, 2, 7], "array k entry 2: k = 2 does not increase (previous k = 2)"),
+                       ([1, 2, 3, -1], "array k must hold step indices >= 0, got -1")):
+        np.savez(tmp_path / "bad.npz", **{**good, "k": np.array(k)})
+        with open_run(tmp_path / "bad.npz") as reader, pytest.raises(CaseFileError, match=re.escape(message)):
+            list(reader.blocks(2))

@@ -419,24 +419,15 @@ class _NpzLayout:
                 raise CaseFileError(f"{path}: array {name} has shape {headers[name].shape}, expected {what} = "
                                     f"{want}")
         self.T, self.explicit_k = T, "k" in headers
-        self.ks = np.arange(T, dtype=np.int64)
-        if self.explicit_k:
-            k = self._small("k")
-            if np.any(k < 0):
-                raise CaseFileError(f"{path}: array k must hold step indices >= 0, got {int(k.min())}")
-            down = np.flatnonzero(np.diff(k) <= 0)
-            if down.size:
-                i = int(down[0]) + 1
-                raise CaseFileError(f"{path}: array k entry {i}: k = {int(k[i])} does not increase (previous "
-                                    f"k = {int(k[i - 1])}); step indices must be strictly increasing")
-            self.ks = k.astype(np.int64)
-        self.rank_tol = np.full(T, np.nan)
+        # per-step arrays (k, a rank_tol per step) are streamed with the rest: nothing read here
+        # grows with T
+        self.rank_tol: float | None = np.nan
         if "rank_tol" in headers:
             self._kind("rank_tol")
             if headers["rank_tol"].shape not in ((), (T,)):
                 raise CaseFileError(f"{path}: array rank_tol has shape {headers['rank_tol'].shape}, expected () "
                                     f"or (T,) = ({T},)")
-            self.rank_tol = np.broadcast_to(self.archive.read("rank_tol").astype(float), (T,))
+            self.rank_tol = float(self.archive.read("rank_tol")) if headers["rank_tol"].shape == () else None
         given_circular = {}
         for name in circular_names:
             if name in headers:
@@ -455,24 +446,44 @@ class _NpzLayout:
                                                       "circular_state") or ()
         except CaseFileError as exc:
             raise CaseFileError(f"{path}: {_npz_name(_one_line(exc))}") from None
-        self.streamed = [n for n in headers if n in expected or (n in optional and n != "k")]
+        self.streamed = [n for n in headers if n in expected or n in optional or (n == "rank_tol"
+                                                                                  and self.rank_tol is None)]
+
+    def _step_indices(self, k: np.ndarray, start: int, previous: int | None) -> np.ndarray:
+        """The block's given step indices (entries ``start`` on of array k), checked: >= 0 and
+        increasing from ``previous``, the last block's last."""
+        if np.any(k < 0):
+            raise CaseFileError(f"{self.path}: array k must hold step indices >= 0, got {int(k.min())}")
+        joined = k if previous is None else np.concatenate([[previous], k])
+        down = np.flatnonzero(np.diff(joined) <= 0)
+        if down.size:
+            i = int(down[0]) + 1
+            raise CaseFileError(f"{self.path}: array k entry {start + i - (previous is not None)}: k = "
+                                f"{int(joined[i])} does not increase (previous k = {int(joined[i - 1])}); step "
+                                "indices must be strictly increasing")
+        return k.astype(np.int64)
 
     def blocks(self, size: int) -> Iterator[RunBlock]:
         readers = {n: self.archive.row_reader(n) for n in self.streamed}
+        previous = None
         try:
             for start in range(0, self.T, size):
                 rows = {n: r.take(size) for n, r in readers.items()}
                 stop = start + len(rows["central_mu_p"])
+                ks = (self._step_indices(rows["k"], start, previous) if self.explicit_k
+                      else np.arange(start, stop, dtype=np.int64))
+                previous = int(ks[-1])
+                rank_tol = (rows["rank_tol"].astype(float) if self.rank_tol is None
+                            else np.full(stop - start, self.rank_tol))
                 central = {key: rows[f"central_{key}"] for key in _CENTRAL_KEYS}
                 local = [{key: rows.get(f"local{m}_{key}") for key in _LOCAL_KEYS} for m in range(len(self.sizes))]
                 try:
                     block = block_from_arrays(self.sizes, self.circular, central, local, rows.get("y"),
-                                              self.rank_tol[start:stop], self.circular_state)
+                                              rank_tol, self.circular_state)
                 except StepError as exc:
-                    t = start + exc.step
-                    raise CaseFileError(f"{self.path} step {t} (k = {int(self.ks[t])}): "
+                    raise CaseFileError(f"{self.path} step {start + exc.step} (k = {int(ks[exc.step])}): "
                                         f"{_npz_name(_one_line(exc))}") from None
-                yield RunBlock(self.ks[start:stop], block, start)
+                yield RunBlock(ks, block, start)
         finally:
             for r in readers.values():
                 r.close()
