@@ -16,7 +16,6 @@ from hypothesis import strategies as st
 from gpfverify.filters.ekf import ekf_step
 from gpfverify.filters.gp_adf import gp_adf_step
 from gpfverify.filters.kalman import kf_step
-from gpfverify.filters.records import Gaussian
 from gpfverify.filters.ukf import ukf_step
 from gpfverify.models import GPModel, linear_model
 from gpfverify.strategies import gaussian_inputs, gaussian_processes, linear_gaussian_models, sigma_params

@@ -129,12 +129,18 @@ def test_pf_tbd_step_weights_and_existence_are_eqs_1_to_10_on_the_image(drawn):
     lo, hi = model.image_extent
     assert np.all((births[:, [0, 2]] >= lo) & (births[:, [0, 2]] <= hi))
     log_l, magnitude = whole_image_log_ratio(model, merged, image)
+    # a continuing particle off the image is a target that left it: its prior mass counts as absent
+    left = np.any((merged[n_b:, [0, 2]] < lo) | (merged[n_b:, [0, 2]] > hi), axis=1)
     with np.errstate(divide="ignore"):
+        log_prior = np.log((1.0 - model.p_death) * prev) + belief.log_weights - logsumexp(belief.log_weights)
         log_w = log_l + np.concatenate([
             birth_log_ratio(model, config, image, births) + np.log(model.p_birth * (1.0 - prev) / n_b),
-            np.log((1.0 - model.p_death) * prev) + belief.log_weights - logsumexp(belief.log_weights)])
+            np.where(left, -np.inf, log_prior)])
         log_mass = logsumexp(log_w)
-        log_absent = np.log(model.p_death * prev + (1.0 - model.p_birth) * (1.0 - prev))
+        log_absent = np.log(model.p_death * prev + (1.0 - model.p_birth) * (1.0 - prev) + np.exp(log_prior[left]).sum())
+    if np.isneginf(log_mass):  # P_{k−1} = 1 and every particle left: P_k = 0, the births equally weighted
+        assert step.posterior.existence == 0.0
+        log_w, log_mass = np.where(np.arange(len(merged)) < n_b, 0.0, -np.inf), np.log(n_b)
     tol = algebra_rtol() * (magnitude.max() + np.abs(log_w[np.isfinite(log_w)]).max() + 1.0)
     assert abs(step.posterior.existence - expit(log_mass - log_absent)) <= tol
     want = log_w - log_mass

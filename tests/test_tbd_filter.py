@@ -116,7 +116,8 @@ def test_expected_image_is_the_truncated_point_spread():
 
 def test_existence_follows_the_markov_chain_when_the_image_carries_no_information():
     """σ → ∞ and a blank image: L = 1 for every particle and q_b = p_b, so
-    P_k = P_b (1 − P_{k−1}) + (1 − P_d) P_{k−1} exactly (the chain's prediction, eq. 7)."""
+    P_k = P_b (1 − P_{k−1}) + (1 − P_d) P_{k−1} s_k exactly (the chain's prediction, eq. 7, with
+    s_k the share of the equally weighted continuing particles still in the image)."""
     model = TbdModel(noise_std=1e12)
     config = TbdConfig(200)
     image = np.zeros((model.grid_size, model.grid_size))
@@ -125,9 +126,37 @@ def test_existence_follows_the_markov_chain_when_the_image_carries_no_informatio
                                         existence=0.3)
     for k in range(1, 6):
         step = pf_tbd_step(belief, model, image, k=k, rng=rng, config=config)
-        expected = model.p_birth * (1 - belief.existence) + (1 - model.p_death) * belief.existence
+        inside = model.in_image(step.weighted.particles[config.n_birth:]).mean()
+        expected = model.p_birth * (1 - belief.existence) + (1 - model.p_death) * belief.existence * inside
         np.testing.assert_allclose(step.posterior.existence, expected, rtol=algebra_rtol())
         belief = step.posterior
+
+
+def test_a_target_whose_particles_left_the_image_no_longer_exists():
+    """E_k = 1 means the target is in the observed region: with every continuing particle moved off
+    the image and no information in it (σ → ∞, q_b = p_b), the continuing mass joins the absent
+    hypothesis and P_k = P_b (1 − P_{k−1}) — a new target's birth only — where particles kept off
+    the image would give the chain's P_b (1 − P_{k−1}) + (1 − P_d) P_{k−1}."""
+    model = TbdModel(noise_std=1e12)
+    config = TbdConfig(200)
+    image = np.zeros((model.grid_size, model.grid_size))
+    prev = 0.8
+    lo, hi = model.image_extent
+    outside = np.tile([lo - 5.0, -0.5, 10.0, 0.0, 20.0], (config.n_continuing, 1))  # 5 cells left of the image
+    belief = Particles.equally_weighted(outside, existence=prev)
+    step = pf_tbd_step(belief, model, image, rng=np.random.default_rng(2), config=config)
+    assert not model.in_image(step.weighted.particles[config.n_birth:]).any()  # still off after the move
+    np.testing.assert_allclose(step.posterior.existence, model.p_birth * (1 - prev), rtol=algebra_rtol())
+    assert np.all(np.isneginf(step.weighted.log_weights[config.n_birth:]))
+    assert model.in_image(step.posterior.particles).all()  # resampled from the births only
+    # half of them back inside: their mass continues, the other half's is absent
+    half = outside.copy()
+    half[::2, 0] = 0.5 * (lo + hi)
+    step = pf_tbd_step(Particles.equally_weighted(half, existence=prev), model, image,
+                       rng=np.random.default_rng(2), config=config)
+    stayed = (1 - model.p_death) * prev * model.in_image(step.weighted.particles[config.n_birth:]).mean()
+    np.testing.assert_allclose(step.posterior.existence, model.p_birth * (1 - prev) + stayed, rtol=algebra_rtol())
+    assert 0.3 < stayed / ((1 - model.p_death) * prev) < 0.7
 
 
 def test_existence_carries_the_birth_importance_weights():

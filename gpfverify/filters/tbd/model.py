@@ -141,6 +141,13 @@ class TbdModel:
         """(low, high) of the imaged interval on each axis: [−Δ/2, (n − ½)Δ]."""
         return -0.5 * self.cell_size, (self.grid_size - 0.5) * self.cell_size
 
+    def in_image(self, states: np.ndarray) -> np.ndarray:
+        """Whether each state's position (columns 0 and 2 of ``states`` (N, 5)) lies in the imaged
+        region :attr:`image_extent` on both axes, (N,) bool."""
+        lo, hi = self.image_extent
+        position = states[:, [0, 2]]
+        return np.all((position >= lo) & (position <= hi), axis=1)
+
     def amplitude(self, intensity) -> np.ndarray:
         """Peak of the point spread, Δ² I / (2πΣ²) (eq. 9)."""
         return self.cell_size**2 * np.asarray(intensity, dtype=float) / (2.0 * np.pi * self.blur**2)
