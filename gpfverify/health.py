@@ -86,8 +86,9 @@ def divergence_check(subject: str, errors, *, bound: float, max_fraction: float 
         diverged = np.any(~np.isfinite(norms) | (norms > bound), axis=1)
     fraction = float(np.mean(diverged))
     passed = fraction <= max_fraction
+    allowed = "when no run diverges" if max_fraction == 0 else f"when at most {max_fraction:.0%} of the runs diverge"
     detail = (f"{int(diverged.sum())} of {diverged.size} run(s) diverged (error not finite or above {bound:g})"
-              f"; healthy at most {max_fraction:g} of the runs")
+              f"; the check passes {allowed}")
     return HealthCheck("divergence", subject, passed, fraction, max_fraction, detail)
 
 
