@@ -65,6 +65,9 @@ READINGS: dict[str, str] = {
              "the birth threshold times σ plus ε/n² everywhere (ε the uniform share), position uniform in "
              "the cell, velocity uniform on ±v_max, intensity uniform on [I₀/2, 3I₀/2]; the weights carry "
              "p_b/q_b.",
+    "leaving the image": "E_k = 1 means the target is in the observed region (§1): a continuing particle "
+                         "whose position leaves the image is a target that left it, its mass counted with "
+                         "the absent hypothesis of eq. 10 (the paper does not say how its filter treats them).",
     "likelihood": "point spread truncated to the (2p+1)² patch around the particle's nearest cell (p the "
                   "patch radius), so the patch likelihood ratio is the full-image one.",
     "second stage": "moments of the merged weighted set of step 4 (posterior weights) for s and for the "
