@@ -492,6 +492,8 @@ def test_npz_step_indices_and_rank_tols_are_streamed_block_by_block(tmp_path):
         blocks = list(reader.blocks(2))
     assert [b.ks.tolist() for b in blocks] == [[1, 2], [5, 7]]
     assert [blocks[1].block.case(t).rank_tol for t in range(2)] == [None, 1e-3]
+    with open_run(write_run(tmp_path / "default.npz", cases)) as reader:  # no k: the positions, block by block
+        assert [b.ks.tolist() for b in reader.blocks(3)] == [[0, 1, 2], [3]]
     by_lines = audit_run_file(write_run(tmp_path / "good.jsonl", cases, [1, 2, 5, 7]))[2]
     assert audit_run_file(tmp_path / "good.npz")[2] == by_lines
     for k, message in (([1, 2, 2, 7], "array k entry 2: k = 2 does not increase (previous k = 2)"),
