@@ -73,7 +73,7 @@ def right_solve_spd(b: np.ndarray, cov: np.ndarray) -> np.ndarray:
     """b C⁻¹ at every step, b (B, n, l), C (B, l, l) symmetric positive definite, by the equilibrated
     Cholesky factor C = diag(d) L_c L_cᵀ diag(d) (the per-step route solves with C's Cholesky
     factor, whose accuracy does not depend on the scaling of C's rows and columns; an LU solve of C
-    itself does: 1e-13 against 6e-18 where C_y's variances spanned 1e-6 to 1e8). LinAlgError where
+    itself does: a gap gain of 2.5e-12 against 2.7e-17 where C_y's variances spanned 1e-9 to 2e7). LinAlgError where
     C is not positive definite."""
     d, factor = equilibrated(cov)
     half = solve_lower(factor, transposed(b) / d[:, :, None])                                    # L_c⁻¹ D⁻¹ bᵀ
