@@ -35,7 +35,7 @@ import numpy as np
 from gpfverify.angles import TWO_PI, difference, wrap, wrap_components
 from gpfverify.audit import CaseAudit, SensorAudit
 from gpfverify.fusion.blockexactness import (CentralBlock, SensorBlock, analyse_sensor, apply,
-                                            correlation_conditions, equilibrated, right_solve_spd, sensor_terms,
+                                            correlation_conditions, equilibrated, right_solve_factored, sensor_terms,
                                             solve_lower, symmetric)
 from gpfverify.fusion.case import split_circular
 from gpfverify.fusion.caseblock import CaseBlock, LocalBlock
@@ -69,8 +69,9 @@ def _block_audits(block: CaseBlock, rule: RankRule) -> list[CaseAudit | None]:
     mu_p, c_p = block.mu_p, symmetric(block.C_p)
     dpx, lpx = equilibrated(c_p)  # L_p = diag(d_p) L_pc: differences in prior standard deviations
     inverse = solve_lower(lpx, np.broadcast_to(np.eye(dim), (steps, dim, dim)) / dpx[:, :, None])  # L_p⁻¹
-    gain = right_solve_spd(block.C_xy, block.C_y)                                                  # C_xy C_y⁻¹
-    central = CentralBlock(FusedRounding(inverse, gain, mu_p, block.mu_y), block.C_y)
+    dy, ly = equilibrated(block.C_y)
+    gain = right_solve_factored(block.C_xy, dy, ly)                                                # C_xy C_y⁻¹
+    central = CentralBlock(FusedRounding(inverse, gain, mu_p, block.mu_y), block.C_y, dy, ly)
     has_y = block.has_y
     y = np.where(has_y[:, None], block.y, 0.0) if block.y is not None else np.zeros_like(block.mu_y)
     ends = np.cumsum(block.sizes).tolist()

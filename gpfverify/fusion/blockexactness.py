@@ -69,15 +69,14 @@ def equilibrated(cov: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return d, np.linalg.cholesky(cov / (d[:, :, None] * d[:, None, :]))
 
 
-def right_solve_spd(b: np.ndarray, cov: np.ndarray) -> np.ndarray:
-    """b C⁻¹ at every step, b (B, n, l), C (B, l, l) symmetric positive definite, by the equilibrated
-    Cholesky factor C = diag(d) L_c L_cᵀ diag(d) (the per-step route solves with C's Cholesky
-    factor, whose accuracy does not depend on the scaling of C's rows and columns; an LU solve of C
-    itself does: a gap gain of 2.5e-12 against 2.7e-17 where C_y's variances spanned 1e-9 to 2e7). LinAlgError where
-    C is not positive definite."""
-    d, factor = equilibrated(cov)
-    half = solve_lower(factor, transposed(b) / d[:, :, None])                                    # L_c⁻¹ D⁻¹ bᵀ
-    return transposed(np.linalg.solve(transposed(factor), half) / d[:, :, None])                # (C⁻¹ bᵀ)ᵀ
+def right_solve_factored(b: np.ndarray, scale: np.ndarray, factor: np.ndarray) -> np.ndarray:
+    """b C⁻¹ at every step, b (B, n, l), from the equilibrated Cholesky factor of the symmetric
+    positive definite C (B, l, l), C = diag(d) L_c L_cᵀ diag(d) (``scale`` d, ``factor`` L_c, from
+    :func:`equilibrated`). The per-step route solves with C's Cholesky factor, whose accuracy does not
+    depend on the scaling of C's rows and columns; an LU solve of C itself does (a gap gain of 2.5e-12
+    against 2.7e-17 where C_y's variances spanned 1e-9 to 2e7)."""
+    half = solve_lower(factor, transposed(b) / scale[:, :, None])                                # L_c⁻¹ D⁻¹ bᵀ
+    return transposed(np.linalg.solve(transposed(factor), half) / scale[:, :, None])            # (C⁻¹ bᵀ)ᵀ
 
 
 def correlation_conditions(cov: np.ndarray) -> np.ndarray:
@@ -122,10 +121,10 @@ class Whitening:
         return np.linalg.cond(self.factor_x) + np.linalg.cond(self.factor_y)
 
 
-def whitening(cov_x: np.ndarray, cov_y: np.ndarray, cross: np.ndarray) -> Whitening:
-    """:class:`Whitening` of (C_x, C_y, C_xy) at every step."""
+def whitening(cov_x: np.ndarray, cross: np.ndarray, dy: np.ndarray, ly: np.ndarray) -> Whitening:
+    """:class:`Whitening` of (C_x, C_y, C_xy) at every step, C_y given by its equilibrated factor
+    (``dy``, ``ly``, from :func:`equilibrated`)."""
     dx, lx = equilibrated(cov_x)
-    dy, ly = equilibrated(cov_y)
     scaled = cross / (dx[:, :, None] * dy[:, None, :])
     left = solve_lower(lx, scaled)                                                 # L_xc⁻¹ C
     k = transposed(solve_lower(ly, transposed(left)))                              # … L_yc⁻ᵀ
@@ -135,11 +134,14 @@ def whitening(cov_x: np.ndarray, cov_y: np.ndarray, cross: np.ndarray) -> Whiten
 
 @dataclass(frozen=True)
 class CentralBlock:
-    """The centre's side of B steps: ``rounding`` (L_p⁻¹, G, μ_p, μ_y), the central C_y and, formed
-    when a sensor has a kernel, the fused estimate's own rounding (:meth:`floor`) and κ(C_y)."""
+    """The centre's side of B steps: ``rounding`` (L_p⁻¹, G, μ_p, μ_y), the central C_y with its
+    equilibrated factor (``scale_y``, ``factor_y``, from :func:`equilibrated`) and, formed when a
+    sensor has a kernel, the fused estimate's own rounding (:meth:`floor`) and κ(C_y)."""
 
     rounding: FusedRounding
     cov_y: np.ndarray
+    scale_y: np.ndarray
+    factor_y: np.ndarray
 
     def take(self, steps: np.ndarray) -> FusedRounding:
         """The rounding operands at the steps listed."""
@@ -149,8 +151,7 @@ class CentralBlock:
     @functools.cached_property
     def floor(self) -> np.ndarray:
         """:func:`~gpfverify.fusion.rounding.estimate_floor` at every step."""
-        d, factor = equilibrated(self.cov_y)
-        return estimate_floor(self.rounding, d[:, :, None] * factor)
+        return estimate_floor(self.rounding, self.scale_y[:, :, None] * self.factor_y)
 
     @functools.cached_property
     def gain_condition(self) -> np.ndarray:
@@ -210,15 +211,16 @@ def analyse_sensor(local: LocalBlock, central_cov: np.ndarray, rule: RankRule, c
     with ``central_cov`` (:func:`~gpfverify.fusion.exactness.sensor_prior_covariance`). Raises
     LinAlgError where a factor would need jitter (the per-step route decides those steps)."""
     steps, dim, size = local.C_xy.shape
-    cov_y, cross = symmetric(local.C_y), local.C_xy
+    cross = local.C_xy
+    dy, ly = equilibrated(local.C_y)
     if local.C_e is not None:
-        gain_m = right_solve_spd(cross, cov_y)                                                   # C_xy C_y⁻¹
+        gain_m = right_solve_factored(cross, dy, ly)                                             # C_xy C_y⁻¹
         recovered = symmetric(local.C_e + gain_m @ transposed(cross))
         prior = np.where(local.has_C_e[:, None, None], recovered, central_cov)
         has_c_e = local.has_C_e
     else:
         prior, has_c_e = central_cov, np.zeros(steps, dtype=bool)
-    white = whitening(prior, cov_y, cross)
+    white = whitening(prior, cross, dy, ly)
     u_np, s, vt_np = np.linalg.svd(cross, full_matrices=True)
     rank, tol = _decided_ranks(rule, white.correlations, s, (dim, size))
     factor_y = white.scale_y[:, :, None] * white.factor_y                                        # L_y^m
