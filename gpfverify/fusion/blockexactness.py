@@ -59,14 +59,20 @@ def solve_lower(factor: np.ndarray, b: np.ndarray) -> np.ndarray:
     return np.linalg.solve(factor, b)
 
 
+def correlation_matrices(cov: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(d, cov / (d dᵀ)) at every step, d the square roots of the diagonal (1 where it is not
+    positive): the scaling that makes the equilibrated factors and conditions unit-free."""
+    diag = np.diagonal(cov, axis1=1, axis2=2)
+    d = np.sqrt(np.where(diag > 0, diag, 1.0))
+    return d, cov / (d[:, :, None] * d[:, None, :])
+
+
 def equilibrated(cov: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """(d, L_c) with cov = diag(d) L_c L_cᵀ diag(d) at every step
     (:func:`gpfverify.linalg.equilibrated_cholesky` without jitter); LinAlgError when a step's
     correlation matrix is not positive definite."""
-    cov = symmetric(cov)
-    diag = np.diagonal(cov, axis1=1, axis2=2)
-    d = np.sqrt(np.where(diag > 0, diag, 1.0))
-    return d, np.linalg.cholesky(cov / (d[:, :, None] * d[:, None, :]))
+    d, correlation = correlation_matrices(symmetric(cov))
+    return d, np.linalg.cholesky(correlation)
 
 
 def right_solve_factored(b: np.ndarray, scale: np.ndarray, factor: np.ndarray) -> np.ndarray:
@@ -81,9 +87,7 @@ def right_solve_factored(b: np.ndarray, scale: np.ndarray, factor: np.ndarray) -
 
 def correlation_conditions(cov: np.ndarray) -> np.ndarray:
     """:func:`gpfverify.linalg.correlation_condition` at every step."""
-    diag = np.diagonal(cov, axis1=1, axis2=2)
-    d = np.sqrt(np.where(diag > 0, diag, 1.0))
-    eig = np.linalg.eigvalsh(cov / (d[:, :, None] * d[:, None, :]))
+    eig = np.linalg.eigvalsh(correlation_matrices(cov)[1])
     low, high = eig[:, 0], eig[:, -1]
     return np.where(low > 0, high / np.where(low > 0, low, 1.0), np.inf)
 
