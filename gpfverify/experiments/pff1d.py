@@ -27,7 +27,7 @@ from typing import Any
 
 import numpy as np
 
-from gpfverify.contract.claims import ClaimRecord, Verdict, combine
+from gpfverify.contract.claims import ClaimRecord, PairedRatio, Verdict, combine
 from gpfverify.health import HealthCheck, decide
 from gpfverify.contract.methods import Method
 from gpfverify.contract.papers import PAPERS
@@ -106,6 +106,8 @@ class _Aggregate:
     #: per run |error| per step (None where the filter broke down) and N_eff/N per step
     run_errors: tuple[tuple[float, ...] | None, ...] = ()
     run_ess: tuple[tuple[float, ...] | None, ...] = ()
+    #: per run the filter's CPU seconds in this cell
+    run_seconds: tuple[float, ...] = ()
 
     @property
     def mean_rmse(self) -> float:
@@ -126,7 +128,7 @@ def _aggregate(records: list[RunRecord], steps: int) -> dict[tuple[Case, float, 
         out[key] = _Aggregate(tuple(rmse.tolist()), len(recs) - len(sq), float(np.mean([r.seconds for r in recs])),
                               tuple(None if r.sq_err is None else float(np.sqrt(np.mean(r.sq_err))) for r in recs),
                               tuple(None if r.sq_err is None else tuple(np.sqrt(r.sq_err).tolist()) for r in recs),
-                              tuple(r.ess_fraction for r in recs))
+                              tuple(r.ess_fraction for r in recs), tuple(r.seconds for r in recs))
     return out
 
 
@@ -175,7 +177,7 @@ def summarize(params: Params, records: list[RunRecord]) -> dict[str, Any]:
         "divergences": _divergences(params, table),
         "health": [c for checks in health.values() for c in checks],
         "significance_level": SIGNIFICANCE_LEVEL,
-        "claims": claims(params, table, gamma, runs, health),
+        "claims": [*claims(params, table, gamma, runs, health), *timing_claims(params, agg, runs)],
     }
 
 
@@ -323,4 +325,105 @@ def claims(params: Params, table: list[Table1Row], gamma: dict[str, dict[str, Ga
     parts = [part(r_large, IE_PFF, b, f"vs {b.key}") for b in (PF, UPF, EDH)]
     out.append(_record("gamma-large-r-ie-pff-best", large_claim, SOURCE_FIG2,
                        f"{gamma_setting}, R = {r_large}", parts, runs, health))
+    return out
+
+
+# ----------------------------------------------------------------------------- timing claims
+
+SOURCE_TIME = f"{PAPERS[PAPER].short}, §3.1, Table 1 and the text after Fig. 1"
+#: "when Δλ is the same, the two flows' running times are similar" (§3.1): the paper gives no number;
+#: read as IE-PFF taking at most this multiple of EDH's CPU time (it "adds no computation")
+SIMILAR_TIME = 1.25
+TIME_CAVEAT = ("CPU (process) time of this Python implementation, per run summed over the cells compared; a cell "
+               "in which either filter of a pair broke down is left out of that run's pair (a filter that raised "
+               "stopped early), so no filter's health gates the verdict; the PF's cost is dominated by per-step "
+               "overhead, not by N")
+
+
+@dataclasses.dataclass(frozen=True)
+class _TimePart:
+    """One paired per-run time ratio of a timing claim."""
+
+    name: str
+    ratio: PairedRatio
+    a: str
+    b: str
+    #: cell-run pairs left out (a filter of the pair broke down) and runs in which none was kept
+    left_out: int
+    runs_left_out: int
+    #: cell-run pairs compared in all (cells × runs)
+    pairs: int
+
+
+def _time_part(name: str, agg: dict[Key, _Aggregate], pairs: list[tuple[Key, Key]], runs: int,
+               bound: float = 1.0) -> _TimePart:
+    """Per run the CPU seconds of the first filters of ``pairs`` summed over the pairs in which both
+    stayed finite, against the second filters' (:class:`PairedRatio`, at most ``bound`` times); a
+    run in which no pair stayed finite is left out."""
+    a, b, kept = np.zeros(runs), np.zeros(runs), np.zeros(runs, dtype=int)
+    for key_a, key_b in pairs:
+        ga, gb = agg[key_a], agg[key_b]
+        finite = np.array([x is not None and y is not None for x, y in zip(ga.run_rmse, gb.run_rmse)])
+        a += np.where(finite, ga.run_seconds, 0.0)
+        b += np.where(finite, gb.run_seconds, 0.0)
+        kept += finite
+    runs_kept = kept > 0
+    return _TimePart(name, PairedRatio.of(a[runs_kept], b[runs_kept], bound), pairs[0][0][3].label,
+                     pairs[0][1][3].label, len(pairs) * runs - int(kept.sum()), int(np.sum(~runs_kept)),
+                     len(pairs) * runs)
+
+
+def _timing_record(slug: str, claim: str, setting: str, parts: list[_TimePart], runs: int) -> ClaimRecord:
+    """Held when every part's ratio is held below its bound, NOT held when one is above it; the
+    statistic is the ratio nearest to (or furthest beyond) its bound. The runs each ratio rests on
+    (those with a pair left) are in its evidence."""
+    worst = max(parts, key=lambda p: np.log(p.ratio.ratio / p.ratio.bound))
+    verdict = combine([p.ratio.verdict for p in parts])
+    to_decide = [p.ratio.runs_to_decide for p in parts if p.ratio.verdict == "undecided"]
+    left = "; ".join(f"{p.name}: {p.left_out} of {p.pairs} cell-run pairs left out where a filter broke down"
+                     + (f", leaving no pair in {p.runs_left_out} run(s)" if p.runs_left_out else "")
+                     for p in parts if p.left_out)
+    return ClaimRecord(
+        claim=claim, source=SOURCE_TIME, verdict=verdict, statistic=worst.ratio.ratio, threshold=worst.ratio.bound,
+        n=runs, evidence="; ".join(f"{p.name}: {p.ratio.evidence(p.a, p.b)}" for p in parts)
+        + (f"; {left}" if left else ""),
+        caveats=(TIME_CAVEAT,), id=f"{NAME}/{slug}", paper=PAPER, setting=setting, paper_n=PAPER_RUNS,
+        runs_to_decide=max((n for n in to_decide if n is not None), default=None) if verdict == "undecided" else None,
+        timing=True)
+
+
+def timing_claims(params: Params, agg: dict[Key, _Aggregate], runs: int) -> list[ClaimRecord]:
+    """§3.1 on Table 1's running times: the flows take more time than the PF; their time depends on
+    Δλ (a smaller Δλ, more λ-steps, more time); at the same Δλ IE-PFF's time is similar to EDH's.
+    CPU times of each run compared as paired per-run ratios over the grid's cells (main spacing)."""
+    case, spacing = params.table_model, params.main_spacing
+    cells = sorted({(q, r) for (c, q, r, _v) in agg if c == case})
+    noise = "" if params.noise_values == "variance" else ", Q and R read as standard deviations"
+    where = f"{TABLE_MODEL_NAMES[case]}, every (Q, R) of the grid"
+    out = []
+    for dlam in params.dlambda:
+        schedule = schedule_words(dlam, spacing, params.exponential_ratio, params.exponential_steps)
+        flows = {m: Variant(m, dlam, spacing) for m in (EDH, IE_PFF)}
+        parts = [_time_part(f"PF vs {m.key}", agg, [((case, q, r, Variant(PF)), (case, q, r, v)) for q, r in cells],
+                            runs) for m, v in flows.items()]
+        out.append(_timing_record(f"flows-slower-than-pf/dlambda={dlam:g}",
+                                  "PFF (EDH) and IE-PFF take more time than PF", f"{where}, {schedule}{noise}",
+                                  parts, runs))
+        part = _time_part(f"IE-PFF vs EDH (at most {SIMILAR_TIME:g} ×)", agg,
+                          [((case, q, r, flows[IE_PFF]), (case, q, r, flows[EDH])) for q, r in cells], runs,
+                          SIMILAR_TIME)
+        out.append(_timing_record(f"ie-pff-time-similar-to-edh/dlambda={dlam:g}",
+                                  f"At the same Δλ IE-PFF and PFF (EDH) take similar time: IE-PFF adds no computation "
+                                  f"(held when IE-PFF takes at most {SIMILAR_TIME:g} × EDH's time)",
+                                  f"{where}, {schedule}{noise}", [part], runs))
+    steps = sorted(params.dlambda, reverse=True)
+    if len(steps) > 1:
+        parts = [_time_part(f"{m.key}: Δλ = {big:g} vs {small:g}", agg,
+                            [((case, q, r, Variant(m, big, spacing)), (case, q, r, Variant(m, small, spacing)))
+                             for q, r in cells], runs)
+                 for m in (EDH, IE_PFF) for big, small in zip(steps, steps[1:])]
+        out.append(_timing_record("flow-time-grows-as-dlambda-shrinks",
+                                  "The flows' running time depends on Δλ: a smaller Δλ takes more time",
+                                  f"{where}, Δλ = {', '.join(f'{d:g}' for d in steps)}, {spacing} λ-steps{noise}",
+                                  parts, runs))
     return out
