@@ -35,12 +35,11 @@ RUNS_NEEDED = ("each claim's verdict as run on the first n runs (the same seeds)
                "verdict needed more runs than the last count at which it was another and at most the next; an "
                "undecided one states about how many runs would decide it, were the mean and spread seen here the "
                "true ones")
-#: folder name -> the commands that made it (run from the repository root, OUT = RUNS_DIR): each
-#: main run was first made next to its interpretations (INTERPRETED runs each, the same seed), then
-#: extended alone with ``--resume`` to RUNS runs; both counts are read from the results.
-MADE = ("gpfverify reproduce {experiment} {options}--runs INTERPRETED --seed 1 --interpretations WHICH "
-        "--out OUT/{name}, then gpfverify reproduce {experiment} {options}--runs RUNS --seed 1 --resume "
-        "--out OUT/{name}")
+#: folder name -> the command that makes it (run from the repository root, OUT = RUNS_DIR): the main
+#: run's RUNS runs and each interpretation's INTERPRETED runs (the same seed), both counts read from
+#: the results; the same bytes whether it runs at once or is interrupted and continued with --resume.
+MADE = ("gpfverify reproduce {experiment} {options}--runs RUNS --seed 1 --interpretations WHICH "
+        "--interpretation-runs INTERPRETED --out OUT/{name}")
 #: folder name -> the experiment's options besides the run counts and the seed
 OPTIONS = {"ct2d-k300-w0.0698": "--kappa 300 --omega 0.0698 ", "ct2d-k300-w0.5": "--kappa 300 --omega 0.5 ",
            "ct2d-k30-w0.0698": "--kappa 30 --omega 0.0698 ", "ct2d-k60-w0.0698": "--kappa 60 --omega 0.0698 ",
