@@ -32,11 +32,10 @@ from gpfverify.report.sections import particle_flow
 HERE = Path(__file__).resolve().parent / particle_flow.SLUG
 #: folder name -> the exact command that made it (run from the repository root, OUT = RUNS_DIR)
 COMMANDS = {
-    "pff1d": "gpfverify reproduce pff1d --runs 30 --seed 1 --resume --interpretations vdm-gaussian --out OUT/pff1d; "
-             "the interpretations measurement-linear and noise-as-std at 10 runs each with the same seed through the "
-             "Python API (gpfverify.experiments.runner.run_experiment into OUT/pff1d/interpretations/NAME; "
-             "--interpretations measurement-linear,noise-as-std --interpretation-runs 10 does the same)",
-    "bearing": "gpfverify reproduce bearing --runs 200 --seed 1 --workers 2 --interpretations all --out OUT/bearing",
+    "pff1d": "gpfverify reproduce pff1d --runs 30 --seed 1 --workers 2 --interpretations vdm-gaussian --out OUT/pff1d, "
+             "then gpfverify reproduce pff1d --runs 30 --seed 1 --workers 2 --resume --interpretations "
+             "measurement-linear,noise-as-std --interpretation-runs 10 --out OUT/pff1d",
+    "bearing": "gpfverify reproduce bearing --runs 200 --seed 1 --workers 1 --interpretations all --out OUT/bearing",
 }
 MODULES = {"pff1d": pff1d, "bearing": bearing}
 #: the interpretation that runs the Table-1 grid on the other 1-D model
