@@ -42,7 +42,7 @@ import os
 import shutil
 import stat
 import sys
-from collections.abc import Iterator
+from collections.abc import Iterable, Iterator
 from pathlib import Path, PurePosixPath
 
 from gpfverify import supervise
@@ -165,6 +165,23 @@ def check_out(out: Path) -> None:
 def _write_list(folder: Path) -> None:
     files = sorted(entry for entry, is_folder in _entries(folder) if not is_folder and entry != FILE_LIST)
     (folder / FILE_LIST).write_text("".join(f"{f}\n" for f in [FILE_LIST, *files]), encoding="utf-8")
+
+
+def record_written(folder: Path, written: Iterable[Path]) -> None:
+    """Add ``written`` (files under ``folder``) to ``folder``'s list when gpfverify wrote the folder
+    (it has a list): a routine that writes into an output folder after its command ended (results
+    recomputed from the saved runs to render a page) leaves it gpfverify's, so that a later command
+    on it (``--resume``) is not refused. A folder without a list is the user's, left as it is."""
+    path = folder / FILE_LIST
+    if not path.is_file() or path.is_symlink():
+        return
+    listed = _listed(folder)
+    added = sorted({Path(w).relative_to(folder).as_posix() for w in written} - listed)
+    if added:
+        tmp = path.with_name(f"{FILE_LIST}.tmp{os.getpid()}")
+        tmp.write_text("".join(f"{f}\n" for f in [FILE_LIST, *sorted(listed - {FILE_LIST}), *added]),
+                       encoding="utf-8")
+        os.replace(tmp, path)
 
 
 def _is_saved_run(relative: PurePosixPath) -> bool:

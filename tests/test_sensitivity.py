@@ -196,3 +196,35 @@ def test_a_reading_is_compared_only_on_the_claims_it_bears_on():
     tried = {c.id: [i.name for i in c.interpretations] for c in read_claims(merged)}
     assert tried == {"x/fig1/a": ["fig1-model", "everything"], "x/fig1/b": ["fig1-model", "everything"],
                      "x/fig2": ["fig1-model", "everything"], "x/fig10": ["everything"]}
+
+
+def test_a_folder_whose_results_were_recomputed_can_still_be_resumed(toy, tmp_path, capsys):
+    """merge_saved (a reference page's re-rendering) writes the results of readings the command was
+    not asked for into the output folder; the folder stays gpfverify's, so --resume continues it —
+    while a file the user added is still refused."""
+    from gpfverify.experiments.sensitivity import merge_saved
+    from gpfverify.outputs import FILE_LIST
+
+    import toy_experiment
+
+    out = tmp_path / "run"
+    assert cli.main(["reproduce", "toy", "--runs", "6", "--seed", "2", "--out", str(out),
+                     "--interpretations", "wide", "--interpretation-runs", "3"]) == 0
+    strict = out / "interpretations" / "wide-strict" / "results.json"
+    assert not strict.exists()
+    merge_saved(out, toy_experiment)
+    assert strict.is_file() and "interpretations/wide-strict/results.json" in (out / FILE_LIST).read_text()
+    capsys.readouterr()
+    assert cli.main(["reproduce", "toy", "--runs", "9", "--seed", "2", "--out", str(out), "--resume"]) == 0
+    assert json.loads((out / "results.json").read_text())["runs"] == 9
+    (out / "notes.txt").write_text("mine")
+    assert cli.main(["reproduce", "toy", "--runs", "12", "--seed", "2", "--out", str(out), "--resume"]) == 2
+    assert "notes.txt" in capsys.readouterr().err
+
+
+def test_recording_written_files_leaves_a_folder_without_a_list_alone(tmp_path):
+    from gpfverify.outputs import FILE_LIST, record_written
+
+    (tmp_path / "a.json").write_text("{}")
+    record_written(tmp_path, [tmp_path / "a.json"])
+    assert not (tmp_path / FILE_LIST).exists()

@@ -26,6 +26,7 @@ from gpfverify.contract.interpretations import InterpretationSpec
 from gpfverify.contract.params import Params
 from gpfverify.contract.serial import to_json
 from gpfverify.errors import InputError
+from gpfverify.outputs import record_written
 
 
 def select(module: ModuleType, wanted: str) -> tuple[InterpretationSpec, ...]:
@@ -131,6 +132,8 @@ def merge_saved(run_dir: Path, module: ModuleType) -> dict:
             tried.append((spec, rewrite_results(folder, module)))
     merged = _merged_on_equal_counts(module, Path(run_dir), main, tried)
     _atomic_write_json(Path(run_dir) / "results.json", merged)
+    record_written(Path(run_dir), [Path(run_dir) / "interpretations" / spec.name / "results.json"
+                                   for spec, _ in tried])
     return merged
 
 
