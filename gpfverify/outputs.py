@@ -163,8 +163,16 @@ def check_out(out: Path) -> None:
 
 
 def _write_list(folder: Path) -> None:
-    files = sorted(entry for entry, is_folder in _entries(folder) if not is_folder and entry != FILE_LIST)
-    (folder / FILE_LIST).write_text("".join(f"{f}\n" for f in [FILE_LIST, *files]), encoding="utf-8")
+    _save_list(folder, {entry for entry, is_folder in _entries(folder) if not is_folder})
+
+
+def _save_list(folder: Path, files: set[str]) -> None:
+    """``folder``'s list of the files gpfverify wrote: its own entry first, then ``files`` sorted
+    (written whole: a reader never sees half a list)."""
+    path = folder / FILE_LIST
+    tmp = path.with_name(f"{FILE_LIST}.tmp{os.getpid()}")
+    tmp.write_text("".join(f"{f}\n" for f in [FILE_LIST, *sorted(files - {FILE_LIST})]), encoding="utf-8")
+    os.replace(tmp, path)
 
 
 def record_written(folder: Path, written: Iterable[Path]) -> None:
@@ -176,12 +184,9 @@ def record_written(folder: Path, written: Iterable[Path]) -> None:
     if not path.is_file() or path.is_symlink():
         return
     listed = _listed(folder)
-    added = sorted({Path(w).relative_to(folder).as_posix() for w in written} - listed)
+    added = {Path(w).relative_to(folder).as_posix() for w in written} - listed
     if added:
-        tmp = path.with_name(f"{FILE_LIST}.tmp{os.getpid()}")
-        tmp.write_text("".join(f"{f}\n" for f in [FILE_LIST, *sorted(listed - {FILE_LIST}), *added]),
-                       encoding="utf-8")
-        os.replace(tmp, path)
+        _save_list(folder, listed | added)
 
 
 def _is_saved_run(relative: PurePosixPath) -> bool:
