@@ -1,13 +1,13 @@
 """gpfverify's results in a Jupyter notebook: the HTML that ``_repr_html_`` shows, made by the same
 page renderers as the reports (:mod:`gpfverify.report`), so a notebook says what the pages say.
 
-* :func:`fusion_run_html` — a :func:`~gpfverify.fusion.run_fusion` result on a
+* :func:`fusion_run_html` — a :func:`~gpfverify.model_fusion.run_fusion` result on a
   :class:`~gpfverify.models.StateSpaceModel` with CMF, DMF and the audit: the page of
   ``gpfverify check`` for that one run (verdict, sensors, gap per step against its rounding bound,
   consistency; RMSE and NEES when the truth is given). A run without them: its fused means.
-* :func:`run_audit_html` — a :class:`~gpfverify.audit.RunAudit`: the page of ``gpfverify audit
+* :func:`run_audit_html` — a :class:`~gpfverify.audit.case.RunAudit`: the page of ``gpfverify audit
   RUN --out DIR`` (steps numbered from 0).
-* :func:`case_audit_html` — a :class:`~gpfverify.audit.CaseAudit`: what ``gpfverify audit CASE.json``
+* :func:`case_audit_html` — a :class:`~gpfverify.audit.case.CaseAudit`: what ``gpfverify audit CASE.json``
   prints.
 * :func:`claims_html` — claim records: the report's claims table.
 
@@ -34,7 +34,7 @@ def _fragment(sections) -> str:
 
 
 def fusion_run_html(fused, truth=None, system: str = "run_fusion") -> str:
-    """The check page of one :func:`~gpfverify.fusion.run_fusion` result (module docstring)."""
+    """The check page of one :func:`~gpfverify.model_fusion.run_fusion` result (module docstring)."""
     from gpfverify.experiments.check import results_of_run
     from gpfverify.models.system import StateSpaceModel
 
@@ -60,7 +60,7 @@ def fusion_run_html(fused, truth=None, system: str = "run_fusion") -> str:
 def run_audit_html(run_audit) -> str:
     """The page of a run audit (module docstring)."""
     from gpfverify.report.equivalence import run_audit_sections
-    from gpfverify.runaudit import RunSummary, audits_block
+    from gpfverify.audit.run import RunSummary, audits_block
 
     block = audits_block(range(len(run_audit.steps)), list(run_audit.steps), keep=True)
     summary = RunSummary()
@@ -73,7 +73,7 @@ def run_audit_html(run_audit) -> str:
 
 def case_audit_html(audit) -> str:
     """What ``gpfverify audit CASE.json`` prints for this audit (module docstring)."""
-    from gpfverify.audit import format_audit
+    from gpfverify.audit.case import format_audit
 
     return f'<div class="gpfverify-report"><pre>{html.escape(format_audit(audit))}</pre></div>'
 

@@ -16,3 +16,10 @@ def generator(seed) -> np.random.Generator:
     if isinstance(seed, np.random.Generator):
         return seed
     return np.random.default_rng(seed)
+
+
+def child_rng(seed_seq: np.random.SeedSequence, *key: int) -> np.random.Generator:
+    """A generator for sub-stream ``key`` of a run: the same numbers however often it is asked for
+    (unlike ``SeedSequence.spawn``, which advances a counter)."""
+    return np.random.default_rng(np.random.SeedSequence(seed_seq.entropy,
+                                                        spawn_key=(*seed_seq.spawn_key, *key)))

@@ -29,7 +29,7 @@ from hypothesis.control import currently_in_test_context
 from hypothesis import strategies as st
 
 from gpfverify.angles import difference
-from gpfverify.audit import audit_case
+from gpfverify.audit.case import audit_case
 from gpfverify.fusion.case import FusionCase, LocalReport, load_case
 from gpfverify.fusion.distributed import dmf_update
 from gpfverify.fusion.exactness import equivalence_tolerance, kernel_split, whitened_innovation

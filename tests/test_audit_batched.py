@@ -1,5 +1,5 @@
-"""The block route of the run-file audit (:mod:`gpfverify.blockaudit`) against the per-step audit
-(:func:`gpfverify.audit.audit_case`, the definition): every step of a block is the per-step audit
+"""The block route of the run-file audit (:mod:`gpfverify.audit.block`) against the per-step audit
+(:func:`gpfverify.audit.case.audit_case`, the definition): every step of a block is the per-step audit
 to each field's rounding (tests/audit_routes.py) under every rank rule — steps where a sensor lost
 rank (exact anyway or not, down to rank 0, more outputs than states), steps without y, without the
 sensors' C_e, in mixed units, with angle outputs (branch offsets included) and angle state
@@ -21,13 +21,13 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from gpfverify.audit import audit_case, audit_to_dict
-from gpfverify.blockaudit import block_audits
+from gpfverify.audit.case import audit_case, audit_to_dict
+from gpfverify.audit.block import block_audits
 from gpfverify.fusion.case import CentralPrediction, FusionCase, split_circular
 from gpfverify.fusion.exactness import RankRule, rescaled_case
-from gpfverify.fusion.runfile import open_run, write_run
+from gpfverify.audit.runfile import open_run, write_run
 from gpfverify.fusion.synthetic import random_case
-from gpfverify.runaudit import stream_audit
+from gpfverify.audit.run import stream_audit
 from gpfverify.strategies.fusion import PRIORS, fusion_cases
 from gpfverify.strategies.gaussians import FULL_COLUMN_RANK_KINDS, KINDS, size_range
 

@@ -106,7 +106,7 @@ def _toy_section(title: str):
 def report(monkeypatch, tmp_path):
     """The fixture folder rendered by the real build_report with two toy sections and the real
     proofs page; returns (folder, parsed HTML page, every claim record of the fixture)."""
-    import gpfverify.report as report
+    import gpfverify.full_report as report
 
     shutil.copytree(FIXTURE, tmp_path / "r")
     out = tmp_path / "r"
@@ -116,7 +116,7 @@ def report(monkeypatch, tmp_path):
         module.render_section = _toy_section(title)  # type: ignore[attr-defined]
         monkeypatch.setitem(sys.modules, module.__name__, module)
         sections[slug] = module.__name__
-    sections["proofs"] = "gpfverify.report.sections.proofs"
+    sections["proofs"] = "gpfverify.report.proofs"
     monkeypatch.setattr(report, "SECTIONS", sections)
     lines: list[str] = []
     html_path = report.build_report(out, progress=lines.append)
@@ -316,7 +316,7 @@ def test_markdown_pages_and_index(report):
 
 
 def test_only_keeps_the_summary_of_sections_not_rebuilt(report, monkeypatch):
-    import gpfverify.report as report_package
+    import gpfverify.full_report as report_package
 
     out, page, records = report
     html_path = report_package.build_report(out, only=["beta"], progress=lambda _: None)
@@ -379,8 +379,8 @@ def test_report_command_runs_a_toy_section_with_progress(monkeypatch, tmp_path, 
     """The command runs a (typed) toy experiment at its quick profile into the section folder,
     prints one line per event, renders the page and ends with where it is and the counts."""
     import gpfverify.commands.report as command
-    import gpfverify.report as report
-    from gpfverify.experiments import EXPERIMENTS
+    import gpfverify.full_report as report
+    from gpfverify.papers import EXPERIMENTS
 
     monkeypatch.syspath_prepend(str(FIXTURE))
     import toy_typed_experiment as toy
@@ -466,7 +466,8 @@ def test_a_one_experiment_section_without_its_run_says_so(tmp_path):
     from gpfverify.contract import SectionRuns
     from gpfverify.report.document import Paragraph
     from gpfverify.report.inputs import SectionInput
-    from gpfverify.report.sections import gpadf_scalar, tbd
+    from gpfverify.papers.gpadf_scalar import section as gpadf_scalar
+    from gpfverify.papers.tbd import section as tbd
 
     empty = SectionInput("tbd", tmp_path, SectionRuns("tbd", "quick", 1, ()), ())
     for module, name in ((tbd, "tbd"), (gpadf_scalar, "gpadf-scalar")):

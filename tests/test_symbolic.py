@@ -179,7 +179,7 @@ def test_prove_command_rejects_a_file_as_output_folder(tmp_path, capsys):
 
 def test_proofs_page_lists_every_certificate_with_its_status():
     from gpfverify.report.document import Table
-    from gpfverify.report.sections.proofs import render
+    from gpfverify.report.proofs import render
 
     records = [{"claim": "a", "statement": "s", "method": "m", "status": "proved", "detail": "d"},
                {"claim": "b", "statement": "s", "method": "m", "status": "refuted", "detail": "d"}]

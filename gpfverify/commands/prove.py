@@ -26,7 +26,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from gpfverify.report.render import to_markdown
-    from gpfverify.report.sections.proofs import render
+    from gpfverify.report.proofs import render
     from gpfverify.symbolic.claims import run_claims
     from gpfverify.symbolic.crosscheck import run_crosschecks
 

@@ -1,6 +1,6 @@
 """What an experiment declares, and how a report finds the results it renders.
 
-An experiment module (listed in :data:`gpfverify.experiments.EXPERIMENTS`) defines
+An experiment module (listed in :data:`gpfverify.papers.EXPERIMENTS`) defines
 
 * ``NAME`` (as on the command line), ``PAPER`` (a key of :data:`~gpfverify.contract.papers.PAPERS`)
   and ``DEFAULT_RUNS`` (the paper's run count);
