@@ -50,6 +50,7 @@ from gpfverify.models.learned import GPModel
 from gpfverify.models.system import StateSpaceModel, require_model
 from gpfverify.validate import as_matrix, as_vector
 from gpfverify.runtime import one_blas_thread
+from gpfverify.views import HtmlView
 
 if TYPE_CHECKING:
     from gpfverify.audit.case import CaseAudit, RunAudit
@@ -170,7 +171,7 @@ class FusionStep:
 
 
 @dataclass(frozen=True)
-class FusionRun:
+class FusionRun(HtmlView):
     """A fusion run: the ``family``, the ``methods`` run and one :class:`FusionStep` per measurement;
     ``model`` and ``ys`` what it ran on, ``ci_criterion`` CI's weight criterion. In a notebook it
     shows as ``gpfverify check``'s page (:func:`gpfverify.notebook.fusion_run_html`)."""
@@ -181,11 +182,6 @@ class FusionRun:
     model: object = field(default=None, repr=False, compare=False)
     ys: np.ndarray | None = field(default=None, repr=False, compare=False)
     ci_criterion: str = "trace"
-
-    def _repr_html_(self) -> str:
-        from gpfverify.notebook import fusion_run_html
-
-        return fusion_run_html(self)
 
     def means(self, method: str) -> np.ndarray:
         """Fused means of ``method`` at every step, (T, D)."""

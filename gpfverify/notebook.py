@@ -12,19 +12,23 @@ page renderers as the reports (:mod:`gpfverify.report`), so a notebook says what
 * :func:`claims_html` — claim records: the report's claims table.
 
 Figures are drawn with matplotlib (Agg) into a temporary folder and embedded in the HTML.
-Progress bars (:func:`progress_shown`: the runs of
-:func:`~gpfverify.experiments.runner.run_experiment`, the blocks of
-:func:`~gpfverify.commands.audit.audit_run_file`) are drawn on a terminal and in a notebook, where
-rich shows them as a live output (with ``ipywidgets`` installed: ``pip install 'gpfverify[notebook]'``).
+The records do not import this module: it registers each function above for its record type in
+:mod:`gpfverify.views`, the registry their ``_repr_html_`` asks, so the display sits on top of the
+objects it shows (docs/architecture.md). Progress bars, on a terminal and in a notebook:
+:func:`gpfverify.runtime.progress_shown`.
 """
 
 from __future__ import annotations
 
 import html
-import sys
 import tempfile
 from collections.abc import Iterable
 from pathlib import Path
+
+from gpfverify import views
+from gpfverify.audit.case import CaseAudit, RunAudit
+from gpfverify.contract.claims import ClaimRecord
+from gpfverify.model_fusion import FusionRun
 
 
 def _fragment(sections) -> str:
@@ -86,14 +90,7 @@ def claims_html(records: Iterable) -> str:
     return _fragment([Section("claims", "Claims").add(*claim_tables(list(records), "Claims"))])
 
 
-def progress_shown(stream=None) -> bool:
-    """Whether a progress bar is drawn: on a terminal, and in a Jupyter notebook (rich draws it as a
-    live output cell there). Off a terminal elsewhere (a log file, CI) it is not."""
-    stream = sys.stderr if stream is None else stream
-    if stream.isatty():
-        return True
-    if "ipykernel" not in sys.modules:  # no kernel loaded: not a notebook, and no import of rich needed
-        return False
-    from rich.console import Console
-
-    return Console().is_jupyter
+views.register(FusionRun, fusion_run_html)
+views.register(RunAudit, run_audit_html)
+views.register(CaseAudit, case_audit_html)
+views.register(ClaimRecord, lambda record: claims_html([record]))

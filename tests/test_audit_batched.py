@@ -160,7 +160,7 @@ def test_outputs_of_very_different_scales_are_audited_as_per_step(tmp_path):
     C_y's equilibrated Cholesky factor, as accurate as the per-step route's Cholesky solve (an LU
     solve of C_y itself left a gap gain of 2.5e-12 on a sensor that lost rank, 1e5 times the
     per-step route's and beyond its bound: "not exact" where the per-step route says exact)."""
-    from gpfverify.fusion.case import load_case
+    from gpfverify.fusion.caseblock import load_case
 
     case = load_case(Path(__file__).parent / "fixtures" / "cases" / "badly_scaled_outputs.json")
     variances = np.diag(case.central.C_y)

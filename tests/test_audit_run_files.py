@@ -23,7 +23,8 @@ from gpfverify.cli import main
 from gpfverify.commands.audit import audit_run_file
 from gpfverify.model_fusion import run_fusion
 from gpfverify.errors import CaseFileError
-from gpfverify.fusion.case import case_from_dict, case_to_dict
+from gpfverify.fusion.case import case_to_dict
+from gpfverify.fusion.caseblock import case_from_dict
 from gpfverify.audit.runfile import CASE_SCHEMA, RUN_LINE_SCHEMA, load_run, write_run
 from gpfverify.fusion.synthetic import random_case
 from gpfverify.scenarios.three_sensor import three_sensor_model

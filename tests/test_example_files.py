@@ -8,7 +8,7 @@ import numpy as np
 
 from gpfverify.audit.case import audit_case
 from gpfverify.experiments import check
-from gpfverify.fusion.case import load_case
+from gpfverify.fusion.caseblock import load_case
 from gpfverify.fusion.centralized import cmf_update
 from gpfverify.audit.runfile import load_run
 from gpfverify.tolerances import algebra_rtol

@@ -21,7 +21,8 @@ from gpfverify.audit.case import audit_case, audit_to_dict
 from gpfverify.cli import main
 from gpfverify.errors import CaseFileError, InputError
 from gpfverify.filters.records import Gaussian
-from gpfverify.fusion.case import FusionCase, case_from_dict, case_to_dict, load_case
+from gpfverify.fusion.case import FusionCase, case_to_dict
+from gpfverify.fusion.caseblock import case_from_dict, load_case
 from gpfverify.fusion.centralized import cmf_update
 from gpfverify.fusion.distributed import dmf_update
 from gpfverify.fusion.exactness import branch_offsets, equivalence_tolerance

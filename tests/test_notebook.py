@@ -22,7 +22,7 @@ import pytest
 from gpfverify.audit.case import audit_to_dict
 from gpfverify.model_fusion import run_fusion
 from gpfverify.audit.runfile import write_run
-from gpfverify.notebook import progress_shown
+from gpfverify.runtime import progress_shown
 
 sys.path.insert(0, str(Path(__file__).parent))  # the suite imports in importlib mode: the helper beside it
 from audit_routes import assert_same_audit  # noqa: E402

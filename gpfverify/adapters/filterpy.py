@@ -243,7 +243,7 @@ def write_run_file(path, centre, sensors: Sequence, *, model: StateSpaceModel | 
     after every update, or a mapping with the keys x_prior, P_prior, x, P, S, K, y, z. ``model``
     (e.g. :attr:`LocalFilters.model`) gives the angle outputs and state components; ``ks`` the
     step indices. Every case is checked by the case reader before the file is written (atomically)."""
-    from gpfverify.fusion.case import case_from_dict
+    from gpfverify.fusion.caseblock import case_from_dict
     from gpfverify.audit.runfile import write_run
 
     central = _steps(centre, "the centre's log")

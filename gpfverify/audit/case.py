@@ -56,7 +56,8 @@ import numpy as np
 
 from gpfverify.angles import difference
 from gpfverify.errors import NumericalError
-from gpfverify.fusion.case import FusionCase, case_from_records
+from gpfverify.fusion.case import FusionCase
+from gpfverify.fusion.caseblock import case_from_records
 from gpfverify.fusion.centralized import cmf_update
 from gpfverify.fusion.distributed import DMFResult, dmf_update, fused_mean
 from gpfverify.fusion.exactness import (COVARIANCE_CENTRAL, COVARIANCE_LOCAL, DEFAULT_RANK_RULE,  # noqa: F401
@@ -68,6 +69,7 @@ from gpfverify.fusion.exactness import (COVARIANCE_CENTRAL, COVARIANCE_LOCAL, DE
 from gpfverify.linalg import correlation_condition
 from gpfverify.runtime import one_blas_thread
 from gpfverify.tolerances import algebra_rtol
+from gpfverify.views import HtmlView
 
 if TYPE_CHECKING:  # casadi is imported only when sensitivities are asked for
     from gpfverify.symbolic.sensitivity import SensorSensitivity
@@ -117,11 +119,12 @@ class SensorAudit:
 
 
 @dataclass(frozen=True)
-class CaseAudit:
+class CaseAudit(HtmlView):
     """Audit of one fusion case: ``rank_rule`` the :class:`RankRule` that decided,
     ``condition_holds`` (Proposition 1: every C_xy^m full column rank), ``exact`` (the
     necessary-and-sufficient condition for every sensor); the y-dependent fields are None
-    without y."""
+    without y. In a notebook it shows as the text ``gpfverify audit CASE.json`` prints
+    (:func:`gpfverify.notebook.case_audit_html`)."""
 
     sensors: tuple[SensorAudit, ...]
     rank_rule: RankRule
@@ -138,11 +141,6 @@ class CaseAudit:
     unit_free_dmf_mean: np.ndarray | None = None
     unit_dependence: float | None = None
 
-    def _repr_html_(self) -> str:
-        """In a notebook: the text ``gpfverify audit CASE.json`` prints (:func:`format_audit`)."""
-        from gpfverify.notebook import case_audit_html
-
-        return case_audit_html(self)
 
     @property
     def reproduced(self) -> bool | None:
@@ -413,17 +411,13 @@ def format_audit(audit: CaseAudit) -> str:
 
 
 @dataclass(frozen=True)
-class RunAudit:
+class RunAudit(HtmlView):
     """Audit of every step (T) and sensor (N) of a run: per-step :class:`CaseAudit` plus arrays
     rank, full_column_rank, exact, condition_number, repair_dim (T, N) and gap_norm,
-    predicted_gap_norm (T,) (NaN where a step has no y)."""
+    predicted_gap_norm (T,) (NaN where a step has no y). In a notebook it shows as the page of
+    ``gpfverify audit RUN --out DIR`` (:func:`gpfverify.notebook.run_audit_html`)."""
 
     steps: tuple[CaseAudit, ...]
-
-    def _repr_html_(self) -> str:
-        from gpfverify.notebook import run_audit_html
-
-        return run_audit_html(self)
 
     def _per_sensor(self, attr: str, dtype=float) -> np.ndarray:
         return np.array([[getattr(s, attr) for s in step.sensors] for step in self.steps], dtype=dtype)

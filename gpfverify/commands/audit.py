@@ -16,7 +16,7 @@ from gpfverify.audit.case import (RANK_RULE_DEFAULT, RunAudit, audit_case, audit
 from gpfverify.cli import RANK_RULE_HELP, positive_int, rank_rule_text
 from gpfverify.errors import InputError
 from gpfverify.audit.runfile import run_format
-from gpfverify.notebook import progress_shown
+from gpfverify.runtime import progress_shown
 from gpfverify.outputs import add_wait_argument, final_path, out_path, output_folder
 from gpfverify.report.document import integer_ranges
 from gpfverify.audit.run import copy_out, spool, stream_audit, table_header, table_row
@@ -214,7 +214,7 @@ def run(args: argparse.Namespace) -> int:
     if run_format(args.case) == "json":  # one case: output as it always was
         if args.out is not None:
             raise InputError("--out writes the report of a run file (.jsonl or .npz); a single case has none")
-        from gpfverify.fusion.case import load_case
+        from gpfverify.fusion.caseblock import load_case
 
         audit = _audit(load_case(args.case), args.rank_tol, _resolve_rank_rule(args.rank_rule),
                        args.sensitivity)

@@ -32,7 +32,8 @@ from gpfverify.errors import CaseFileError, InputError
 from gpfverify.filters.families import GP_FAMILIES
 from gpfverify.filters.records import Gaussian
 from gpfverify.audit.case import rank_rule_to_dict
-from gpfverify.fusion.case import case_from_dict, case_to_dict
+from gpfverify.fusion.case import case_to_dict
+from gpfverify.fusion.caseblock import case_from_dict
 from gpfverify.fusion.exactness import gap_size, parse_rank_rule
 from gpfverify.model_fusion import run_fusion
 from gpfverify.audit.runfile import write_run

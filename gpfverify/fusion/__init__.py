@@ -11,8 +11,8 @@ importing the package stays cheap; RCC-CI itself is :func:`gpfverify.fusion.rcc_
 import warnings
 from importlib import import_module
 
-from gpfverify.fusion.case import (CentralPrediction, FusionCase, LocalReport, case_from_dict,
-                                   case_from_records, case_to_dict, load_case)
+from gpfverify.fusion.case import CentralPrediction, FusionCase, LocalReport, case_to_dict
+from gpfverify.fusion.caseblock import case_from_dict, case_from_records, load_case
 from gpfverify.fusion.centralized import cmf_update, fusion_gain
 from gpfverify.fusion.convex import convex_combination
 from gpfverify.fusion.distributed import DMFResult, dmf_update
