@@ -8,8 +8,7 @@ command (stated on the page). The main ``results.json`` and that of every interp
 the verdicts under each interpretation merged into the main claims (as ``--interpretations``
 does; the birth readings' runs read with every detection definition too), and the page goes to
 ``reports/reference/tbd/`` with its figures, the merged results and the manifest to
-``.../tbd/run/``; it states the runs the birth readings rest on and how to continue them. (``make_single.py
-tbd`` would recompute the main results only and drop the interpretations.)
+``.../tbd/run/``; it states the runs the birth readings rest on and how to continue them.
 """
 
 from __future__ import annotations
