@@ -29,7 +29,7 @@ BROWSERS = ("chromium", "chromium-browser", "google-chrome", "google-chrome-stab
 
 
 def report_page(folder: Path) -> Path:
-    """``gpfverify report``'s page, rendered by :func:`gpfverify.report.build_report` from the
+    """``gpfverify report``'s page, rendered by :func:`gpfverify.full_report.build_report` from the
     stored results of every section and the stored proof certificates."""
     from gpfverify.contract.experiment import RunEntry, SectionRuns
     from gpfverify.full_report import build_report

@@ -17,8 +17,9 @@ An experiment module (listed in :data:`gpfverify.papers.EXPERIMENTS`) defines
 * optionally ``TIMING_KEYS`` — names of measured-time fields that :data:`TIMING_KEY` does not match.
 
 The contract types of an experiment (``Params``, ``RunRecord``, ``PROFILES``, summary records)
-live in ``gpfverify/contract/<name>.py`` so that the report reads results back through the same
-types without importing the code that computes them.
+live in its paper's contract module (``gpfverify/papers/<paper>/contract.py``, or
+``<experiment>_contract.py`` in a paper with several experiments) so that the report section reads
+results back through the same types without importing the code that computes them.
 """
 
 from __future__ import annotations
