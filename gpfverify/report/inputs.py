@@ -133,7 +133,9 @@ class Control:
 
 @dataclass(frozen=True)
 class CertificateInfo:
-    """A proof certificate (``certificates.json``, CONTRACT.md) as the page shows it."""
+    """A certificate (``certificates.json``, CONTRACT.md) as the page shows it: every word here was
+    derived by the kernel from the record's formal content (:mod:`gpfverify.kernel.verdict`), except
+    the title, which is shown apart from the statement."""
 
     claim: str
     statement: str
@@ -143,12 +145,13 @@ class CertificateInfo:
     seconds: float = 0.0
     scope: str = ""
     negative_controls: tuple[Control, ...] = ()
-    #: facts the argument uses without proving them
-    stated_facts: tuple[str, ...] = ()
+    title: str = ""
+    #: a numerical check that failed (False), or None for a kernel record
+    holds: bool | None = None
 
     @classmethod
     def of(cls, record: dict) -> CertificateInfo:
-        """From one record of ``certificates.json`` (unknown fields such as ``provenance`` are
+        """From one record of ``certificates.json`` (fields such as ``formal`` or ``provenance`` are
         not shown)."""
         try:
             controls = tuple(Control(str(c["mutant"]), bool(c["rejected"]),
@@ -156,8 +159,8 @@ class CertificateInfo:
                              for c in record.get("negative_controls", ()))
             return cls(str(record["claim"]), str(record.get("statement", "")), str(record.get("method", "")),
                        str(record["status"]), str(record.get("detail", "")), float(record.get("seconds", 0.0)),
-                       str(record.get("scope", "")), controls,
-                       tuple(str(f) for f in record.get("stated_facts", ())))
+                       str(record.get("scope", "")), controls, str(record.get("title", "")),
+                       None if record.get("holds") is None else bool(record["holds"]))
         except (KeyError, TypeError, ValueError) as exc:
             raise InputError(f"malformed certificate {str(record)[:80]!r}: {exc}") from None
 
