@@ -22,7 +22,6 @@ from typing import Any
 
 import sympy as sp
 
-from gpfverify.kernel.instances import Instance, refutes
 from gpfverify.kernel.rules import Checker
 from gpfverify.kernel.terms import frozen, read_statement
 from gpfverify.symbolic.certificate import Certificate, Control, ListedCheck, Part
@@ -32,7 +31,7 @@ from gpfverify.symbolic.fusion_forms import (SensorSymbols, cmf_term, dmf_term, 
 from gpfverify.symbolic.polynomial import (Fraction as PolyFraction, factored_pinv, full_column_rank_pinv,
                                            generic_matrix, lift, penrose_residuals, polynomial_ring)
 from gpfverify.symbolic.search import Template, prove_equation
-from gpfverify.symbolic.witness import Builder
+from gpfverify.symbolic.witness import Builder, refuting
 
 SENSOR = "sensor"
 MUTANTS = ("A⁺ replaced by Aᵀ in eq. 35", "sign of G_m(μ_y,loc^m − S_mᵀμ_y) flipped",
@@ -134,17 +133,6 @@ def instance(seed: int, full_rank: bool = True, kernel_inclusion: bool = False, 
     else:
         b.draw("G", n, sum(parts))
     return b.json()
-
-
-def refuting(statement: dict, make, tries: int = 20) -> dict:
-    """The first of make(seed), seed = 0, 1, …, that the kernel finds refutes ``statement`` (random
-    small integers can make a generic difference vanish by chance)."""
-    st = read_statement(frozen(statement))
-    for seed in range(tries):
-        candidate = make(seed)
-        if not refutes(st, Instance(st, frozen(candidate))):
-            return candidate
-    return candidate
 
 
 def _controls(mutants, instance_for) -> list[Control]:
@@ -437,13 +425,18 @@ def _per_sensor_check(size: str) -> ListedCheck:
                        ("det(C_y^m) ≠ 0", "det(C_xy^mᵀC_xy^m) ≠ 0"), holds)
 
 
+def _families(families) -> tuple[tuple, tuple]:
+    """The listed sizes of rank-r families C_xy^m = BFᵀ, and the domain of their identities."""
+    return (tuple(f"(D, l_m, r) = ({d}, {l}, {r})" for d, l, r in families),
+            ("det(C_y^m) ≠ 0", "det(FᵀF) ≠ 0", "det(BᵀB) ≠ 0"))
+
+
 def _gap_check(size: str) -> ListedCheck:
     holds = all((dmf_term(s) - cmf_term(s) - predicted_gap_term(s)).is_zero()
                 for s in (build_sensor(d, l, r) for d, l, r in RANK_DEFICIENT[size]))
     return ListedCheck("DMF_m − CMF_m − G_m C_y^m (P_m − I)(C_y^m)⁻¹(y^m − μ_y^m) is the zero rational function, "
                        "C_xy^m = BFᵀ of rank r with (C_xy^m)⁺ = F(FᵀF)⁻¹(BᵀB)⁻¹Bᵀ",
-                       tuple(f"(D, l_m, r) = ({d}, {l}, {r})" for d, l, r in RANK_DEFICIENT[size]),
-                       ("det(C_y^m) ≠ 0", "det(FᵀF) ≠ 0", "det(BᵀB) ≠ 0"), holds)
+                       *_families(RANK_DEFICIENT[size]), holds)
 
 
 def _kernel_check(size: str) -> ListedCheck:
@@ -453,8 +446,7 @@ def _kernel_check(size: str) -> ListedCheck:
         holds &= kernel_condition(s).is_zero() and (dmf_term(s) - cmf_term(s)).is_zero()
     return ListedCheck("with G_m = W C_xy^m (C_y^m)⁻¹ (W generic, the general solution of G_m C_y^m (I − P_m) = 0), "
                        "G_m C_y^m (I − P_m) and DMF_m − CMF_m are zero rational functions",
-                       tuple(f"(D, l_m, r) = ({d}, {l}, {r})" for d, l, r in KERNEL_FAMILIES[size]),
-                       ("det(C_y^m) ≠ 0", "det(FᵀF) ≠ 0", "det(BᵀB) ≠ 0"), holds)
+                       *_families(KERNEL_FAMILIES[size]), holds)
 
 
 def _gram_check(size: str) -> ListedCheck:

@@ -71,17 +71,10 @@ def term_of_mono(ctx, mono, c, names: dict, shape):
     (powers, exp), binders, word = mono
     if binders:
         raise KernelError("term_of_mono: a monomial with its own sums")
-    factors = [] if c == 1 else [coefficient_term(ctx, c)]
-    for atom, e in powers:
-        base = _scalar_atom(ctx, atom, names)
-        factors.append(base if e == 1 else ("^", base, _exponent(ctx, e)))
-    if exp is not None:
-        factors.append(("exp", term_of(ctx, NF.thaw(exp), names)))
-    if word or shape is None and not factors:
-        factors.append(term_of(ctx, word, names, shape) if shape is not None else ("num", 1))
-    elif shape is not None:
-        factors.append(("I", _size(shape[0], names)))
-    return factors[0] if len(factors) == 1 else ("*", *factors)
+    factors = _scalar_factors(ctx, powers, exp, c, names)
+    if shape is not None:
+        factors.append(term_of(ctx, word, names, shape))
+    return _product(factors)
 
 
 def _scalar_atom(ctx, atom, names):
@@ -229,12 +222,21 @@ def _rewrite(checker, local, c, inner, names, over, templates, cache):
 
 
 def _scalars_term(ctx, powers, exp, c, names):
+    return _product(_scalar_factors(ctx, powers, exp, c, names))
+
+
+def _scalar_factors(ctx, powers, exp, c, names) -> list:
+    """c · Π atom^e · exp(·) as a list of factors (empty for the number 1)."""
     factors = [] if c == 1 else [coefficient_term(ctx, c)]
     for atom, e in powers:
         base = _scalar_atom(ctx, atom, names)
         factors.append(base if e == 1 else ("^", base, _exponent(ctx, e)))
     if exp is not None:
         factors.append(("exp", term_of(ctx, NF.thaw(exp), names)))
+    return factors
+
+
+def _product(factors: list):
     return ("*", *factors) if len(factors) > 1 else factors[0] if factors else ("num", 1)
 
 
@@ -244,16 +246,10 @@ def _exponent(ctx, e):
 
 def _entry(ctx, over, powers, exp, c, prefix, spec, suffix, names) -> dict:
     """The entry c·(scalar atoms)·prefix·g·suffix, summed over ``over``."""
-    factors = [] if c == 1 else [coefficient_term(ctx, c)]
-    for atom, e in powers:
-        base = _scalar_atom(ctx, atom, names)
-        factors.append(base if e == 1 else ("^", base, _exponent(ctx, e)))
-    if exp is not None:
-        factors.append(("exp", term_of(ctx, NF.thaw(exp), names)))
+    factors = _scalar_factors(ctx, powers, exp, c, names)
     if prefix:
         factors.append(term_of(ctx, prefix, names))
-    entry = {"over": over, "left": ("*", *factors) if len(factors) > 1 else factors[0] if factors else ("num", 1),
-             "gen": spec}
+    entry = {"over": over, "left": _product(factors), "gen": spec}
     if suffix:
         entry["right"] = term_of(ctx, suffix, names)
     return entry

@@ -12,7 +12,8 @@ from fractions import Fraction
 import numpy as np
 import sympy as sp
 
-from gpfverify.kernel.terms import show_number
+from gpfverify.kernel.instances import Instance, refutes
+from gpfverify.kernel.terms import frozen, read_statement, show_number
 
 ENTRY = 3
 
@@ -73,3 +74,14 @@ class Builder:
         return {"sizes": self.sizes, "indexed_sizes": self.indexed,
                 "params": {k: show_number(Fraction(v)) for k, v in self.params.items()},
                 "free_indices": self.free, "values": {k: matrix(v) for k, v in self.values.items()}}
+
+
+def refuting(statement: dict, make, seeds=range(20)) -> dict:
+    """The first of make(seed) that the kernel finds refutes ``statement`` (random small integers
+    can make a generic difference vanish by chance), else the last one tried."""
+    st = read_statement(frozen(statement))
+    for seed in seeds:
+        candidate = make(seed)
+        if not refutes(st, Instance(st, frozen(candidate))):
+            return candidate
+    return candidate
