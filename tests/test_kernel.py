@@ -262,3 +262,13 @@ def test_a_family_statement_over_no_members_is_not_read_as_one_over_all():
     witness = instance({"n": 1, "N": 1}, {"C": [matrix([[1]])], "X": matrix([[0]])})
     assert outcome(statement, proof, witness) == "proved"  # C_mᵀ = C_m for every member: used inside Σ_m
     assert not is_refuted(statement, witness)
+
+
+def test_the_report_shows_a_record_the_kernel_rejects_as_checked(records):
+    from gpfverify.report.inputs import CertificateInfo
+
+    assert CertificateInfo.of(records["prop1-full-column-rank"]).status == "proved"
+    shown = CertificateInfo.of(_edit(records["prop1-full-column-rank"], EDITS["a step removed"][1]))
+    assert shown.status == "checked" and shown.detail.startswith("REJECTED by the kernel")
+    by_hand = {"claim": "x", "statement": "A⁺A = I", "status": "proved", "detail": ""}
+    assert CertificateInfo.of(by_hand).status == "checked"

@@ -20,6 +20,7 @@ import pytest
 from gpfverify.contract import PAPERS, read_claims
 from gpfverify.report.document import Section, claim_records_table, unicode_math
 from gpfverify.report.inputs import SectionInput, load_section
+from gpfverify.symbolic.claims import run_claim
 
 HERE = Path(__file__).parent
 FIXTURE = HERE / "fixtures" / "report"
@@ -289,12 +290,13 @@ def test_proof_certificates_are_a_table(report):
     assert [th.text for th in table.find_all("th")] == ["claim", "status", "title", "statement", "scope", "method",
                                                         "negative controls", "seconds"]
     rows = {tr.attrs["id"]: [td.text for td in tr.find_all("td")] for tr in table.find_all("tbody")[0].find_all("tr")}
-    proved = rows["cert-ukf-equals-kf-linear"]
-    assert proved[:4] == ["ukf-equals-kf-linear", "proved", "UKF = KF on linear models",
-                          "the UKF equals the KF on linear models"]
-    assert proved[4] == "any dimension" and proved[5] == "kernel-checked certificate"
-    assert proved[6].startswith("all 2 refused and refuted: ȳ = Hμ (offset b dropped)")
-    assert rows["cert-dmf-exact-without-condition"][4] == "not stated"
+    proved = rows["cert-full-rank-needs-l-le-D"]
+    title = unicode_math(run_claim("full-rank-needs-l-le-D", "small").title)
+    assert proved[:3] == ["full-rank-needs-l-le-D", "proved", title]
+    assert proved[3].startswith("l ≤ D (for all sizes D, l ≥ 0) — assuming: A has full column rank")
+    assert proved[4] == "any dimension" and proved[5].startswith("kernel-checked certificate")
+    assert proved[6].startswith("all 3 refused and refuted: l_m + 1 ≤ D")
+    assert rows["cert-dmf-exact-without-condition"][4].startswith("counterexample at D = 2")
     assert rows["cert-dmf-exact-without-condition"][6] == "none"
     status = table.find_all("tr", id="cert-dmf-exact-without-condition")[0].find_all("td")[1]
     assert "v-refuted" in status.classes

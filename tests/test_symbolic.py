@@ -142,13 +142,14 @@ def test_prove_command_rejects_a_file_as_output_folder_and_a_missing_out(tmp_pat
     assert main(["prove", "--size", "small"]) == 2
 
 
-def test_proofs_page_lists_every_certificate_with_its_status():
+def test_proofs_page_shows_each_status_the_kernel_confirms():
     from gpfverify.report.document import Table
     from gpfverify.report.sections.proofs import render
 
-    records = [{"claim": "a", "statement": "s", "method": "m", "status": "proved", "detail": "d"},
-               {"claim": "b", "statement": "s", "method": "m", "status": "refuted", "detail": "d"}]
+    records = [run_claim(name, "small").to_json() for name in ("full-rank-needs-l-le-D", "dmf-exact-without-condition")]
+    records.append({"claim": "by-hand", "statement": "s", "method": "m", "status": "proved", "detail": "d"})
     section = render(records)
     table = next(b for b in section.blocks if isinstance(b, Table))
-    assert [row[:2] for row in table.rows] == [["a", "proved"], ["b", "refuted"]]
-    assert "1 proved, 1 refuted, 0 checked" in section.blocks[0].text
+    assert [row[:2] for row in table.rows] == [["full-rank-needs-l-le-D", "proved"],
+                                               ["dmf-exact-without-condition", "refuted"], ["by-hand", "checked"]]
+    assert "1 proved, 1 refuted, 1 checked" in section.blocks[0].text

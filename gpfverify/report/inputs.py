@@ -152,15 +152,21 @@ class CertificateInfo:
     @classmethod
     def of(cls, record: dict) -> CertificateInfo:
         """From one record of ``certificates.json`` (fields such as ``formal`` or ``provenance`` are
-        not shown)."""
+        not shown), re-checked by the kernel: a record the kernel does not confirm is shown as
+        "checked", its detail starting with what the kernel found."""
+        from gpfverify.kernel.verdict import check_record
+
         try:
             controls = tuple(Control(str(c["mutant"]), bool(c["rejected"]),
                                      None if c.get("false_on_instance") is None else bool(c["false_on_instance"]))
                              for c in record.get("negative_controls", ()))
+            status, detail = str(record["status"]), str(record.get("detail", ""))
+            problems = check_record(record)
+            if problems:
+                status, detail = "checked", "REJECTED by the kernel: " + "; ".join(problems) + ". " + detail
             return cls(str(record["claim"]), str(record.get("statement", "")), str(record.get("method", "")),
-                       str(record["status"]), str(record.get("detail", "")), float(record.get("seconds", 0.0)),
-                       str(record.get("scope", "")), controls, str(record.get("title", "")),
-                       None if record.get("holds") is None else bool(record["holds"]))
+                       status, detail, float(record.get("seconds", 0.0)), str(record.get("scope", "")), controls,
+                       str(record.get("title", "")), None if record.get("holds") is None else bool(record["holds"]))
         except (KeyError, TypeError, ValueError) as exc:
             raise InputError(f"malformed certificate {str(record)[:80]!r}: {exc}") from None
 
