@@ -272,3 +272,13 @@ def test_the_report_shows_a_record_the_kernel_rejects_as_checked(records):
     assert shown.status == "checked" and shown.detail.startswith("REJECTED by the kernel")
     by_hand = {"claim": "x", "statement": "A⁺A = I", "status": "proved", "detail": ""}
     assert CertificateInfo.of(by_hand).status == "checked"
+
+
+def test_hostile_sizes_and_powers_are_refused_not_computed():
+    ctx, st = _context(A=("n", "n"))
+    big = ("^", ("+", ("tr", ("var", "A")), ("num", 1)), "1000000")
+    with pytest.raises(KernelError, match="not expanded"):
+        ctx.nf(big, ctx.scope())
+    with pytest.raises(KernelError, match="0..64"):
+        Instance(st, frozen({"sizes": {"n": 10**6, "l": 1, "N": 0}, "indexed_sizes": {"k": []},
+                             "values": {"A": []}}))

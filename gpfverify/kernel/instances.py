@@ -24,6 +24,10 @@ import sympy as sp
 from gpfverify.kernel.terms import HEAD, Size, Statement, fail, number, parse_size
 
 
+#: an instance is evaluated exactly: its sizes stay small (a witness needs no large ones)
+MAX_SIZE = 64
+
+
 class Undefined(Exception):
     """A term outside its domain at this instance (a singular inverse, a division by zero)."""
 
@@ -51,14 +55,15 @@ class Instance:
             fail("an instance is {'sizes', 'indexed_sizes', 'params', 'free_indices', 'values'}")
         self.st = st
         self.sizes = {k: v for k, v in data.get("sizes", {}).items()}
-        if set(self.sizes) != set(st.sizes) or not all(isinstance(v, int) and v >= 0 for v in self.sizes.values()):
-            fail("instance: every size symbol needs a value ≥ 0 (and nothing else)")
+        if set(self.sizes) != set(st.sizes) or not all(isinstance(v, int) and 0 <= v <= MAX_SIZE
+                                                       for v in self.sizes.values()):
+            fail(f"instance: every size symbol needs a value in 0..{MAX_SIZE} (and nothing else)")
         self.counts = {k: self.size(v, {}) for k, v in st.index_sets.items()}
         self.indexed = {k: list(v) for k, v in data.get("indexed_sizes", {}).items()}
         for name, index_set in st.indexed_sizes.items():
             values = self.indexed.get(name)
             if not isinstance(values, list | tuple) or len(values) != self.counts[index_set] or not all(
-                    isinstance(v, int) and v >= 0 for v in values):
+                    isinstance(v, int) and 0 <= v <= MAX_SIZE for v in values):
                 fail(f"instance: the sizes {name} need one value ≥ 0 per member of {index_set}")
         self.params = {k: sp.Rational(number(v).numerator, number(v).denominator)
                        for k, v in data.get("params", {}).items()}

@@ -42,6 +42,7 @@ from gpfverify.kernel.terms import HEAD, Size, Statement, _expand, fail, number,
 REFS = ("@f", "@b", "@x")  # a free index, a bound position, the index of a sum under construction
 EMPTY = ((), None)  # no scalar atoms, no exp
 INTEGRATION = "@∫"  # the canonical name of an integration variable inside its integral
+MAX_POWER = 64  # a power of a sum is expanded up to this exponent (a single monomial has any power)
 
 
 # ---- coefficients -----------------------------------------------------------------------------------
@@ -380,11 +381,13 @@ class Context:
         if a.shape is not None:
             fail("a power of a matrix: only numbers have powers")
         integer = isinstance(exponent, Fraction) and exponent.denominator == 1
-        if integer and exponent >= 0:
+        if integer and 0 <= exponent <= MAX_POWER:  # a product of copies
             out = self.scalar(Fraction(1))
             for _ in range(int(exponent)):
                 out = self.mul(out, a)
             return out
+        if integer and exponent > MAX_POWER and len(a.terms) > 1:
+            fail(f"a power above {MAX_POWER} of a sum is not expanded")
         if len(a.terms) != 1:
             fail("a negative or fractional power of a sum")
         ((powers, exp), binders, _), c = next(iter(a.terms.items()))
@@ -393,16 +396,16 @@ class Context:
         if not integer and c != 1:
             fail("a fractional power of a number other than 1")
         if integer:
-            if not isinstance(c, Fraction):
+            if exponent < 0 and not isinstance(c, Fraction):
                 self.needs.append(("nonzero", c))
-            elif c == 0:
+            elif exponent < 0 and c == 0:
                 fail("division by zero")
             c = _lower(c ** int(exponent))
         atoms = []
         for atom, e in powers:
             if atom[0] in ("tr", "int"):
                 fail(f"a negative or fractional power of {'a trace' if atom[0] == 'tr' else 'an integral'}")
-            if atom[0] == "det":
+            if atom[0] == "det" and not (integer and exponent > 0):
                 self.needs.append(("invertible" if integer else "positive", atom[1]))
             atoms.append((atom, c_mul(e, exponent)))
         scaled = None if exp is None else self.scale(NF.thaw(exp), exponent).frozen()

@@ -350,7 +350,8 @@ def header_blocks(summary: SectionSummary) -> list:
     if summary.certificates:
         seconds = sum(c.seconds for c in summary.certificates)
         blocks.append(Paragraph(f"What was run: {len(summary.certificates)} certificates (kernel-checked "
-                                f"proofs and counterexamples, checks by other routes and implementations), {seconds:.0f} s in all."))
+                                "proofs and counterexamples, checks by other routes and implementations), "
+                                f"{seconds:.0f} s in all."))
     return blocks
 
 

@@ -139,4 +139,5 @@ def listed_check(size_: str) -> ListedCheck:
             holds &= all(sp.cancel(sp.together(e)) == 0 for e in residual)
     return ListedCheck("the unscented mean, covariance and cross covariance of x ↦ Hx + b are Hμ + b, HPHᵀ and PHᵀ "
                        "(sympy, every entry of μ, of a lower-triangular S, of H and b free, √s symbolic)",
-                       tuple(f"(D, l) = ({d}, {l})" for d, l in SIZES[size_]), ("s = ρ² > 0 (a sympy assumption of the listed route)",), holds)
+                       tuple(f"(D, l) = ({d}, {l})" for d, l in SIZES[size_]),
+                       ("s = ρ² > 0 (a sympy assumption of the listed route)",), holds)
