@@ -20,6 +20,7 @@ import pytest
 from gpfverify.contract import PAPERS, read_claims
 from gpfverify.report.document import Section, claim_records_table, unicode_math
 from gpfverify.report.inputs import SectionInput, load_section
+from gpfverify.symbolic.claims import run_claim
 
 HERE = Path(__file__).parent
 FIXTURE = HERE / "fixtures" / "report"
@@ -164,7 +165,7 @@ def test_summary_table_counts_every_verdict_per_section_and_group(report):
         section = row[1] or section
         sections.append((section, row[2]))
     assert sections == [("Toy fusion", "accuracy"), ("Toy fusion", "Proposition 1"), ("Toy fusion", "timing"),
-                        ("Toy detection", "accuracy"), ("Symbolic proofs and a second implementation", "proofs"),
+                        ("Toy detection", "accuracy"), ("Kernel-checked proofs and a second implementation", "proofs"),
                         ("every section", "accuracy"), ("every section", "Proposition 1"),
                         ("every section", "timing"), ("every section", "proofs")]
     assert [row[0] for row in cells[:5]] == ["Liao et al. 2019", "", "", "Chen et al. 2015",
@@ -286,16 +287,16 @@ def test_papers_are_cited_in_full(report):
 def test_proof_certificates_are_a_table(report):
     _, page, _ = report
     (table,) = page.find_all("table", cls="certificates")
-    assert [th.text for th in table.find_all("th")] == ["claim", "status", "statement", "scope",
-                                                        "stated facts (used, not proved)", "method",
+    assert [th.text for th in table.find_all("th")] == ["claim", "status", "title", "statement", "scope", "method",
                                                         "negative controls", "seconds"]
     rows = {tr.attrs["id"]: [td.text for td in tr.find_all("td")] for tr in table.find_all("tbody")[0].find_all("tr")}
-    proved = rows["cert-ukf-equals-kf-linear"]
-    assert proved[:3] == ["ukf-equals-kf-linear", "proved", "the UKF equals the KF on linear models"]
-    assert proved[3] == "(D, l) ∈ {(1, 1), (2, 1)}" and proved[4] == "none"
-    assert proved[5] == "sympy: symbolic sigma points"
-    assert proved[6].startswith("all 2 rejected: ȳ = Hμ (offset b dropped)")
-    assert rows["cert-dmf-exact-without-condition"][3] == "not stated"
+    proved = rows["cert-full-rank-needs-l-le-D"]
+    title = unicode_math(run_claim("full-rank-needs-l-le-D", "small").title)
+    assert proved[:3] == ["full-rank-needs-l-le-D", "proved", title]
+    assert proved[3].startswith("l ≤ D (for all sizes D, l ≥ 0) — assuming: A has full column rank")
+    assert proved[4] == "any dimension" and proved[5].startswith("kernel-checked certificate")
+    assert proved[6].startswith("all 3 refused and refuted: l_m + 1 ≤ D")
+    assert rows["cert-dmf-exact-without-condition"][4].startswith("counterexample at D = 2")
     assert rows["cert-dmf-exact-without-condition"][6] == "none"
     status = table.find_all("tr", id="cert-dmf-exact-without-condition")[0].find_all("td")[1]
     assert "v-refuted" in status.classes

@@ -1,4 +1,4 @@
-"""Report page: the symbolic proofs (sympy) and the casadi cross-checks, from their certificates
+"""Report page: the kernel-checked proofs and the casadi cross-checks, from their certificates
 (``certificates.json``, written by the command layer or by ``gpfverify prove``)."""
 
 from __future__ import annotations
@@ -11,7 +11,7 @@ from gpfverify.report.inputs import STATUSES, CertificateInfo, SectionInput
 from gpfverify.report.render import certificate_anchor
 
 SLUG = "proofs"
-TITLE = "Symbolic proofs and a second implementation"
+TITLE = "Kernel-checked proofs and a second implementation"
 
 
 def render_section(data: SectionInput) -> Section:
@@ -22,11 +22,16 @@ def render_section(data: SectionInput) -> Section:
 def _controls(c: CertificateInfo) -> Cell:
     if not c.negative_controls:
         return Cell("none", "zero")
-    accepted = [m.mutant for m in c.negative_controls if not m.rejected]
-    if accepted:
-        return Cell(f"ACCEPTED {len(accepted)} of {len(c.negative_controls)}: " + "; ".join(accepted), "v-not-held")
-    return Cell(f"all {len(c.negative_controls)} rejected: " + "; ".join(m.mutant for m in c.negative_controls),
+    failed = [m.mutant for m in c.negative_controls if not (m.rejected and m.false_on_instance)]
+    if failed:
+        return Cell(f"FAILED {len(failed)} of {len(c.negative_controls)}: " + "; ".join(failed), "v-not-held")
+    return Cell(f"all {len(c.negative_controls)} refused and refuted: " + "; ".join(m.mutant
+                                                                                  for m in c.negative_controls),
                 "controls")
+
+
+def _status(c: CertificateInfo) -> Cell | VerdictCell:
+    return VerdictCell(c.status) if c.holds is not False else Cell(f"{c.status} — FAILED", "v-not-held")
 
 
 def render(certificates: list[dict], out_dir: Path | None = None) -> Section:
@@ -36,20 +41,18 @@ def render(certificates: list[dict], out_dir: Path | None = None) -> Section:
     counts = Counter(c.status for c in infos)
     section = Section(SLUG, TITLE)
     section.add(
-        Paragraph("A statement is proved when the proof engine accepts it: every rule the proof applies was "
-                  "issued by a declaration (and checked on exact instances) or derived, every hypothesis it rests "
-                  "on is written into the statement, and its scope is what the proof covers (any dimension, or "
-                  "the sizes listed). It is refuted by an exact counterexample, and checked when it holds on exact "
-                  "instances or two independent implementations agree within a stated tolerance — checked is not "
-                  "a proof (the detail says why). A proof must also reject its negative controls — deliberately "
-                  "wrong variants of the statement (a sign, a transpose, a dropped term, a dropped hypothesis, a "
-                  "rule no declaration issued) — or it is demoted; a stated fact (checked, not proved) is listed. "
-                  "Statements expected to be false are kept and shown as refuted. Totals: "
-                  + ", ".join(f"{counts[s]} {s}" for s in STATUSES) + "."),
-        Table(["claim", "status", "statement", "scope", "stated facts (used, not proved)", "method",
-               "negative controls", "seconds"],
-              [[c.claim, VerdictCell(c.status), c.statement, c.scope or "not stated",
-                "; ".join(c.stated_facts) or "none", c.method, _controls(c), fmt(c.seconds, 3)] for c in infos],
+        Paragraph("A statement is a formal object (matrices of symbolic sizes, hypotheses, a conclusion); the "
+                  "statement, scope and assumptions shown are rendered from it, and a title in words is shown "
+                  "apart. It is proved when the kernel (gpfverify/kernel, docs/proofs.md) accepts its certificate "
+                  "and an exact witness satisfies every hypothesis; refuted when the kernel evaluates an exact "
+                  "counterexample that satisfies every hypothesis; checked when identities hold at listed sizes or "
+                  "two implementations agree within a stated tolerance — checked is not a proof. Each negative "
+                  "control is a mutated statement that the kernel must refuse and refute on an exact instance. "
+                  "`gpfverify prove --check certificates.json` derives every status and statement again with the "
+                  "kernel alone. Totals: " + ", ".join(f"{counts[s]} {s}" for s in STATUSES) + "."),
+        Table(["claim", "status", "title", "statement", "scope", "method", "negative controls", "seconds"],
+              [[c.claim, _status(c), c.title or "—", c.statement, c.scope or "not stated", c.method, _controls(c),
+                fmt(c.seconds, 3)] for c in infos],
               "Certificates", tuple(certificate_anchor(c.claim) for c in infos), "certificates"),
     )
     for c in infos:
