@@ -118,11 +118,18 @@ def isolate_runs(call: Callable[[np.ndarray], np.ndarray], x: np.ndarray, shape:
             return call(x)
         except GpfverifyError:
             pass
-    values = [_or_none(call, x[b:b + 1]) if alive[b] else None for b in range(x.shape[0])]
     out = np.full((x.shape[0], *shape), np.nan)
-    for b, v in enumerate(values):
-        if v is not None:
-            out[b] = v[0]
+    rows = np.flatnonzero(alive)
+    if rows.size < x.shape[0]:  # the runs still going, together
+        try:
+            out[rows] = call(x[rows])
+            return out
+        except GpfverifyError:
+            pass
+    for b in rows:  # a run fails in this call: find it
+        value = _or_none(call, x[b:b + 1])
+        if value is not None:
+            out[b] = value[0]
     return out
 
 
