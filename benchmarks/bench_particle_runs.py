@@ -18,7 +18,6 @@ bound on what any implementation of the same algorithms in numpy can reach, not 
 from __future__ import annotations
 
 import argparse
-import dataclasses
 import os
 import platform
 import time
@@ -29,14 +28,7 @@ from threadpoolctl import threadpool_limits
 
 from _timing import markdown_table
 from gpfverify.contract.serial import to_json
-
-
-def _without_seconds(value):
-    if isinstance(value, dict):
-        return {k: None if k == "seconds" else _without_seconds(v) for k, v in value.items()}
-    if isinstance(value, list):
-        return [_without_seconds(v) for v in value]
-    return value
+from gpfverify.experiments.particle_methods import without_seconds
 
 
 def _cpu(fn):
@@ -153,7 +145,7 @@ def measure(name: str, batch: int, per_run: int) -> list:
     module.run_one(params, seeds[0])  # warm-up: imports, caches
     alone, alone_seconds = _cpu(lambda: [module.run_one(params, s) for s in seeds[:per_run]])
     together, together_seconds = _cpu(lambda: module.run_batch(params, seeds))
-    if _without_seconds(to_json(alone)) != _without_seconds(to_json(together[:per_run])):
+    if without_seconds(to_json(alone)) != without_seconds(to_json(together[:per_run])):
         raise SystemExit(f"{name}: run_batch and run_one disagree")
     floor_seconds = floor(params)
     per_run_rate, batch_rate = per_run / alone_seconds, batch / together_seconds
@@ -174,9 +166,10 @@ def main():
             per_run = 1 if name in ("tbd", "pff1d") else 4
             rows.append(measure(name, args.batch if name != "tbd" else min(args.batch, 16), per_run))
     load_after = os.getloadavg()
+    before, after = (", ".join(f"{x:.1f}" for x in load) for load in (load_before, load_after))
     text = (f"Machine: {platform.processor() or platform.machine()}, {os.cpu_count()} cores, Python "
             f"{platform.python_version()}, numpy {np.__version__}, one BLAS thread; load average (1, 5, 15 min) "
-            f"{', '.join(f'{x:.1f}' for x in load_before)} before, {', '.join(f'{x:.1f}' for x in load_after)} after\n\n"
+            f"{before} before, {after} after\n\n"
             "Runs per CPU-second (process time), one run at a time (`run_one` looped) and B runs together "
             "(`run_batch`), in one process; both sides give the same records but for CPU seconds (checked). "
             "Floor: runs per CPU-second of the run's exp and random-number calls alone, made once over a large "

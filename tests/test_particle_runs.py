@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 
 from gpfverify.contract.serial import to_json
+from gpfverify.experiments.particle_methods import without_seconds
 from gpfverify.errors import InputError
 from gpfverify.filters.flows import edh_step, ie_pff_step, uniform_steps
 from gpfverify.filters.pf import pf_step
@@ -140,14 +141,6 @@ def test_tbd_runs_get_the_same_bits_in_every_batch_and_equal_the_single_run_filt
         np.testing.assert_allclose(first, np.stack([getattr(t, field) for t in alone]), rtol=PER_RUN_RTOL, atol=0)
 
 
-def _without_seconds(value):
-    if isinstance(value, dict):
-        return {k: None if k == "seconds" else _without_seconds(v) for k, v in value.items()}
-    if isinstance(value, list):
-        return [_without_seconds(v) for v in value]
-    return value
-
-
 def _experiment_cases():
     from gpfverify.contract.pff1d import QUICK_PARAMS
     from gpfverify.contract.tbd import QUICK_PARAMS as TBD_QUICK
@@ -166,7 +159,7 @@ def _experiment_cases():
 def test_run_batch_keeps_every_non_timing_field_whatever_the_batch(experiment):
     module, params = _experiment_cases()[experiment]
     seeds = [np.random.SeedSequence(3, spawn_key=(i,)) for i in range(5)]
-    together = _without_seconds(to_json(module.run_batch(params, seeds)))
-    split = _without_seconds(to_json(module.run_batch(params, seeds[:3]) + module.run_batch(params, seeds[3:])))
-    alone = _without_seconds(to_json([module.run_one(params, s) for s in seeds]))
+    together = without_seconds(to_json(module.run_batch(params, seeds)))
+    split = without_seconds(to_json(module.run_batch(params, seeds[:3]) + module.run_batch(params, seeds[3:])))
+    alone = without_seconds(to_json([module.run_one(params, s) for s in seeds]))
     assert together == split == alone

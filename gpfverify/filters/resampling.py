@@ -112,10 +112,8 @@ def resample_from_weights(w: np.ndarray, rng: Streams, size: int | None = None) 
 def search_runs(cumulative: np.ndarray, values: np.ndarray) -> np.ndarray:
     """``np.searchsorted(cumulative, values, side="right")`` of one run (1-D), or of each run's row
     of (B, M) and (B, n): numpy searches one sorted array per call, so one call per run."""
-    if cumulative.ndim == 1:
-        return np.searchsorted(cumulative, values, side="right")
-    return np.array([np.searchsorted(c, v, side="right") for c, v in zip(cumulative, values)],
-                    dtype=np.intp).reshape(values.shape)
+    rows = zip(cumulative.reshape(-1, cumulative.shape[-1]), values.reshape(-1, values.shape[-1]))
+    return np.array([np.searchsorted(c, v, side="right") for c, v in rows], dtype=np.intp).reshape(values.shape)
 
 
 def needs_resampling(log_weights: np.ndarray, threshold: float) -> bool:
@@ -221,10 +219,11 @@ class ParticleStep:
 
 
 def take_particles(values: np.ndarray, index: np.ndarray) -> np.ndarray:
-    """values[..., index, ...] per run: values (..., M, *E) at indices (..., n) -> (..., n, *E)."""
-    lead = index.ndim - 1
-    expanded = index.reshape(index.shape + (1,) * (values.ndim - lead - 1))
-    return np.take_along_axis(values, expanded, axis=lead)
+    """values[b, index[b]] per run: values (B, M, *E) at indices (B, n) -> (B, n, *E), as one
+    gather from the runs' rows laid end to end."""
+    runs, count = values.shape[:2]
+    rows = index + (np.arange(runs) * count)[:, None]
+    return values.reshape((runs * count,) + values.shape[2:])[rows]
 
 
 def reweight_and_resample(particles: np.ndarray, log_weights: np.ndarray, rng: Streams,

@@ -30,17 +30,11 @@ from gpfverify.validate import as_array
 Streams = np.random.Generator | Sequence[np.random.Generator]
 
 
-def is_batch(rng: Streams) -> bool:
-    """Whether ``rng`` is a sequence of Generators, one per run (a batch), rather than one run's
-    Generator (or any object drawing like one)."""
-    return isinstance(rng, Sequence)
-
-
 def check_streams(rng: Streams, lead: tuple[int, ...]) -> None:
     """InputError unless ``rng`` fits the leading (run) axes ``lead`` of the particles: one
     Generator for one run (``lead`` = ()), a sequence of B Generators for B runs (``lead`` = (B,))."""
     if not lead:
-        if is_batch(rng):
+        if isinstance(rng, Sequence):
             raise InputError("rng: one run's particles (N, D) take one numpy Generator")
         return
     if len(lead) != 1 or not isinstance(rng, Sequence) or len(rng) != lead[0]:
@@ -52,8 +46,8 @@ def particle_inputs(particles, y, model, rng: Streams | None, names: tuple[str, 
                     ) -> tuple[np.ndarray, np.ndarray]:
     """Particles (N, D) of one run or (B, N, D) of B runs and the measurement (L,) or (B, L),
     checked against the model's dimensions and against ``rng`` when given (:func:`check_streams`);
-    InputError naming the argument (``names``). One run's particles must be finite; in a batch a run that
-    failed earlier holds NaN and is carried along."""
+    InputError naming the argument (``names``). One run's particles must be finite; in a batch a
+    run that failed earlier holds NaN and is carried along."""
     x = np.asarray(particles)
     if x.ndim == 3 and x.dtype.kind == "f" and x.shape[-1] == model.state_dim:
         x = x.astype(float, copy=False)

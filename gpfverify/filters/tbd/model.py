@@ -247,20 +247,25 @@ class TbdModel:
         ``spread``, when given, is ``patch_spread`` of the particles (all runs' rows in order).
 
         The linear term is summed one patch row i at a time (arrays of (2p+1) × N, not (2p+1)² × N).
-        Z_patch is read at the flat index (c_x + i) n + (c_y + j) clipped to the run's image: a cell
-        off the image has a zero factor, so whichever (finite) pixel that index reads adds nothing.
+        Z_patch is read from the run's image framed by 2p zero cells on every side, at the patch
+        centre clipped to p cells beyond the image: a cell off the image has a zero factor, so
+        whichever pixel a clipped centre's patch reads adds nothing.
         """
         flat = states.reshape(-1, states.shape[-1])
         spread = self.patch_spread(flat) if spread is None else spread
         gx, gy, amp = spread.along_x, spread.along_y, spread.amplitude
-        n = self.grid_size
-        pixels = image.reshape(-1)
-        run_start = np.repeat(np.arange(flat.shape[0] // states.shape[-2]) * (n * n), states.shape[-2])
-        row_start = spread.centre_x * n + spread.centre_y
-        columns = self.patch_offsets[:, None] + row_start
-        linear = np.zeros(row_start.shape)
-        for i, offset in enumerate(self.patch_offsets):
-            row = pixels[np.clip(columns + offset * n, 0, n * n - 1) + run_start]
+        p = self.patch_radius
+        framed = np.pad(image.reshape((-1,) + image.shape[-2:]), ((0, 0), (2 * p, 2 * p), (2 * p, 2 * p)))
+        width = framed.shape[-1]
+        pixels = framed.reshape(-1)
+        runs = flat.shape[0] // states.shape[-2]
+        first = np.repeat(np.arange(runs) * width * width, states.shape[-2])  # each run's framed image
+        first += (np.clip(spread.centre_x, -p, self.grid_size - 1 + p) + p) * width
+        first += np.clip(spread.centre_y, -p, self.grid_size - 1 + p) + p
+        columns = self.patch_offsets[:, None] + p + first
+        linear = np.zeros(first.shape)
+        for i in range(gx.shape[0]):
+            row = pixels[columns + i * width]
             row *= gy
             linear += gx[i] * row.sum(axis=0)
         linear *= amp
