@@ -162,8 +162,8 @@ def _run_filter(method: str, params: Params, upf_model, gpsr_model, prior_cov, y
         record = step(belief, model, y, k=k, rng=rng, resample_threshold=params.resample_threshold)
         belief = jitter_particles(record, params.jitter, rng)
         estimates.append(record.mean)
-        ess.append(record.ess)
-        resampled += record.resampled
+        ess.append(float(record.ess))
+        resampled += bool(record.resampled)
         factors = belief.sqrt_covs
         if factors is None:  # the UPF and GPSR-UPF carry one covariance factor per particle
             raise RuntimeError(f"{method} returned particles without covariance factors")

@@ -12,6 +12,7 @@ the health checks (:mod:`gpfverify.health`) the claims apply before a verdict st
 from __future__ import annotations
 
 import time
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -32,8 +33,9 @@ from gpfverify.models import StateSpaceModel
 @dataclass(frozen=True)
 class MethodRun:
     """Estimates (T, D) (None when the filter diverged), the CPU seconds the filter took
-    (process time: robust to other load on a shared machine) and, for the PF and the UPF, N_eff/N
-    of the weighted set per step (None for the flows, which do not weight, and when diverged)."""
+    (process time: robust to other load on a shared machine; for runs filtered together, the
+    batch's CPU seconds divided by its runs) and, for the PF and the UPF, N_eff/N of the weighted
+    set per step (None for the flows, which do not weight, and when diverged)."""
 
     estimates: np.ndarray | None
     seconds: float
@@ -59,43 +61,48 @@ def schedule_words(dlambda: float, spacing: Spacing, ratio: float, exponential_c
     return f"{count} exponential λ-steps (ratio {ratio:g}, first {first:.2g})"
 
 
+#: how a run's CPU seconds are measured when runs are filtered together (every timing claim states it)
 #: N_eff threshold of the PF and the UPF: resample at every step (SIR), as in seed 003
 SIR_THRESHOLD = 1.0
 
 
-def _prior_particles(model: StateSpaceModel, count: int, rng: np.random.Generator, **extras) -> Particles:
-    """``count`` equally weighted draws from the model's prior (``extras``: optional fields)."""
+def _prior_particles(model: StateSpaceModel, count: int, rngs: list[np.random.Generator], **extras) -> Particles:
+    """``count`` equally weighted draws from the model's prior per run, (B, N, D) (``extras``:
+    optional fields)."""
     mean, cov = np.asarray(model.prior_mean, dtype=float), np.asarray(model.prior_cov, dtype=float)
-    return Particles.equally_weighted(rng.multivariate_normal(mean, cov, size=count, method="cholesky"), **extras)
+    return Particles.equally_weighted(np.stack([g.multivariate_normal(mean, cov, size=count, method="cholesky")
+                                                for g in rngs]), **extras)
 
 
-def _run(step, belief: Particles, model, ys, rng, **params) -> tuple[list[np.ndarray], list[float]]:
-    """The estimates of ``step`` over the measurements ys (T, L), k = 1 … T, and N_eff/N per step."""
+def _run(step, belief: Particles, model, ys, rngs, **params) -> tuple[np.ndarray, np.ndarray]:
+    """The estimates (B, T, D) of ``step`` over the measurements ys (B, T, L) of B runs,
+    k = 1 … T, and N_eff/N per step (B, T)."""
     out, ess = [], []
-    for k, y in enumerate(ys, 1):
-        record = step(belief, model, y, k=k, rng=rng, **params)
+    for k in range(1, ys.shape[1] + 1):
+        record = step(belief, model, ys[:, k - 1], k=k, rng=rngs, **params)
         belief = record.posterior
         out.append(record.mean)
-        ess.append(record.ess / record.weighted.particles.shape[0])
-    return out, ess
+        ess.append(np.asarray(record.ess) / record.weighted.size)
+    return np.stack(out, axis=1), np.stack(ess, axis=1)
 
 
-def _pf(model, ys, count, rng, steps):
-    return _run(pf_step, _prior_particles(model, count, rng), model, ys, rng, resample_threshold=SIR_THRESHOLD)
+def _pf(model, ys, count, rngs, steps):
+    return _run(pf_step, _prior_particles(model, count, rngs), model, ys, rngs, resample_threshold=SIR_THRESHOLD)
 
 
-def _upf(model, ys, count, rng, steps):
-    belief = Particles.from_gaussian(model.prior_mean, model.prior_cov, count, rng)
-    return _run(upf_step, belief, model, ys, rng, resample_threshold=SIR_THRESHOLD)
+def _upf(model, ys, count, rngs, steps):
+    belief = Particles.from_gaussian(model.prior_mean, model.prior_cov, count, rngs)
+    return _run(upf_step, belief, model, ys, rngs, resample_threshold=SIR_THRESHOLD)
 
 
-def _ie_pff(model, ys, count, rng, steps):
-    return _run(ie_pff_step, _prior_particles(model, count, rng), model, ys, rng, step_sizes=steps)
+def _ie_pff(model, ys, count, rngs, steps):
+    return _run(ie_pff_step, _prior_particles(model, count, rngs), model, ys, rngs, step_sizes=steps)
 
 
-def _edh(model, ys, count, rng, steps):
-    belief = _prior_particles(model, count, rng, ekf_cov=model.prior_cov)
-    return _run(edh_step, belief, model, ys, rng, step_sizes=steps)
+def _edh(model, ys, count, rngs, steps):
+    prior_cov = np.broadcast_to(model.prior_cov, (len(rngs),) + np.shape(model.prior_cov)).copy()
+    belief = _prior_particles(model, count, rngs, ekf_cov=prior_cov)
+    return _run(edh_step, belief, model, ys, rngs, step_sizes=steps)
 
 
 METHODS = {PF: _pf, UPF: _upf, EDH: _edh, IE_PFF: _ie_pff}
@@ -104,21 +111,42 @@ METHODS = {PF: _pf, UPF: _upf, EDH: _edh, IE_PFF: _ie_pff}
 def run_method(method: Method, model: StateSpaceModel, ys: np.ndarray, count: int, rng: np.random.Generator,
                steps: np.ndarray | None = None) -> MethodRun:
     """Filter ``ys`` (T, L) with ``count`` particles from the model's prior; ``steps`` are the
-    λ-steps of the flows."""
+    λ-steps of the flows (:func:`run_methods` of one run)."""
+    return _run_batch(method, model, np.asarray(ys, dtype=float)[None], count, [rng], steps)[0]
+
+
+def run_methods(method: Method, model: StateSpaceModel, ys: np.ndarray, count: int,
+                seeds: Sequence[np.random.SeedSequence], steps: np.ndarray | None = None) -> list[MethodRun]:
+    """:func:`run_method` of B runs at once: measurements ys (B, T, L), run b's filter drawing from
+    ``default_rng(seeds[b])``. A run that breaks down is diverged alone; should the batch raise, its
+    runs are filtered again one by one from their seeds (a run's numbers do not depend on its
+    batch, so the result is the same). Each run's ``seconds`` is the batch's CPU time over B."""
+    runs = _run_batch(method, model, ys, count, [np.random.default_rng(s) for s in seeds], steps)
+    if runs is not None:
+        return runs
+    return [_run_batch(method, model, ys[b:b + 1], count, [np.random.default_rng(seed)], steps)[0]
+            for b, seed in enumerate(seeds)]
+
+
+def _run_batch(method, model, ys, count, rngs, steps):
+    """The runs of :func:`run_methods`, or None when the batch of several runs raised (a batch of
+    one that raises is one diverged run)."""
     start = time.process_time()
-    estimates: np.ndarray | None
-    ess: np.ndarray | None = None
     try:
         with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
-            means, fractions = METHODS[method](model, ys, count, rng, steps)
-            estimates = np.array(means)
-        if not np.all(np.isfinite(estimates)):
-            estimates = None
-        elif method not in FLOWS:
-            ess = np.clip(np.array(fractions, dtype=float), 1.0 / count, 1.0)
+            means, fractions = METHODS[method](model, ys, count, rngs, steps)
     except (GpfverifyError, np.linalg.LinAlgError):
-        estimates = None
-    return MethodRun(estimates, time.process_time() - start, ess)
+        if len(rngs) > 1:
+            return None
+        return [MethodRun(None, time.process_time() - start)]
+    seconds = (time.process_time() - start) / len(rngs)
+    out = []
+    for estimates, ess in zip(means, fractions):
+        if not np.all(np.isfinite(estimates)):
+            out.append(MethodRun(None, seconds))
+        else:
+            out.append(MethodRun(estimates, seconds, None if method in FLOWS else np.clip(ess, 1.0 / count, 1.0)))
+    return out
 
 
 # ----------------------------------------------------------------------------- health checks

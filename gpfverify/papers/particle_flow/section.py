@@ -57,8 +57,10 @@ def render_section(data: SectionInput) -> Section:
     section.add(*_sensitivity(records))
     section.add(Paragraph(
         "Run times are CPU seconds (process time) of this Python implementation on the machine that wrote the "
-        "page (numpy, one process); the PF's cost is dominated by per-step overhead, not by N, so time ratios "
-        "say little about the algorithms' operation counts. The timing claims (Table 1's running times and "
+        "page (numpy, one process); one run at a time the PF's cost is dominated by per-step overhead, not by N, "
+        "so time ratios say little about the algorithms' operation counts. Runs filtered together "
+        "(reproduce --batch B) each carry their batch's CPU time divided by B, which divides that overhead by B; "
+        "the timing claims' caveats say so. The timing claims (Table 1's running times and "
         "Table 2's) compare them as paired per-run ratios (their geometric mean against the claim's bound, 5 "
         "standard errors of the log ratio) and are counted apart from the accuracy claims."))
     return section
