@@ -90,6 +90,7 @@ def run(args: argparse.Namespace) -> int:
         _, ys = check.logged_measurements(params.measurements, model)
         params = params.replace(steps=len(ys))  # results.json records the file's step count
     check.check_size_fits(model, params.steps, args.runs, params.methods)
+    check.check_learnable(model, params)
     with contextlib.ExitStack() as stack:
         if out_dir is not None:
             out = stack.enter_context(output_folder(out_dir, keep=True, wait=args.wait))

@@ -37,7 +37,7 @@ from gpfverify.fusion.caseblock import case_from_dict
 from gpfverify.fusion.exactness import gap_size, parse_rank_rule
 from gpfverify.model_fusion import run_fusion
 from gpfverify.audit.runfile import write_run
-from gpfverify.models import fit_gp_model, learn_gp_model
+from gpfverify.models import fit_gp_model, learn_gp_model, require_step_free
 from gpfverify.rng import generator
 from gpfverify.systems import load_system, split_spec
 from gpfverify.userfiles import read_npz
@@ -115,6 +115,15 @@ def logged_measurements(path: str, model) -> tuple[np.ndarray | None, np.ndarray
     except InputError as exc:
         raise InputError(f"{exc}; --measurements expects {measurements_format(model)}") from None
     return truth, ys
+
+
+def check_learnable(model, params: Params) -> None:
+    """A GP family learns the system as GPs of the state alone: a model whose functions change with
+    the step k over the steps the check learns from and filters is refused in one line
+    (:func:`gpfverify.models.require_step_free`), before anything is written."""
+    if params.filter in GP_FAMILIES:
+        last = params.steps if params.training is not None else max(params.steps, params.train)
+        require_step_free(model, range(1, last + 1), f"--filter {params.filter}")
 
 
 def _gp_model(model, params: Params, rng: np.random.Generator):

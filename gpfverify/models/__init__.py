@@ -7,8 +7,8 @@
 """
 
 from gpfverify.models.functions import ModelFunction
-from gpfverify.models.learned import GPModel, fit_capped, fit_gp_model, learn_gp_model
+from gpfverify.models.learned import GPModel, fit_capped, fit_gp_model, learn_gp_model, require_step_free
 from gpfverify.models.system import Sensor, StateSpaceModel, linear_model
 
 __all__ = ["ModelFunction", "Sensor", "StateSpaceModel", "linear_model", "GPModel", "fit_capped",
-           "fit_gp_model", "learn_gp_model"]
+           "fit_gp_model", "learn_gp_model", "require_step_free"]

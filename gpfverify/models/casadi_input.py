@@ -80,6 +80,7 @@ class CasadiFunction(ModelFunction):
         args = [ca.reshape(x, function.size_in(0))] + ([k] if function.n_in() == 2 else [])
         y = ca.vec(ca.densify(function.call(args)[0]))
         self.function = function
+        self.depends_on_step = bool(ca.depends_on(y, k))
         self.value = ca.Function("value", [x, k], [y])
         self.derivative = ca.Function("jacobian", [x, k], [ca.densify(ca.jacobian(y, x))])
         self.mapped: dict[tuple[str, int], ca.Function] = {}
@@ -94,6 +95,11 @@ class CasadiFunction(ModelFunction):
 
     def evaluate(self, x, k):
         return self._map(self.value, np.asarray(x, dtype=float), k).T
+
+    @property
+    def takes_step(self) -> bool:
+        """Whether the expression depends on k (casadi's structural dependence: exact)."""
+        return self.depends_on_step
 
     def jacobian(self, x, k=1):
         def compute(flat, k):

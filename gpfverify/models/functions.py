@@ -9,7 +9,9 @@ a matrix), the model holds a :class:`ModelFunction`:
 
 A numpy callable may take ``(x)`` or ``(x, k)`` (decided once, when the model is built, from its
 signature) and may return (N,) when E = 1. Its Jacobian is the user's ``jacobian(x (D,)[, k]) ->
-(E, D)`` when given, else central differences (:func:`central_difference_jacobian`). Every call
+(E, D)`` when given, else central differences (:func:`central_difference_jacobian`) with steps in
+the scale of each state component (``typical_state``, the prior standard deviations a model sets),
+so that a change of units moves the Jacobian only by that change. Every call
 checks the output's shape and finiteness and turns an exception raised inside the user's function
 into :class:`~gpfverify.errors.InputError` naming the part of the model ("sensor 1 measure").
 """
@@ -25,9 +27,10 @@ from gpfverify.angles import difference
 from gpfverify.errors import GpfverifyError, InputError
 from gpfverify.tolerances import EPS
 
-#: Relative step of the central-difference Jacobian, h_j = FD_STEP · max(1, |x_j|): the cube root
-#: of eps balances truncation (O(h²)) against rounding (O(eps/h)); error ≈ eps^(2/3) ≈ 4e-11 relative
-#: for smooth functions of unit scale.
+#: Relative step of the central-difference Jacobian, h_j = FD_STEP · max(s_j, |x_j|) with s_j the
+#: typical size of state component j (:func:`difference_steps`): the cube root of eps balances
+#: truncation (O(h²)) against rounding (O(eps/h)); error ≈ eps^(2/3) ≈ 4e-11 relative for smooth
+#: functions that vary on the scale s_j.
 FD_STEP: float = EPS ** (1.0 / 3.0)
 
 
@@ -50,19 +53,32 @@ class ModelFunction:
     """Base of every normalised model function: ``name`` (used in errors), ``in_dim``,
     ``out_dim`` and ``circular`` (output indices that are angles, for wrapped differences)."""
 
+    #: the typical size s_j of each state component (in_dim,), the scale of the central-difference
+    #: steps (:func:`difference_steps`); None: 1 for every component (a function outside a model)
+    typical_state: np.ndarray | None = None
+
     def __init__(self, name: str, in_dim: int, out_dim: int, circular: Sequence[int] = ()):
         self.name, self.in_dim, self.out_dim = name, int(in_dim), int(out_dim)
         self.circular = tuple(circular)
 
-    def renamed(self, name: str, circular: Sequence[int]) -> ModelFunction:
-        """A copy that reports errors as ``name`` and wraps the ``circular`` outputs."""
+    def renamed(self, name: str, circular: Sequence[int], typical_state: np.ndarray | None = None) -> ModelFunction:
+        """A copy that reports errors as ``name``, wraps the ``circular`` outputs and takes its
+        central-difference steps in the scale ``typical_state`` (kept when None)."""
         clone = object.__new__(type(self))
         clone.__dict__.update(self.__dict__)
         clone.name, clone.circular = name, tuple(circular)
+        if typical_state is not None:
+            clone.typical_state = np.asarray(typical_state, dtype=float)
         return clone
 
     def evaluate(self, x: np.ndarray, k: int) -> np.ndarray:  # pragma: no cover - abstract
         raise NotImplementedError
+
+    @property
+    def takes_step(self) -> bool:
+        """Whether the function may depend on the step index k (it takes k; whether its values
+        change with k is :meth:`~gpfverify.models.StateSpaceModel.step_dependence`'s question)."""
+        return False
 
     def __call__(self, x: np.ndarray, k: int = 1) -> np.ndarray:
         try:
@@ -96,14 +112,24 @@ class ModelFunction:
         return central_difference_jacobian(self, x, k)
 
 
+def difference_steps(fn: ModelFunction, x: np.ndarray) -> np.ndarray:
+    """The central-difference steps h_j = FD_STEP · max(s_j, |x_j|) at states x (..., D), s_j =
+    ``fn.typical_state`` (1 without one). With s the prior standard deviations the steps are
+    unit-free: measuring component j in other units scales s_j, x_j and h_j alike, and the
+    difference quotient moves only by that change of units."""
+    typical = np.ones(x.shape[-1]) if fn.typical_state is None else fn.typical_state
+    return FD_STEP * np.maximum(typical, np.abs(x))
+
+
 def central_difference_jacobian(fn: ModelFunction, x: np.ndarray, k: int) -> np.ndarray:
-    """J[..., :, j] = (f(x + h_j e_j) − f(x − h_j e_j)) / (2 h_j), h_j = FD_STEP · max(1, |x_j|),
+    """J[..., :, j] = (f(x + h_j e_j) − f(x − h_j e_j)) / (2 h_j), h_j from :func:`difference_steps`,
     all 2D perturbed points in one vectorised call; differences of circular outputs are wrapped.
-    Accuracy O(h²) + O(eps/h) ≈ 1e-10 relative for smooth functions of unit scale."""
+    Accuracy O(h²) + O(eps/h) ≈ 1e-10 relative for smooth functions that vary on the scale of h_j /
+    FD_STEP."""
     x = np.asarray(x, dtype=float)
     d = x.shape[-1]
     flat = x.reshape(-1, d)
-    steps = FD_STEP * np.maximum(1.0, np.abs(flat))                     # (M, D)
+    steps = difference_steps(fn, flat)                                   # (M, D)
     offsets = np.eye(d)[None] * steps[:, None, :]                       # (M, D, D): row j = h_j e_j
     points = np.concatenate([flat[:, None] + offsets, flat[:, None] - offsets], axis=1)
     values = fn(points.reshape(-1, d), k).reshape(flat.shape[0], 2 * d, fn.out_dim)
@@ -129,6 +155,10 @@ class NumpyFunction(ModelFunction):
 
     def evaluate(self, x, k):
         return self.fn(x, k) if self.takes_k else self.fn(x)
+
+    @property
+    def takes_step(self) -> bool:
+        return self.takes_k
 
     def jacobian(self, x, k=1):
         if self.user_jacobian is None:

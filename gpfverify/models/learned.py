@@ -23,6 +23,11 @@ squared-exponential GP knows no period, so an angle is learned and used on one u
 :func:`fit_gp_model` learns the GPs from samples (evidence maximisation on at most ``fit_points``
 evenly spaced samples, then conditioning on all of them); :func:`learn_gp_model` draws the samples
 from a :class:`~gpfverify.models.StateSpaceModel` first.
+
+The GPs are functions of the state alone. A system whose transition or sensors change with the
+step index k (``f(x, k)``, ``h_m(x, k)``) is refused (:func:`require_step_free`) rather than
+learned as a k-free system it is not: one trajectory has one sample per step, from which no GP
+could tell a dependence on k from one on the state.
 """
 
 from __future__ import annotations
@@ -179,13 +184,26 @@ def fit_gp_model(transition_inputs, transition_targets, measurement_inputs, meas
     return GPModel(transition, sensors, tuple(sensor_circular), tuple(circular_state))
 
 
+def require_step_free(model: StateSpaceModel, steps: Sequence[int], who: str = "a GP model") -> None:
+    """InputError (one line, saying why) when a function of ``model`` changes with the step index k
+    among ``steps`` (:meth:`~gpfverify.models.StateSpaceModel.step_dependence`): ``who`` learns GPs
+    of the state alone and would filter a different system."""
+    found = model.step_dependence(steps)
+    if found is not None:
+        raise InputError(f"{who} learns GPs of the state alone, but {found}: the learned GPs would describe "
+                         "another, k-free system; filter with ukf or ekf, which use the system's own functions")
+
+
 @one_blas_thread
 def learn_gp_model(model: StateSpaceModel, samples: int, rng: np.random.Generator, *, restarts: int = 3,
                    fit_points: int | None = None) -> GPModel:
     """Draw one trajectory of ``samples`` states from ``model`` (started from its prior) with its
-    measurements, and :func:`fit_gp_model` on it; angle outputs keep the model's ``circular``."""
+    measurements, and :func:`fit_gp_model` on it; angle outputs keep the model's ``circular``. A
+    model whose functions change with the step k over the trajectory's steps is refused
+    (:func:`require_step_free`)."""
     if samples < 2:
         raise InputError(f"learning a GP model needs at least 2 samples, got {samples}")
+    require_step_free(model, range(1, samples + 1), "learn_gp_model")
     states, ys = model.simulate(samples, rng)
     per_sensor = [ys[:, b] for b in model.blocks]
     return fit_gp_model(states[:-1], states[1:], states, per_sensor, rng, restarts=restarts,

@@ -98,6 +98,11 @@ class SympyFunction(ModelFunction):
     def evaluate(self, x, k):
         return _stack(self._numeric(self.numeric_value, x, k), x.shape[:-1])
 
+    @property
+    def takes_step(self) -> bool:
+        """Whether the expressions contain the step symbol k (exact)."""
+        return self.step_symbol is not None and self.step_symbol in self.expressions.free_symbols
+
     def jacobian(self, x, k=1):
         def compute(flat, k):
             rows = self._numeric(self.numeric_jacobian, flat, k)             # E lists of D entries

@@ -41,14 +41,16 @@ from gpfverify.errors import InputError
 from gpfverify.linalg import sampling_factor
 from gpfverify.models.functions import LinearFunction, ModelFunction, NumpyFunction
 from gpfverify.tolerances import algebra_rtol
-from gpfverify.validate import as_covariance, as_indices, as_vector
+from gpfverify.validate import as_covariance, as_indices, as_positive, as_vector
 
 
 def as_model_function(obj, name: str, in_dim: int, out_dim: int, jacobian=None,
-                      circular: Sequence[int] = ()) -> ModelFunction:
-    """Normalise a numpy callable, a matrix, a casadi Function or an existing ModelFunction."""
+                      circular: Sequence[int] = (), typical_state: np.ndarray | None = None) -> ModelFunction:
+    """Normalise a numpy callable, a matrix, a casadi Function or an existing ModelFunction;
+    ``typical_state`` (in_dim,) sets the scale of its central-difference steps
+    (:func:`~gpfverify.models.functions.difference_steps`)."""
     if isinstance(obj, ModelFunction):
-        fn = obj.renamed(name, circular)
+        fn = obj.renamed(name, circular, typical_state)
     elif isinstance(obj, np.ndarray) or (isinstance(obj, (list, tuple)) and not callable(obj)):
         matrix = np.asarray(obj, dtype=float)
         if matrix.shape != (out_dim, in_dim):
@@ -59,6 +61,8 @@ def as_model_function(obj, name: str, in_dim: int, out_dim: int, jacobian=None,
         fn = casadi_function(obj, name, in_dim, out_dim, circular)
     else:
         fn = NumpyFunction(obj, name, in_dim, out_dim, jacobian, circular)
+    if typical_state is not None:
+        fn.typical_state = np.asarray(typical_state, dtype=float)
     if (fn.in_dim, fn.out_dim) != (in_dim, out_dim):
         raise InputError(f"{name} maps {fn.in_dim} -> {fn.out_dim} values, expected {in_dim} -> {out_dim}")
     return fn
@@ -183,6 +187,7 @@ class StateSpaceModel(StackedMeasurement):
         set_("prior_mean", as_vector(_floats(self.prior_mean, "prior_mean", 1), "prior_mean", d))
         set_("prior_cov", as_covariance(_floats(self.prior_cov, "prior_cov", 2), "prior_cov", d))
         set_("circular_state", as_indices(self.circular_state, d, "circular_state"))
+        typical = self.typical_state
         sensors = tuple(self.sensors) if isinstance(self.sensors, (list, tuple)) else (self.sensors,)
         if not sensors:
             raise InputError("a model needs at least one sensor")
@@ -191,11 +196,11 @@ class StateSpaceModel(StackedMeasurement):
             if not isinstance(s, Sensor):
                 raise InputError(f"sensors[{m}] must be a gpfverify.models.Sensor, got {type(s).__name__}")
             label = f"sensor {m}" + (f" ({s.name})" if s.name else "")
-            fn = as_model_function(s.measure, f"{label} measure", d, s.size, s.jacobian, s.circular)
+            fn = as_model_function(s.measure, f"{label} measure", d, s.size, s.jacobian, s.circular, typical)
             bound.append(replace(s, measure=fn) if fn is not s.measure else s)
         set_("sensors", tuple(bound))
         set_("transition", as_model_function(self.transition, "transition", d, d,
-                                             self.transition_jacobian, self.circular_state))
+                                             self.transition_jacobian, self.circular_state, typical))
         for what, fn in (("transition_sampler", self.transition_sampler),
                          ("transition_logpdf", self.transition_logpdf)):
             if fn is not None and not callable(fn):
@@ -205,13 +210,11 @@ class StateSpaceModel(StackedMeasurement):
 
     def check_functions(self, x, k: int = 1) -> None:
         """Call every function (and Jacobian) at the state ``x`` (D,) and at the batch
-        (x, x + δ, x − 2δ), δ the prior standard deviations (1 where zero): InputError naming the
+        (x, x + δ, x − 2δ), δ the typical size of each component (:attr:`typical_state`): InputError naming the
         part when one raises, returns the wrong shape or NaN, or maps a row of the batch
         differently from the same state alone (not vectorised over the leading axis)."""
-        x = as_vector(x, "probe state", self.state_dim)
-        spread = np.sqrt(np.diag(self.prior_cov))
-        spread = np.where(spread > 0.0, spread, 1.0)
-        batch = np.stack([x, x + spread, x - 2.0 * spread])
+        batch = self._probe_states(as_vector(x, "probe state", self.state_dim))
+        x = batch[0]
         for fn in (self.transition,) + self.measures:
             alone = np.concatenate([fn(row[None], k) for row in batch])
             together = fn(batch, k)
@@ -221,7 +224,44 @@ class StateSpaceModel(StackedMeasurement):
                                  f"batch (N, {self.state_dim}) must be mapped independently")
             fn.jacobian(x, k)
 
+    def step_dependence(self, steps: Sequence[int]) -> str | None:
+        """How the first function whose values change with the step index k among ``steps`` does
+        (a phrase naming it), or None when none does. A casadi or sympy function is decided from
+        its expression (exact); a numpy callable that takes k is called at every step of ``steps``
+        at the probe states of :meth:`check_functions` and compared with its values at the first
+        step (to rounding: values that differ by more than algebra_rtol of their size)."""
+        steps = [int(k) for k in steps]
+        if not steps:
+            return None
+        batch = self._probe_states(self.prior_mean)
+        for fn in (self.transition,) + self.measures:
+            if not fn.takes_step:
+                continue
+            if not isinstance(fn, NumpyFunction):  # an expression: its dependence on k is exact
+                return f"{fn.name} depends on the step k (its expression contains k)"
+            first = fn(batch, steps[0])
+            tol = algebra_rtol() * max(float(np.abs(first).max()), 1.0)
+            for k in steps[1:]:
+                if np.abs(difference(fn(batch, k), first, fn.circular)).max() > tol:
+                    return (f"{fn.name} depends on the step k (its values at the same states differ between "
+                            f"k = {steps[0]} and k = {k})")
+        return None
+
+    def _probe_states(self, x: np.ndarray) -> np.ndarray:
+        """The states (x, x + δ, x − 2δ), δ the typical size of each component."""
+        spread = self.typical_state
+        return np.stack([x, x + spread, x - 2.0 * spread])
+
     # -- the stacked model -------------------------------------------------------------------
+
+    @property
+    def typical_state(self) -> np.ndarray:
+        """The typical size of each state component, the scale of the central-difference steps of
+        every function (:func:`~gpfverify.models.functions.difference_steps`): the prior standard
+        deviation, else (a component the prior knows exactly) the process noise's, else 1."""
+        prior = np.sqrt(np.diag(self.prior_cov))
+        process = np.sqrt(np.diag(self.process_cov))
+        return np.where(prior > 0.0, prior, np.where(process > 0.0, process, 1.0))
 
     @property
     def state_dim(self) -> int:
@@ -312,6 +352,31 @@ class StateSpaceModel(StackedMeasurement):
             replace(s, noise_cov=c) for s, c in zip(self.sensors, noise_covs, strict=True))
         return replace(self, process_cov=self.process_cov if process_cov is None else process_cov,
                        sensors=sensors, probe=False)
+
+    def rescaled(self, state_scale, output_scale) -> StateSpaceModel:
+        """The same system in other units: x' = S_x x and y' = S_y y with S_x = diag(state_scale)
+        (D positive numbers) and S_y = diag(output_scale) (L, stacked in sensor order), e.g. 1e-6
+        on the positions for metres → megametres. f'(x', k) = S_x f(S_x⁻¹x', k), h'(x', k) =
+        S_y h(S_x⁻¹x', k), Q' = S_x Q S_x, R' = S_y R S_y, the prior likewise; a matrix stays a
+        matrix (S_y H S_x⁻¹) and a user's or exact Jacobian follows (S_y J S_x⁻¹). Every filter and
+        fusion rule that is unit-free gives, on this model and the rescaled measurements, its
+        estimate on the original model rescaled (tests/test_rescaled_systems.py). Angle outputs and
+        angle state components must keep scale 1 (they wrap in radians): InputError otherwise."""
+        s_x = as_positive(state_scale, "state_scale", shape=(self.state_dim,))
+        s_y = as_positive(output_scale, "output_scale", shape=(self.measurement_dim,))
+        if self.circular_state and np.any(s_x[list(self.circular_state)] != 1.0):
+            raise InputError(f"angle state components {list(self.circular_state)} must keep scale 1 (they wrap "
+                             "in radians)")
+        if self.circular and np.any(s_y[list(self.circular)] != 1.0):
+            raise InputError(f"angle outputs {list(self.circular)} of the stacked measurement must keep scale 1 "
+                             "(they wrap in radians)")
+        sensors = [replace(s, measure=_rescaled_function(fn, s_x, s_y[block]), jacobian=None,
+                           noise_cov=s.noise_cov * np.outer(s_y[block], s_y[block]))
+                   for s, fn, block in zip(self.sensors, self.measures, self.blocks)]
+        return replace(self, transition=_rescaled_function(self.transition, s_x, s_x), transition_jacobian=None,
+                       process_cov=self.process_cov * np.outer(s_x, s_x), sensors=tuple(sensors),
+                       prior_mean=s_x * self.prior_mean, prior_cov=self.prior_cov * np.outer(s_x, s_x),
+                       transition_sampler=None, transition_logpdf=None)
 
     # -- simulation -----------------------------------------------------------------------------
 
@@ -434,3 +499,19 @@ def model_from_sympy(states: Sequence, transition, process_cov, sensors: Sequenc
              if isinstance(s, Sensor) else s for m, s in enumerate(sensors)]
     return StateSpaceModel(SympyFunction(transition, states, step, "transition"), process_cov, bound,
                            prior_mean, prior_cov, circular_state=circular_state, name=name, **kwargs)
+
+
+def _rescaled_function(fn: ModelFunction, s_in: np.ndarray, s_out: np.ndarray) -> ModelFunction:
+    """x' ↦ s_out ⊙ fn(x' / s_in, k) (:meth:`StateSpaceModel.rescaled`): a matrix as the matrix
+    diag(s_out) M diag(s_in)⁻¹, any other function wrapped, with its Jacobian rescaled unless it is
+    central differences (which the rescaled function takes itself, in its own units)."""
+    if isinstance(fn, LinearFunction):
+        return LinearFunction(fn.matrix * np.outer(s_out, 1.0 / s_in), fn.name).renamed(fn.name, fn.circular)
+
+    def value(x, k):
+        return s_out * fn(np.asarray(x, dtype=float) / s_in, k)
+
+    differences = isinstance(fn, NumpyFunction) and fn.user_jacobian is None
+    jacobian = None if differences else (lambda x, k: fn.jacobian(np.asarray(x, dtype=float) / s_in, k)
+                                         * np.outer(s_out, 1.0 / s_in))
+    return NumpyFunction(value, fn.name, fn.in_dim, fn.out_dim, jacobian, fn.circular)
