@@ -89,7 +89,9 @@ def claims_html(records: Iterable) -> str:
 def progress_shown(stream=None) -> bool:
     """Whether a progress bar is drawn: on a terminal, and in a Jupyter notebook (rich draws it as a
     live output cell there). Off a terminal elsewhere (a log file, CI) it is not."""
-    stream = sys.stderr if stream is None else stream
+    from gpfverify.streams import diagnostics
+
+    stream = diagnostics() if stream is None else stream
     if stream.isatty():
         return True
     if "ipykernel" not in sys.modules:  # no kernel loaded: not a notebook, and no import of rich needed

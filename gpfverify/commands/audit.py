@@ -10,7 +10,6 @@ from __future__ import annotations
 import argparse
 import contextlib
 import json
-import sys
 
 from gpfverify.audit import (RANK_RULE_DEFAULT, RunAudit, audit_case, audit_to_dict, format_audit,
                              parse_rank_rule)
@@ -21,6 +20,7 @@ from gpfverify.notebook import progress_shown
 from gpfverify.outputs import add_wait_argument, final_path, out_path, output_folder
 from gpfverify.report.document import integer_ranges
 from gpfverify.runaudit import copy_out, spool, stream_audit, table_header, table_row
+from gpfverify.streams import diagnostics
 
 EPILOG = ("FILE formats: a single fusion case (.json) is described in docs/fusion-case-format.md; "
           "a run of cases, one per step (.jsonl: one case per line with an optional integer \"k\"; "
@@ -202,7 +202,7 @@ def _audit_run(args: argparse.Namespace) -> None:
         copy_out(out)
     if args.out is not None:  # after the audit itself; on stderr when stdout carries JSON
         if args.json:
-            print(f"gpfverify audit: the report page: {html}", file=sys.stderr)
+            print(f"gpfverify audit: the report page: {html}", file=diagnostics())
         else:
             print(f"the report page: {html}")
 

@@ -5,10 +5,10 @@ from __future__ import annotations
 
 import argparse
 import json
-import sys
 
 from gpfverify.cli import non_negative_int
 from gpfverify.outputs import add_wait_argument, out_path, output_folder
+from gpfverify.streams import diagnostics
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -30,7 +30,7 @@ def run(args: argparse.Namespace) -> int:
     from gpfverify.symbolic.claims import run_claims
     from gpfverify.symbolic.crosscheck import run_crosschecks
 
-    progress = lambda text: print(text, file=sys.stderr)  # noqa: E731
+    progress = lambda text: print(text, file=diagnostics())  # noqa: E731
     with output_folder(args.out, keep=False, wait=args.wait) as stage:
         certificates = run_claims(args.size, args.only, progress)
         if not args.no_casadi and not args.only:
@@ -46,6 +46,6 @@ def run(args: argparse.Namespace) -> int:
     accepted = [(c.claim, m["mutant"]) for c in certificates for m in c.negative_controls if not m["rejected"]]
     if accepted:  # CONTRACT.md: a negative control that is not rejected fails the run
         for claim, mutant in accepted:
-            print(f"NOT A PROOF: {claim} accepted the mutated statement {mutant!r}", file=sys.stderr)
+            print(f"NOT A PROOF: {claim} accepted the mutated statement {mutant!r}", file=diagnostics())
         return 1
     return 0

@@ -191,7 +191,10 @@ class StateSpaceModel(StackedMeasurement):
             if not isinstance(s, Sensor):
                 raise InputError(f"sensors[{m}] must be a gpfverify.models.Sensor, got {type(s).__name__}")
             label = f"sensor {m}" + (f" ({s.name})" if s.name else "")
-            fn = as_model_function(s.measure, f"{label} measure", d, s.size, s.jacobian, s.circular)
+            if not self.probe and isinstance(s.measure, ModelFunction) and s.measure.circular == s.circular:
+                fn = s.measure  # a model derived from a built one (with_sensors): each keeps its name, "sensor 2"
+            else:
+                fn = as_model_function(s.measure, f"{label} measure", d, s.size, s.jacobian, s.circular)
             bound.append(replace(s, measure=fn) if fn is not s.measure else s)
         set_("sensors", tuple(bound))
         set_("transition", as_model_function(self.transition, "transition", d, d,
