@@ -162,10 +162,11 @@ def _progress(show: bool):
     """A progress bar on stderr (``show``), called as ``update(done, total)``."""
     if not show:
         return contextlib.nullcontext(None)
+    from rich.console import Console
     from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 
     return Progress(TextColumn("audit"), BarColumn(), MofNCompleteColumn(), TextColumn("steps"),
-                    TimeElapsedColumn(), transient=True)
+                    TimeElapsedColumn(), transient=True, console=Console(file=diagnostics()))
 
 
 def _audit_run(args: argparse.Namespace) -> None:

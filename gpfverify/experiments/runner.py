@@ -379,12 +379,15 @@ def _check_manifest(out_dir: Path, manifest: dict, resume: bool, write: bool = T
 def _progress(enabled: bool):
     if not enabled:
         return contextlib.nullcontext(None)
+    from rich.console import Console
     from rich.progress import (BarColumn, MofNCompleteColumn, Progress, TextColumn,
                                TimeElapsedColumn, TimeRemainingColumn)
 
+    from gpfverify.streams import diagnostics
+
     return Progress(TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(),
                     TextColumn("{task.fields[rate]}"), TimeElapsedColumn(), TimeRemainingColumn(),
-                    transient=False)
+                    transient=False, console=Console(file=diagnostics()))  # progress is a diagnostic: stderr
 
 
 def run_experiment(module: ModuleType | str, params: Params, runs: int, seed: int, out_dir: Path,
