@@ -336,7 +336,7 @@ def program() -> NoReturn:
             else:
                 _say(f"gpfverify {command}: interrupted")
                 code = 130
-        if code != 130 and {signal.SIGINT, signal.SIGTERM} & signal.sigpending():
+        if code == 0 and {signal.SIGINT, signal.SIGTERM} & signal.sigpending():  # a failure's line stands
             code = _interrupted_as_it_ended(command)
     except BaseException as exc:  # noqa: BLE001 - GPFVERIFY_DEBUG=1's traceback, or gpfverify failing outside main
         code = _outside_the_command(command, exc)
