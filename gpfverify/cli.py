@@ -313,7 +313,7 @@ def program() -> NoReturn:
         _occupy_closed_standard_fds()  # before the pipe to the child takes a free descriptor
         args = sys.argv[1:]
         command = args[0] if args and args[0] in COMMANDS else "gpfverify"
-        supervise.start(command)  # from here on: the process running the command
+        supervise.start(command, _keep_abandoned)  # from here on: the process running the command
         held = sys.stderr  # descriptor 2: held by the parent (gpfverify.supervise)
         sys.stdout, sys.stderr = streams.private_streams(supervise.standard_fds())
     except KeyboardInterrupt:  # before the command started (gpfverify.entry's handler)
@@ -345,6 +345,20 @@ def program() -> NoReturn:
     with contextlib.suppress(BaseException):
         _run_exit_handlers()
     supervise.HARD_EXIT(code)
+
+
+def _keep_abandoned(stage: str, out: str, made: list[str]) -> str:
+    """For :mod:`gpfverify.supervise`: the saved runs of a staging folder that a killed command
+    process left, kept at once (:func:`gpfverify.outputs.keep_abandoned`); what was kept, for the
+    end of the one line."""
+    from pathlib import Path
+
+    from gpfverify.outputs import keep_abandoned, kept_note
+
+    finished = keep_abandoned(Path(stage), Path(out), [Path(m) for m in made])
+    if finished is None:
+        return "the runs it had saved are kept for the next command on --out"
+    return kept_note(Path(out), finished)
 
 
 def _outside_the_command(command: str, exc: BaseException) -> int:

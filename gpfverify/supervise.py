@@ -53,6 +53,7 @@ import signal
 import sys
 import threading
 import time
+from collections.abc import Callable
 
 #: the operating system's exit, for gpfverify's own use while user code may have replaced os._exit
 HARD_EXIT = os._exit
@@ -81,10 +82,17 @@ _SIGNALS = {signal.SIGINT, signal.SIGTERM, signal.SIGCHLD}
 _CRASHES = {signal.SIGSEGV, signal.SIGBUS, signal.SIGILL, signal.SIGFPE, signal.SIGABRT}
 
 
-def start(command: str) -> None:
+#: what the parent calls for a staging folder its killed child left: keep(stage, out, made) -> the
+#: end of the one line, saying what was kept (:func:`start`)
+Keep = Callable[[str, str, list[str]], str]
+
+
+def start(command: str, keep: Keep | None = None) -> None:
     """Fork (module docstring). The parent waits for the child and ends the process with the
     command's exit status (at once: it has nothing to clean up); the child, and the process
-    where this is not done, returns to run the command."""
+    where this is not done, returns to run the command. ``keep`` keeps the saved runs of a
+    staging folder a killed child left (the command line passes
+    :func:`gpfverify.outputs.keep_abandoned`'s wrapper: this module sits below it)."""
     global _channel, _standard_fds
     if not sys.platform.startswith("linux"):
         return
@@ -116,7 +124,7 @@ def start(command: str) -> None:
         return
     os.close(write_end)
     os.close(held_write)
-    HARD_EXIT(_wait(command, pid, read_end, held_read))
+    HARD_EXIT(_wait(command, pid, read_end, held_read, keep))
 
 
 def standard_fds() -> tuple[int | None, int | None]:
@@ -235,7 +243,7 @@ class _Held:
             _write(f"[gpfverify: {self.dropped} more bytes of output were not kept]\n".encode())
 
 
-def _wait(command: str, pid: int, read_end: int, held_fd: int) -> int:
+def _wait(command: str, pid: int, read_end: int, held_fd: int, keep: Keep | None) -> int:
     """The parent: wait for the child, pass on the signals sent to this process alone, stop a
     child that does not stop, and return the command's exit status (module docstring)."""
     os.set_blocking(read_end, False)
@@ -268,7 +276,7 @@ def _wait(command: str, pid: int, read_end: int, held_fd: int) -> int:
     os.close(read_end)
     late = bool({signal.SIGINT, signal.SIGTERM} & signal.sigpending())  # came as the child ended
     code = _outcome(command, _records(bytes(received)), status, held, interrupted=stop_by is not None or late,
-                    forced=forced)
+                    forced=forced, keep=keep)
     if code in (0, 1) and not held.live:
         held.release()
     os.close(held_fd)
@@ -285,10 +293,10 @@ def _records(data: bytes) -> dict[str, list[str]]:
 
 
 def _outcome(command: str, records: dict[str, list[str]], status: int, held: _Held, interrupted: bool,
-             forced: bool) -> int:
+             forced: bool, keep: Keep | None = None) -> int:
     """The exit status of a child that ended with ``status`` after sending ``records``
     (``interrupted``: a SIGINT or SIGTERM reached this process; ``forced``: the child did not stop
-    after it and was killed)."""
+    after it and was killed; ``keep``: :func:`start`'s)."""
     left = [path for path in records.get("stage", []) if path not in records.get("done", [])]
     if records.get("exit"):
         code = int(records["exit"][-1])
@@ -300,7 +308,7 @@ def _outcome(command: str, records: dict[str, list[str]], status: int, held: _He
     if forced:
         _say(f"gpfverify {command}: interrupted; the process running the command did not stop within "
              f"{STOP_SECONDS:.0f} s (stuck where no signal reaches it, such as compiled code) and was killed"
-             f"{_keep(records, left)}")
+             f"{_keep(records, left, keep)}")
         return 130
     if os.WIFSIGNALED(status) and os.WTERMSIG(status) in (signal.SIGINT, signal.SIGTERM):
         _say(f"gpfverify {command}: interrupted")
@@ -312,7 +320,7 @@ def _outcome(command: str, records: dict[str, list[str]], status: int, held: _He
     if sign is not None:
         advice = records.get("advice", ["try fewer --workers"])[-1]
         _say(f"gpfverify {command}: error: out of memory: the process running the command {how} after an "
-             f"allocation failed ({sign}); {advice}{_keep(records, left)}")
+             f"allocation failed ({sign}); {advice}{_keep(records, left, keep)}")
         return 2
     user = records.get("user", [None])[-1]
     if os.WIFEXITED(status):
@@ -329,25 +337,20 @@ def _outcome(command: str, records: dict[str, list[str]], status: int, held: _He
     if user is None and os.WTERMSIG(status) in _CRASHES:
         _say(f"gpfverify {command}: internal error: the process running the command {how} (a bug: please report it)")
         return 1
-    _say(f"gpfverify {command}: error: the process running {user or 'the command'} {how}{_keep(records, left)}")
+    _say(f"gpfverify {command}: error: the process running {user or 'the command'} {how}{_keep(records, left, keep)}")
     return 2
 
 
-def _keep(records: dict[str, list[str]], left: list[str]) -> str:
-    """Keep the saved runs of the staging folder the child left (``left``), as the next command on
-    ``--out`` would (:func:`gpfverify.outputs.keep_abandoned`); the end of the one line saying what
-    was kept ("" when the child held no folder)."""
+def _keep(records: dict[str, list[str]], left: list[str], keep: Keep | None) -> str:
+    """Keep the saved runs of the staging folder the child left (``left``) with ``keep``, as the
+    next command on ``--out`` would; the end of the one line saying what was kept ("" when the
+    child held no folder)."""
     out = records.get("out", [None])[-1]
-    if not left or out is None:
+    if not left:
         return ""
-    from pathlib import Path
-
-    from gpfverify.outputs import keep_abandoned, kept_note
-
-    finished = keep_abandoned(Path(left[-1]), Path(out), [Path(m) for m in records.get("made", [])])
-    if finished is None:
+    if out is None or keep is None:
         return "; the runs it had saved are kept for the next command on --out"
-    return f"; {kept_note(Path(out), finished)}"
+    return f"; {keep(left[-1], out, records.get('made', []))}"
 
 
 def _discard(folder: str) -> bool:

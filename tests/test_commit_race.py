@@ -19,7 +19,7 @@ import numpy as np
 import pytest
 
 from gpfverify import cli, outputs
-from gpfverify.fusion.runfile import write_run
+from gpfverify.audit.runfile import write_run
 from gpfverify.fusion.synthetic import random_case
 
 HERE = Path(__file__).parent

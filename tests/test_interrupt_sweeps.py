@@ -18,7 +18,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from gpfverify.fusion.runfile import write_run
+from gpfverify.audit.runfile import write_run
 from gpfverify.fusion.synthetic import random_case
 from gpfverify.outputs import foreign_entry
 from gpfverify.supervise import STOP_SECONDS

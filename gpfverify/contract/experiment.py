@@ -1,6 +1,6 @@
 """What an experiment declares, and how a report finds the results it renders.
 
-An experiment module (listed in :data:`gpfverify.experiments.EXPERIMENTS`) defines
+An experiment module (listed in :data:`gpfverify.papers.EXPERIMENTS`) defines
 
 * ``NAME`` (as on the command line), ``PAPER`` (a key of :data:`~gpfverify.contract.papers.PAPERS`)
   and ``DEFAULT_RUNS`` (the paper's run count);
@@ -17,8 +17,9 @@ An experiment module (listed in :data:`gpfverify.experiments.EXPERIMENTS`) defin
 * optionally ``TIMING_KEYS`` — names of measured-time fields that :data:`TIMING_KEY` does not match.
 
 The contract types of an experiment (``Params``, ``RunRecord``, ``PROFILES``, summary records)
-live in ``gpfverify/contract/<name>.py`` so that the report reads results back through the same
-types without importing the code that computes them.
+live in its paper's contract module (``gpfverify/papers/<paper>/contract.py``, or
+``<experiment>_contract.py`` in a paper with several experiments) so that the report section reads
+results back through the same types without importing the code that computes them.
 """
 
 from __future__ import annotations

@@ -47,7 +47,7 @@ from gpfverify.contract.params import Params
 from gpfverify.contract.serial import from_json, to_json
 from gpfverify.errors import InputError, OutOfMemory, WorkerLost
 from gpfverify.memory import out_of_memory
-from gpfverify.notebook import progress_shown
+from gpfverify.runtime import progress_shown
 from gpfverify.runtime import BLAS_THREAD_VARS
 from gpfverify.supervise import exit_with_parent
 from gpfverify.usercode import (Interrupted, UserCodeError, guarded, interrupt_received, set_time_limit, system_file,
