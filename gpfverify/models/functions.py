@@ -13,7 +13,9 @@ signature) and may return (N,) when E = 1. Its Jacobian is the user's ``jacobian
 the scale of each state component (``typical_state``, the prior standard deviations a model sets),
 so that a change of units moves the Jacobian only by that change. Every call
 checks the output's shape and finiteness and turns an exception raised inside the user's function
-into :class:`~gpfverify.errors.InputError` naming the part of the model ("sensor 1 measure").
+into :class:`~gpfverify.errors.InputError` naming the part of the model ("sensor 1 measure");
+under a time limit (``check --timeout``) a call of the user's function or Jacobian that does not
+return in time is stopped (:func:`gpfverify.usercode.call_limited`), the message naming it.
 """
 
 from __future__ import annotations
@@ -26,6 +28,7 @@ import numpy as np
 from gpfverify.angles import difference
 from gpfverify.errors import GpfverifyError, InputError
 from gpfverify.tolerances import EPS
+from gpfverify.usercode import call_limited, describe
 
 #: Relative step of the central-difference Jacobian, h_j = FD_STEP · max(s_j, |x_j|) with s_j the
 #: typical size of state component j (:func:`difference_steps`): the cube root of eps balances
@@ -80,9 +83,13 @@ class ModelFunction:
         change with k is :meth:`~gpfverify.models.StateSpaceModel.step_dependence`'s question)."""
         return False
 
+    def described(self) -> str:
+        """How a message names this function (the user's function behind it, where there is one)."""
+        return self.name
+
     def __call__(self, x: np.ndarray, k: int = 1) -> np.ndarray:
         try:
-            raw = np.asarray(self.evaluate(x, k))
+            raw = np.asarray(call_limited(self.described, self.evaluate, x, k))
         except GpfverifyError:
             raise
         except Exception as exc:  # the user's code: report which part failed, keep the cause
@@ -160,6 +167,9 @@ class NumpyFunction(ModelFunction):
     def takes_step(self) -> bool:
         return self.takes_k
 
+    def described(self) -> str:
+        return f"{self.name}, {describe(self.fn)},"
+
     def jacobian(self, x, k=1):
         if self.user_jacobian is None:
             return central_difference_jacobian(self, x, k)
@@ -177,7 +187,8 @@ class NumpyFunction(ModelFunction):
         if user_jacobian is None:  # only called when the user gave one
             raise InputError(f"{self.name} has no user Jacobian")
         try:
-            value = user_jacobian(xi, k) if self.jacobian_takes_k else user_jacobian(xi)
+            value = call_limited(lambda: f"{self.name} jacobian, {describe(user_jacobian)},",
+                                 *((user_jacobian, xi, k) if self.jacobian_takes_k else (user_jacobian, xi)))
             value = np.asarray(value, dtype=float)
         except GpfverifyError:
             raise
