@@ -110,6 +110,8 @@ def test_summary_names_the_steps_where_a_sensor_lost_rank(tmp_path, capsys):
         gaps = [s["gap_norm"] for s in data["steps"] if "gap_norm" in s]   # the steps' own, checked above
         assert len(gaps) == 3 and summary["max_gap_norm"] == max(gaps)
         assert summary["max_gap_k"] == ks[int(np.argmax([np.linalg.norm(a.gap) for a in audits[:3]]))]
+        sizes = [s["gap_size"] for s in data["steps"] if "gap_size" in s]   # in prior standard deviations
+        assert summary["max_gap_size"] == max(sizes) and summary["max_gap_size_k"] == ks[int(np.argmax(sizes))]
     code, out, _ = _cli(["audit", str(tmp_path / "run.jsonl"), "--table"], capsys)
     assert code == 0 and "sensor 0: lost full column rank at k = 2, 5; not exact at k = 2" in out
     assert "steps: 4;" in out and f"at k = {ks[int(np.argmax(gaps))]}" in out
@@ -122,7 +124,10 @@ def test_summary_names_the_steps_where_a_sensor_lost_rank(tmp_path, capsys):
     assert out.startswith(f"DMF NOT exact at {inexact_steps} of 4 steps (the rank condition held at {held}; "
                           if inexact_steps else "DMF exact at all 4 steps")
     assert "sensor 0 lost full column rank at k = 2, 5, not exact at k = 2" in out
-    assert f"largest |DMF - CMF| {max(gaps):.3g} at k = {ks[int(np.argmax(gaps))]} (3 step(s) with y)" in out
+    size_k, norm_k = ks[int(np.argmax(sizes))], ks[int(np.argmax(gaps))]
+    assert (f"largest gap DMF - CMF {max(sizes):.3g} prior standard deviations at k = {size_k} "
+            f"(|DMF - CMF| {max(gaps):.3g} in the state's units"
+            + ("" if size_k == norm_k else f", largest at k = {norm_k}") + "; 3 step(s) with y)") in out
 
 
 @pytest.mark.parametrize("name", ["run.jsonl", "run.npz"])
@@ -458,7 +463,8 @@ def test_the_summary_of_a_long_run_holds_no_list_that_grows_with_it():
         for start in range(0, steps, block):
             summary.add(BlockAudit(ks=np.arange(start, start + block), condition_holds=lost[:, 0],
                                    exact=lost[:, 0], full_column_rank=lost, sensor_exact=lost,
-                                   gap_norm=np.full(block, np.nan), rank_rules=["canonical"]))
+                                   gap_norm=np.full(block, np.nan), gap_size=np.full(block, np.nan),
+                                   rank_rules=["canonical"]))
         write_summary_json(sink, summary.result(spooled=True))
         _, peak = tracemalloc.get_traced_memory()
     finally:

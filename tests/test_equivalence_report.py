@@ -327,3 +327,30 @@ def test_html_in_user_supplied_text_is_shown_as_text_on_the_markdown_page(tmp_pa
     assert "&lt;img src=x onerror=alert(1)>" in outside_code and "&lt;script>alert(2)&lt;/script>" in outside_code
     assert md_escaped("p < 0.05 & q <= 1, <b>bold</b> &amp; `<i>code</i>`") == \
         "p < 0.05 & q <= 1, &lt;b>bold&lt;/b> &amp;amp; `<i>code</i>`"
+
+
+def test_a_sensor_exact_at_every_step_shows_no_repair_size():
+    """The robot's second compass also reports its board temperature, which no state moves: C_xy
+    loses a column at every step (repair_dim 1 in the records), yet the sensor is exact at every
+    step, so the page's sensor table gives it no repair size; a sensor not exact at some steps gets
+    the size at those steps."""
+    sys.path.insert(0, str(ROOT / "tests" / "fixtures" / "robot"))
+    from unicycle import NAMES, unicycle
+
+    from gpfverify.experiments.check import results_of_run
+    from gpfverify.model_fusion import run_fusion
+    from gpfverify.report.equivalence import CheckData, sensor_table
+
+    model = unicycle(sensors=NAMES[:5])
+    _, ys = model.simulate(4, np.random.default_rng(3))
+    results = results_of_run(run_fusion(model, ys, methods=("cmf", "dmf")))
+    repair, exact = np.asarray(results["repair_dim"]), np.asarray(results["exact"], bool)
+    compass, eight = NAMES.index("compass 2"), NAMES.index("eight")
+    assert repair[0, :, compass].min() == 1 and exact[0, :, compass].all()
+    assert not exact[0, :, eight].all()
+    rows = sensor_table(CheckData(results)).rows
+    column = sensor_table(CheckData(results)).headers.index("repair size (numbers per step where not exact)")
+    assert rows[compass][column] == "— (not needed: exact at every step)"
+    inexact = ~exact[0, :, eight]
+    assert rows[eight][column] == (f"{repair[0, :, eight][inexact].max()} (at {int(inexact.sum())} "
+                                   f"step{'s' if inexact.sum() > 1 else ''} not exact)")

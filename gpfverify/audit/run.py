@@ -55,6 +55,7 @@ class BlockAudit:
     full_column_rank: np.ndarray
     sensor_exact: np.ndarray
     gap_norm: np.ndarray
+    gap_size: np.ndarray
     rank_rules: list
     reproduced: np.ndarray | None = None
     json: bytes = b""
@@ -93,6 +94,7 @@ def audits_block(ks, audits: list[CaseAudit], form: str = "none", keep: bool = F
         full_column_rank=np.array([[s.full_column_rank for s in a.sensors] for a in audits], dtype=bool),
         sensor_exact=np.array([[s.exact for s in a.sensors] for a in audits], dtype=bool),
         gap_norm=np.array([np.nan if a.gap is None else np.linalg.norm(a.gap) for a in audits]),
+        gap_size=np.array([np.nan if a.gap_size is None else a.gap_size for a in audits]),
         rank_rules=rules,
         reproduced=np.array([a.reproduced is True for a in audits], dtype=bool),
         json=b", ".join(_ENCODER.encode(s) for s in steps) if form == "json" else b"",
@@ -201,6 +203,8 @@ class RunSummary:
     reproduced: int = 0
     max_gap: float | None = None
     max_gap_k: int | None = None
+    max_gap_size: float | None = None
+    max_gap_size_k: int | None = None
     rules: list = field(default_factory=list)
     lost: list[StepIndices] = field(default_factory=list)
     lost_not_exact: list[StepIndices] = field(default_factory=list)
@@ -217,6 +221,9 @@ class RunSummary:
             i = int(np.nanargmax(block.gap_norm))
             if self.max_gap is None or block.gap_norm[i] > self.max_gap:
                 self.max_gap, self.max_gap_k = float(block.gap_norm[i]), int(block.ks[i])
+            j = int(np.nanargmax(block.gap_size))
+            if self.max_gap_size is None or block.gap_size[j] > self.max_gap_size:
+                self.max_gap_size, self.max_gap_size_k = float(block.gap_size[j]), int(block.ks[j])
         for r in block.rank_rules:
             if r not in self.rules:
                 self.rules.append(r)
@@ -238,6 +245,7 @@ class RunSummary:
             "steps": self.steps, "condition_held_steps": self.condition_held, "exact_steps": self.exact,
             "steps_with_y": self.with_y, "reproduced_steps": self.reproduced,
             "max_gap_norm": self.max_gap, "max_gap_k": self.max_gap_k,
+            "max_gap_size": self.max_gap_size, "max_gap_size_k": self.max_gap_size_k,
             "sensors": [{"index": m, "rank_lost_steps": ks(self.lost[m]),
                          "rank_lost_not_exact_steps": ks(self.lost_not_exact[m])} for m in range(len(self.lost))],
             "rank_rule": run_rank_rule(self.rules),

@@ -100,6 +100,22 @@ def _steps(ks) -> str:
     return integer_ranges(ks, "-", RANGES_SHOWN)
 
 
+def gap_words(summary: dict) -> str:
+    """The largest gap of a run audit's summary, first in prior standard deviations of the step's
+    central prediction (unit-free), then as a norm in the state's own units (mixed units when the
+    components have different ones), with the steps where each was largest."""
+    if summary["max_gap_norm"] is None:
+        return "no step has y, so the gap is not evaluated"
+    size = summary.get("max_gap_size")
+    where = f"at k = {summary['max_gap_k']}"
+    norm = f"|DMF - CMF| {summary['max_gap_norm']:.3g} in the state's units"
+    if size is None:
+        return f"largest {norm} {where} ({summary['steps_with_y']} step(s) with y)"
+    same = summary.get("max_gap_size_k") == summary["max_gap_k"]
+    return (f"largest gap DMF - CMF {size:.3g} prior standard deviations at k = {summary['max_gap_size_k']} "
+            f"({norm}{'' if same else ', largest ' + where}; {summary['steps_with_y']} step(s) with y)")
+
+
 def format_summary(summary: dict) -> str:
     """The summary of a run audit as text (after the per-step table)."""
     rule = summary["rank_rule"]
@@ -108,11 +124,7 @@ def format_summary(summary: dict) -> str:
     lines = ["(r/l! : sensor not exact at that step)", "", f"rank rule: {'; '.join(text)}",
              f"steps: {summary['steps']}; Proposition 1 condition held at {summary['condition_held_steps']}; "
              f"DMF exact at {summary['exact_steps']}"]
-    if summary["max_gap_norm"] is None:
-        lines.append("no step has y: gaps not evaluated")
-    else:
-        lines.append(f"max |DMF - CMF| = {summary['max_gap_norm']:.3g} at k = {summary['max_gap_k']} "
-                     f"({summary['steps_with_y']} step(s) with y)")
+    lines.append(gap_words(summary))
     for s in summary["sensors"]:
         if s["rank_lost_steps"]:
             lost = _steps(s["rank_lost_steps"])
@@ -141,11 +153,7 @@ def verdict_line(summary: dict) -> str:
             line += (f"; sensor {s['index']} lost full column rank at k = {_steps(s['rank_lost_steps'])}"
                      + (f", not exact at k = {_steps(bad)}" if bad else ", exact anyway"))
     line += ")"
-    if summary["max_gap_norm"] is None:
-        line += "; no step has y, so the gap is not evaluated"
-    else:
-        line += (f"; largest |DMF - CMF| {summary['max_gap_norm']:.3g} at k = {summary['max_gap_k']} "
-                 f"({summary['steps_with_y']} step(s) with y)")
+    line += "; " + gap_words(summary)
     rule = summary["rank_rule"]
     rules = rule if isinstance(rule, list) else [rule]
     text = "; ".join(r.get("description", str(r)) if isinstance(r, dict) else str(r) for r in rules)

@@ -364,22 +364,30 @@ def _unit_sentences(d: CheckData) -> list[str]:
 def sensor_table(d: CheckData) -> Table:
     headers = ["sensor", "name", "outputs l_m", "angle outputs (indices from 0)", "l_m > D", "steps full rank",
                "steps exact", "largest share of gap" + (" (prior sd)" if d.share_in_prior_sd else " (state units)"),
-               "repair size (numbers per step)", "rank tolerance"]
+               "repair size (numbers per step where not exact)", "rank tolerance"]
     if d.canonical is not None:
         headers.append("smallest canonical correlation")
     rows = []
     for m, s in enumerate(d.sensors):
-        repair = d.repair[:, :, m]
+        repair = np.where(d.exact[:, :, m], 0, d.repair[:, :, m])  # a repair is needed where not exact only
         tol = d.tol[:, :, m]
         row = [m, s.get("name", ""), s["outputs"], ", ".join(f"#{i}" for i in s.get("circular") or []) or "none",
                "yes" if int(s["outputs"]) > d.D else "no", f"{int(d.full[:, :, m].sum())} of {d.total}",
                f"{int(d.exact[:, :, m].sum())} of {d.total}", _g(float(d.share[:, :, m].max())),
-               "0" if not repair.any() else f"{repair.max()} (at {int((repair > 0).sum())} steps)",
+               _repair_cell(repair),
                _g(float(tol.min())) if tol.min() == tol.max() else f"{_g(float(tol.min()))} – {_g(float(tol.max()))}"]
         if d.canonical is not None:
             row.append(_g(float(np.nanmin(d.canonical[:, :, m])), 3))
         rows.append(row)
     return Table(headers, rows, f"Sensors (state dimension D = {d.D}; counts over {d.total} steps{d.of_runs})")
+
+
+def _repair_cell(repair: np.ndarray) -> str:
+    """The repair size of a sensor (the numbers its repair message needs per step) at the steps
+    where it was not exact (``repair`` zero elsewhere): none where it was exact at every step."""
+    if not repair.any():
+        return "— (not needed: exact at every step)"
+    return f"{repair.max()} (at {_plural(int((repair > 0).sum()), 'step')} not exact)"
 
 
 def inexact_table(d: CheckData) -> Table | None:
@@ -724,12 +732,12 @@ def run_audit_sections(run_audit: dict, fig_dir: Path) -> list[Section]:
         rows.append([m, int(a.cols[0, m]), "yes" if a.cols[0, m] > a.rows[0, m] else "no",
                      f"{int(a.full[:, m].sum())} of {a.T}", f"{int(a.exact[:, m].sum())} of {a.T}",
                      _g(float(np.nanmax(a.share[:, m]))) if np.isfinite(a.share[:, m]).any() else "—",
-                     int(a.repair[:, m].max()) if a.T else 0,
+                     _repair_cell(np.where(a.exact[:, m], 0, a.repair[:, m])),
                      _g(float(np.nanmin(a.sigma_min[:, m])), 3)]
                     + ([_g(float(np.nanmin(a.canonical[:, m])), 3)] if a.canonical is not None else []))
     head.add(Table(["sensor", "outputs l_m", "l_m > D", "steps full rank", "steps exact",
                     "largest share of gap" + (" (prior sd)" if a.share_in_prior_sd else " (state units)"),
-                    "largest repair size", "smallest singular value of C_xy^m"]
+                    "repair size (numbers per step where not exact)", "smallest singular value of C_xy^m"]
                    + (["smallest canonical correlation"] if a.canonical is not None else []), rows,
                    f"Sensors (state dimension D = {int(a.rows[0, 0]) if a.n else '?'})"))
     figs = Section("figures", "Per step")
