@@ -5,9 +5,11 @@ than asserted — and what the extras cost to import.
 
 Each row: the largest absolute difference of the posterior means and of the posterior covariances
 over a run (12 steps of a constant-velocity target; the eastern radar's bearing crosses ±π), and
-the same relative to the largest mean and covariance entry. UKF rows come twice: with the weighted
-mean of angle-valued sigma points made the peer's (the tests' comparison), and with each library's
-own definition (gpfverify's wrap(r + Σ w wrap(a − r)) against Stone Soup's atan2(Σ w sin, Σ w cos)).
+the same relative to the largest mean and covariance entry. UKF rows come as ``gpfverify check``
+runs a tracker (the library's α, β, κ and its weighted mean of angle-valued sigma points: Stone
+Soup's atan2(Σ w sin, Σ w cos), filterpy's z_mean_fn) and with gpfverify's own mean
+(wrap(r + Σ w wrap(a − r))) or defaults instead, as check ran before; the filterpy Kalman rows
+start a sensor from its own x and P and from the first filter's.
 
     .venv/bin/python benchmarks/bench_adapters.py [--out benchmarks/results/adapters.md]
 """
@@ -29,7 +31,6 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-import gpfverify.filters.sigma_points as sigma_points  # noqa: E402
 from tests import test_adapters_filterpy as fp  # noqa: E402
 from tests import test_adapters_stonesoup as ss  # noqa: E402
 
@@ -76,24 +77,25 @@ def stonesoup_rows() -> list[list[str]]:
                     "Jacobian amplifies rounding)", ss.gpfverify_run("ekf", model.sensor_model(1), ys[:, block]), ref))
 
     combined = CombinedReversibleGaussianMeasurementModel(radars)
-    for alpha, beta, kappa in [(1.0, 0.0, 2.0), (0.5, 2.0, 1.0)]:
-        params = SigmaParams(alpha, beta, kappa)
+    for alpha, beta, kappa in [(0.5, 2.0, None), (1.0, 0.0, 2.0), (0.5, 2.0, 1.0)]:
         theirs = ss.stonesoup_run(UnscentedKalmanPredictor(ss.cv_model(), alpha=alpha, beta=beta, kappa=kappa),
                                   UnscentedKalmanUpdater(combined, alpha=alpha, beta=beta, kappa=kappa), combined, ys)
-        own = ss.gpfverify_run("ukf", model, ys, params)
-        saved = sigma_points.weighted_mean
-        sigma_points.weighted_mean = ss.atan2_mean
-        try:
-            aligned = ss.gpfverify_run("ukf", model, ys, params)
-        finally:
-            sigma_points.weighted_mean = saved
-        label = f"Stone Soup UnscentedKalman (α, β, κ) = ({alpha:g}, {beta:g}, {kappa:g}), centralized, 2 radars"
-        rows.append(row(label + ", angle mean made Stone Soup's", aligned, theirs))
-        rows.append(row(label + ", each library's own angle mean", own, theirs))
+        k = 3.0 - model.state_dim if kappa is None else kappa
+        label = (f"Stone Soup UnscentedKalman (α, β, κ) = ({alpha:g}, {beta:g}, "
+                 f"{'3 − n' if kappa is None else f'{kappa:g}'}), centralized, 2 radars")
+        rows.append(row(label + ", as check runs it (its α, β, κ and atan2 angle mean)",
+                        ss.gpfverify_run("ukf", model, ys, SigmaParams(alpha, beta, k, "atan2")), theirs))
+        rows.append(row(label + ", its α, β, κ with gpfverify's own angle mean",
+                        ss.gpfverify_run("ukf", model, ys, SigmaParams(alpha, beta, k)), theirs))
+        if kappa is None:
+            rows.append(row(label + ", gpfverify's defaults (1, 0, 2) as check ran before",
+                            ss.gpfverify_run("ukf", model, ys), theirs))
     return rows
 
 
 def filterpy_rows() -> list[list[str]]:
+    from gpfverify.filters.sigma_points import SigmaParams
+
     rows = []
     R0, R1 = np.diag([4.0, 9.0]), np.diag([0.5, 0.5])
     system = fp.adapter.system_from_filters([fp.kalman(fp.H_POSITION, R0), fp.kalman(fp.H_VELOCITY, R1)])
@@ -103,6 +105,15 @@ def filterpy_rows() -> list[list[str]]:
                                                np.diag([4.0, 9.0, 0.5, 0.5])), ys)
     rows.append(row("filterpy KalmanFilter, centralized (2 linear sensors, 12 steps) vs gpfverify's CMF",
                     (fused.means("cmf"), [s.estimate("cmf").cov for s in fused.steps]), (means, covs)))
+    kalman = [fp.kalman(fp.H_POSITION, R0), fp.kalman(fp.H_VELOCITY, R1)]
+    kalman[1].x, kalman[1].P = np.array([[-4.0], [-2.0], [6.0], [0.0]]), np.diag([100.0, 4.0, 60.0, 2.0])
+    system = fp.adapter.system_from_filters(kalman)
+    means, covs, _ = fp.filterpy_run(kalman[1], ys[:, system.model.blocks[1]])
+    for label, starts in (("from its own x and P, as check runs it", None),
+                          ("from filter 0's x and P, as check ran before", [system.local_priors[0]] * 2)):
+        fused = system.run(ys, methods=("cmf", "dmf"), **({} if starts is None else {"local_priors": starts}))
+        rows.append(row(f"filterpy KalmanFilter, the velocity sensor started {label}",
+                        (fused.local_means(1), [s.local[1].C_e for s in fused.steps]), (means, covs)))
     R_radar = np.diag([4.0, 0.02**2])
 
     def atan2_mean(sigmas, weights):
@@ -110,18 +121,22 @@ def filterpy_rows() -> list[list[str]]:
         mean[1] = np.arctan2(weights @ np.sin(sigmas[:, 1]), weights @ np.cos(sigmas[:, 1]))
         return mean
 
-    for alpha, beta, kappa in [(1.0, 0.0, 2.0), (0.5, 2.0, 1.0)]:
-        system = fp.adapter.system_from_filters([fp.unscented(fp.range_bearing, R_radar, alpha, beta, kappa,
-                                                              residual_z=fp.residual_bearing)])
-        _, ys = fp.simulate(system.model)
-        fused = system.run(ys, methods=("cmf", "dmf"))
-        ours = (fused.local_means(0), [s.local[0].C_e for s in fused.steps])
+    for alpha, beta, kappa in [(0.3, 2.0, 0.1), (1.0, 0.0, 2.0)]:
         label = f"filterpy UnscentedKalmanFilter (α, β, κ) = ({alpha:g}, {beta:g}, {kappa:g}), range-bearing"
-        for name, mean_fn in [("z_mean_fn = gpfverify's angle mean", fp.mean_bearing),
-                              ("z_mean_fn = atan2 of sines and cosines (the filterpy book's)", atan2_mean)]:
-            means, covs, _ = fp.filterpy_run(fp.unscented(fp.range_bearing, R_radar, alpha, beta, kappa,
-                                                          residual_z=fp.residual_bearing, z_mean_fn=mean_fn), ys)
-            rows.append(row(f"{label}, {name}", ours, (means, covs)))
+        for name, mean_fn in [("filterpy's default z_mean_fn (the plain mean)", None),
+                              ("z_mean_fn = atan2 of sines and cosines (the filterpy book's)", atan2_mean),
+                              ("z_mean_fn = gpfverify's angle mean", fp.mean_bearing)]:
+            def make():
+                return fp.unscented(fp.range_bearing, R_radar, alpha, beta, kappa, residual_z=fp.residual_bearing,
+                                    z_mean_fn=mean_fn)
+            system = fp.adapter.system_from_filters([make()])
+            _, ys = fp.simulate(system.model)
+            means, covs, _ = fp.filterpy_run(make(), ys)
+            for how, settings in (("as check runs it (the mean recognised)", system.params),
+                                  ("with gpfverify's own angle mean", SigmaParams(alpha, beta, kappa))):
+                fused = system.run(ys, methods=("cmf", "dmf"), params=settings)
+                rows.append(row(f"{label}, {name}, {how}",
+                                (fused.local_means(0), [s.local[0].C_e for s in fused.steps]), (means, covs)))
     return rows
 
 

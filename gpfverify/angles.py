@@ -15,6 +15,19 @@ and equals the ordinary weighted mean whenever all points lie within π of r wit
 cut. Unlike atan2(Σ w sin, Σ w cos) it stays well defined for the negative zeroth weight of the
 scaled unscented transform, and it equals the linear mean exactly for points that need no wrap.
 
+Other libraries average angles their own way, and a tracker written in one is checked as it is
+(:data:`ANGLE_MEANS`, the ``angle_mean`` of :class:`~gpfverify.filters.sigma_points.SigmaParams`):
+
+* ``"reference"`` — the mean above, gpfverify's own;
+* ``"atan2"`` — atan2(Σ_i w_i sin a_i, Σ_i w_i cos a_i), Stone Soup's ``Angle.average`` (the
+  circular mean of the weighted unit vectors; undefined when they cancel);
+* ``"linear"`` — Σ_i w_i a_i as the numbers are, filterpy's default ``x_mean_fn`` / ``z_mean_fn``
+  (its ``residual_z`` wraps the deviations but not the mean: points on both sides of the cut
+  average to about 0 instead of ±π).
+
+All three agree to second order in the points' spread when no point crosses the cut; each result
+is wrapped to (−π, π].
+
 Ground floor: imports nothing from the package.
 """
 
@@ -57,14 +70,29 @@ def wrap_components(values, circular: Sequence[int]) -> np.ndarray:
     return values
 
 
-def weighted_mean(points: np.ndarray, weights: np.ndarray, circular: Sequence[int]) -> np.ndarray:
-    """Σ_s w_s points[..., s, :] with the ``circular`` components averaged on the circle relative to
-    the first point (module docstring). points (..., S, E), weights (S,) summing to one."""
+#: the weighted means of angles a filter may use (module docstring)
+ANGLE_MEANS = ("reference", "atan2", "linear")
+
+
+def weighted_mean(points: np.ndarray, weights: np.ndarray, circular: Sequence[int],
+                  angle_mean: str = "reference") -> np.ndarray:
+    """Σ_s w_s points[..., s, :] with the ``circular`` components averaged by ``angle_mean`` (one of
+    :data:`ANGLE_MEANS`: by default on the circle relative to the first point; module docstring)
+    and wrapped to (−π, π]. points (..., S, E), weights (S,) summing to one."""
     points = np.asarray(points, dtype=float)
     mean = np.einsum("s,...se->...e", weights, points)
     if len(circular):
         idx = list(circular)
-        reference = points[..., :1, idx]
-        deviations = wrap(points[..., idx] - reference)
-        mean[..., idx] = wrap(reference[..., 0, :] + np.einsum("s,...se->...e", weights, deviations))
+        angles = points[..., idx]
+        if angle_mean == "reference":
+            reference = angles[..., :1, :]
+            deviations = wrap(angles - reference)
+            mean[..., idx] = wrap(reference[..., 0, :] + np.einsum("s,...se->...e", weights, deviations))
+        elif angle_mean == "atan2":
+            mean[..., idx] = wrap(np.arctan2(np.einsum("s,...se->...e", weights, np.sin(angles)),
+                                             np.einsum("s,...se->...e", weights, np.cos(angles))))
+        elif angle_mean == "linear":
+            mean[..., idx] = wrap(mean[..., idx])
+        else:
+            raise ValueError(f"angle_mean must be one of {ANGLE_MEANS}, got {angle_mean!r}")
     return mean

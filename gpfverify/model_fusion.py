@@ -41,7 +41,7 @@ import numpy as np
 from gpfverify.errors import InputError, NumericalError
 from gpfverify.filters.families import GP_FAMILIES, GaussianFamily, gaussian_family
 from gpfverify.filters.records import Gaussian, StepRecord
-from gpfverify.filters.sigma_points import SigmaParams
+from gpfverify.filters.sigma_points import SigmaParams, SigmaSettings
 from gpfverify.fusion.case import CentralPrediction, FusionCase, LocalReport, sensor_blocks, split_circular
 from gpfverify.fusion.distributed import DMFResult, dmf_update
 from gpfverify.fusion.names import FUSION_RULES, canonical_rule, canonical_rules
@@ -63,7 +63,7 @@ METHODS: tuple[str, ...] = FUSION_RULES
 DEFAULT_METHODS: tuple[str, ...] = ("cmf", "dmf", "cc", "ci", "rcc-ci")
 
 
-def model_family(name: str, model, params: SigmaParams = SigmaParams()) -> GaussianFamily:
+def model_family(name: str, model, params: SigmaParams | SigmaSettings = SigmaParams()) -> GaussianFamily:
     """The family ``name`` after checking that ``model`` is the kind it filters (InputError)."""
     family = gaussian_family(name, params)  # any case; family.name is the lower-case key
     require_model(model, GPModel if family.name in GP_FAMILIES else StateSpaceModel, f"the {name} family")
@@ -71,7 +71,7 @@ def model_family(name: str, model, params: SigmaParams = SigmaParams()) -> Gauss
 
 
 def central_prediction(belief: Gaussian, model, *, k: int = 1, family: str = "ukf",
-                       params: SigmaParams = SigmaParams()) -> tuple[Gaussian, CentralPrediction]:
+                       params: SigmaParams | SigmaSettings = SigmaParams()) -> tuple[Gaussian, CentralPrediction]:
     """The centre's prediction N(μ_p, C_p) from the fused ``belief`` and its stacked measurement
     moments at step ``k``."""
     chosen = model_family(family, model, params)
@@ -83,7 +83,7 @@ def central_prediction(belief: Gaussian, model, *, k: int = 1, family: str = "uk
 
 
 def cmf_step(belief: Gaussian, model, y, *, k: int = 1, family: str = "ukf",
-             params: SigmaParams = SigmaParams()) -> StepRecord:
+             params: SigmaParams | SigmaSettings = SigmaParams()) -> StepRecord:
     """One centralized-fusion cycle with the stacked measurement ``y`` (L,)."""
     return model_family(family, model, params).step(belief, model, y, k=k)
 
@@ -117,7 +117,7 @@ def local_reports(local_records: Sequence[StepRecord], central: CentralPredictio
 
 
 def dmf_step(belief: Gaussian, model, y=None, *, local_records: Sequence[StepRecord], k: int = 1,
-             family: str = "ukf", params: SigmaParams = SigmaParams(),
+             family: str = "ukf", params: SigmaParams | SigmaSettings = SigmaParams(),
              rank_tol: float | None = None, rank_rule: RankRule | str | None = None,
              clock: Callable[[], float] = time.perf_counter) -> DMFStep:
     """One distributed-fusion cycle (eq. 35) from the fused ``belief``: ``local_records[m]`` is
@@ -173,8 +173,9 @@ class FusionStep:
 @dataclass(frozen=True)
 class FusionRun(HtmlView):
     """A fusion run: the ``family``, the ``methods`` run and one :class:`FusionStep` per measurement;
-    ``model`` and ``ys`` what it ran on, ``ci_criterion`` CI's weight criterion. In a notebook it
-    shows as ``gpfverify check``'s page (:func:`gpfverify.notebook.fusion_run_html`)."""
+    ``model`` and ``ys`` what it ran on, ``ci_criterion`` CI's weight criterion, ``params`` the
+    sigma points of the unscented families. In a notebook it shows as ``gpfverify check``'s page
+    (:func:`gpfverify.notebook.fusion_run_html`)."""
 
     family: str
     methods: tuple[str, ...]
@@ -182,6 +183,7 @@ class FusionRun(HtmlView):
     model: object = field(default=None, repr=False, compare=False)
     ys: np.ndarray | None = field(default=None, repr=False, compare=False)
     ci_criterion: str = "trace"
+    params: SigmaSettings = SigmaSettings()
 
     def means(self, method: str) -> np.ndarray:
         """Fused means of ``method`` at every step, (T, D)."""
@@ -269,7 +271,7 @@ def _priors(model, local_priors, fused_prior) -> tuple[list[Gaussian], Gaussian]
 
 @one_blas_thread
 def run_fusion(model, ys, *, family: str = "ukf", methods: Sequence[str] = DEFAULT_METHODS, first_k: int = 1,
-               params: SigmaParams = SigmaParams(), rank_tol: float | None = None,
+               params: SigmaParams | SigmaSettings = SigmaParams(), rank_tol: float | None = None,
                local_priors: Sequence[Gaussian] | None = None, fused_prior: Gaussian | None = None,
                audit: bool = True, rcc_size: float | None = None,
                rank_rule: RankRule | str | None = None, ci_criterion: str = "trace") -> FusionRun:
@@ -319,7 +321,7 @@ def run_fusion(model, ys, *, family: str = "ukf", methods: Sequence[str] = DEFAU
             step_audit = _audit(dmf)
         steps.append(FusionStep(k, local, cmf, dmf, fused_estimates, step_audit,
                                 seconds, tuple(s for _, s in timed), failed))
-    return FusionRun(family, methods, tuple(steps), model, ys, ci_criterion)
+    return FusionRun(family, methods, tuple(steps), model, ys, ci_criterion, SigmaSettings.of(params))
 
 
 def _audit(dmf: DMFStep) -> CaseAudit:

@@ -19,7 +19,8 @@ from contextlib import contextmanager
 from pathlib import Path
 from types import ModuleType
 
-from gpfverify.adapters import as_state_space_model
+from gpfverify.adapters import as_local_filters
+from gpfverify.adapters.local_filters import LocalFilters
 from gpfverify.errors import GpfverifyError, InputError
 from gpfverify.models import StateSpaceModel
 
@@ -45,11 +46,17 @@ def _folder_on_path(folder: Path):
 
 def load_system(spec: str) -> StateSpaceModel:
     """The model ``NAME`` defined in ``SYSTEM.py`` (module docstring)."""
+    return load_filters(spec).model
+
+
+def load_filters(spec: str) -> LocalFilters:
+    """The model ``NAME`` defined in ``SYSTEM.py`` with what its library's filters carry
+    (:func:`gpfverify.adapters.as_local_filters`: family, sigma points, each filter's start)."""
     path, name = split_spec(spec)
     module = _load_module(path)
     if not hasattr(module, name):
         raise InputError(f"{path.name} defines no {name!r}")
-    return as_model(getattr(module, name), path, name)
+    return as_filters(getattr(module, name), path, name)
 
 
 def _load_module(path: Path) -> ModuleType:
@@ -75,11 +82,11 @@ def _load_module(path: Path) -> ModuleType:
     return module
 
 
-def as_model(obj: object, path: Path, name: str) -> StateSpaceModel:
-    """The object ``NAME`` of ``SYSTEM.py`` as a :class:`~gpfverify.models.StateSpaceModel`: a model as
-    it is, a function of no arguments called (with the system's folder on ``sys.path``) and its
-    result taken the same way. The one place where what the system file defines is turned into a
-    model."""
+def as_filters(obj: object, path: Path, name: str) -> LocalFilters:
+    """The object ``NAME`` of ``SYSTEM.py`` as a :class:`~gpfverify.models.StateSpaceModel` with its
+    library's filters: a model as it is, a function of no arguments called (with the system's
+    folder on ``sys.path``) and its result taken the same way. The one place where what the
+    system file defines is turned into a model."""
     model = obj
     if callable(model) and not isinstance(model, StateSpaceModel):
         try:
@@ -89,4 +96,4 @@ def as_model(obj: object, path: Path, name: str) -> StateSpaceModel:
             raise InputError(f"{path.name}:{name}(): {exc}") from exc
         except Exception as exc:
             raise InputError(f"{path.name}:{name}() raised {type(exc).__name__}: {exc}") from exc
-    return as_state_space_model(model, f"{path.name}:{name}")
+    return as_local_filters(model, f"{path.name}:{name}")

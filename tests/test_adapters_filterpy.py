@@ -123,7 +123,9 @@ def test_two_unscented_filters_equal_filterpys_across_the_bearing_cut(alpha, bet
     system = adapter.system_from_filters([unscented(range_bearing, R_radar, alpha, beta, kappa, **angle),
                                           unscented(position, R_fix, alpha, beta, kappa)])
     assert system.family == "ukf"
-    assert (system.params.alpha, system.params.beta, system.params.kappa) == (alpha, beta, kappa)
+    for points in (system.params.predict, system.params.update):
+        assert (points.alpha, points.beta, points.kappa) == (alpha, beta, kappa)
+    assert system.params.update.angle_mean == "reference"  # the z_mean_fn below, recognised
     assert system.model.sensor_circular == ((1,), ())  # read off residual_z
     _, ys = simulate(system.model)
     bearings = ys[:, 1]
@@ -285,3 +287,128 @@ def test_a_filter_whose_functions_or_matrices_fail_is_the_users_error(tmp_path, 
     assert main(["check", f"{tmp_path / 'filters.py'}:{name}", "--steps", "3", "--json"]) == 2
     out, err = capsys.readouterr()
     assert out == "" and err.splitlines() == [f"gpfverify check: error: filters.py:{name}: {message}"], err
+
+
+# -- check runs the filters as written: each from its own start, with its own sigma points ------------------
+
+STARTS_FILE = '''
+import numpy as np
+from filterpy.kalman import JulierSigmaPoints, KalmanFilter, MerweScaledSigmaPoints, UnscentedKalmanFilter
+
+F = np.kron(np.eye(2), [[1.0, 1.0], [0.0, 1.0]])
+Q = np.kron(np.eye(2), 0.05 * np.array([[1 / 3, 1 / 2], [1 / 2, 1.0]]))
+EAST = np.array([250.0, 0.0])
+#: each sensor's filter's own start: x and P differ
+STARTS = [(np.array([5.0, -3.0, -3.0, 0.6]), np.diag([25.0, 1.0, 25.0, 1.0])),
+          (np.array([-4.0, -2.0, 6.0, 0.0]), np.diag([100.0, 4.0, 60.0, 2.0]))]
+
+def fx(x, dt):
+    return F @ x
+
+def radar(x):
+    d = x[[0, 2]] - EAST
+    return np.array([np.hypot(*d), np.arctan2(d[1], d[0])])
+
+def position(x):
+    return x[[0, 2]]
+
+def bearing_residual(a, b):
+    d = np.subtract(a, b)
+    d[1] = (d[1] + np.pi) % (2 * np.pi) - np.pi
+    return d
+
+def kalman(H, R, start):
+    kf = KalmanFilter(dim_x=4, dim_z=len(R))
+    kf.F, kf.Q, kf.H, kf.R = F.copy(), Q.copy(), np.asarray(H, dtype=float), np.asarray(R, dtype=float)
+    kf.x, kf.P = start[0].reshape(4, 1).copy(), start[1].copy()
+    return kf
+
+def unscented(hx, R, start, points, **angles):
+    ukf = UnscentedKalmanFilter(dim_x=4, dim_z=len(R), dt=1.0, hx=hx, fx=fx, points=points, **angles)
+    ukf.Q, ukf.R, ukf.x, ukf.P = Q.copy(), np.asarray(R, dtype=float), start[0].copy(), start[1].copy()
+    return ukf
+
+def kalman_filters():
+    return [kalman([[1, 0, 0, 0], [0, 0, 1, 0]], np.diag([4.0, 9.0]), STARTS[0]),
+            kalman([[0, 1, 0, 0], [0, 0, 0, 1]], np.diag([0.5, 0.5]), STARTS[1])]
+
+def merwe_filters():
+    return [unscented(radar, np.diag([4.0, 0.02**2]), STARTS[0], MerweScaledSigmaPoints(4, 0.3, 2.0, 0.1),
+                      residual_z=bearing_residual),
+            unscented(position, 4.0 * np.eye(2), STARTS[1], MerweScaledSigmaPoints(4, 0.3, 2.0, 0.1))]
+
+def julier_filters():
+    return [unscented(radar, np.diag([4.0, 0.02**2]), STARTS[0], JulierSigmaPoints(4, kappa=1.0),
+                      residual_z=bearing_residual),
+            unscented(position, 4.0 * np.eye(2), STARTS[1], JulierSigmaPoints(4, kappa=1.0))]
+'''
+
+
+def _starts_module(tmp_path):
+    import importlib.util
+
+    (tmp_path / "starts.py").write_text(STARTS_FILE)
+    spec = importlib.util.spec_from_file_location("starts_for_the_test", tmp_path / "starts.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+@pytest.mark.parametrize("name", ["kalman_filters", "merwe_filters", "julier_filters"])
+def test_check_runs_each_filterpy_filter_from_its_own_start(tmp_path, name):
+    """Every sensor's local estimate in ``gpfverify check`` equals the user's own filterpy filter —
+    started from its own x and P, which differ between the sensors (the second 9 % off in the mean
+    and 80 % in the covariance when it started from the first's) — to rounding: KalmanFilter, and
+    UnscentedKalmanFilter with MerweScaledSigmaPoints(0.3, 2, 0.1) and with JulierSigmaPoints (a
+    bearing wrapped by the user's residual_z, averaged by filterpy's default mean)."""
+    from gpfverify.cli import main
+
+    module = _starts_module(tmp_path)
+    system = adapter.system_from_filters(getattr(module, name)())
+    _, ys = simulate(system.model, steps=10)
+    np.savez(tmp_path / "m.npz", y=ys)
+    out = tmp_path / "out"
+    assert main(["check", f"{tmp_path / 'starts.py'}:{name}", "--measurements", str(tmp_path / "m.npz"),
+                 "--methods", "cmf,dmf", "--out", str(out)]) == 0
+    results = json.loads((out / "results.json").read_text())
+    assert results["params"]["filter"] == ("kf" if name == "kalman_filters" else "ukf")
+    assert results["tracker"]["starts"].startswith("each sensor's filter from its own x and P")
+    if name == "merwe_filters":
+        assert results["sigma_points"]["update"] == {"alpha": 0.3, "beta": 2.0, "kappa": 0.1, "angle_mean": "linear"}
+    for m, ukf in enumerate(getattr(module, name)()):
+        means, covs, _ = filterpy_run(ukf, ys[:, system.model.blocks[m]])
+        local = results["trajectory"]["local"][m]
+        assert_agree(np.array(local["means"]), np.array(local["covs"]), means, covs)
+
+
+def test_the_second_filter_from_the_first_ones_start_is_not_filterpys(tmp_path):
+    """The control: the second sensor's filter started from the first filter's x and P (what check
+    did before) is far from the user's own filter."""
+    module = _starts_module(tmp_path)
+    filters = module.kalman_filters()
+    system = adapter.system_from_filters(filters)
+    _, ys = simulate(system.model, steps=10)
+    fused = system.run(ys, methods=("cmf", "dmf"), local_priors=[system.local_priors[0]] * 2)
+    means, covs, _ = filterpy_run(module.kalman_filters()[1], ys[:, system.model.blocks[1]])
+    covs_ours = np.array([s.local[1].C_e for s in fused.steps])
+    assert np.abs(covs_ours - covs).max() > 0.1 * np.abs(covs).max()
+
+
+def test_a_mean_function_of_the_users_is_recognised_or_refused():
+    """The filters' z_mean_fn is called on points straddling ±π and matched with the means gpfverify
+    knows; one that is none of them is refused in one line."""
+    def atan2_bearing(sigmas, weights):
+        mean = weights @ sigmas
+        mean[1] = np.arctan2(weights @ np.sin(sigmas[:, 1]), weights @ np.cos(sigmas[:, 1]))
+        return mean
+
+    def median(sigmas, weights):
+        return np.median(sigmas, axis=0)
+
+    for fn, expected in ((None, "linear"), (atan2_bearing, "atan2"), (mean_bearing, "reference")):
+        system = adapter.system_from_filters([unscented(range_bearing, np.diag([4.0, 1e-4]), 1.0, 0.0, 2.0,
+                                                        residual_z=residual_bearing, z_mean_fn=fn)])
+        assert system.params.update.angle_mean == expected and system.params.predict.angle_mean == "reference"
+    with pytest.raises(InputError, match="filter 0's z_mean_fn is none of the weighted means gpfverify knows"):
+        adapter.system_from_filters([unscented(range_bearing, np.diag([4.0, 1e-4]), 1.0, 0.0, 2.0,
+                                               residual_z=residual_bearing, z_mean_fn=median)])

@@ -36,7 +36,6 @@ from stonesoup.types.hypothesis import SingleHypothesis
 from stonesoup.types.state import GaussianState
 from stonesoup.updater.kalman import ExtendedKalmanUpdater, KalmanUpdater, UnscentedKalmanUpdater
 
-import gpfverify.filters.sigma_points
 from gpfverify.adapters import stonesoup as adapter
 from gpfverify.angles import wrap
 from gpfverify.errors import InputError
@@ -195,9 +194,8 @@ def test_the_ekf_equals_stone_soups_with_its_jacobian_across_the_bearing_cut():
 
 
 @pytest.mark.parametrize("alpha, beta, kappa", [(1.0, 0.0, 2.0), (0.5, 2.0, 1.0)])
-def test_the_ukf_equals_stone_soups_across_the_bearing_cut(monkeypatch, alpha, beta, kappa):
-    monkeypatch.setattr(gpfverify.filters.sigma_points, "weighted_mean", atan2_mean)
-    params = SigmaParams(alpha, beta, kappa)
+def test_the_ukf_equals_stone_soups_across_the_bearing_cut(alpha, beta, kappa):
+    params = SigmaParams(alpha, beta, kappa, angle_mean="atan2")
     sensors = [bearing_range(WEST), bearing_range(EAST)]
     model = system(sensors)
     _, ys = crossing_measurements(model)
@@ -213,16 +211,36 @@ def test_the_ukf_equals_stone_soups_across_the_bearing_cut(monkeypatch, alpha, b
         assert_filters_agree(gpfverify_run("ukf", model.sensor_model(m), ys[:, block], params), theirs, model)
 
 
-def test_without_the_angle_flag_the_eastern_sensor_is_far_from_stone_soup(monkeypatch):
+def test_the_atan2_angle_mean_is_stone_soups_angle_average():
+    """gpfverify's "atan2" convention against Stone Soup's own ``Angle.average`` (and the formula
+    written here) on weighted points that straddle ±π, with a negative zeroth weight; and the
+    three conventions differ there (reference to second order, linear by about π)."""
+    from stonesoup.types.angle import Bearing
+
+    from gpfverify.angles import weighted_mean
+
+    rng = np.random.default_rng(4)
+    weights = SigmaParams(0.5, 2.0, -1.0).weights(4)[0]
+    points = np.stack([wrap(np.pi - 0.1 + 0.4 * rng.standard_normal(weights.size)), rng.normal(size=weights.size)],
+                      axis=1)
+    assert points[:, 0].max() > 2.5 and points[:, 0].min() < -2.5  # on both sides of the cut
+    theirs = float(Bearing.average([Bearing(a) for a in points[:, 0]], weights))
+    ours = weighted_mean(points, weights, (0,), "atan2")
+    assert abs(wrap(ours[0] - theirs)) <= algebra_rtol() * np.pi
+    np.testing.assert_allclose(ours, atan2_mean(points, weights, (0,)), rtol=0, atol=algebra_rtol() * np.pi)
+    assert abs(wrap(weighted_mean(points, weights, (0,), "reference")[0] - theirs)) > 1e3 * algebra_rtol()
+    assert abs(wrap(weighted_mean(points, weights, (0,), "linear")[0] - theirs)) > 1.0
+
+
+def test_without_the_angle_flag_the_eastern_sensor_is_far_from_stone_soup():
     """The other side: the same UKF with the bearing treated as a plain number is not Stone Soup's."""
-    monkeypatch.setattr(gpfverify.filters.sigma_points, "weighted_mean", atan2_mean)
     east = bearing_range(EAST)
     model = system([east])
     _, ys = crossing_measurements(model)
     plain = StateSpaceModel(model.transition.matrix, model.Q,
                             [Sensor(model.measures[0], model.sensors[0].noise_cov, circular=())],
                             model.prior_mean, model.prior_cov)
-    ours, _ = gpfverify_run("ukf", plain, ys)
+    ours, _ = gpfverify_run("ukf", plain, ys, SigmaParams(angle_mean="atan2"))
     theirs, _ = stonesoup_run(UnscentedKalmanPredictor(cv_model(), alpha=1.0, beta=0.0, kappa=2.0),
                               UnscentedKalmanUpdater(east, alpha=1.0, beta=0.0, kappa=2.0), east, ys)
     assert np.abs(ours - theirs).max() > 1.0
@@ -404,3 +422,104 @@ def test_a_detection_of_the_wrong_length_is_refused_not_split_across_sensors(tmp
         with pytest.raises(InputError, match=re.escape(f"the detection of sensor 0 at {START} {what}")):
             write()
     assert not (tmp_path / "m.npz").exists()
+
+
+# -- check runs the tracker as written ---------------------------------------------------------------------
+
+TRACKER_FILE = '''
+import datetime
+import numpy as np
+from stonesoup.models.measurement.nonlinear import CartesianToBearingRange
+from stonesoup.models.transition.linear import CombinedLinearGaussianTransitionModel, ConstantVelocity
+from stonesoup.predictor.kalman import ExtendedKalmanPredictor, UnscentedKalmanPredictor
+from stonesoup.types.array import StateVector
+from stonesoup.types.state import GaussianState
+from stonesoup.updater.kalman import ExtendedKalmanUpdater, UnscentedKalmanUpdater
+
+cv = CombinedLinearGaussianTransitionModel([ConstantVelocity(0.05), ConstantVelocity(0.05)])
+radars = [CartesianToBearingRange(ndim_state=4, mapping=(0, 2), noise_covar=np.diag([0.02**2, 2.0**2]),
+                                  translation_offset=StateVector(at)) for at in ([-300.0, 40.0], [250.0, 0.0])]
+prior = GaussianState(StateVector([5.0, -3.0, 1.0, 0.2]), np.diag([25.0, 1.0, 25.0, 1.0]))
+interval = datetime.timedelta(seconds=1)
+defaults = {"predictor": UnscentedKalmanPredictor(cv), "updater": UnscentedKalmanUpdater(None),
+            "measurement_models": radars, "prior": prior, "time_interval": interval}
+mine = {"predictor": UnscentedKalmanPredictor(cv, alpha=1.0, beta=0.0, kappa=2.0),
+        "updater": UnscentedKalmanUpdater(None, alpha=0.3, beta=2.0, kappa=0.1),
+        "measurement_models": radars, "prior": prior, "time_interval": interval}
+mixed = {"predictor": UnscentedKalmanPredictor(cv), "updater": ExtendedKalmanUpdater(None),
+         "measurement_models": radars, "prior": prior, "time_interval": interval}
+'''
+
+#: the settings of TRACKER_FILE's trackers: (predictor α, β, κ), (updater α, β, κ); None is Stone Soup's 3 − n
+SETTINGS = {"defaults": ((0.5, 2.0, None), (0.5, 2.0, None)), "mine": ((1.0, 0.0, 2.0), (0.3, 2.0, 0.1))}
+
+
+def _checked_locals(tmp_path, name: str, ys, *options):
+    """``gpfverify check`` of TRACKER_FILE's ``name`` on the measurements ys: results.json."""
+    from gpfverify.cli import main
+
+    (tmp_path / "tracker.py").write_text(TRACKER_FILE)
+    np.savez(tmp_path / "m.npz", y=ys)
+    out = tmp_path / f"out-{name}"
+    assert main(["check", f"{tmp_path / 'tracker.py'}:{name}", "--measurements", str(tmp_path / "m.npz"),
+                 "--methods", "cmf,dmf", "--out", str(out), *options]) == 0
+    return json.loads((out / "results.json").read_text())
+
+
+@pytest.mark.parametrize("name", ["defaults", "mine"])
+def test_check_runs_each_sensor_as_stone_soups_own_filter_across_the_bearing_cut(tmp_path, name):
+    """Every sensor's local estimate in ``gpfverify check`` equals Stone Soup's own unscented filter
+    for that sensor — its predictor and an updater with its settings, started from the prior — to
+    rounding, at Stone Soup's defaults (α 0.5, β 2, κ 3 − n) and at the user's own settings (the
+    predictor's differ from the updater's), on a run whose eastern bearing crosses ±π; results.json
+    records the settings and where they came from."""
+    (predict, update) = SETTINGS[name]
+    sensors = [bearing_range(WEST), bearing_range(EAST)]
+    model = system(sensors)
+    _, ys = crossing_measurements(model)
+    east = ys[:, model.blocks[1]]
+    assert np.any(east[:, 0] > 3.0) and np.any(east[:, 0] < -3.0)
+    results = _checked_locals(tmp_path, name, ys)
+    assert results["params"]["filter"] == "ukf" and results["tracker"]["library"] == "stonesoup"
+    for side, (alpha, beta, kappa) in (("predict", predict), ("update", update)):
+        assert results["sigma_points"][side] == {"alpha": alpha, "beta": beta, "kappa": 3.0 - 4 if kappa is None
+                                                 else kappa, "angle_mean": "atan2"}
+    assert ("3 − n" in results["sigma_points"]["source"]) == (name == "defaults")
+    predictor = UnscentedKalmanPredictor(cv_model(), **dict(zip(("alpha", "beta", "kappa"), predict)))
+    for m, mm in enumerate(sensors):
+        updater = UnscentedKalmanUpdater(mm, **dict(zip(("alpha", "beta", "kappa"), update)))
+        theirs = stonesoup_run(predictor, updater, mm, ys[:, model.blocks[m]])
+        local = results["trajectory"]["local"][m]
+        assert_filters_agree((np.array(local["means"]), np.array(local["covs"])), theirs, model)
+
+
+def test_gpfverifys_own_defaults_are_not_stone_soups():
+    """The control: the tracker's sensors run with gpfverify's sigma points (α 1, β 0, κ 2, the
+    mean relative to the central point), as check ran every system before, are off Stone Soup's own
+    filter by far more than rounding."""
+    sensors = [bearing_range(WEST), bearing_range(EAST)]
+    model = system(sensors)
+    _, ys = crossing_measurements(model)
+    theirs = stonesoup_run(UnscentedKalmanPredictor(cv_model()), UnscentedKalmanUpdater(sensors[1]), sensors[1],
+                           ys[:, model.blocks[1]])
+    means, covs = gpfverify_run("ukf", model.sensor_model(1), ys[:, model.blocks[1]])
+    relative = np.abs(covs - theirs[1]).max() / np.abs(theirs[1]).max()
+    assert relative > 1e3 * algebra_rtol(max(np.linalg.cond(c) for c in theirs[1]))
+
+
+def test_a_tracker_that_predicts_and_updates_with_different_filters_is_refused(tmp_path, capsys):
+    from gpfverify.cli import main
+
+    (tmp_path / "tracker.py").write_text(TRACKER_FILE)
+    assert main(["check", f"{tmp_path / 'tracker.py'}:mixed", "--steps", "3", "--json"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "different filters (UnscentedKalmanPredictor, ExtendedKalmanUpdater)" in err[0]
+
+
+def test_sigma_options_are_for_gpfverify_models_only(tmp_path, capsys):
+    from gpfverify.cli import main
+
+    (tmp_path / "tracker.py").write_text(TRACKER_FILE)
+    assert main(["check", f"{tmp_path / 'tracker.py'}:mine", "--steps", "3", "--json", "--sigma-alpha", "1"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "the system brings its own sigma points" in err[0]

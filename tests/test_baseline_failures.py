@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 import gpfverify.fusion.rcc_ci as rcc_ci_module
+from gpfverify.systems import load_system
 from gpfverify.contract.check import verdict_sentence
 from gpfverify.errors import NumericalError, SolverError
 from gpfverify.experiments import check
@@ -35,7 +36,7 @@ def rcc_ci_failing_once(monkeypatch):
 
 def test_a_failed_baseline_is_recorded_and_the_run_goes_on(rcc_ci_failing_once):
     params = check.params_for(TRACKER, steps=STEPS)
-    model = check.load_system(params.system)
+    model = load_system(params.system)
     _, ys = model.simulate(STEPS, np.random.default_rng(1))
     run = run_fusion(model, ys, methods=("cmf", "dmf", "cc", "rcc-ci"))
     without = run_fusion(model, ys, methods=("cmf", "dmf", "cc"))

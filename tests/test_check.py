@@ -16,6 +16,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from gpfverify.systems import load_system
 from gpfverify.experiments import check
 from gpfverify.tolerances import algebra_rtol
 
@@ -58,7 +59,7 @@ def test_cmf_and_dmf_equal_the_kalman_filter_on_a_linear_system(tmp_path, family
     path.write_text(LINEAR_SYSTEM)
     params = check.params_for(f"{path}:system", filter=family, steps=25, methods=("cmf", "dmf"))
     record = check.run_one(params, np.random.SeedSequence(4))
-    system = check.load_system(params.system)
+    system = load_system(params.system)
     data_stream = np.random.SeedSequence(4).spawn(2)[0]  # the run draws its measurements from this child
     _, ys = system.simulate(25, np.random.default_rng(data_stream))
     exact = _hand_kalman(system, ys)
@@ -84,7 +85,7 @@ def test_a_sensor_with_more_outputs_than_states_is_found_and_repaired():
 
 
 def test_logged_measurements_with_and_without_truth(tmp_path):
-    system = check.load_system(TRACKER)
+    system = load_system(TRACKER)
     truth, ys = system.simulate(12, np.random.default_rng(5))
     np.savez(tmp_path / "run.npz", y=ys, x=truth)
     np.savez(tmp_path / "y_only.npz", y=ys)
@@ -156,7 +157,7 @@ def test_measurements_and_audit_run_files_are_told_apart(tmp_path):
     from gpfverify.audit.runfile import write_run
     from gpfverify.fusion.synthetic import random_case
 
-    system = check.load_system(TRACKER)
+    system = load_system(TRACKER)
     truth, ys = system.simulate(4, np.random.default_rng(5))
     np.savez(tmp_path / "measurements.npz", y=ys, x=truth)
     cases = [random_case(np.random.default_rng(k), 4, system.sizes) for k in range(3)]

@@ -6,6 +6,7 @@ from pathlib import Path
 
 import numpy as np
 
+from gpfverify.systems import load_system
 from gpfverify.audit.case import audit_case
 from gpfverify.experiments import check
 from gpfverify.fusion.caseblock import load_case
@@ -18,7 +19,7 @@ TRACKER = f"{EXAMPLES / 'three_sensor_system.py'}:tracker"
 
 
 def test_the_measurements_file_is_read_by_check_with_its_truth():
-    system = check.load_system(TRACKER)
+    system = load_system(TRACKER)
     truth, ys = check.logged_measurements(str(EXAMPLES / "tracker-measurements.npz"), system)
     assert ys.shape == (20, system.measurement_dim) and truth is not None and truth.shape == (20, system.state_dim)
 

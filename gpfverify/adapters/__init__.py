@@ -16,6 +16,7 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 
+from gpfverify.adapters.local_filters import LocalFilters
 from gpfverify.errors import GpfverifyError, InputError
 from gpfverify.models.system import StateSpaceModel
 
@@ -55,18 +56,25 @@ def as_state_space_model(obj: object, what: str = "the system") -> StateSpaceMod
     (:func:`gpfverify.adapters.stonesoup.system_from_objects`,
     :func:`gpfverify.adapters.filterpy.system_from_filters`). Anything else is an
     :class:`~gpfverify.errors.InputError` naming ``what`` and what it is."""
+    return as_local_filters(obj, what).model
+
+
+def as_local_filters(obj: object, what: str = "the system") -> LocalFilters:
+    """:func:`as_state_space_model`'s system with what its library's filters carry
+    (:class:`~gpfverify.adapters.local_filters.LocalFilters`: family, sigma points and angle mean,
+    each filter's start); a gpfverify model brings none of them."""
     if isinstance(obj, StateSpaceModel):
-        return obj
+        return LocalFilters(obj)
     library = _library(obj)
     if library is None:
         raise InputError(f"{what} is a {type(obj).__name__}, not {ACCEPTED}")
     try:
         if library == "stonesoup":
-            from gpfverify.adapters.stonesoup import system_from_objects
+            from gpfverify.adapters.stonesoup import filters_from_objects
 
-            return system_from_objects(obj)
+            return filters_from_objects(obj)
         from gpfverify.adapters.filterpy import system_from_filters
 
-        return system_from_filters(obj).model
+        return system_from_filters(obj)
     except GpfverifyError as exc:
         raise InputError(f"{what}: {exc}") from exc

@@ -3,14 +3,19 @@
 
 * :func:`system_from_filters`: one filterpy filter per sensor — all ``KalmanFilter`` (F, H, Q, R,
   x, P) or all ``UnscentedKalmanFilter`` (fx, hx, Q, R, x, P and the sigma points) — → a
-  :class:`LocalFilters`: the :class:`~gpfverify.models.StateSpaceModel` (transition and Q shared by
-  the filters; sensor m's H_m or hx_m and R_m; the prior of the first filter), the matching
-  gpfverify family (``kf`` or ``ukf`` with the filters' α, β, κ) and each filter's own starting
-  belief, so that :meth:`LocalFilters.run` runs the same local filters and fuses them.
+  :class:`~gpfverify.adapters.local_filters.LocalFilters`: the
+  :class:`~gpfverify.models.StateSpaceModel` (transition and Q shared by the filters; sensor m's
+  H_m or hx_m and R_m; the prior of the first filter), the matching gpfverify family (``kf`` or
+  ``ukf`` with the filters' α, β, κ and angle means) and each filter's own starting x and P, so
+  that :meth:`LocalFilters.run` and ``gpfverify check`` run the same local filters and fuse them.
 * **Angles as the filters treat them.** filterpy knows an angle only through the residual the
   user gives it: an output is circular when the filter's ``residual_z`` wraps it — a shift of one
   output by 2π gives a residual of 0 there, not 2π — and a state component when ``residual_x``
-  does. ``circular=`` / ``circular_state=`` override what is found.
+  does. ``circular=`` / ``circular_state=`` override what is found. The sigma points' angles are
+  averaged as the filters average them: filterpy's default ``z_mean_fn`` / ``x_mean_fn`` is the
+  plain weighted mean ("linear": points on both sides of ±π average to about 0); a mean function
+  of the user's is recognised by calling it on points that straddle ±π
+  (:data:`gpfverify.angles.ANGLE_MEANS`), and one that is none of those is refused.
 * :func:`write_run_file`: the per-step records of a centralized filter (on the stacked
   measurement) and of each sensor's filter — filterpy ``Saver`` s, or mappings with the same
   keys — → the run file ``gpfverify audit`` reads (docs/run-file-format.md). filterpy exposes the
@@ -28,7 +33,7 @@ points).
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
@@ -36,32 +41,14 @@ import numpy as np
 import scipy.linalg
 from filterpy.kalman import JulierSigmaPoints, KalmanFilter, MerweScaledSigmaPoints, UnscentedKalmanFilter
 
+from gpfverify.adapters.local_filters import LocalFilters
 from gpfverify.adapters.objects import user_call, user_floats
-from gpfverify.angles import TWO_PI, wrap_components
+from gpfverify.angles import TWO_PI, difference, weighted_mean, wrap_components
 from gpfverify.errors import InputError
 from gpfverify.filters.records import Gaussian
-from gpfverify.filters.sigma_points import SigmaParams
+from gpfverify.filters.sigma_points import SigmaParams, SigmaSettings
 from gpfverify.models.system import Sensor, StateSpaceModel
 from gpfverify.tolerances import algebra_rtol
-
-
-@dataclass(frozen=True)
-class LocalFilters:
-    """A filterpy system in gpfverify's terms: the ``model``, the Gaussian ``family`` (``"kf"`` or
-    ``"ukf"``) with its sigma-point ``params``, and each sensor's starting belief."""
-
-    model: StateSpaceModel
-    family: str
-    params: SigmaParams
-    local_priors: tuple[Gaussian, ...]
-
-    def run(self, ys, **options):
-        """:func:`gpfverify.model_fusion.run_fusion` with these local filters (``options``: its keywords,
-        e.g. ``methods``); the centre starts from the model's prior."""
-        from gpfverify.model_fusion import run_fusion
-
-        return run_fusion(self.model, ys, family=self.family, params=self.params,
-                          local_priors=self.local_priors, **options)
 
 
 def _matrix(value, dim: int, what: str) -> np.ndarray:
@@ -106,11 +93,11 @@ def _circular_by_residual(residual, reference: np.ndarray, what: str) -> tuple[i
     return tuple(out)
 
 
-def _sigma_params(points) -> SigmaParams:
+def _sigma_params(points, angle_mean: str = "reference") -> SigmaParams:
     if isinstance(points, MerweScaledSigmaPoints):
-        params = SigmaParams(float(points.alpha), float(points.beta), float(points.kappa))
+        params = SigmaParams(float(points.alpha), float(points.beta), float(points.kappa), angle_mean)
     elif isinstance(points, JulierSigmaPoints):  # x ± √((n + κ) P), W_0 = κ / (n + κ): α = 1, β = 0
-        params = SigmaParams(1.0, 0.0, float(points.kappa))
+        params = SigmaParams(1.0, 0.0, float(points.kappa), angle_mean)
     else:
         raise InputError(f"sigma points {type(points).__name__} have no gpfverify counterpart: use "
                          "MerweScaledSigmaPoints or JulierSigmaPoints")
@@ -118,6 +105,46 @@ def _sigma_params(points) -> SigmaParams:
         raise InputError("the sigma points' sqrt_method must be filterpy's default (scipy.linalg.cholesky): "
                          "gpfverify's sigma points are that factor's rows")
     return params
+
+
+#: the spread (radians) of the points on which a filter's mean function is compared with the angle
+#: means gpfverify knows: wide enough that points straddle ±π, where the three differ by about π
+#: (linear against the others) or by their second-order term (atan2 against reference)
+_PROBE_SPREAD = 0.4
+
+
+def _angle_mean(mean_fn, weights: np.ndarray, circular: Sequence[int], dim: int, what: str) -> str:
+    """Which of :data:`gpfverify.angles.ANGLE_MEANS` the filter's ``mean_fn(sigmas, Wm)`` is for
+    the angle components ``circular`` (``None``, filterpy's default, is the plain weighted mean:
+    "linear"). It is called on points (the filter's own weights) that straddle ±π in those
+    components and compared with each mean; one that is none of them — or that does not average
+    the other components linearly — is refused."""
+    if mean_fn is None:
+        return "linear"
+    rng = np.random.default_rng(0)
+    centre = np.zeros(dim)
+    centre[list(circular)] = np.pi - 0.05
+    points = wrap_components(centre + _PROBE_SPREAD * rng.standard_normal((weights.size, dim)), circular)
+    got = user_floats(user_call(what, mean_fn, points.copy(), weights.copy()), f"what {what} returned").ravel()
+    if got.size != dim:
+        raise InputError(f"{what} returned {got.size} values for {dim} components")
+    tol = algebra_rtol() * (np.pi + np.abs(points).max())
+    for convention in ("linear", "atan2", "reference"):
+        expected = weighted_mean(points, weights, circular, convention)
+        if np.abs(difference(got, expected, circular)).max() <= tol:
+            return convention
+    raise InputError(f"{what} is none of the weighted means gpfverify knows (the plain weighted mean, atan2 of the "
+                     f"weighted sines and cosines of the angles {list(circular)}, or the mean relative to the "
+                     "central point): gpfverify cannot run this filter as written")
+
+
+def _agreeing_mean(conventions: Sequence[str | None], what: str) -> str:
+    """The one angle mean of the filters that average angles (None: a filter without angles)."""
+    found = sorted({c for c in conventions if c is not None})
+    if len(found) > 1:
+        raise InputError(f"the filters average their {what} differently ({', '.join(found)}): gpfverify's filters "
+                         "use one mean for every sensor")
+    return found[0] if found else "reference"
 
 
 def _row_wise(fn, what: str, *args):
@@ -149,7 +176,8 @@ def _kalman(filters: Sequence, names: Sequence[str], circular, circular_state) -
     model = StateSpaceModel(F, Q, sensors, priors[0].mean, priors[0].cov,
                             circular_state=() if circular_state is None else circular_state,
                             name=f"filterpy KalmanFilter, {len(filters)} sensors")
-    return LocalFilters(model, "kf", SigmaParams(), priors)
+    return LocalFilters(model, "kf", None, priors, "filterpy",
+                        {"family": "filterpy KalmanFilter", "starts": _STARTS})
 
 
 def _unscented(filters: Sequence, names: Sequence[str], circular, circular_state) -> LocalFilters:
@@ -160,6 +188,7 @@ def _unscented(filters: Sequence, names: Sequence[str], circular, circular_state
         if _sigma_params(ukf.points_fn) != params:
             raise InputError(f"filter {m}'s sigma points {_sigma_params(ukf.points_fn)} differ from filter 0's "
                              f"{params}")
+    weights = np.asarray(first.Wm, dtype=float)
     priors = tuple(Gaussian(user_floats(ukf.x, f"filter {m}'s x").ravel(), _matrix(ukf.P, dim, f"filter {m}'s P"))
                    for m, ukf in enumerate(filters))
     Q = _agreeing([_matrix(ukf.Q, dim, f"filter {m}'s Q") for m, ukf in enumerate(filters)], "Q")
@@ -171,15 +200,36 @@ def _unscented(filters: Sequence, names: Sequence[str], circular, circular_state
     if circular_state is None:
         circular_state = _agreeing_circular([_circular_by_residual(ukf.residual_x, mean, f"filter {m}'s residual_x")
                                              for m, ukf in enumerate(filters)], "angle state components")
-    sensors = []
+    state_mean = _agreeing_mean([_angle_mean(ukf.x_mean, weights, circular_state, dim, f"filter {m}'s x_mean_fn")
+                                 if circular_state else None for m, ukf in enumerate(filters)],
+                                "angle state components")
+    sensors, output_means = [], []
     for m, (ukf, name) in enumerate(zip(filters, names)):
         measure = _row_wise(ukf.hx, f"filter {m}'s hx")
         outputs = circular[m] if circular is not None else _circular_by_residual(
             ukf.residual_z, measure(mean[None, :])[0], f"filter {m}'s residual_z")
         sensors.append(Sensor(measure, _matrix(ukf.R, ukf._dim_z, f"filter {m}'s R"), circular=outputs, name=name))
+        output_means.append(_angle_mean(ukf.z_mean, weights, outputs, ukf._dim_z, f"filter {m}'s z_mean_fn")
+                            if outputs else None)
     model = StateSpaceModel(transition, Q, sensors, mean, priors[0].cov, circular_state=circular_state,
                             name=f"filterpy UnscentedKalmanFilter, {len(filters)} sensors")
-    return LocalFilters(model, "ukf", params, priors)
+    output_mean = _agreeing_mean(output_means, "angle outputs")
+    settings = SigmaSettings(replace(params, angle_mean=state_mean), replace(params, angle_mean=output_mean))
+    points = type(first.points_fn).__name__
+    return LocalFilters(model, "ukf", settings, priors, "filterpy", {
+        "family": "filterpy UnscentedKalmanFilter",
+        "sigma_points": f"the filters' {points} (α {params.alpha:g}, β {params.beta:g}, κ {params.kappa:g}) for the "
+                        f"prediction and the update; angle states averaged {_MEAN_WORDS[state_mean]}, angle outputs "
+                        f"{_MEAN_WORDS[output_mean]}",
+        "starts": _STARTS})
+
+
+#: how the origin of a filterpy system's settings names each angle mean
+_MEAN_WORDS = {"linear": "as plain numbers (filterpy's default mean)",
+               "atan2": "by atan2 of the weighted sines and cosines (the filters' mean function)",
+               "reference": "relative to the central point (the filters' mean function)"}
+#: where a filterpy system's filters start
+_STARTS = "each sensor's filter from its own x and P; the centre from filter 0's"
 
 
 def _agreeing_circular(found: Sequence[tuple[int, ...]], what: str) -> tuple[int, ...]:

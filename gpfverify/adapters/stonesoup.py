@@ -25,25 +25,31 @@
   ``GaussianState`` s per fusion rule and per sensor's local filter, timestamped, for Stone Soup's
   metrics and plotters.
 
-One difference from Stone Soup's own unscented filters: a weighted mean of angles (the sigma
-points' bearing) is gpfverify's — relative to the central sigma point,
-wrap(r + Σ w_i wrap(a_i − r)) (:mod:`gpfverify.angles`) — where Stone Soup's ``Angle.average``
-takes atan2(Σ w sin a_i, Σ w cos a_i). The two agree to second order in the sigma points' spread
-in angle (docs/ecosystem.md gives the measured difference); with the mean made the same, the
-filters agree to rounding (tests/test_adapters_stonesoup.py).
+* :func:`filters_from_objects`: the same system with the tracker's filters
+  (:class:`~gpfverify.adapters.local_filters.LocalFilters`, what ``gpfverify check`` runs): the
+  family its predictor and updater are, the sigma points of each (α, β, κ; κ = None is Stone
+  Soup's 3 − n; a side the tracker does not give takes Stone Soup's defaults) and Stone Soup's
+  weighted mean of angles, atan2(Σ w sin a_i, Σ w cos a_i) (``Angle.average``; gpfverify's own is
+  relative to the central point, :mod:`gpfverify.angles`). Run so, each sensor's filter equals
+  Stone Soup's own to rounding (tests/test_adapters_stonesoup.py).
 """
 
 from __future__ import annotations
 
 import datetime
 from collections.abc import Iterable, Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 from stonesoup.base import Base
 from stonesoup.models.base import LinearModel
+from stonesoup.models.control.linear import LinearControlModel
+from stonesoup.predictor.base import Predictor
+from stonesoup.predictor.kalman import ExtendedKalmanPredictor, KalmanPredictor, UnscentedKalmanPredictor
+from stonesoup.updater.base import Updater
+from stonesoup.updater.kalman import ExtendedKalmanUpdater, KalmanUpdater, UnscentedKalmanUpdater
 from stonesoup.models.measurement.base import MeasurementModel
 from stonesoup.models.transition.base import TransitionModel
 from stonesoup.types.angle import Angle
@@ -52,8 +58,10 @@ from stonesoup.types.detection import Detection
 from stonesoup.types.state import GaussianState, State
 from stonesoup.types.track import Track
 
+from gpfverify.adapters.local_filters import LocalFilters
 from gpfverify.adapters.objects import user_call, user_floats
 from gpfverify.errors import InputError
+from gpfverify.filters.sigma_points import SigmaParams, SigmaSettings
 from gpfverify.models.system import Sensor, StateSpaceModel
 
 
@@ -170,11 +178,17 @@ class _Found:
     measurements: list
     priors: list
     intervals: list
+    predictors: list = field(default_factory=list)
+    updaters: list = field(default_factory=list)
 
     def add(self, obj, seen: set[int]) -> None:
         if obj is None or id(obj) in seen:
             return
         seen.add(id(obj))
+        if isinstance(obj, Predictor):
+            self.predictors.append(obj)
+        elif isinstance(obj, Updater):
+            self.updaters.append(obj)
         if isinstance(obj, TransitionModel):
             self.transitions.append(obj)
         elif isinstance(obj, MeasurementModel):
@@ -211,6 +225,13 @@ def system_from_objects(objects) -> StateSpaceModel:
     the time between two steps. Trackers are searched through their predictor, updater and
     initiator. For example ``{"transition_model": cv, "measurement_models": [radar1, radar2],
     "prior": GaussianState(...), "time_interval": timedelta(seconds=1)}``."""
+    return filters_from_objects(objects).model
+
+
+def filters_from_objects(objects) -> LocalFilters:
+    """:func:`system_from_objects`'s system with the tracker's filters (:func:`filter_settings`):
+    their family, their sigma points with Stone Soup's angle mean, every sensor's filter starting
+    from the prior."""
     found = _Found([], [], [], [])
     found.add(objects, set())
     transition = _one(found.transitions, "transition model", "")
@@ -218,7 +239,100 @@ def system_from_objects(objects) -> StateSpaceModel:
     interval = _one(found.intervals, "datetime.timedelta", " (the time between two steps)")
     if not found.measurements:
         raise InputError("a Stone Soup system needs at least one measurement model (one per sensor), found none")
-    return state_space_model(transition, found.measurements, prior, interval)
+    model = state_space_model(transition, found.measurements, prior, interval)
+    family, settings, origin = filter_settings(found.predictors, found.updaters, model.state_dim)
+    return LocalFilters(model, family, settings, None, "stonesoup",
+                        {**origin, "starts": "every sensor's filter and the centre start from the GaussianState prior"})
+
+
+# -- the tracker's filters -----------------------------------------------------------------------------
+
+#: Stone Soup's Kalman-type predictors and updaters with a gpfverify family (exact classes: a subclass
+#: such as the cubature or the iterated filter computes something else)
+_FAMILIES = {KalmanPredictor: "kf", KalmanUpdater: "kf", ExtendedKalmanPredictor: "ekf",
+             ExtendedKalmanUpdater: "ekf", UnscentedKalmanPredictor: "ukf", UnscentedKalmanUpdater: "ukf"}
+
+
+def _without_control(control_model) -> bool:
+    """Whether a predictor's control model exerts no control: none, or the zero-effect linear one
+    Stone Soup's Kalman predictors make when given none (zero matrix and zero noise)."""
+    if control_model is None:
+        return True
+    return (isinstance(control_model, LinearControlModel)
+            and not np.any(user_floats(control_model.control_matrix, "the predictor's control matrix"))
+            and not np.any(user_floats(control_model.control_noise, "the predictor's control noise")))
+
+
+def _sigma_params(component, dim: int) -> SigmaParams:
+    """α, β, κ of an unscented predictor or updater (κ = None is Stone Soup's 3 − n), with Stone
+    Soup's angle mean."""
+    kappa = component.kappa
+    return SigmaParams(float(component.alpha), float(component.beta), 3.0 - dim if kappa is None else float(kappa),
+                       angle_mean="atan2")
+
+
+def _params_text(params: SigmaParams, kappa_default: bool) -> str:
+    return (f"α {params.alpha:g}, β {params.beta:g}, κ {params.kappa:g}"
+            + (" (Stone Soup's 3 − n)" if kappa_default else ""))
+
+
+def _agreeing_settings(components: list, dim: int, what: str) -> SigmaParams | None:
+    """The one sigma-point setting of the unscented ``components`` (None without one); InputError
+    naming the first that differs."""
+    unscented = [c for c in components if type(c) is UnscentedKalmanPredictor or type(c) is UnscentedKalmanUpdater]
+    if not unscented:
+        return None
+    first = _sigma_params(unscented[0], dim)
+    for other in unscented[1:]:
+        if _sigma_params(other, dim) != first:
+            raise InputError(f"the tracker's {what}s draw different sigma points ({_params_text(first, False)} and "
+                             f"{_params_text(_sigma_params(other, dim), False)}): gpfverify's filters use one setting "
+                             f"for every {what}")
+    return first
+
+
+def filter_settings(predictors: Sequence, updaters: Sequence, dim: int) -> tuple[str | None, SigmaSettings, dict]:
+    """(family, sigma points, where they came from) of a tracker's ``predictors`` and ``updaters``.
+
+    The family is the one the predictor and the updater are (``KalmanPredictor``/``KalmanUpdater``
+    "kf", extended "ekf", unscented "ukf"; a predictor and an updater of different families, or a
+    filter gpfverify has no counterpart of — cubature, iterated, particle — are named: the first is
+    refused, the second leaves the family to the user, and ``origin`` says so). The sigma points of
+    the prediction and the update are the unscented predictor's and updater's α, β, κ; a side the
+    tracker does not give takes Stone Soup's own defaults (α 0.5, β 2, κ 3 − n). Angles are averaged
+    as Stone Soup averages them, atan2 of the weighted sines and cosines."""
+    for component in predictors:
+        if not _without_control(getattr(component, "control_model", None)):
+            raise InputError(f"the tracker's {type(component).__name__} has a control model: control inputs are "
+                             "not part of a gpfverify model")
+    named = [(type(c).__name__, _FAMILIES.get(type(c))) for c in list(predictors) + list(updaters)]
+    families = {f for _, f in named if f is not None}
+    if len(families) > 1:
+        raise InputError("the tracker's predictor and updater are different filters ("
+                         + ", ".join(n for n, f in named if f is not None)
+                         + "): gpfverify's filters predict and update with one family")
+    unknown = [n for n, f in named if f is None]
+    family = families.pop() if families else None
+    defaults = SigmaParams(float(UnscentedKalmanPredictor.properties["alpha"].default),
+                           float(UnscentedKalmanPredictor.properties["beta"].default), 3.0 - dim, angle_mean="atan2")
+    predict = _agreeing_settings(list(predictors), dim, "predictor")
+    update = _agreeing_settings(list(updaters), dim, "updater")
+    settings = SigmaSettings(predict or defaults, update or defaults)
+
+    def told(side: str, given, component: str) -> str:
+        if given is None:
+            return f"{side}: Stone Soup's defaults, {_params_text(defaults, True)} (the tracker has no {component})"
+        kappa_default = all(c.kappa is None for c in (predictors if side == "prediction" else updaters)
+                            if type(c) in (UnscentedKalmanPredictor, UnscentedKalmanUpdater))
+        return f"{side}: the tracker's {component}, {_params_text(given, kappa_default)}"
+
+    origin = {"sigma_points": "; ".join([told("prediction", predict, "UnscentedKalmanPredictor"),
+                                         told("update", update, "UnscentedKalmanUpdater")])
+              + "; angles averaged as Stone Soup's Angle.average (atan2 of the weighted sines and cosines)",
+              "family": (f"the tracker's {' and '.join(sorted({n for n, f in named if f is not None}))}"
+                         if family else "the tracker names no Kalman-type filter")
+              + (f"; {', '.join(unknown)} has no gpfverify counterpart" if unknown else "")}
+    return family, settings, origin
 
 
 # -- detections in, tracks out ---------------------------------------------------------------------

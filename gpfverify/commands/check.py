@@ -33,8 +33,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("system", metavar="SYSTEM.py:NAME",
                         help="a Python file and the name of the StateSpaceModel it defines (docs/models.md), "
                              "or of its Stone Soup models or filterpy filters (docs/ecosystem.md)")
-    parser.add_argument("--filter", default="ukf", choices=[f for f in FAMILY_NAMES if f != "kf"],
-                        help="the Gaussian family of every local filter and of the centre (default ukf)")
+    parser.add_argument("--filter", default=None, choices=[f for f in FAMILY_NAMES if f != "kf"],
+                        help="the Gaussian family of every local filter and of the centre (default: the family of "
+                             "a Stone Soup tracker's or filterpy's filters, else ukf)")
     parser.add_argument("--steps", type=int, default=None,
                         help="steps per simulated run (default 50; with --measurements the file's row count)")
     parser.add_argument("--runs", type=int, default=1, help="simulated Monte Carlo runs (default 1)")
@@ -53,7 +54,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--rank-rule", type=rank_rule_text, default="canonical", metavar="RULE",
                         help=RANK_RULE_HELP + " Default canonical, as in audit and reproduce: a user's system "
                              "has its own units, and the canonical rule does not depend on them.")
-    add_params_arguments(parser, Params, only=("ci_criterion",))
+    add_params_arguments(parser, Params, only=("ci_criterion", "sigma_alpha", "sigma_beta", "sigma_kappa"))
     parser.add_argument("--out", type=out_path, default=None, help="output folder (results.json, runs/, report)")
     add_wait_argument(parser)
     parser.add_argument("--json", action="store_true", help="print results.json to stdout")
@@ -72,7 +73,7 @@ def run(args: argparse.Namespace) -> int:
     from gpfverify.contract.check import verdict_sentence
     from gpfverify.experiments import check
     from gpfverify.experiments.runner import check_run_count, check_seed, check_workers, make_executor, run_experiment
-    from gpfverify.systems import load_system
+    from gpfverify.systems import load_filters
 
     if args.measurements is not None and args.steps is not None:
         raise InputError("--measurements filters every row of the file: leave out --steps")
@@ -82,13 +83,15 @@ def run(args: argparse.Namespace) -> int:
     if args.out is None and not args.json:
         raise InputError("give --out DIR (results and report) and/or --json (results on stdout)")
     out_dir = None if args.out is None else args.out.absolute()  # before the system file can change folder
-    params = check.params_for(args.system, args.filter, DEFAULT_STEPS if args.steps is None else args.steps,
+    params = check.params_for(args.system, args.filter or "ukf", DEFAULT_STEPS if args.steps is None else args.steps,
                               args.measurements,
                               args.training, args.train, args.fit_points, args.restarts, args.methods,
-                              args.rank_rule, args.ci_criterion)
+                              args.rank_rule, args.ci_criterion, args.sigma_alpha, args.sigma_beta, args.sigma_kappa)
     with guarded(system_file(params.system)), \
             time_limited(f"{system_file(params.system)} (loading it and building {params.system.rsplit(':', 1)[1]})"):
-        model = load_system(params.system)  # fail before anything is written; print() to stderr, exits reported
+        filters = load_filters(params.system)  # fail before anything is written; print() to stderr, exits reported
+    model = filters.model
+    params = check.for_filters(params, filters, filter_given=args.filter is not None)
     if params.measurements is not None:
         if args.runs != 1:
             raise InputError("--measurements filters one logged run: --runs must be 1")

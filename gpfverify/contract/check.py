@@ -11,6 +11,7 @@ from typing import Any, Literal
 from gpfverify.contract.params import Params as ParamsBase
 from gpfverify.contract.params import option
 from gpfverify.errors import InputError
+from gpfverify.filters.sigma_points import SigmaParams
 from gpfverify.fusion.names import CHOICES_TEXT, canonical_rules
 
 #: the Gaussian families a check can run (gpfverify.filters.families.FAMILY_NAMES)
@@ -41,12 +42,33 @@ class Params(ParamsBase):
     ci_criterion: CiCriterion = option(
         "trace", "the weight criterion of CI (and ICI): trace (depends on the units of the state components) or "
         "det (unit-free)")
+    sigma_alpha: float | None = option(
+        None, "sigma-point α of the ukf and gp-ukf filters for a gpfverify model (none: 1); a Stone Soup or "
+        "filterpy system brings its own", above=0.0)
+    sigma_beta: float | None = option(
+        None, "sigma-point β of the ukf and gp-ukf filters for a gpfverify model (none: 0)")
+    sigma_kappa: float | None = option(
+        None, "sigma-point κ of the ukf and gp-ukf filters for a gpfverify model (none: 2)")
 
     def check(self) -> None:
         object.__setattr__(self, "methods", canonical_rules(self.methods))  # InputError for unknown names
         if "cmf" not in self.methods or "dmf" not in self.methods:
             raise InputError(f"--methods must include cmf and dmf (among {CHOICES_TEXT}), got "
                              f"{','.join(self.methods)}")
+        self.sigma_params()  # InputError for α, κ that give no sigma points (D + λ ≤ 0 is checked per system)
+
+    @property
+    def sigma_given(self) -> bool:
+        """Whether any of --sigma-alpha, --sigma-beta, --sigma-kappa was given."""
+        return any(v is not None for v in (self.sigma_alpha, self.sigma_beta, self.sigma_kappa))
+
+    def sigma_params(self) -> SigmaParams:
+        """The sigma points of a gpfverify model's unscented filters: the given α, β, κ, each
+        defaulting to gpfverify's (1, 0, 2)."""
+        default = SigmaParams()
+        return SigmaParams(default.alpha if self.sigma_alpha is None else self.sigma_alpha,
+                           default.beta if self.sigma_beta is None else self.sigma_beta,
+                           default.kappa if self.sigma_kappa is None else self.sigma_kappa)
 
 
 @dataclass(frozen=True)

@@ -29,7 +29,9 @@ from gpfverify.angles import difference
 from gpfverify.consistency import Consistency
 from gpfverify.contract.check import CiCriterion, FilterName, Params, RunRecord
 from gpfverify.errors import CaseFileError, InputError
-from gpfverify.filters.families import GP_FAMILIES
+from gpfverify.adapters.local_filters import LocalFilters
+from gpfverify.filters.families import GP_FAMILIES, SIGMA_POINT_FAMILIES
+from gpfverify.filters.sigma_points import SigmaSettings
 from gpfverify.filters.records import Gaussian
 from gpfverify.audit.case import rank_rule_to_dict
 from gpfverify.fusion.case import case_to_dict
@@ -39,7 +41,7 @@ from gpfverify.model_fusion import run_fusion
 from gpfverify.audit.runfile import write_run
 from gpfverify.models import fit_gp_model, learn_gp_model, require_step_free
 from gpfverify.rng import generator
-from gpfverify.systems import load_system, split_spec
+from gpfverify.systems import load_filters, split_spec
 from gpfverify.userfiles import read_npz
 from gpfverify.validate import as_array
 
@@ -54,12 +56,14 @@ CONSISTENCY_LEVEL = 0.95
 def params_for(system: str, filter: FilterName = "ukf", steps: int = 50, measurements: str | None = None,
                training: str | None = None, train: int = 200, fit_points: int | None = 200,
                restarts: int = 2, methods=("cmf", "dmf", "cc", "ci"), rank_rule: str = "canonical",
-               ci_criterion: CiCriterion = "trace") -> Params:
+               ci_criterion: CiCriterion = "trace", sigma_alpha: float | None = None,
+               sigma_beta: float | None = None, sigma_kappa: float | None = None) -> Params:
     """The parameters of a check, validated, with the paths made absolute and the rank rule in its
     canonical spelling. ``rank_rule`` is a :func:`~gpfverify.fusion.exactness.parse_rank_rule`
     string: the unit-free canonical-correlation rule by default (``"canonical[:TAU]"``),
     ``"absolute:TOL"`` or ``"numpy"``; ``ci_criterion`` CI's weight criterion, ``"trace"`` or
-    ``"det"``. A ``training`` file with a filter that learns nothing is refused rather than ignored."""
+    ``"det"``; ``sigma_*`` the sigma points of a gpfverify model's unscented filters. A ``training``
+    file with a filter that learns nothing is refused rather than ignored."""
     path, name = split_spec(system)
     if training is not None and filter not in GP_FAMILIES:
         raise InputError(f"--training is learned from by the GP filters ({', '.join(GP_FAMILIES)}) only; "
@@ -68,7 +72,63 @@ def params_for(system: str, filter: FilterName = "ukf", steps: int = 50, measure
                   measurements=None if measurements is None else str(Path(measurements).resolve()),
                   training=None if training is None else str(Path(training).resolve()),
                   train=train, fit_points=fit_points, restarts=restarts, methods=tuple(methods),
-                  rank_rule=parse_rank_rule(rank_rule).spec, ci_criterion=ci_criterion)
+                  rank_rule=parse_rank_rule(rank_rule).spec, ci_criterion=ci_criterion,
+                  sigma_alpha=sigma_alpha, sigma_beta=sigma_beta, sigma_kappa=sigma_kappa)
+
+
+# -- the user's filters as written -------------------------------------------------------------------
+
+def for_filters(params: Params, filters: LocalFilters, filter_given: bool) -> Params:
+    """``params`` for the system's own filters: without ``--filter`` (``filter_given`` False) the
+    family its library's filters are (a Stone Soup tracker's predictor and updater, filterpy's
+    filter type), else ukf; ``--sigma-*`` refused for a system that brings its own sigma points
+    (one line saying which), and for a family that draws none."""
+    if not filter_given and filters.family is not None:
+        params = params.replace(filter=filters.family)
+    if params.sigma_given:
+        if filters.params is not None:
+            raise InputError(f"the system brings its own sigma points ({filters.origin.get('sigma_points', '')}): "
+                             "--sigma-alpha, --sigma-beta and --sigma-kappa set them for a gpfverify model only")
+        if params.filter not in SIGMA_POINT_FAMILIES:
+            raise InputError(f"--sigma-alpha, --sigma-beta and --sigma-kappa set the sigma points of "
+                             f"{' and '.join(SIGMA_POINT_FAMILIES)}; --filter {params.filter} draws none")
+    if params.filter in SIGMA_POINT_FAMILIES:
+        settings = sigma_settings(filters, params)
+        for points in (settings.predict, settings.update):
+            points.weights(filters.model.state_dim)  # InputError when D + λ ≤ 0: no sigma points
+    return params
+
+
+def sigma_settings(filters: LocalFilters, params: Params) -> SigmaSettings:
+    """The sigma points the unscented families run: the library's own (prediction and update, with
+    its angle mean), else the check's ``--sigma-*`` (gpfverify's defaults where not given)."""
+    return filters.params if filters.params is not None else SigmaSettings.of(params.sigma_params())
+
+
+def local_starts(filters: LocalFilters) -> list[Gaussian]:
+    """Each sensor's filter's start: its own (a filterpy filter's x and P), else the model's prior."""
+    model = filters.model
+    if filters.local_priors is not None:
+        return list(filters.local_priors)
+    return [Gaussian(model.prior_mean, model.prior_cov)] * len(model.sensors)
+
+
+def filters_record(filters: LocalFilters, params: Params) -> tuple[dict | None, dict]:
+    """(``sigma_points``, ``tracker``) of results.json: the sigma points the check ran (None for a
+    family that draws none) — α, β, κ and angle mean of the prediction and of the update, and where
+    they came from — and the library, family and starts of the user's filters."""
+    settings = sigma_settings(filters, params)
+    native = filters.params is None
+    source = ("--sigma-alpha, --sigma-beta, --sigma-kappa" + (" (gpfverify's defaults where not given)"
+                                                               if not all((params.sigma_alpha, params.sigma_beta,
+                                                                           params.sigma_kappa)) else "")
+              if native and params.sigma_given else "gpfverify's defaults" if native
+              else filters.origin.get("sigma_points", ""))
+    sigma = ({**settings.to_json(), "source": source} if params.filter in SIGMA_POINT_FAMILIES else None)
+    starts = filters.origin.get("starts", "every filter from the model's prior")
+    tracker = {"library": filters.library or None, "family": filters.family,
+               "family_source": filters.origin.get("family") if filters.library else None, "starts": starts}
+    return sigma, tracker
 
 
 def _load_npz(path: str, what: str, expects: str) -> dict[str, np.ndarray]:
@@ -143,8 +203,10 @@ def _gp_model(model, params: Params, rng: np.random.Generator):
 
 
 def run_one(params: Params, seed: np.random.SeedSequence) -> RunRecord:
-    """One run of the check (module docstring)."""
-    model = load_system(params.system)
+    """One run of the check (module docstring): every filter as the system's library runs it
+    (:func:`sigma_settings`, :func:`local_starts`), the centre from the model's prior."""
+    filters = load_filters(params.system)
+    model = filters.model
     data_rng, train_rng = (generator(s) for s in seed.spawn(2))
     truth: np.ndarray | None
     if params.measurements is None:
@@ -154,9 +216,9 @@ def run_one(params: Params, seed: np.random.SeedSequence) -> RunRecord:
     prior = Gaussian(model.prior_mean, model.prior_cov)
     fusion_model = _gp_model(model, params, train_rng) if params.filter in GP_FAMILIES else model
     fused = run_fusion(fusion_model, ys, family=params.filter, methods=params.methods,
+                       params=sigma_settings(filters, params),
                        rank_rule=params.rank_rule, ci_criterion=params.ci_criterion,
-                       local_priors=[prior] * len(model.sensors),
-                       fused_prior=prior)
+                       local_priors=local_starts(filters), fused_prior=prior)
     return _record(model, fused, ys, truth)
 
 
@@ -217,6 +279,7 @@ def _record(model, fused, ys: np.ndarray, truth: np.ndarray | None) -> RunRecord
                               and any(s.repair_dim for s in audit.sensors) else None),
             "failed": dict(step.failed),
             "local_means": [r.mu_e.tolist() for r in step.local],
+            "local_covs": [r.C_e.tolist() for r in step.local],
             "seconds": {**step.seconds, "local": list(step.local_seconds)},
             "nis": {"cmf": float(errors["nis"]["cmf"][t]),
                     "local": [float(v[t]) for v in errors["nis"]["local"]]},
@@ -313,13 +376,18 @@ def _trajectory(steps: Sequence[dict], methods: Sequence[str]) -> dict:
             "truth": [e["truth"] for e in steps] if all("truth" in e for e in steps) else None,
             "means": {m: [e["means"].get(m) for e in steps] for m in methods},
             "covs": {m: [e["covs"].get(m) for e in steps] for m in methods},
-            "repaired": [{"k": e["k"], "mean": e["repaired_mean"]} for e in steps if e["repaired_mean"] is not None]}
+            "repaired": [{"k": e["k"], "mean": e["repaired_mean"]} for e in steps if e["repaired_mean"] is not None],
+            "local": [{"means": [e["local_means"][m] for e in steps], "covs": [e["local_covs"][m] for e in steps]}
+                      for m in range(len(steps[0]["local_means"]))]}
 
 
-def summarize(params: Params, results: list[RunRecord], model=None) -> dict:
+def summarize(params: Params, results: list[RunRecord], model=None, filters: LocalFilters | None = None) -> dict:
     """The results.json body (CONTRACT "Checking a user's own system" keys first); ``model`` the
-    system (default: loaded from ``params.system``)."""
-    model = load_system(params.system) if model is None else model
+    system, or ``filters`` the system with its filters (default: loaded from ``params.system``)."""
+    if filters is None:
+        filters = load_filters(params.system) if model is None else LocalFilters(model)
+    model = filters.model
+    sigma, tracker = filters_record(filters, params)
     rule = parse_rank_rule(params.rank_rule)
     steps_by_run = [r.steps for r in results]
     first = steps_by_run[0]
@@ -343,6 +411,7 @@ def summarize(params: Params, results: list[RunRecord], model=None) -> dict:
         "total_steps": len(every),
         "failed_methods": failed_methods, "method_failures": failures,
         "system": params.system, "state_dim": model.state_dim, "sensors": _sensor_table(model),
+        "sigma_points": sigma, "tracker": tracker,
         "rank_rule": {**rank_rule_to_dict(rule), "description": rule.describe()},
         "k": [e["k"] for e in first],
         "gap_norm": [[e["gap_norm"] for e in steps] for steps in steps_by_run],
@@ -393,5 +462,6 @@ def results_of_run(fused, truth: np.ndarray | None = None, system: str = "") -> 
     params = Params(system=system, filter=fused.family, steps=len(fused.steps), methods=fused.methods,
                     rank_rule=rule.spec, ci_criterion=fused.ci_criterion)
     record = _record(fused.model, fused, fused.ys, truth)
+    filters = LocalFilters(fused.model, params=fused.params, origin={"sigma_points": "the params run_fusion ran"})
     return {"experiment": NAME, "runs": 1, "seed": None, "runs_ok": 1, "failed_runs": [], "params": params.to_json(),
-            **summarize(params, [record], fused.model)}
+            **summarize(params, [record], filters=filters)}

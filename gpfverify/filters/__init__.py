@@ -24,7 +24,7 @@ from gpfverify.filters.pf import pf_step
 from gpfverify.filters.records import Gaussian, MeasurementMoments, StepRecord
 from gpfverify.filters.resampling import (RESAMPLE_THRESHOLD, Particles, ParticleStep, effective_sample_size,
                                           systematic_resample)
-from gpfverify.filters.sigma_points import SigmaParams
+from gpfverify.filters.sigma_points import SigmaParams, SigmaSettings
 from gpfverify.filters.sr_ukf import SqrtGaussian, SqrtStepRecord, sr_ukf_step
 from gpfverify.filters.ukf import ukf_measurement, ukf_predict, ukf_step
 from gpfverify.filters.update import gaussian_update
@@ -33,8 +33,8 @@ from gpfverify.filters.upf import ukf_proposal, upf_step
 __all__ = ["FilterRun", "run_filter", "ekf_measurement", "ekf_predict", "ekf_step", "FAMILY_NAMES",
            "GaussianFamily", "gaussian_family", "gp_adf_measurement", "gp_adf_predict", "gp_adf_step",
            "gp_ukf_measurement", "gp_ukf_predict", "gp_ukf_step", "kf_measurement", "kf_predict", "kf_step",
-           "Gaussian", "MeasurementMoments", "StepRecord", "SigmaParams", "SqrtGaussian", "SqrtStepRecord",
-           "sr_ukf_step", "ukf_measurement", "ukf_predict", "ukf_step", "gaussian_update", "edh_step",
-           "exponential_steps", "ie_pff_step", "uniform_steps", "GPResidualModel", "gpsr_upf_step",
+           "Gaussian", "MeasurementMoments", "StepRecord", "SigmaParams", "SigmaSettings", "SqrtGaussian",
+           "SqrtStepRecord", "sr_ukf_step", "ukf_measurement", "ukf_predict", "ukf_step", "gaussian_update",
+           "edh_step", "exponential_steps", "ie_pff_step", "uniform_steps", "GPResidualModel", "gpsr_upf_step",
            "sr_ukf_proposal", "pf_step", "RESAMPLE_THRESHOLD", "Particles", "ParticleStep",
            "effective_sample_size", "systematic_resample", "ukf_proposal", "upf_step"]

@@ -20,7 +20,7 @@ from gpfverify.filters.gp_adf import gp_adf_measurement, gp_adf_predict
 from gpfverify.filters.gp_ukf import gp_ukf_measurement, gp_ukf_predict
 from gpfverify.filters.kalman import kf_measurement, kf_predict
 from gpfverify.filters.records import Gaussian, StepRecord
-from gpfverify.filters.sigma_points import SigmaParams
+from gpfverify.filters.sigma_points import SigmaParams, SigmaSettings
 from gpfverify.filters.ukf import ukf_measurement, ukf_predict
 from gpfverify.filters.update import gaussian_update
 
@@ -44,20 +44,27 @@ class GaussianFamily:
                                model.circular, model.circular_state)
 
 
-def gaussian_family(name: str, params: SigmaParams = SigmaParams()) -> GaussianFamily:
+#: the families that draw sigma points (their ``params`` matter)
+SIGMA_POINT_FAMILIES = ("ukf", "gp-ukf")
+
+
+def gaussian_family(name: str, params: SigmaParams | SigmaSettings = SigmaParams()) -> GaussianFamily:
     """The family ``name`` (one of :data:`FAMILY_NAMES`, in any case: ``"GP-ADF"`` as the papers
     and ``results.json`` spell it, or ``"gp-adf"`` as on the command line); ``params`` are the
-    sigma-point parameters of the unscented families."""
+    sigma-point parameters of the unscented families, one :class:`SigmaParams` for the prediction
+    and the update or a :class:`SigmaSettings` with one each."""
     name = name.lower() if isinstance(name, str) else name
+    settings = SigmaSettings.of(params)
     if name == "kf":
         return GaussianFamily(name, kf_predict, kf_measurement)
     if name == "ekf":
         return GaussianFamily(name, ekf_predict, ekf_measurement)
     if name == "ukf":
-        return GaussianFamily(name, partial(ukf_predict, params=params), partial(ukf_measurement, params=params))
+        return GaussianFamily(name, partial(ukf_predict, params=settings.predict),
+                              partial(ukf_measurement, params=settings.update))
     if name == "gp-adf":
         return GaussianFamily(name, gp_adf_predict, gp_adf_measurement)
     if name == "gp-ukf":
-        return GaussianFamily(name, partial(gp_ukf_predict, params=params),
-                              partial(gp_ukf_measurement, params=params))
+        return GaussianFamily(name, partial(gp_ukf_predict, params=settings.predict),
+                              partial(gp_ukf_measurement, params=settings.update))
     raise InputError(f"filter family must be one of {', '.join(FAMILY_NAMES)}, got {name!r}")

@@ -43,7 +43,7 @@ def unscented_transform(belief: Gaussian, fn: Callable[[np.ndarray], np.ndarray]
     dim = belief.mean.shape[-1]
     wm, wc = params.weights(dim)  # first: raises InputError for invalid parameters (D + λ ≤ 0)
     points = sigma_points(belief.mean, belief.cov, params)
-    return weighted_moments(points, map_points(fn, points), wm, wc, circular_in, circular_out)
+    return weighted_moments(points, map_points(fn, points), wm, wc, circular_in, circular_out, params.angle_mean)
 
 
 def ukf_predict(belief: Gaussian, model, *, k: int = 1, params: SigmaParams = SigmaParams()) -> Gaussian:

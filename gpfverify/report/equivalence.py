@@ -454,6 +454,32 @@ def method_table(d: CheckData) -> Table:
                  + "; times are wall-clock on the machine that made the run")
 
 
+def _points_text(points: dict) -> str:
+    return (f"α {points['alpha']:g}, β {points['beta']:g}, κ {points['kappa']:g}, angles averaged "
+            + {"reference": "relative to the central point", "atan2": "by atan2 of the weighted sines and cosines",
+               "linear": "as plain numbers"}.get(points["angle_mean"], points["angle_mean"]))
+
+
+def _filter_rows(results: dict) -> list[list[str]]:
+    """The settings rows of the user's filters: where the family came from, the sigma points the
+    unscented families ran (prediction and update, and their source), the filters' starts."""
+    rows = []
+    tracker = results.get("tracker") or {}
+    if tracker.get("library"):
+        rows.append(["filters of", f"{tracker['library']}: {tracker.get('family_source') or '—'}"])
+    sigma = results.get("sigma_points")
+    if sigma is not None:
+        same = sigma["predict"] == sigma["update"]
+        rows.append(["sigma points", _points_text(sigma["predict"]) if same else
+                     f"prediction {_points_text(sigma['predict'])}; update {_points_text(sigma['update'])}"])
+        rows.append(["sigma points from", sigma.get("source", "—")])
+    elif "sigma_points" in results:
+        rows.append(["sigma points", f"none (the {results.get('filter', '?')} family draws none)"])
+    if tracker.get("starts"):
+        rows.append(["filters start", tracker["starts"]])
+    return rows
+
+
 def settings_table(results: dict, d: CheckData) -> Table:
     p = results.get("params") or {}
     rows = [["system", p.get("system", results.get("system", "—"))],
@@ -464,6 +490,7 @@ def settings_table(results: dict, d: CheckData) -> Table:
             ["methods", ", ".join(p.get("methods") or [])],
             ["rank rule", rank_rule_text(results.get("rank_rule"), p.get("rank_tol"))],
             ["CI weight criterion", p.get("ci_criterion", "trace")],
+            *_filter_rows(results),
             ["measurements", p.get("measurements") or "simulated from the system"],
             ["truth known", "yes" if results.get("truth_known") else "no"]]
     if str(p.get("filter", "")).startswith("gp"):
