@@ -34,7 +34,7 @@ import numpy as np
 
 from gpfverify.angles import TWO_PI, difference, wrap, wrap_components
 from gpfverify.audit import CaseAudit, SensorAudit
-from gpfverify.fusion.blockexactness import (CentralBlock, SensorBlock, analyse_sensor, apply,
+from gpfverify.fusion.blockexactness import (CentralBlock, SensorBlock, analyse_sensor, apply, transposed,
                                             correlation_conditions, equilibrated, right_solve_factored, sensor_terms,
                                             solve_lower, symmetric)
 from gpfverify.fusion.case import split_circular
@@ -44,9 +44,10 @@ from gpfverify.fusion.rounding import FusedRounding, SensorTerms, gap_bound
 from gpfverify.tolerances import algebra_rtols
 
 
-def block_audits(block: CaseBlock, rule: RankRule) -> list[CaseAudit | None]:
+def block_audits(block: CaseBlock, rule: RankRule, dmf: BlockDMF | None = None) -> list[CaseAudit | None]:
     """The audit of every step of ``block`` under ``rule``, or None for every step when the block
-    is left to :func:`~gpfverify.audit.audit_case` (module docstring)."""
+    is left to :func:`~gpfverify.audit.audit_case` (module docstring); ``dmf`` the block's eq. 35
+    when :func:`block_dmf` has already computed it under ``rule``."""
     steps = len(block)
     if not steps:
         return []
@@ -54,9 +55,70 @@ def block_audits(block: CaseBlock, rule: RankRule) -> list[CaseAudit | None]:
         # a step's quantities that its audit does not report (a kernel's at full rank, y's without y)
         # may divide by zero here: they are discarded
         with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
-            return _block_audits(block, rule)
+            return _block_audits(block, rule, _block_dmf(block, rule) if dmf is None else dmf)
     except np.linalg.LinAlgError:  # a factor needs jitter at some step: the per-step route decides
         return [None] * steps
+
+
+@dataclass(frozen=True)
+class SensorDMF:
+    """Sensor m's part of eq. 35 at every step of a block: its ``split`` and evidence, μ_e^m ⊖ μ_p^m
+    (``change``), μ_y^m ⊖ μ_y(m) (``predicted``) and A_m (μ_e^m ⊖ μ_p^m) (``recovered``)."""
+
+    split: SensorBlock
+    change: np.ndarray
+    predicted: np.ndarray
+    recovered: np.ndarray
+
+
+@dataclass(frozen=True)
+class BlockDMF:
+    """Eq. 35 at every step of a block (the DMF step, before any audit): the centre's rounding
+    operands and C_y factors (``central``), each sensor's part, the fused ``mean`` (B, D) and
+    covariance ``cov`` = C_p − G C_xyᵀ (B, D, D), shared with CMF."""
+
+    central: CentralBlock
+    sensors: tuple[SensorDMF, ...]
+    mean: np.ndarray
+    cov: np.ndarray
+
+    @property
+    def condition_holds(self) -> np.ndarray:
+        """Proposition 1's condition at every step: every C_xy^m of full column rank (B,)."""
+        return np.all([s.split.rank == s.split.size for s in self.sensors], axis=0)
+
+
+def block_dmf(block: CaseBlock, rule: RankRule) -> BlockDMF | None:
+    """Eq. 35 under ``rule`` at every step of ``block`` — with each sensor's rank decision, split and
+    exactness evidence (:func:`~gpfverify.fusion.blockexactness.analyse_sensor`) — or None when a
+    factorisation needs jitter at some step (the per-step route, :func:`~gpfverify.fusion.distributed.dmf_update`,
+    decides those)."""
+    try:
+        with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+            return _block_dmf(block, rule)
+    except np.linalg.LinAlgError:
+        return None
+
+
+def _block_dmf(block: CaseBlock, rule: RankRule) -> BlockDMF:
+    steps, dim, states = len(block), block.state_dim, block.circular_state
+    c_p = symmetric(block.C_p)
+    dpx, lpx = equilibrated(c_p)  # L_p = diag(d_p) L_pc: differences in prior standard deviations
+    inverse = solve_lower(lpx, np.broadcast_to(np.eye(dim), (steps, dim, dim)) / dpx[:, :, None])  # L_p⁻¹
+    dy, ly = equilibrated(block.C_y)
+    gain = right_solve_factored(block.C_xy, dy, ly)                                                # C_xy C_y⁻¹
+    central = CentralBlock(FusedRounding(inverse, gain, block.mu_p, block.mu_y), block.C_y, dy, ly)
+    ends = np.cumsum(block.sizes).tolist()
+    sensors = []
+    for size, end, local, angles in zip(block.sizes, ends, block.locals, split_circular(block.circular, block.sizes)):
+        cols = slice(end - size, end)
+        split = analyse_sensor(local, c_p, rule, central, cols)
+        change = difference(local.mu_e, local.mu_p, states)
+        sensors.append(SensorDMF(split, change, difference(local.mu_y, block.mu_y[:, cols], angles),
+                                 apply(split.pinv, change)))
+    parts = [s.predicted + apply(local.C_y, s.recovered) for s, local in zip(sensors, block.locals)]
+    mean = wrap_components(block.mu_p + apply(gain, np.concatenate(parts, axis=1)), states)
+    return BlockDMF(central, tuple(sensors), mean, symmetric(c_p - gain @ transposed(block.C_xy)))
 
 
 def _whitened_sizes(inverse: np.ndarray, vectors: np.ndarray) -> np.ndarray:
@@ -64,27 +126,24 @@ def _whitened_sizes(inverse: np.ndarray, vectors: np.ndarray) -> np.ndarray:
     return np.linalg.norm(apply(inverse, vectors), axis=1)
 
 
-def _block_audits(block: CaseBlock, rule: RankRule) -> list[CaseAudit | None]:
+def _block_audits(block: CaseBlock, rule: RankRule, dmf_block: BlockDMF) -> list[CaseAudit | None]:
     steps, dim, states = len(block), block.state_dim, block.circular_state
-    mu_p, c_p = block.mu_p, symmetric(block.C_p)
-    dpx, lpx = equilibrated(c_p)  # L_p = diag(d_p) L_pc: differences in prior standard deviations
-    inverse = solve_lower(lpx, np.broadcast_to(np.eye(dim), (steps, dim, dim)) / dpx[:, :, None])  # L_p⁻¹
-    dy, ly = equilibrated(block.C_y)
-    gain = right_solve_factored(block.C_xy, dy, ly)                                                # C_xy C_y⁻¹
-    central = CentralBlock(FusedRounding(inverse, gain, mu_p, block.mu_y), block.C_y, dy, ly)
+    mu_p, central = block.mu_p, dmf_block.central
+    inverse, gain = central.rounding.inverse, central.rounding.gain
     has_y = block.has_y
     y = np.where(has_y[:, None], block.y, 0.0) if block.y is not None else np.zeros_like(block.mu_y)
     ends = np.cumsum(block.sizes).tolist()
-    sensors = [_sensor_run(block, c_p, slice(end - size, end), local, angles, rule, central, y)
-               for size, end, local, angles in zip(block.sizes, ends, block.locals,
-                                                   split_circular(block.circular, block.sizes))]
+    sensors = [_sensor_run(block, slice(end - size, end), local, angles, central, y, part)
+               for size, end, local, angles, part in zip(block.sizes, ends, block.locals,
+                                                         split_circular(block.circular, block.sizes),
+                                                         dmf_block.sensors)]
 
     def fused(parts: list[np.ndarray]) -> np.ndarray:
         """μ_p + G v, v stacked from the sensors' terms (angle state components wrapped)."""
         return wrap_components(mu_p + apply(gain, np.concatenate(parts, axis=1)), states)
 
-    dmf = fused([s.dmf_part for s in sensors])
-    full = np.all([s.sensor.rank == s.sensor.size for s in sensors], axis=0)
+    dmf = dmf_block.mean
+    full = dmf_block.condition_holds
     exact = np.all([s.sensor.exact for s in sensors], axis=0)
     variant = dependence = None
     if rule.name == "canonical" and not full.all():  # the unit-free variant, where a sensor lost rank
@@ -150,15 +209,12 @@ class _SensorRun:
     exact: list[bool]
 
 
-def _sensor_run(block: CaseBlock, c_p: np.ndarray, cols: slice, local: LocalBlock, angles: tuple[int, ...],
-                rule: RankRule, central: CentralBlock, y: np.ndarray) -> _SensorRun:
-    """Sensor m (columns ``cols``, angle outputs ``angles``) at every step of ``block`` (``c_p`` its
-    central C_p, symmetrised); ``y`` the stacked measurements (zero rows where a step has none,
-    whose results are not reported)."""
-    sensor = analyse_sensor(local, c_p, rule, central, cols)
-    change = difference(local.mu_e, local.mu_p, block.circular_state)
-    predicted_term = difference(local.mu_y, block.mu_y[:, cols], angles)
-    recovered = apply(sensor.pinv, change)
+def _sensor_run(block: CaseBlock, cols: slice, local: LocalBlock, angles: tuple[int, ...], central: CentralBlock,
+                y: np.ndarray, part: SensorDMF) -> _SensorRun:
+    """Sensor m (columns ``cols``, angle outputs ``angles``, its part of eq. 35 ``part``) at every
+    step of ``block``; ``y`` the stacked measurements (zero rows where a step has none, whose results
+    are not reported)."""
+    sensor, change, predicted_term, recovered = part.split, part.change, part.predicted, part.recovered
     innovation = difference(y[:, cols], local.mu_y, angles)
     w = np.linalg.solve(local.C_y, innovation[:, :, None])[:, :, 0]                               # (C_y^m)⁻¹(…)
     message = apply(sensor.projector, w)                                                          # k_m = N_m N_mᵀ w_m

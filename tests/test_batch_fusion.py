@@ -1,0 +1,128 @@
+"""One fusion step of several Monte Carlo runs at once (gpfverify.fusion.batched and the block
+route of eq. 35, gpfverify.blockaudit.block_dmf) against each run's step alone: the same bits for
+every way of splitting the runs into batches (8, 1 × 8, 3 + 3 + 2, 5 + 3), and equal to the per-run
+rules — dmf_update, cmf_update, convex_combination, the squared Mahalanobis distance — to
+BATCH_RTOL relative to the size of what they combine (full-rank steps, steps where a sensor lost
+rank, angle outputs and angle state components)."""
+
+import dataclasses
+
+import numpy as np
+import pytest
+
+from gpfverify.blockaudit import block_dmf
+from gpfverify.filters.records import Gaussian
+from gpfverify.fusion.batched import cmf_update_block, convex_combination_batch, squared_mahalanobis_batch
+from gpfverify.fusion.case import CentralPrediction, FusionCase, split_circular
+from gpfverify.fusion.caseblock import CaseBlock, LocalBlock
+from gpfverify.fusion.centralized import cmf_update
+from gpfverify.fusion.convex import convex_combination
+from gpfverify.fusion.distributed import dmf_update
+from gpfverify.fusion.exactness import RankRule
+from gpfverify.fusion.synthetic import random_case
+from gpfverify.linalg import solve_spd
+from gpfverify.tolerances import BATCH_RTOL
+
+RUNS = 8
+SPLITS = ((8,), (1,) * 8, (3, 3, 2), (5, 3))
+
+
+def _with_angles(case: FusionCase, outputs=(), states=()) -> FusionCase:
+    c = case.central
+    central = CentralPrediction(c.mu_p, c.C_p, c.mu_y, c.C_y, c.C_xy, c.sizes, tuple(outputs), tuple(states))
+    local = tuple(dataclasses.replace(r, circular=own)
+                  for r, own in zip(case.locals, split_circular(central.circular, c.sizes)))
+    return dataclasses.replace(case, central=central, locals=local)
+
+
+def _cases(kind: str) -> list[FusionCase]:
+    rng = np.random.default_rng({"full": 1, "lost": 2, "angles": 3}[kind])
+    if kind == "full":
+        return [random_case(rng, 4, (2, 3, 1)) for _ in range(RUNS)]
+    if kind == "lost":
+        return [random_case(rng, 4, (2, 3, 1), ranks=(2, 2, 1) if b % 2 else (1, 3, 0)) for b in range(RUNS)]
+    return [_with_angles(random_case(rng, 4, (2, 3, 1)), outputs=(1, 4), states=(2,)) for _ in range(RUNS)]
+
+
+def _block(cases: list[FusionCase]) -> CaseBlock:
+    first = cases[0].central
+    stack = lambda get: np.stack([get(c) for c in cases])  # noqa: E731
+    locals_ = tuple(LocalBlock(*(stack(lambda c, m=m, f=f: getattr(c.locals[m], f))
+                                 for f in ("mu_p", "mu_y", "C_y", "C_xy", "mu_e", "C_e")),
+                               np.ones(len(cases), dtype=bool)) for m in range(len(first.sizes)))
+    return CaseBlock(first.sizes, first.circular, *(stack(lambda c, f=f: getattr(c.central, f))
+                                                    for f in ("mu_p", "C_p", "mu_y", "C_y", "C_xy")),
+                     locals_, stack(lambda c: c.y), np.full(len(cases), np.nan), first.circular_state)
+
+
+def _split(cases, fn, split):
+    out, start = [], 0
+    for size in split:
+        out.append(fn(_block(cases[start:start + size])))
+        start += size
+    return np.concatenate(out)
+
+
+def _assert_close(got, ref, scale, what):
+    assert np.all(np.abs(got - ref) <= BATCH_RTOL * scale), (what, np.max(np.abs(got - ref) / scale))
+
+
+@pytest.mark.parametrize("kind", ["full", "lost", "angles"])
+@pytest.mark.parametrize("rule", [RankRule("canonical"), RankRule("numpy")], ids=["canonical", "numpy"])
+def test_eq35_of_many_runs_is_each_runs_own(kind, rule):
+    cases = _cases(kind)
+    means = [_split(cases, lambda b: block_dmf(b, rule).mean, split) for split in SPLITS]
+    covs = [_split(cases, lambda b: block_dmf(b, rule).cov, split) for split in SPLITS]
+    for mean, cov in zip(means[1:], covs[1:]):
+        np.testing.assert_array_equal(mean, means[0])
+        np.testing.assert_array_equal(cov, covs[0])
+    ranks = block_dmf(_block(cases), rule).sensors
+    for b, case in enumerate(cases):
+        alone = dmf_update(case, rank_rule=rule)
+        assert [int(s.split.rank[b]) for s in ranks] == [s.split.rank.rank for s in alone.sensors]
+        # eq. 35 sums μ_p and G's columns times the sensors' terms: rounding relative to their size
+        scale = np.linalg.norm(case.central.mu_p) + np.linalg.norm(alone.mean) + np.linalg.norm(alone.mean
+                                                                                                - case.central.mu_p)
+        _assert_close(means[0][b], alone.mean, scale, "mean")
+        _assert_close(covs[0][b], alone.cov, np.abs(case.central.C_p).max(), "cov")
+
+
+@pytest.mark.parametrize("kind", ["full", "angles"])
+def test_cmf_update_of_many_runs_is_each_runs_own(kind):
+    cases = _cases(kind)
+    means = [_split(cases, lambda b: cmf_update_block(b).mean, split) for split in SPLITS]
+    for mean in means[1:]:
+        np.testing.assert_array_equal(mean, means[0])
+    for b, case in enumerate(cases):
+        alone = cmf_update(case.central, case.y)
+        _assert_close(means[0][b], alone.mean, np.linalg.norm(case.central.mu_p) + np.linalg.norm(alone.mean), "mean")
+
+
+@pytest.mark.parametrize("states", [(), (1,)])
+def test_baselines_and_distances_of_many_runs_are_each_runs_own(states):
+    rng = np.random.default_rng(4)
+    means = rng.normal(size=(RUNS, 3, 4)) * 3.0
+    a = rng.normal(size=(RUNS, 3, 4, 4))
+    covs = a @ np.swapaxes(a, -1, -2) + 0.2 * np.eye(4)
+    truth = rng.normal(size=(RUNS, 4))
+    fused = [np.concatenate([convex_combination_batch(means[s], covs[s], states).mean for s in _slices(split)])
+             for split in SPLITS]
+    distances = [np.concatenate([squared_mahalanobis_batch(truth[s], means[s, 0], covs[s, 0]) for s in _slices(split)])
+                 for split in SPLITS]
+    for f, d in zip(fused[1:], distances[1:]):
+        np.testing.assert_array_equal(f, fused[0])
+        np.testing.assert_array_equal(d, distances[0])
+    for b in range(RUNS):
+        alone = convex_combination([Gaussian(m, c) for m, c in zip(means[b], covs[b])], states)
+        cond = np.linalg.cond(np.linalg.inv(alone.cov))
+        _assert_close(fused[0][b], alone.mean, cond * np.abs(means[b]).max(), "cc mean")
+        err = truth[b] - means[b, 0]
+        ref = float(err @ solve_spd(covs[b, 0], err))
+        _assert_close(distances[0][b], ref, np.linalg.cond(covs[b, 0]) * ref, "mahalanobis")
+
+
+def _slices(split):
+    start = 0
+    for size in split:
+        yield slice(start, start + size)
+        start += size
