@@ -60,6 +60,7 @@ from gpfverify.errors import InputError, SolverError
 from gpfverify.fusion.conic import ClarabelProgram, ConicSolution, Parametrised, solve_with_cvxpy
 from gpfverify.fusion.estimates import (FusedEstimate, checked_estimates, information_form,
                                         weighted_information_fusion)
+from gpfverify.fusion.pairwise import joint_diagonalise, minimise_convex_on_unit_interval
 from gpfverify.validate import as_positive
 
 #: Confidence level whose χ²_D quantile is the default ellipsoid size c.
@@ -248,8 +249,41 @@ def _centre(norm: _Normalised, solution: ConicSolution) -> np.ndarray | None:
 
 def smallest_intersecting_size(estimates: Sequence, circular_state: Sequence[int] = ()) -> float:
     """c_min = min_x max_m (x − x_m)ᵀP_m⁻¹(x − x_m): the ellipsoids meet iff c ≥ c_min (angle
-    components ``circular_state`` on one branch, as in :func:`rcc_ci`)."""
+    components ``circular_state`` on one branch, as in :func:`rcc_ci`). Two estimates: the closed
+    form of :func:`two_ellipsoid_size`; more: a conic program (:func:`conic_intersecting_size`)."""
     checked = checked_estimates(estimates, circular_state=circular_state)
+    if len(checked) == 2:
+        return two_ellipsoid_size(checked[0], checked[1])
+    return conic_intersecting_size(checked)
+
+
+def two_ellipsoid_size(first, second) -> float:
+    """c_min of two ellipsoids by minimax duality: min_x max(q_1, q_2) = max_{λ∈[0,1]} min_x
+    [λq_1 + (1 − λ)q_2] (convex quadratics), and the inner minimum is
+    g(λ) = dᵀ(P_1/λ + P_2/(1 − λ))⁻¹d with d = x_1 − x_2. In the joint basis Vᵀ P_1 V = I,
+    Vᵀ P_2 V = diag(μ) (:mod:`gpfverify.fusion.pairwise`), with u = Vᵀd,
+
+        g(λ) = Σ_i u_i² λ(1 − λ) / ((1 − λ) + λμ_i),   g'(λ) = Σ_i u_i² ((1 − λ)² − λ²μ_i) / ((1 − λ) + λμ_i)²,
+
+    concave, g'(0) = ‖u‖² ≥ 0 ≥ g'(1) = −Σ μ_i u_i²: c_min = g at the root of g' (Brent's method,
+    :func:`~gpfverify.fusion.pairwise.minimise_convex_on_unit_interval` on −g). The conic program of
+    :func:`conic_intersecting_size` gives the same number to its accuracy (tests/test_fusion_rcc_ci.py)."""
+    jd = joint_diagonalise(first, second)
+    mu = jd.ratios
+    weights = (jd.u1 - jd.u2) ** 2  # u = Vᵀ(x_1 − x_2)
+
+    def g(lam: float) -> float:
+        return float(np.sum(weights * lam * (1.0 - lam) / ((1.0 - lam) + lam * mu)))
+
+    def slope(lam: float) -> float:  # −g'(λ): the derivative of the convex −g
+        return float(-np.sum(weights * ((1.0 - lam) ** 2 - lam ** 2 * mu) / ((1.0 - lam) + lam * mu) ** 2))
+
+    return g(minimise_convex_on_unit_interval(slope))
+
+
+def conic_intersecting_size(checked: Sequence) -> float:
+    """c_min of any number of ellipsoids as the conic program min t s.t. ‖L_m⁻¹(x − x_m)‖² ≤ t
+    (Clarabel through cvxpy)."""
     # c_min is invariant under x -> (x - x̄)/s with P_m -> P_m/s²: solve in those coordinates
     # (as the primal) so that the solver sees numbers of order one whatever the units
     centre = np.mean([e.mean for e in checked], axis=0)
