@@ -126,3 +126,30 @@ def _slices(split):
     for size in split:
         yield slice(start, start + size)
         start += size
+
+
+@pytest.mark.parametrize("spread", [0.5, 6.0])
+def test_rcc_ci_of_many_runs_is_each_runs_own(spread):
+    """RCC-CI's data formed for all runs and each run solved alone: the same bits for every split,
+    and the per-run rcc_ci's estimate to BATCH_RTOL (its weights are Clarabel's duals for the same data), also
+    where the ellipsoids miss and the size is enlarged (``spread`` 6: most runs)."""
+    from gpfverify.fusion.rcc_ci import rcc_ci, rcc_ci_batch
+
+    rng = np.random.default_rng(11)
+    means = rng.normal(size=(RUNS, 2, 3)) * spread
+    a = rng.normal(size=(RUNS, 2, 3, 3))
+    covs = a @ np.swapaxes(a, -1, -2) + 0.3 * np.eye(3)
+    results = [[rcc_ci_batch(means[s], covs[s]) for s in _slices(split)] for split in SPLITS]
+    joined = [{f: np.concatenate([getattr(r, f) for r in parts]) for f in ("mean", "cov", "weights", "c", "enlarged")}
+              for parts in results]
+    for other in joined[1:]:
+        for f, v in other.items():
+            np.testing.assert_array_equal(v, joined[0][f], err_msg=f)
+    for b in range(RUNS):
+        alone = rcc_ci([Gaussian(m, c) for m, c in zip(means[b], covs[b])], on_empty="enlarge")
+        assert bool(joined[0]["enlarged"][b]) == alone.enlarged
+        np.testing.assert_allclose(joined[0]["c"][b], alone.c, rtol=BATCH_RTOL)
+        np.testing.assert_allclose(joined[0]["weights"][b], alone.weights, rtol=BATCH_RTOL)
+        cond = np.linalg.cond(np.linalg.inv(alone.cov))
+        _assert_close(joined[0]["mean"][b], alone.mean, cond * np.abs(means[b]).max(), "rcc-ci mean")
+    assert joined[0]["enlarged"].any() == (spread > 1)

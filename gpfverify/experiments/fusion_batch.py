@@ -12,9 +12,10 @@ at b) and starts; per step the batch takes
   bound, the closed-form gap): the block route over the runs (:func:`gpfverify.blockaudit.block_dmf`,
   :func:`gpfverify.blockaudit.block_audits`), or the per-step route run by run where a factor of
   some run's step needs jitter;
-* CW on arrays (:func:`gpfverify.fusion.batched.convex_combination_batch`); RCC-CI run by run — an
-  interior-point solve whose iterations would couple the runs if their problems were solved as one
-  (:func:`gpfverify.fusion.rcc_ci.rcc_ci`, as the per-run path calls it).
+* CW on arrays (:func:`gpfverify.fusion.batched.convex_combination_batch`); RCC-CI with its conic
+  data formed for the batch and one Clarabel solve per run — an interior-point solve whose
+  iterations would couple the runs if their problems were solved as one
+  (:func:`gpfverify.fusion.rcc_ci.rcc_ci_batch`).
 
 A run's record does not depend on B or on which runs share its batch (tests/test_batch_experiments.py
 checks batches of 1, 3 and a split, bit for bit, outside the timing fields) and equals the per-run
@@ -38,7 +39,7 @@ from gpfverify.audit import CaseAudit, audit_case
 from gpfverify.blockaudit import block_audits, block_dmf
 from gpfverify.contract.fusion import DEFAULT_RULE, FAMILIES, FUSION_RULES, FamilyRun, FusionRun, family_methods
 from gpfverify.contract.methods import Method
-from gpfverify.experiments.fusion_run import CPU_CLOCK, ROUNDING_PROBE, _audit_entry, _rcc_ci, hyperparameters
+from gpfverify.experiments.fusion_run import CPU_CLOCK, ROUNDING_PROBE, _audit_entry, hyperparameters
 from gpfverify.filters.families import GaussianFamily, gaussian_family
 from gpfverify.filters.records import Gaussian
 from gpfverify.filters.sigma_points import SigmaParams
@@ -47,6 +48,7 @@ from gpfverify.fusion.case import CentralPrediction
 from gpfverify.fusion.caseblock import CaseBlock
 from gpfverify.fusion.distributed import dmf_update
 from gpfverify.fusion.exactness import RankRule, parse_rank_rule
+from gpfverify.fusion.rcc_ci import rcc_ci_batch
 from gpfverify.models import GPModel, batch_gp_models
 from gpfverify.scenarios.fusion_models import FusionData
 
@@ -148,15 +150,6 @@ def _central_prediction(chosen: GaussianFamily, belief: Gaussian, model: GPModel
                              tuple(model.sizes), tuple(model.circular), tuple(model.circular_state))
 
 
-def _rcc_ci_runs(means: np.ndarray, covs: np.ndarray, size: float | None, on_empty: str,
-                 circular_state: Sequence[int]) -> tuple[Gaussian, np.ndarray]:
-    """RCC-CI of every run (means (B, N, D), covs (B, N, D, D)) by its own solve; (estimates, enlarged (B,))."""
-    fused = [_rcc_ci([Gaussian(m, c) for m, c in zip(run_means, run_covs)], size, on_empty, circular_state)
-             for run_means, run_covs in zip(means, covs)]
-    return (Gaussian(np.array([f.mean for f, _ in fused]), np.array([f.cov for f, _ in fused])),
-            np.array([enlarged for _, enlarged in fused]))
-
-
 def run_family_batch(family: str, models: GPModel, data: Sequence[FusionData], local_starts: Sequence[Gaussian],
                      fused_start: Gaussian, sigma: SigmaParams, rcc_size: float | None,
                      rank_rule: str = DEFAULT_RULE, rcc_on_empty: str = "enlarge") -> list[FamilyRun]:
@@ -209,15 +202,14 @@ def run_family_batch(family: str, models: GPModel, data: Sequence[FusionData], l
         local_means = np.stack([b.mean for b in locals_], axis=1)
         local_covs = np.stack([b.cov for b in locals_], axis=1)
         cw = clock.run(cw_key, k, convex_combination_batch, local_means, local_covs, circular_state)
-        rcc, enlarged = clock.run(rcc_key, k, _rcc_ci_runs, local_means, local_covs, rcc_size, rcc_on_empty,
-                                  circular_state)
-        rcc_enlarged += enlarged
+        rcc = clock.run(rcc_key, k, rcc_ci_batch, local_means, local_covs, rcc_size, rcc_on_empty, circular_state)
+        rcc_enlarged += rcc.enlarged
 
         start = CPU_CLOCK()
         same = cmf_update_block(block)  # CMF's update from the same central prediction as DMF's
         online[cmf_key][k] = (CPU_CLOCK() - start) / runs
 
-        estimates = dict(zip(names, [*locals_, cmf_belief, dmf_belief, rcc, cw]))
+        estimates = dict(zip(names, [*locals_, cmf_belief, dmf_belief, Gaussian(rcc.mean, rcc.cov), cw]))
         for name, est in estimates.items():
             sq_err[name][:, k] = np.sum((truth[:, k] - est.mean) ** 2, axis=-1)
             maha[name][:, k] = squared_mahalanobis_batch(truth[:, k], est.mean, est.cov)
