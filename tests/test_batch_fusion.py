@@ -153,3 +153,26 @@ def test_rcc_ci_of_many_runs_is_each_runs_own(spread):
         cond = np.linalg.cond(np.linalg.inv(alone.cov))
         _assert_close(joined[0]["mean"][b], alone.mean, cond * np.abs(means[b]).max(), "rcc-ci mean")
     assert joined[0]["enlarged"].any() == (spread > 1)
+
+
+@pytest.mark.parametrize("criterion", ["trace", "det"])
+def test_ci_of_many_runs_is_each_runs_own(criterion):
+    """CI of three estimates by Newton's method over the runs at once, each run with its own
+    iterates: the same bits for every split, and as covariance_intersection of each run alone."""
+    from gpfverify.fusion.ci import covariance_intersection, covariance_intersection_batch
+
+    rng = np.random.default_rng(12)
+    means = rng.normal(size=(RUNS, 3, 4))
+    q = np.linalg.qr(rng.normal(size=(RUNS, 3, 4, 4)))[0]
+    covs = (q * np.geomspace(1.0, 20.0, 4)[..., None, :]) @ np.swapaxes(q, -1, -2)
+    results = [[covariance_intersection_batch(means[s], covs[s], criterion) for s in _slices(split)] for split in SPLITS]
+    joined = [{f: np.concatenate([getattr(r, f) for r in parts]) for f in ("mean", "cov", "weights")}
+              for parts in results]
+    for other in joined[1:]:
+        for f, v in other.items():
+            np.testing.assert_array_equal(v, joined[0][f], err_msg=f)
+    for b in range(RUNS):
+        alone = covariance_intersection([Gaussian(m, c) for m, c in zip(means[b], covs[b])], criterion)
+        np.testing.assert_allclose(joined[0]["weights"][b], alone.weights, rtol=BATCH_RTOL, atol=BATCH_RTOL)
+        _assert_close(joined[0]["mean"][b], alone.mean, np.linalg.cond(alone.cov) * np.abs(means[b]).max(), "ci mean")
+    assert all(f is None for parts in results for r in parts for f in r.failures)
