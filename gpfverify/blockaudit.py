@@ -28,17 +28,20 @@ adds it), or sensitivities (casadi, per step). The tests compare the two routes 
 
 from __future__ import annotations
 
+import time
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
 
 from gpfverify.angles import TWO_PI, difference, wrap, wrap_components
-from gpfverify.audit import CaseAudit, SensorAudit
+from gpfverify.audit import CaseAudit, SensorAudit, audit_case
 from gpfverify.fusion.blockexactness import (CentralBlock, SensorBlock, analyse_sensor, apply, transposed,
                                             correlation_conditions, equilibrated, right_solve_factored, sensor_terms,
                                             solve_lower, symmetric)
 from gpfverify.fusion.case import split_circular
 from gpfverify.fusion.caseblock import CaseBlock, LocalBlock
+from gpfverify.fusion.distributed import dmf_update
 from gpfverify.fusion.exactness import RankRule
 from gpfverify.fusion.rounding import FusedRounding, SensorTerms, gap_bound
 from gpfverify.tolerances import algebra_rtols
@@ -247,3 +250,81 @@ def _sensor_audit(t: int, m: int, c: _SensorRun, rule: RankRule, dim: int, measu
         gap_contribution=c.share[t] if on else None, gap_contribution_size=c.share_size[t] if on else None,
         branch_offsets=c.offsets[t] if on else None, rank_rule=rule, canonical_correlations=s.correlations[t],
         covariance=s.covariance[t])
+
+
+# -- many Monte Carlo runs' steps (one step each) ---------------------------------------------------
+
+@dataclass(frozen=True)
+class RunsDMF:
+    """Eq. 35 at one step of B Monte Carlo runs (a block of their cases) with its audit: the fused
+    ``mean`` (B, D) and ``cov``; per sensor the singular values of C_xy^m (B, l), its canonical
+    correlations (B, min(D, l)), whether it has full column rank and the tolerance that decided
+    (B,); the ``audits`` of the step (one per run); ``online`` the time of eq. 35 itself per run,
+    ``audit_seconds`` the audit's for the batch (on the caller's clock)."""
+
+    mean: np.ndarray
+    cov: np.ndarray
+    singular_values: list[np.ndarray]
+    correlations: list[np.ndarray]
+    full_rank: list[np.ndarray]
+    tol: list[np.ndarray]
+    audits: list[CaseAudit]
+    online: float
+    audit_seconds: float
+
+    @property
+    def condition_holds(self) -> np.ndarray:
+        return np.all(self.full_rank, axis=0)
+
+
+def dmf_runs(block: CaseBlock, rule: RankRule, clock: Callable[[], float] = time.perf_counter) -> RunsDMF:
+    """Eq. 35 and the audit of every run's step: the block route, eq. 35 alone and the audit alone
+    timed. Where a factor of some run's step needs jitter the block route refuses the block; each
+    run is then taken alone — by the block route when its own step allows it (the same bits as in
+    any batch), else by the per-step route, which adds the jitter — so that no run's numbers depend
+    on another's."""
+    start = clock()
+    dmf = block_dmf(block, rule)
+    online = (clock() - start) / len(block)
+    start = clock()
+    audits = [] if dmf is None else block_audits(block, rule, dmf)
+    audit_seconds = clock() - start
+    if dmf is None or not all(audits):
+        if len(block) == 1:
+            return _dmf_per_step(block, rule, clock)
+        return _concatenated_runs([dmf_runs(block.take(slice(b, b + 1)), rule, clock) for b in range(len(block))])
+    splits = [s.split for s in dmf.sensors]
+    return RunsDMF(dmf.mean, dmf.cov, [s.singular_values for s in splits], [s.correlations for s in splits],
+                     [s.rank == s.size for s in splits], [s.tol for s in splits],
+                     [a for a in audits if a is not None], online, audit_seconds)
+
+
+def _concatenated_runs(parts: list[RunsDMF]) -> RunsDMF:
+    """Single runs' :class:`RunsDMF` as one (times: their mean per run, the audit's sum)."""
+    sensors = range(len(parts[0].singular_values))
+    join = lambda get: [np.concatenate([get(p)[m] for p in parts]) for m in sensors]  # noqa: E731
+    return RunsDMF(np.concatenate([p.mean for p in parts]), np.concatenate([p.cov for p in parts]),
+                     join(lambda p: p.singular_values), join(lambda p: p.correlations), join(lambda p: p.full_rank),
+                     join(lambda p: p.tol), [a for p in parts for a in p.audits],
+                     float(np.mean([p.online for p in parts])), float(sum(p.audit_seconds for p in parts)))
+
+
+def _dmf_per_step(block: CaseBlock, rule: RankRule, clock: Callable[[], float]) -> RunsDMF:
+    """:func:`dmf_runs` run by run by the per-step route (dmf_update and audit_case)."""
+    runs = len(block)
+    start = clock()
+    cases = [block.case(b) for b in range(runs)]
+    results = [dmf_update(case, rank_rule=rule) for case in cases]
+    online = (clock() - start) / runs
+    start = clock()
+    audits = [audit_case(case, rank_rule=rule) for case in cases]
+    audit_seconds = clock() - start
+    per_sensor = range(len(block.sizes))
+
+    def stacked(get) -> list[np.ndarray]:
+        return [np.array([get(r.sensors[m]) for r in results]) for m in per_sensor]
+    return RunsDMF(np.array([r.mean for r in results]), np.array([r.cov for r in results]),
+                     stacked(lambda s: s.split.rank.singular_values),
+                     stacked(lambda s: np.full(0, np.nan) if s.split.correlations is None else s.split.correlations),
+                     stacked(lambda s: s.full_column_rank), stacked(lambda s: s.split.rank.tol), audits, online,
+                     audit_seconds)

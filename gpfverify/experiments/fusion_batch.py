@@ -30,13 +30,11 @@ ratio is the batch's ratio).
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 
-from gpfverify.audit import CaseAudit, audit_case
-from gpfverify.blockaudit import block_audits, block_dmf
+from gpfverify.blockaudit import dmf_runs
 from gpfverify.contract.fusion import DEFAULT_RULE, FAMILIES, FUSION_RULES, FamilyRun, FusionRun, family_methods
 from gpfverify.contract.methods import Method
 from gpfverify.experiments.fusion_run import CPU_CLOCK, ROUNDING_PROBE, _audit_entry, hyperparameters
@@ -45,9 +43,7 @@ from gpfverify.filters.records import Gaussian
 from gpfverify.filters.sigma_points import SigmaParams
 from gpfverify.fusion.batched import case_block, cmf_update_block, convex_combination_batch, squared_mahalanobis_batch
 from gpfverify.fusion.case import CentralPrediction
-from gpfverify.fusion.caseblock import CaseBlock
-from gpfverify.fusion.distributed import dmf_update
-from gpfverify.fusion.exactness import RankRule, parse_rank_rule
+from gpfverify.fusion.exactness import parse_rank_rule
 from gpfverify.fusion.rcc_ci import rcc_ci_batch
 from gpfverify.models import GPModel, batch_gp_models
 from gpfverify.scenarios.fusion_models import FusionData
@@ -65,82 +61,6 @@ class _BatchClock:
         out = fn(*args, **kwargs)
         self.seconds[method][step] += (CPU_CLOCK() - start) / self.runs
         return out
-
-
-@dataclass(frozen=True)
-class _DMFBatch:
-    """Eq. 35 at one step of B runs as the record needs it: the fused ``mean`` (B, D) and ``cov``;
-    per sensor the singular values of C_xy^m (B, l), its canonical correlations (B, min(D, l)),
-    whether it has full column rank and the tolerance that decided (B,); the ``audits`` of the step
-    (one per run); ``online`` the CPU time of eq. 35 itself per run, ``audit_seconds`` the audit's
-    for the batch."""
-
-    mean: np.ndarray
-    cov: np.ndarray
-    singular_values: list[np.ndarray]
-    correlations: list[np.ndarray]
-    full_rank: list[np.ndarray]
-    tol: list[np.ndarray]
-    audits: list[CaseAudit]
-    online: float
-    audit_seconds: float
-
-    @property
-    def condition_holds(self) -> np.ndarray:
-        return np.all(self.full_rank, axis=0)
-
-
-def _dmf_batch(block: CaseBlock, rule: RankRule) -> _DMFBatch:
-    """Eq. 35 and the audit of every run's step: the block route, eq. 35 alone and the audit alone
-    timed. Where a factor of some run's step needs jitter the block route refuses the block; each
-    run is then taken alone — by the block route when its own step allows it (the same bits as in
-    any batch), else by the per-step route, which adds the jitter — so that no run's numbers depend
-    on another's."""
-    start = CPU_CLOCK()
-    dmf = block_dmf(block, rule)
-    online = (CPU_CLOCK() - start) / len(block)
-    start = CPU_CLOCK()
-    audits = [] if dmf is None else block_audits(block, rule, dmf)
-    audit_seconds = CPU_CLOCK() - start
-    if dmf is None or not all(audits):
-        if len(block) == 1:
-            return _dmf_per_run(block, rule)
-        return _concatenated([_dmf_batch(block.take(slice(b, b + 1)), rule) for b in range(len(block))])
-    splits = [s.split for s in dmf.sensors]
-    return _DMFBatch(dmf.mean, dmf.cov, [s.singular_values for s in splits], [s.correlations for s in splits],
-                     [s.rank == s.size for s in splits], [s.tol for s in splits],
-                     [a for a in audits if a is not None], online, audit_seconds)
-
-
-def _concatenated(parts: list[_DMFBatch]) -> _DMFBatch:
-    """Single runs' :class:`_DMFBatch` as one (times: their mean per run, the audit's sum)."""
-    sensors = range(len(parts[0].singular_values))
-    join = lambda get: [np.concatenate([get(p)[m] for p in parts]) for m in sensors]  # noqa: E731
-    return _DMFBatch(np.concatenate([p.mean for p in parts]), np.concatenate([p.cov for p in parts]),
-                     join(lambda p: p.singular_values), join(lambda p: p.correlations), join(lambda p: p.full_rank),
-                     join(lambda p: p.tol), [a for p in parts for a in p.audits],
-                     float(np.mean([p.online for p in parts])), float(sum(p.audit_seconds for p in parts)))
-
-
-def _dmf_per_run(block: CaseBlock, rule: RankRule) -> _DMFBatch:
-    """:func:`_dmf_batch` run by run by the per-step route (dmf_update and audit_case)."""
-    runs = len(block)
-    start = CPU_CLOCK()
-    cases = [block.case(b) for b in range(runs)]
-    results = [dmf_update(case, rank_rule=rule) for case in cases]
-    online = (CPU_CLOCK() - start) / runs
-    start = CPU_CLOCK()
-    audits = [audit_case(case, rank_rule=rule) for case in cases]
-    audit_seconds = CPU_CLOCK() - start
-    per_sensor = range(len(block.sizes))
-
-    def stacked(get) -> list[np.ndarray]:
-        return [np.array([get(r.sensors[m]) for r in results]) for m in per_sensor]
-    return _DMFBatch(np.array([r.mean for r in results]), np.array([r.cov for r in results]),
-                     stacked(lambda s: s.split.rank.singular_values),
-                     stacked(lambda s: np.full(0, np.nan) if s.split.correlations is None else s.split.correlations),
-                     stacked(lambda s: s.full_column_rank), stacked(lambda s: s.split.rank.tol), audits, online,
-                     audit_seconds)
 
 
 def _central_prediction(chosen: GaussianFamily, belief: Gaussian, model: GPModel, k: int) -> CentralPrediction:
@@ -194,7 +114,7 @@ def run_family_batch(family: str, models: GPModel, data: Sequence[FusionData], l
         start = CPU_CLOCK()
         central = _central_prediction(chosen, dmf_belief, models, k + 1)
         block = case_block(central, records, ys[:, k], central.sizes, central.circular, central.circular_state)
-        dmf = _dmf_batch(block, rule)
+        dmf = dmf_runs(block, rule, CPU_CLOCK)
         # the whole DMF step, less the audit (which the per-run path runs outside the method's clock)
         clock.seconds[dmf_key][k] += (CPU_CLOCK() - start - dmf.audit_seconds) / runs
         online[dmf_key][k] = dmf.online

@@ -65,6 +65,11 @@ class ModelFunction:
         raise NotImplementedError
 
     def __call__(self, x: np.ndarray, k: int = 1) -> np.ndarray:
+        return self.checked_finite(self.shaped(x, k), k)
+
+    def shaped(self, x: np.ndarray, k: int) -> np.ndarray:
+        """The function's real values at x (N, D) as an (N, E) float array — the user's exceptions,
+        types and shape checked, not yet finiteness (:meth:`checked_finite`)."""
         try:
             raw = np.asarray(self.evaluate(x, k))
         except GpfverifyError:
@@ -87,6 +92,10 @@ class ModelFunction:
             else:
                 raise InputError(f"{self.name} returned shape {out.shape} for {n} state(s); "
                                  f"expected ({n}, {self.out_dim})")
+        return out
+
+    def checked_finite(self, out: np.ndarray, k: int) -> np.ndarray:
+        """``out`` unless it holds NaN or inf (InputError naming the function and the step)."""
         if not np.isfinite(out).all():
             raise InputError(f"{self.name} returned NaN or inf at step k={k}")
         return out
@@ -214,7 +223,8 @@ class RunwiseFunction(ModelFunction):
         blocks = self._blocks(np.asarray(x, dtype=float))
         if isinstance(self.fn, LinearFunction):
             return (blocks @ self.fn.matrix.T).reshape(-1, self.out_dim)
-        return np.concatenate([self.fn(block, k) for block in blocks])
+        # each run's block by a call of its own; finiteness checked once for the whole batch
+        return self.fn.checked_finite(np.concatenate([self.fn.shaped(block, k) for block in blocks]), k)
 
     def evaluate(self, x, k):
         return self(x, k)
