@@ -19,7 +19,7 @@ import pytest
 
 from gpfverify.contract.serial import to_json
 from gpfverify.experiments import ct2d, ungm1d
-from gpfverify.experiments.runner import TIMING_KEY, run_experiment, without_timing
+from gpfverify.experiments.runner import run_experiment, untimed, without_timing
 from gpfverify.tolerances import BATCH_RTOL
 
 SEEDS = [np.random.SeedSequence(7, spawn_key=(i,)) for i in range(6)]
@@ -29,16 +29,8 @@ ROUNDING_SPREAD = 10.0
 DMF_FIELDS = ("recursive_gap", "one_step_gap", "one_step_gap_rel", "gap_size", "gap_bound", "audit")
 
 
-def _untimed(value):
-    if isinstance(value, dict):
-        return {k: _untimed(v) for k, v in value.items() if not TIMING_KEY.search(k)}
-    if isinstance(value, (list, tuple)):
-        return [_untimed(v) for v in value]
-    return value
-
-
 def _records(module, params, seeds):
-    return [_untimed(to_json(r)) for r in module.run_batch(params, seeds)]
+    return [untimed(to_json(r)) for r in module.run_batch(params, seeds)]
 
 
 @pytest.fixture(scope="module")
@@ -118,7 +110,7 @@ def _assert_family_close(batch: dict, alone: dict):
 def test_ct2d_batch_equals_the_runs_one_at_a_time(ct2d_runs):
     params, full = ct2d_runs
     for seed, batch in zip(SEEDS, full):
-        alone = _untimed(to_json(ct2d.run_one(params, seed)))
+        alone = untimed(to_json(ct2d.run_one(params, seed)))
         assert batch["hyperparameters"] == alone["hyperparameters"]
         for name, family in _families(alone).items():
             _assert_family_close(_families(batch)[name], family)
@@ -195,7 +187,7 @@ def test_check_batch_equals_the_runs_one_at_a_time(family):
     assert _records(check, params, SEEDS[:1]) + _records(check, params, SEEDS[1:4]) + \
         _records(check, params, SEEDS[4:]) == full
     for seed, batch in zip(SEEDS, full):
-        alone = _untimed(to_json(check.run_one(params, seed)))
+        alone = untimed(to_json(check.run_one(params, seed)))
         skip = ROUNDING_FIELDS + DMF_RECURSION + ("means", "covs", "nees", "sq_err")
         _assert_close(_without(batch, skip), _without(alone, skip), "check")
         rtol = max(BATCH_RTOL, ROUNDING_SPREAD * _dmf_spread(alone["steps"]))

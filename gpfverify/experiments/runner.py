@@ -547,13 +547,17 @@ def machine_load() -> dict:
 
 def runs_machine_load(records: list[dict]) -> dict:
     """The load the runs met: the median of each load average over the runs that recorded one
-    (at their end), the largest core count among them and how many runs recorded a load. Runs
+    (at their end), the largest core count among them and how many runs recorded a load; and how the
+    runs were batched (the largest batch, and how many runs shared a batch with others: their
+    methods' times per step are the batch's divided by its size). Runs
     saved before runs recorded their load give an empty ``load_average`` (unknown), never the load
     at the time ``results.json`` is recomputed."""
     loads = [r["machine_load"] for r in records if len((r.get("machine_load") or {}).get("load_average") or []) == 3]
     average = [round(float(v), 2) for v in np.median([m["load_average"] for m in loads], axis=0)] if loads else []
     cpus = max((m["cpus"] for m in loads if isinstance(m.get("cpus"), int)), default=None)
-    return {"load_average": average, "cpus": cpus, "runs_measured": len(loads)}
+    sizes = [r["batch_size"] for r in records if isinstance(r.get("batch_size"), int)]
+    return {"load_average": average, "cpus": cpus, "runs_measured": len(loads),
+            "largest_batch": max(sizes, default=1), "runs_batched": sum(size > 1 for size in sizes)}
 
 
 def _well_formed(record, index: int) -> bool:
@@ -610,6 +614,16 @@ def timing_keys(module: ModuleType, body) -> list[str]:
 
     walk(body)
     return sorted(found)
+
+
+def untimed(value):
+    """``value`` (a run record as JSON, or any part of one) without the keys, at any depth, that
+    :data:`TIMING_KEY` matches: what must be the same bits for every batch, worker and scheduler."""
+    if isinstance(value, dict):
+        return {k: untimed(v) for k, v in value.items() if not TIMING_KEY.search(str(k))}
+    if isinstance(value, (list, tuple)):
+        return [untimed(v) for v in value]
+    return value
 
 
 def without_timing(results: dict) -> dict:
