@@ -88,16 +88,18 @@ class Floor:
 
     def _wrapped(self, fn):
         if isinstance(fn, type):  # Clarabel's solver: time its construction and its solve
-            floor = self
+            floor, make = self, self._timed(fn)
 
             class Timed:
                 def __init__(self, *args, **kwargs):
-                    self.solver = floor._wrapped(fn)(*args, **kwargs)
+                    self.solver = make(*args, **kwargs)
 
                 def solve(self):
-                    return floor._wrapped(self.solver.solve)()
+                    return floor._timed(self.solver.solve)()
             return Timed
+        return self._timed(fn)
 
+    def _timed(self, fn):
         @functools.wraps(fn)
         def timed(*args, **kwargs):
             if self.depth:
