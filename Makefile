@@ -39,11 +39,13 @@ report: $(VENV)/.runtime-installed
 test: $(VENV)/.test-installed
 	$(BIN)/ruff check gpfverify
 	$(BIN)/mypy
+	$(BIN)/lint-imports
 	$(PYTEST)
 
 # the inner loop: every test but those marked slow (subprocesses, experiment runs, the browser)
 test-fast: $(VENV)/.test-installed
 	$(BIN)/ruff check gpfverify
+	$(BIN)/lint-imports
 	$(PYTEST) -m "not slow"
 
 clean:

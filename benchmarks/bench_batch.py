@@ -14,7 +14,7 @@ wrapping those functions (outermost calls only) during the batched run: how far 
 from the arithmetic's own cost.
 
 State dimension. A linear system with D states and three sensors of D/2 outputs each (random
-orthogonal-times-0.95 transition, random H), :func:`~gpfverify.fusion.model_fusion.run_fusion`
+orthogonal-times-0.95 transition, random H), :func:`~gpfverify.model_fusion.run_fusion`
 with the Kalman family and every rule, a few steps: the median CPU time per step of each rule and of
 the per-step audit (:func:`~gpfverify.audit.audit_case`), D = 8 … 512 (RCC-CI, a semidefinite
 program whose interior-point cost grows much faster, up to ``--rcc-max``). Goals: no rule above
@@ -129,7 +129,9 @@ def _training(records) -> float:
 
 
 def experiments(runs: int):
-    from gpfverify.experiments import check, ct2d, ungm1d
+    from gpfverify.experiments import check
+    from gpfverify.papers.fusion import ct2d_experiment as ct2d
+    from gpfverify.papers.fusion import ungm1d_experiment as ungm1d
 
     tracker = check.params_for("examples/three_sensor_system.py:tracker", filter="ukf", steps=40)
     return [("ct2d, κ = 300, Ω = 2π/90 (50 steps, 12 methods)", ct2d, ct2d.Params(), runs, 10),
@@ -181,8 +183,8 @@ def system(d: int, rng: np.random.Generator):
 
 
 def state_axis(dims: list[int], steps: int, rcc_max: int) -> tuple[list[list], dict]:
-    from gpfverify.audit import audit_case
-    from gpfverify.fusion.model_fusion import _baselines, cmf_step, dmf_step, run_fusion
+    from gpfverify.audit.case import audit_case
+    from gpfverify.model_fusion import _baselines, cmf_step, dmf_step, run_fusion
 
     rows, per_method = [], {}
     for d in dims:

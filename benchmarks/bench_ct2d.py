@@ -1,7 +1,7 @@
 """Cost of one ct2d Monte Carlo run at κ = 300 (training + 50 steps × twelve methods): gpfverify
 against a straightforward implementation.
 
-gpfverify: :func:`gpfverify.experiments.ct2d.run_one` with its defaults, broken down into training
+gpfverify: :func:`gpfverify.papers.fusion.ct2d_experiment.run_one` with its defaults, broken down into training
 (the transition GP and both sensors' GPs), filtering (the four single-sensor filters), fusion
 (CMF, DMF, CW, RCC-CI for both families) and the rest (metrics, rank decisions, audit, rounding
 probe). Times are process CPU seconds (BLAS pinned to one thread): the machine is shared and its
@@ -30,12 +30,12 @@ import numpy as np
 
 from _timing import markdown_table, median_cpu_seconds
 from bench_gp import reference_moments
-from gpfverify.contract.fusion import FusionRun
+from gpfverify.papers.fusion.contract import FusionRun
 from gpfverify.contract.methods import Method
-from gpfverify.experiments import ct2d
-from gpfverify.experiments.fusion_run import train_models
+from gpfverify.papers.fusion import ct2d_experiment as ct2d
+from gpfverify.papers.fusion.run import train_models
 from gpfverify.gp import GaussianProcess
-from gpfverify.scenarios.fusion_models import simulate_data
+from gpfverify.papers.fusion.scenario import simulate_data
 
 FILTERING = ("Sensor1", "Sensor2")
 FUSION = ("CMF", "DMF", "CW", "RCC-CI")

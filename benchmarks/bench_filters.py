@@ -14,14 +14,14 @@ from pathlib import Path
 import numpy as np
 
 from _timing import median_seconds, publish
-from gpfverify.experiments.gpadf_scalar import fit_models
+from gpfverify.papers.gpadf_scalar.experiment import fit_models
 from gpfverify.filters.gp_adf import gp_adf_step
 from gpfverify.filters.gp_ukf import gp_ukf_step
 from gpfverify.filters.records import Gaussian
 from gpfverify.filters.sigma_points import SigmaParams
 from gpfverify.filters.ukf import ukf_step
 from gpfverify.models import GPModel, Sensor, StateSpaceModel
-from gpfverify.scenarios.scalar_benchmark import ScalarSetting, draw_cases, draw_training_data
+from gpfverify.papers.gpadf_scalar.scenario import ScalarSetting, draw_cases, draw_training_data
 
 inv = np.linalg.inv
 

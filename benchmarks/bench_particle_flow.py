@@ -20,7 +20,7 @@ from gpfverify.filters.records import Gaussian
 from gpfverify.filters.resampling import Particles, normalize_log_weights, systematic_resample
 from gpfverify.filters.ukf import ukf_step
 from gpfverify.filters.upf import ukf_proposal
-from gpfverify.scenarios.bearing import INITIAL_STATE, bearing_model
+from gpfverify.papers.particle_flow.bearing_scenario import INITIAL_STATE, bearing_model
 
 
 def loop_ie_pff(particles, model, z, k, steps):

@@ -559,7 +559,7 @@ def ct2d_profile(runs: int, kappa: int = 300) -> list[list[str]]:
     import cProfile
     import pstats
 
-    from gpfverify.experiments import ct2d
+    from gpfverify.papers.fusion import ct2d_experiment as ct2d
 
     params = ct2d.Params(kappa=kappa)
     ct2d.run_one(params, np.random.SeedSequence(0))  # warm: compiled kernels, caches
@@ -691,8 +691,8 @@ def own_rows(repeats: int, ct2d_runs: int) -> list[list[str]]:
     from gpfverify.filters.tbd import TbdConfig, initial_belief, pf_tbd_step
     from gpfverify.fusion.rcc_ci import rcc_ci
     from gpfverify.models import learn_gp_model
-    from gpfverify.scenarios.bearing import INITIAL_STATE, bearing_model
-    from gpfverify.scenarios.tbd import TbdScenario, scenario_model, simulate
+    from gpfverify.papers.particle_flow.bearing_scenario import INITIAL_STATE, bearing_model
+    from gpfverify.papers.tbd.scenario import TbdScenario, scenario_model, simulate
     from gpfverify.scenarios.three_sensor import three_sensor_model
 
     rows = []
@@ -744,7 +744,7 @@ def own_rows(repeats: int, ct2d_runs: int) -> list[list[str]]:
                      fmt(alone(gp_step, repeats))])
 
     if ct2d_runs:
-        from gpfverify.experiments import ct2d
+        from gpfverify.papers.fusion import ct2d_experiment as ct2d
 
         params = ct2d.Params(kappa=300)
         cpu = []

@@ -150,7 +150,7 @@ def write_jsonl(path: Path, steps: int, pool) -> Path:
 def write_npz(path: Path, steps: int, pool) -> Path:
     """The npz layout of ``steps`` steps cycling through ``pool``, each array written as a stream
     (never the whole run in memory)."""
-    from gpfverify.fusion.runfile import _npz_arrays
+    from gpfverify.audit.runfile import _npz_arrays
 
     arrays = _npz_arrays(list(pool), None)
     with zipfile.ZipFile(path, "w", zipfile.ZIP_STORED, allowZip64=True) as archive:
@@ -216,7 +216,7 @@ def run_child(what: str, args: list[str]) -> None:
 
         print(sklearn_same_gps(tracker))
     elif what == "read":
-        from gpfverify.fusion.runfile import open_run
+        from gpfverify.audit.runfile import open_run
 
         start = time.process_time()
         with open_run(args[0]) as reader:

@@ -22,7 +22,7 @@ from gpfverify.filters.resampling import Particles, systematic_resample
 from gpfverify.filters.tbd import TbdConfig, initial_belief, pf_tbd_step, tpf_tbd_step
 from gpfverify.filters.tbd.pf import birth_proposal
 from gpfverify.filters.tbd.two_stage import second_stage_axes, transfer_particles
-from gpfverify.scenarios.tbd import TbdScenario, scenario_model, simulate
+from gpfverify.papers.tbd.scenario import TbdScenario, scenario_model, simulate
 
 
 def loop_log_lr(model, state, image) -> float:

@@ -16,7 +16,7 @@ from pathlib import Path
 import numpy as np
 
 from _timing import median_seconds, publish
-from gpfverify.experiments import sins_gps
+from gpfverify.papers.gpsr_upf import experiment as sins_gps
 from gpfverify.filters.gpsr_upf import gpsr_upf_step, sr_ukf_proposal
 from gpfverify.filters.resampling import Particles
 from gpfverify.filters.sr_ukf import cholupdate

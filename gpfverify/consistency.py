@@ -299,7 +299,7 @@ class Consistency:
     @classmethod
     def from_fusion(cls, truth, runs, method: str, *, circular_state: Sequence[int] = ()) -> Consistency:
         """NEES of the fused estimates of ``method`` ("cmf", "dmf", "cc", "ci", ...; gpfverify.fusion.names) of
-        :class:`~gpfverify.fusion.model_fusion.FusionRun`\\ s ``runs`` (one per run; a single run
+        :class:`~gpfverify.model_fusion.FusionRun`\\ s ``runs`` (one per run; a single run
         with ``truth`` (T, D)); use the model's ``circular_state``."""
         single = np.ndim(truth) == 2
         runs = [runs] if single else list(runs)

@@ -1,30 +1,34 @@
 """gpfverify's results in a Jupyter notebook: the HTML that ``_repr_html_`` shows, made by the same
 page renderers as the reports (:mod:`gpfverify.report`), so a notebook says what the pages say.
 
-* :func:`fusion_run_html` — a :func:`~gpfverify.fusion.run_fusion` result on a
+* :func:`fusion_run_html` — a :func:`~gpfverify.model_fusion.run_fusion` result on a
   :class:`~gpfverify.models.StateSpaceModel` with CMF, DMF and the audit: the page of
   ``gpfverify check`` for that one run (verdict, sensors, gap per step against its rounding bound,
   consistency; RMSE and NEES when the truth is given). A run without them: its fused means.
-* :func:`run_audit_html` — a :class:`~gpfverify.audit.RunAudit`: the page of ``gpfverify audit
+* :func:`run_audit_html` — a :class:`~gpfverify.audit.case.RunAudit`: the page of ``gpfverify audit
   RUN --out DIR`` (steps numbered from 0).
-* :func:`case_audit_html` — a :class:`~gpfverify.audit.CaseAudit`: what ``gpfverify audit CASE.json``
+* :func:`case_audit_html` — a :class:`~gpfverify.audit.case.CaseAudit`: what ``gpfverify audit CASE.json``
   prints.
 * :func:`claims_html` — claim records: the report's claims table.
 
 Figures are drawn with matplotlib (Agg) into a temporary folder and embedded in the HTML.
-Progress bars (:func:`progress_shown`: the runs of
-:func:`~gpfverify.experiments.runner.run_experiment`, the blocks of
-:func:`~gpfverify.commands.audit.audit_run_file`) are drawn on a terminal and in a notebook, where
-rich shows them as a live output (with ``ipywidgets`` installed: ``pip install 'gpfverify[notebook]'``).
+The records do not import this module: it registers each function above for its record type in
+:mod:`gpfverify.views`, the registry their ``_repr_html_`` asks, so the display sits on top of the
+objects it shows (docs/architecture.md). Progress bars, on a terminal and in a notebook:
+:func:`gpfverify.runtime.progress_shown`.
 """
 
 from __future__ import annotations
 
 import html
-import sys
 import tempfile
 from collections.abc import Iterable
 from pathlib import Path
+
+from gpfverify import views
+from gpfverify.audit.case import CaseAudit, RunAudit
+from gpfverify.contract.claims import ClaimRecord
+from gpfverify.model_fusion import FusionRun
 
 
 def _fragment(sections) -> str:
@@ -34,7 +38,7 @@ def _fragment(sections) -> str:
 
 
 def fusion_run_html(fused, truth=None, system: str = "run_fusion") -> str:
-    """The check page of one :func:`~gpfverify.fusion.run_fusion` result (module docstring)."""
+    """The check page of one :func:`~gpfverify.model_fusion.run_fusion` result (module docstring)."""
     from gpfverify.experiments.check import results_of_run
     from gpfverify.models.system import StateSpaceModel
 
@@ -60,7 +64,7 @@ def fusion_run_html(fused, truth=None, system: str = "run_fusion") -> str:
 def run_audit_html(run_audit) -> str:
     """The page of a run audit (module docstring)."""
     from gpfverify.report.equivalence import run_audit_sections
-    from gpfverify.runaudit import RunSummary, audits_block
+    from gpfverify.audit.run import RunSummary, audits_block
 
     block = audits_block(range(len(run_audit.steps)), list(run_audit.steps), keep=True)
     summary = RunSummary()
@@ -73,7 +77,7 @@ def run_audit_html(run_audit) -> str:
 
 def case_audit_html(audit) -> str:
     """What ``gpfverify audit CASE.json`` prints for this audit (module docstring)."""
-    from gpfverify.audit import format_audit
+    from gpfverify.audit.case import format_audit
 
     return f'<div class="gpfverify-report"><pre>{html.escape(format_audit(audit))}</pre></div>'
 
@@ -86,14 +90,7 @@ def claims_html(records: Iterable) -> str:
     return _fragment([Section("claims", "Claims").add(*claim_tables(list(records), "Claims"))])
 
 
-def progress_shown(stream=None) -> bool:
-    """Whether a progress bar is drawn: on a terminal, and in a Jupyter notebook (rich draws it as a
-    live output cell there). Off a terminal elsewhere (a log file, CI) it is not."""
-    stream = sys.stderr if stream is None else stream
-    if stream.isatty():
-        return True
-    if "ipykernel" not in sys.modules:  # no kernel loaded: not a notebook, and no import of rich needed
-        return False
-    from rich.console import Console
-
-    return Console().is_jupyter
+views.register(FusionRun, fusion_run_html)
+views.register(RunAudit, run_audit_html)
+views.register(CaseAudit, case_audit_html)
+views.register(ClaimRecord, lambda record: claims_html([record]))

@@ -24,10 +24,6 @@ from pathlib import Path
 
 import pytest
 
-#: the environment variable through which the folder reaches the properties (and worker processes)
-CASES_VARIABLE = "GPFVERIFY_COUNTEREXAMPLES"
-
-
 def pytest_addoption(parser: pytest.Parser) -> None:
     group = parser.getgroup("gpfverify", "gpfverify property suites")
     group.addoption("--gpfverify-cases", metavar="DIR", default=None,
@@ -37,8 +33,10 @@ def pytest_addoption(parser: pytest.Parser) -> None:
 
 def pytest_configure(config: pytest.Config) -> None:
     folder = config.getoption("gpfverify_cases", None)
-    if folder:
-        os.environ[CASES_VARIABLE] = str(Path(folder).resolve())
+    if folder:  # the folder reaches the properties (and worker processes) through the environment
+        from gpfverify.strategies.counterexamples import ENVIRONMENT_VARIABLE
+
+        os.environ[ENVIRONMENT_VARIABLE] = str(Path(folder).resolve())
 
 
 @pytest.fixture(scope="session")

@@ -16,3 +16,14 @@ def generator(seed) -> np.random.Generator:
     if isinstance(seed, np.random.Generator):
         return seed
     return np.random.default_rng(seed)
+
+
+def child_seed(seed_seq: np.random.SeedSequence, *key: int) -> np.random.SeedSequence:
+    """The seed of sub-stream ``key`` of a run: the same however often it is asked for (unlike
+    ``SeedSequence.spawn``, which advances a counter)."""
+    return np.random.SeedSequence(seed_seq.entropy, spawn_key=(*seed_seq.spawn_key, *key))
+
+
+def child_rng(seed_seq: np.random.SeedSequence, *key: int) -> np.random.Generator:
+    """A generator for sub-stream ``key`` of a run (:func:`child_seed`)."""
+    return np.random.default_rng(child_seed(seed_seq, *key))

@@ -105,3 +105,19 @@ def one_blas_thread(fn: F) -> F:
             return fn(*args, **kwargs)
 
     return limited  # type: ignore[return-value]
+
+
+def progress_shown(stream=None) -> bool:
+    """Whether a progress bar is drawn (the runs of
+    :func:`~gpfverify.experiments.runner.run_experiment`, the blocks of
+    :func:`~gpfverify.commands.audit.audit_run_file`): on a terminal, and in a Jupyter notebook, where
+    rich draws it as a live output cell (with ``ipywidgets`` installed: ``pip install
+    'gpfverify[notebook]'``). Off a terminal elsewhere (a log file, CI) it is not."""
+    stream = sys.stderr if stream is None else stream
+    if stream.isatty():
+        return True
+    if "ipykernel" not in sys.modules:  # no kernel loaded: not a notebook, and no import of rich needed
+        return False
+    from rich.console import Console
+
+    return Console().is_jupyter

@@ -60,10 +60,9 @@ SYMMETRY_RTOL: float = 1e-8
 #: Negative eigenvalue of a covariance's correlation matrix D^-1/2 A D^-1/2 (a unit-free number,
 #: relative to its largest eigenvalue) accepted as rounding in a positive semidefinite matrix.
 PSD_RTOL: float = 1e-10
-#: Monte Carlo runs advanced together as arrays (a leading run axis) against the same runs stepped
-#: one at a time by the unbatched step functions: the relative difference allowed (the contract of
-#: ``run_batch``; within one batched route the runs are the same bits for every batch size).
-BATCH_RTOL: float = 1e-10
+#: Monte Carlo runs advanced together as arrays against the same runs one at a time (the contract
+#: of an experiment's ``run_batch``): relative, for routes whose arrays differ in shape
+PER_RUN_RTOL: float = 1e-10
 #: Relative jitter steps tried, in order, when a Cholesky factorisation fails.
 JITTER_STEPS: tuple[float, ...] = (0.0, 1e-12, 1e-10, 1e-8, 1e-6)
 

@@ -1,6 +1,7 @@
-"""DMF ≡ CMF for every measurement iff G_m C_y^m (I − P_m) = 0 for every sensor: sufficiency
-symbolically, necessity by the measurement direction that breaks it. Two weaker statements are
-refuted by exact counterexamples: that full column rank is necessary, and that DMF is exact
+"""DMF ≡ CMF for every measurement iff G_m C_y^m (I − P_m) = 0 for every sensor, for any dimension
+and any number of sensors (both directions checked by the kernel; ⇒ instantiates "for every
+measurement" at the basis directions that break it). Two weaker statements are refuted by exact
+counterexamples the kernel evaluates: that full column rank is necessary, and that DMF is exact
 without any condition.
 
 Run: ``python proofs/prove_dmf_exact_iff_kernel_inclusion.py [small|large]`` (prints the

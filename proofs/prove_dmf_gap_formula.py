@@ -1,5 +1,5 @@
-"""The closed-form DMF − CMF gap, Σ_m G_m C_y^m (P_m − I)(C_y^m)⁻¹(y^m − μ_y^m), for explicit
-rank-deficient families.
+"""The closed-form DMF − CMF gap, Σ_m G_m C_y^m (P_m − I)(C_y^m)⁻¹(y^m − μ_y^m), for
+C_xy^m of any rank, for any dimension and any number of sensors (checked by the kernel).
 
 Run: ``python proofs/prove_dmf_gap_formula.py [small|large]``. Collected by pytest (small size)."""
 

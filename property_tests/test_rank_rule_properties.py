@@ -23,7 +23,7 @@ import numpy as np
 from hypothesis import event, example, given
 from hypothesis import strategies as st
 
-from gpfverify.audit import audit_case
+from gpfverify.audit.case import audit_case
 from gpfverify.fusion.case import CentralPrediction, FusionCase, LocalReport
 from gpfverify.fusion.centralized import fusion_gain
 from gpfverify.fusion.distributed import dmf_update

@@ -1,4 +1,4 @@
-"""Run files: what :func:`~gpfverify.fusion.runfile.write_run` writes, the reader gives back.
+"""Run files: what :func:`~gpfverify.audit.runfile.write_run` writes, the reader gives back.
 
 Drawn runs of 1–6 steps of one layout (state dimension, sensors and their sizes, angle outputs of
 every sensor and angle state components, drawn as random subsets), each step its own valid case
@@ -20,7 +20,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from gpfverify.fusion.case import CentralPrediction, FusionCase, LocalReport, stack_circular
-from gpfverify.fusion.runfile import load_run, open_run, write_run
+from gpfverify.audit.runfile import load_run, open_run, write_run
 from gpfverify.strategies import scaled_examples, spd_matrices
 from gpfverify.strategies.matrices import float_arrays, log_uniform
 

@@ -1,5 +1,5 @@
 """Comparing two routes to the same audit (``audit --json`` step objects): the per-step
-:func:`gpfverify.audit.audit_case` and the block route of :mod:`gpfverify.blockaudit`, which round
+:func:`gpfverify.audit.case.audit_case` and the block route of :mod:`gpfverify.audit.block`, which round
 differently.
 
 Everything that is not a float must be equal: ranks, verdicts (exact, condition_holds,

@@ -29,10 +29,10 @@ BROWSERS = ("chromium", "chromium-browser", "google-chrome", "google-chrome-stab
 
 
 def report_page(folder: Path) -> Path:
-    """``gpfverify report``'s page, rendered by :func:`gpfverify.report.build_report` from the
+    """``gpfverify report``'s page, rendered by :func:`gpfverify.full_report.build_report` from the
     stored results of every section and the stored proof certificates."""
     from gpfverify.contract.experiment import RunEntry, SectionRuns
-    from gpfverify.report import build_report
+    from gpfverify.full_report import build_report
     from gpfverify.report.inputs import write_runs
 
     for slug, stored in SECTION_FIXTURES.items():

@@ -42,7 +42,7 @@ from gpfverify.errors import InputError
 from gpfverify.filters.families import gaussian_family
 from gpfverify.filters.records import Gaussian
 from gpfverify.filters.sigma_points import SigmaParams
-from gpfverify.fusion import run_fusion
+from gpfverify.model_fusion import run_fusion
 from gpfverify.models import Sensor, StateSpaceModel
 from gpfverify.tolerances import algebra_rtol
 

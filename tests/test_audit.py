@@ -8,7 +8,7 @@ import json
 import numpy as np
 import pytest
 
-from gpfverify.audit import audit_case, audit_run, audit_to_dict, format_audit
+from gpfverify.audit.case import audit_case, audit_run, audit_to_dict, format_audit
 from gpfverify.cli import main
 from gpfverify.fusion.case import case_to_dict
 from gpfverify.fusion.centralized import cmf_update

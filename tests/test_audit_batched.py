@@ -1,5 +1,5 @@
-"""The block route of the run-file audit (:mod:`gpfverify.blockaudit`) against the per-step audit
-(:func:`gpfverify.audit.audit_case`, the definition): every step of a block is the per-step audit
+"""The block route of the run-file audit (:mod:`gpfverify.audit.block`) against the per-step audit
+(:func:`gpfverify.audit.case.audit_case`, the definition): every step of a block is the per-step audit
 to each field's rounding (tests/audit_routes.py) under every rank rule — steps where a sensor lost
 rank (exact anyway or not, down to rank 0, more outputs than states), steps without y, without the
 sensors' C_e, in mixed units, with angle outputs (branch offsets included) and angle state
@@ -21,13 +21,13 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from gpfverify.audit import audit_case, audit_to_dict
-from gpfverify.blockaudit import block_audits
+from gpfverify.audit.case import audit_case, audit_to_dict
+from gpfverify.audit.block import block_audits
 from gpfverify.fusion.case import CentralPrediction, FusionCase, split_circular
 from gpfverify.fusion.exactness import RankRule, rescaled_case
-from gpfverify.fusion.runfile import open_run, write_run
+from gpfverify.audit.runfile import open_run, write_run
 from gpfverify.fusion.synthetic import random_case
-from gpfverify.runaudit import stream_audit
+from gpfverify.audit.run import stream_audit
 from gpfverify.strategies.fusion import PRIORS, fusion_cases
 from gpfverify.strategies.gaussians import FULL_COLUMN_RANK_KINDS, KINDS, size_range
 
@@ -160,7 +160,7 @@ def test_outputs_of_very_different_scales_are_audited_as_per_step(tmp_path):
     C_y's equilibrated Cholesky factor, as accurate as the per-step route's Cholesky solve (an LU
     solve of C_y itself left a gap gain of 2.5e-12 on a sensor that lost rank, 1e5 times the
     per-step route's and beyond its bound: "not exact" where the per-step route says exact)."""
-    from gpfverify.fusion.case import load_case
+    from gpfverify.fusion.caseblock import load_case
 
     case = load_case(Path(__file__).parent / "fixtures" / "cases" / "badly_scaled_outputs.json")
     variances = np.diag(case.central.C_y)

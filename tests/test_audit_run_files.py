@@ -18,13 +18,14 @@ import pytest
 sys.path.insert(0, str(Path(__file__).parent))  # the suite imports in importlib mode: the helper beside it
 from audit_routes import assert_same_audit  # noqa: E402
 
-from gpfverify.audit import audit_case, audit_to_dict
+from gpfverify.audit.case import audit_case, audit_to_dict
 from gpfverify.cli import main
 from gpfverify.commands.audit import audit_run_file
-from gpfverify.fusion import run_fusion
+from gpfverify.model_fusion import run_fusion
 from gpfverify.errors import CaseFileError
-from gpfverify.fusion.case import case_from_dict, case_to_dict
-from gpfverify.fusion.runfile import CASE_SCHEMA, RUN_LINE_SCHEMA, load_run, write_run
+from gpfverify.fusion.case import case_to_dict
+from gpfverify.fusion.caseblock import case_from_dict
+from gpfverify.audit.runfile import CASE_SCHEMA, RUN_LINE_SCHEMA, load_run, write_run
 from gpfverify.fusion.synthetic import random_case
 from gpfverify.scenarios.three_sensor import three_sensor_model
 
@@ -384,7 +385,7 @@ def _long_run(tmp_path, steps: int, bad_last: bool = False):
 
 def test_stream_gives_the_same_bytes_for_any_blocks_and_workers(tmp_path):
     from gpfverify.experiments.runner import make_executor
-    from gpfverify.runaudit import stream_audit
+    from gpfverify.audit.run import stream_audit
 
     path = _long_run(tmp_path, 24)
     outputs = []
@@ -411,7 +412,7 @@ def test_cli_workers_give_the_output_of_one_process(tmp_path):
 
 
 def test_a_bad_line_after_the_first_blocks_leaves_stdout_empty(tmp_path, capsys):
-    from gpfverify.fusion.runfile import BLOCK_STEPS
+    from gpfverify.audit.runfile import BLOCK_STEPS
 
     path = _long_run(tmp_path, BLOCK_STEPS + 3, bad_last=True)
     for extra in ([], ["--json"]):
@@ -423,7 +424,7 @@ def test_a_bad_line_after_the_first_blocks_leaves_stdout_empty(tmp_path, capsys)
 def test_step_index_lists_are_spooled_and_written_as_the_same_json(tmp_path, monkeypatch):
     """Lists of step indices that outgrow memory move to disk and are written a chunk at a time:
     the same bytes as with everything in memory (here both limits at a few indices)."""
-    import gpfverify.runaudit as runaudit
+    import gpfverify.audit.run as runaudit
 
     path = _long_run(tmp_path, 60)
     in_memory = io.BytesIO()
@@ -446,7 +447,7 @@ def test_the_summary_of_a_long_run_holds_no_list_that_grows_with_it():
     and more as Python ints."""
     import tracemalloc
 
-    from gpfverify.runaudit import BlockAudit, RunSummary, write_summary_json
+    from gpfverify.audit.run import BlockAudit, RunSummary, write_summary_json
 
     steps, block = 1_000_000, 10_000
     lost = np.zeros((block, 2), bool)
@@ -481,7 +482,7 @@ def test_npz_step_indices_and_rank_tols_are_streamed_block_by_block(tmp_path):
     """k and a per-step rank_tol are read with the other stacked arrays, a block at a time: a k
     that stops increasing across two blocks is found with the message of one that does within a
     block, and per-step rank_tols give the audit of the same steps as lines."""
-    from gpfverify.fusion.runfile import open_run
+    from gpfverify.audit.runfile import open_run
 
     cases = [dataclasses.replace(c, rank_tol=1e-3) if t % 2 else c for t, c in enumerate(_synthetic_cases())]
     write_run(tmp_path / "good.npz", cases, [1, 2, 5, 7])

@@ -11,7 +11,7 @@ import gpfverify.fusion.rcc_ci as rcc_ci_module
 from gpfverify.contract.check import verdict_sentence
 from gpfverify.errors import NumericalError, SolverError
 from gpfverify.experiments import check
-from gpfverify.fusion.model_fusion import run_fusion
+from gpfverify.model_fusion import run_fusion
 
 ROOT = Path(__file__).resolve().parents[1]
 TRACKER = f"{ROOT / 'examples' / 'three_sensor_system.py'}:tracker"

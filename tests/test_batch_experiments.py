@@ -2,7 +2,7 @@
 runs one at a time (run_one, the unbatched step functions looped), and the runner's --batch:
 
 * every non-timing field of a run's record is the same bits for batches of 6, 1 × 6 and 2 + 4;
-* against run_one, every field outside DMF's own recursion is equal to BATCH_RTOL. DMF's recursion
+* against run_one, every field outside DMF's own recursion is equal to PER_RUN_RTOL. DMF's recursion
   (its errors, its distance from CMF, the one-step gap and its bound at DMF's central prediction)
   computes eq. 35 by the block route in the batch and the per-step route in run_one: two roundings of
   one recursion that amplifies rounding (the per-run record's own DMF and CMF, mathematically the
@@ -18,9 +18,10 @@ import numpy as np
 import pytest
 
 from gpfverify.contract.serial import to_json
-from gpfverify.experiments import ct2d, ungm1d
+from gpfverify.papers.fusion import ct2d_experiment as ct2d
+from gpfverify.papers.fusion import ungm1d_experiment as ungm1d
 from gpfverify.experiments.runner import run_experiment, untimed, without_timing
-from gpfverify.tolerances import BATCH_RTOL
+from gpfverify.tolerances import PER_RUN_RTOL
 
 SEEDS = [np.random.SeedSequence(7, spawn_key=(i,)) for i in range(6)]
 #: how far apart two independent roundings of DMF's recursion may fall, in units of one of them
@@ -59,7 +60,7 @@ def _families(record):
 
 
 def _assert_close(got, ref, where: str):
-    """Equal structure, equal non-floats, floats within BATCH_RTOL of the largest magnitude of the
+    """Equal structure, equal non-floats, floats within PER_RUN_RTOL of the largest magnitude of the
     array they belong to (a vector or matrix: an off-diagonal entry rounds relative to its matrix)."""
     if isinstance(ref, dict):
         assert got.keys() == ref.keys(), where
@@ -68,13 +69,13 @@ def _assert_close(got, ref, where: str):
     elif isinstance(ref, list) and ref and all(isinstance(v, (float, list)) for v in ref) and _numeric(ref):
         a, b = np.array(got, dtype=float), np.array(ref, dtype=float)
         assert a.shape == b.shape, where
-        assert np.all(np.abs(a - b) <= BATCH_RTOL * np.max(np.abs(b), initial=0.0)), (where, np.max(np.abs(a - b)))
+        assert np.all(np.abs(a - b) <= PER_RUN_RTOL * np.max(np.abs(b), initial=0.0)), (where, np.max(np.abs(a - b)))
     elif isinstance(ref, list):
         assert len(got) == len(ref), where
         for g, r in zip(got, ref):
             _assert_close(g, r, where)
     elif isinstance(ref, float):
-        assert abs(got - ref) <= BATCH_RTOL * abs(ref), (where, got, ref)
+        assert abs(got - ref) <= PER_RUN_RTOL * abs(ref), (where, got, ref)
     else:
         assert got == ref, (where, got, ref)
 
@@ -93,12 +94,12 @@ def _assert_family_close(batch: dict, alone: dict):
         for method, values in alone[metric].items():
             got, ref = np.array(batch[metric][method]), np.array(values)
             if method != dmf:
-                np.testing.assert_allclose(got, ref, rtol=BATCH_RTOL, err_msg=f"{metric} {method}")
+                np.testing.assert_allclose(got, ref, rtol=PER_RUN_RTOL, err_msg=f"{metric} {method}")
                 continue
             if not all(alone["condition_holds"]):
                 continue  # DMF and CMF differ in earnest there: no rounding spread to compare with
             spread = np.max(np.abs(ref - np.array(alone[metric][cmf])) / np.array(alone[metric][cmf]))
-            assert np.all(np.abs(got - ref) <= max(BATCH_RTOL, ROUNDING_SPREAD * spread) * ref), (metric, method)
+            assert np.all(np.abs(got - ref) <= max(PER_RUN_RTOL, ROUNDING_SPREAD * spread) * ref), (metric, method)
     for field, values in alone.items():
         if field not in ("sq_err", "maha") and field not in DMF_FIELDS:
             _assert_close(batch[field], values, field)
@@ -177,7 +178,7 @@ def _dmf_spread(steps) -> float:
 @pytest.mark.parametrize("family", ["ukf", "ekf"])
 def test_check_batch_equals_the_runs_one_at_a_time(family):
     """check on the three-sensor example (a numpy callable with an angle output among its sensors):
-    the same bits for every split of the runs, and as run_one to BATCH_RTOL outside DMF's recursion
+    the same bits for every split of the runs, and as run_one to PER_RUN_RTOL outside DMF's recursion
     and the rounding-level gaps; DMF's recursion within ROUNDING_SPREAD times the run's own DMF −
     CMF spread (as for ct2d), and every step's verdict (the gap within its bound) the same."""
     from gpfverify.experiments import check
@@ -190,7 +191,7 @@ def test_check_batch_equals_the_runs_one_at_a_time(family):
         alone = untimed(to_json(check.run_one(params, seed)))
         skip = ROUNDING_FIELDS + DMF_RECURSION + ("means", "covs", "nees", "sq_err")
         _assert_close(_without(batch, skip), _without(alone, skip), "check")
-        rtol = max(BATCH_RTOL, ROUNDING_SPREAD * _dmf_spread(alone["steps"]))
+        rtol = max(PER_RUN_RTOL, ROUNDING_SPREAD * _dmf_spread(alone["steps"]))
         for got, ref in zip(batch["steps"], alone["steps"]):
             assert (got["gap_size"] <= got["gap_bound"]) == (ref["gap_size"] <= ref["gap_bound"])
             assert abs(got["gap_bound"] - ref["gap_bound"]) <= rtol * ref["gap_bound"]
@@ -198,5 +199,5 @@ def test_check_batch_equals_the_runs_one_at_a_time(family):
                 np.testing.assert_allclose(got[field], ref[field], rtol=0, atol=rtol * np.abs(ref[field]).max())
             for field in ("means", "covs"):
                 for method, value in ref[field].items():
-                    tol = (rtol if method == "dmf" else BATCH_RTOL) * np.abs(value).max()
+                    tol = (rtol if method == "dmf" else PER_RUN_RTOL) * np.abs(value).max()
                     np.testing.assert_allclose(got[field][method], value, rtol=0, atol=tol, err_msg=method)

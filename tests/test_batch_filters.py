@@ -1,6 +1,6 @@
 """Gaussian filter steps of several Monte Carlo runs at once (a leading run axis on the belief and
 on y) against the same runs stepped one at a time: the same bits for every way of splitting the
-runs into batches (1, 3, 8 and 5 + 3), and equal to the unbatched step functions to BATCH_RTOL —
+runs into batches (1, 3, 8 and 5 + 3), and equal to the unbatched step functions to PER_RUN_RTOL —
 for KF, EKF and UKF on a user's system (a numpy callable with a matrix product inside, whose rows
 BLAS may map differently in a larger call) and GP-ADF, GP-UKF on each run's own learned GPs,
 on the fused moment kernel and on the numpy reference path."""
@@ -15,7 +15,7 @@ from gpfverify.filters.sigma_points import SigmaParams
 from gpfverify.gp import GaussianProcess
 from gpfverify.gp.batch import GaussianProcessBatch
 from gpfverify.models import GPModel, Sensor, StateSpaceModel, batch_gp_models, fit_gp_model, linear_model
-from gpfverify.tolerances import BATCH_RTOL
+from gpfverify.tolerances import PER_RUN_RTOL
 
 RUNS = 8
 SPLITS = ((8,), (1,) * 8, (3, 3, 2), (5, 3))
@@ -80,7 +80,7 @@ def _assert_per_run_close(batched, family, model_of, means, covs, ys):
         alone = step(Gaussian(means[b], covs[b]), model_of(b), ys[b], k=3)
         for f in FIELDS:
             ref = getattr(alone, f)
-            np.testing.assert_allclose(batched[f][b], ref, rtol=BATCH_RTOL, atol=BATCH_RTOL * np.abs(ref).max(),
+            np.testing.assert_allclose(batched[f][b], ref, rtol=PER_RUN_RTOL, atol=PER_RUN_RTOL * np.abs(ref).max(),
                                        err_msg=f"{family} run {b} {f}")
 
 
@@ -115,8 +115,8 @@ def test_a_batch_of_gps_predicts_as_each_gp(gp_models):
     mean, var = batch.predict(points)
     for b, gp in enumerate(batch.members):
         ref_mean, ref_var = gp.predict(points[7 * b:7 * (b + 1)])
-        np.testing.assert_allclose(mean[7 * b:7 * (b + 1)], ref_mean, rtol=BATCH_RTOL, atol=BATCH_RTOL)
-        np.testing.assert_allclose(var[7 * b:7 * (b + 1)], ref_var, rtol=BATCH_RTOL, atol=BATCH_RTOL)
+        np.testing.assert_allclose(mean[7 * b:7 * (b + 1)], ref_mean, rtol=PER_RUN_RTOL, atol=PER_RUN_RTOL)
+        np.testing.assert_allclose(var[7 * b:7 * (b + 1)], ref_var, rtol=PER_RUN_RTOL, atol=PER_RUN_RTOL)
 
 
 def test_a_batch_refuses_gps_of_different_shapes():

@@ -1,8 +1,8 @@
 """One fusion step of several Monte Carlo runs at once (gpfverify.fusion.batched and the block
-route of eq. 35, gpfverify.blockaudit.block_dmf) against each run's step alone: the same bits for
+route of eq. 35, gpfverify.audit.block.block_dmf) against each run's step alone: the same bits for
 every way of splitting the runs into batches (8, 1 × 8, 3 + 3 + 2, 5 + 3), and equal to the per-run
 rules — dmf_update, cmf_update, convex_combination, the squared Mahalanobis distance — to
-BATCH_RTOL relative to the size of what they combine (full-rank steps, steps where a sensor lost
+PER_RUN_RTOL relative to the size of what they combine (full-rank steps, steps where a sensor lost
 rank, angle outputs and angle state components)."""
 
 import dataclasses
@@ -10,9 +10,9 @@ import dataclasses
 import numpy as np
 import pytest
 
-from gpfverify.blockaudit import block_dmf
+from gpfverify.audit.block import block_dmf, cmf_update_block
 from gpfverify.filters.records import Gaussian
-from gpfverify.fusion.batched import cmf_update_block, convex_combination_batch, squared_mahalanobis_batch
+from gpfverify.fusion.batched import convex_combination_batch, squared_mahalanobis_batch
 from gpfverify.fusion.case import CentralPrediction, FusionCase, split_circular
 from gpfverify.fusion.caseblock import CaseBlock, LocalBlock
 from gpfverify.fusion.centralized import cmf_update
@@ -21,7 +21,7 @@ from gpfverify.fusion.distributed import dmf_update
 from gpfverify.fusion.exactness import RankRule
 from gpfverify.fusion.synthetic import random_case
 from gpfverify.linalg import solve_spd
-from gpfverify.tolerances import BATCH_RTOL
+from gpfverify.tolerances import PER_RUN_RTOL
 
 RUNS = 8
 SPLITS = ((8,), (1,) * 8, (3, 3, 2), (5, 3))
@@ -64,7 +64,7 @@ def _split(cases, fn, split):
 
 
 def _assert_close(got, ref, scale, what):
-    assert np.all(np.abs(got - ref) <= BATCH_RTOL * scale), (what, np.max(np.abs(got - ref) / scale))
+    assert np.all(np.abs(got - ref) <= PER_RUN_RTOL * scale), (what, np.max(np.abs(got - ref) / scale))
 
 
 @pytest.mark.parametrize("kind", ["full", "lost", "angles"])
@@ -131,7 +131,7 @@ def _slices(split):
 @pytest.mark.parametrize("spread", [0.5, 6.0])
 def test_rcc_ci_of_many_runs_is_each_runs_own(spread):
     """RCC-CI's data formed for all runs and each run solved alone: the same bits for every split,
-    and the per-run rcc_ci's estimate to BATCH_RTOL (its weights are Clarabel's duals for the same data), also
+    and the per-run rcc_ci's estimate to PER_RUN_RTOL (its weights are Clarabel's duals for the same data), also
     where the ellipsoids miss and the size is enlarged (``spread`` 6: most runs)."""
     from gpfverify.fusion.rcc_ci import rcc_ci, rcc_ci_batch
 
@@ -148,8 +148,8 @@ def test_rcc_ci_of_many_runs_is_each_runs_own(spread):
     for b in range(RUNS):
         alone = rcc_ci([Gaussian(m, c) for m, c in zip(means[b], covs[b])], on_empty="enlarge")
         assert bool(joined[0]["enlarged"][b]) == alone.enlarged
-        np.testing.assert_allclose(joined[0]["c"][b], alone.c, rtol=BATCH_RTOL)
-        np.testing.assert_allclose(joined[0]["weights"][b], alone.weights, rtol=BATCH_RTOL)
+        np.testing.assert_allclose(joined[0]["c"][b], alone.c, rtol=PER_RUN_RTOL)
+        np.testing.assert_allclose(joined[0]["weights"][b], alone.weights, rtol=PER_RUN_RTOL)
         cond = np.linalg.cond(np.linalg.inv(alone.cov))
         _assert_close(joined[0]["mean"][b], alone.mean, cond * np.abs(means[b]).max(), "rcc-ci mean")
     assert joined[0]["enlarged"].any() == (spread > 1)
@@ -173,6 +173,6 @@ def test_ci_of_many_runs_is_each_runs_own(criterion):
             np.testing.assert_array_equal(v, joined[0][f], err_msg=f)
     for b in range(RUNS):
         alone = covariance_intersection([Gaussian(m, c) for m, c in zip(means[b], covs[b])], criterion)
-        np.testing.assert_allclose(joined[0]["weights"][b], alone.weights, rtol=BATCH_RTOL, atol=BATCH_RTOL)
+        np.testing.assert_allclose(joined[0]["weights"][b], alone.weights, rtol=PER_RUN_RTOL, atol=PER_RUN_RTOL)
         _assert_close(joined[0]["mean"][b], alone.mean, np.linalg.cond(alone.cov) * np.abs(means[b]).max(), "ci mean")
     assert all(f is None for parts in results for r in parts for f in r.failures)

@@ -153,7 +153,7 @@ def test_bad_measurement_files_exit_2(tmp_path):
 def test_measurements_and_audit_run_files_are_told_apart(tmp_path):
     """An audit run file given to check --measurements, and a measurements file given to audit,
     are refused naming the format each command expected."""
-    from gpfverify.fusion.runfile import write_run
+    from gpfverify.audit.runfile import write_run
     from gpfverify.fusion.synthetic import random_case
 
     system = check.load_system(TRACKER)

@@ -8,7 +8,7 @@ from pathlib import Path
 import pytest
 
 from gpfverify import cli
-from gpfverify.experiments import EXPERIMENTS
+from gpfverify.papers import EXPERIMENTS
 
 HERE = Path(__file__).parent
 

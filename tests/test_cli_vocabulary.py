@@ -11,11 +11,11 @@ import numpy as np
 import pytest
 
 from gpfverify.cli import main
-from gpfverify.contract.ungm1d import Params as Ungm1dParams
+from gpfverify.papers.fusion.ungm1d_contract import Params as Ungm1dParams
 from gpfverify.errors import InputError
 from gpfverify.experiments import check
 from gpfverify.fusion.case import case_to_dict
-from gpfverify.fusion.model_fusion import run_fusion
+from gpfverify.model_fusion import run_fusion
 from gpfverify.fusion.names import ALIASES, FUSION_RULES
 from gpfverify.fusion.synthetic import random_case, random_spd
 from gpfverify.tolerances import algebra_rtol
@@ -133,7 +133,7 @@ def test_fuse_rcc_options_have_reproduces_names_and_default(tmp_path, capsys):
 
 from gpfverify.cli import COMMANDS, command_parser  # noqa: E402
 from gpfverify.commands.reproduce import experiment_parser  # noqa: E402
-from gpfverify.experiments import EXPERIMENTS  # noqa: E402
+from gpfverify.papers import EXPERIMENTS  # noqa: E402
 
 #: what each parser needs besides the option under test, so that only that option can be refused
 REQUIRED = {"check": ["sys.py:m"], "audit": ["case.json"], "fuse": ["case.json", "--method", "cc"],
@@ -219,7 +219,7 @@ def test_an_older_name_still_works_with_one_note_on_stderr(name, old, new, dest,
 
 def test_the_contract_command_of_ct2d_keeps_kappa_without_a_note(capsys):
     """CONTRACT.md's ``reproduce ct2d --kappa 300 --omega 0.0698 ...``: κ training samples, as before."""
-    from gpfverify.contract import ct2d
+    from gpfverify.papers.fusion import ct2d_contract as ct2d
     from gpfverify.contract.params import from_arguments
 
     opts = experiment_parser("ct2d").parse_args(["--kappa", "300", "--omega", "0.0698", "--runs", "20", "--seed", "1",

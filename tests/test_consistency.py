@@ -252,7 +252,7 @@ def test_conservativeness_bound_holds_at_the_boundary():
 
 def test_from_fusion_and_from_records_equal_arrays():
     from gpfverify.filters.resampling import ParticleStep
-    from gpfverify.fusion.model_fusion import run_fusion
+    from gpfverify.model_fusion import run_fusion
 
     model = linear_model([[1.0, 0.5], [0.0, 0.9]], [[1.0, 0.0], [0.0, 1.0]], np.diag([0.05, 0.1]),
                          np.diag([0.3, 0.2]), sizes=(1, 1))

@@ -11,9 +11,9 @@ import pytest
 
 from gpfverify.cli import main
 from gpfverify.contract import ClaimRecord, Method, RunEntry, SectionRuns
-from gpfverify.experiments import ct2d
-from gpfverify.experiments.fusion_run import FAMILIES, LOCAL_KEYS, METHOD_KEYS, one_step_equivalence
-from gpfverify.scenarios.fusion_models import (CT_SENSOR_POSITIONS, ct_scenario, polar_to_cartesian,
+from gpfverify.papers.fusion import ct2d_experiment as ct2d
+from gpfverify.papers.fusion.run import FAMILIES, LOCAL_KEYS, METHOD_KEYS, one_step_equivalence
+from gpfverify.papers.fusion.scenario import (CT_SENSOR_POSITIONS, ct_scenario, polar_to_cartesian,
                                                range_bearing, sensor_side, simulate_data, turn_matrix)
 from gpfverify.tolerances import algebra_rtol
 
@@ -179,7 +179,7 @@ def _section_input(tmp_path, names):
 
 def test_page_renders_from_stored_results(tmp_path):
     from gpfverify.report.render import to_markdown
-    from gpfverify.report.sections import fusion_ct2d
+    from gpfverify.papers.fusion import ct2d_section as fusion_ct2d
 
     section = fusion_ct2d.render_section(_section_input(tmp_path, ["k12-w0.0698", "forced-rank-failure"]))
     page = to_markdown(section, tmp_path)
@@ -205,8 +205,8 @@ def test_page_renders_from_stored_results(tmp_path):
 
 
 def test_method_styles_separate_the_families():
-    from gpfverify.contract.fusion import METHODS
-    from gpfverify.report.sections.fusion_paper import method_style
+    from gpfverify.papers.fusion.contract import METHODS
+    from gpfverify.papers.fusion.section import method_style
 
     styles = {m: method_style(m) for m in METHODS}
     assert len({s["color"] for s in styles.values()}) == len(METHODS)

@@ -9,7 +9,7 @@ import json
 import numpy as np
 import pytest
 
-from gpfverify.audit import audit_case
+from gpfverify.audit.case import audit_case
 from gpfverify.cli import main
 from gpfverify.fusion.case import FusionCase, case_to_dict
 from gpfverify.fusion.distributed import dmf_update

@@ -138,8 +138,8 @@ def test_report_replaces_previous_and_optional_fields(tracker, tmp_path):
 
 
 def _run_audit(model, steps: int = 6) -> dict:
-    from gpfverify.audit import audit_to_dict
-    from gpfverify.fusion import run_fusion
+    from gpfverify.audit.case import audit_to_dict
+    from gpfverify.model_fusion import run_fusion
     from gpfverify.rng import generator
 
     _, ys = model.simulate(steps, generator(np.random.SeedSequence(4)))
@@ -219,8 +219,8 @@ def test_the_audit_page_draws_what_the_rule_in_force_decides_on(tmp_path, monkey
     """Under the canonical rule the decision figure is the canonical correlations with τ, and the
     singular values are drawn without a tolerance line; under numpy's rule the singular values with
     the tolerance that decided."""
-    from gpfverify.audit import audit_to_dict
-    from gpfverify.fusion import run_fusion
+    from gpfverify.audit.case import audit_to_dict
+    from gpfverify.model_fusion import run_fusion
     from gpfverify.report import equivalence_figures as ef
     from gpfverify.rng import generator
     from gpfverify.systems import load_system
@@ -289,7 +289,7 @@ def test_every_key_check_writes_is_documented(tmp_path):
 def test_a_fusion_run_shown_as_a_page_names_its_ci_criterion():
     """run_fusion's ci_criterion travels with the run to the results a notebook renders."""
     from gpfverify.experiments.check import results_of_run
-    from gpfverify.fusion import run_fusion
+    from gpfverify.model_fusion import run_fusion
     from gpfverify.rng import generator
     from gpfverify.scenarios.three_sensor import three_sensor_model
 

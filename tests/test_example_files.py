@@ -6,11 +6,11 @@ from pathlib import Path
 
 import numpy as np
 
-from gpfverify.audit import audit_case
+from gpfverify.audit.case import audit_case
 from gpfverify.experiments import check
-from gpfverify.fusion.case import load_case
+from gpfverify.fusion.caseblock import load_case
 from gpfverify.fusion.centralized import cmf_update
-from gpfverify.fusion.runfile import load_run
+from gpfverify.audit.runfile import load_run
 from gpfverify.tolerances import algebra_rtol
 
 EXAMPLES = Path(__file__).resolve().parents[1] / "examples"

@@ -13,7 +13,7 @@ import pytest
 
 from gpfverify.contract import PAPERS, Params, Profile
 from gpfverify.contract.params import add_arguments, cli_fields, from_arguments
-from gpfverify.experiments import EXPERIMENTS
+from gpfverify.papers import EXPERIMENTS
 
 
 def _module(name: str):

@@ -25,7 +25,7 @@ from gpfverify.filters.update import gaussian_update
 from gpfverify.linalg import all_finite, symmetrize
 from gpfverify.models import Sensor, StateSpaceModel, linear_model
 from gpfverify.models.functions import FD_STEP
-from gpfverify.scenarios.scalar_benchmark import ScalarSetting
+from gpfverify.papers.gpadf_scalar.scenario import ScalarSetting
 from gpfverify.tolerances import algebra_rtol
 
 FIELDS = ("mu_p", "C_p", "mu_y", "C_y", "C_xy", "mu_e", "C_e")

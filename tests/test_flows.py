@@ -230,7 +230,7 @@ def test_ie_pff_update_on_the_van_der_merwe_benchmark_is_the_papers_scalar_flow(
     """On the 1-D benchmark of the particle-flow experiment (quadratic measurement up to k = 30, linear
     after) the update is seed 003's flow written out for scalars — at every λ-step K = mean((x − x̄)(h − h̄))/R
     and x ← x + Δλ K (z − (h(x) + h̄)/2) — from the same predicted particles."""
-    from gpfverify.scenarios.growth import vdm_gaussian_model
+    from gpfverify.papers.particle_flow.pff1d_scenario import vdm_gaussian_model
 
     rng = np.random.default_rng(11)
     model = vdm_gaussian_model(1.0, 0.1)

@@ -10,13 +10,14 @@ import numpy as np
 import pytest
 
 from gpfverify.angles import wrap
-from gpfverify.audit import audit_case
+from gpfverify.audit.case import audit_case
 from gpfverify.cli import main
 from gpfverify.errors import CaseFileError
-from gpfverify.fusion.case import CentralPrediction, FusionCase, LocalReport, case_to_dict, load_case
+from gpfverify.fusion.case import CentralPrediction, FusionCase, LocalReport, case_to_dict
+from gpfverify.fusion.caseblock import load_case
 from gpfverify.fusion.centralized import cmf_update
 from gpfverify.fusion.distributed import dmf_update
-from gpfverify.fusion.runfile import iter_steps, write_run
+from gpfverify.audit.runfile import iter_steps, write_run
 from gpfverify.tolerances import algebra_rtol
 
 HEADING = 0

@@ -17,15 +17,16 @@ import numpy as np
 import pytest
 
 from gpfverify.angles import difference, wrap
-from gpfverify.audit import audit_case, audit_to_dict
+from gpfverify.audit.case import audit_case, audit_to_dict
 from gpfverify.cli import main
 from gpfverify.errors import CaseFileError, InputError
 from gpfverify.filters.records import Gaussian
-from gpfverify.fusion.case import FusionCase, case_from_dict, case_to_dict, load_case
+from gpfverify.fusion.case import FusionCase, case_to_dict
+from gpfverify.fusion.caseblock import case_from_dict, load_case
 from gpfverify.fusion.centralized import cmf_update
 from gpfverify.fusion.distributed import dmf_update
 from gpfverify.fusion.exactness import branch_offsets, equivalence_tolerance
-from gpfverify.fusion.model_fusion import cmf_step, run_fusion
+from gpfverify.model_fusion import cmf_step, run_fusion
 from gpfverify.fusion.synthetic import random_case
 from gpfverify.models import Sensor
 from gpfverify.scenarios.three_sensor import SENSOR_RANGE_BEARING, range_bearing, three_sensor_model

@@ -7,7 +7,8 @@ import numpy as np
 import pytest
 
 from gpfverify.errors import CaseFileError
-from gpfverify.fusion.case import case_from_dict, case_to_dict, load_case
+from gpfverify.fusion.case import case_to_dict
+from gpfverify.fusion.caseblock import case_from_dict, load_case
 from gpfverify.fusion.synthetic import random_case
 
 

@@ -10,11 +10,12 @@ import numpy as np
 import pytest
 
 from gpfverify.contract import ClaimRecord, Method, from_json, to_json
-from gpfverify.contract import ct2d as ct2d_contract
-from gpfverify.contract import ungm1d as ungm1d_contract
-from gpfverify.contract.fusion import FAMILIES, LOCAL_FILTERS, METHODS, FusionRun
+from gpfverify.papers.fusion import ct2d_contract
+from gpfverify.papers.fusion import ungm1d_contract
+from gpfverify.papers.fusion.contract import FAMILIES, LOCAL_FILTERS, METHODS, FusionRun
 from gpfverify.errors import InputError
-from gpfverify.experiments import ct2d, ungm1d
+from gpfverify.papers.fusion import ct2d_experiment as ct2d
+from gpfverify.papers.fusion import ungm1d_experiment as ungm1d
 
 
 def _round_trip(tp, value):
@@ -97,7 +98,7 @@ def test_methods_are_values_with_the_contract_keys():
 
 
 def test_report_sections_import_nothing_from_the_experiments():
-    code = ("import sys; import gpfverify.report.sections.fusion_ct2d, gpfverify.report.sections.fusion_ungm1d; "
+    code = ("import sys; import gpfverify.papers.fusion.ct2d_section, gpfverify.papers.fusion.ungm1d_section; "
             "print(sorted(m for m in sys.modules if m.startswith('gpfverify.experiments')))")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
     assert out.returncode == 0, out.stderr

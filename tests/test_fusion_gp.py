@@ -1,4 +1,4 @@
-"""GP-ADF / GP-UKF versions of CMF and DMF (gpfverify.fusion.model_fusion on a GPModel) on a small
+"""GP-ADF / GP-UKF versions of CMF and DMF (gpfverify.model_fusion on a GPModel) on a small
 two-sensor GP model: DMF = CMF to rounding when every C_xy^m has full column rank; otherwise the
 observed gap equals the closed-form gap and the repaired DMF equals CMF. Oracle: CMF on the
 GaussianProcessStack (the centralized route)."""
@@ -12,7 +12,7 @@ from gpfverify.filters.gp_ukf import gp_ukf_step
 from gpfverify.filters.records import Gaussian
 from gpfverify.fusion.exactness import equivalence_tolerance, predicted_gap, repair_message
 from gpfverify.fusion.distributed import dmf_update
-from gpfverify.fusion.model_fusion import cmf_step, dmf_step
+from gpfverify.model_fusion import cmf_step, dmf_step
 from gpfverify.gp import GaussianProcess
 from gpfverify.models import GPModel
 
@@ -103,7 +103,7 @@ def test_mismatched_inputs_are_input_errors():
 def test_audit_of_a_short_run_matches_the_dmf_steps():
     """audit_run over cases_from_run (CMF records as the centre's prediction, local records) gives
     per step and sensor the same ranks and gaps as dmf_step's own diagnostics."""
-    from gpfverify.audit import audit_run, cases_from_run
+    from gpfverify.audit.case import audit_run, cases_from_run
 
     model = _model(1, 5)
     rng = np.random.default_rng(9)

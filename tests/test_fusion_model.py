@@ -16,7 +16,7 @@ from gpfverify.filters.records import Gaussian
 from gpfverify.fusion.ci import covariance_intersection
 from gpfverify.fusion.convex import convex_combination
 from gpfverify.fusion.exactness import equivalence_tolerance
-from gpfverify.fusion.model_fusion import cmf_step, dmf_step, run_fusion
+from gpfverify.model_fusion import cmf_step, dmf_step, run_fusion
 from gpfverify.models import learn_gp_model
 from gpfverify.scenarios.three_sensor import three_sensor_model
 
@@ -89,7 +89,7 @@ def test_rcc_ci_baseline_runs_and_reports_enlargement():
 
 
 def test_importing_model_fusion_does_not_import_cvxpy():
-    code = "import sys, gpfverify.fusion.model_fusion; print('cvxpy' in sys.modules)"
+    code = "import sys, gpfverify.model_fusion; print('cvxpy' in sys.modules)"
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert out.stdout.strip() == "False"
 

@@ -10,12 +10,13 @@ import numpy as np
 import pytest
 
 from gpfverify.contract import ClaimRecord, to_json
-from gpfverify.contract import ct2d as ct2d_contract
-from gpfverify.contract import ungm1d as ungm1d_contract
+from gpfverify.papers.fusion import ct2d_contract
+from gpfverify.papers.fusion import ungm1d_contract
 from gpfverify.contract.methods import Method
 from gpfverify.errors import InputError
-from gpfverify.experiments import ct2d, ungm1d
-from gpfverify.experiments.fusion_run import health_checks
+from gpfverify.papers.fusion import ct2d_experiment as ct2d
+from gpfverify.papers.fusion import ungm1d_experiment as ungm1d
+from gpfverify.papers.fusion.run import health_checks
 from gpfverify.health import nees_values_check
 from gpfverify.tolerances import CANONICAL_RANK_TOL, numpy_rank_tol
 
@@ -161,7 +162,7 @@ def test_health_checks_cover_every_method():
     params = ct2d.Params(**TINY)
     record = ct2d.run_one(params, np.random.SeedSequence(1))
     checks = health_checks([record, record], 2, params.divergence_bound, params.nees_level)
-    from gpfverify.contract.fusion import METHODS
+    from gpfverify.papers.fusion.contract import METHODS
 
     assert {(c.subject, c.name) for c in checks} == {(m.key, n) for m in METHODS for n in ("divergence", "NEES")}
     assert all(c.passed for c in checks if c.name == "divergence")

@@ -12,16 +12,16 @@ import scipy.stats
 from gpfverify.cli import main
 from gpfverify.contract.claims import read_claims
 from gpfverify.contract.experiment import RunEntry, SectionRuns
-from gpfverify.contract.gpadf_scalar import PROFILES, Params, RunRecord
+from gpfverify.papers.gpadf_scalar.contract import PROFILES, Params, RunRecord
 from gpfverify.contract.serial import from_json, to_json
 from gpfverify.errors import InputError
-from gpfverify.experiments import gpadf_scalar
+from gpfverify.papers.gpadf_scalar import experiment as gpadf_scalar
 from gpfverify.experiments.runner import run_experiment
 from gpfverify.models import Sensor, StateSpaceModel
 from gpfverify.models.functions import FD_STEP
 from gpfverify.report.inputs import SectionInput
-from gpfverify.report.sections import gpadf_scalar as section
-from gpfverify.scenarios.scalar_benchmark import (ScalarSetting, measurement, measurement_derivative,
+from gpfverify.papers.gpadf_scalar import section
+from gpfverify.papers.gpadf_scalar.scenario import (ScalarSetting, measurement, measurement_derivative,
                                                   transition, transition_derivative)
 from gpfverify.tolerances import ALGEBRA_SAFETY, EPS, algebra_rtol
 

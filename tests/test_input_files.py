@@ -16,8 +16,9 @@ import pytest
 from gpfverify import userfiles
 from gpfverify.cli import main
 from gpfverify.errors import CaseFileError
-from gpfverify.fusion.case import case_to_dict, load_case
-from gpfverify.fusion.runfile import write_run
+from gpfverify.fusion.case import case_to_dict
+from gpfverify.fusion.caseblock import load_case
+from gpfverify.audit.runfile import write_run
 from gpfverify.fusion.synthetic import random_case
 from gpfverify.userfiles import read_npz
 

@@ -13,14 +13,15 @@ import pytest
 from gpfverify.cli import main
 from gpfverify.contract.claims import read_claims
 from gpfverify.contract.experiment import RunEntry, SectionRuns
-from gpfverify.contract.moments import (FULL_SAMPLES, PROFILES, QUICK_SAMPLES, CaseShape, Moments, Params,
+from gpfverify.papers.fusion.moments_contract import (FULL_SAMPLES, PROFILES, QUICK_SAMPLES, CaseShape, Moments, Params,
                                         RunRecord)
 from gpfverify.contract.serial import from_json, to_json
 from gpfverify.errors import InputError
-from gpfverify.experiments import EXPERIMENTS, moments
+from gpfverify.papers import EXPERIMENTS
+from gpfverify.papers.fusion import moments_experiment as moments
 from gpfverify.experiments.runner import run_experiment
 from gpfverify.report.inputs import SectionInput
-from gpfverify.report.sections import moments as section
+from gpfverify.papers.fusion import moments_section as section
 from gpfverify.tolerances import MONTE_CARLO_SIGMAS
 
 FIXTURE = Path(__file__).parent / "fixtures" / "moments" / "results.json"
@@ -30,7 +31,7 @@ TINY = Params(cases=(CaseShape(1, 1), CaseShape(2, 2)), samples=2000, train_poin
 
 
 def test_registered_as_an_experiment():
-    assert EXPERIMENTS["moments"] == "gpfverify.experiments.moments"
+    assert EXPERIMENTS["moments"] == "gpfverify.papers.fusion.moments_experiment"
     assert moments.NAME == "moments" and moments.PAPER == "seed000"
 
 

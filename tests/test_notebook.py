@@ -19,10 +19,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from gpfverify.audit import audit_to_dict
-from gpfverify.fusion import run_fusion
-from gpfverify.fusion.runfile import write_run
-from gpfverify.notebook import progress_shown
+from gpfverify.audit.case import audit_to_dict
+from gpfverify.model_fusion import run_fusion
+from gpfverify.audit.runfile import write_run
+from gpfverify.runtime import progress_shown
 
 sys.path.insert(0, str(Path(__file__).parent))  # the suite imports in importlib mode: the helper beside it
 from audit_routes import assert_same_audit  # noqa: E402
@@ -98,7 +98,7 @@ def test_a_run_audit_shows_the_audit_page_of_the_same_steps(tracker_run, tmp_pat
 
 
 def test_a_case_audit_and_a_claim_show_what_the_command_and_the_report_show(tracker_run):
-    from gpfverify.audit import format_audit
+    from gpfverify.audit.case import format_audit
     from gpfverify.contract.claims import ClaimRecord
 
     _, _, fused = tracker_run

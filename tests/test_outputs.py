@@ -16,8 +16,8 @@ import numpy as np
 import pytest
 
 from gpfverify import cli
-from gpfverify.experiments import EXPERIMENTS
-from gpfverify.fusion.runfile import write_run
+from gpfverify.papers import EXPERIMENTS
+from gpfverify.audit.runfile import write_run
 from gpfverify.outputs import FILE_LIST, PARTIAL, sibling
 from gpfverify.fusion.synthetic import random_case
 from gpfverify.tolerances import algebra_rtol

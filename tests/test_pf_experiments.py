@@ -9,16 +9,18 @@ import numpy as np
 import pytest
 
 from gpfverify.cli import main
-from gpfverify.contract import pff1d as pff_contract
+from gpfverify.papers.particle_flow import pff1d_contract as pff_contract
 from gpfverify.contract.claims import read_claims
-from gpfverify.contract.particle_flow import EDH, IE_PFF, PF, Variant
+from gpfverify.papers.particle_flow.contract import EDH, IE_PFF, PF, Variant
 from gpfverify.contract.serial import from_json, to_json
 from gpfverify.errors import InputError
-from gpfverify.experiments import EXPERIMENTS, bearing, pff1d
-from gpfverify.experiments.particle_methods import paired_comparison
+from gpfverify.papers import EXPERIMENTS
+from gpfverify.papers.particle_flow import bearing_experiment as bearing
+from gpfverify.papers.particle_flow import pff1d_experiment as pff1d
+from gpfverify.papers.particle_flow.methods import paired_comparison
 from gpfverify.experiments.runner import run_experiment
-from gpfverify.scenarios.bearing import INITIAL_STATE, SENSOR
-from gpfverify.scenarios.growth import GAMMA_PRIOR, UNGM_PRIOR
+from gpfverify.papers.particle_flow.bearing_scenario import INITIAL_STATE, SENSOR
+from gpfverify.papers.particle_flow.pff1d_scenario import GAMMA_PRIOR, UNGM_PRIOR
 
 #: a spacing that does not exist (typed Any: the point is that validation rejects it)
 LINEAR: Any = "linear"

@@ -11,7 +11,7 @@ from gpfverify.contract.claims import read_claims
 from gpfverify.contract.experiment import RunEntry, SectionRuns
 from gpfverify.report.document import Figure, Table
 from gpfverify.report.inputs import SectionInput
-from gpfverify.report.sections import particle_flow as section
+from gpfverify.papers.particle_flow import section
 
 FIXTURES = Path(__file__).parent / "fixtures"
 PFF1D = FIXTURES / "pff1d" / "results.json"
@@ -103,7 +103,8 @@ def test_render_of_results_without_health_or_interpretations(tmp_path):
 def regenerate(work: Path) -> None:
     """Write the fixtures from tiny runs (3 runs each; two gamma R so every claim is decided),
     with every declared interpretation tried."""
-    from gpfverify.experiments import bearing, pff1d
+    from gpfverify.papers.particle_flow import bearing_experiment as bearing
+    from gpfverify.papers.particle_flow import pff1d_experiment as pff1d
     from gpfverify.experiments.runner import make_executor, run_experiment
     from gpfverify.experiments.sensitivity import run_interpretations
 

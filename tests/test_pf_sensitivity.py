@@ -8,14 +8,15 @@ import numpy as np
 import pytest
 
 from gpfverify.contract.claims import read_claims
-from gpfverify.contract.particle_flow import IE_PFF, PF
+from gpfverify.papers.particle_flow.contract import IE_PFF, PF
 from gpfverify.errors import InputError
-from gpfverify.experiments import bearing, pff1d
-from gpfverify.experiments.particle_methods import (ess_health, flow_steps, paired_comparison, run_method,
+from gpfverify.papers.particle_flow import bearing_experiment as bearing
+from gpfverify.papers.particle_flow import pff1d_experiment as pff1d
+from gpfverify.papers.particle_flow.methods import (ess_health, flow_steps, paired_comparison, run_method,
                                                     schedule_words)
 from gpfverify.experiments.runner import run_experiment
 from gpfverify.health import HealthCheck
-from gpfverify.scenarios.growth import ungm_model
+from gpfverify.papers.particle_flow.pff1d_scenario import ungm_model
 
 TINY = dict(steps=6, particles=20, table_q=(10.0,), table_r=(1.0,), gamma_r=(0.1,), gamma_dlambda=0.1)
 
@@ -124,7 +125,7 @@ def test_the_van_der_merwe_reading_runs_the_table1_grid_on_that_model_with_gauss
     sin(0.04π(k − 1)) + x_{k−1}/2 + w_k, y = 0.2x² up to k = 30 and x/2 − 2 after) with w ~ N(0, Q):
     the model against those equations, its noise against Q by Monte Carlo, the claims' setting naming
     it; and the reading is compared on the Table-1 claims only."""
-    from gpfverify.contract.pff1d import INTERPRETATIONS
+    from gpfverify.papers.particle_flow.pff1d_contract import INTERPRETATIONS
     from gpfverify.tolerances import MONTE_CARLO_SIGMAS, monte_carlo_atol
 
     params = pff1d.Params(steps=4, particles=10, table_q=(1.0, 10.0), table_r=(0.1,), dlambda=(0.01,),

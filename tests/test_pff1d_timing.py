@@ -7,8 +7,8 @@ import numpy as np
 import pytest
 
 from gpfverify.contract.claims import read_claims
-from gpfverify.contract.particle_flow import EDH, IE_PFF, PF, Variant
-from gpfverify.experiments import pff1d
+from gpfverify.papers.particle_flow.contract import EDH, IE_PFF, PF, Variant
+from gpfverify.papers.particle_flow import pff1d_experiment as pff1d
 from gpfverify.experiments.runner import run_experiment
 
 RUNS = 12

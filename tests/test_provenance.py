@@ -13,7 +13,7 @@ import pytest
 
 import gpfverify
 from gpfverify import cli, provenance
-from gpfverify.experiments import EXPERIMENTS
+from gpfverify.papers import EXPERIMENTS
 from gpfverify.report.document import Paragraph, Section
 from gpfverify.report.render import write_report
 

@@ -13,7 +13,7 @@ import dataclasses
 import numpy as np
 import pytest
 
-from gpfverify.audit import audit_case, audit_run, audit_to_dict, format_audit
+from gpfverify.audit.case import audit_case, audit_run, audit_to_dict, format_audit
 from gpfverify.errors import InputError
 from gpfverify.fusion.case import CentralPrediction, FusionCase, LocalReport
 from gpfverify.fusion.centralized import cmf_update
@@ -292,7 +292,7 @@ def test_model_fusion_defaults_to_the_canonical_rule_and_the_experiments_pass_th
     """dmf_step/run_fusion default to the canonical rule, the one default of every entry point; a
     rule can be chosen (numpy's, the experiments' reference rule), and run_fusion's audit uses the
     DMF step's rule; both rules fuse this full-rank linear system alike."""
-    from gpfverify.fusion.model_fusion import run_fusion
+    from gpfverify.model_fusion import run_fusion
     from gpfverify.models import linear_model
 
     model = linear_model(np.eye(2), np.array([[1.0, 0.0], [0.0, 1.0], [1.0, 1.0]]), 0.1 * np.eye(2),
@@ -313,8 +313,9 @@ def test_model_fusion_defaults_to_the_canonical_rule_and_the_experiments_pass_th
 def test_the_experiments_give_eq_35_their_own_rule(monkeypatch, options, expected):
     """The papers' experiments name the rule eq. 35 uses (the canonical rule by default, numpy's as
     the interpretation numpy-rank, absolute with --rank-tol), passed explicitly to every step."""
-    from gpfverify.experiments import fusion_run, ungm1d
-    from gpfverify.fusion.model_fusion import dmf_step
+    from gpfverify.papers.fusion import run as fusion_run
+    from gpfverify.papers.fusion import ungm1d_experiment as ungm1d
+    from gpfverify.model_fusion import dmf_step
 
     seen = []
 

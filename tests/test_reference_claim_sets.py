@@ -19,7 +19,7 @@ import pytest
 
 from gpfverify.contract.claims import read_claims
 from gpfverify.contract.serial import to_json
-from gpfverify.experiments import EXPERIMENTS
+from gpfverify.papers import EXPERIMENTS
 
 pytestmark = pytest.mark.slow  # one run of every committed reference experiment
 

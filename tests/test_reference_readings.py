@@ -16,9 +16,9 @@ import json
 from pathlib import Path
 
 from gpfverify.contract.claims import AS_RUN, ClaimRecord, read_claims
-from gpfverify.contract.sins_gps import Q_MISSPECIFIED
-from gpfverify.contract.tbd import BIRTH_INTERPRETATIONS, DETECTION_INTERPRETATIONS
-from gpfverify.experiments import pff1d
+from gpfverify.papers.gpsr_upf.contract import Q_MISSPECIFIED
+from gpfverify.papers.tbd.contract import BIRTH_INTERPRETATIONS, DETECTION_INTERPRETATIONS
+from gpfverify.papers.particle_flow import pff1d_experiment as pff1d
 
 REFERENCE = Path(__file__).resolve().parents[1] / "reports" / "reference"
 #: the words a NOT held that stands carries (gpfverify.health.decide)

@@ -3,7 +3,7 @@
 import re
 
 from gpfverify.contract import SectionRuns
-from gpfverify.report import build_report
+from gpfverify.full_report import build_report
 from gpfverify.report.document import (Cell, Claim, Details, Link, Paragraph, Section, Table, VerdictCell,
                                        claims_table)
 from gpfverify.report.inputs import write_runs
@@ -38,7 +38,7 @@ def _fake_sections(monkeypatch, tmp_path, rendered: list):
     import sys
     import types
 
-    import gpfverify.report as report
+    import gpfverify.full_report as report
 
     sections = {}
     for slug in ("first", "second", "third"):

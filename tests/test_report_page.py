@@ -20,6 +20,7 @@ import pytest
 from gpfverify.contract import PAPERS, read_claims
 from gpfverify.report.document import Section, claim_records_table, unicode_math
 from gpfverify.report.inputs import SectionInput, load_section
+from gpfverify.symbolic.claims import run_claim
 
 HERE = Path(__file__).parent
 FIXTURE = HERE / "fixtures" / "report"
@@ -106,7 +107,7 @@ def _toy_section(title: str):
 def report(monkeypatch, tmp_path):
     """The fixture folder rendered by the real build_report with two toy sections and the real
     proofs page; returns (folder, parsed HTML page, every claim record of the fixture)."""
-    import gpfverify.report as report
+    import gpfverify.full_report as report
 
     shutil.copytree(FIXTURE, tmp_path / "r")
     out = tmp_path / "r"
@@ -116,7 +117,7 @@ def report(monkeypatch, tmp_path):
         module.render_section = _toy_section(title)  # type: ignore[attr-defined]
         monkeypatch.setitem(sys.modules, module.__name__, module)
         sections[slug] = module.__name__
-    sections["proofs"] = "gpfverify.report.sections.proofs"
+    sections["proofs"] = "gpfverify.report.proofs"
     monkeypatch.setattr(report, "SECTIONS", sections)
     lines: list[str] = []
     html_path = report.build_report(out, progress=lines.append)
@@ -164,7 +165,7 @@ def test_summary_table_counts_every_verdict_per_section_and_group(report):
         section = row[1] or section
         sections.append((section, row[2]))
     assert sections == [("Toy fusion", "accuracy"), ("Toy fusion", "Proposition 1"), ("Toy fusion", "timing"),
-                        ("Toy detection", "accuracy"), ("Symbolic proofs and a second implementation", "proofs"),
+                        ("Toy detection", "accuracy"), ("Kernel-checked proofs and a second implementation", "proofs"),
                         ("every section", "accuracy"), ("every section", "Proposition 1"),
                         ("every section", "timing"), ("every section", "proofs")]
     assert [row[0] for row in cells[:5]] == ["Liao et al. 2019", "", "", "Chen et al. 2015",
@@ -286,16 +287,16 @@ def test_papers_are_cited_in_full(report):
 def test_proof_certificates_are_a_table(report):
     _, page, _ = report
     (table,) = page.find_all("table", cls="certificates")
-    assert [th.text for th in table.find_all("th")] == ["claim", "status", "statement", "scope",
-                                                        "stated facts (used, not proved)", "method",
+    assert [th.text for th in table.find_all("th")] == ["claim", "status", "title", "statement", "scope", "method",
                                                         "negative controls", "seconds"]
     rows = {tr.attrs["id"]: [td.text for td in tr.find_all("td")] for tr in table.find_all("tbody")[0].find_all("tr")}
-    proved = rows["cert-ukf-equals-kf-linear"]
-    assert proved[:3] == ["ukf-equals-kf-linear", "proved", "the UKF equals the KF on linear models"]
-    assert proved[3] == "(D, l) ∈ {(1, 1), (2, 1)}" and proved[4] == "none"
-    assert proved[5] == "sympy: symbolic sigma points"
-    assert proved[6].startswith("all 2 rejected: ȳ = Hμ (offset b dropped)")
-    assert rows["cert-dmf-exact-without-condition"][3] == "not stated"
+    proved = rows["cert-full-rank-needs-l-le-D"]
+    title = unicode_math(run_claim("full-rank-needs-l-le-D", "small").title)
+    assert proved[:3] == ["full-rank-needs-l-le-D", "proved", title]
+    assert proved[3].startswith("l ≤ D (for all sizes D, l ≥ 0) — assuming: A has full column rank")
+    assert proved[4] == "any dimension" and proved[5].startswith("kernel-checked certificate")
+    assert proved[6].startswith("all 3 refused and refuted: l_m + 1 ≤ D")
+    assert rows["cert-dmf-exact-without-condition"][4].startswith("counterexample at D = 2")
     assert rows["cert-dmf-exact-without-condition"][6] == "none"
     status = table.find_all("tr", id="cert-dmf-exact-without-condition")[0].find_all("td")[1]
     assert "v-refuted" in status.classes
@@ -316,7 +317,7 @@ def test_markdown_pages_and_index(report):
 
 
 def test_only_keeps_the_summary_of_sections_not_rebuilt(report, monkeypatch):
-    import gpfverify.report as report_package
+    import gpfverify.full_report as report_package
 
     out, page, records = report
     html_path = report_package.build_report(out, only=["beta"], progress=lambda _: None)
@@ -379,8 +380,8 @@ def test_report_command_runs_a_toy_section_with_progress(monkeypatch, tmp_path, 
     """The command runs a (typed) toy experiment at its quick profile into the section folder,
     prints one line per event, renders the page and ends with where it is and the counts."""
     import gpfverify.commands.report as command
-    import gpfverify.report as report
-    from gpfverify.experiments import EXPERIMENTS
+    import gpfverify.full_report as report
+    from gpfverify.papers import EXPERIMENTS
 
     monkeypatch.syspath_prepend(str(FIXTURE))
     import toy_typed_experiment as toy
@@ -466,7 +467,8 @@ def test_a_one_experiment_section_without_its_run_says_so(tmp_path):
     from gpfverify.contract import SectionRuns
     from gpfverify.report.document import Paragraph
     from gpfverify.report.inputs import SectionInput
-    from gpfverify.report.sections import gpadf_scalar, tbd
+    from gpfverify.papers.gpadf_scalar import section as gpadf_scalar
+    from gpfverify.papers.tbd import section as tbd
 
     empty = SectionInput("tbd", tmp_path, SectionRuns("tbd", "quick", 1, ()), ())
     for module, name in ((tbd, "tbd"), (gpadf_scalar, "gpadf-scalar")):

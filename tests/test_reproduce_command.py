@@ -11,7 +11,7 @@ import pytest
 
 from gpfverify.cli import main
 from gpfverify.commands.reproduce import PROGRESS_FRACTION, interpretation_lines, progress_lines
-from gpfverify.experiments import EXPERIMENTS
+from gpfverify.papers import EXPERIMENTS
 
 HERE = Path(__file__).parent
 

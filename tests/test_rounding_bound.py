@@ -8,7 +8,7 @@ import dataclasses
 
 import numpy as np
 
-from gpfverify.audit import audit_case
+from gpfverify.audit.case import audit_case
 from gpfverify.fusion.centralized import cmf_update
 from gpfverify.fusion.distributed import dmf_update
 from gpfverify.fusion.exactness import equivalence_tolerance, gap_size, rescaled_case

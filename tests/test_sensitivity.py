@@ -11,7 +11,7 @@ import pytest
 from gpfverify import cli
 from gpfverify.contract import ClaimRecord, Interpretation, read_claims
 from gpfverify.contract.interpretations import robustness
-from gpfverify.experiments import EXPERIMENTS
+from gpfverify.papers import EXPERIMENTS
 
 HERE = Path(__file__).parent
 

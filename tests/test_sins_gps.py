@@ -17,13 +17,13 @@ import pytest
 from gpfverify.cli import main
 from gpfverify.contract import VERDICTS, ClaimRecord, from_json, read_claims, to_json
 from gpfverify.contract.claims import PairedDifference
-from gpfverify.contract.sins_gps import PROFILES, FilterRun, Params, ParticleFilterRun, RunRecord, collapsed
+from gpfverify.papers.gpsr_upf.contract import PROFILES, FilterRun, Params, ParticleFilterRun, RunRecord, collapsed
 from gpfverify.errors import InputError
-from gpfverify.experiments import sins_gps
+from gpfverify.papers.gpsr_upf import experiment as sins_gps
 from gpfverify.experiments.runner import run_experiment, without_timing
 from gpfverify.report.document import Figure, Paragraph, Section, Table
 from gpfverify.report.inputs import load_section
-from gpfverify.report.sections import sins_gps as sins_gps_section
+from gpfverify.papers.gpsr_upf import section as sins_gps_section
 from gpfverify.filters.gpsr_upf import GPResidualModel, gpsr_upf_step, sr_ukf_proposal
 from gpfverify.filters.kalman import kf_step
 from gpfverify.filters.likelihoods import batched_gaussian_logpdf, gaussian_logpdf
@@ -32,7 +32,7 @@ from gpfverify.filters.resampling import Particles
 from gpfverify.filters.upf import ukf_proposal, upf_step
 from gpfverify.gp.residual import fit_residual
 from gpfverify.models import Sensor, StateSpaceModel, linear_model
-from gpfverify.scenarios.sins_gps import (ATTITUDE, EARTH_RATE, EQUATORIAL_RADIUS, G0, UNITS, VELOCITY, SinsGpsConfig,
+from gpfverify.papers.gpsr_upf.scenario import (ATTITUDE, EARTH_RATE, EQUATORIAL_RADIUS, G0, UNITS, VELOCITY, SinsGpsConfig,
                                           build_models, generate_flight, gravity, measurement_matrix,
                                           training_set)
 from gpfverify.tolerances import MONTE_CARLO_SIGMAS, algebra_rtol

@@ -9,11 +9,11 @@ import dataclasses
 import numpy as np
 import pytest
 
-from gpfverify.contract.sins_gps import INTERPRETATIONS, ROUGHENING_CONSTANT, Params
-from gpfverify.experiments import sins_gps
+from gpfverify.papers.gpsr_upf.contract import INTERPRETATIONS, ROUGHENING_CONSTANT, Params
+from gpfverify.papers.gpsr_upf import experiment as sins_gps
 from gpfverify.filters.resampling import Particles, ParticleStep
 from gpfverify.health import decide
-from gpfverify.scenarios.sins_gps import VELOCITY
+from gpfverify.papers.gpsr_upf.scenario import VELOCITY
 
 SHORT = Params(particles=8, duration=40.0, train_points=20)
 
@@ -129,7 +129,7 @@ def test_page_lists_each_configuration_with_its_health(tmp_path):
     from pathlib import Path
 
     from gpfverify.report.document import Table
-    from gpfverify.report.sections import sins_gps as section
+    from gpfverify.papers.gpsr_upf import section
 
     stored = Path(__file__).parent / "fixtures" / "sins_gps" / "sins-gps-small" / "results.json"
     results = json.loads(stored.read_text())

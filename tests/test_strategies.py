@@ -11,7 +11,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from gpfverify.errors import InputError
-from gpfverify.fusion.case import case_from_dict
+from gpfverify.fusion.caseblock import case_from_dict
 from gpfverify.strategies import (KINDS, gp_stacks, correlated_estimates, fusion_case_files, fusion_cases,
                                   joint_gaussians, matrices_with_singular_values,
                                   orthonormal_matrices, psd_matrices, saving_case_on_failure,

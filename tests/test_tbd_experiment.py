@@ -12,13 +12,13 @@ import pytest
 
 from gpfverify.cli import main
 from gpfverify.contract import VERDICTS, ClaimRecord, from_json, read_claims, to_json
-from gpfverify.contract.tbd import PROFILES, MethodRun, Params, RunRecord, SnrRun, TbdMethod
+from gpfverify.papers.tbd.contract import PROFILES, MethodRun, Params, RunRecord, SnrRun, TbdMethod
 from gpfverify.errors import InputError
-from gpfverify.experiments import tbd
+from gpfverify.papers.tbd import experiment as tbd
 from gpfverify.experiments.runner import run_experiment, without_timing
 from gpfverify.report.document import Figure, Paragraph, Section, Table
 from gpfverify.report.inputs import load_section
-from gpfverify.report.sections import tbd as tbd_section
+from gpfverify.papers.tbd import section as tbd_section
 
 FIXTURE = Path(__file__).parent / "fixtures" / "tbd"
 SMALL = Params(snr=(4.0, 6.0, 9.0), particles=80, tpf_particles=(80, 40), zeta_sweep_particles=40,

@@ -13,7 +13,7 @@ from gpfverify.filters.resampling import Particles, effective_sample_size, syste
 from gpfverify.filters.tbd import TbdConfig, TbdModel, filter_sequence, pf_tbd_step, second_stage_update, tpf_tbd_step
 from gpfverify.filters.tbd.pf import birth_proposal, sample_birth_prior
 from gpfverify.filters.tbd.two_stage import overlapping, second_stage_axes, transfer_particles
-from gpfverify.scenarios.tbd import TbdScenario, noise_std_for_snr, scenario_model, simulate
+from gpfverify.papers.tbd.scenario import TbdScenario, noise_std_for_snr, scenario_model, simulate
 from gpfverify.tolerances import MONTE_CARLO_SIGMAS, algebra_rtol, monte_carlo_atol
 
 SCENARIO = TbdScenario()

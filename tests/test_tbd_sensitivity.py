@@ -12,14 +12,14 @@ import pytest
 
 from gpfverify.contract import read_claims, to_json
 from gpfverify.contract.params import Params as BaseParams
-from gpfverify.contract.tbd import (INTERPRETATIONS, SNR_CONVENTIONS, MethodRun, Params, RunRecord, SnrRun,
+from gpfverify.papers.tbd.contract import (INTERPRETATIONS, SNR_CONVENTIONS, MethodRun, Params, RunRecord, SnrRun,
                                    TbdMethod, main_methods, sweep_methods)
-from gpfverify.experiments import tbd
+from gpfverify.papers.tbd import experiment as tbd
 from gpfverify.experiments.runner import run_experiment
 from gpfverify.filters.tbd import TbdModel, filter_sequence, pf_tbd_step, tpf_tbd_step
 from gpfverify.filters.tbd.pf import initial_belief
 from gpfverify.health import MIN_ESS_FRACTION
-from gpfverify.scenarios.tbd import energy_factor, noise_std_for_snr, simulate
+from gpfverify.papers.tbd.scenario import energy_factor, noise_std_for_snr, simulate
 
 SMALL = Params(snr=(4.0, 6.0, 9.0), particles=80, tpf_particles=(80, 40), zeta_sweep_particles=40,
                zeta_sweep=(1.0, 0.6, 0.4), bootstrap=50)
@@ -231,7 +231,7 @@ def test_the_page_shows_verdicts_under_each_interpretation_health_and_runs_to_de
     from gpfverify.contract.interpretations import robustness
     from gpfverify.report.document import Table
     from gpfverify.report.inputs import load_section
-    from gpfverify.report.sections import tbd as tbd_section
+    from gpfverify.papers.tbd import section as tbd_section
 
     fixture = Path(__file__).parent / "fixtures" / "tbd"
     shutil.copytree(fixture, tmp_path / "tbd")
@@ -256,7 +256,7 @@ def test_the_page_shows_verdicts_under_each_interpretation_health_and_runs_to_de
 def test_the_birth_readings_run_the_gain_claims_filters_with_the_streams_they_have_beside_the_others():
     """The birth readings run PF-TBD and TPFTBD at equal N only: each method's runs are the same
     whether or not the other methods run beside it, so the SNR-gain claim reads the same numbers."""
-    from gpfverify.contract.tbd import BIRTH_INTERPRETATIONS, GAIN_METHODS_ONLY
+    from gpfverify.papers.tbd.contract import BIRTH_INTERPRETATIONS, GAIN_METHODS_ONLY
 
     reduced = SMALL.replace(tpf_particles=(SMALL.particles,), zeta_sweep=())
     seed = np.random.SeedSequence(4, spawn_key=(1,))

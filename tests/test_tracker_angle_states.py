@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from gpfverify.angles import difference, wrap
-from gpfverify.fusion.model_fusion import run_fusion
+from gpfverify.model_fusion import run_fusion
 from gpfverify.models import Sensor, StateSpaceModel
 from gpfverify.tolerances import SOLVER_TOL, algebra_rtol
 

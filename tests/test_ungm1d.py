@@ -10,10 +10,10 @@ import pytest
 
 from gpfverify.cli import main
 from gpfverify.contract import ClaimRecord, RunEntry, SectionRuns
-from gpfverify.experiments import ungm1d
-from gpfverify.experiments.fusion_run import FAMILIES, METHOD_KEYS, one_step_equivalence, squared_mahalanobis
+from gpfverify.papers.fusion import ungm1d_experiment as ungm1d
+from gpfverify.papers.fusion.run import FAMILIES, METHOD_KEYS, one_step_equivalence, squared_mahalanobis
 from gpfverify.filters.records import Gaussian
-from gpfverify.scenarios.fusion_models import sine_sensor, ungm_transition
+from gpfverify.papers.fusion.scenario import sine_sensor, ungm_transition
 from gpfverify.tolerances import algebra_rtol
 
 FIXTURE = Path(__file__).parent / "fixtures" / "ungm1d" / "results.json"
@@ -89,7 +89,7 @@ def test_model_equations():
 def test_page_renders_from_stored_results(tmp_path):
     from gpfverify.report.inputs import SectionInput
     from gpfverify.report.render import to_markdown
-    from gpfverify.report.sections import fusion_ungm1d
+    from gpfverify.papers.fusion import ungm1d_section as fusion_ungm1d
 
     results = json.loads(FIXTURE.read_text())
     runs = SectionRuns("ungm1d", "quick", 1, (RunEntry("ungm1d", "σ² = 1", "sweep", "results.json"),))
@@ -152,12 +152,12 @@ def test_cmf_gp_ukf_variance_falls_to_the_noise_scale_because_three_sigma_points
     them x = a + bᵀy exactly, and the fused variance C_p − C_xy C_y⁻¹ C_xyᵀ = bᵀ(S⁻¹ + R⁻¹)⁻¹b is at
     most bᵀRb (S the sigma points' output covariance, R the GP noise): the noise scale, whatever the
     state's uncertainty. A single sensor's (x, y) is not degenerate."""
-    from gpfverify.experiments.fusion_run import train_models
+    from gpfverify.papers.fusion.run import train_models
     from gpfverify.filters.gp_ukf import gp_noise_covariance
     from gpfverify.filters.sigma_points import SigmaParams, sigma_points
-    from gpfverify.fusion.model_fusion import cmf_step
+    from gpfverify.model_fusion import cmf_step
     from gpfverify.rng import generator
-    from gpfverify.scenarios.fusion_models import simulate_data, ungm_scenario
+    from gpfverify.papers.fusion.scenario import simulate_data, ungm_scenario
 
     rng = generator(np.random.SeedSequence(4))
     data = simulate_data(ungm_scenario(1.0, 0.01, 1.0, 60, 5), rng)

@@ -12,7 +12,8 @@ import pytest
 
 from gpfverify.cli import main
 from gpfverify.errors import CaseFileError, InputError, NumericalError
-from gpfverify.fusion.case import case_from_dict, case_to_dict
+from gpfverify.fusion.case import case_to_dict
+from gpfverify.fusion.caseblock import case_from_dict
 from gpfverify.fusion.methods import fuse_case
 from gpfverify.fusion.synthetic import random_case, random_spd
 from gpfverify.models.system import Sensor

@@ -17,11 +17,11 @@ import numpy as np
 import pytest
 
 from gpfverify.angles import difference
-from gpfverify.audit import audit_case
-from gpfverify.blockaudit import block_audits
+from gpfverify.audit.case import audit_case
+from gpfverify.audit.block import block_audits
 from gpfverify.fusion.exactness import gap_size, rescaled_case
-from gpfverify.fusion.model_fusion import run_fusion
-from gpfverify.fusion.runfile import open_run, write_run
+from gpfverify.model_fusion import run_fusion
+from gpfverify.audit.runfile import open_run, write_run
 from gpfverify.fusion.synthetic import random_case
 from gpfverify.rng import generator
 from gpfverify.tolerances import ALGEBRA_RTOL, EPS, SOLVER_TOL

@@ -15,7 +15,7 @@ from gpfverify.filters.resampling import Particles, normalize_log_weights
 from gpfverify.filters.upf import upf_step
 from gpfverify.linalg import cholesky
 from gpfverify.models import linear_model
-from gpfverify.scenarios.growth import gamma_benchmark_model
+from gpfverify.papers.particle_flow.pff1d_scenario import gamma_benchmark_model
 from gpfverify.tolerances import QUADRATURE_RTOL, algebra_rtol, monte_carlo_atol
 
 

@@ -7,19 +7,18 @@ it, the interpretations of timing claims, and the runs-needed table of the refer
 from __future__ import annotations
 
 import math
-import sys
 import time
-from pathlib import Path
 
 import numpy as np
 import pytest
 
 from gpfverify.contract import ClaimRecord, PairedDifference, PairedRatio
 from gpfverify.contract.claims import ACCURACY, PROPOSITION_1, TIMING, VERDICTS, Interpretation
-from gpfverify.contract.fusion import FAMILIES
+from gpfverify.papers.fusion.contract import FAMILIES
 from gpfverify.contract.interpretations import InterpretationSpec
 from gpfverify.errors import InputError
-from gpfverify.experiments import ct2d, fusion_run
+from gpfverify.papers.fusion import ct2d_experiment as ct2d
+from gpfverify.papers.fusion import run as fusion_run
 from gpfverify.experiments.sensitivity import merge
 from gpfverify.report.document import claim_tables
 from gpfverify.report.inputs import VerdictCounts
@@ -172,11 +171,7 @@ def test_timing_claims_carry_the_verdicts_under_each_interpretation():
 # ---- the runs each claim needed (reference pages) ------------------------------------------------------
 
 def test_the_runs_needed_table_reads_the_verdicts_at_each_run_count():
-    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "reports" / "reference"))
-    try:
-        from reference_pages import runs_needed_table
-    finally:
-        sys.path.pop(0)
+    from gpfverify.reference_pages import runs_needed_table
     final = [_record("held", ident="x/early", n=1000, paper_n=1000),
              _record("NOT held", ident="x/late", n=1000, paper_n=1000),
              _record("undecided", ident="x/open", n=1000, paper_n=1000, runs_to_decide=4200)]

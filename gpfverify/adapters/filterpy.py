@@ -55,9 +55,9 @@ class LocalFilters:
     local_priors: tuple[Gaussian, ...]
 
     def run(self, ys, **options):
-        """:func:`gpfverify.fusion.run_fusion` with these local filters (``options``: its keywords,
+        """:func:`gpfverify.model_fusion.run_fusion` with these local filters (``options``: its keywords,
         e.g. ``methods``); the centre starts from the model's prior."""
-        from gpfverify.fusion.model_fusion import run_fusion
+        from gpfverify.model_fusion import run_fusion
 
         return run_fusion(self.model, ys, family=self.family, params=self.params,
                           local_priors=self.local_priors, **options)
@@ -243,8 +243,8 @@ def write_run_file(path, centre, sensors: Sequence, *, model: StateSpaceModel | 
     after every update, or a mapping with the keys x_prior, P_prior, x, P, S, K, y, z. ``model``
     (e.g. :attr:`LocalFilters.model`) gives the angle outputs and state components; ``ks`` the
     step indices. Every case is checked by the case reader before the file is written (atomically)."""
-    from gpfverify.fusion.case import case_from_dict
-    from gpfverify.fusion.runfile import write_run
+    from gpfverify.fusion.caseblock import case_from_dict
+    from gpfverify.audit.runfile import write_run
 
     central = _steps(centre, "the centre's log")
     local = [_steps(log, f"sensor {m}'s log") for m, log in enumerate(sensors)]

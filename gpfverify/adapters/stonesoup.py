@@ -21,7 +21,7 @@
 * :func:`measurements` / :func:`write_measurements`: ``Detection`` s over time (one per sensor and
   time step; a Stone Soup detector's ``(time, detections)`` pairs are accepted as they come) and
   optionally the ground truth → the measurements file of ``gpfverify check --measurements``.
-* :func:`tracks`: a :func:`~gpfverify.fusion.run_fusion` result → one Stone Soup ``Track`` of
+* :func:`tracks`: a :func:`~gpfverify.model_fusion.run_fusion` result → one Stone Soup ``Track`` of
   ``GaussianState`` s per fusion rule and per sensor's local filter, timestamped, for Stone Soup's
   metrics and plotters.
 
@@ -313,7 +313,7 @@ def write_measurements(path, detections, measurement_models: Sequence[Measuremen
                        time_interval: datetime.timedelta | None = None) -> Path:
     """:func:`measurements` written as the ``.npz`` file ``gpfverify check --measurements`` reads
     (arrays ``y`` and, with the truth, ``x``), atomically; returns the path."""
-    from gpfverify.fusion.runfile import _atomic_write
+    from gpfverify.audit.runfile import _atomic_write
 
     path = Path(path)
     if path.suffix.lower() != ".npz":
@@ -326,7 +326,7 @@ def write_measurements(path, detections, measurement_models: Sequence[Measuremen
 
 def tracks(fused, start_time: datetime.datetime, time_interval: datetime.timedelta,
            methods: Sequence[str] | None = None, local: bool = True) -> dict[str, Track]:
-    """A :func:`~gpfverify.fusion.run_fusion` result as Stone Soup tracks: one ``Track`` of
+    """A :func:`~gpfverify.model_fusion.run_fusion` result as Stone Soup tracks: one ``Track`` of
     ``GaussianState`` s per fusion rule (``methods``, default every rule run, keyed by its name)
     and, with ``local``, per sensor's local filter (keys ``"sensor 0"``, ...). Step k is at
     ``start_time + k * time_interval`` (``start_time`` is the prior's time). A rule that failed

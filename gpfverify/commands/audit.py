@@ -1,5 +1,5 @@
 """``gpfverify audit FILE [--json]``: rank-condition audit of one fusion step (a case file) or of
-every step of a run file (.jsonl, .npz; :mod:`gpfverify.fusion.runfile`).
+every step of a run file (.jsonl, .npz; :mod:`gpfverify.audit.runfile`).
 
 :func:`audit_run_file` returns the run audit, the per-step JSON objects and the summary, for
 callers that render them otherwise (e.g. a report).
@@ -12,15 +12,14 @@ import contextlib
 import json
 import sys
 
-from gpfverify.audit import (RANK_RULE_DEFAULT, RunAudit, audit_case, audit_to_dict, format_audit,
-                             parse_rank_rule)
+from gpfverify.audit.case import (RANK_RULE_DEFAULT, RunAudit, audit_case, audit_to_dict, format_audit, parse_rank_rule)
 from gpfverify.cli import RANK_RULE_HELP, positive_int, rank_rule_text
 from gpfverify.errors import InputError
-from gpfverify.fusion.runfile import run_format
-from gpfverify.notebook import progress_shown
+from gpfverify.audit.runfile import run_format
+from gpfverify.runtime import progress_shown
 from gpfverify.outputs import add_wait_argument, final_path, out_path, output_folder
 from gpfverify.report.document import integer_ranges
-from gpfverify.runaudit import copy_out, spool, stream_audit, table_header, table_row
+from gpfverify.audit.run import copy_out, spool, stream_audit, table_header, table_row
 
 EPILOG = ("FILE formats: a single fusion case (.json) is described in docs/fusion-case-format.md; "
           "a run of cases, one per step (.jsonl: one case per line with an optional integer \"k\"; "
@@ -76,7 +75,7 @@ def audit_run_file(path, rank_rule=None, rank_tol: float | None = None, sensitiv
     its ``"k"`` and ``summary`` as printed by ``audit --json``. ``rank_rule`` is a rule object or a
     string for ``parse_rank_rule``; ``rank_tol`` (absolute) overrides every case's ``rank_tol``;
     without either, each case's ``rank_tol`` or the audit's default rule decides. Holds the whole
-    run: for long runs use :func:`gpfverify.runaudit.stream_audit`. ``show_progress`` draws a
+    run: for long runs use :func:`gpfverify.audit.run.stream_audit`. ``show_progress`` draws a
     progress bar (default: on a terminal and in a Jupyter notebook).
     Raises :class:`~gpfverify.errors.CaseFileError` for a malformed file."""
     with _progress(progress_shown() if show_progress is None else show_progress) as progress:
@@ -215,7 +214,7 @@ def run(args: argparse.Namespace) -> int:
     if run_format(args.case) == "json":  # one case: output as it always was
         if args.out is not None:
             raise InputError("--out writes the report of a run file (.jsonl or .npz); a single case has none")
-        from gpfverify.fusion.case import load_case
+        from gpfverify.fusion.caseblock import load_case
 
         audit = _audit(load_case(args.case), args.rank_tol, _resolve_rank_rule(args.rank_rule),
                        args.sensitivity)

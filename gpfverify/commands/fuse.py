@@ -10,7 +10,7 @@ import numpy as np
 
 from gpfverify.cli import RANK_RULE_HELP, fusion_rule, rank_rule_text
 from gpfverify.errors import InputError
-from gpfverify.fusion.case import load_case
+from gpfverify.fusion.caseblock import load_case
 from gpfverify.fusion.methods import fuse_case
 from gpfverify.fusion.names import CHOICES_TEXT
 

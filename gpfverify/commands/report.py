@@ -27,11 +27,11 @@ from gpfverify.cli import non_negative_int, positive_int
 from gpfverify.errors import InputError
 from gpfverify.contract.experiment import RunEntry, SectionRuns
 from gpfverify.outputs import add_wait_argument, final_path, out_path, output_folder
-from gpfverify.report import SECTIONS, build_report, papers_title
+from gpfverify.full_report import SECTIONS, build_report, papers_title
 from gpfverify.report.inputs import VerdictCounts, write_runs
 from gpfverify.report.render import read_summaries
 
-#: report section -> the experiments it renders (names as in gpfverify.experiments.EXPERIMENTS)
+#: report section -> the experiments it renders (names as in gpfverify.papers.EXPERIMENTS)
 SECTION_EXPERIMENTS: dict[str, tuple[str, ...]] = {
     "moments": ("moments",),
     "gpadf-scalar": ("gpadf-scalar",),
@@ -126,7 +126,7 @@ def plan(ctx: ReportContext, selected: list[str]) -> dict[str, float]:
     """The work of a build (:class:`Eta`): per setting, its runs and those of its interpretations
     that run (a summary-only one reads the main runs) at :data:`RUN_SECONDS`; the proofs; the
     rendering."""
-    from gpfverify.experiments import EXPERIMENTS
+    from gpfverify.papers import EXPERIMENTS
     from gpfverify.experiments.sensitivity import select, summary_only
 
     work: dict[str, float] = {}
@@ -219,7 +219,7 @@ def run_section(ctx: ReportContext, slug: str, progress: Callable[[str], None], 
     ``<out>/<slug>/<experiment>-<tag>/run`` (reusing runs saved there with the same settings), with
     the profile's interpretations in ``run/interpretations/<name>``, and write the section's
     ``runs.json``."""
-    from gpfverify.experiments import EXPERIMENTS
+    from gpfverify.papers import EXPERIMENTS
     from gpfverify.experiments.runner import make_executor, run_experiment
     from gpfverify.experiments.sensitivity import run_interpretations, select
 

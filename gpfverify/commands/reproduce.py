@@ -17,7 +17,7 @@ import time
 from collections.abc import Callable
 from pathlib import Path
 
-from gpfverify.experiments import EXPERIMENTS
+from gpfverify.papers import EXPERIMENTS
 from gpfverify.outputs import add_wait_argument, out_path, output_folder
 
 #: a progress line off a terminal every this fraction of the runs

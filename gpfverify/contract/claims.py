@@ -25,6 +25,7 @@ import numpy as np
 from gpfverify.contract.serial import from_json, to_json
 from gpfverify.errors import InputError
 from gpfverify.tolerances import MONTE_CARLO_SIGMAS, monte_carlo_atol
+from gpfverify.views import HtmlView
 
 Verdict = Literal["held", "NOT held", "undecided", "not decidable"]
 VERDICTS: tuple[Verdict, ...] = ("held", "NOT held", "undecided", "not decidable")
@@ -75,9 +76,10 @@ class Interpretation:
 
 
 @dataclass(frozen=True)
-class ClaimRecord:
+class ClaimRecord(HtmlView):
     """One checked claim (see the module docstring). ``statistic`` and ``threshold`` are in the
-    unit the evidence states; ``statistic`` is None only when nothing was measured."""
+    unit the evidence states; ``statistic`` is None only when nothing was measured. In a notebook it
+    shows as the report's claims table with this record (:func:`gpfverify.notebook.claims_html`)."""
 
     claim: str
     source: str
@@ -120,12 +122,6 @@ class ClaimRecord:
     @classmethod
     def from_json(cls, data: Any) -> ClaimRecord:
         return from_json(cls, data, "claim")
-
-    def _repr_html_(self) -> str:
-        """In a notebook: the report's claims table with this record (:func:`gpfverify.notebook.claims_html`)."""
-        from gpfverify.notebook import claims_html
-
-        return claims_html([self])
 
     @property
     def cautions(self) -> list[str]:

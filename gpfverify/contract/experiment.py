@@ -1,6 +1,6 @@
 """What an experiment declares, and how a report finds the results it renders.
 
-An experiment module (listed in :data:`gpfverify.experiments.EXPERIMENTS`) defines
+An experiment module (listed in :data:`gpfverify.papers.EXPERIMENTS`) defines
 
 * ``NAME`` (as on the command line), ``PAPER`` (a key of :data:`~gpfverify.contract.papers.PAPERS`)
   and ``DEFAULT_RUNS`` (the paper's run count);
@@ -15,7 +15,7 @@ An experiment module (listed in :data:`gpfverify.experiments.EXPERIMENTS`) defin
 * optionally ``run_batch(params, seed_sequences) -> list[RunRecord]`` — the same runs advancing
   together; ``run_batch(p, seeds)[i]`` is the same bits for every way of splitting the runs into
   batches (``run_batch(p, [seeds[i]])[0]`` included) in every non-timing field, equals ``run_one``
-  to :data:`~gpfverify.tolerances.BATCH_RTOL`, and each run consumes its own stream in an order that
+  to :data:`~gpfverify.tolerances.PER_RUN_RTOL`, and each run consumes its own stream in an order that
   does not depend on the batch. The runner then always uses it (``--batch`` never changes a result);
   ``batch_run_bytes(params) -> int``, the working memory of one run in a batch, sets the default
   batch size (:func:`gpfverify.experiments.runner.default_batch`);
@@ -24,8 +24,9 @@ An experiment module (listed in :data:`gpfverify.experiments.EXPERIMENTS`) defin
 * optionally ``TIMING_KEYS`` — names of measured-time fields that :data:`TIMING_KEY` does not match.
 
 The contract types of an experiment (``Params``, ``RunRecord``, ``PROFILES``, summary records)
-live in ``gpfverify/contract/<name>.py`` so that the report reads results back through the same
-types without importing the code that computes them.
+live in its paper's contract module (``gpfverify/papers/<paper>/contract.py``, or
+``<experiment>_contract.py`` in a paper with several experiments) so that the report section reads
+results back through the same types without importing the code that computes them.
 """
 
 from __future__ import annotations

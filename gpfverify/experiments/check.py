@@ -4,8 +4,8 @@ every step, and if not, why (SPEC §6).
 One run: the measurements y_1..y_T — simulated from the system (truth known) or the user's logged
 ``y`` (T, L) with optional truth ``x`` (T, D) — are filtered by every sensor's local filter, the
 centre's CMF and DMF (seed 000 eq. 35; each with its own recursion from the prior) and the chosen
-baselines (:func:`gpfverify.fusion.run_fusion`), and every DMF step is audited
-(:func:`gpfverify.audit.audit_case`): the one-step gap μ_DMF − μ_CMF from the same central
+baselines (:func:`gpfverify.model_fusion.run_fusion`), and every DMF step is audited
+(:func:`gpfverify.audit.case.audit_case`): the one-step gap μ_DMF − μ_CMF from the same central
 prediction against its rounding bound (:func:`~gpfverify.fusion.exactness.equivalence_tolerance`,
 both in prior standard deviations), each sensor's rank verdict, exactness, share of the gap and
 repair size. With the truth, every estimate's squared error and NEES, and the NIS of CMF and of
@@ -32,11 +32,12 @@ from gpfverify.contract.check import CiCriterion, FilterName, Params, RunRecord
 from gpfverify.errors import CaseFileError, InputError
 from gpfverify.filters.families import GP_FAMILIES
 from gpfverify.filters.records import Gaussian
-from gpfverify.audit import rank_rule_to_dict
-from gpfverify.fusion.case import case_from_dict, cases_to_dicts
+from gpfverify.audit.case import rank_rule_to_dict
+from gpfverify.fusion.case import cases_to_dicts
+from gpfverify.fusion.caseblock import case_from_dict
 from gpfverify.fusion.exactness import gap_size, parse_rank_rule
-from gpfverify.fusion.model_fusion import run_fusion, run_fusion_batch
-from gpfverify.fusion.runfile import write_run
+from gpfverify.model_fusion import run_fusion, run_fusion_batch
+from gpfverify.audit.runfile import write_run
 from gpfverify.models import batch_gp_models, fit_gp_model, learn_gp_model
 from gpfverify.rng import generator
 from gpfverify.systems import load_system, split_spec
@@ -163,7 +164,7 @@ def run_one(params: Params, seed: np.random.SeedSequence) -> RunRecord:
 
 def run_batch(params: Params, seeds: Sequence[np.random.SeedSequence]) -> list[RunRecord]:
     """:func:`run_one` of every seed, the runs' filters, fusion and audits advancing together
-    (:func:`~gpfverify.fusion.model_fusion.run_fusion_batch`); each run draws its data from its own
+    (:func:`~gpfverify.model_fusion.run_fusion_batch`); each run draws its data from its own
     streams, and a GP family learns each run's GPs on their own (per-run L-BFGS), as in :func:`run_one`."""
     model = load_system(params.system)
     inputs = [_run_inputs(params, model, seed) for seed in seeds]
@@ -216,7 +217,7 @@ def _measures_batch(model, runs: Sequence, ys: np.ndarray, truths: np.ndarray | 
     """:class:`StepMeasures` of B runs, each measure computed over the runs and steps at once
     (the same formulas as :func:`_measures`, stacked: :class:`~gpfverify.consistency.Consistency`
     takes runs × steps, the gaps are whitened by every step's equilibrated factor of C_p)."""
-    from gpfverify.fusion.blockexactness import apply, equilibrated, solve_lower
+    from gpfverify.audit.blockexactness import apply, equilibrated, solve_lower
 
     steps = [run.steps for run in runs]
     stacked = lambda get: np.array([[get(s) for s in run] for run in steps])  # noqa: E731
@@ -411,7 +412,7 @@ def _average(kind: str, values: np.ndarray, dof: int) -> dict:
 def _trajectory(steps: Sequence[dict], methods: Sequence[str]) -> dict:
     """The first run's trajectory: the truth (None when unknown), every method's mean and covariance
     per step (None at a step where it failed) and the repaired DMF mean at the steps whose audit
-    proposes a repair (:attr:`gpfverify.audit.CaseAudit.repaired_dmf_mean`; CMF's mean to rounding)."""
+    proposes a repair (:attr:`gpfverify.audit.case.CaseAudit.repaired_dmf_mean`; CMF's mean to rounding)."""
     return {"k": [e["k"] for e in steps],
             "truth": [e["truth"] for e in steps] if all("truth" in e for e in steps) else None,
             "means": {m: [e["means"].get(m) for e in steps] for m in methods},
@@ -485,7 +486,7 @@ def summarize(params: Params, results: list[RunRecord], model=None) -> dict:
 
 
 def results_of_run(fused, truth: np.ndarray | None = None, system: str = "") -> dict:
-    """The results of a check made of one :func:`~gpfverify.fusion.run_fusion` result on a
+    """The results of a check made of one :func:`~gpfverify.model_fusion.run_fusion` result on a
     :class:`~gpfverify.models.StateSpaceModel` (it must have run CMF and DMF with the audit): what
     :func:`summarize` gives for one run, with the header fields of ``results.json`` (so that the
     equivalence page renders it, :func:`gpfverify.notebook.fusion_run_html`); ``truth`` (T, D)

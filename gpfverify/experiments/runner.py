@@ -45,7 +45,7 @@ from gpfverify import provenance
 from gpfverify.contract.params import Params
 from gpfverify.contract.serial import from_json, to_json
 from gpfverify.errors import InputError, WorkerLost
-from gpfverify.notebook import progress_shown
+from gpfverify.runtime import progress_shown
 from gpfverify.runtime import BLAS_THREAD_VARS
 from gpfverify.supervise import exit_with_parent
 from gpfverify.usercode import UserCodeError, guarded, system_file

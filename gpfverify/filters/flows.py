@@ -42,11 +42,11 @@ import numpy as np
 
 from gpfverify.angles import difference, wrap_components
 from gpfverify.errors import InputError
-from gpfverify.filters.likelihoods import unwrapped_measurement
+from gpfverify.filters import runs
+from gpfverify.filters.likelihoods import sample_transition, unwrapped_measurement
 from gpfverify.filters.resampling import Particles, ParticleStep, moments_from_weights
-from gpfverify.linalg import cholesky, right_solve_spd, symmetrize
+from gpfverify.linalg import cholesky, symmetrize
 from gpfverify.models.system import StateSpaceModel, require_model
-from gpfverify.validate import as_matrix, as_vector
 
 
 def uniform_steps(count: int) -> np.ndarray:
@@ -81,15 +81,15 @@ def _check_steps(step_sizes: np.ndarray) -> np.ndarray:
 
 
 def particle_moments(particles: np.ndarray, circular_state: Sequence[int] = ()) -> tuple[np.ndarray, np.ndarray]:
-    """Equal-weight mean (D,) and covariance (D, D) (1/N normalisation, as in the gain); angle
-    components ``circular_state`` averaged on the circle with wrapped deviations
-    (:func:`~gpfverify.filters.resampling.moments_from_weights`)."""
-    n = particles.shape[0]
+    """Equal-weight mean (..., D) and covariance (..., D, D) of particles (..., N, D) (1/N
+    normalisation, as in the gain); angle components ``circular_state`` averaged on the circle with
+    wrapped deviations (:func:`~gpfverify.filters.resampling.moments_from_weights`)."""
+    n = particles.shape[-2]
     if len(circular_state):
-        return moments_from_weights(particles, np.full(n, 1.0 / n), circular_state)
-    mean = particles.mean(axis=0)
-    dev = particles - mean
-    return mean, symmetrize(dev.T @ dev / n)
+        return moments_from_weights(particles, np.full(particles.shape[:-1], 1.0 / n), circular_state)
+    mean = particles.mean(axis=-2)
+    dev = particles - mean[..., None, :]
+    return mean, symmetrize(dev.swapaxes(-1, -2) @ dev / n)
 
 
 def on_one_branch(particles: np.ndarray, circular_state: Sequence[int]) -> np.ndarray:
@@ -99,24 +99,27 @@ def on_one_branch(particles: np.ndarray, circular_state: Sequence[int]) -> np.nd
     if not len(circular_state):
         return particles
     mean, _ = particle_moments(particles, circular_state)
-    return mean + difference(particles, mean, circular_state)
+    return mean[..., None, :] + difference(particles, mean[..., None, :], circular_state)
 
 
 def _flow_step(x: np.ndarray, mean: np.ndarray, cov: np.ndarray, **extras) -> ParticleStep:
     """The record of a flow step with estimate (mean, cov): equally weighted particles (with the
     optional ``extras`` of :class:`Particles`), N_eff = N, no resampling."""
     posterior = Particles.equally_weighted(x, **extras)
-    return ParticleStep(posterior, posterior, mean, cov, float(x.shape[0]), False)
+    n = float(x.shape[-2])
+    if x.ndim == 2:
+        return ParticleStep(posterior, posterior, mean, cov, n, False)
+    return ParticleStep(posterior, posterior, mean, cov, np.full(x.shape[0], n), np.zeros(x.shape[0], bool))
 
 
-def _check_inputs(particles, z, model) -> tuple[np.ndarray, np.ndarray]:
-    """particles (N, D) with N ≥ 2 and z (L,), finite, for a StateSpaceModel; InputError naming the
-    argument otherwise."""
+def _check_inputs(particles, z, model, rng: runs.Streams | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """particles (N, D) with N ≥ 2 and z (L,) — or (B, N, D) and (B, L) for B runs, checked against
+    ``rng`` when given — for a StateSpaceModel; InputError naming the argument otherwise."""
     require_model(model, StateSpaceModel, "a particle flow")
-    x = np.array(as_matrix(particles, "particles", None, model.state_dim))
-    if x.shape[0] < 2:
-        raise InputError(f"particles: a flow needs at least 2 particles, got {x.shape[0]}")
-    return x, as_vector(z, "z", model.measurement_dim)
+    x, z = runs.particle_inputs(particles, z, model, rng, ("particles", "z"))
+    if x.shape[-2] < 2:
+        raise InputError(f"particles: a flow needs at least 2 particles, got {x.shape[-2]}")
+    return np.array(x), z
 
 
 def _measurement_cov(model) -> np.ndarray:
@@ -128,79 +131,94 @@ def _measurement_cov(model) -> np.ndarray:
 
 def ie_pff_update(particles: np.ndarray, model, z: np.ndarray, k: int,
                   step_sizes: np.ndarray) -> np.ndarray:
-    """Flow predicted particles (N, D) to the posterior of measurement z (L,) (seed 003 eq. 27, 36)."""
+    """Flow predicted particles (N, D) to the posterior of measurement z (L,) (seed 003 eq. 27, 36);
+    or the particles (B, N, D) of B runs with their measurements (B, L)."""
     steps = _check_steps(step_sizes)
     x, z = _check_inputs(particles, z, model)
     R = _measurement_cov(model)
-    n = x.shape[0]
+    n = x.shape[-2]
+    z = z[..., None, :]
     for dlam in steps:
-        hx = unwrapped_measurement(model, z, x, k)  # (N, L)
-        h_mean = hx.mean(axis=0)
-        cross = (x - x.mean(axis=0)).T @ (hx - h_mean) / n  # (D, L) empirical Cov(X, h(X))
-        gain = np.linalg.solve(R, cross.T).T  # K = Cov(X, h) R⁻¹
-        x = x + dlam * (z - 0.5 * (hx + h_mean)) @ gain.T
+        hx = unwrapped_measurement(model, z[..., 0, :], x, k)  # (..., N, L)
+        h_mean = hx.mean(axis=-2, keepdims=True)
+        cross = (x - x.mean(axis=-2, keepdims=True)).swapaxes(-1, -2) @ (hx - h_mean) / n  # Cov(X, h(X))
+        gain = np.linalg.solve(R, cross.swapaxes(-1, -2)).swapaxes(-1, -2)  # K = Cov(X, h) R⁻¹
+        x = x + dlam * (z - 0.5 * (hx + h_mean)) @ gain.swapaxes(-1, -2)
     return x
 
 
-def ie_pff_step(belief: Particles, model, z: np.ndarray, *, k: int = 1, rng: np.random.Generator,
+def ie_pff_step(belief: Particles, model, z: np.ndarray, *, k: int = 1, rng: runs.Streams,
                 step_sizes: np.ndarray) -> ParticleStep:
     """Predict particles through the transition (with process noise), then :func:`ie_pff_update`.
-    The flow treats the particles as equally weighted (it neither weights nor resamples)."""
+    The flow treats the particles as equally weighted (it neither weights nor resamples). For B
+    runs: particles (B, N, D), z (B, L), one Generator per run."""
     require_model(model, StateSpaceModel, "IE-PFF")
-    x = as_matrix(belief.particles, "particles", None, model.state_dim)
+    x, z = _check_inputs(belief.particles, z, model, rng)
     circular = model.circular_state
-    x = ie_pff_update(on_one_branch(model.sample_transition(x, k, rng), circular), model, z, k, step_sizes)
+    x = ie_pff_update(on_one_branch(sample_transition(model, x, k, rng), circular), model, z, k, step_sizes)
     x = wrap_components(x, circular)
     return _flow_step(x, *particle_moments(x, circular))
 
 
+def _jacobian_runs(jacobian, mean: np.ndarray, k: int, shape: tuple[int, int]) -> np.ndarray:
+    """A model Jacobian at the mean (D,) of one run, or at the means (B, D) of B runs with NaN for
+    a run where it fails (:func:`~gpfverify.filters.runs.isolate_runs`)."""
+    if mean.ndim == 1:
+        return jacobian(mean, k)
+    return runs.isolate_runs(lambda part: jacobian(part, k), mean, shape)
+
+
 def edh_update(particles: np.ndarray, P: np.ndarray, model, z: np.ndarray, k: int,
                step_sizes: np.ndarray) -> np.ndarray:
-    """Move predicted particles (N, D) along the exact Daum–Huang flow with predicted covariance P."""
+    """Move predicted particles (N, D) along the exact Daum–Huang flow with predicted covariance P
+    (D, D); or B runs at once: particles (B, N, D), P (B, D, D), z (B, L)."""
     steps = _check_steps(step_sizes)
     x, z = _check_inputs(particles, z, model)
     R = _measurement_cov(model)
-    x0_mean = x.mean(axis=0)
-    eye = np.eye(x.shape[1])
+    x0_mean = x.mean(axis=-2)[..., None]  # (..., D, 1)
+    eye = np.eye(x.shape[-1])
+    shape = (model.measurement_dim, model.state_dim)
     lam_start = 0.0
     for dlam in steps:
         lam = lam_start + 0.5 * dlam
-        mean = x.mean(axis=0)
-        H = model.h_jacobian(mean, k)
-        e = unwrapped_measurement(model, z, mean[None, :], k)[0] - H @ mean
-        PHt = P @ H.T
+        mean = x.mean(axis=-2)
+        H = _jacobian_runs(model.h_jacobian, mean, k, shape)
+        e = unwrapped_measurement(model, z, mean[..., None, :], k)[..., 0, :] - (H @ mean[..., None])[..., 0]
+        PHt = P @ H.swapaxes(-1, -2)
         A = -0.5 * PHt @ np.linalg.solve(lam * H @ PHt + R, H)
-        b = (eye + 2 * lam * A) @ ((eye + lam * A) @ (PHt @ np.linalg.solve(R, z - e)) + A @ x0_mean)
-        x = x + dlam * (x @ A.T + b)
+        b = (eye + 2 * lam * A) @ ((eye + lam * A) @ (PHt @ np.linalg.solve(R, (z - e)[..., None])) + A @ x0_mean)
+        x = x + dlam * (x @ A.swapaxes(-1, -2) + b.swapaxes(-1, -2))
         lam_start += dlam
     return x
 
 
 def ekf_covariance_predict(P: np.ndarray, mean: np.ndarray, model, k: int) -> np.ndarray:
-    """P_k|k−1 = F P Fᵀ + Q, F = ∂f/∂x at ``mean``."""
-    F = model.f_jacobian(mean, k)
-    return symmetrize(F @ P @ F.T + model.Q)
+    """P_k|k−1 = F P Fᵀ + Q, F = ∂f/∂x at ``mean`` (per run for P (B, D, D), mean (B, D))."""
+    F = _jacobian_runs(model.f_jacobian, mean, k, (model.state_dim, model.state_dim))
+    return symmetrize(F @ P @ F.swapaxes(-1, -2) + model.Q)
 
 
 def ekf_covariance_update(P: np.ndarray, mean: np.ndarray, model, k: int) -> np.ndarray:
-    """P_k|k = P − P Hᵀ (H P Hᵀ + R)⁻¹ H P, H = ∂h/∂x at ``mean`` (Joseph-free, symmetrised)."""
-    H = model.h_jacobian(mean, k)
-    PHt = P @ H.T
-    return symmetrize(P - right_solve_spd(PHt, H @ PHt + model.R, "HPHᵀ + R") @ PHt.T)
+    """P_k|k = P − P Hᵀ (H P Hᵀ + R)⁻¹ H P, H = ∂h/∂x at ``mean`` (Joseph-free, symmetrised; per
+    run for P (B, D, D), mean (B, D))."""
+    H = _jacobian_runs(model.h_jacobian, mean, k, (model.measurement_dim, model.state_dim))
+    PHt = P @ H.swapaxes(-1, -2)
+    return symmetrize(P - PHt @ np.linalg.solve(H @ PHt + model.R, PHt.swapaxes(-1, -2)))
 
 
-def edh_step(belief: Particles, model, z: np.ndarray, *, k: int = 1, rng: np.random.Generator,
+def edh_step(belief: Particles, model, z: np.ndarray, *, k: int = 1, rng: runs.Streams,
              step_sizes: np.ndarray) -> ParticleStep:
     """Predict particles and the parallel EKF covariance (``belief.ekf_cov``), flow, update the
-    covariance; the posterior carries the updated covariance in ``ekf_cov``."""
+    covariance; the posterior carries the updated covariance in ``ekf_cov``. For B runs:
+    particles (B, N, D), ekf_cov (B, D, D), z (B, L), one Generator per run."""
     require_model(model, StateSpaceModel, "EDH")
     if belief.ekf_cov is None:
         raise InputError("belief.ekf_cov: EDH needs the parallel EKF covariance "
                          "(e.g. Particles.equally_weighted(particles, ekf_cov=prior_cov))")
-    particles = as_matrix(belief.particles, "particles", None, model.state_dim)
+    particles, z = _check_inputs(belief.particles, z, model, rng)
     circular = model.circular_state
     P_pred = ekf_covariance_predict(belief.ekf_cov, particle_moments(particles, circular)[0], model, k)
-    x = edh_update(on_one_branch(model.sample_transition(particles, k, rng), circular), P_pred, model, z, k,
+    x = edh_update(on_one_branch(sample_transition(model, particles, k, rng), circular), P_pred, model, z, k,
                    step_sizes)
     x = wrap_components(x, circular)
     mean, cov = particle_moments(x, circular)

@@ -153,7 +153,11 @@ def gpsr_upf_step(belief: Particles, model: GPResidualModel, y: np.ndarray, *, k
                   rng: np.random.Generator, params: SigmaParams = SigmaParams(),
                   resample_threshold: float = RESAMPLE_THRESHOLD) -> ParticleStep:
     """One GPSR-UPF step: :func:`~gpfverify.filters.upf.upf_step` with the SR-UKF proposal on the
-    GP-corrected model and the GP process noise of each particle."""
+    GP-corrected model and the GP process noise of each particle. One run at a time: its cost is the
+    GP's predictive variance at every particle, which advancing runs together would not reduce."""
+    if np.ndim(belief.particles) != 2:
+        raise InputError("GPSR-UPF takes one run at a time: particles (N, D) (the GP-corrected model's functions "
+                         "take particles as rows of one run)")
     proposal = partial(sr_ukf_proposal, process_sqrt=model.process_sqrt, params=params)
     return upf_step(belief, model.at_step(k), y, k=k, rng=rng, proposal=proposal,
                     resample_threshold=resample_threshold)

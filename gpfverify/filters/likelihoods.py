@@ -13,9 +13,13 @@
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+
 import numpy as np
 
 from gpfverify.angles import difference
+from gpfverify.errors import GpfverifyError
+from gpfverify.filters import runs
 from gpfverify.linalg import cholesky, cholesky_batched
 
 LOG_2PI = float(np.log(2.0 * np.pi))
@@ -81,20 +85,41 @@ def batched_gaussian_logpdf(residuals: np.ndarray, covs: np.ndarray, name: str) 
 
 
 def transition_logpdf(model, x_new: np.ndarray, x_prev: np.ndarray, k: int) -> np.ndarray:
-    """log p(x_new | x_prev) per particle (N,); angle state components (``model.circular_state``)
-    of x_new − f(x_prev) wrapped."""
+    """log p(x_new | x_prev) per particle, (N,) or (B, N) for particles (..., N, D); angle state
+    components (``model.circular_state``) of x_new − f(x_prev) wrapped."""
     if model.transition_logpdf is not None:
-        return model.transition_logpdf(x_new, x_prev, k)
-    return gaussian_logpdf(difference(x_new, model.f(x_prev, k), model.circular_state), model.Q)
+        d = x_new.shape[-1]
+        flat = model.transition_logpdf(x_new.reshape(-1, d), x_prev.reshape(-1, d), k)
+        return np.asarray(flat).reshape(x_new.shape[:-1])
+    predicted = runs.evaluate_runs(model.f, x_prev, k, model.state_dim)
+    return gaussian_logpdf(difference(x_new, predicted, model.circular_state), model.Q)
+
+
+def sample_transition(model, x_prev: np.ndarray, k: int, rng: runs.Streams) -> np.ndarray:
+    """Draws x_k ~ p(x_k | x_{k−1}) (:meth:`~gpfverify.models.StateSpaceModel.sample_transition`)
+    for particles (N, D) of one run, or (B, N, D) of B runs each from its own Generator; a run
+    whose draw fails (its particles left the model's domain) gets NaN."""
+    if not isinstance(rng, Sequence):
+        return model.sample_transition(x_prev, k, rng)
+    out = np.full(x_prev.shape, np.nan)
+    for b, (x, g) in enumerate(zip(x_prev, rng)):
+        if np.isfinite(x).all():
+            try:
+                out[b] = model.sample_transition(x, k, g)
+            except GpfverifyError:
+                pass
+    return out
 
 
 def measurement_loglik(model, y: np.ndarray, x: np.ndarray, k: int) -> np.ndarray:
-    """log p(y | x_i) for particles x (N, D) under Gaussian measurement noise R, angle outputs
-    wrapped."""
-    return gaussian_logpdf(model.residual(y, model.h(x, k)), model.R)
+    """log p(y | x_i) for particles x (N, D) and y (L,) — or x (B, N, D) and y (B, L) of B runs —
+    under Gaussian measurement noise R, angle outputs wrapped."""
+    predicted = runs.evaluate_runs(model.h, x, k, model.measurement_dim)
+    return gaussian_logpdf(model.residual(y[..., None, :], predicted), model.R)
 
 
 def unwrapped_measurement(model, y: np.ndarray, x: np.ndarray, k: int) -> np.ndarray:
     """h(x_i, k) on the branch nearest y: y − residual(y, h(x_i)); equals h(x_i) (to rounding)
-    for outputs that are not angles."""
-    return y - model.residual(y, model.h(x, k))
+    for outputs that are not angles. x (..., N, D) with y (..., L)."""
+    y = y[..., None, :]
+    return y - model.residual(y, runs.evaluate_runs(model.h, x, k, model.measurement_dim))

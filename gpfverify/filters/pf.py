@@ -17,17 +17,18 @@ from __future__ import annotations
 
 import numpy as np
 
-from gpfverify.filters.likelihoods import measurement_loglik
+from gpfverify.filters import runs
+from gpfverify.filters.likelihoods import measurement_loglik, sample_transition
 from gpfverify.filters.resampling import RESAMPLE_THRESHOLD, Particles, ParticleStep, reweight_and_resample
 from gpfverify.models.system import StateSpaceModel, require_model
-from gpfverify.validate import as_matrix, as_vector
 
 
-def pf_step(belief: Particles, model, y: np.ndarray, *, k: int = 1, rng: np.random.Generator,
+def pf_step(belief: Particles, model, y: np.ndarray, *, k: int = 1, rng: runs.Streams,
             resample_threshold: float = RESAMPLE_THRESHOLD) -> ParticleStep:
-    """One bootstrap-PF step from the particles at k−1 with measurement y (L,) at time k."""
+    """One bootstrap-PF step from the particles at k−1 with measurement y (L,) at time k; for B runs
+    (:mod:`~gpfverify.filters.runs`) particles (B, N, D), y (B, L) and one Generator per run."""
     require_model(model, StateSpaceModel, "the bootstrap PF")
-    y = as_vector(y, "y", model.measurement_dim)
-    x = model.sample_transition(as_matrix(belief.particles, "belief.particles", None, model.state_dim), k, rng)
+    x_prev, y = runs.particle_inputs(belief.particles, y, model, rng)
+    x = sample_transition(model, x_prev, k, rng)
     return reweight_and_resample(x, belief.log_weights + measurement_loglik(model, y, x, k), rng,
                                  resample_threshold, circular_state=model.circular_state)

@@ -26,6 +26,7 @@ from collections.abc import Callable
 import numpy as np
 
 from gpfverify.errors import InputError
+from gpfverify.filters import runs
 from gpfverify.filters.likelihoods import measurement_loglik, transition_logpdf, whitened_gaussian_logpdf
 from gpfverify.filters.records import Gaussian
 from gpfverify.filters.resampling import RESAMPLE_THRESHOLD, Particles, ParticleStep, reweight_and_resample
@@ -33,7 +34,6 @@ from gpfverify.filters.sigma_points import SigmaParams
 from gpfverify.filters.ukf import ukf_step
 from gpfverify.linalg import cholesky_batched
 from gpfverify.models.system import StateSpaceModel, require_model
-from gpfverify.validate import as_matrix, as_vector
 
 Proposal = Callable[..., tuple[np.ndarray, np.ndarray]]
 
@@ -41,12 +41,13 @@ Proposal = Callable[..., tuple[np.ndarray, np.ndarray]]
 def ukf_proposal(belief: Particles, model, y: np.ndarray, *, k: int = 1,
                  params: SigmaParams = SigmaParams()) -> tuple[np.ndarray, np.ndarray]:
     """One UKF step per particle from N(x^i, S^i S^iᵀ) with measurement y: the posterior means and
-    Cholesky factors (van der Merwe et al. 2000, Alg. UPF step 2)."""
+    Cholesky factors (van der Merwe et al. 2000, Alg. UPF step 2); every particle of B runs at
+    once for particles (B, N, D) and y (B, L)."""
     if belief.sqrt_covs is None:
         raise InputError("belief.sqrt_covs: the UKF proposal needs each particle's covariance factor "
                          "(Particles.from_gaussian gives the prior's)")
     covs = belief.sqrt_covs @ np.swapaxes(belief.sqrt_covs, -1, -2)
-    record = ukf_step(Gaussian(belief.particles, covs), model, y, k=k, params=params)
+    record = ukf_step(Gaussian(belief.particles, covs), model, y[..., None, :], k=k, params=params)
     return record.mu_e, cholesky_batched(record.C_e, "UKF proposal covariance")
 
 
@@ -56,19 +57,19 @@ def proposal_logpdf(white: np.ndarray, sqrt_covs: np.ndarray) -> np.ndarray:
     return whitened_gaussian_logpdf(white, 2.0 * log_diag.sum(axis=-1))
 
 
-def upf_step(belief: Particles, model, y: np.ndarray, *, k: int = 1, rng: np.random.Generator,
+def upf_step(belief: Particles, model, y: np.ndarray, *, k: int = 1, rng: runs.Streams,
              proposal: Proposal = ukf_proposal, resample_threshold: float = RESAMPLE_THRESHOLD) -> ParticleStep:
     """One UPF step with measurement y (L,) at time k; the record carries the weighted posterior
-    estimate taken before resampling."""
+    estimate taken before resampling. For B runs: particles (B, N, D) with their factors
+    (B, N, D, D), y (B, L) and one Generator per run."""
     require_model(model, StateSpaceModel, "the UPF")
-    y = as_vector(y, "y", model.measurement_dim)
-    as_matrix(belief.particles, "belief.particles", None, model.state_dim)
+    x_prev, y = runs.particle_inputs(belief.particles, y, model, rng)
     if belief.sqrt_covs is None:
         raise InputError("belief.sqrt_covs: the UPF needs each particle's covariance factor "
                          "(e.g. Particles.from_gaussian)")
     means, factors = proposal(belief, model, y, k=k)
-    white = rng.standard_normal(means.shape)
-    x = means + np.einsum("nij,nj->ni", factors, white)
+    white = runs.normal(rng, means.shape[-2:])
+    x = means + np.einsum("...ij,...j->...i", factors, white)
     log_w = (belief.log_weights + measurement_loglik(model, y, x, k)
-             + transition_logpdf(model, x, belief.particles, k) - proposal_logpdf(white, factors))
+             + transition_logpdf(model, x, x_prev, k) - proposal_logpdf(white, factors))
     return reweight_and_resample(x, log_w, rng, resample_threshold, factors, model.circular_state)

@@ -19,7 +19,8 @@ A fusion case holds what the fusion centre knows at time k (seed 000 §3):
 
 Every check raises :class:`~gpfverify.errors.CaseFileError` naming the offending entry.
 
-Reading (:func:`load_case`, :func:`case_from_dict`) goes through the typed JSON records of
+Reading (:func:`~gpfverify.fusion.caseblock.load_case`, :func:`~gpfverify.fusion.caseblock.case_from_dict`,
+:func:`~gpfverify.fusion.caseblock.case_from_records`: a block of one step) goes through the typed JSON records of
 :mod:`gpfverify.fusion.caseformat` (strict numbers of magnitude at most :data:`MAX_MAGNITUDE`
 = 1e100, no unknown or duplicate keys, nesting fixed by the types) and the checks of
 :mod:`gpfverify.fusion.caseblock` (shapes, symmetry, definiteness), the same route as every
@@ -40,12 +41,11 @@ from typing import Any
 
 import numpy as np
 
-from gpfverify.errors import CaseFileError, InputError
-from gpfverify.fusion.caseformat import MAX_MAGNITUDE, decode, from_python
-from gpfverify.userfiles import read_regular
+from gpfverify.errors import InputError
+from gpfverify.fusion.caseformat import MAX_MAGNITUDE
 
-__all__ = ["MAX_MAGNITUDE", "CentralPrediction", "LocalReport", "FusionCase", "case_from_dict", "load_case",
-           "case_to_dict", "cases_to_dicts", "case_from_records", "sensor_blocks", "stack_circular", "split_circular"]
+__all__ = ["MAX_MAGNITUDE", "CentralPrediction", "LocalReport", "FusionCase", "case_to_dict", "cases_to_dicts",
+           "sensor_blocks", "stack_circular", "split_circular"]
 
 
 @functools.lru_cache(maxsize=256)
@@ -144,32 +144,8 @@ class FusionCase:
         return self.y[self.central.blocks[m]]
 
 
-def case_from_dict(data) -> FusionCase:
-    """Validate a decoded case (dicts and lists, as ``json.loads`` gives them) by the rules of the
-    case format (module docstring); raises :class:`CaseFileError` naming what is wrong."""
-    from gpfverify.fusion.caseblock import block_from_records, layout
-
-    record = from_python(data)
-    layout(record)
-    return block_from_records([record]).case(0)
-
-
-def load_case(path) -> FusionCase:
-    """Read and validate a fusion-case JSON file (a regular file, strict JSON: module docstring);
-    CaseFileError naming the file and the entry."""
-    from gpfverify.fusion.caseblock import block_from_records, layout
-
-    raw = read_regular(path)
-    try:
-        record = decode(raw)
-        layout(record)
-        return block_from_records([record]).case(0)
-    except CaseFileError as exc:
-        raise CaseFileError(f"{path}: {exc}") from None
-
-
 def case_to_dict(case: FusionCase) -> dict:
-    """The JSON-able form read back by :func:`case_from_dict`."""
+    """The JSON-able form read back by :func:`~gpfverify.fusion.caseblock.case_from_dict`."""
     return cases_to_dicts([case])[0]
 
 
@@ -223,23 +199,4 @@ def _layout(case: FusionCase) -> tuple:
             tuple((r.C_e is None, r.circular) for r in case.locals))
 
 
-def case_from_records(central, local_records, sizes, y=None, rank_tol=None, circular=(),
-                      circular_state=()) -> FusionCase:
-    """A case from filter records: ``central`` has the centre's mu_p, C_p, mu_y, C_y, C_xy
-    (e.g. the CMF :class:`~gpfverify.filters.records.StepRecord`); ``local_records`` are the
-    sensors' step records (their mu_e and C_e are what they send); ``circular`` the angle outputs
-    of the stacked measurement (e.g. a model's ``circular``), ``circular_state`` the angle state
-    components (a model's ``circular_state``)."""
-    return case_from_dict({
-        "central": {"mu_p": np.asarray(central.mu_p).tolist(), "C_p": np.asarray(central.C_p).tolist(),
-                    "mu_y": np.asarray(central.mu_y).tolist(), "C_y": np.asarray(central.C_y).tolist(),
-                    "C_xy": np.asarray(central.C_xy).tolist(), "sizes": [int(s) for s in sizes],
-                    "circular": [int(i) for i in circular]},
-        "locals": [{"mu_p": np.asarray(r.mu_p).tolist(), "mu_y": np.asarray(r.mu_y).tolist(),
-                    "C_y": np.asarray(r.C_y).tolist(), "C_xy": np.asarray(r.C_xy).tolist(),
-                    "mu_e": np.asarray(r.mu_e).tolist(), "C_e": np.asarray(r.C_e).tolist()}
-                   for r in local_records],
-        "y": None if y is None else np.asarray(y, dtype=float).tolist(),
-        "rank_tol": rank_tol,
-        "circular_state": [int(i) for i in circular_state],
-    })
+#END

@@ -18,6 +18,9 @@ is not sent, is implied as C_p^m = C_e^m + C_xy^m (C_y^m)⁻¹ C_xy^mᵀ; it is 
 exactly when C_e^m is (Schur complement), which is checked. The first step that breaks a rule raises
 :class:`StepError` with that step's position and the entry's name, so a file's first problem is
 the one reported, whatever the block size.
+
+One fusion case is read as a block of one step: :func:`case_from_dict`, :func:`load_case` and
+:func:`case_from_records` (the types are :mod:`gpfverify.fusion.case`'s).
 """
 
 from __future__ import annotations
@@ -28,8 +31,9 @@ from collections.abc import Sequence
 import numpy as np
 
 from gpfverify.errors import CaseFileError
+from gpfverify.userfiles import read_regular
 from gpfverify.fusion.case import CentralPrediction, FusionCase, LocalReport, split_circular, stack_circular
-from gpfverify.fusion.caseformat import MAX_MAGNITUDE, Case, given
+from gpfverify.fusion.caseformat import MAX_MAGNITUDE, Case, decode, from_python, given
 from gpfverify.validate import covariance_defects
 
 
@@ -339,3 +343,46 @@ def block_from_arrays(sizes: Sequence[int], circular: Sequence[int], central: di
                                  None if y is None else np.asarray(y, dtype=float),
                                  np.asarray(rank_tol, dtype=float), tuple(int(i) for i in circular_state)))
 
+
+# ---- one case: a block of one step ----------------------------------------------------------------
+
+def case_from_dict(data) -> FusionCase:
+    """Validate a decoded case (dicts and lists, as ``json.loads`` gives them) by the rules of the
+    case format (module docstring); raises :class:`CaseFileError` naming what is wrong."""
+    record = from_python(data)
+    layout(record)
+    return block_from_records([record]).case(0)
+
+
+def load_case(path) -> FusionCase:
+    """Read and validate a fusion-case JSON file (a regular file, strict JSON: module docstring);
+    CaseFileError naming the file and the entry."""
+    raw = read_regular(path)
+    try:
+        record = decode(raw)
+        layout(record)
+        return block_from_records([record]).case(0)
+    except CaseFileError as exc:
+        raise CaseFileError(f"{path}: {exc}") from None
+
+
+def case_from_records(central, local_records, sizes, y=None, rank_tol=None, circular=(),
+                      circular_state=()) -> FusionCase:
+    """A case from filter records: ``central`` has the centre's mu_p, C_p, mu_y, C_y, C_xy
+    (e.g. the CMF :class:`~gpfverify.filters.records.StepRecord`); ``local_records`` are the
+    sensors' step records (their mu_e and C_e are what they send); ``circular`` the angle outputs
+    of the stacked measurement (e.g. a model's ``circular``), ``circular_state`` the angle state
+    components (a model's ``circular_state``)."""
+    return case_from_dict({
+        "central": {"mu_p": np.asarray(central.mu_p).tolist(), "C_p": np.asarray(central.C_p).tolist(),
+                    "mu_y": np.asarray(central.mu_y).tolist(), "C_y": np.asarray(central.C_y).tolist(),
+                    "C_xy": np.asarray(central.C_xy).tolist(), "sizes": [int(s) for s in sizes],
+                    "circular": [int(i) for i in circular]},
+        "locals": [{"mu_p": np.asarray(r.mu_p).tolist(), "mu_y": np.asarray(r.mu_y).tolist(),
+                    "C_y": np.asarray(r.C_y).tolist(), "C_xy": np.asarray(r.C_xy).tolist(),
+                    "mu_e": np.asarray(r.mu_e).tolist(), "C_e": np.asarray(r.C_e).tolist()}
+                   for r in local_records],
+        "y": None if y is None else np.asarray(y, dtype=float).tolist(),
+        "rank_tol": rank_tol,
+        "circular_state": [int(i) for i in circular_state],
+    })

@@ -1,5 +1,5 @@
 """The fusion rules' command-line names: one list for every subcommand and for
-:func:`gpfverify.fusion.model_fusion.run_fusion`.
+:func:`gpfverify.model_fusion.run_fusion`.
 
 ``cmf`` centralized fusion with the stacked measurement; ``dmf`` distributed fusion, Proposition
 1 (eq. 35); ``cc`` convex combination (labelled CW, "convex weights", in the papers' figures, so

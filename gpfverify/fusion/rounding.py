@@ -46,7 +46,7 @@ and the computed kernel, whose angle to the exact one is θ_m eps, seen through
 ‖L_p⁻¹ G_m L_y^m‖₂. Same factor (D + L) eps.
 
 :class:`SensorTerms` carries a sensor's operands; the callers (the per-case audit in
-:mod:`gpfverify.fusion.exactness` and the batched block audit in :mod:`gpfverify.blockaudit`)
+:mod:`gpfverify.fusion.exactness` and the batched block audit in :mod:`gpfverify.audit.block`)
 compute the route-dependent numbers e_m, ω_m, θ_m with the route that computed the reconstruction.
 """
 

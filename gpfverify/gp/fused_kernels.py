@@ -1,6 +1,6 @@
 """The compiled loops of :mod:`gpfverify.gp.fused` (numba; imported on first use, so that importing
 the package does not import numba). The formulas, and how the compiled expm1 relates to
-:func:`gpfverify.gp.fused.expm1_reference`, are stated there."""
+:func:`gpfverify.gp.expm1.expm1_reference`, are stated there."""
 
 from __future__ import annotations
 
@@ -10,8 +10,7 @@ import numpy as np
 from llvmlite import ir
 
 from gpfverify import numba_target
-from gpfverify.gp.fused import (_SHIFTER_BITS, INV_LN2, LN2_HI, LN2_LO, LOWEST, SHIFTER,
-                                _expm1_reduced)
+from gpfverify.gp.expm1 import _SHIFTER_BITS, INV_LN2, LN2_HI, LN2_LO, LOWEST, SHIFTER, _expm1_reduced
 
 numba_target.configure()
 
@@ -42,7 +41,7 @@ def _bits_float(typingctx, bits):
 
 @_jit_fma
 def _expm1(value: float) -> float:
-    """expm1(value) for value ≤ 700 by :func:`gpfverify.gp.fused.expm1_reference`'s steps, a
+    """expm1(value) for value ≤ 700 by :func:`gpfverify.gp.expm1.expm1_reference`'s steps, a
     multiply and an add fused where the processor has FMA; a scalar function that loops calling it
     vectorise whole."""
     x = max(value, LOWEST)

@@ -1,5 +1,5 @@
-"""casadi model functions: a ``casadi.Function`` as a :class:`ModelFunction`, and a whole
-state-space model from casadi expressions (:meth:`StateSpaceModel.from_casadi`).
+"""casadi model functions: a ``casadi.Function`` as a :class:`ModelFunction`, from which
+:meth:`StateSpaceModel.from_casadi` builds a whole state-space model from casadi expressions.
 
 A model function is a casadi Function ``g(x[, k])`` with one input of D entries (the state),
 optionally a second scalar input (the step index k), and one output of E entries. It is
@@ -15,7 +15,6 @@ broadcast, and the outputs come back as (E, N) and (E, N·D) = [J(x_1) … J(x_N
 from __future__ import annotations
 
 import re
-from dataclasses import replace
 from collections.abc import Callable, Sequence
 
 import casadi as ca
@@ -23,12 +22,6 @@ import numpy as np
 
 from gpfverify.errors import GpfverifyError, InputError
 from gpfverify.models.functions import ModelFunction
-from gpfverify.models.system import Sensor, StateSpaceModel
-
-
-def sensor_label(m: int, sensor: Sensor) -> str:
-    """How :class:`StateSpaceModel` names sensor ``m``'s function in messages."""
-    return f"sensor {m}" + (f" ({sensor.name})" if sensor.name else "") + " measure"
 
 
 def casadi_name(label: str) -> str:
@@ -118,30 +111,3 @@ def casadi_function(obj, name: str, in_dim: int, out_dim: int, circular: Sequenc
                          "casadi.Function(name, [x], [expr]) or build the model with "
                          "StateSpaceModel.from_casadi(state, ...)")
     return CasadiFunction(obj, name, in_dim, out_dim, circular)
-
-
-def model_from_casadi(state, transition, process_cov, sensors: Sequence[Sensor], prior_mean,
-                      prior_cov, *, step=None, circular_state: Sequence[int] = (), name: str = "",
-                      **kwargs) -> StateSpaceModel:
-    """The model x_k = f(x_{k−1}, k) + w_k, y_k^m = h_m(x_k, k) + v_k^m with f = ``transition``
-    and h_m = ``sensors[m].measure`` casadi expressions in the column symbol ``state`` (D x 1) and
-    the optional scalar symbol ``step`` (k). Each expression becomes casadi.Function(label,
-    [state(, step)], [expr]); casadi Functions, matrices and numpy callables are passed on
-    unchanged. Other keyword arguments go to :class:`StateSpaceModel`."""
-    inputs = [state] if step is None else [state, step]
-    sensors = [sensors] if isinstance(sensors, Sensor) else sensors
-
-    def function(expr, label: str):
-        if not isinstance(expr, (ca.SX, ca.MX)):
-            return expr
-        try:
-            # SX or MX: casadi's overloads take one kind per call, a mix is casadi's error below
-            return ca.Function(casadi_name(label), inputs, [expr])  # type: ignore[list-item]
-        except Exception as exc:  # free symbols, a state that is not a symbol, mixed SX and MX
-            raise InputError(f"{label} is not a casadi expression in the state"
-                             f"{'' if step is None else ' and the step k'}: {casadi_message(exc)}") from exc
-
-    bound = [replace(s, measure=function(s.measure, sensor_label(m, s))) if isinstance(s, Sensor) else s
-             for m, s in enumerate(sensors)]
-    return StateSpaceModel(function(transition, "transition"), process_cov, bound, prior_mean,
-                           prior_cov, circular_state=circular_state, name=name, **kwargs)

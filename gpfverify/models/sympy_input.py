@@ -1,5 +1,5 @@
-"""sympy model functions: a state-space model from sympy expressions
-(:meth:`StateSpaceModel.from_sympy`).
+"""sympy model functions, from which :meth:`StateSpaceModel.from_sympy` builds a state-space model
+from sympy expressions.
 
 A model function is a column of expressions g(x, k) = [g_1, …, g_E] in the state symbols
 x = (x_1, …, x_D) and an optional step symbol k. It is evaluated by ``sympy.lambdify(...,
@@ -19,7 +19,6 @@ InputError naming the part of the model.
 
 from __future__ import annotations
 
-from dataclasses import replace
 from collections.abc import Sequence
 
 import casadi as ca
@@ -27,9 +26,8 @@ import numpy as np
 import sympy as sp
 
 from gpfverify.errors import InputError
-from gpfverify.models.casadi_input import casadi_message, casadi_name, checked_jacobian, sensor_label
+from gpfverify.models.casadi_input import casadi_message, casadi_name, checked_jacobian
 from gpfverify.models.functions import ModelFunction
-from gpfverify.models.system import Sensor, StateSpaceModel
 
 #: The sympy functions (by class name) that :meth:`SympyFunction.casadi_function` translates.
 CASADI_FUNCTIONS: dict[str, object] = {
@@ -125,18 +123,3 @@ class SympyFunction(ModelFunction):
         except Exception as exc:
             raise InputError(f"{self.name} could not be built as a casadi Function: "
                              f"{casadi_message(exc)}") from exc
-
-
-def model_from_sympy(states: Sequence[sp.Symbol], transition, process_cov, sensors: Sequence[Sensor],
-                     prior_mean, prior_cov, *, step: sp.Symbol | None = None,
-                     circular_state: Sequence[int] = (), name: str = "", **kwargs) -> StateSpaceModel:
-    """The model x_k = f(x_{k−1}, k) + w_k, y_k^m = h_m(x_k, k) + v_k^m with f = ``transition``
-    and h_m = ``sensors[m].measure`` sympy expressions (sequences or Matrices, one entry per
-    output) in the symbols ``states`` (x_1, …, x_D) and the optional ``step`` symbol k; each
-    becomes a :class:`SympyFunction`. Other keyword arguments go to :class:`StateSpaceModel`."""
-    states = tuple(states)
-    sensors = [sensors] if isinstance(sensors, Sensor) else sensors
-    bound = [replace(s, measure=SympyFunction(s.measure, states, step, sensor_label(m, s)))
-             if isinstance(s, Sensor) else s for m, s in enumerate(sensors)]
-    return StateSpaceModel(SympyFunction(transition, states, step, "transition"), process_cov, bound,
-                           prior_mean, prior_cov, circular_state=circular_state, name=name, **kwargs)

@@ -165,14 +165,12 @@ class StateSpaceModel(StackedMeasurement):
 
     @classmethod
     def from_casadi(cls, *args, **kwargs) -> StateSpaceModel:
-        """See :func:`gpfverify.models.casadi_input.model_from_casadi`."""
-        from gpfverify.models.casadi_input import model_from_casadi
+        """See :func:`model_from_casadi`."""
         return model_from_casadi(*args, **kwargs)
 
     @classmethod
     def from_sympy(cls, *args, **kwargs) -> StateSpaceModel:
-        """See :func:`gpfverify.models.sympy_input.model_from_sympy`."""
-        from gpfverify.models.sympy_input import model_from_sympy
+        """See :func:`model_from_sympy`."""
         return model_from_sympy(*args, **kwargs)
 
     def __post_init__(self):
@@ -395,3 +393,57 @@ def require_model(model, kind: type, who: str) -> None:
         hint = (" (learn one with gpfverify.models.learn_gp_model or fit_gp_model)"
                 if kind.__name__ == "GPModel" else " (gpfverify.models.StateSpaceModel)")
         raise InputError(f"{who} needs a {kind.__name__}{hint}, got {type(model).__name__}")
+
+
+def _measure_label(m: int, sensor: Sensor) -> str:
+    """How :class:`StateSpaceModel` names sensor ``m``'s function in messages."""
+    return f"sensor {m}" + (f" ({sensor.name})" if sensor.name else "") + " measure"
+
+
+def model_from_casadi(state, transition, process_cov, sensors: Sequence[Sensor], prior_mean,
+                      prior_cov, *, step=None, circular_state: Sequence[int] = (), name: str = "",
+                      **kwargs) -> StateSpaceModel:
+    """The model x_k = f(x_{k−1}, k) + w_k, y_k^m = h_m(x_k, k) + v_k^m with f = ``transition``
+    and h_m = ``sensors[m].measure`` casadi expressions in the column symbol ``state`` (D x 1) and
+    the optional scalar symbol ``step`` (k). Each expression becomes casadi.Function(label,
+    [state(, step)], [expr]); casadi Functions, matrices and numpy callables are passed on
+    unchanged. Other keyword arguments go to :class:`StateSpaceModel`."""
+    import casadi as ca
+
+    from gpfverify.models.casadi_input import casadi_message, casadi_name
+
+    inputs = [state] if step is None else [state, step]
+    sensors = [sensors] if isinstance(sensors, Sensor) else sensors
+
+    def function(expr, label: str):
+        if not isinstance(expr, (ca.SX, ca.MX)):
+            return expr
+        try:
+            # SX or MX: casadi's overloads take one kind per call, a mix is casadi's error below
+            return ca.Function(casadi_name(label), inputs, [expr])  # type: ignore[list-item]
+        except Exception as exc:  # free symbols, a state that is not a symbol, mixed SX and MX
+            raise InputError(f"{label} is not a casadi expression in the state"
+                             f"{'' if step is None else ' and the step k'}: {casadi_message(exc)}") from exc
+
+    bound = [replace(s, measure=function(s.measure, _measure_label(m, s))) if isinstance(s, Sensor) else s
+             for m, s in enumerate(sensors)]
+    return StateSpaceModel(function(transition, "transition"), process_cov, bound, prior_mean,
+                           prior_cov, circular_state=circular_state, name=name, **kwargs)
+
+
+def model_from_sympy(states: Sequence, transition, process_cov, sensors: Sequence[Sensor],
+                     prior_mean, prior_cov, *, step=None,
+                     circular_state: Sequence[int] = (), name: str = "", **kwargs) -> StateSpaceModel:
+    """The model x_k = f(x_{k−1}, k) + w_k, y_k^m = h_m(x_k, k) + v_k^m with f = ``transition``
+    and h_m = ``sensors[m].measure`` sympy expressions (sequences or Matrices, one entry per
+    output) in the symbols ``states`` (x_1, …, x_D) and the optional ``step`` symbol k; each
+    becomes a :class:`~gpfverify.models.sympy_input.SympyFunction`. Other keyword arguments go to
+    :class:`StateSpaceModel`."""
+    from gpfverify.models.sympy_input import SympyFunction
+
+    states = tuple(states)
+    sensors = [sensors] if isinstance(sensors, Sensor) else sensors
+    bound = [replace(s, measure=SympyFunction(s.measure, states, step, _measure_label(m, s)))
+             if isinstance(s, Sensor) else s for m, s in enumerate(sensors)]
+    return StateSpaceModel(SympyFunction(transition, states, step, "transition"), process_cov, bound,
+                           prior_mean, prior_cov, circular_state=circular_state, name=name, **kwargs)

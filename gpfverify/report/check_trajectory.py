@@ -1,7 +1,7 @@
 """The check page's trajectory figure, drawn from ``results.json``'s ``trajectory`` (the first run)
 only: the truth against each method's estimate with its covariance ellipse, one panel per method,
 and the repaired DMF mean at the steps whose audit proposes a repair (the repair message restores
-CMF's mean: :attr:`gpfverify.audit.CaseAudit.repaired_dmf_mean`).
+CMF's mean: :attr:`gpfverify.audit.case.CaseAudit.repaired_dmf_mean`).
 
 A state of two or more components is drawn in the plane of its first two (x₀, x₁) with the
 marginal covariance's ellipse {p : (p − μ)ᵀ C⁻¹ (p − μ) = χ²₂(level)}; a scalar state against the

@@ -133,7 +133,9 @@ class Control:
 
 @dataclass(frozen=True)
 class CertificateInfo:
-    """A proof certificate (``certificates.json``, CONTRACT.md) as the page shows it."""
+    """A certificate (``certificates.json``, CONTRACT.md) as the page shows it: every word here was
+    derived by the kernel from the record's formal content (:mod:`gpfverify.kernel.verdict`), except
+    the title, which is shown apart from the statement."""
 
     claim: str
     statement: str
@@ -143,21 +145,28 @@ class CertificateInfo:
     seconds: float = 0.0
     scope: str = ""
     negative_controls: tuple[Control, ...] = ()
-    #: facts the argument uses without proving them
-    stated_facts: tuple[str, ...] = ()
+    title: str = ""
+    #: a numerical check that failed (False), or None for a kernel record
+    holds: bool | None = None
 
     @classmethod
     def of(cls, record: dict) -> CertificateInfo:
-        """From one record of ``certificates.json`` (unknown fields such as ``provenance`` are
-        not shown)."""
+        """From one record of ``certificates.json`` (fields such as ``formal`` or ``provenance`` are
+        not shown), re-checked by the kernel: a record the kernel does not confirm is shown as
+        "checked", its detail starting with what the kernel found."""
+        from gpfverify.kernel.verdict import check_record
+
         try:
             controls = tuple(Control(str(c["mutant"]), bool(c["rejected"]),
                                      None if c.get("false_on_instance") is None else bool(c["false_on_instance"]))
                              for c in record.get("negative_controls", ()))
+            status, detail = str(record["status"]), str(record.get("detail", ""))
+            problems = check_record(record)
+            if problems:
+                status, detail = "checked", "REJECTED by the kernel: " + "; ".join(problems) + ". " + detail
             return cls(str(record["claim"]), str(record.get("statement", "")), str(record.get("method", "")),
-                       str(record["status"]), str(record.get("detail", "")), float(record.get("seconds", 0.0)),
-                       str(record.get("scope", "")), controls,
-                       tuple(str(f) for f in record.get("stated_facts", ())))
+                       status, detail, float(record.get("seconds", 0.0)), str(record.get("scope", "")), controls,
+                       str(record.get("title", "")), None if record.get("holds") is None else bool(record["holds"]))
         except (KeyError, TypeError, ValueError) as exc:
             raise InputError(f"malformed certificate {str(record)[:80]!r}: {exc}") from None
 

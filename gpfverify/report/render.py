@@ -349,8 +349,9 @@ def header_blocks(summary: SectionSummary) -> list:
         blocks.append(run_table(summary))
     if summary.certificates:
         seconds = sum(c.seconds for c in summary.certificates)
-        blocks.append(Paragraph(f"What was run: {len(summary.certificates)} certificates (exact symbolic "
-                                f"computation and independent implementations), {seconds:.0f} s in all."))
+        blocks.append(Paragraph(f"What was run: {len(summary.certificates)} certificates (kernel-checked "
+                                "proofs and counterexamples, checks by other routes and implementations), "
+                                f"{seconds:.0f} s in all."))
     return blocks
 
 
@@ -445,9 +446,9 @@ def references_blocks() -> list:
 _LEGEND = ("Colours: held (green) — our runs agree with the paper's claim; NOT held (red) — they contradict "
            "it beyond the Monte Carlo error; undecided (amber) — the Monte Carlo interval contains the "
            "threshold, more runs would decide; not decidable (grey) — the runs as made cannot decide it. "
-           "Proofs: proved (exact symbolic argument the engine checked), refuted (an exact counterexample to "
-           "the statement), checked (agreement on exact instances or of two implementations to a tolerance — "
-           f"not a proof). {CAUTION_MARK} marks a verdict that rests on "
+           "Proofs: proved (a certificate the proof kernel accepts, with an exact witness of its hypotheses), "
+           "refuted (an exact counterexample the kernel evaluates), checked (identities at listed sizes or two "
+           f"implementations agreeing to a tolerance — not a proof). {CAUTION_MARK} marks a verdict that rests on "
            "fewer runs than the paper used or on wall-clock timing (which depends on the machine and its "
            "load): hold it loosely.")
 

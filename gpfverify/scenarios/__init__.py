@@ -1,1 +1,1 @@
-"""The papers' state-space models and data generators."""
+"""Reference systems of the toolkit's own (the papers' scenarios are in :mod:`gpfverify.papers`)."""

@@ -26,8 +26,10 @@ from hypothesis import note
 from hypothesis.control import current_build_context
 
 from gpfverify.fusion.case import FusionCase, case_to_dict
-from gpfverify.pytest_plugin import CASES_VARIABLE as ENVIRONMENT_VARIABLE  # one name: set by --gpfverify-cases
 
+#: the folder counterexamples are written to; set by ``pytest --gpfverify-cases DIR``
+#: (:mod:`gpfverify.pytest_plugin`) and by ``gpfverify props --out DIR``
+ENVIRONMENT_VARIABLE = "GPFVERIFY_COUNTEREXAMPLES"
 #: what precedes a counterexample case's JSON in a failure report (``show=True``)
 CASE_PREFIX = "gpfverify fusion case:"
 

@@ -122,7 +122,7 @@ def fusion_cases(draw, state_dim=st.integers(1, 4), sensors=st.integers(1, 3),
     ``prior`` is ``"shared"``, ``"independent"`` or a strategy of those; ``with_y`` includes the
     stacked measurement; every other parameter is that of
     :func:`~gpfverify.strategies.gaussians.joint_gaussians`. Guarantees: the case passes
-    :func:`~gpfverify.fusion.case.case_from_dict` validation (C_y, C_y^m positive definite), each
+    :func:`~gpfverify.fusion.caseblock.case_from_dict` validation (C_y, C_y^m positive definite), each
     local C_xy^m has its designed singular values, and each local posterior is the exact local
     update with the case's y.
     """

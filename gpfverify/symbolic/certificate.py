@@ -1,73 +1,126 @@
-"""The record a proof or cross-check emits (written to ``certificates.json``, see CONTRACT.md)."""
+"""The records ``gpfverify prove`` writes to ``certificates.json`` (see CONTRACT.md and docs/proofs.md).
+
+A :class:`Certificate` holds formal content only — statements, proofs, witnesses,
+counterexamples, mutated statements, checks at listed sizes — and a title shown apart. Its
+status, statement text, hypotheses, scope, method and detail are derived from that content by
+the kernel (:func:`gpfverify.kernel.verdict.derive`): nobody writes them, and ``gpfverify prove
+--check`` derives them again from the file. A :class:`NumericalCheck` (two implementations
+agreeing to rounding) is always "checked".
+"""
 
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+
+from gpfverify.kernel.terms import thawed
+from gpfverify.kernel.verdict import control_outcomes, derive
 
 STATUSES = ("proved", "refuted", "checked")
 SIZES = ("small", "large")
 
 
 @dataclass(frozen=True)
-class Certificate:
-    """``status``: "proved" (exact symbolic argument), "refuted" (an exact counterexample to the
-    claim as stated), or "checked" (agreement on instances or within a stated tolerance).
-    ``detail`` says exactly what was shown, symbolic in which entries, for which sizes.
+class Part:
+    """One formal statement with its proof and witness, or with a counterexample."""
 
-    A "proved" certificate exists only with ``evidence``, the verdict of
-    :class:`~gpfverify.symbolic.argument.Argument` that computed that status: an author cannot
-    declare a claim proved."""
+    statement: dict
+    proof: dict | None = None
+    witness: dict | None = None
+    refutation: dict | None = None
+
+    def json(self) -> dict:
+        out = {"statement": thawed(self.statement)}
+        for name in ("proof", "witness", "refutation"):
+            if getattr(self, name) is not None:
+                out[name] = thawed(getattr(self, name))
+        return out
+
+
+@dataclass(frozen=True)
+class Control:
+    """A mutated statement: the search's attempt at proving it, and an instance that refutes it."""
+
+    mutant: str
+    statement: dict
+    proof: dict | None
+    instance: dict
+
+    def json(self) -> dict:
+        return {"mutant": self.mutant, "statement": thawed(self.statement),
+                "proof": thawed(self.proof) if self.proof is not None else None, "instance": thawed(self.instance)}
+
+
+@dataclass(frozen=True)
+class ListedCheck:
+    """An identity verified by another route at listed sizes (exact, not a proof); ``domain`` the
+    conditions under which both sides are defined (every denominator nonzero)."""
+
+    what: str
+    sizes: tuple
+    domain: tuple
+    holds: bool
+
+    def json(self) -> dict:
+        return {"what": self.what, "sizes": list(self.sizes), "domain": list(self.domain), "holds": self.holds}
+
+
+class Certificate:
+    """A claim's record: formal content in, every word derived by the kernel."""
+
+    def __init__(self, claim: str, title: str, parts=(), controls=(), checks=(), seconds: float = 0.0):
+        core: dict = {"claim": claim, "title": title, "formal": [p.json() for p in parts]}
+        if not parts:
+            del core["formal"]
+        if checks:
+            core["checks"] = [c.json() for c in checks]
+        if controls:
+            core["negative_controls"] = [c.json() for c in controls]
+            for entry, (_, rejected, false) in zip(core["negative_controls"], control_outcomes(core)):
+                entry["rejected"], entry["false_on_instance"] = rejected, false
+        self.record = {**core, **derive(core), "seconds": seconds}
+
+    def __getattr__(self, name):
+        if name in ("claim", "title", "status", "statement", "scope", "method", "detail", "hypotheses", "seconds"):
+            return self.record.get(name)
+        raise AttributeError(name)
+
+    @property
+    def negative_controls(self) -> list:
+        return self.record.get("negative_controls", [])
+
+    @property
+    def failures(self) -> list[str]:
+        """What makes ``gpfverify prove`` exit non-zero: a control the kernel accepted or could not
+        show false, a check at listed sizes that fails."""
+        out = [f"negative control {c['mutant']!r} was {'accepted' if not c['rejected'] else 'not shown false'}"
+               for c in self.negative_controls if not (c["rejected"] and c["false_on_instance"])]
+        out += [f"the check '{c['what']}' fails" for c in self.record.get("checks", ()) if not c["holds"]]
+        return out
+
+    def to_json(self) -> dict:
+        return dict(self.record)
+
+
+@dataclass(frozen=True)
+class NumericalCheck:
+    """Two implementations agreeing within a stated tolerance: status "checked", never a proof."""
 
     claim: str
     statement: str
     method: str
-    status: str
+    holds: bool
     detail: str
     seconds: float = 0.0
-    #: "any dimension" or the sizes covered (CONTRACT.md, Certificates)
-    scope: str = ""
-    #: ({"mutant": str, "rejected": bool, ...}, ...): mutated statements the proof must reject
-    negative_controls: tuple = ()
-    #: facts the argument uses and does not prove, each with the engine's check of it
-    stated_facts: tuple = ()
-    #: the hypotheses the conclusions rest on (each is also written into the statement)
-    hypotheses: tuple = ()
-    #: the engine's instance checks: ({"rule", "kind", "instances", "holds"}, ...)
-    checks: tuple = ()
-    evidence: object = field(default=None, compare=False, repr=False)
+    scope: str = field(default="the random inputs listed in the detail")
 
-    def __post_init__(self):
-        if self.status not in STATUSES:
-            raise ValueError(f"status must be one of {STATUSES}, got {self.status!r}")
-        if self.status == "proved" and (getattr(self.evidence, "status", None) != "proved"
-                                        or getattr(self.evidence, "claim", None) != self.claim):
-            raise ValueError(f"{self.claim}: a certificate is proved only by the engine's verdict on its own claim")
-        if self.status == "proved" and not self.controls_rejected:
-            # a proof that accepts a mutated statement is not a proof: demote it and say so
-            accepted = [c["mutant"] for c in self.negative_controls if not c["rejected"]]
-            object.__setattr__(self, "status", "checked")
-            object.__setattr__(self, "detail", "NOT A PROOF: negative controls accepted ("
-                               + "; ".join(accepted) + "). " + self.detail)
+    status = "checked"
+    negative_controls: tuple = ()
 
     @property
-    def controls_rejected(self) -> bool:
-        """Every negative control was rejected (vacuously true without controls)."""
-        return all(c["rejected"] for c in self.negative_controls)
+    def failures(self) -> list[str]:
+        return [] if self.holds else [f"{self.claim}: the two implementations disagree"]
 
     def to_json(self) -> dict:
-        out = {"claim": self.claim, "statement": self.statement, "method": self.method, "status": self.status,
-               "detail": self.detail, "seconds": self.seconds}
-        if self.scope:
-            out["scope"] = self.scope
-        if self.negative_controls:
-            out["negative_controls"] = [dict(c) for c in self.negative_controls]
-        for name in ("stated_facts", "hypotheses", "checks"):
-            value = getattr(self, name)
-            if value:
-                out[name] = [dict(v) if isinstance(v, dict) else v for v in value]
-        return out
-
-
-def verdict(holds: bool, proved: str = "checked") -> str:
-    """``checked`` (or the given word) when every numerical check held, else ``refuted``."""
-    return proved if holds else "refuted"
+        return {"claim": self.claim, "statement": self.statement, "method": self.method, "status": self.status,
+                "holds": self.holds, "scope": self.scope,
+                "detail": ("" if self.holds else "FAILED: ") + self.detail, "seconds": self.seconds}

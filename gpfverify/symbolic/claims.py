@@ -1,7 +1,8 @@
-"""Registry of the symbolic claims: claim id -> function(size) -> Certificate.
+"""Registry of the claims: claim id -> function(size) -> Certificate.
 
-``small`` sizes run in the test suite (seconds); ``large`` sizes run in ``gpfverify prove
---size large`` (minutes). The casadi cross-checks are added by :mod:`gpfverify.symbolic.crosscheck`.
+``size`` sets only the listed sizes of the checks by another route: ``small`` in the test suite
+(seconds), ``large`` in ``gpfverify prove --size large``. The kernel's proofs are the same at both.
+The casadi cross-checks are added by :mod:`gpfverify.symbolic.crosscheck`.
 """
 
 from __future__ import annotations
@@ -35,7 +36,7 @@ def claim_function(claim: str) -> Callable[[str], Certificate]:
 
 def run_claim(claim: str, size: str = "small") -> Certificate:
     """Run one claim's proof (or check) at ``size`` and return its certificate (computed once per
-    process: the engine is deterministic and a certificate is immutable)."""
+    process and keyed by the claim's name and size: the search is deterministic)."""
     if size not in SIZES:
         raise InputError(f"size must be one of {SIZES}, got {size!r}")
     claim_function(claim)  # an unknown claim is an InputError, not a cached failure

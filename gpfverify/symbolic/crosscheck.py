@@ -22,7 +22,7 @@ from gpfverify.models import GPModel
 from gpfverify.rng import generator
 from gpfverify.symbolic.casadi_forms import (STEP_OUTPUTS, GPData, cmf_function, gp_adf_function,
                                              gp_ukf_function, moment_function)
-from gpfverify.symbolic.certificate import Certificate, verdict
+from gpfverify.symbolic.certificate import NumericalCheck
 from gpfverify.symbolic.sensitivity import dmf_jacobians, dmf_sensitivity
 from gpfverify.tolerances import algebra_rtol
 
@@ -57,7 +57,7 @@ def _gram_condition(gp: GaussianProcess) -> float:
     return float(max(np.linalg.cond(k_inv) for k_inv in gp.K_inv))  # cond(K) = cond(K⁻¹)
 
 
-def check_gp_moments(size: str = "small", seed: int = 1) -> Certificate:
+def check_gp_moments(size: str = "small", seed: int = 1) -> NumericalCheck:
     start = time.perf_counter()
     rng = generator(seed)
     worst, ok, n = 0.0, True, 0
@@ -75,12 +75,12 @@ def check_gp_moments(size: str = "small", seed: int = 1) -> Certificate:
               "hyperparameters: casadi graph (determinants and direct solves, β and K⁻¹ recomputed in casadi) vs "
               f"GaussianProcess.predict_uncertain (scaled Cholesky forms): worst relative error {worst:.2e}, each "
               f"within algebra_rtol(cond(K)·cond(Σ)) ({'yes' if ok else 'NO'}).")
-    return Certificate("casadi-gp-moments", "casadi and numpy exact GP moment matching agree to rounding",
-                       "casadi Function vs numpy on random inputs", verdict(ok), detail,
+    return NumericalCheck("casadi-gp-moments", "casadi and numpy exact GP moment matching agree to rounding",
+                       "casadi Function vs numpy on random inputs", ok, detail,
                        time.perf_counter() - start)
 
 
-def _check_steps(claim: str, build, reference, label: str, size: str, seed: int) -> Certificate:
+def _check_steps(claim: str, build, reference, label: str, size: str, seed: int) -> NumericalCheck:
     start = time.perf_counter()
     rng = generator(seed)
     worst, ok, n = 0.0, True, 0
@@ -98,20 +98,20 @@ def _check_steps(claim: str, build, reference, label: str, size: str, seed: int)
     detail = (f"{n} random steps, (D, l) ∈ {STEP_DIMS[size]}, random transition and measurement GPs: every field "
               f"of the casadi {label} step (μ_p, C_p, μ_y, C_y, C_xy, μ_e, C_e) vs the numpy step: worst relative "
               f"error {worst:.2e}, each within algebra_rtol(cond(K)·cond(C_y)) ({'yes' if ok else 'NO'}).")
-    return Certificate(claim, f"the casadi and numpy {label} steps agree to rounding",
-                       "casadi Function vs numpy on random inputs", verdict(ok), detail,
+    return NumericalCheck(claim, f"the casadi and numpy {label} steps agree to rounding",
+                       "casadi Function vs numpy on random inputs", ok, detail,
                        time.perf_counter() - start)
 
 
-def check_gp_adf_step(size: str = "small", seed: int = 1) -> Certificate:
+def check_gp_adf_step(size: str = "small", seed: int = 1) -> NumericalCheck:
     return _check_steps("casadi-gp-adf-step", gp_adf_function, gp_adf_step, "GP-ADF", size, seed)
 
 
-def check_gp_ukf_step(size: str = "small", seed: int = 1) -> Certificate:
+def check_gp_ukf_step(size: str = "small", seed: int = 1) -> NumericalCheck:
     return _check_steps("casadi-gp-ukf-step", gp_ukf_function, gp_ukf_step, "GP-UKF", size, seed)
 
 
-def check_cmf_dmf(size: str = "small", seed: int = 1) -> Certificate:
+def check_cmf_dmf(size: str = "small", seed: int = 1) -> NumericalCheck:
     start = time.perf_counter()
     rng = generator(seed)
     worst, ok, n = 0.0, True, 0
@@ -133,12 +133,12 @@ def check_cmf_dmf(size: str = "small", seed: int = 1) -> Certificate:
               f"{FUSION_SHAPES[size]}, every C_xy^m of full column rank: casadi CMF (μ_e, C_e) vs cmf_update and "
               "casadi DMF (eq. 35, (C_xy^m)⁺ = R⁻¹Qᵀ from a QR) vs dmf_update (SVD pseudo-inverse): worst relative "
               f"error {worst:.2e}, each within algebra_rtol(cond(C_y)·cond(C_xy^m)) ({'yes' if ok else 'NO'}).")
-    return Certificate("casadi-cmf-dmf", "the casadi and numpy CMF and DMF updates agree to rounding",
-                       "casadi Function vs numpy on random inputs", verdict(ok), detail,
+    return NumericalCheck("casadi-cmf-dmf", "the casadi and numpy CMF and DMF updates agree to rounding",
+                       "casadi Function vs numpy on random inputs", ok, detail,
                        time.perf_counter() - start)
 
 
-def check_dmf_sensitivity(size: str = "small", seed: int = 1) -> Certificate:
+def check_dmf_sensitivity(size: str = "small", seed: int = 1) -> NumericalCheck:
     """casadi's AD Jacobians of μ_DMF against their closed forms (∂/∂μ_e^m = G_m C_y^m (C_xy^m)⁺,
     ∂/∂μ_p^m = −that, ∂/∂μ_y^m = G_m) and the bound ‖G_m C_y^m‖₂/σ_min, as σ_min → 0."""
     start = time.perf_counter()
@@ -174,17 +174,17 @@ def check_dmf_sensitivity(size: str = "small", seed: int = 1) -> Certificate:
               "∂/∂μ_e^m = G_m C_y^m (C_xy^m)⁺, ∂/∂μ_p^m = −G_m C_y^m (C_xy^m)⁺, ∂/∂μ_y^m = G_m within "
               "algebra_rtol(cond(C_xy^m)·cond(C_y)), and ‖∂μ/∂μ_e^m‖₂ ≤ ‖G_m C_y^m‖₂/σ_r(C_xy^m) "
               f"({'yes' if ok else 'NO'}). " + "; ".join(rows) + ".")
-    return Certificate("dmf-sensitivity-bound",
+    return NumericalCheck("dmf-sensitivity-bound",
                        "the DMF mean's sensitivity to sensor m's μ_e^m is G_m C_y^m (C_xy^m)⁺, bounded by "
                        "‖G_m C_y^m‖/σ_min(C_xy^m)",
-                       "casadi automatic differentiation vs closed form", verdict(ok), detail,
+                       "casadi automatic differentiation vs closed form", ok, detail,
                        time.perf_counter() - start)
 
 
 EVIDENCE_DIMS = {"small": (1, 2), "large": (1, 2, 3)}
 
 
-def check_gp_evidence(size: str = "small", seed: int = 1) -> Certificate:
+def check_gp_evidence(size: str = "small", seed: int = 1) -> NumericalCheck:
     """The analytic evidence gradient of ``fit`` against casadi AD, and ``fit``'s optimum against
     IPOPT started from the same point within the same box."""
     from gpfverify.gp.regression import FitBounds, _initial_guess, _neg_log_evidence, fit_one_output
@@ -222,9 +222,9 @@ def check_gp_evidence(size: str = "small", seed: int = 1) -> Certificate:
               "from the same data-driven start within the same box vs fit (L-BFGS-B, one start): fit's optimum is "
               f"no worse than IPOPT's by more than SOLVER_TOL relative ({'yes' if optimum_ok else 'NO'}). "
               + "; ".join(rows) + ".")
-    return Certificate("casadi-gp-evidence",
+    return NumericalCheck("casadi-gp-evidence",
                        "GP evidence maximisation (fit) agrees with casadi + IPOPT, and its analytic gradient with AD",
-                       "casadi AD + IPOPT vs numpy/L-BFGS-B", verdict(ok), detail,
+                       "casadi AD + IPOPT vs numpy/L-BFGS-B", ok, detail,
                        time.perf_counter() - start_time)
 
 
@@ -239,7 +239,7 @@ CROSSCHECKS = {
 }
 
 
-def run_crosschecks(size: str = "small", seed: int = 1, progress=None) -> list[Certificate]:
+def run_crosschecks(size: str = "small", seed: int = 1, progress=None) -> list[NumericalCheck]:
     out = []
     for name, check in CROSSCHECKS.items():
         if progress:

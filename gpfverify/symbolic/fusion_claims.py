@@ -1,295 +1,459 @@
-"""The fusion claims' certificates (seed 000 Proposition 1 and what SPEC §3 adds to it).
+"""The fusion claims of seed 000 (Proposition 1 and what SPEC §3 adds to it) as formal statements,
+with the proofs the search writes for the kernel, witnesses, counterexamples and negative controls.
 
-Each is an :class:`~gpfverify.symbolic.argument.Argument`: the word-algebra proofs of
-:mod:`gpfverify.symbolic.dimension_free` (any dimension, any number of sensors by induction) with
-their negative controls, and, as a second route at listed sizes, exact polynomial arithmetic over
-Q[entries] (:mod:`gpfverify.symbolic.polynomial`), whose residuals the engine tests for zero. The
-two refuted statements are exact counterexamples the engine evaluates.
+Sizes: D states, N sensors, L stacked outputs, l_m outputs of sensor m. The stacked measurement is
+partitioned by selectors S_m (L × l_m, Σ_m S_m S_mᵀ = I, S_mᵀS_k = δ_mk I), so sensor m's share of a
+stacked quantity is S_mᵀ(·) and G_m = G S_m is its block of the central gain G = C_xy C_y⁻¹ (any
+D × L matrix arises so). With μ_e^m(y) = μ_p,loc^m + C_xy^m (C_y^m)⁻¹(S_mᵀy − μ_y,loc^m) (eq. 32):
+
+    μ_CMF(y) = μ_p + G(y − μ_y)                                                         (eq. 15)
+    μ_DMF(y) = μ_p + Σ_m G S_m(μ_y,loc^m − S_mᵀμ_y) + Σ_m G S_m C_y^m (C_xy^m)⁺(μ_e^m(y) − μ_p,loc^m)  (eq. 35)
+
+"For every N" is in the statement itself (Σ over m = 1..N with N a size symbol): no induction.
+Next to each kernel proof, an independent route at listed sizes (exact polynomial arithmetic over
+ℚ[entries], :mod:`gpfverify.symbolic.polynomial`) is recorded as "also checked".
 """
 
 from __future__ import annotations
 
 import time
 from dataclasses import dataclass, replace
+from typing import Any
 
-import numpy as np
 import sympy as sp
 
-from gpfverify.symbolic import dimension_free
-from gpfverify.symbolic.argument import Argument
-from gpfverify.symbolic.certificate import Certificate
-from gpfverify.symbolic.fusion_forms import (LiftedSensor, SensorSymbols, cmf_term, dmf_term,
-                                             kernel_condition, lift_sensor, predicted_gap_term,
-                                             whole_difference)
-from gpfverify.symbolic.polynomial import (Fraction, factored_pinv, full_column_rank_pinv,
-                                           generic_matrix, identity, lift, penrose_residuals,
-                                           polynomial_ring)
+from gpfverify.kernel.rules import Checker
+from gpfverify.kernel.terms import frozen, read_statement
+from gpfverify.symbolic.certificate import Certificate, Control, ListedCheck, Part
+from gpfverify.symbolic.formal import Declare, I, Sum, Term, eq, every, fcr, forall, le, spd, zero
+from gpfverify.symbolic.fusion_forms import (SensorSymbols, cmf_term, dmf_term, kernel_condition, lift_sensor,
+                                             predicted_gap_term)
+from gpfverify.symbolic.polynomial import (Fraction as PolyFraction, factored_pinv, full_column_rank_pinv,
+                                           generic_matrix, lift, penrose_residuals, polynomial_ring)
+from gpfverify.symbolic.search import Template, prove_equation
+from gpfverify.symbolic.witness import Builder, refuting
 
-#: (D, l_m, rank) families of rank-deficient cross terms C_xy^m = B Fᵀ, B (D×r), F (l×r).
-RANK_DEFICIENT = {
-    "small": ((1, 2, 1), (2, 2, 1), (2, 3, 1), (3, 2, 1), (3, 3, 1)),
-    "large": ((1, 2, 1), (1, 3, 1), (2, 2, 1), (2, 3, 1), (2, 3, 2), (3, 2, 1), (3, 3, 1), (3, 3, 2)),
-}
-#: (D, (l_1, …, l_N)) configurations whose whole μ_DMF − μ_CMF is reduced in Q(entries)
-#: (seconds on one core: D=3 with (3, 1) ≈ 30, (3, 3) ≈ 90 — left out, the per-sensor route covers
-#: it; the small set ≈ 3 in total).
-WHOLE_EXPRESSION = {
-    "small": ((1, (1, 1)), (1, (1, 1, 1)), (2, (1, 1)), (2, (2, 1)), (2, (2, 2)), (2, (1, 1, 1)),
-              (3, (1, 1)), (3, (2, 1))),
-    "large": ((1, (1, 1)), (1, (1, 1, 1)), (2, (1, 1)), (2, (2, 1)), (2, (2, 2)), (2, (1, 1, 1)),
-              (2, (2, 1, 1)), (2, (2, 2, 1)), (2, (2, 2, 2)), (3, (1, 1)), (3, (2, 1)), (3, (2, 2)),
-              (3, (3, 1)), (3, (3, 2)), (3, (1, 1, 1)), (3, (2, 1, 1))),
-}
-#: Families for the kernel-inclusion claim (the sufficiency family G_m = W C_xy^m (C_y^m)⁻¹ grows
-#: fast: (2, 3, 1) ≈ 6 s, (3, 3, 1) ≈ 14 s, (2, 3, 2) ≈ 4 min on one core).
-KERNEL_FAMILIES = {
-    "small": ((1, 2, 1), (1, 3, 1), (2, 2, 1), (3, 2, 1)),
-    "large": ((1, 2, 1), (1, 3, 1), (2, 2, 1), (2, 3, 1), (3, 2, 1), (3, 3, 1)),
-}
+SENSOR = "sensor"
+MUTANTS = ("A⁺ replaced by Aᵀ in eq. 35", "sign of G_m(μ_y,loc^m − S_mᵀμ_y) flipped",
+           "G_m(μ_y,loc^m − S_mᵀμ_y) dropped", "C_y^m replaced by (C_y^m)⁻¹ in eq. 35",
+           "local update with C_y^m in place of (C_y^m)⁻¹")
 
 
-@dataclass(frozen=True)
-class SymbolicSensor:
-    """One sensor's quantities over its own polynomial ring, with the symbols they are generic in."""
+@dataclass
+class Fusion:
+    """The declarations shared by the fusion statements, and handles to their terms."""
 
-    lifted: LiftedSensor
-    symbols: tuple[sp.Matrix, ...]
-    ring: object
+    d: Declare
+    S: Any
+    G: Any
+    Cy: Any
+    Cxy: Any
+    P: Any
+    y: Any
+    dmf: Any
+    cmf: Any
 
-    def lift(self, matrix: sp.Matrix) -> Fraction:
-        return Fraction.of(lift(matrix, self.ring))
+
+def declare(mutation: str = "", measurement: bool = True) -> Fusion:
+    """The fusion quantities; ``measurement``: y is a declared variable (else only bound)."""
+    d = Declare()
+    d.sizes("D", "L", "N")
+    d.index_set(SENSOR, "N")
+    d.family_size("l", SENSOR)
+    S = d.partition("S", SENSOR, "L", "l[#]")
+    mu_p, G = d.matrix("μ_p", "D", 1), d.matrix("G", "D", "L")
+    y = d.matrix("y", "L", 1) if measurement else None
+    mu_y = d.matrix("μ_y", "L", 1)
+    Cy = d.matrix("C_y", "l[#]", "l[#]", over=SENSOR)
+    Cxy = d.matrix("C_xy", "D", "l[#]", over=SENSOR)
+    my, mp = d.matrix("μ_y,loc", "l[#]", 1, over=SENSOR), d.matrix("μ_p,loc", "D", 1, over=SENSOR)
+    local = (lambda m, v: mp[m] + Cxy[m] * Cy[m] * (S[m].T * v - my[m])) if mutation.startswith("local") else (
+        lambda m, v: mp[m] + Cxy[m] * Cy[m].inv * (S[m].T * v - my[m]))
+    mu_e = d.define("μ_e", local, over=SENSOR, args=(("y", "L", 1),))
+    P = d.define("P", lambda m: Cxy[m].pinv * Cxy[m], over=SENSOR)
+    cmf = d.define("μ_CMF", lambda v: mu_p + G * (v - mu_y), args=(("y", "L", 1),))
+    pinv = (lambda m: Cxy[m].T) if mutation == MUTANTS[0] else (lambda m: Cxy[m].pinv)
+    cov = (lambda m: Cy[m].inv) if mutation == MUTANTS[3] else (lambda m: Cy[m])
+    sign = -1 if mutation == MUTANTS[1] else 0 if mutation == MUTANTS[2] else 1
+
+    def dmf_body(v):
+        share = Sum("m", SENSOR, G * S["m"] * cov("m") * pinv("m") * (mu_e(v, index="m") - mp["m"]))
+        if sign == 0:
+            return mu_p + share
+        prediction = Sum("m", SENSOR, G * S["m"] * (my["m"] - S["m"].T * mu_y))
+        return mu_p + (prediction if sign == 1 else -prediction) + share
+
+    dmf = d.define("μ_DMF", dmf_body, args=(("y", "L", 1),))
+    return Fusion(d, S, G, Cy, Cxy, P, y, dmf, cmf)
 
 
-def build_sensor(state_dim: int, outputs: int, rank: int | None = None, kernel_inclusion: bool = False,
-                 extra: tuple[sp.Matrix, ...] = (), point: dict | None = None) -> SymbolicSensor:
-    """A symbolic sensor (index 0) whose every entry is a free symbol.
+def _templates(full_rank_hyp: int | None = None, equation_hyp: int | None = None) -> list[Template]:
+    out = [Template(lambda i: {"inverse": "right", "of": ("var", "C_y", i)}, SENSOR),
+           Template(lambda i: {"inverse": "left", "of": ("var", "C_y", i)}, SENSOR)]
+    if full_rank_hyp is not None:
+        out.append(Template(lambda i: {"fcr": ("var", "C_xy", i), "hyp": full_rank_hyp, "index": i}, SENSOR))
+    if equation_hyp is not None:
+        out.append(Template(lambda i: {"hyp": equation_hyp, "index": i}, SENSOR))
+    return out
 
-    ``rank`` None: C_xy^m = A generic D×l with (C_xy^m)⁺ = (AᵀA)⁻¹Aᵀ (full column rank).
-    ``rank`` r: C_xy^m = B Fᵀ with B (D×r), F (l×r) generic, (C_xy^m)⁺ = F(FᵀF)⁻¹(BᵀB)⁻¹Bᵀ.
-    ``kernel_inclusion``: G_m = W C_xy^m (C_y^m)⁻¹ with W generic D×D — the general solution of
-    G_m C_y^m (I − P_m) = 0 (rows of G_m C_y^m in the row space of C_xy^m). ``extra`` symbol
-    matrices join the ring (e.g. a direction v). With ``point`` (symbol -> number) the same
-    sensor is built at that point, over Q (fast evaluation of the same formulas).
-    """
-    generic = SensorSymbols.generic(0, state_dim, outputs)
-    sensor = generic if not kernel_inclusion else SensorSymbols(
-        0, sp.zeros(state_dim, outputs), *generic.matrices()[1:])
-    factors: tuple[sp.Matrix, ...]
-    if rank is None:
-        factors = (generic_matrix("A0", state_dim, outputs),)
-    else:
-        factors = (generic_matrix("B0", state_dim, rank), generic_matrix("F0", outputs, rank))
-    w_sym: tuple[sp.Matrix, ...] = (generic_matrix("W0", state_dim, state_dim),) if kernel_inclusion else ()
-    symbols = tuple(m for m in sensor.matrices() if m.free_symbols) + factors + w_sym + tuple(extra)
-    if point is not None:
-        sensor = SensorSymbols(0, *(m.subs(point) for m in sensor.matrices()))
-        factors = tuple(m.subs(point) for m in factors)
-        w_sym = tuple(m.subs(point) for m in w_sym)
-        ring = polynomial_ring(*sensor.matrices(), *factors, *w_sym)  # Q if nothing is left symbolic
-    else:
-        ring = polynomial_ring(*symbols)
-    lifted_factors = [Fraction.of(lift(m, ring)) for m in factors]
-    if rank is None:
-        a = lifted_factors[0]
-        a_pinv = full_column_rank_pinv(a)
-    else:
-        b, f = lifted_factors
-        a, a_pinv = b @ f.T, factored_pinv(b, f)
-    lifted = lift_sensor(sensor, ring, a, a_pinv)
+
+def attempt(statement: dict, templates: list[Template], bases: dict | None = None) -> dict:
+    """The search's proof of every conclusion of ``statement`` (the kernel judges it)."""
+    st = read_statement(frozen(statement))
+    checker = Checker(st, {"bases": bases or {}, "steps": []})
+    steps = [prove_equation(checker, f"s{k + 1}", c[1], c[2], templates)[0]
+             for k, c in enumerate(st.conclusion) if c[0] == "="]
+    return {"bases": bases or {}, "steps": steps}
+
+
+# ---- instances ----------------------------------------------------------------------------------------
+
+PARTS = (1, 2)  # l_m of the two sensors of the witnesses (n = 2: both ≤ n)
+
+
+def instance(seed: int, full_rank: bool = True, kernel_inclusion: bool = False, measurement: bool = True,
+             deficient: bool = False, parts=PARTS, n: int = 2, free: dict | None = None) -> dict:
+    """A random fusion instance: every C_y^m SPD; C_xy^m of full column rank (or of rank l_m − 1
+    when ``deficient``); with ``kernel_inclusion`` G's blocks are G_m = W C_xy^m (C_y^m)⁻¹."""
+    b = Builder(seed, {"D": n, "L": sum(parts), "N": len(parts)}, {"l": list(parts)}, free_indices=free)
+    b.draw("μ_p", n, 1)
+    if measurement:
+        b.draw("y", sum(parts), 1)
+    b.draw("μ_y", sum(parts), 1)
+    cy = b.draw_family("C_y", [(p, p) for p in parts], "spd")
+    kinds = [f"rank-{p - 1}" if deficient else "fcr" if full_rank else "general" for p in parts]
+    b.set("C_xy", [b.draw("tmp", n, p, kind) for p, kind in zip(parts, kinds)])
+    del b.values["tmp"]
+    b.draw_family("μ_y,loc", [(p, 1) for p in parts])
+    b.draw_family("μ_p,loc", [(n, 1) for _ in parts])
     if kernel_inclusion:
-        lifted = replace(lifted, G=Fraction.of(lift(w_sym[0], ring)) @ a @ lifted.C_y_inv)
-    return SymbolicSensor(lifted, symbols, ring)
+        w = b.draw("W", n, n)
+        del b.values["W"]
+        b.set("G", sp.Matrix.hstack(*[w * a * c.inv() for a, c in zip(b.values["C_xy"], cy)]))
+    else:
+        b.draw("G", n, sum(parts))
+    return b.json()
 
 
-def _free(symbols) -> set:
-    return set().union(*(m.free_symbols for m in symbols))
+def _controls(mutants, instance_for) -> list[Control]:
+    """Each mutant with the search's attempt and an instance that refutes it (``instance_for(title, seed)``)."""
+    return [Control(title, statement, attempt(statement, templates),
+                    refuting(statement, lambda seed, title=title: instance_for(title, seed)))
+            for title, statement, templates in mutants]
 
 
-def random_point(symbols, rng: np.random.Generator) -> dict:
-    """Small random integers for every free symbol (deterministic given ``rng``)."""
-    return {s: int(rng.integers(-4, 5)) for s in sorted(_free(symbols), key=str)}
+# ---- the claims ---------------------------------------------------------------------------------------
 
+def prop1_statement(mutation: str = "", full_rank: bool = True) -> dict:
+    f = declare(mutation)
+    f.d.assume(every("m", SENSOR, spd(f.Cy["m"])))
+    if full_rank:
+        f.d.assume(every("m", SENSOR, fcr(f.Cxy["m"])))
+    f.d.conclude(eq(f.dmf(f.y), f.cmf(f.y)))
+    return f.d.json()
 
-# ---- prop1-full-column-rank ------------------------------------------------------------------
 
 def prove_prop1(size: str = "small") -> Certificate:
     start = time.perf_counter()
-    argument = Argument("prop1-full-column-rank",
-                        "DMF (eq. 35) equals CMF (eq. 15) for every measurement when every C_xy^m has full column rank",
-                        "word-algebra rewriting from the Penrose equations and a left inverse, induction over the "
-                        "sensors + sympy polynomial identity over Q[entries] and rational-function field reduction "
-                        "(listed sizes)", dimension_free.T)
-    dimension_free.prop1(argument)
-    hypotheses = (dimension_free.FULL_RANK, dimension_free.C_SPD)
-    pairs = [(d, l) for d in (1, 2, 3) for l in range(1, d + 1)]
-    largest = 0
-    for d, l in pairs:
-        s = build_sensor(d, l).lifted
-        argument.at_sizes("(C_xyᵀC_xy)⁻¹C_xyᵀ satisfies the four Penrose equations", f"(D, l_m) = ({d}, {l})",
-                          tuple(penrose_residuals(s.C_xy, s.C_xy_pinv).values()), hypotheses)
-        argument.at_sizes("DMF_m − CMF_m ≡ 0, every entry of G_m, C_y^m (symmetric), C_xy^m, y^m, μ_y^m, μ_y(m), "
-                          "μ_p^m a free symbol", f"(D, l_m) = ({d}, {l})", dmf_term(s) - cmf_term(s), hypotheses)
-        largest = max(largest, dmf_term(s).term_count())
-    for d, sizes in WHOLE_EXPRESSION[size]:
-        argument.at_sizes("the whole μ_DMF − μ_CMF, central μ_p included, reduces to 0 in Q(entries)",
-                          f"D = {d}, l = {'/'.join(map(str, sizes))}", whole_difference(d, sizes), hypotheses)
-    argument.note(f"Second route: per sensor for every l_m ≤ D ≤ 3, DMF_m − CMF_m = N_m/(det(C_xyᵀC_xy)·det(C_y^m)) "
-                  f"with (C_xy^m)⁺ = (C_xyᵀC_xy)⁻¹C_xyᵀ as adj/det (largest DMF numerator {largest} monomials); the "
-                  "denominators are nonzero exactly under the hypotheses. The whole difference for the listed "
-                  "sensor configurations, without the per-sensor decomposition.")
-    return argument.certificate(time.perf_counter() - start)
+    statement = prop1_statement()
+    part = Part(statement, attempt(statement, _templates(full_rank_hyp=1)), instance(1))
+    mutants = [(m, prop1_statement(m), _templates(full_rank_hyp=1)) for m in MUTANTS]
+    mutants.append(("full-column-rank hypothesis dropped", prop1_statement(full_rank=False), _templates(1)))
+    controls = _controls(mutants, lambda title, seed: instance(
+        100 + seed, deficient=title.startswith("full-column-rank")))
+    checks = [_per_sensor_check(size)]
+    return Certificate("prop1-full-column-rank",
+                       "Proposition 1 (seed 000): DMF (eq. 35) equals CMF (eq. 15) when every C_xy^m has full column "
+                       "rank", [part], controls, checks, time.perf_counter() - start)
 
 
-# ---- dmf-gap-formula -------------------------------------------------------------------------
+def gap_statement(mutation: str = "") -> dict:
+    f = declare()
+    f.d.assume(every("m", SENSOR, spd(f.Cy["m"])))
+
+    def share(m):
+        cy, proj = f.Cy[m], f.P[m]
+        inner = proj - I(f"l[{m}]") if mutation != "(I − P) in place of (P − I)" else I(f"l[{m}]") - proj
+        cinv = cy.inv if mutation != "(C_y^m)⁻¹ replaced by C_y^m" else cy
+        lead = f.G * f.S[m] * cy if mutation != "C_y^m factor dropped" else f.G * f.S[m]
+        meas = Term(("var", "μ_y,loc", m)) if mutation != "innovation against S_mᵀμ_y" else f.S[m].T * Term(
+            ("var", "μ_y"))
+        return lead * inner * cinv * (f.S[m].T * f.y - meas)
+
+    gap = Sum("m", SENSOR, share("m"))
+    f.d.conclude(eq(f.dmf(f.y) - f.cmf(f.y), -gap if mutation == "sign of the gap flipped" else gap))
+    return f.d.json()
+
+
+GAP_MUTANTS = ("(I − P) in place of (P − I)", "(C_y^m)⁻¹ replaced by C_y^m", "C_y^m factor dropped",
+               "innovation against S_mᵀμ_y", "sign of the gap flipped")
+
 
 def prove_gap_formula(size: str = "small") -> Certificate:
     start = time.perf_counter()
-    argument = Argument("dmf-gap-formula",
-                        "μ_DMF − μ_CMF = Σ_m G_m C_y^m (P_m − I)(C_y^m)⁻¹(y^m − μ_y^m), P_m = (C_xy^m)⁺C_xy^m, "
-                        "whatever the rank of each C_xy^m",
-                        "word-algebra rewriting, induction over the sensors + sympy polynomial identity for "
-                        "rank-deficient families (listed sizes)", dimension_free.T, also=(dimension_free.FACTORS,))
-    dimension_free.gap_formula(argument)
-    argument.support(*dimension_free.factored_pseudo_inverse())
-    rows = []
-    for d, l, r in RANK_DEFICIENT[size]:
-        s = build_sensor(d, l, r).lifted
-        argument.at_sizes("(DMF_m − CMF_m) − G_m C_y^m (P_m − I)(C_y^m)⁻¹(y^m − μ_y^m) ≡ 0 with C_xy^m = BFᵀ",
-                          f"(D, l_m, rank) = ({d}, {l}, {r})", dmf_term(s) - cmf_term(s) - predicted_gap_term(s))
-        rows.append(f"({d}, {l}, {r})")
-    for d, l in ((2, 2), (3, 2)):  # full rank: the same residual, through the other pseudo-inverse
-        s = build_sensor(d, l).lifted
-        argument.at_sizes("the same residual with (C_xy^m)⁺ = (C_xyᵀC_xy)⁻¹C_xyᵀ", f"(D, l_m) = ({d}, {l})",
-                          dmf_term(s) - cmf_term(s) - predicted_gap_term(s))
-    argument.note("Second route: rank-deficient families C_xy^m = B Fᵀ (B: D×r, F: l×r generic), (C_xy^m)⁺ = "
-                  "F(FᵀF)⁻¹(BᵀB)⁻¹Bᵀ — the Moore–Penrose inverse of BFᵀ in the word algebra (the supporting "
-                  "Penrose proofs below) — with every entry of B, F, G_m, C_y^m (symmetric), y^m, μ_y^m, μ_y(m), "
-                  f"μ_p^m a free symbol; (D, l_m, rank) ∈ {{{', '.join(rows)}}}.")
-    return argument.certificate(time.perf_counter() - start)
+    statement = gap_statement()
+    part = Part(statement, attempt(statement, _templates()), instance(3, full_rank=False))
+    mutants = [(m, gap_statement(m), _templates()) for m in GAP_MUTANTS]
+    controls = _controls(mutants, lambda title, seed: instance(200 + seed, deficient=True))
+    return Certificate("dmf-gap-formula",
+                       "The gap: μ_DMF − μ_CMF = Σ_m G_m C_y^m (P_m − I)(C_y^m)⁻¹(y^m − μ_y^m), whatever the rank of "
+                       "each C_xy^m", [part], controls, [_gap_check(size)], time.perf_counter() - start)
 
 
-# ---- dmf-exact-iff-kernel-inclusion and the two refuted statements ----------------------------
+def sufficiency_statement(weaker: bool = False) -> dict:
+    f = declare()
+    f.d.assume(every("m", SENSOR, spd(f.Cy["m"])))
+    if weaker:  # G_m (I − P_m) = 0 in place of G_m C_y^m (I − P_m) = 0
+        f.d.assume(every("m", SENSOR, eq(f.G * f.S["m"] * f.P["m"], f.G * f.S["m"])))
+    else:
+        f.d.assume(every("m", SENSOR, eq(f.G * f.S["m"] * f.Cy["m"] * (I("l[m]") - f.P["m"]),
+                                         zero("D", "l[m]"))))
+    f.d.conclude(eq(f.dmf(f.y), f.cmf(f.y)))
+    return f.d.json()
 
 
-def _with_measurement(s: LiftedSensor, innovation: Fraction) -> LiftedSensor:
-    """The sensor with y^m := μ_y^m + ``innovation``."""
-    return replace(s, innovation=innovation, y=s.mu_y + innovation)
+def necessity_statement(mutation: str = "") -> dict:
+    f = declare(measurement=False)
+    v = Term(("var", "y"))
+    f.d.assume(every("m", SENSOR, spd(f.Cy["m"])),
+               forall([("y", "L", 1)], eq(f.dmf(v), f.cmf(v))))
+    j = f.d.free_index("j", SENSOR)
+    if mutation == "G_j (I − P_j) = 0":
+        f.d.conclude(eq(f.G * f.S[j] * (I(f"l[{j}]") - f.P[j]), zero("D", f"l[{j}]")))
+    else:
+        f.d.conclude(eq(f.G * f.S[j] * f.Cy[j] * (I(f"l[{j}]") - f.P[j]), zero("D", f"l[{j}]")))
+    return f.d.json()
 
 
-def _breaking_direction(sensor: SymbolicSensor, v: Fraction) -> Fraction:
-    """C_y^m (I − P_m) v: C_y^m times a vector of ker C_xy^m."""
-    s = sensor.lifted
-    return s.C_y @ (v - s.C_xy_pinv @ (s.C_xy @ v))
-
-
-def _necessity_residual(d: int, l: int, r: int) -> Fraction:
-    """Generic G_m, C_xy^m = BFᵀ of rank r, y^m = μ_y^m + C_y^m (I − P_m) v: DMF_m − CMF_m + X_m v."""
-    v_sym = generic_matrix("v", l, 1)
-    sensor = build_sensor(d, l, r, extra=(v_sym,))
-    v = sensor.lift(v_sym)
-    chosen = _with_measurement(sensor.lifted, _breaking_direction(sensor, v))
-    return dmf_term(chosen) - cmf_term(chosen) + kernel_condition(sensor.lifted) @ v
+def necessity_proof(statement: dict) -> dict:
+    """Instantiate "for every y" at y = Σ_k S_k μ_y,loc^k + S_j C_y^j e_i (e_i the standard basis of
+    ℝ^{l_j}): the gap formula leaves G_j C_y^j (P_j − I) e_i = 0 for every i; then X_j = X_j Σ_i e_i e_iᵀ."""
+    st = read_statement(frozen(statement))
+    bases = {"e": "l[j]"}
+    checker = Checker(st, {"bases": bases, "steps": []})
+    e_i = ("sel", "e", "i")
+    at = ("+", ("sum", "k", SENSOR, ("*", ("sel", "S", "k"), ("var", "μ_y,loc", "k"))),
+          ("*", ("sel", "S", "j"), ("var", "C_y", "j"), e_i))
+    x_j = ("*", ("var", "G"), ("sel", "S", "j"), ("var", "C_y", "j"),
+           ("+", ("var", "P", "j"), ("*", ("num", -1), ("I", "l[j]"))))
+    claim_lhs = ("*", x_j, e_i)
+    claim_rhs = ("*", ("var", "G"), ("sel", "S", "j"), ("var", "C_y", "j"), ("num", 0), e_i)
+    first, left = prove_equation(checker, "s1", claim_lhs, claim_rhs, _templates(), generic={"i": "e"},
+                                 extra=[{"gen": {"hyp": 1, "at": {"y": at}}}])
+    checker.step(frozen(first))
+    target = st.conclusion[0]
+    second, _ = prove_equation(checker, "s2", target[1], target[2],
+                               [Template(lambda i: {"lemma": "s1", "index": {"i": i}}, "e")],
+                               extra=[{"left": ("*", ("num", -1), target[1]), "gen": {"complete": "e"}}])
+    return {"bases": bases, "steps": [first, second]}
 
 
 def prove_kernel_inclusion(size: str = "small") -> Certificate:
     start = time.perf_counter()
-    argument = Argument("dmf-exact-iff-kernel-inclusion",
-                        "DMF = CMF for every measurement iff G_m C_y^m (I − P_m) = 0 for every m "
-                        "(ker C_xy^m ⊆ ker G_m C_y^m)",
-                        "word-algebra rewriting, induction over the sensors and instantiation of the measurement "
-                        "+ sympy polynomial identities for rank-deficient families (listed sizes)", dimension_free.T)
-    dimension_free.kernel_inclusion(argument)
-    families = KERNEL_FAMILIES[size]
-    for d, l, r in families:
-        s = build_sensor(d, l, r, kernel_inclusion=True).lifted
-        label = f"(D, l_m, rank) = ({d}, {l}, {r})"
-        argument.at_sizes("⇐: with G_m = W C_xy^m (C_y^m)⁻¹ (W generic), G_m C_y^m (I − P_m) ≡ 0", label,
-                          kernel_condition(s))
-        argument.at_sizes("⇐: with G_m = W C_xy^m (C_y^m)⁻¹, DMF_m − CMF_m ≡ 0", label, dmf_term(s) - cmf_term(s))
-        argument.at_sizes("⇒: at y^m = μ_y^m + C_y^m (I − P_m) v, DMF_m − CMF_m = −G_m C_y^m (I − P_m) v", label,
-                          _necessity_residual(d, l, r))
-    argument.note("The condition for every m is the block row Φ_(N) = [Φ_1, …, Φ_N] = 0 (a block row is zero when "
-                  "each block is), and X_m = −Φ_m C_y^m. Second route: families C_xy^m = BFᵀ generic of rank r; "
-                  "W C_xy^m (C_y^m)⁻¹ (W generic D×D) is the general solution of G_m C_y^m (I − P_m) = 0.")
-    return argument.certificate(time.perf_counter() - start)
+    sufficiency = sufficiency_statement()
+    necessity = necessity_statement()
+    parts = [Part(sufficiency, attempt(sufficiency, _templates(equation_hyp=1)), instance(5, kernel_inclusion=True)),
+             Part(necessity, necessity_proof(necessity),
+                  instance(6, kernel_inclusion=True, measurement=False, free={"j": 2}))]
+    weaker = sufficiency_statement(weaker=True)
+    controls = [Control("⇐ from the weaker G_m(I − P_m) = 0", weaker, attempt(weaker, _templates(equation_hyp=1)),
+                        _weaker_counterexample()),
+                Control("⇐ with the hypothesis dropped", prop1_statement(full_rank=False),
+                        attempt(prop1_statement(full_rank=False), _templates()), instance(7, deficient=True))]
+    wrong = necessity_statement("G_j (I − P_j) = 0")
+    controls.append(Control("⇒ concluding G_j (I − P_j) = 0", wrong, _safe(necessity_proof, wrong),
+                            _inclusion_without_g_condition()))
+    return Certificate("dmf-exact-iff-kernel-inclusion",
+                       "DMF = CMF for every measurement iff G_m C_y^m (I − P_m) = 0 for every m "
+                       "(ker C_xy^m ⊆ ker G_m C_y^m)", parts, controls, [_kernel_check(size)],
+                       time.perf_counter() - start)
 
 
-# ---- concrete counterexamples (the two refuted statements) ------------------------------------
-
-#: D = 2, l = 2: C_xy^m = [1 1; 1 1] (rank 1, kernel spanned by (1, −1)), C_y^m = [2 1; 1 2] (SPD).
-_EXAMPLE = {"B0": [[1], [1]], "F0": [[1], [1]], "Cy0": [[2, 1], [1, 2]]}
-
-
-def _example_point(extra: dict) -> dict:
-    values = dict(_EXAMPLE, **extra)
-    point = {}
-    for name, rows in values.items():
-        for i, row in enumerate(rows):
-            for j, value in enumerate(row):
-                point[sp.Symbol(f"{name}_{min(i, j)}_{max(i, j)}" if name == "Cy0" else f"{name}_{i}_{j}")] = value
-    return point
+def _safe(make, statement):
+    try:
+        return make(statement)
+    except Exception:  # noqa: BLE001 - the search failing on a false statement is expected
+        return None
 
 
-def _matrix(value: Fraction) -> sp.Matrix:
-    return value.num.to_Matrix() / value.num.domain.to_sympy(value.den)
+# ---- the two refuted statements ------------------------------------------------------------------------
+
+#: D = 2, one sensor with l = 2: C_xy = [[1, 1], [1, 1]] (rank 1), C_y = [[3, 1], [1, 1]] (SPD; it does not
+#: map ker C_xy into itself)
+_RANK_ONE = sp.Matrix([[1, 1], [1, 1]])
+_CY = sp.Matrix([[3, 1], [1, 1]])
+
+
+def _one_sensor(g: sp.Matrix, measurement: bool, free: dict | None = None) -> dict:
+    b = Builder(8, {"D": 2, "L": 2, "N": 1}, {"l": [2]}, free_indices=free)
+    b.draw("μ_p", 2, 1)
+    if measurement:
+        b.set("y", sp.Matrix([[3], [-1]]))
+    b.draw("μ_y", 2, 1)
+    b.set("C_y", [_CY])
+    b.set("C_xy", [_RANK_ONE])
+    b.set("μ_y,loc", [sp.Matrix([[1], [0]])])
+    b.draw_family("μ_p,loc", [(2, 1)])
+    b.set("G", g)
+    return b.json()
+
+
+def necessity_of_full_rank_statement() -> dict:
+    f = declare(measurement=False)
+    v = Term(("var", "y"))
+    f.d.assume(every("m", SENSOR, spd(f.Cy["m"])), forall([("y", "L", 1)], eq(f.dmf(v), f.cmf(v))))
+    j = f.d.free_index("j", SENSOR)
+    f.d.conclude(fcr(f.Cxy[j]))
+    return f.d.json()
 
 
 def refute_full_rank_necessary(size: str = "small") -> Certificate:
-    """A rank-deficient C_xy^m for which DMF is exact anyway (kernel inclusion holds)."""
+    """A rank-deficient C_xy^m for which DMF is exact for every measurement (G = C_xy C_y⁻¹)."""
     start = time.perf_counter()
-    sensor = build_sensor(2, 2, 1, kernel_inclusion=True, point=_example_point({"W0": [[1, 0], [0, 1]]}))
-    s = sensor.lifted
-    argument = Argument("full-column-rank-necessary",
-                        "DMF equals CMF for every measurement only if every C_xy^m has full column rank",
-                        "sympy: exact counterexample")
-    argument.refute("D = 2, one sensor, C_xy^m = [[1, 1], [1, 1]] (rank 1), C_y^m = [[2, 1], [1, 2]], G_m = C_xy^m "
-                    f"(C_y^m)⁻¹ = {sp.sstr(_matrix(s.G).applyfunc(sp.nsimplify).tolist())}: DMF_m − CMF_m is the zero "
-                    "polynomial in y^m, μ_y^m, μ_y(m), μ_p^m (DMF exact for every measurement), yet I − P_m ≠ 0",
-                    zero=(dmf_term(s) - cmf_term(s),),
-                    nonzero=(identity(2, sensor.ring) - s.C_xy_pinv @ s.C_xy,))
-    argument.note("Full column rank is sufficient, not necessary: kernel inclusion holds here.")
-    return argument.certificate(time.perf_counter() - start)
+    counterexample = _one_sensor(_RANK_ONE * _CY.inv(), measurement=False, free={"j": 1})
+    return Certificate("full-column-rank-necessary",
+                       "Full column rank of every C_xy^m is necessary for DMF = CMF (expected false: the kernel-"
+                       "inclusion condition is weaker)",
+                       [Part(necessity_of_full_rank_statement(), refutation=counterexample)],
+                       seconds=time.perf_counter() - start)
+
+
+def without_condition_statement() -> dict:
+    f = declare()
+    f.d.assume(every("m", SENSOR, spd(f.Cy["m"])))
+    f.d.conclude(eq(f.dmf(f.y), f.cmf(f.y)))
+    return f.d.json()
 
 
 def refute_exact_without_condition(size: str = "small") -> Certificate:
-    """The DMF of eq. 35 applied when kernel inclusion fails: a measurement with a nonzero gap."""
+    """eq. 35 applied with G = I when kernel inclusion fails: a measurement with a nonzero gap."""
     start = time.perf_counter()
-    v_sym = generic_matrix("v", 2, 1)
-    point = _example_point({"G0": [[1, 0], [0, 1]], "v": [[1], [0]]})
-    sensor = build_sensor(2, 2, 1, extra=(v_sym,), point=point)
-    direction = _breaking_direction(sensor, sensor.lift(v_sym.subs(point)))
-    chosen = _with_measurement(sensor.lifted, direction)
-    gap = _matrix(dmf_term(chosen) - cmf_term(chosen))
-    argument = Argument("dmf-exact-without-condition",
-                        "DMF (eq. 35) equals CMF for every measurement without any rank or kernel condition",
-                        "sympy: exact counterexample (the measurement direction that breaks it)")
-    argument.refute("D = 2, C_xy^m = [[1, 1], [1, 1]] (rank 1), C_y^m = [[2, 1], [1, 2]], G_m = I, the other sensors "
-                    f"at y^k = μ_y^k, y^m = μ_y^m + C_y^m (I − P_m) v with v = (1, 0), i.e. y^m − μ_y^m = "
-                    f"{sp.sstr(_matrix(direction).T.tolist()[0])}: μ_DMF − μ_CMF = {sp.sstr(gap.T.tolist()[0])} for "
-                    "every value of the means", nonzero=(gap,))
-    argument.note("Here G_m C_y^m (I − P_m) ≠ 0, so eq. 35 is not exact without the condition.")
-    return argument.certificate(time.perf_counter() - start)
+    return Certificate("dmf-exact-without-condition",
+                       "DMF (eq. 35) equals CMF for every measurement without any rank or kernel condition (expected "
+                       "false)", [Part(without_condition_statement(), refutation=_one_sensor(sp.eye(2), True))],
+                       seconds=time.perf_counter() - start)
 
 
-# ---- full-rank-needs-l-le-D ------------------------------------------------------------------
+def _weaker_counterexample() -> dict:
+    """G(I − P) = 0 but G C_y (I − P) ≠ 0: G = P-rows, one sensor, rank-one C_xy."""
+    return _one_sensor(sp.Matrix([[1, 1], [0, 0]]) * _RANK_ONE.pinv() * _RANK_ONE, measurement=True)
 
-#: (D, l) with l > D: det(C_xyᵀC_xy) expanded to the zero polynomial for generic C_xy^m
-WIDE = {"small": ((1, 2), (1, 3), (2, 3), (2, 4)),
-        "large": ((1, 2), (1, 3), (2, 3), (2, 4), (2, 5), (3, 4))}
+
+def _inclusion_without_g_condition() -> dict:
+    """Kernel inclusion holds (DMF exact for every y) but G(I − P) ≠ 0."""
+    return _one_sensor(_RANK_ONE * _CY.inv(), measurement=False, free={"j": 1})
+
+
+# ---- full-rank-needs-l-le-D -----------------------------------------------------------------------------
+
+def rank_bound_statement(bound: str = "D", full_rank: bool = True, smaller: str = "l") -> dict:
+    d = Declare()
+    d.sizes("D", "l")
+    a = d.matrix("A", "D", "l")
+    if full_rank:
+        d.assume(fcr(a))
+    d.conclude(le(smaller, bound))
+    return d.json()
+
+
+def rank_bound_proof(statement: dict) -> dict:
+    """D − l = tr((I − AA⁺)ᵀ(I − AA⁺)) + [Penrose 3 and 1, A⁺A = I] ≥ 0."""
+    a, x = ("var", "A"), ("pinv", ("var", "A"))
+    conclusion = statement["conclusion"][0]
+    return {"steps": [{"id": "s1", "claim": conclusion, "squares": [[1, ("+", ("I", "D"), ("*", ("num", -1), a, x))]],
+                       "by": [{"left": ("num", -1), "gen": {"penrose": 3, "of": a}, "right": ("*", a, x)},
+                              {"left": ("num", -1), "gen": {"penrose": 1, "of": a}, "right": x},
+                              {"gen": {"fcr": a, "hyp": 0}}]}]}
 
 
 def prove_full_rank_needs_l_le_d(size: str = "small") -> Certificate:
     start = time.perf_counter()
-    argument = Argument("full-rank-needs-l-le-D",
-                        "a C_xy^m of full column rank has l_m ≤ D: a sensor with l_m > D outputs never has a "
-                        "full-column-rank C_xy^m (Proposition 1 cannot apply)",
-                        "word-algebra rewriting with traces: D − l_m = tr((I − AA⁺)ᵀ(I − AA⁺)) ≥ 0 + sympy "
-                        "vanishing Gram determinant (listed sizes)", dimension_free.T)
-    dimension_free.rank_bound(argument)
+    statement = rank_bound_statement()
+    witness = Builder(9, {"D": 3, "l": 2})
+    witness.draw("A", 3, 2, "fcr")
+    controls = []
+    for title, wrong, sizes, kind in (("l_m + 1 ≤ D", rank_bound_statement(smaller="l + 1"), (2, 2), "fcr"),
+                                      ("l_m ≤ 2 whatever D", rank_bound_statement("2"), (3, 3), "fcr"),
+                                      ("l_m ≤ D with the hypothesis dropped", rank_bound_statement(full_rank=False),
+                                       (2, 3), "general")):
+        b = Builder(10, {"D": sizes[0], "l": sizes[1]})
+        b.draw("A", sizes[0], sizes[1], kind)
+        controls.append(Control(title, wrong, rank_bound_proof(wrong), b.json()))
+    return Certificate("full-rank-needs-l-le-D",
+                       "A C_xy^m of full column rank has l_m ≤ D: a sensor with more outputs than states never has "
+                       "one (Proposition 1 cannot apply to it)",
+                       [Part(statement, rank_bound_proof(statement), witness.json())], controls,
+                       [_gram_check(size)], time.perf_counter() - start)
+
+
+# ---- the independent route at listed sizes (exact polynomial arithmetic over ℚ[entries]) -------------------
+
+RANK_DEFICIENT = {"small": ((2, 2, 1), (2, 3, 1), (3, 2, 1)),
+                  "large": ((1, 2, 1), (2, 2, 1), (2, 3, 1), (2, 3, 2), (3, 2, 1), (3, 3, 1), (3, 3, 2))}
+FULL_RANK_SIZES = {"small": ((1, 1), (2, 1), (2, 2), (3, 2)),
+                   "large": ((1, 1), (2, 1), (2, 2), (3, 1), (3, 2), (3, 3))}
+KERNEL_FAMILIES = {"small": ((1, 2, 1), (2, 2, 1)), "large": ((1, 2, 1), (1, 3, 1), (2, 2, 1), (3, 2, 1))}
+WIDE = {"small": ((1, 2), (2, 3)), "large": ((1, 2), (1, 3), (2, 3), (2, 4), (3, 4))}
+
+
+def build_sensor(state_dim: int, outputs: int, rank: int | None = None, kernel_inclusion: bool = False):
+    """One sensor with every entry a free symbol; C_xy^m = A (full column rank, (AᵀA)⁻¹Aᵀ) or
+    B Fᵀ of rank r (F(FᵀF)⁻¹(BᵀB)⁻¹Bᵀ); with ``kernel_inclusion`` G_m = W C_xy^m (C_y^m)⁻¹."""
+    sensor = SensorSymbols.generic(0, state_dim, outputs)
+    factors = ((generic_matrix("A0", state_dim, outputs),) if rank is None else
+               (generic_matrix("B0", state_dim, rank), generic_matrix("F0", outputs, rank)))
+    w = (generic_matrix("W0", state_dim, state_dim),) if kernel_inclusion else ()
+    ring = polynomial_ring(*sensor.matrices(), *factors, *w)
+    lifted = [PolyFraction.of(lift(m, ring)) for m in factors]
+    a, a_pinv = ((lifted[0], full_column_rank_pinv(lifted[0])) if rank is None else
+                 (lifted[0] @ lifted[-1].T, factored_pinv(lifted[0], lifted[-1])))
+    s = lift_sensor(sensor, ring, a, a_pinv)
+    for extra in w:  # kernel inclusion
+        s = replace(s, G=PolyFraction.of(lift(extra, ring)) @ a @ s.C_y_inv)
+    return s
+
+
+def _per_sensor_check(size: str) -> ListedCheck:
+    holds = True
+    for d, l in FULL_RANK_SIZES[size]:
+        s = build_sensor(d, l)
+        holds &= all(r.is_zero() for r in penrose_residuals(s.C_xy, s.C_xy_pinv).values())
+        holds &= (dmf_term(s) - cmf_term(s)).is_zero()
+    return ListedCheck("sensor m's share DMF_m − CMF_m is the zero rational function of every entry of G_m, C_y^m, "
+                       "C_xy^m, y^m, μ_y,loc^m, μ_y(m), μ_p,loc^m, with (C_xy^m)⁺ = (C_xyᵀC_xy)⁻¹C_xyᵀ",
+                       tuple(f"(D, l_m) = ({d}, {l})" for d, l in FULL_RANK_SIZES[size]),
+                       ("det(C_y^m) ≠ 0", "det(C_xy^mᵀC_xy^m) ≠ 0"), holds)
+
+
+def _families(families) -> tuple[tuple, tuple]:
+    """The listed sizes of rank-r families C_xy^m = BFᵀ, and the domain of their identities."""
+    return (tuple(f"(D, l_m, r) = ({d}, {l}, {r})" for d, l, r in families),
+            ("det(C_y^m) ≠ 0", "det(FᵀF) ≠ 0", "det(BᵀB) ≠ 0"))
+
+
+def _gap_check(size: str) -> ListedCheck:
+    holds = all((dmf_term(s) - cmf_term(s) - predicted_gap_term(s)).is_zero()
+                for s in (build_sensor(d, l, r) for d, l, r in RANK_DEFICIENT[size]))
+    return ListedCheck("DMF_m − CMF_m − G_m C_y^m (P_m − I)(C_y^m)⁻¹(y^m − μ_y^m) is the zero rational function, "
+                       "C_xy^m = BFᵀ of rank r with (C_xy^m)⁺ = F(FᵀF)⁻¹(BᵀB)⁻¹Bᵀ",
+                       *_families(RANK_DEFICIENT[size]), holds)
+
+
+def _kernel_check(size: str) -> ListedCheck:
+    holds = True
+    for d, l, r in KERNEL_FAMILIES[size]:
+        s = build_sensor(d, l, r, kernel_inclusion=True)
+        holds &= kernel_condition(s).is_zero() and (dmf_term(s) - cmf_term(s)).is_zero()
+    return ListedCheck("with G_m = W C_xy^m (C_y^m)⁻¹ (W generic, the general solution of G_m C_y^m (I − P_m) = 0), "
+                       "G_m C_y^m (I − P_m) and DMF_m − CMF_m are zero rational functions",
+                       *_families(KERNEL_FAMILIES[size]), holds)
+
+
+def _gram_check(size: str) -> ListedCheck:
+    holds = True
     for d, l in WIDE[size]:
-        a_sym = generic_matrix("A", d, l)
-        gram = lift(a_sym, polynomial_ring(a_sym))
-        gram = gram.transpose() * gram
-        argument.at_sizes("det(C_xyᵀC_xy) ≡ 0 for a generic C_xy^m with l_m > D, so (C_xyᵀC_xy)⁻¹ never exists",
-                          f"(D, l_m) = ({d}, {l})", gram.domain.to_sympy(gram.det()))
-    return argument.certificate(time.perf_counter() - start)
+        a = lift(generic_matrix("A", d, l), polynomial_ring(generic_matrix("A", d, l)))
+        gram = a.transpose() * a
+        holds &= gram.det() == gram.domain.zero
+    return ListedCheck("det(C_xyᵀC_xy) is the zero polynomial for a generic C_xy^m with l_m > D",
+                       tuple(f"(D, l_m) = ({d}, {l})" for d, l in WIDE[size]), (), holds)

@@ -8,15 +8,15 @@ With x ~ N(μ, Σ), k_a(x, x') = α_a² exp(−½ (x − x')ᵀΛ_a⁻¹(x − x
 * Q_ij = E[k_a(x, x_i) k_b(x, x_j)] = k_a(x_i, μ) k_b(x_j, μ) |R|^{-1/2} exp(½ zᵀR⁻¹Σz),
   R = Σ(Λ_a⁻¹ + Λ_b⁻¹) + I, z = Λ_a⁻¹ν_i + Λ_b⁻¹ν_j                                           (eq. 11)
 
-**Route 1, symbolic D** (:mod:`gpfverify.symbolic.word_algebra`, supporting): the Gaussian
-product identity and the matrix identities behind each closed form, proved from the declarations
-of a :class:`~gpfverify.symbolic.theory.Theory` (Λ_a, Λ_b, Σ symmetric positive definite — not
-only diagonal Λ —, their inverses, C = (Λ⁻¹ + Σ⁻¹)⁻¹, S = (Λ + Σ)⁻¹, Ξ = Λ_a⁻¹ + Λ_b⁻¹,
-M⁻¹ = (Ξ + Σ⁻¹)⁻¹, R⁻¹ = (ΣΞ + I)⁻¹). The integrals follow from them only with |XY| = |X||Y| and
-the D-dimensional Gaussian integral, which the engine neither proves nor checks: route 1 does not
-widen the certificate's scope.
+**Route 1, any D, through the kernel** (the certificate): Σ, Λ_a, Λ_b any SPD matrices (not
+only diagonal Λ). Each integral ∫ N(x; μ, Σ) … dx is rewritten by the kernel's Gaussian-integral
+rule G9 (completing the square: A = Σ⁻¹ + Λ_a⁻¹ [+ Λ_b⁻¹], b, c given here, the exponent checked
+by the normal form); the determinant lemma det(ΣΛ_a⁻¹ + I) = det(Σ) det(Σ⁻¹ + Λ_a⁻¹), resp.
+det(R) = det(Σ) det(Σ⁻¹ + Ξ), enters by substitution S1; and the exponents ½bᵀA⁻¹b + c equal the
+closed forms' by the matrix identities Λ_a⁻¹(Σ⁻¹ + Λ_a⁻¹)⁻¹Σ⁻¹ = (Σ + Λ_a)⁻¹ and
+(Σ⁻¹ + Ξ)⁻¹ = R⁻¹Σ, each proved from the inverse rules.
 
-**Route 2, D = 1, 2 (and 3 in the large size) by direct integration**, the certificate's scope:
+**Route 2, D = 1, 2 (and 3 in the large size) by direct integration** ("also checked"):
 x = μ + Lz with Σ = LLᵀ (L lower triangular,
 every entry a free symbol, positive diagonal) and z ~ N(0, I); the integrand p(z)·exp(E(z)), p
 linear, is integrated one coordinate at a time with the 1-D rule
@@ -25,8 +25,8 @@ linear, is integrated one coordinate at a time with the 1-D rule
 is accepted only if r, s and E each equal the closed form's as rational functions (the difference
 cancels to 0) — a sign error changes r and is rejected.
 
-Every route carries negative controls: mutated closed forms (a sign, a wrong inverse, a dropped
-determinant, a flipped exponent) that must be rejected.
+Negative controls: mutated forms of the identities route 1 rests on (refused by the kernel and
+refuted on exact instances), and mutated closed forms that route 2 must reject.
 """
 
 from __future__ import annotations
@@ -34,13 +34,17 @@ from __future__ import annotations
 import time
 from dataclasses import dataclass
 
+import numpy as np
 import sympy as sp
 
-from gpfverify.symbolic import word_algebra as wa
-from gpfverify.symbolic.argument import Argument
-from gpfverify.symbolic.certificate import Certificate
-from gpfverify.symbolic.theory import Theory
-from gpfverify.symbolic.word_algebra import identity
+from fractions import Fraction
+
+from gpfverify.kernel.rules import Checker
+from gpfverify.kernel.terms import frozen, read_statement
+from gpfverify.symbolic.certificate import Certificate, Control, ListedCheck, Part
+from gpfverify.symbolic.formal import TWO_PI, Declare, I, Term, as_term, det, eq, exp, num, size, spd
+from gpfverify.symbolic.search import Template, prove_equation
+from gpfverify.symbolic.witness import Builder, refuting
 
 # ---- route 2: direct integration ------------------------------------------------------------------
 
@@ -202,131 +206,208 @@ DIRECT_MUTANTS = ("cross moment sign flipped", "wrong inverse", "determinant dro
 DIRECT_DIMS = {"small": {1: True, 2: True}, "large": {1: True, 2: True, 3: True}}
 
 
-def direct_route(argument: Argument, size: str) -> None:
-    """Route 2: each integral against its closed form, per D (``argument.at_sizes``), and the
-    mutated closed forms at D = 2 as negative controls."""
-    argument.at_sizes("the 1-D rule ∫(p₀ + p₁u)e^{−au² + bu + c}du = √(π/a)e^{b²/4a + c}(p₀ + p₁b/2a) "
-                      "(sympy.integrate)",
-                      "D = 1", one_dimensional_rule_residual())
+def _nonzero_somewhere(residuals) -> bool:
+    """Some residual is nonzero at a point of seeded positive rationals (a mutant is false)."""
+    rng = np.random.default_rng(20191126)
+    for r in residuals:
+        point = {x: sp.Rational(int(rng.integers(4, 17)), 4) for x in sorted(sp.sympify(r).free_symbols, key=str)}
+        if sp.nsimplify(sp.simplify(sp.sympify(r).xreplace(point))) != 0:
+            return True
+    return False
+
+
+def direct_check(size: str) -> ListedCheck:
+    """Route 2: each integral against its closed form per D, and every mutated closed form refused."""
+    holds = sp.simplify(one_dimensional_rule_residual()) == 0
     for d, product in DIRECT_DIMS[size].items():
         s = Setting.of(d)
-        got = integrals(s, product)
-        closed = closed_forms(s, product)
-        for name, form in got.items():
-            argument.at_sizes(f"{name} equals its closed form as r·√s·e^E", f"D = {d}", residual(form, closed[name]))
+        got, closed = integrals(s, product), closed_forms(s, product)
+        holds &= all(exactly_equal(form, closed[name]) for name, form in got.items())
         if d == 2:
             for mutant in DIRECT_MUTANTS:
                 wrong = closed_forms(s, product, mutant)
-                affected = [key for key in wrong if wrong[key] != closed[key]]
-                argument.control_residual(f"direct route, D = 2: {mutant}",
-                                          tuple(residual(got[key], wrong[key]) for key in affected))
+                affected = [k for k in wrong if wrong[k] != closed[k]]
+                holds &= _nonzero_somewhere([x for k in affected for x in residual(got[k], wrong[k])])
+    return ListedCheck("q_i, Q_ij and the cross moment E[(x − μ) k_a(x, x_i)] of seed 000 eq. 8–11, 20 equal their "
+                       "closed forms, by exact iterated Gaussian integration (x = μ + Lz, every entry of the "
+                       "lower-triangular L free, diagonal Λ_a, Λ_b); the mutated closed forms ("
+                       + ", ".join(DIRECT_MUTANTS) + ") are refused", tuple(f"D = {d}" for d in DIRECT_DIMS[size]),
+                       ("Σ = LLᵀ with every diagonal entry of L > 0", "every lengthscale ℓ > 0", "α_a, α_b > 0"), holds)
 
 
-# ---- route 1: symbolic D ----------------------------------------------------------------------------
+# ---- route 1: any D, through the kernel ----------------------------------------------------------------
 
-n = sp.Symbol("n", integer=True, positive=True)  # D
-ONE = sp.Integer(1)
-GP = Theory("uncertain-input SE-kernel integrals", 2009)
-Lam, LAM = GP.spd("Λ", n, "Λ_a symmetric positive definite")
-Lam_b, LAM_B = GP.spd("Λ_b", n, "Λ_b symmetric positive definite")
-Sig, SIG = GP.spd("Σ", n, "Σ symmetric positive definite")
-Lam_i, LAM_INV = GP.inverse("Λ⁻¹", Lam)
-Lam_bi, LAM_B_INV = GP.inverse("Λ_b⁻¹", Lam_b)
-Sig_i, SIG_INV = GP.inverse("Σ⁻¹", Sig)
-Cc, C_INV = GP.inverse("C", Lam_i + Sig_i, "Λ⁻¹ + Σ⁻¹ invertible")
-Sm, S_INV = GP.inverse("S", Lam + Sig, "Λ + Σ invertible")
-Xi, XI = GP.define("Ξ", Lam_i + Lam_bi)
-Mi, M_INV = GP.inverse("M⁻¹", Xi + Sig_i, "Ξ + Σ⁻¹ invertible")
-I_n = identity(n)
-Ri, R_INV = GP.inverse("R⁻¹", Sig * Xi + I_n, "ΣΞ + I invertible")
-xv, av, bv, uv, zv = (GP.general(name, n, ONE) for name in ("x", "x_i", "μ", "u", "z"))
-#: R⁻¹ = (ΣΞ + I)⁻¹ is not symmetric: declared so by hand, for a negative control
-PLANTED_R_SYMMETRIC = wa.Rule("R⁻¹ᵀ = R⁻¹", Ri.T, Ri, "axiom")
+def declare() -> tuple[Declare, dict]:
+    """The GP quantities: x ~ N(μ, Σ), SE kernels k_a, k_b with SPD Λ_a, Λ_b (diagonal in SE-ARD;
+    any SPD here), training inputs x_i, x_j, and the closed forms of seed 000 eq. 8–11, 20."""
+    d = Declare()
+    d.sizes("D")
+    aa, ab = d.param("α_a"), d.param("α_b")
+    mu, sig = d.matrix("μ", "D", 1), d.matrix("Σ", "D", "D")
+    la, lb = d.matrix("Λ_a", "D", "D"), d.matrix("Λ_b", "D", "D")
+    xi, xj = d.matrix("x_i", "D", 1), d.matrix("x_j", "D", 1)
+    vec = (("u", "D", 1), ("v", "D", 1))
+    ka = d.define("k_a", lambda u, v: aa ** 2 * exp(num("-1/2") * (u - v).T * la.inv * (u - v)), args=vec)
+    kb = d.define("k_b", lambda u, v: ab ** 2 * exp(num("-1/2") * (u - v).T * lb.inv * (u - v)), args=vec)
+    normal = d.define("N", lambda u: TWO_PI ** (num("-1/2") * size("D")) * det(sig) ** Fraction(-1, 2)
+                      * exp(num("-1/2") * (u - mu).T * sig.inv * (u - mu)), args=(("u", "D", 1),))
+    nu_i, nu_j = d.define("ν_i", xi - mu), d.define("ν_j", xj - mu)
+    q = d.define("q", aa ** 2 * det(sig * la.inv + I("D")) ** Fraction(-1, 2)
+                 * exp(num("-1/2") * nu_i.T * (sig + la).inv * nu_i))
+    r = d.define("R", sig * (la.inv + lb.inv) + I("D"))
+    z = d.define("z", la.inv * nu_i + lb.inv * nu_j)
+    big_q = d.define("Q", ka(xi, mu) * kb(xj, mu) * det(r) ** Fraction(-1, 2) * exp(num("1/2") * z.T * r.inv * sig * z))
+    d.assume(spd(sig), spd(la), spd(lb))
+    x = Term(("var", "x"))
+    terms = {"mu": mu, "sig": sig, "la": la, "lb": lb, "xi": xi, "xj": xj, "x": x, "nu_i": nu_i, "q": q, "R": r,
+             "z": z, "Q": big_q,
+             "int_q": integral(normal(x) * ka(x, xi)), "int_cross": integral((x - mu) * normal(x) * ka(x, xi)),
+             "int_Q": integral(normal(x) * ka(x, xi) * kb(x, xj))}
+    return d, terms
 
 
-def _lemma(name: str, chain: list, statement: str) -> tuple[wa.Rule, wa.Proof]:
-    proof = wa.prove_by_chain(chain, statement)
-    return wa.lemma(name, proof), proof
+def integral(body) -> Term:
+    return Term(("int", "x", "D", as_term(body)))
 
 
-def _quad(v, m, w=None):
-    w = v if w is None else w
-    return v.T * m * w
+def statement() -> dict:
+    d, t = declare()
+    d.conclude(eq(t["int_q"], t["q"]), eq(t["int_cross"], t["sig"] * (t["sig"] + t["la"]).inv * t["nu_i"] * t["q"]),
+               eq(t["int_Q"], t["Q"]))
+    return d.json()
 
 
-def dimension_free_route(argument: Argument) -> None:
-    """Route 1's proofs (supporting the argument) and its negative controls."""
-    xi_sym = wa.lemma("Ξᵀ = Ξ", wa.prove_by_normal_form(Xi.T, Xi, [XI, LAM_INV[2], LAM_B_INV[2]], "Ξᵀ = Ξ"))
-    symmetries = [LAM, SIG, LAM_INV[2], SIG_INV[2], C_INV[2], S_INV[2], M_INV[2], xi_sym]
-    inverses = symmetries + [LAM_INV[0], LAM_INV[1], SIG_INV[0], SIG_INV[1]]
-    c_def, c_def_proof = _lemma("Λ⁻¹C = I − Σ⁻¹C", [(Lam_i * Cc, None), (I_n - Sig_i * Cc, C_INV[0])],
-                                "Λ⁻¹C = I − Σ⁻¹C (C = (Λ⁻¹ + Σ⁻¹)⁻¹)")
-    c_t, c_t_proof = _lemma("CΛ⁻¹ = I − CΣ⁻¹", [(Cc * Lam_i, None), (I_n - Cc * Sig_i, C_INV[1])], "CΛ⁻¹ = I − CΣ⁻¹")
-    c_lemma, c_proof = _lemma("CΣ⁻¹Λ = Λ − C", [(Cc * Sig_i * Lam, None), (Lam - Cc * Lam_i * Lam, c_t),
-                                                 (Lam - Cc, LAM_INV[1])], "CΣ⁻¹Λ = Λ − C")
-    target = Lam_i * Cc * Sig_i
-    right_inverse = wa.prove_by_normal_form((Lam + Sig) * target, I_n, inverses + [c_def], "(Λ + Σ)Λ⁻¹CΣ⁻¹ = I")
-    ri = wa.lemma("(Λ + Σ)Λ⁻¹CΣ⁻¹ = I", right_inverse)
-    s_lemma, s_proof = _lemma("S = Λ⁻¹CΣ⁻¹", [(Sm, None), (Sm * (Lam + Sig) * target, ri), (target, S_INV[1])],
-                              "S = Λ⁻¹CΣ⁻¹ (uniqueness of the inverse)")
-    m_def, m_def_proof = _lemma("Σ⁻¹M⁻¹ = I − ΞM⁻¹", [(Sig_i * Mi, None), (I_n - Xi * Mi, M_INV[0])],
-                                "Σ⁻¹M⁻¹ = I − ΞM⁻¹ (M⁻¹ = (Ξ + Σ⁻¹)⁻¹)")
-    m_lemma, m_proof = _lemma("M⁻¹ = R⁻¹Σ", [(Ri * Sig, None), (Ri * Sig * Xi * Mi + Ri * Sig * Sig_i * Mi, M_INV[0]),
-                                             (Ri * Sig * Xi * Mi + Ri * Mi, SIG_INV[0]), (Mi, R_INV[1])], "R⁻¹Σ = M⁻¹")
-    base = inverses + [c_def, c_t, c_lemma, s_lemma]
-    c = Cc * (Lam_i * av + Sig_i * bv)
-    product_lhs = _quad(xv - av, Lam_i) + _quad(xv - bv, Sig_i)
-    product_rhs = _quad(xv - c, Lam_i + Sig_i) + _quad(av - bv, Sm)
-    m = Xi + Sig_i
-    square_lhs = _quad(uv, m) - 2 * _quad(uv, I_n, zv)
-    square_rhs = _quad(uv - Mi * zv, m) - _quad(zv, Mi)
-    argument.support(
-        c_def_proof, c_t_proof, c_proof, right_inverse, s_proof, m_def_proof, m_proof,
-        wa.prove_by_normal_form(product_lhs, product_rhs, base,
-                                "Gaussian product: (x−x_i)ᵀΛ⁻¹(x−x_i) + (x−μ)ᵀΣ⁻¹(x−μ) = (x−c)ᵀ(Λ⁻¹+Σ⁻¹)(x−c) + "
-                                "ν_iᵀ(Λ+Σ)⁻¹ν_i, c = C(Λ⁻¹x_i + Σ⁻¹μ)"),
-        wa.prove_by_normal_form(Lam * (Lam_i + Sig_i) * Sig, Lam + Sig, inverses,
-                                "Λ(Λ⁻¹ + Σ⁻¹)Σ = Λ + Σ (the normalisers' matrices)"),
-        wa.prove_by_normal_form((Sig * Lam_i + I_n) * Lam, Sig + Lam, inverses,
-                                "(ΣΛ⁻¹ + I)Λ = Σ + Λ (eq. 9's determinant)"),
-        wa.prove_by_normal_form(c - bv, Sig * Sm * (av - bv), base, "c − μ = Σ(Σ + Λ)⁻¹ν_i (eq. 20)"),
-        wa.prove_by_normal_form(square_lhs, square_rhs, inverses + [m_def],
-                                "uᵀMu − 2uᵀz = (u − M⁻¹z)ᵀM(u − M⁻¹z) − zᵀM⁻¹z, M = Ξ + Σ⁻¹ (eq. 11's exponent)"),
-        wa.prove_by_normal_form(_quad(zv, Mi), _quad(zv, Ri * Sig), symmetries + [m_lemma],
-                                "zᵀM⁻¹z = zᵀR⁻¹Σz, R = ΣΞ + I (eq. 11)"),
-        wa.prove_by_normal_form(Sig * (Xi + Sig_i), Sig * Xi + I_n, inverses,
-                                "Σ(Ξ + Σ⁻¹) = ΣΞ + I"))
-    standing = frozenset({LAM, LAM_B, SIG})
-    for mutant, lhs, rhs, rules in (
-            ("cross moment sign flipped: c − μ = −Σ(Σ + Λ)⁻¹ν_i", c - bv, -(Sig * Sm * (av - bv)), base),
-            ("Σ ignored: c − μ = ν_i", c - bv, av - bv, base),
-            ("wrong inverse: (Λ + Σ)⁻¹ replaced by Λ⁻¹ in the product identity", product_lhs,
-             _quad(xv - c, Lam_i + Sig_i) + _quad(av - bv, Lam_i), base),
-            ("dropped term ν_iᵀ(Λ+Σ)⁻¹ν_i in the product identity", product_lhs, _quad(xv - c, Lam_i + Sig_i), base),
-            ("completed square with −M⁻¹z (sign)", square_lhs, _quad(uv + Mi * zv, m) - _quad(zv, Mi),
-             inverses + [m_def]),
-            ("eq. 11 with ΣR⁻¹ in place of R⁻¹Σ (a transpose, seen in zᵀ·w)", _quad(zv, Mi, uv),
-             _quad(zv, Sig * Ri, uv), symmetries + [m_lemma])):
-        argument.control(mutant, wa.prove_by_normal_form(lhs, rhs, rules), statement=mutant, false_under=standing)
-    argument.control("planted rule R⁻¹ᵀ = R⁻¹, an axiom no declaration issued (proves zᵀR⁻¹u = uᵀR⁻¹z)",
-                     wa.prove_by_normal_form(_quad(zv, Ri, uv), _quad(uv, Ri, zv), [PLANTED_R_SYMMETRIC]),
-                     statement="zᵀR⁻¹u = uᵀR⁻¹z", false_under=standing)
+def proof(statement_json: dict) -> dict:
+    """Completing the square (G9) with the determinant lemma (S1) and the matrix identities behind
+    the closed forms, each proved by the search from the inverse and symmetry rules."""
+    st = read_statement(frozen(statement_json))
+    checker = Checker(st, {"steps": []})
+    _, t = declare()
+    g = {k: v.t for k, v in t.items()}
+    sig, la, lb, mu, xi, xj = (t[k] for k in ("sig", "la", "lb", "mu", "xi", "xj"))
+    a1 = sig.inv + la.inv
+    c1 = a1.inv
+    a2 = sig.inv + la.inv + lb.inv
+    c2 = a2.inv
+    k = (sig + la).inv
+    b1 = sig.inv * mu + la.inv * xi
+    e1 = num("-1/2") * mu.T * sig.inv * mu + num("-1/2") * xi.T * la.inv * xi
+    b2 = b1 + lb.inv * xj
+    e2 = e1 + num("-1/2") * xj.T * lb.inv * xj
+    steps: list = []
+
+    def add(step):
+        checker.step(frozen(step))
+        steps.append(step)
+        return step["id"]
+
+    def inverse(matrix, side="right", lead=None):
+        return Template({"inverse": side, "of": as_term(matrix)}, orient=lead.t if lead is not None else "longest")
+
+    def lemma(sid, lead=None, transposed=False):
+        return Template({"lemma": sid}, orient=lead.t if lead is not None else "longest", transposed=transposed)
+
+    basics = [inverse(m, side) for m in (sig, la, lb) for side in ("right", "left")]
+
+    def prove(sid, lhs, rhs, templates, extra=None, subst=None):
+        step, left = prove_equation(checker, sid, as_term(lhs), as_term(rhs), templates, extra=extra, subst=subst)
+        return add(step)
+
+    # determinants and invertibility (the statement's side conditions, and S1)
+    prove("ΣΛ_a⁻¹ + I = Σ(Σ⁻¹ + Λ_a⁻¹)", sig * la.inv + I("D"), sig * a1, basics)
+    add({"id": "det(ΣΛ_a⁻¹ + I) > 0", "claim": ("positive", as_term(sig * la.inv + I("D"))),
+         "factors": [sig.t, a1.t], "by": "ΣΛ_a⁻¹ + I = Σ(Σ⁻¹ + Λ_a⁻¹)"})
+    prove("R = Σ(Σ⁻¹ + Ξ)", t["R"], sig * a2, basics)
+    for kind in ("positive", "invertible"):
+        add({"id": f"R {kind}", "claim": (kind, g["R"]), "factors": [sig.t, a2.t], "by": "R = Σ(Σ⁻¹ + Ξ)"})
+    # q and the cross moment: A = Σ⁻¹ + Λ_a⁻¹, C = A⁻¹, K = (Σ + Λ_a)⁻¹
+    prove("(Σ + Λ_a)Λ_a⁻¹CΣ⁻¹ = I", (sig + la) * la.inv * c1 * sig.inv, I("D"),
+          [inverse(la), inverse(a1, lead=la.inv * c1)] + basics)
+    prove("Λ_a⁻¹CΣ⁻¹ = (Σ + Λ_a)⁻¹", la.inv * c1 * sig.inv, k, [],
+          extra=[{"left": k.t, "gen": {"lemma": "(Σ + Λ_a)Λ_a⁻¹CΣ⁻¹ = I"}},
+                 {"left": num(-1).t, "gen": {"inverse": "left", "of": as_term(sig + la)},
+                  "right": as_term(la.inv * c1 * sig.inv)}])
+    cs = "Λ_a⁻¹CΣ⁻¹ = (Σ + Λ_a)⁻¹"
+    prove("completing the square (q)", num("1/2") * b1.T * c1 * b1 + e1, num("-1/2") * t["nu_i"].T * k * t["nu_i"],
+          [lemma(cs), lemma(cs, transposed=True), inverse(a1, lead=sig.inv * c1),
+           inverse(a1, "left", lead=c1 * la.inv)] + basics)
+    prove("the mean: Cb − μ = Σ(Σ + Λ_a)⁻¹ν_i", c1 * b1 - mu, sig * k * t["nu_i"],
+          [lemma(cs, lead=k, transposed=True), inverse(a1, "left", lead=c1 * sig.inv)] + basics)
+    det_q = {"det": as_term(sig * la.inv + I("D")), "factors": [sig.t, a1.t], "by": "ΣΛ_a⁻¹ + I = Σ(Σ⁻¹ + Λ_a⁻¹)"}
+    exp_q = {"exp": as_term(num("1/2") * b1.T * a1.pinv * b1 + e1), "by": "completing the square (q)"}
+    gauss_q = {"A": a1.t, "b": b1.t, "c": e1.t}
+    prove("eq. 8–9", t["int_q"], t["q"], [], extra=[{"gen": {"gauss": g["int_q"], **gauss_q}}], subst=[det_q, exp_q])
+    prove("eq. 20", t["int_cross"], t["sig"] * k * t["nu_i"] * t["q"], [lemma("the mean: Cb − μ = Σ(Σ + Λ_a)⁻¹ν_i")],
+          extra=[{"gen": {"gauss": g["int_cross"], **gauss_q}}], subst=[det_q, exp_q])
+    # Q_ij: A₂ = Σ⁻¹ + Λ_a⁻¹ + Λ_b⁻¹, C₂ = A₂⁻¹, R = ΣA₂
+    r = t["R"]
+    prove("C₂ = R⁻¹Σ", c2, r.inv * sig, [],
+          extra=[{"left": num(-1).t, "gen": {"inverse": "left", "of": g["R"]}, "right": c2.t},
+                 {"left": r.inv.t, "gen": {"lemma": "R = Σ(Σ⁻¹ + Ξ)"}, "right": c2.t},
+                 {"left": (r.inv * sig).t, "gen": {"inverse": "right", "of": a2.t}}])
+    half = num("-1/2") * t["nu_i"].T * la.inv * t["nu_i"] + num("-1/2") * (xj - mu).T * lb.inv * (xj - mu)
+    prove("completing the square (Q), in C₂", num("1/2") * b2.T * c2 * b2 + e2,
+          num("1/2") * t["z"].T * c2 * t["z"] + half,
+          [inverse(a2, lead=sig.inv * c2), inverse(a2, "left", lead=c2 * sig.inv)] + basics)
+    prove("completing the square (Q)", num("1/2") * b2.T * c2 * b2 + e2,
+          num("1/2") * t["z"].T * r.inv * sig * t["z"] + half,
+          [lemma("C₂ = R⁻¹Σ", lead=r.inv * sig), lemma("C₂ = R⁻¹Σ", lead=(r.inv * sig).T, transposed=True)],
+          extra=[{"gen": {"lemma": "completing the square (Q), in C₂"}}])
+    prove("eq. 11", t["int_Q"], t["Q"], [], extra=[{"gen": {"gauss": g["int_Q"], "A": a2.t, "b": b2.t, "c": e2.t}}],
+          subst=[{"det": g["R"], "factors": [sig.t, a2.t], "by": "R = Σ(Σ⁻¹ + Ξ)"},
+                 {"exp": as_term(num("1/2") * b2.T * a2.pinv * b2 + e2), "by": "completing the square (Q)"}])
+    return {"steps": steps}
+
+
+def witness(seed: int = 1) -> dict:
+    b = Builder(seed, {"D": 2}, params={"α_a": 2, "α_b": "3/2"})
+    for name in ("Σ", "Λ_a", "Λ_b"):
+        b.draw(name, 2, 2, "spd")
+    for name in ("μ", "x_i", "x_j"):
+        b.draw(name, 2, 1)
+    return b.json()
+
+
+#: mutated forms of the identities the proof rests on (integral-free, so the kernel refutes them exactly)
+MUTANTS = ("the cross moment's mean without Σ: Cb − μ = ν_i", "(Σ + Λ_a)⁻¹ replaced by Λ_a⁻¹ in q's exponent",
+           "the determinant lemma with the factors swapped: ΣΛ_a⁻¹ + I = (Σ⁻¹ + Λ_a⁻¹)Σ",
+           "Q's exponent with ΣR⁻¹ in place of R⁻¹Σ")
+
+
+def mutant(which: str) -> dict:
+    d, t = declare()
+    sig, la, lb, mu, xi, xj = (t[k] for k in ("sig", "la", "lb", "mu", "xi", "xj"))
+    a1, a2 = sig.inv + la.inv, sig.inv + la.inv + lb.inv
+    b1 = sig.inv * mu + la.inv * xi
+    e1 = num("-1/2") * mu.T * sig.inv * mu + num("-1/2") * xi.T * la.inv * xi
+    b2, e2 = b1 + lb.inv * xj, e1 + num("-1/2") * xj.T * lb.inv * xj
+    half = num("-1/2") * t["nu_i"].T * la.inv * t["nu_i"] + num("-1/2") * (xj - mu).T * lb.inv * (xj - mu)
+    if which == MUTANTS[0]:
+        d.conclude(eq(a1.inv * b1 - mu, t["nu_i"]))
+    elif which == MUTANTS[1]:
+        d.conclude(eq(num("1/2") * b1.T * a1.inv * b1 + e1, num("-1/2") * t["nu_i"].T * la.inv * t["nu_i"]))
+    elif which == MUTANTS[2]:
+        d.conclude(eq(sig * la.inv + I("D"), a1 * sig))
+    else:
+        d.conclude(eq(num("1/2") * b2.T * a2.inv * b2 + e2, num("1/2") * t["z"].T * sig * t["R"].inv * t["z"] + half))
+    return d.json()
+
+
+def _attempt(statement_json: dict) -> dict:
+    st = read_statement(frozen(statement_json))
+    checker = Checker(st, {"steps": []})
+    templates = [Template({"inverse": side, "of": ("var", m)}) for m in ("Σ", "Λ_a", "Λ_b")
+                 for side in ("right", "left")]
+    c = st.conclusion[0]
+    return {"steps": [prove_equation(checker, "s1", c[1], c[2], templates)[0]]}
 
 
 def prove_gp_moment_integrals(size: str = "small") -> Certificate:
     start = time.perf_counter()
-    dims = ", ".join(str(d) for d in DIRECT_DIMS[size])
-    argument = Argument("gp-moment-integrals",
-                        "the closed forms of the uncertain-input kernel integrals q_i, Q_ij and the input-output cross "
-                        f"moment (seed 000 eq. 8–11, 20) with a full input covariance Σ, for D = {dims}",
-                        "iterated exact Gaussian integration (listed D) + word-algebra rewriting of the matrix "
-                        "identities behind the closed forms (supporting, symbolic D)", GP)
-    direct_route(argument, size)
-    dimension_free_route(argument)
-    argument.note(f"Route 2 (the scope: D = {dims}): Σ = LLᵀ with every entry of the lower-triangular L free, diagonal "
-                  "Λ_a, Λ_b, ν_i, ν_j free; each integral, integrated coordinate by coordinate with the 1-D rule, has "
-                  "the exact form r·√s·e^E and equals its closed form iff r, s and E are equal rational functions. "
-                  "Route 1 (supporting, symbolic D, Λ any SPD matrix): the matrix identities below. With "
-                  "|XY| = |X||Y| and ∫N(x; m, P)dx = 1 they would give the integrals for larger D; the engine neither "
-                  "proves nor checks those two facts here, so larger D is not claimed.")
-    return argument.certificate(time.perf_counter() - start)
+    main = statement()
+    controls = [Control(m, mutant(m), _attempt(mutant(m)), refuting(mutant(m), witness, range(2, 22)))
+                for m in MUTANTS]
+    return Certificate("gp-moment-integrals",
+                       "The uncertain-input SE-kernel integrals q_i, Q_ij and the input-output cross moment (seed 000 "
+                       "eq. 8–11, 20) with a full input covariance Σ", [Part(main, proof(main), witness())], controls,
+                       [direct_check(size)], time.perf_counter() - start)

@@ -28,6 +28,7 @@ from functools import cached_property
 import numpy as np
 
 from gpfverify.errors import InputError
+from gpfverify.filters import runs
 
 STATE_DIM = 5
 #: indices of x, y and intensity in the state [x, ẋ, y, ẏ, I]
@@ -51,6 +52,13 @@ class PatchSpread:
     along_x: np.ndarray  # (2p+1, N): particles last, so numpy's inner loops run over N
     along_y: np.ndarray  # (2p+1, N)
     amplitude: np.ndarray  # (N,)
+
+    def run(self, index: int, size: int) -> PatchSpread:
+        """The spread of run ``index`` of a batch computed on all runs' particles in order, each
+        run holding ``size`` of them."""
+        part = slice(index * size, (index + 1) * size)
+        return PatchSpread(self.centre_x[part], self.centre_y[part], self.along_x[:, part], self.along_y[:, part],
+                           self.amplitude[part])
 
 
 @dataclass(frozen=True)
@@ -126,9 +134,10 @@ class TbdModel:
         eigval, eigvec = np.linalg.eigh(self.process_cov)
         return eigvec * np.sqrt(np.clip(eigval, 0.0, None))
 
-    def propagate(self, states: np.ndarray, rng: np.random.Generator) -> np.ndarray:
-        """Draws of s_k ~ N(F s_{k−1}, Q) for every row of ``states`` (N, 5)."""
-        noise = rng.standard_normal(states.shape) @ self.process_factor.T
+    def propagate(self, states: np.ndarray, rng: runs.Streams) -> np.ndarray:
+        """Draws of s_k ~ N(F s_{k−1}, Q) for every row of ``states`` (N, 5), or of (B, N, 5) with
+        one Generator per run (:mod:`gpfverify.filters.runs`)."""
+        noise = runs.normal(rng, states.shape[-2:]) @ self.process_factor.T
         return states @ self.transition_matrix.T + noise
 
     # ---- sensor -----------------------------------------------------------------------------
@@ -142,11 +151,11 @@ class TbdModel:
         return -0.5 * self.cell_size, (self.grid_size - 0.5) * self.cell_size
 
     def in_image(self, states: np.ndarray) -> np.ndarray:
-        """Whether each state's position (columns 0 and 2 of ``states`` (N, 5)) lies in the imaged
-        region :attr:`image_extent` on both axes, (N,) bool."""
+        """Whether each state's position (columns 0 and 2 of ``states`` (..., N, 5)) lies in the
+        imaged region :attr:`image_extent` on both axes, (..., N) bool."""
         lo, hi = self.image_extent
-        position = states[:, [0, 2]]
-        return np.all((position >= lo) & (position <= hi), axis=1)
+        position = states[..., [0, 2]]
+        return np.all((position >= lo) & (position <= hi), axis=-1)
 
     def amplitude(self, intensity) -> np.ndarray:
         """Peak of the point spread, Δ² I / (2πΣ²) (eq. 9)."""
@@ -230,25 +239,35 @@ class TbdModel:
 
     def log_likelihood_ratio(self, states: np.ndarray, image: np.ndarray,
                              spread: PatchSpread | None = None) -> np.ndarray:
-        """log L(z | s) for every particle, summed over its own (2p+1)² patch, (N,).
+        """log L(z | s) for every particle, summed over its own (2p+1)² patch, (N,); or (B, N) for
+        the particles (B, N, 5) of B runs, each against its own image (B, n, n).
 
         log L = Σ_{(i,j) ∈ C(s)} (h z − h²/2) / σ², with h = a g_x(i) g_y(j) separable, so the
         quadratic term is a² (Σ_i g_x²)(Σ_j g_y²) / 2 and the linear one a g_xᵀ Z_patch g_y.
-        ``spread``, when given, is ``patch_spread(states)``.
+        ``spread``, when given, is ``patch_spread`` of the particles (all runs' rows in order).
 
         The linear term is summed one patch row i at a time (arrays of (2p+1) × N, not (2p+1)² × N).
-        Z_patch is read at the flat index (c_x + i) n + (c_y + j) clipped to the image: a cell off
-        the image has a zero factor, so whichever (finite) pixel that index reads adds nothing.
+        Z_patch is read from the run's image framed by 2p zero cells on every side, at the patch
+        centre clipped to p cells beyond the image: a cell off the image has a zero factor, so
+        whichever pixel a clipped centre's patch reads adds nothing.
         """
-        spread = self.patch_spread(states) if spread is None else spread
+        flat = states.reshape(-1, states.shape[-1])
+        spread = self.patch_spread(flat) if spread is None else spread
         gx, gy, amp = spread.along_x, spread.along_y, spread.amplitude
-        n = self.grid_size
-        row_start = spread.centre_x * n + spread.centre_y
-        columns = self.patch_offsets[:, None] + row_start
-        linear = np.zeros(row_start.shape)
-        for i, offset in enumerate(self.patch_offsets):
-            row = np.take(image, columns + offset * n, mode="clip")
-            linear += gx[i] * np.einsum("jn,jn->n", row, gy)
+        p = self.patch_radius
+        framed = np.pad(image.reshape((-1,) + image.shape[-2:]), ((0, 0), (2 * p, 2 * p), (2 * p, 2 * p)))
+        width = framed.shape[-1]
+        pixels = framed.reshape(-1)
+        runs = flat.shape[0] // states.shape[-2]
+        first = np.repeat(np.arange(runs) * width * width, states.shape[-2])  # each run's framed image
+        first += (np.clip(spread.centre_x, -p, self.grid_size - 1 + p) + p) * width
+        first += np.clip(spread.centre_y, -p, self.grid_size - 1 + p) + p
+        columns = self.patch_offsets[:, None] + p + first
+        linear = np.zeros(first.shape)
+        for i in range(gx.shape[0]):
+            row = pixels[columns + i * width]
+            row *= gy
+            linear += gx[i] * row.sum(axis=0)
         linear *= amp
-        quadratic = 0.5 * amp**2 * np.einsum("in,in->n", gx, gx) * np.einsum("jn,jn->n", gy, gy)
-        return (linear - quadratic) / self.noise_std**2
+        quadratic = 0.5 * amp**2 * (gx * gx).sum(axis=0) * (gy * gy).sum(axis=0)
+        return ((linear - quadratic) / self.noise_std**2).reshape(states.shape[:-1])

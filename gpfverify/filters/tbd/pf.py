@@ -28,13 +28,16 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import cast
 
 import numpy as np
 from scipy.special import expit
 
 from gpfverify.errors import InputError
-from gpfverify.filters.resampling import (Particles, ParticleStep, ess_from_weights, log_sum_exp,
-                                          moments_from_weights, normalize_log_weights, resample_from_weights)
+from gpfverify.filters import runs
+from gpfverify.filters.resampling import (Particles, ParticleStep, ess_from_weights, first_run, log_sum_exp,
+                                          moments_from_weights, normalize_log_weights, resample_from_weights,
+                                          search_runs, take_particles)
 from gpfverify.filters.tbd.model import PatchSpread, TbdModel
 
 
@@ -79,97 +82,108 @@ class TbdConfig:
         return self.n_particles - self.n_birth
 
 
-def sample_birth_prior(model: TbdModel, n: int, rng: np.random.Generator) -> np.ndarray:
-    """n draws from the birth density p_b (uniform position, velocity and intensity), (n, 5):
-    each column (b − a) u + a, velocities v_max (2u − 1), from one block u ~ U[0, 1)^(n×5)."""
+def sample_birth_prior(model: TbdModel, n: int, rng: runs.Streams) -> np.ndarray:
+    """n draws from the birth density p_b (uniform position, velocity and intensity), (n, 5) — or
+    (B, n, 5), one Generator per run: each column (b − a) u + a, velocities v_max (2u − 1), from
+    one block u ~ U[0, 1)^(n×5)."""
     lo, hi = model.image_extent
     vmax = model.velocity_max
     i_lo, i_hi = model.intensity_range
-    states = rng.random((n, 5))
+    states = runs.random(rng, (n, 5))
     for column, (scale, shift) in enumerate(((hi - lo, lo), (2.0, -1.0), (hi - lo, lo), (2.0, -1.0),
                                              (i_hi - i_lo, i_lo))):
-        states[:, column] *= scale
-        states[:, column] += shift
-    states[:, 1::2] *= vmax
+        states[..., column] *= scale
+        states[..., column] += shift
+    states[..., 1::2] *= vmax
     return states
 
 
-def initial_belief(model: TbdModel, config: TbdConfig, rng: np.random.Generator) -> Particles:
+def initial_belief(model: TbdModel, config: TbdConfig, rng: runs.Streams) -> Particles:
     """P_0 = 0 (no target before the first frame); the continuing set is a placeholder drawn from
-    p_b — with P_0 = 0 its weights are zero."""
-    return Particles.equally_weighted(sample_birth_prior(model, config.n_continuing, rng), existence=0.0)
+    p_b — with P_0 = 0 its weights are zero. One set per run when ``rng`` is a sequence."""
+    particles = sample_birth_prior(model, config.n_continuing, rng)
+    existence = 0.0 if particles.ndim == 2 else np.zeros(particles.shape[0])
+    return Particles.equally_weighted(particles, existence=existence)
 
 
-def birth_proposal(model: TbdModel, config: TbdConfig, image: np.ndarray, rng: np.random.Generator):
-    """Birth particles from the bright cells of ``image`` and log p_b(s)/q_b(s) for each.
+def birth_proposal(model: TbdModel, config: TbdConfig, image: np.ndarray, rng: runs.Streams):
+    """Birth particles from the bright cells of ``image`` and log p_b(s)/q_b(s) for each: (N_b, 5)
+    and (N_b,), or (B, N_b, 5) and (B, N_b) for the images (B, n, n) of B runs.
 
     q_b: cell c with probability π_c = (1 − ε) 1[z_c > γσ] / n_bright + ε / n² (ε = birth_uniform_share,
     π_c = 1/n² when no cell is bright), position uniform inside the cell, velocity and intensity
     from p_b. Since p_b puts 1/n² on each cell, p_b/q_b = (1/n²) / π_c.
     """
     n_cells = model.cell_count
-    bright = (image > config.birth_threshold * model.noise_std).ravel()
-    n_bright = int(bright.sum())
-    eps = config.birth_uniform_share if n_bright else 1.0
-    cell_prob = np.full(n_cells, eps / n_cells)
-    if n_bright:
-        cell_prob[bright] += (1.0 - eps) / n_bright
+    bright = (image > config.birth_threshold * model.noise_std).reshape(image.shape[:-2] + (n_cells,))
+    n_bright = np.count_nonzero(bright, axis=-1)
+    eps = np.where(n_bright > 0, config.birth_uniform_share, 1.0)
+    cell_prob = np.repeat((eps / n_cells)[..., None], n_cells, axis=-1)
+    cell_prob += np.where(bright, ((1.0 - eps) / np.maximum(n_bright, 1))[..., None], 0.0)
     states = sample_birth_prior(model, config.n_birth, rng)
-    cells = np.minimum(np.searchsorted(np.cumsum(cell_prob), rng.random(config.n_birth) * cell_prob.sum(),
-                                       side="right"), n_cells - 1)
+    targets = runs.random(rng, (config.n_birth,)) * cell_prob.sum(axis=-1)[..., None]
+    cells = np.minimum(search_runs(np.cumsum(cell_prob, axis=-1), targets), n_cells - 1)
     ix, iy = np.divmod(cells, model.grid_size)
-    within = rng.random((config.n_birth, 2)) - 0.5
-    states[:, 0] = (ix + within[:, 0]) * model.cell_size
-    states[:, 2] = (iy + within[:, 1]) * model.cell_size
-    log_ratio = -math.log(n_cells) - np.log(cell_prob[cells])
+    within = runs.random(rng, (config.n_birth, 2)) - 0.5
+    states[..., 0] = (ix + within[..., 0]) * model.cell_size
+    states[..., 2] = (iy + within[..., 1]) * model.cell_size
+    log_ratio = -math.log(n_cells) - np.log(np.take_along_axis(cell_prob, cells, axis=-1))
     return states, log_ratio
 
 
-def _log(p: float) -> float:
-    return math.log(p) if p > 0.0 else -math.inf
+def _log(p: np.ndarray) -> np.ndarray:
+    """log p, −inf where p = 0."""
+    with np.errstate(divide="ignore"):
+        return np.log(p)
 
 
 def pf_tbd_step(belief: Particles, model: TbdModel, image: np.ndarray, *, k: int = 1,
-                rng: np.random.Generator, config: TbdConfig) -> ParticleStep:
+                rng: runs.Streams, config: TbdConfig) -> ParticleStep:
     """Steps ①–⑥ above for one frame ``image`` (n, n); ``k`` is unused (the model is
     time-invariant). The record's ``weighted`` is the merged set of ④ (normalised log weights),
-    its ``posterior`` the N_c resampled particles with the existence probability P_k."""
+    its ``posterior`` the N_c resampled particles with the existence probability P_k. For B runs:
+    particles (B, N_c, 5), existence (B,), images (B, n, n), one Generator per run."""
     return pf_tbd_stage(belief, model, image, rng=rng, config=config)[0]
 
 
-def pf_tbd_stage(belief: Particles, model: TbdModel, image: np.ndarray, *, rng: np.random.Generator,
+def pf_tbd_stage(belief: Particles, model: TbdModel, image: np.ndarray, *, rng: runs.Streams,
                  config: TbdConfig) -> tuple[ParticleStep, PatchSpread]:
     """:func:`pf_tbd_step` and the point spread of its merged set (``model.patch_spread`` of
-    ``weighted.particles``), which the second stage of TPFTBD reuses."""
+    ``weighted.particles``, all runs' rows in order), which the second stage of TPFTBD reuses."""
     if belief.existence is None:
         raise InputError("belief.existence: PF-TBD needs the existence probability (see initial_belief)")
-    prev = belief.existence
+    if belief.particles.ndim == 2:  # one run: a batch of one
+        batch = Particles(belief.particles[None], belief.log_weights[None], existence=np.array([belief.existence]))
+        step, spread = pf_tbd_stage(batch, model, image[None], rng=[cast(np.random.Generator, rng)], config=config)
+        return first_run(step), spread
+    runs.check_streams(rng, belief.particles.shape[:-2])
+    prev = np.asarray(belief.existence, dtype=float)[:, None]
     births, log_ratio = birth_proposal(model, config, image, rng)
     continuing = model.propagate(belief.particles, rng)
-    merged = np.concatenate([births, continuing])
-    spread = model.patch_spread(merged)
+    merged = np.concatenate([births, continuing], axis=1)
+    spread = model.patch_spread(merged.reshape(-1, merged.shape[-1]))
     log_w = model.log_likelihood_ratio(merged, image, spread)
-    log_w[:config.n_birth] += log_ratio + _log(model.p_birth * (1.0 - prev) / config.n_birth)
+    log_w[:, :config.n_birth] += log_ratio + _log(model.p_birth * (1.0 - prev) / config.n_birth)
     # log(N_c w^i_{k−1}) is exactly 0 for the equally weighted set Rutten's filter carries
     n_prev = belief.size
     log_prior = _log((1.0 - model.p_death) * prev / n_prev) + (normalize_log_weights(belief.log_weights)
                                                                + math.log(n_prev))
     left = ~model.in_image(continuing)
-    log_w[config.n_birth:] += np.where(left, -math.inf, log_prior)
+    log_w[:, config.n_birth:] += np.where(left, -math.inf, log_prior)
     log_mass = log_sum_exp(log_w)
-    absent = [math.log(model.p_death * prev + (1.0 - model.p_birth) * (1.0 - prev))]
-    if left.any():
-        absent.append(log_sum_exp(log_prior[left]))                                        # log M_out
-    log_absent = log_sum_exp(np.array(absent))
-    existence = float(expit(log_mass - log_absent))
-    if log_mass == -math.inf:  # P_{k−1} = 1 and every particle left: P_k = 0, the births kept as drawn
-        log_w[:config.n_birth], log_mass = 0.0, math.log(config.n_birth)
-    log_w -= log_mass
+    log_stay = _log(model.p_death * prev + (1.0 - model.p_birth) * (1.0 - prev))
+    log_out = np.asarray(log_sum_exp(np.where(left, log_prior, -math.inf)))  # log M_out, −inf if none left
+    log_absent = log_sum_exp(np.concatenate([log_stay, log_out[:, None]], axis=1))
+    existence = expit(log_mass - log_absent)
+    lost = log_mass == -math.inf  # P_{k−1} = 1 and every particle left: P_k = 0, the births kept as drawn
+    log_w[lost, :config.n_birth] = 0.0
+    log_mass = np.where(lost, math.log(config.n_birth), log_mass)
+    log_w -= log_mass[:, None]
     mean, cov = moments_from_weights(merged, np.exp(log_w))
     # systematic_resample and effective_sample_size of log_w, from one normalisation
     weights = np.exp(normalize_log_weights(log_w))
-    resampled = merged[resample_from_weights(weights, rng, size=config.n_continuing)]
+    resampled = take_particles(merged, resample_from_weights(weights, rng, size=config.n_continuing))
     step = ParticleStep(Particles.equally_weighted(resampled, existence=existence),
                         Particles(merged, log_w, existence=existence), mean, cov,
-                        ess_from_weights(weights), True)
+                        ess_from_weights(weights), np.ones(existence.shape, dtype=bool))
     return step, spread

@@ -25,11 +25,13 @@ by construction (it is symmetrised against rounding).
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import cast
 
 import numpy as np
 
+from gpfverify.filters import runs
 from gpfverify.filters.records import StepRecord
-from gpfverify.filters.resampling import Particles, ParticleStep
+from gpfverify.filters.resampling import Particles, ParticleStep, first_run
 from gpfverify.filters.tbd.model import POS, PatchSpread, TbdModel
 from gpfverify.filters.tbd.pf import TbdConfig, pf_tbd_stage
 from gpfverify.filters.update import condition
@@ -129,23 +131,41 @@ def transfer_particles(particles: np.ndarray, posterior_mean: np.ndarray, poster
 class TwoStageStep(ParticleStep):
     """A TPFTBD step: the :class:`~gpfverify.filters.resampling.ParticleStep` (``weighted`` the
     merged set of the PF stage, ``posterior`` the transferred particles, ``mean``/``cov`` the
-    mixture moments of the module docstring) and the second stage that produced it."""
+    mixture moments of the module docstring) and the second stage that produced it (one per run,
+    a tuple, for a batch of runs)."""
 
-    second_stage: SecondStage
+    second_stage: SecondStage | tuple[SecondStage, ...]
 
 
 def tpf_tbd_step(belief: Particles, model: TbdModel, image: np.ndarray, *, k: int = 1,
-                 rng: np.random.Generator, config: TbdConfig, second_rng: np.random.Generator) -> TwoStageStep:
+                 rng: runs.Streams, config: TbdConfig, second_rng: runs.Streams) -> TwoStageStep:
     """PF-TBD with ``rng``, then the second stage and the transfer with ``second_rng`` (separate
-    streams: with ζ = 1 the step reproduces PF-TBD exactly for the same ``rng``)."""
-    step, spread = pf_tbd_stage(belief, model, image, rng=rng, config=config)
-    record, cells_x, cells_y = second_stage_update(step.weighted.particles, step.weighted.log_weights, model,
-                                                   config, image, step.mean, spread)
-    particles, replaced = transfer_particles(step.posterior.particles, record.mu_e, record.C_e,
-                                             config.zeta, second_rng)
-    zeta, gap = config.zeta, step.mean - record.mu_e
-    mean = zeta * step.mean + (1.0 - zeta) * record.mu_e
-    cov = symmetrize(zeta * step.cov + (1.0 - zeta) * record.C_e + zeta * (1.0 - zeta) * np.outer(gap, gap))
-    posterior = Particles.equally_weighted(particles, existence=step.posterior.existence)
-    return TwoStageStep(posterior, step.weighted, mean, cov, step.ess, step.resampled,
-                        SecondStage(record, cells_x, cells_y, replaced))
+    streams: with ζ = 1 the step reproduces PF-TBD exactly for the same ``rng``). For B runs
+    (particles (B, N_c, 5), images (B, n, n), one Generator per run in each stream) the PF stage
+    runs on all runs at once and the second stage (a patch and an overlapping set of particles of
+    each run's own size) run by run."""
+    if belief.particles.ndim == 2:  # one run: a batch of one
+        batch = Particles(belief.particles[None], belief.log_weights[None], existence=np.array([belief.existence]))
+        step = tpf_tbd_step(batch, model, image[None], rng=[cast(np.random.Generator, rng)], config=config,
+                            second_rng=[cast(np.random.Generator, second_rng)])
+        one = first_run(step)
+        return TwoStageStep(one.posterior, one.weighted, one.mean, one.cov, one.ess, one.resampled,
+                            step.second_stage[0] if isinstance(step.second_stage, tuple) else step.second_stage)
+    runs.check_streams(second_rng, belief.particles.shape[:-2])
+    stage, spread = pf_tbd_stage(belief, model, image, rng=rng, config=config)
+    size = stage.weighted.size
+    stages, transferred = [], []
+    for b, stream in enumerate(cast(list, second_rng)):
+        merged = stage.weighted
+        record, cells_x, cells_y = second_stage_update(merged.particles[b], merged.log_weights[b], model, config,
+                                                       image[b], stage.mean[b], spread.run(b, size))
+        particles, replaced = transfer_particles(stage.posterior.particles[b], record.mu_e, record.C_e,
+                                                 config.zeta, stream)
+        stages.append(SecondStage(record, cells_x, cells_y, replaced))
+        transferred.append(particles)
+    mu_e, C_e = np.stack([s.record.mu_e for s in stages]), np.stack([s.record.C_e for s in stages])
+    zeta, gap = config.zeta, stage.mean - mu_e
+    mean = zeta * stage.mean + (1.0 - zeta) * mu_e
+    cov = symmetrize(zeta * stage.cov + (1.0 - zeta) * C_e + zeta * (1.0 - zeta) * gap[:, :, None] * gap[:, None, :])
+    posterior = Particles.equally_weighted(np.stack(transferred), existence=stage.posterior.existence)
+    return TwoStageStep(posterior, stage.weighted, mean, cov, stage.ess, stage.resampled, tuple(stages))
