@@ -68,10 +68,12 @@ def test_a_fusion_run_shows_the_check_page_of_the_same_run(tracker_run, tmp_path
     np.savez(tmp_path / "m.npz", y=ys)
     assert main(["check", TRACKER, "--measurements", str(tmp_path / "m.npz"), "--json"]) == 0
     results = json.loads(capsys.readouterr().out)
-    page = fused._repr_html_()
-    assert _words(verdict_sentence(results)) in page
+    # the command runs its runs batched (run_fusion_batch): the same verdicts, and gaps that are
+    # rounding noise of another route, so the numbers are read as numbers
+    page = _largest_at_read(_numbers_read(fused._repr_html_()))
+    assert _largest_at_read(_numbers_read(_words(verdict_sentence(results)))) in page
     for paragraph in summary_paragraphs(results)[1:]:
-        assert _words(paragraph) in page
+        assert _largest_at_read(_numbers_read(_words(paragraph))) in page
     assert page.count("<img") >= 3  # the gap, the verdict strip, the consistency figures
 
 
