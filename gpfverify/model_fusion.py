@@ -185,6 +185,7 @@ class FusionRun(HtmlView):
     ys: np.ndarray | None = field(default=None, repr=False, compare=False)
     ci_criterion: str = "trace"
     params: SigmaSettings = SigmaSettings()
+    rcc_metric: str = "euclidean"
 
     def means(self, method: str) -> np.ndarray:
         """Fused means of ``method`` at every step, (T, D)."""
@@ -224,7 +225,8 @@ def _attempt(rule: Callable, beliefs: Sequence) -> tuple[object, str | None, flo
 
 
 def _baselines(methods: Sequence[str], rcc_size: float | None,
-               circular_state: Sequence[int], ci_criterion: str = "trace") -> dict[str, Callable]:
+               circular_state: Sequence[int], ci_criterion: str = "trace",
+               rcc_metric: str = "euclidean") -> dict[str, Callable]:
     """The requested baselines as functions of the local posteriors, averaging the angle state
     components ``circular_state`` on the circle, CI and ICI with the weight criterion
     ``ci_criterion`` (convex solvers imported only when requested)."""
@@ -237,7 +239,8 @@ def _baselines(methods: Sequence[str], rcc_size: float | None,
         out["ci"] = partial(covariance_intersection, criterion=ci_criterion, circular_state=circular_state)
     if "rcc-ci" in methods:
         from gpfverify.fusion.rcc_ci import rcc_ci
-        out["rcc-ci"] = partial(rcc_ci, c=rcc_size, on_empty="enlarge", circular_state=circular_state)
+        out["rcc-ci"] = partial(rcc_ci, c=rcc_size, on_empty="enlarge", circular_state=circular_state,
+                                metric=rcc_metric)
     if "ici" in methods:
         from gpfverify.fusion.ci import inverse_covariance_intersection
         out["ici"] = partial(inverse_covariance_intersection, criterion=ci_criterion, circular_state=circular_state)
@@ -275,11 +278,14 @@ def run_fusion(model, ys, *, family: str = "ukf", methods: Sequence[str] = DEFAU
                params: SigmaParams | SigmaSettings = SigmaParams(), rank_tol: float | None = None,
                local_priors: Sequence[Gaussian] | None = None, fused_prior: Gaussian | None = None,
                audit: bool = True, rcc_size: float | None = None,
-               rank_rule: RankRule | str | None = None, ci_criterion: str = "trace") -> FusionRun:
+               rank_rule: RankRule | str | None = None, ci_criterion: str = "trace",
+               rcc_metric: str = "euclidean") -> FusionRun:
     """Filter the stacked measurements ``ys`` (T, L) — ``ys[t]`` at step k = first_k + t — with
     every sensor's local filter, CMF and DMF (each its own recursion from ``fused_prior``) and the
     chosen baselines (a baseline that fails at a step is recorded in ``FusionStep.failed`` and the run
-    goes on); ``rcc_size`` is RCC-CI's ellipsoid size c (default χ²_D(0.99)); ``ci_criterion`` the
+    goes on); ``rcc_size`` is RCC-CI's ellipsoid size c (default χ²_D(0.99)) and ``rcc_metric`` the
+    norm of its Chebyshev centre's error ("euclidean", the paper's, or "scaled": each component in
+    its own scale, unit-free; :mod:`gpfverify.fusion.rcc_ci`); ``ci_criterion`` the
     weight criterion of CI and ICI: "trace" (the default; minimises the trace of the fused bound,
     which depends on the units of the state components) or "det" (its determinant: unit-free).
     Priors default to the model's (a GPModel has none: then both are required). ``rank_rule``/``rank_tol`` as in
@@ -291,7 +297,7 @@ def run_fusion(model, ys, *, family: str = "ukf", methods: Sequence[str] = DEFAU
     sensor_models = [model.sensor_model(m) for m in range(len(model.sizes))]
     if ci_criterion not in ("trace", "det"):
         raise InputError(f"ci_criterion must be 'trace' or 'det', got {ci_criterion!r}")
-    baselines = _baselines(methods, rcc_size, model.circular_state, ci_criterion)
+    baselines = _baselines(methods, rcc_size, model.circular_state, ci_criterion, rcc_metric)
     cmf_belief = dmf_belief = fused
     steps = []
     for t, y in enumerate(ys):
@@ -322,7 +328,7 @@ def run_fusion(model, ys, *, family: str = "ukf", methods: Sequence[str] = DEFAU
             step_audit = _audit(dmf)
         steps.append(FusionStep(k, local, cmf, dmf, fused_estimates, step_audit,
                                 seconds, tuple(s for _, s in timed), failed))
-    return FusionRun(family, methods, tuple(steps), model, ys, ci_criterion, SigmaSettings.of(params))
+    return FusionRun(family, methods, tuple(steps), model, ys, ci_criterion, SigmaSettings.of(params), rcc_metric)
 
 
 def _audit(dmf: DMFStep) -> CaseAudit:
@@ -342,12 +348,12 @@ def _per_run(belief: Gaussian | None, runs: int, dim: int) -> Gaussian:
 
 
 def _batch_baselines(methods: Sequence[str], rcc_size: float | None, circular_state: Sequence[int],
-                     ci_criterion: str) -> dict[str, Callable]:
+                     ci_criterion: str, rcc_metric: str = "euclidean") -> dict[str, Callable]:
     """The requested baselines over a batch: ``rule(means (B, N, D), covs (B, N, D, D))`` →
     (means, covs, why each run failed or None). CC, CI and RCC-CI on arrays; ICI and EI run by run
     (pairwise rules, each a scalar root). A rule that cannot fuse every run at once fuses each run
     alone (:func:`_attempt`), so that one run's failure is its own."""
-    singles = _baselines(methods, rcc_size, circular_state, ci_criterion)
+    singles = _baselines(methods, rcc_size, circular_state, ci_criterion, rcc_metric)
     out: dict[str, Callable] = {}
     for name, single in singles.items():
         if name == "cc":
@@ -358,7 +364,8 @@ def _batch_baselines(methods: Sequence[str], rcc_size: float | None, circular_st
             batched = partial(covariance_intersection_batch, criterion=ci_criterion, circular_state=circular_state)
         elif name == "rcc-ci":
             from gpfverify.fusion.rcc_ci import rcc_ci_batch
-            batched = partial(rcc_ci_batch, c=rcc_size, on_empty="enlarge", circular_state=circular_state)
+            batched = partial(rcc_ci_batch, c=rcc_size, on_empty="enlarge", circular_state=circular_state,
+                              metric=rcc_metric)
         else:
             batched = None
         out[name] = partial(_fuse_runs, batched, single)
@@ -394,7 +401,7 @@ def run_fusion_batch(model, ys, *, family: str = "ukf", methods: Sequence[str] =
                      rank_tol: float | None = None,
                      local_priors: Sequence[Gaussian] | None = None, fused_prior: Gaussian | None = None,
                      audit: bool = True, rcc_size: float | None = None, rank_rule: RankRule | str | None = None,
-                     ci_criterion: str = "trace") -> list[FusionRun]:
+                     ci_criterion: str = "trace", rcc_metric: str = "euclidean") -> list[FusionRun]:
     """:func:`run_fusion` of B Monte Carlo runs at once: ``ys`` (B, T, L), run b's measurements at
     b; ``model`` the system every run filters (a :class:`~gpfverify.models.StateSpaceModel`, its
     functions then applied run by run, :meth:`~gpfverify.models.StateSpaceModel.for_runs`) or the
@@ -422,7 +429,7 @@ def run_fusion_batch(model, ys, *, family: str = "ukf", methods: Sequence[str] =
     sensor_models = [stepped.sensor_model(m) for m in range(len(model.sizes))]
     blocks = sensor_blocks(model.sizes)
     rule = resolve_rank_rule(None, rank_rule, rank_tol)
-    baselines = _batch_baselines(methods, rcc_size, model.circular_state, ci_criterion)
+    baselines = _batch_baselines(methods, rcc_size, model.circular_state, ci_criterion, rcc_metric)
     per_run: list[list[FusionStep]] = [[] for _ in range(runs)]
     for t in range(ys.shape[1]):
         k, y = first_k + t, ys[:, t]
@@ -461,7 +468,8 @@ def run_fusion_batch(model, ys, *, family: str = "ukf", methods: Sequence[str] =
                                          None if cmf is None else _run_record(cmf, b), step_dmf,
                                          estimates, dmf.audits[b] if audit and dmf is not None else None, seconds,
                                          tuple(s / runs for _, s in timed), failed))
-    return [FusionRun(family, methods, tuple(steps), model, ys[b], ci_criterion, SigmaSettings.of(params))
+    return [FusionRun(family, methods, tuple(steps), model, ys[b], ci_criterion, SigmaSettings.of(params),
+                      rcc_metric)
             for b, steps in enumerate(per_run)]
 
 

@@ -40,11 +40,12 @@ def _mahalanobis2(x, e):
 CASES = [(0, 2, 2), (1, 2, 3), (2, 3, 2), (3, 4, 3), (4, 3, 6)]
 
 
+@pytest.mark.parametrize("metric", rcc.METRICS)
 @pytest.mark.parametrize("seed, n, d", CASES)
-def test_primal_and_dual_agree(seed, n, d):
+def test_primal_and_dual_agree(seed, n, d, metric):
     ests = _estimates(seed, n, d)
-    res = rcc.rcc_ci(ests)
-    dual = rcc.rcc_ci_dual(ests)
+    res = rcc.rcc_ci(ests, metric=metric)
+    dual = rcc.rcc_ci_dual(ests, metric=metric)
     assert res.c == rcc.default_size(d)
     assert dual.value == pytest.approx(res.primal_value, rel=SOLVER_TOL, abs=SOLVER_TOL * _size(ests) ** 2)
     scale = _size(ests) * np.sqrt(res.c)
@@ -63,11 +64,12 @@ def test_bound_is_never_tighter_than_optimal_ci(seed, n, d):
         assert criterion_value(res.cov, criterion) >= best - SOLVER_TOL * abs(best)
 
 
+@pytest.mark.parametrize("metric", rcc.METRICS)
 @pytest.mark.parametrize("seed, n, d", CASES)
 @pytest.mark.parametrize("c", [None, 30.0])
-def test_centre_lies_in_the_intersection(seed, n, d, c):
+def test_centre_lies_in_the_intersection(seed, n, d, c, metric):
     ests = _estimates(seed, n, d, spread=1.0)
-    res = rcc.rcc_ci(ests, c=c)
+    res = rcc.rcc_ci(ests, c=c, metric=metric)
     for e in ests:
         assert _mahalanobis2(res.primal_mean, e) <= res.c * (1 + SOLVER_TOL)
         assert _mahalanobis2(res.mean, e) <= res.c * (1 + ARGMAX_TOL)
@@ -89,6 +91,41 @@ def test_equivariant_under_translation_and_scaling():
     moved = rcc.rcc_ci([Gaussian(s * e.mean + shift, s**2 * e.cov) for e in ests])
     np.testing.assert_allclose(moved.mean, s * base.mean + shift, atol=ARGMAX_TOL * s * _size(ests) * 10)
     np.testing.assert_allclose(moved.weights, base.weights, atol=ARGMAX_TOL)
+
+
+@pytest.mark.parametrize("seed, n, d", CASES)
+def test_the_scaled_metric_is_unit_free_and_the_euclidean_one_is_not(seed, n, d):
+    """Each state component multiplied by its own factor (1e-4…1e4): in the scaled metric the
+    estimate and the weights move only with the units (to the solver's accuracy), in the Euclidean
+    one they move with three or more estimates (the other side of the test, so that it can fail; of
+    two, each case here keeps its Euclidean weights in any units)."""
+    ests = _estimates(seed, n, d)
+    units = 10.0 ** np.random.default_rng(seed).uniform(-4, 4, d)
+    rescaled = [Gaussian(units * e.mean, e.cov * np.outer(units, units)) for e in ests]
+    moves = {}
+    for metric in rcc.METRICS:
+        base, moved = rcc.rcc_ci(ests, metric=metric), rcc.rcc_ci(rescaled, metric=metric)
+        whitened = np.linalg.solve(np.linalg.cholesky(base.cov), moved.mean / units - base.mean)
+        moves[metric] = max(float(np.abs(whitened).max()), float(np.abs(moved.weights - base.weights).max()))
+    assert moves["scaled"] <= ARGMAX_TOL
+    if n > 2:
+        assert moves["euclidean"] > 10 * ARGMAX_TOL
+
+
+def test_a_solve_that_stops_names_the_size_tried_and_the_smallest_that_works(monkeypatch):
+    """A primal that ends otherwise than solved or infeasible (an iteration limit: status
+    user_limit) is reported with the size tried and the smallest size at which the ellipsoids
+    intersect, not only its status."""
+    ests = _estimates(2, 3, 2)
+    c_min = rcc.smallest_intersecting_size(ests)
+    default = rcc.default_size(2)
+    stopped = conic.ConicSolution("user_limit", float("nan"), (), ())
+    monkeypatch.setattr(rcc, "_solve_parametrised", lambda *args: stopped)
+    with pytest.raises(SolverError) as raised:
+        rcc.rcc_ci(ests)
+    message = str(raised.value)
+    assert f"status user_limit at size c = {default:.6g} (the default" in message
+    assert f"intersect for every size c >= {c_min:.6g}" in message
 
 
 def test_empty_intersection_is_a_clear_error_or_a_documented_enlargement():

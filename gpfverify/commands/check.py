@@ -54,7 +54,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--rank-rule", type=rank_rule_text, default="canonical", metavar="RULE",
                         help=RANK_RULE_HELP + " Default canonical, as in audit and reproduce: a user's system "
                              "has its own units, and the canonical rule does not depend on them.")
-    add_params_arguments(parser, Params, only=("ci_criterion", "sigma_alpha", "sigma_beta", "sigma_kappa"))
+    add_params_arguments(parser, Params, only=("ci_criterion", "rcc_metric", "sigma_alpha", "sigma_beta",
+                                               "sigma_kappa"))
     parser.add_argument("--out", type=out_path, default=None, help="output folder (results.json, runs/, report)")
     add_wait_argument(parser)
     parser.add_argument("--json", action="store_true", help="print results.json to stdout")
@@ -90,7 +91,8 @@ def run(args: argparse.Namespace) -> int:
     params = check.params_for(args.system, args.filter or "ukf", DEFAULT_STEPS if args.steps is None else args.steps,
                               args.measurements,
                               args.training, args.train, args.fit_points, args.restarts, args.methods,
-                              args.rank_rule, args.ci_criterion, args.sigma_alpha, args.sigma_beta, args.sigma_kappa)
+                              args.rank_rule, args.ci_criterion, args.sigma_alpha, args.sigma_beta, args.sigma_kappa,
+                              args.rcc_metric)
     with guarded(system_file(params.system)), \
             time_limited(f"{system_file(params.system)} (loading it and building {params.system.rsplit(':', 1)[1]})"):
         filters = load_filters(params.system)  # fail before anything is written; print() to stderr, exits reported

@@ -31,6 +31,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--rcc-size", "--c", dest="rcc_size", type=float, default=None, metavar="C",
                         help="RCC-CI ellipsoid size c (default: the chi-square 0.99 quantile with D degrees "
                              "of freedom); the same option as reproduce's")
+    parser.add_argument("--rcc-metric", choices=("euclidean", "scaled"), default="euclidean",
+                        help="the norm of RCC-CI's Chebyshev centre: euclidean (default, the paper's; depends on "
+                             "the units of the state components) or scaled (each component in the scale of the "
+                             "local estimates' mean information: unit-free)")
     parser.add_argument("--rcc-on-empty", "--on-empty", dest="rcc_on_empty", choices=("enlarge", "error"),
                         default="enlarge",
                         help="RCC-CI when the ellipsoids do not intersect: enlarge (default, as in reproduce "
@@ -41,7 +45,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def _text(result: dict) -> str:
     lines = [f"method: {result['method']}", "mean: " + " ".join(f"{x:.6g}" for x in result["mean"]), "cov:"]
     lines += ["  " + " ".join(f"{x:12.6g}" for x in row) for row in result["cov"]]
-    for key in ("weights", "c", "criterion", "enlarged", "primal_dual_discrepancy", "condition_holds", "exact"):
+    for key in ("weights", "c", "metric", "criterion", "enlarged", "primal_dual_discrepancy", "condition_holds",
+                "exact"):
         if key in result:
             lines.append(f"{key}: {result[key]}")
     if "rank_rule" in result:
@@ -55,7 +60,7 @@ def run(args: argparse.Namespace) -> int:
     if args.rank_rule is not None and args.method != "dmf":
         raise InputError(f"--rank-rule decides eq. 35's ranks: it applies to --method dmf, not {args.method}")
     result = fuse_case(load_case(args.case), args.method, args.ci_criterion, args.rcc_size, args.rcc_on_empty,
-                       rank_rule=args.rank_rule)
+                       rank_rule=args.rank_rule, rcc_metric=args.rcc_metric)
     if not all(np.isfinite(result[key]).all() for key in ("mean", "cov")):
         raise InputError(f"{args.method} gave a non-finite result on this case: its numbers are too "
                          "large or too small in combination")

@@ -18,6 +18,8 @@ from gpfverify.fusion.names import CHOICES_TEXT, canonical_rules
 FilterName = Literal["kf", "ekf", "ukf", "gp-adf", "gp-ukf"]
 #: CI's weight criteria (gpfverify.fusion.ci.CRITERIA)
 CiCriterion = Literal["trace", "det"]
+#: RCC-CI's error norms (gpfverify.fusion.rcc_ci.METRICS)
+RccMetric = Literal["euclidean", "scaled"]
 
 
 @dataclass(frozen=True)
@@ -42,6 +44,9 @@ class Params(ParamsBase):
     ci_criterion: CiCriterion = option(
         "trace", "the weight criterion of CI (and ICI): trace (depends on the units of the state components) or "
         "det (unit-free)")
+    rcc_metric: RccMetric = option(
+        "euclidean", "the norm of RCC-CI's Chebyshev centre: euclidean (the paper's; depends on the units of the "
+        "state components) or scaled (each component in its own scale: unit-free)")
     sigma_alpha: float | None = option(
         None, "sigma-point α of the ukf and gp-ukf filters for a gpfverify model (none: 1); a Stone Soup or "
         "filterpy system brings its own", above=0.0)

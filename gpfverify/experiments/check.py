@@ -28,7 +28,7 @@ import numpy as np
 
 from gpfverify.angles import difference
 from gpfverify.consistency import Consistency
-from gpfverify.contract.check import CiCriterion, FilterName, Params, RunRecord
+from gpfverify.contract.check import CiCriterion, FilterName, Params, RccMetric, RunRecord
 from gpfverify.errors import CaseFileError, InputError
 from gpfverify.adapters.local_filters import LocalFilters
 from gpfverify.filters.families import GP_FAMILIES, SIGMA_POINT_FAMILIES
@@ -58,13 +58,15 @@ def params_for(system: str, filter: FilterName = "ukf", steps: int = 50, measure
                training: str | None = None, train: int = 200, fit_points: int | None = 200,
                restarts: int = 2, methods=("cmf", "dmf", "cc", "ci"), rank_rule: str = "canonical",
                ci_criterion: CiCriterion = "trace", sigma_alpha: float | None = None,
-               sigma_beta: float | None = None, sigma_kappa: float | None = None) -> Params:
+               sigma_beta: float | None = None, sigma_kappa: float | None = None,
+               rcc_metric: RccMetric = "euclidean") -> Params:
     """The parameters of a check, validated, with the paths made absolute and the rank rule in its
     canonical spelling. ``rank_rule`` is a :func:`~gpfverify.fusion.exactness.parse_rank_rule`
     string: the unit-free canonical-correlation rule by default (``"canonical[:TAU]"``),
     ``"absolute:TOL"`` or ``"numpy"``; ``ci_criterion`` CI's weight criterion, ``"trace"`` or
-    ``"det"``; ``sigma_*`` the sigma points of a gpfverify model's unscented filters. A ``training``
-    file with a filter that learns nothing is refused rather than ignored."""
+    ``"det"``; ``rcc_metric`` RCC-CI's error norm, ``"euclidean"`` or ``"scaled"``; ``sigma_*``
+    the sigma points of a gpfverify model's unscented filters. A ``training`` file with a filter
+    that learns nothing is refused rather than ignored."""
     path, name = split_spec(system)
     if training is not None and filter not in GP_FAMILIES:
         raise InputError(f"--training is learned from by the GP filters ({', '.join(GP_FAMILIES)}) only; "
@@ -74,7 +76,7 @@ def params_for(system: str, filter: FilterName = "ukf", steps: int = 50, measure
                   training=None if training is None else str(Path(training).resolve()),
                   train=train, fit_points=fit_points, restarts=restarts, methods=tuple(methods),
                   rank_rule=parse_rank_rule(rank_rule).spec, ci_criterion=ci_criterion,
-                  sigma_alpha=sigma_alpha, sigma_beta=sigma_beta, sigma_kappa=sigma_kappa)
+                  sigma_alpha=sigma_alpha, sigma_beta=sigma_beta, sigma_kappa=sigma_kappa, rcc_metric=rcc_metric)
 
 
 # -- the user's filters as written -------------------------------------------------------------------
@@ -228,7 +230,7 @@ def run_one(params: Params, seed: np.random.SeedSequence) -> RunRecord:
     prior = Gaussian(model.prior_mean, model.prior_cov)
     fused = run_fusion(fusion_model, ys, family=params.filter, methods=params.methods,
                        params=sigma_settings(filters, params),
-                       rank_rule=params.rank_rule, ci_criterion=params.ci_criterion,
+                       rank_rule=params.rank_rule, ci_criterion=params.ci_criterion, rcc_metric=params.rcc_metric,
                        local_priors=local_starts(filters), fused_prior=prior)
     return _record(model, fused, ys, truth, _measures(model, fused, ys, truth))
 
@@ -247,7 +249,7 @@ def run_batch(params: Params, seeds: Sequence[np.random.SeedSequence]) -> list[R
     fused = run_fusion_batch(fusion_model, ys, family=params.filter, methods=params.methods,
                              params=sigma_settings(filters, params),
                              rank_rule=params.rank_rule, ci_criterion=params.ci_criterion,
-                             local_priors=local_starts(filters), fused_prior=prior)
+                             rcc_metric=params.rcc_metric, local_priors=local_starts(filters), fused_prior=prior)
     measures = _measures_batch(model, fused, ys, truths)
     return [_record(model, run, ys[b], None if truths is None else truths[b], measures[b])
             for b, run in enumerate(fused)]
@@ -576,7 +578,7 @@ def results_of_run(fused, truth: np.ndarray | None = None, system: str = "") -> 
         raise InputError("the check's results need a run_fusion result with its model and ys, CMF, DMF and the audit")
     rule = fused.steps[0].audit.rank_rule
     params = Params(system=system, filter=fused.family, steps=len(fused.steps), methods=fused.methods,
-                    rank_rule=rule.spec, ci_criterion=fused.ci_criterion)
+                    rank_rule=rule.spec, ci_criterion=fused.ci_criterion, rcc_metric=fused.rcc_metric)
     record = _record(fused.model, fused, fused.ys, truth, _measures(fused.model, fused, fused.ys, truth))
     filters = LocalFilters(fused.model, params=fused.params, origin={"sigma_points": "the params run_fusion ran"})
     return {"experiment": NAME, "runs": 1, "seed": None, "runs_ok": 1, "failed_runs": [], "params": params.to_json(),

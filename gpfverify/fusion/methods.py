@@ -39,12 +39,13 @@ def _local_estimates(case: FusionCase, method: str) -> list[Gaussian]:
 
 
 def fuse_case(case: FusionCase, method: str, criterion: str = "trace", c: float | None = None,
-              on_empty: str = "error", rank_rule=None) -> dict:
+              on_empty: str = "error", rank_rule=None, rcc_metric: str = "euclidean") -> dict:
     """The ``fuse --json`` object for one method (any accepted spelling; the object names the
     canonical one). ``criterion``: the weight criterion of CI and ICI ("trace", which depends on the
     units of the state components, or "det", unit-free). ``rank_rule`` (dmf): a
     :class:`~gpfverify.fusion.exactness.RankRule` or its string, default the case's ``rank_tol``
-    (absolute), else canonical; the object names the rule that decided (``"rank_rule"``)."""
+    (absolute), else canonical; the object names the rule that decided (``"rank_rule"``).
+    ``rcc_metric``: RCC-CI's error norm ("euclidean" or "scaled", unit-free)."""
     method = canonical_rule(method)
     extra: dict = {}
     angles = case.circular_state
@@ -74,9 +75,9 @@ def fuse_case(case: FusionCase, method: str, criterion: str = "trace", c: float 
     elif method == "ei":
         fused = ellipsoidal_intersection(_local_estimates(case, method), angles)
     elif method == "rcc-ci":
-        res = rcc_ci(_local_estimates(case, method), c=c, on_empty=on_empty, circular_state=angles)
+        res = rcc_ci(_local_estimates(case, method), c=c, on_empty=on_empty, circular_state=angles, metric=rcc_metric)
         fused = res
-        extra = {"weights": res.weights.tolist(), "c": res.c, "enlarged": res.enlarged,
+        extra = {"weights": res.weights.tolist(), "c": res.c, "enlarged": res.enlarged, "metric": rcc_metric,
                  "primal_mean": res.primal_mean.tolist(), "primal_dual_discrepancy": res.discrepancy}
     else:
         raise InputError(f"unknown method {method!r}")

@@ -39,6 +39,23 @@ cvxpy's route, bit for bit, without its per-solve overhead). Every solve is a fu
 inputs alone (a new solver object each time, no warm start from the previous solve), so a Monte
 Carlo run gives the same bits whichever runs its process solved before (CONTRACT.md, Provenance).
 
+Metric. The Chebyshev centre minimises the worst-case error in a norm of the state. The paper's
+(SPEC §3) is the Euclidean ‖x‖² above (``metric="euclidean"``, the default): it adds the squared
+errors of components in different units, so the estimate changes with the units of the state
+components. ``metric="scaled"`` measures each component in its own scale, the square root of
+the diagonal of the local estimates' mean information W = mean of the A_m: the error norm
+ξᵀ diag(W) ξ, the primal max tr(diag(W) Δ) − ξᵀ diag(W) ξ, i.e. the Euclidean problem in the
+coordinates u = diag(W)^½ ξ. A change of units multiplies each component and scales diag(W) to
+match, so the centre, the multipliers α and the CI-form estimate move only with the units
+(tests/test_rescaled_systems.py). (The full W would be unit-free too, but degenerate: tr(WΔ) is
+then the mean of the constraints' quadratic terms, and the relaxation returns equal weights, the
+convex combination's mean, whatever the ellipsoids.) The dual in that metric is the Euclidean dual
+of the ellipsoids in u.
+
+Failures. A size at which the ellipsoids do not intersect, and a solve that ends otherwise than
+optimal (an iteration or time limit, a numerical failure), are reported with the size tried and the
+smallest size at which the ellipsoids intersect, c_min (:func:`smallest_intersecting_size`).
+
 Angles. Angle state components (``circular_state``) are put on one branch around the circular mean
 of the local angles before the ellipsoids are formed (the RCC is translation equivariant, so the
 fused angle is a weighted circular mean), and the fused angles of ``mean`` and ``primal_mean``
@@ -66,6 +83,8 @@ from gpfverify.validate import as_positive
 
 #: Confidence level whose χ²_D quantile is the default ellipsoid size c.
 DEFAULT_CONFIDENCE = 0.99
+#: The metrics in which the Chebyshev centre's error is measured (module docstring, "Metric").
+METRICS = ("euclidean", "scaled")
 #: With on_empty="enlarge", the size used is this multiple of the smallest intersecting size.
 EMPTY_GROWTH = 2.0
 SOLVED = ("optimal", "optimal_inaccurate")
@@ -126,14 +145,28 @@ class _Normalised:
     d: np.ndarray
     T: np.ndarray
 
-    def primal_values(self) -> list[np.ndarray]:
-        """The primal's parameters, each with the leading run axis: TᵀA_mT, Tᵀb_m, d_m, T and M = TᵀT."""
+    def whitened(self) -> tuple[np.ndarray, np.ndarray]:
+        """(TᵀA_mT (B, N, D, D), Tᵀb_m (B, N, D)): the ellipsoids in the coordinates ξ' = T⁻¹ξ (also
+        of one fusion's problem, without the run axis)."""
+        a = np.einsum("...ji,...mjk,...kl->...mil", self.T, self.A, self.T)
+        return 0.5 * (a + np.swapaxes(a, -1, -2)), self.b @ self.T
+
+    def metric_scale(self, metric: str) -> np.ndarray:
+        """(B, D): the scale of each component in the error norm — 1 for the Euclidean metric, the
+        square root of the diagonal of the mean of the A_m for the scaled one."""
+        if metric == "scaled":
+            return np.sqrt(np.diagonal(self.A.mean(axis=-3), axis1=-2, axis2=-1))
+        return np.ones(self.A.shape[:-3] + self.A.shape[-1:])
+
+    def primal_values(self, metric: str = "euclidean") -> list[np.ndarray]:
+        """The primal's parameters, each with the leading run axis: TᵀA_mT, Tᵀb_m, d_m and the
+        objective's K T and M = TᵀK²T, K = diag(:meth:`metric_scale`) (module docstring)."""
         n = self.A.shape[1]
-        a = np.einsum("bji,bmjk,bkl->bmil", self.T, self.A, self.T)
-        a = 0.5 * (a + np.swapaxes(a, -1, -2))
-        tb = self.b @ self.T
+        a, tb = self.whitened()
+        scaled = self.metric_scale(metric)[..., :, None] * self.T
+        objective = [scaled, np.swapaxes(scaled, -1, -2) @ scaled]
         return [*(a[:, m] for m in range(n)), *(tb[:, m] for m in range(n)), *(self.d[:, m] for m in range(n)),
-                self.T, np.swapaxes(self.T, -1, -2) @ self.T]
+                *objective]
 
     def one(self) -> _Normalised:
         """The first run's problem without the run axis (for one fusion)."""
@@ -168,13 +201,19 @@ def _normalise(means: np.ndarray, covs: np.ndarray, matrices: np.ndarray, c: np.
     return _Normalised(centre, scale, a, b, d, whitening)
 
 
-def _normalise_one(estimates, info, c: float) -> tuple[_Normalised, list[np.ndarray]]:
+def _normalise_one(estimates, info, c: float, metric: str = "euclidean") -> tuple[_Normalised, list[np.ndarray]]:
     """:func:`_normalise` of one fusion (checked estimates, their :class:`Information`): the problem
-    without the run axis and the primal's parameter values."""
+    without the run axis and the primal's parameter values in ``metric``."""
     means = np.array([e.mean for e in estimates])[None]
     covs = np.array([e.cov for e in estimates])[None]
     batched = _normalise(means, covs, info.matrices[None], np.array([c]))
-    return batched.one(), [v[0] for v in batched.primal_values()]
+    return batched.one(), [v[0] for v in batched.primal_values(metric)]
+
+
+def _checked_metric(metric: str) -> str:
+    if metric not in METRICS:
+        raise InputError(f"the RCC-CI metric must be one of {', '.join(METRICS)}, got {metric!r}")
+    return metric
 
 
 @lru_cache(maxsize=32)
@@ -330,10 +369,12 @@ def conic_intersecting_size(checked: Sequence) -> float:
 
 
 def rcc_ci(estimates: Sequence, c: float | None = None, on_empty: str = "error",
-           solver: str = cp.CLARABEL, circular_state: Sequence[int] = ()) -> RccCiResult:
+           solver: str = cp.CLARABEL, circular_state: Sequence[int] = (), metric: str = "euclidean") -> RccCiResult:
     """RCC-CI fusion of local estimates (see module docstring); ``c`` defaults to
-    :func:`default_size`; ``circular_state``: the angle state components."""
+    :func:`default_size`; ``circular_state``: the angle state components; ``metric`` the norm of
+    the Chebyshev centre's error, "euclidean" (the paper's) or "scaled" (unit-free)."""
     checked = checked_estimates(estimates, circular_state=circular_state)
+    metric = _checked_metric(metric)
     if on_empty not in ("error", "enlarge"):
         raise InputError(f"on_empty must be 'error' or 'enlarge', got {on_empty!r}")
     dim = checked[0].mean.shape[0]
@@ -343,19 +384,23 @@ def rcc_ci(estimates: Sequence, c: float | None = None, on_empty: str = "error",
     info = information_form(checked)
     enlarged = False
     while True:
-        norm, values = _normalise_one(checked, info, c)
-        solution = _solve_parametrised(_primal_problem, (len(checked), dim), values,
-                                       solver, "RCC-CI primal")
+        norm, values = _normalise_one(checked, info, c, metric)
+        tried = (f"size c = {c:.6g} ({EMPTY_GROWTH:g} × the smallest intersecting size, tried after "
+                 f"{_size_words(first, given, dim)} found none)" if enlarged else _size_words(c, given, dim))
+        try:
+            solution = _solve_parametrised(_primal_problem, (len(checked), dim), values, solver, "RCC-CI primal")
+        except SolverError as exc:
+            raise SolverError(f"RCC-CI: the solver failed at {tried} ({exc}); "
+                              f"{_smallest_words(checked)}") from None
         status = solution.status
         if status == "optimal_inaccurate" and not _in_every_ellipsoid(norm, _centre(norm, solution)):
             status = "infeasible_inaccurate"  # a badly scaled empty intersection, not a centre
         if status in SOLVED:
             break
         if "infeasible" not in status:
-            raise SolverError(f"RCC-CI primal ended with status {status}")
+            raise SolverError(f"RCC-CI: the primal ended with status {status} at {tried}; "
+                              f"{_smallest_words(checked)}")
         c_min = smallest_intersecting_size(checked)
-        tried = (f"size c = {c:.6g} ({EMPTY_GROWTH:g} × the smallest intersecting size, tried after "
-                 f"{_size_words(first, given, dim)} found none)" if enlarged else _size_words(c, given, dim))
         if c >= c_min:  # they meet at this size: the solver, not the ellipsoids, failed
             raise SolverError(f"RCC-CI: the solver found no centre at {tried} (status {status}), although the "
                               f"local ellipsoids intersect for every c >= {c_min:.6g}: a badly scaled problem, "
@@ -368,13 +413,21 @@ def rcc_ci(estimates: Sequence, c: float | None = None, on_empty: str = "error",
     assert xi is not None  # a solved status carries the primal's values
     alpha = np.clip(np.array(solution.duals, dtype=float), 0.0, None)
     if not alpha.sum() > 0:
-        raise SolverError("RCC-CI: the dual multipliers are all zero")
+        raise SolverError(f"RCC-CI: the dual multipliers are all zero at {tried}; {_smallest_words(checked)}")
     weights = alpha / alpha.sum()
     fused = weighted_information_fusion(info, weights)
     angles = tuple(sorted(circular_state))
     return RccCiResult(mean=wrap_components(fused.mean, angles), cov=fused.cov, weights=weights, alpha=alpha,
                        c=c, primal_mean=wrap_components(norm.centre + norm.scale * xi, angles),
                        primal_value=float(solution.value * norm.scale**2), enlarged=enlarged, circular_state=angles)
+
+
+def _smallest_words(checked: Sequence) -> str:
+    """'the local ellipsoids intersect for every size c >= 3.2' (c_min), or why it is not known."""
+    try:
+        return f"the local ellipsoids intersect for every size c >= {smallest_intersecting_size(checked):.6g}"
+    except SolverError as exc:
+        return f"the smallest size at which the local ellipsoids intersect is not known either ({exc})"
 
 
 @dataclass(frozen=True)
@@ -390,7 +443,7 @@ class RccCiBatch:
 
 
 def rcc_ci_batch(means: np.ndarray, covs: np.ndarray, c: float | None = None, on_empty: str = "enlarge",
-                 circular_state: Sequence[int] = ()) -> RccCiBatch:
+                 circular_state: Sequence[int] = (), metric: str = "euclidean") -> RccCiBatch:
     """:func:`rcc_ci` of B runs' N local estimates (means (B, N, D), covs (B, N, D, D), positive
     definite: a filter's outputs, not checked again) by Clarabel. The runs' problems are solved one
     by one — an interior-point method run on all of them at once would couple their iterations, and
@@ -407,6 +460,7 @@ def rcc_ci_batch(means: np.ndarray, covs: np.ndarray, c: float | None = None, on
 
     if on_empty not in ("error", "enlarge"):
         raise InputError(f"on_empty must be 'error' or 'enlarge', got {on_empty!r}")
+    metric = _checked_metric(metric)
     runs, n, dim = means.shape
     angles = tuple(sorted(circular_state))
     means = on_one_branch_arrays(means, angles)
@@ -423,7 +477,7 @@ def rcc_ci_batch(means: np.ndarray, covs: np.ndarray, c: float | None = None, on
     pending = [] if program is None else list(range(runs))
     while pending and program is not None:
         at = np.array(pending)
-        raw = program.solve_raw_batch(_normalise(means[at], covs[at], matrices[at], sizes[at]).primal_values())
+        raw = program.solve_raw_batch(_normalise(means[at], covs[at], matrices[at], sizes[at]).primal_values(metric))
         pending = []
         for run, solution in zip(at.tolist(), raw):
             if solution.status == "optimal":
@@ -446,7 +500,7 @@ def rcc_ci_batch(means: np.ndarray, covs: np.ndarray, c: float | None = None, on
         mean[solved], cov[solved] = fused.mean, fused.cov
     for run in sorted(alone):
         single = rcc_ci([Gaussian(m, v) for m, v in zip(means[run], covs[run])], c=c, on_empty=on_empty,
-                        circular_state=angles)
+                        circular_state=angles, metric=metric)
         mean[run], cov[run], weights[run], sizes[run], enlarged[run] = (single.mean, single.cov, single.weights,
                                                                         single.c, single.enlarged)
     return RccCiBatch(wrap_components(mean, angles), cov, weights, sizes, enlarged)
@@ -463,15 +517,18 @@ class RccCiDual:
 
 
 def rcc_ci_dual(estimates: Sequence, c: float | None = None, solver: str = cp.CLARABEL,
-                circular_state: Sequence[int] = ()) -> RccCiDual:
-    """Solve the RCC dual SDP (module docstring) for the cross-check against :func:`rcc_ci`."""
+                circular_state: Sequence[int] = (), metric: str = "euclidean") -> RccCiDual:
+    """Solve the RCC dual SDP (module docstring) for the cross-check against :func:`rcc_ci`; in the
+    scaled metric, the Euclidean dual of the ellipsoids with each component in its scale."""
     checked = checked_estimates(estimates, circular_state=circular_state)
+    metric = _checked_metric(metric)
     dim = checked[0].mean.shape[0]
     c = default_size(dim) if c is None else _checked_size(c)
     info = information_form(checked)
     norm, _ = _normalise_one(checked, info, c)
-    solution = _solve_parametrised(_dual_problem, (len(checked), dim), [*norm.A, *norm.b, norm.d],
-                                   solver, "RCC-CI dual")
+    k = norm.metric_scale(metric)  # the dual in u = K ξ: A_m → K⁻¹A_mK⁻¹, b_m → K⁻¹b_m
+    data = [*(norm.A / np.outer(k, k)), *(norm.b / k), norm.d]
+    solution = _solve_parametrised(_dual_problem, (len(checked), dim), data, solver, "RCC-CI dual")
     if solution.status not in SOLVED:
         raise SolverError(f"RCC-CI dual ended with status {solution.status}")
     a = np.clip(solution.values[0], 0.0, None)

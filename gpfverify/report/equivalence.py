@@ -354,8 +354,12 @@ def _unit_sentences(d: CheckData) -> list[str]:
         out.append(f"{' and '.join(weighted)} {verb} the local estimates by the determinant criterion, which does "
                    "not depend on units.")
     if "rcc-ci" in methods:
-        out.append("RCC-CI's Chebyshev centre measures distances with the Euclidean norm of the state, so its "
-                   "estimate changes with the units of the state components.")
+        if (d.r.get("params") or {}).get("rcc_metric", "euclidean") == "scaled":
+            out.append("RCC-CI's Chebyshev centre measures distances with each state component in its own scale "
+                       "(--rcc-metric scaled), so its estimate does not depend on units.")
+        else:
+            out.append("RCC-CI's Chebyshev centre measures distances with the Euclidean norm of the state, so its "
+                       "estimate changes with the units of the state components (--rcc-metric scaled does not).")
     return out
 
 
@@ -490,6 +494,7 @@ def settings_table(results: dict, d: CheckData) -> Table:
             ["methods", ", ".join(p.get("methods") or [])],
             ["rank rule", rank_rule_text(results.get("rank_rule"), p.get("rank_tol"))],
             ["CI weight criterion", p.get("ci_criterion", "trace")],
+            ["RCC-CI metric", p.get("rcc_metric", "euclidean")],
             *_filter_rows(results),
             ["measurements", p.get("measurements") or "simulated from the system"],
             ["truth known", "yes" if results.get("truth_known") else "no"]]
