@@ -122,13 +122,15 @@ class _Scales:
         return self.state() + self.rtol * (float(np.abs(self.case.central.mu_p).sum()) + local)
 
     def mean_terms(self, sensors: list) -> np.ndarray:
-        """rtol · (|μ_p| + |C_xy| |C_y⁻¹ (y ⊖ μ_y)| + Σ_m |g_m|): the sizes CMF's mean is summed
-        from, and the sensors' shares g_m of the gap that DMF's and the repaired mean differ from it by."""
+        """rtol · (|μ_p| + |C_xy| |C_y⁻¹| |y ⊖ μ_y| + Σ_m |g_m|): the sizes CMF's mean is summed
+        from (the solve's weights C_y⁻¹(y ⊖ μ_y) are rounded relative to |C_y⁻¹| |y ⊖ μ_y|, not to
+        themselves: a weight that cancels to zero carries that rounding), and the sensors' shares
+        g_m of the gap that DMF's and the repaired mean differ from it by."""
         c = self.case.central
-        weights = np.linalg.solve(c.C_y, difference(self.case.y, c.mu_y, c.circular))
+        weights = np.abs(np.linalg.inv(c.C_y)) @ np.abs(difference(self.case.y, c.mu_y, c.circular))
         shares = sum((np.abs(np.asarray(s["gap_contribution"], dtype=float)) for s in sensors),
                      np.zeros(len(c.mu_p)))
-        return self.rtol * (np.abs(c.mu_p) + np.abs(c.C_xy) @ np.abs(weights) + shares)
+        return self.rtol * (np.abs(c.mu_p) + np.abs(c.C_xy) @ weights + shares)
 
     def whitened(self, magnitudes: np.ndarray) -> float:
         """rtol · ‖ |L_p⁻¹| m ‖."""
