@@ -48,7 +48,7 @@ from gpfverify.fusion.names import FUSION_RULES, canonical_rule, canonical_rules
 from gpfverify.fusion.exactness import RankRule, resolve_rank_rule
 from gpfverify.models.learned import GPModel
 from gpfverify.models.system import StateSpaceModel, require_model
-from gpfverify.validate import as_matrix, as_vector
+from gpfverify.validate import real_floats
 from gpfverify.runtime import one_blas_thread
 from gpfverify.views import HtmlView
 from gpfverify.fusion.estimates import FusedEstimate
@@ -120,16 +120,25 @@ def local_reports(local_records: Sequence[StepRecord], central: CentralPredictio
 def dmf_step(belief: Gaussian, model, y=None, *, local_records: Sequence[StepRecord], k: int = 1,
              family: str = "ukf", params: SigmaParams | SigmaSettings = SigmaParams(),
              rank_tol: float | None = None, rank_rule: RankRule | str | None = None,
-             clock: Callable[[], float] = time.perf_counter) -> DMFStep:
+             clock: Callable[[], float] = time.perf_counter, reported: Sequence[bool] | None = None) -> DMFStep:
     """One distributed-fusion cycle (eq. 35) from the fused ``belief``: ``local_records[m]`` is
     sensor m's step record from its own filter; ``y`` (stacked, optional) is kept in the case for
-    the gap diagnostics only. The rank rule is ``rank_rule``, else the absolute ``rank_tol``
+    the gap diagnostics only. ``reported`` (one flag per sensor; default: the sensors whose block
+    of ``y`` is not NaN, else every one) says which sensors sent a report: eq. 35 sums over them
+    (:meth:`~gpfverify.fusion.case.FusionCase.of_reports`). The rank rule is ``rank_rule``, else
+    the absolute ``rank_tol``
     (also stored as the case's ``rank_tol``), else the canonical rule (the default of every entry
     point, :data:`~gpfverify.fusion.exactness.DEFAULT_RANK_RULE`); ``result.rank_rule`` says which
     decided. ``clock`` times eq. 35 (wall-clock by default; the experiments pass a CPU clock)."""
     _, central = central_prediction(belief, model, k=k, family=family, params=params)
-    stacked = None if y is None else as_vector(y, "y", int(sum(central.sizes)))
-    case = FusionCase(central, local_reports(local_records, central), stacked, rank_tol)
+    stacked = None if y is None else real_floats(y, "y").reshape(-1)
+    if stacked is not None and stacked.shape != (int(sum(central.sizes)),):
+        raise InputError(f"y must have {int(sum(central.sizes))} entries, got shape {np.shape(y)}")
+    if reported is None:
+        reported = [True] * len(central.sizes) if stacked is None else list(model.reported(stacked, "y"))
+    reports = local_reports(local_records, central)
+    case = FusionCase.of_reports(central, [r if here else None for r, here in zip(reports, reported)], stacked,
+                                 rank_tol)
     rule = resolve_rank_rule(None, rank_rule, rank_tol)
     result, seconds = _timed(dmf_update, case, rank_rule=rule, clock=clock)
     record = StepRecord(central.mu_p, central.C_p, central.mu_y, central.C_y, central.C_xy, result.mean, result.cov)
@@ -279,7 +288,7 @@ def run_fusion(model, ys, *, family: str = "ukf", methods: Sequence[str] = DEFAU
                local_priors: Sequence[Gaussian] | None = None, fused_prior: Gaussian | None = None,
                audit: bool = True, rcc_size: float | None = None,
                rank_rule: RankRule | str | None = None, ci_criterion: str = "trace",
-               rcc_metric: str = "euclidean") -> FusionRun:
+               rcc_metric: str = "euclidean", reported=None) -> FusionRun:
     """Filter the stacked measurements ``ys`` (T, L) — ``ys[t]`` at step k = first_k + t — with
     every sensor's local filter, CMF and DMF (each its own recursion from ``fused_prior``) and the
     chosen baselines (a baseline that fails at a step is recorded in ``FusionStep.failed`` and the run
@@ -289,10 +298,16 @@ def run_fusion(model, ys, *, family: str = "ukf", methods: Sequence[str] = DEFAU
     weight criterion of CI and ICI: "trace" (the default; minimises the trace of the fused bound,
     which depends on the units of the state components) or "det" (its determinant: unit-free).
     Priors default to the model's (a GPModel has none: then both are required). ``rank_rule``/``rank_tol`` as in
-    :func:`dmf_step` (default the canonical rule); the per-step audit uses the same rule."""
+    :func:`dmf_step` (default the canonical rule); the per-step audit uses the same rule.
+
+    Missing measurements: a sensor that did not report at a step has NaN in its whole block of
+    ``ys[t]``, or False in the mask ``reported`` (T, N). Its local filter then only predicts, CMF
+    updates with the sensors that reported, eq. 35 sums over them and the audit judges the rank
+    condition over them (:meth:`~gpfverify.fusion.case.FusionCase.of_reports`); the baselines fuse
+    the posteriors of the sensors that reported. Every step needs at least one sensor."""
     chosen = model_family(family, model, params)
     methods = _checked_methods(methods, audit)
-    ys = as_matrix(ys, "ys", None, model.measurement_dim)
+    ys, reported = with_missing(model, ys, reported)
     local_beliefs, fused = _priors(model, local_priors, fused_prior)
     sensor_models = [model.sensor_model(m) for m in range(len(model.sizes))]
     if ci_criterion not in ("trace", "det"):
@@ -300,7 +315,7 @@ def run_fusion(model, ys, *, family: str = "ukf", methods: Sequence[str] = DEFAU
     baselines = _baselines(methods, rcc_size, model.circular_state, ci_criterion, rcc_metric)
     cmf_belief = dmf_belief = fused
     steps = []
-    for t, y in enumerate(ys):
+    for t, (y, here) in enumerate(zip(ys, reported)):
         k = first_k + t
         timed = [_timed(chosen.step, b, sm, y[block], k=k)
                  for b, sm, block in zip(local_beliefs, sensor_models, sensor_blocks(model.sizes))]
@@ -314,10 +329,10 @@ def run_fusion(model, ys, *, family: str = "ukf", methods: Sequence[str] = DEFAU
         if "dmf" in methods:
             dmf, seconds["dmf"] = _timed(dmf_step, dmf_belief, model, y, local_records=local, k=k,
                                          family=family, params=params, rank_tol=rank_tol,
-                                         rank_rule=rank_rule)
+                                         rank_rule=rank_rule, reported=here)
             dmf_belief = dmf.record.posterior
         for name, rule in baselines.items():
-            estimate, why, seconds[name] = _attempt(rule, local_beliefs)
+            estimate, why, seconds[name] = _attempt(rule, [b for b, r in zip(local_beliefs, here) if r])
             if why is None:
                 fused_estimates[name] = estimate
             else:
@@ -329,6 +344,25 @@ def run_fusion(model, ys, *, family: str = "ukf", methods: Sequence[str] = DEFAU
         steps.append(FusionStep(k, local, cmf, dmf, fused_estimates, step_audit,
                                 seconds, tuple(s for _, s in timed), failed))
     return FusionRun(family, methods, tuple(steps), model, ys, ci_criterion, SigmaSettings.of(params), rcc_metric)
+
+
+def with_missing(model, ys, reported=None) -> tuple[np.ndarray, np.ndarray]:
+    """(ys, reported): the stacked measurements (..., T, L) with NaN in the blocks of the sensors
+    that did not report, and which did (..., T, N) — from ``reported`` (a boolean mask of that
+    shape) or, without it, from the NaN blocks of ``ys`` (:meth:`~gpfverify.models.StateSpaceModel.reported`,
+    which refuses a block NaN in part, an inf, or a step where no sensor reported)."""
+    ys = real_floats(ys, "ys")
+    if ys.ndim < 2 or ys.shape[-1] != model.measurement_dim or not ys.shape[-2]:
+        raise InputError(f"ys must have shape (T, {model.measurement_dim}) with T >= 1, got {ys.shape}")
+    if reported is not None:
+        mask = np.asarray(reported)
+        if mask.dtype != bool or mask.shape != ys.shape[:-1] + (len(model.sizes),):
+            raise InputError(f"reported must be a boolean mask of shape {ys.shape[:-1] + (len(model.sizes),)} "
+                             f"(steps × sensors), got {mask.dtype} {mask.shape}")
+        rows = np.concatenate([np.repeat(mask[..., m:m + 1], size, axis=-1) for m, size in enumerate(model.sizes)],
+                              axis=-1)
+        ys = np.where(rows, ys, np.nan)
+    return ys, model.reported(ys, "ys")
 
 
 def _audit(dmf: DMFStep) -> CaseAudit:
@@ -372,10 +406,31 @@ def _batch_baselines(methods: Sequence[str], rcc_size: float | None, circular_st
     return out
 
 
-def _fuse_runs(batched: Callable | None, single: Callable, means: np.ndarray, covs: np.ndarray
-               ) -> tuple[np.ndarray, np.ndarray, list[str | None]]:
-    """(fused means, covs, failures) of every run: ``batched`` on all, else ``single`` run by run."""
+def _fuse_runs(batched: Callable | None, single: Callable, means: np.ndarray, covs: np.ndarray,
+               reported: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, list[str | None]]:
+    """(fused means, covs, failures) of every run: ``batched`` on all, else ``single`` run by run;
+    a run where some sensor did not report (``reported`` (B, N) False) fuses the others' estimates
+    alone."""
     runs = means.shape[0]
+    if reported is not None and not reported.all():
+        complete = reported.all(axis=1)
+        dim = means.shape[-1]
+        out_mean, out_cov = np.full((runs, dim), np.nan), np.full((runs, dim, dim), np.nan)
+        failures: list[str | None] = [None] * runs
+        if complete.any():
+            whole = np.flatnonzero(complete)
+            part = _fuse_runs(batched, single, means[whole], covs[whole])
+            out_mean[whole], out_cov[whole] = part[0], part[1]
+            for b, why in zip(whole.tolist(), part[2]):
+                failures[b] = why
+        for b in np.flatnonzero(~complete).tolist():
+            estimate, why, _ = _attempt(single, [Gaussian(m, c) for m, c, here in zip(means[b], covs[b], reported[b])
+                                                 if here])
+            failures[b] = why
+            if why is None:
+                some: Any = estimate
+                out_mean[b], out_cov[b] = some.mean, some.cov
+        return out_mean, out_cov, failures
     if batched is not None:
         try:
             fused = batched(means, covs)
@@ -401,7 +456,8 @@ def run_fusion_batch(model, ys, *, family: str = "ukf", methods: Sequence[str] =
                      rank_tol: float | None = None,
                      local_priors: Sequence[Gaussian] | None = None, fused_prior: Gaussian | None = None,
                      audit: bool = True, rcc_size: float | None = None, rank_rule: RankRule | str | None = None,
-                     ci_criterion: str = "trace", rcc_metric: str = "euclidean") -> list[FusionRun]:
+                     ci_criterion: str = "trace", rcc_metric: str = "euclidean",
+                     reported=None) -> list[FusionRun]:
     """:func:`run_fusion` of B Monte Carlo runs at once: ``ys`` (B, T, L), run b's measurements at
     b; ``model`` the system every run filters (a :class:`~gpfverify.models.StateSpaceModel`, its
     functions then applied run by run, :meth:`~gpfverify.models.StateSpaceModel.for_runs`) or the
@@ -411,14 +467,17 @@ def run_fusion_batch(model, ys, *, family: str = "ukf", methods: Sequence[str] =
     CI and RCC-CI on arrays, ICI and EI run by run. Returns one :class:`FusionRun` per run, as
     :func:`run_fusion` would (its DMF steps carry no ``result``: their ``audit`` has the evidence),
     a run's numbers independent of the other runs and of B; ``seconds`` of a step is the batch's
-    wall-clock time per run."""
+    wall-clock time per run. Missing measurements as in :func:`run_fusion` (NaN blocks of ``ys`` or
+    ``reported`` (B, T, N)): a run and step where a sensor did not report is fused by the per-step
+    route (eq. 35 and the audit over the sensors that did), the others together."""
     from gpfverify.audit.block import case_block, dmf_runs
 
     chosen = model_family(family, model, params)
     methods = _checked_methods(methods, audit)
-    ys = np.asarray(ys, dtype=float)
+    ys = real_floats(ys, "ys")
     if ys.ndim != 3 or ys.shape[2] != model.measurement_dim or not ys.shape[0] or not ys.shape[1]:
         raise InputError(f"ys must have shape (B, T, {model.measurement_dim}) with B, T >= 1, got {ys.shape}")
+    ys, reported = with_missing(model, ys, reported)
     if ci_criterion not in ("trace", "det"):
         raise InputError(f"ci_criterion must be 'trace' or 'det', got {ci_criterion!r}")
     runs, dim = ys.shape[0], model.state_dim
@@ -446,7 +505,8 @@ def run_fusion_batch(model, ys, *, family: str = "ukf", methods: Sequence[str] =
         if "dmf" in methods:
             start = time.perf_counter()
             _, central = central_prediction(dmf_belief, stepped, k=k, family=family, params=params)
-            block = case_block(central, local, y, central.sizes, central.circular, central.circular_state)
+            block = case_block(central, local, y, central.sizes, central.circular, central.circular_state,
+                               reported[:, t])
             dmf = dmf_runs(block, rule)
             seconds["dmf"] = (time.perf_counter() - start - dmf.audit_seconds) / runs
             dmf_belief = Gaussian(dmf.mean, dmf.cov)
@@ -454,7 +514,7 @@ def run_fusion_batch(model, ys, *, family: str = "ukf", methods: Sequence[str] =
         covs = np.stack([b.cov for b in local_beliefs], axis=1)
         fused = {}
         for name, rule_of in baselines.items():
-            fused[name], elapsed = _timed(rule_of, means, covs)
+            fused[name], elapsed = _timed(rule_of, means, covs, reported[:, t])
             seconds[name] = elapsed / runs
         for b in range(runs):
             step_dmf = None

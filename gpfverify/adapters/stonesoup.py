@@ -364,12 +364,21 @@ def _detections(items) -> list[Detection]:
     return out
 
 
-def _spacing(timestamps: Sequence[datetime.datetime], time_interval) -> None:
-    steps = {b - a for a, b in zip(timestamps, timestamps[1:])}
-    expected = {time_interval} if time_interval is not None else steps
-    if len(steps) > 1 or steps - expected:
-        raise InputError(f"the detections' time steps are {sorted(str(s) for s in steps)}; a measurements "
-                         f"file has one row per step of {time_interval or 'one fixed interval'}")
+def _grid(timestamps: Sequence[datetime.datetime], time_interval) -> list[datetime.datetime]:
+    """The steps of a measurements file: from the first detection time to the last, ``time_interval``
+    apart (without it, the shortest time between two detection times); a detection time off that
+    grid is refused, naming it."""
+    first = timestamps[0]
+    interval = time_interval
+    if interval is None:
+        gaps = [b - a for a, b in zip(timestamps, timestamps[1:])]
+        interval = min(gaps) if gaps else datetime.timedelta(seconds=1)
+    for time in timestamps:
+        if (time - first) % interval:
+            raise InputError(f"a detection at {time} is {time - first} after the first, not a whole number of steps "
+                             f"of {interval}: a measurements file has one row per step (sensors at other rates "
+                             "report at some of the steps, not between them)")
+    return [first + n * interval for n in range((timestamps[-1] - first) // interval + 1)]
 
 
 def _sensor_index(measurement_models: Sequence[MeasurementModel]):
@@ -410,11 +419,14 @@ def measurements(detections, measurement_models: Sequence[MeasurementModel], *, 
                  time_interval: datetime.timedelta | None = None) -> Measurements:
     """Stone Soup detections → the stacked measurements of each time step, in the order of
     ``measurement_models`` (each detection's ``measurement_model`` says which sensor it came from;
-    every sensor must report exactly one detection at every time step, the steps ``time_interval``
-    apart when it is given; each detection holds as many values as its model measures, its
-    ``ndim_meas``). ``truth``: a ``GroundTruthPath`` or states with the same timestamps
-    (their state vectors become ``x``). Step 1 of a check is the first timestamp; the prior
-    describes the state one interval before it."""
+    at most one detection per sensor and time step; each detection holds as many values as its
+    model measures, its ``ndim_meas``). The steps run from the first detection time to the last,
+    ``time_interval`` apart (without it, the shortest time between detection times): a sensor
+    without a detection at a step — a scan that missed, a sensor that drops out or joins late, or
+    reports at a lower rate — has NaN in its block of that row (docs/check-format.md), and every
+    step needs at least one detection. ``truth``: a ``GroundTruthPath`` or states with the
+    timestamps of the steps (their state vectors become ``x``). Step 1 of a check is the first
+    timestamp; the prior describes the state one interval before it."""
     found = _detections(detections)
     if not found:
         raise InputError("no detections given")
@@ -430,15 +442,14 @@ def measurements(detections, measurement_models: Sequence[MeasurementModel], *, 
         if by_time[detection.timestamp][m] is not None:
             raise InputError(f"sensor {m} has more than one detection at {detection.timestamp}")
         by_time[detection.timestamp][m] = detection
-    timestamps = sorted(by_time)
-    for time in timestamps:
-        missing = [m for m, d in enumerate(by_time[time]) if d is None]
-        if missing:
-            raise InputError(f"no detection from sensor(s) {missing} at {time}: every sensor reports once "
-                             "per step in a measurements file")
-    _spacing(timestamps, None if time_interval is None else _checked_interval(time_interval))
+    timestamps = _grid(sorted(by_time), None if time_interval is None else _checked_interval(time_interval))
+    silent = [t for t in timestamps if t not in by_time]
+    if silent:
+        raise InputError(f"no sensor has a detection at {silent[0]} ({len(silent)} step(s) without any): every "
+                         "step of a measurements file needs at least one sensor's detection")
     sizes = [_measurement_size(mm, m) for m, mm in enumerate(measurement_models)]
-    y = np.array([np.concatenate([_detection_values(d, m, sizes[m]) for m, d in enumerate(by_time[time])])
+    y = np.array([np.concatenate([np.full(sizes[m], np.nan) if d is None else _detection_values(d, m, sizes[m])
+                                  for m, d in enumerate(by_time[time])])
                   for time in timestamps])
     x = None
     if truth is not None:

@@ -55,6 +55,8 @@ def block_audits(block: CaseBlock, rule: RankRule, dmf: BlockDMF | None = None) 
     steps = len(block)
     if not steps:
         return []
+    if not block.complete.all():  # a sensor did not report at some step: the per-step route decides
+        return [None] * steps
     try:
         # a step's quantities that its audit does not report (a kernel's at full rank, y's without y)
         # may divide by zero here: they are discarded
@@ -96,7 +98,9 @@ def block_dmf(block: CaseBlock, rule: RankRule) -> BlockDMF | None:
     """Eq. 35 under ``rule`` at every step of ``block`` — with each sensor's rank decision, split and
     exactness evidence (:func:`~gpfverify.audit.blockexactness.analyse_sensor`) — or None when a
     factorisation needs jitter at some step (the per-step route, :func:`~gpfverify.fusion.distributed.dmf_update`,
-    decides those)."""
+    decides those; and a block where a sensor did not report at some step)."""
+    if not block.complete.all():
+        return None
     try:
         with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
             return _block_dmf(block, rule)
@@ -283,7 +287,14 @@ def dmf_runs(block: CaseBlock, rule: RankRule, clock: Callable[[], float] = time
     timed. Where a factor of some run's step needs jitter the block route refuses the block; each
     run is then taken alone — by the block route when its own step allows it (the same bits as in
     any batch), else by the per-step route, which adds the jitter — so that no run's numbers depend
-    on another's."""
+    on another's. Runs where a sensor did not report are taken by the per-step route (their cases
+    hold the sensors that did), the others together."""
+    complete = block.complete
+    if not complete.all():
+        whole, partial = np.flatnonzero(complete), np.flatnonzero(~complete)
+        parts = ([dmf_runs(block.take(whole), rule, clock)] if whole.size else []) + \
+            [_dmf_per_step(block.take(partial), rule, clock)]
+        return _in_order(_concatenated_runs(parts), np.argsort(np.concatenate([whole, partial])))
     start = clock()
     dmf = block_dmf(block, rule)
     online = (clock() - start) / len(block)
@@ -310,6 +321,13 @@ def _concatenated_runs(parts: list[RunsDMF]) -> RunsDMF:
                      float(np.mean([p.online for p in parts])), float(sum(p.audit_seconds for p in parts)))
 
 
+def _in_order(runs: RunsDMF, order: np.ndarray) -> RunsDMF:
+    """``runs`` with its runs taken in ``order``."""
+    return RunsDMF(runs.mean[order], runs.cov[order], [v[order] for v in runs.singular_values],
+                   [v[order] for v in runs.correlations], [v[order] for v in runs.full_rank],
+                   [v[order] for v in runs.tol], [runs.audits[i] for i in order], runs.online, runs.audit_seconds)
+
+
 def _dmf_per_step(block: CaseBlock, rule: RankRule, clock: Callable[[], float]) -> RunsDMF:
     """:func:`dmf_runs` run by run by the per-step route (dmf_update and audit_case)."""
     runs = len(block)
@@ -320,29 +338,40 @@ def _dmf_per_step(block: CaseBlock, rule: RankRule, clock: Callable[[], float]) 
     start = clock()
     audits = [audit_case(case, rank_rule=rule) for case in cases]
     audit_seconds = clock() - start
-    per_sensor = range(len(block.sizes))
+    # each run's sensors by their index among the run's; a sensor that did not report: NaN (in the
+    # shape the sensor's entries have in the other runs), not of full column rank
+    by_id = [dict(zip(case.sensor_ids, result.sensors)) for case, result in zip(cases, results)]
 
-    def stacked(get) -> list[np.ndarray]:
-        return [np.array([get(r.sensors[m]) for r in results]) for m in per_sensor]
+    def stacked(get, shape) -> list[np.ndarray]:
+        return [np.array([get(run[m]) if m in run else np.full(shape(m), np.nan) for run in by_id])
+                for m in range(len(block.sizes))]
+
+    def pairs(m: int) -> tuple[int, ...]:  # min(D, l_m) singular values and, under the canonical rule, correlations
+        return (min(block.state_dim, block.sizes[m]),)
     return RunsDMF(np.array([r.mean for r in results]), np.array([r.cov for r in results]),
-                     stacked(lambda s: s.split.rank.singular_values),
-                     stacked(lambda s: np.full(0, np.nan) if s.split.correlations is None else s.split.correlations),
-                     stacked(lambda s: s.full_column_rank), stacked(lambda s: s.split.rank.tol), audits, online,
-                     audit_seconds)
+                     stacked(lambda s: s.split.rank.singular_values, pairs),
+                     stacked(lambda s: np.full(0, np.nan) if s.split.correlations is None else s.split.correlations,
+                             pairs if rule.name == "canonical" else lambda m: (0,)),
+                     [np.array([m in run and run[m].full_column_rank for run in by_id])
+                      for m in range(len(block.sizes))],
+                     stacked(lambda s: s.split.rank.tol, lambda m: ()), audits, online, audit_seconds)
 
 
 def case_block(central: StepRecord | CentralPrediction, local_records: Sequence[StepRecord], y: np.ndarray | None,
-               sizes: Sequence[int], circular: Sequence[int] = (), circular_state: Sequence[int] = ()) -> CaseBlock:
+               sizes: Sequence[int], circular: Sequence[int] = (), circular_state: Sequence[int] = (),
+               reported: np.ndarray | None = None) -> CaseBlock:
     """The fusion cases of B runs at one step: ``central`` holds the centre's μ_p (B, D), C_p, μ_y,
     C_y, C_xy (e.g. a batched CMF record or prediction), ``local_records[m]`` sensor m's batched
     step record (what it sends: μ_p^m, μ_y^m, C_y^m, C_xy^m, μ_e^m, C_e^m), ``y`` the stacked
-    measurements (B, L) or None; ``sizes``, ``circular`` and ``circular_state`` as in a case."""
+    measurements (B, L) or None; ``sizes``, ``circular`` and ``circular_state`` as in a case;
+    ``reported`` (B, N) which sensors reported in each run (None: every one)."""
     runs = central.mu_p.shape[0]
     locals_ = tuple(LocalBlock(r.mu_p, r.mu_y, r.C_y, r.C_xy, r.mu_e, r.C_e, np.ones(runs, dtype=bool))
                     for r in local_records)
     return CaseBlock(tuple(int(s) for s in sizes), tuple(circular), central.mu_p, central.C_p, central.mu_y,
                      central.C_y, central.C_xy, locals_, None if y is None else np.asarray(y, dtype=float),
-                     np.full(runs, np.nan), tuple(circular_state))
+                     np.full(runs, np.nan), tuple(circular_state),
+                     None if reported is None or np.all(reported) else np.asarray(reported, dtype=bool))
 
 
 def cmf_update_block(block: CaseBlock) -> Gaussian:

@@ -122,8 +122,10 @@ class SensorAudit:
 class CaseAudit(HtmlView):
     """Audit of one fusion case: ``rank_rule`` the :class:`RankRule` that decided,
     ``condition_holds`` (Proposition 1: every C_xy^m full column rank), ``exact`` (the
-    necessary-and-sufficient condition for every sensor); the y-dependent fields are None
-    without y. In a notebook it shows as the text ``gpfverify audit CASE.json`` prints
+    necessary-and-sufficient condition for every sensor that reported); the y-dependent fields
+    are None without y; ``missing`` the run's sensors that did not report at this step (the audit
+    is of the others: each :class:`SensorAudit`'s ``index`` is the sensor's among the run's). In a
+    notebook it shows as the text ``gpfverify audit CASE.json`` prints
     (:func:`gpfverify.notebook.case_audit_html`)."""
 
     sensors: tuple[SensorAudit, ...]
@@ -140,7 +142,12 @@ class CaseAudit(HtmlView):
     prediction_error: float | None = None
     unit_free_dmf_mean: np.ndarray | None = None
     unit_dependence: float | None = None
+    missing: tuple[int, ...] = ()
 
+    @property
+    def sensor_count(self) -> int:
+        """N, the run's sensors (those audited and those that did not report)."""
+        return len(self.sensors) + len(self.missing)
 
     @property
     def reproduced(self) -> bool | None:
@@ -162,6 +169,9 @@ class CaseAudit(HtmlView):
         notes = []
         if self.cmf_mean is None:
             notes.append(NOTE_NO_Y)
+        if self.missing:
+            notes.append(f"sensor(s) {list(self.missing)} did not report at this step: eq. 35, CMF and the rank "
+                         "condition are over the sensors that did")
         if self.exact and not self.condition_holds:
             notes.append("the rank condition of Proposition 1 fails but DMF is exact: every lost "
                          "kernel direction lies in ker G_m C_y^m")
@@ -262,7 +272,7 @@ def audit_case(case: FusionCase, rank_tol: float | None = None, sensitivity: boo
             contribution_size = gap_size(case, contribution, dmf.scale)
         rho, covariance = _correlations(case, s.index, s.split)
         sensors.append(SensorAudit(
-            index=s.index, rows=rank.shape[0], cols=rank.shape[1], rank=rank.rank,
+            index=case.sensor_ids[s.index], rows=rank.shape[0], cols=rank.shape[1], rank=rank.rank,
             singular_values=rank.singular_values, tol=rank.tol, condition_number=rank.condition_number,
             gap_gain_norm=s.residual, exactness_tol=s.tol, exact=s.exact,
             repair_basis=s.split.kernel_basis, repair_message=message,
@@ -272,9 +282,10 @@ def audit_case(case: FusionCase, rank_tol: float | None = None, sensitivity: boo
             branch_offsets=offset, rank_rule=rule, canonical_correlations=rho,
             covariance=covariance))
     unit_free_mean, unit_dependence = _unit_free_variant(case, rule, dmf)
+    missing = tuple(sorted(set(range(case.sensor_count)) - set(case.sensor_ids)))
     if case.y is None:
         return CaseAudit(tuple(sensors), rule, dmf.condition_holds, dmf.exact, dmf.mean,
-                         unit_free_dmf_mean=unit_free_mean, unit_dependence=unit_dependence)
+                         unit_free_dmf_mean=unit_free_mean, unit_dependence=unit_dependence, missing=missing)
     cmf = cmf_update(case.central, case.y, dmf.gain)
     repaired = fused_mean(case, dmf.gain, dmf.sensors, messages)
     gap = difference(dmf.mean, cmf.mean, case.circular_state)
@@ -283,7 +294,7 @@ def audit_case(case: FusionCase, rank_tol: float | None = None, sensitivity: boo
                      repaired, gap_size=gap_size(case, gap, dmf.scale),
                      gap_bound=equivalence_tolerance(case, dmf.gain, dmf.sensors, dmf.scale),
                      prediction_error=gap_size(case, difference(gap, predicted, case.circular_state), dmf.scale),
-                     unit_free_dmf_mean=unit_free_mean, unit_dependence=unit_dependence)
+                     unit_free_dmf_mean=unit_free_mean, unit_dependence=unit_dependence, missing=missing)
 
 
 def rank_rule_to_dict(rule: RankRule, covariance: str | None = None, tol: float | None = None) -> dict:
@@ -339,6 +350,8 @@ def audit_to_dict(audit: CaseAudit) -> dict:
         "exact": audit.exact,
         "dmf_mean": audit.dmf_mean.tolist(),
     }
+    if audit.missing:
+        out["missing_sensors"] = list(audit.missing)
     measured = _measured(audit)
     if measured is not None:
         cmf_mean, gap, predicted, repaired = measured
@@ -414,25 +427,40 @@ def format_audit(audit: CaseAudit) -> str:
 class RunAudit(HtmlView):
     """Audit of every step (T) and sensor (N) of a run: per-step :class:`CaseAudit` plus arrays
     rank, full_column_rank, exact, condition_number, repair_dim (T, N) and gap_norm,
-    predicted_gap_norm (T,) (NaN where a step has no y). In a notebook it shows as the page of
-    ``gpfverify audit RUN --out DIR`` (:func:`gpfverify.notebook.run_audit_html`)."""
+    predicted_gap_norm (T,) (NaN where a step has no y); ``reported`` (T, N) where each sensor
+    reported — where it did not, the per-sensor arrays hold a fill value (rank and repair_dim 0,
+    full_column_rank and exact True, condition_number NaN: nothing was audited, nothing failed). In a
+    notebook it shows as the page of ``gpfverify audit RUN --out DIR``
+    (:func:`gpfverify.notebook.run_audit_html`)."""
 
     steps: tuple[CaseAudit, ...]
 
-    def _per_sensor(self, attr: str, dtype=float) -> np.ndarray:
-        return np.array([[getattr(s, attr) for s in step.sensors] for step in self.steps], dtype=dtype)
+    def _per_sensor(self, attr: str, dtype=float, fill=np.nan) -> np.ndarray:
+        count = max(step.sensor_count for step in self.steps)
+        out = np.full((len(self.steps), count), fill, dtype=dtype)
+        for t, step in enumerate(self.steps):
+            for s in step.sensors:
+                out[t, s.index] = getattr(s, attr)
+        return out
+
+    @property
+    def reported(self) -> np.ndarray:
+        out = np.ones((len(self.steps), max(step.sensor_count for step in self.steps)), dtype=bool)
+        for t, step in enumerate(self.steps):
+            out[t, list(step.missing)] = False
+        return out
 
     @property
     def rank(self) -> np.ndarray:
-        return self._per_sensor("rank", int)
+        return self._per_sensor("rank", int, 0)
 
     @property
     def full_column_rank(self) -> np.ndarray:
-        return self._per_sensor("full_column_rank", bool)
+        return self._per_sensor("full_column_rank", bool, True)
 
     @property
     def exact(self) -> np.ndarray:
-        return self._per_sensor("exact", bool)
+        return self._per_sensor("exact", bool, True)
 
     @property
     def condition_number(self) -> np.ndarray:
@@ -440,7 +468,7 @@ class RunAudit(HtmlView):
 
     @property
     def repair_dim(self) -> np.ndarray:
-        return self._per_sensor("repair_dim", int)
+        return self._per_sensor("repair_dim", int, 0)
 
     @property
     def gap_norm(self) -> np.ndarray:

@@ -27,7 +27,7 @@ from typing import IO
 import msgspec
 import numpy as np
 
-from gpfverify.audit.case import CaseAudit, audit_case, audit_to_dict
+from gpfverify.audit.case import CaseAudit, RunAudit, audit_case, audit_to_dict
 from gpfverify.audit.block import block_audits
 from gpfverify.fusion.caseblock import CaseBlock
 from gpfverify.fusion.exactness import DEFAULT_RANK_RULE, RankRule, resolve_rank_rule
@@ -57,6 +57,7 @@ class BlockAudit:
     gap_norm: np.ndarray
     gap_size: np.ndarray
     rank_rules: list
+    reported: np.ndarray | None = None
     reproduced: np.ndarray | None = None
     json: bytes = b""
     text: str = ""
@@ -72,7 +73,12 @@ def audit_block(run_block: RunBlock, rank_rule=None, rank_tol: float | None = No
     encodes the step objects, "text" the table rows, "none" neither); ``keep`` also returns the step
     dicts and CaseAudit records."""
     rule = None if sensitivity else block_rule(run_block.block, rank_rule, rank_tol)
-    batched = block_audits(run_block.block, rule) if rule is not None else [None] * len(run_block)
+    batched: list[CaseAudit | None] = [None] * len(run_block)
+    complete = np.flatnonzero(run_block.block.complete)  # steps where every sensor reported: all at once
+    if rule is not None and complete.size:
+        together = block_audits(run_block.block.take(complete), rule)
+        for t, audit in zip(complete.tolist(), together):
+            batched[t] = audit
     audits = [audit if audit is not None else
               audit_case(run_block.block.case(t), rank_tol, sensitivity=sensitivity, rank_rule=rank_rule)
               for t, audit in enumerate(batched)]
@@ -87,19 +93,21 @@ def audits_block(ks, audits: list[CaseAudit], form: str = "none", keep: bool = F
     for s in steps:
         if s["rank_rule"] not in rules:
             rules.append(s["rank_rule"])
+    run = RunAudit(tuple(audits))
     return BlockAudit(
         ks=np.asarray(ks, dtype=np.int64),
         condition_holds=np.array([a.condition_holds for a in audits], dtype=bool),
         exact=np.array([a.exact for a in audits], dtype=bool),
-        full_column_rank=np.array([[s.full_column_rank for s in a.sensors] for a in audits], dtype=bool),
-        sensor_exact=np.array([[s.exact for s in a.sensors] for a in audits], dtype=bool),
+        full_column_rank=run.full_column_rank,   # True where a sensor did not report: nothing was lost
+        sensor_exact=run.exact,
         gap_norm=np.array([np.nan if a.gap is None else np.linalg.norm(a.gap) for a in audits]),
         gap_size=np.array([np.nan if a.gap_size is None else a.gap_size for a in audits]),
         rank_rules=rules,
         reproduced=np.array([a.reproduced is True for a in audits], dtype=bool),
         json=b", ".join(_ENCODER.encode(s) for s in steps) if form == "json" else b"",
         text="".join(table_row(s) + "\n" for s in steps) if form == "text" else "",
-        steps=steps if keep else None, audits=audits if keep else None)
+        steps=steps if keep else None, audits=audits if keep else None,
+        reported=None if not any(a.missing for a in audits) else run.reported)
 
 
 def block_rule(block: CaseBlock, rank_rule=None, rank_tol: float | None = None) -> RankRule | None:
@@ -117,7 +125,9 @@ def block_rule(block: CaseBlock, rank_rule=None, rank_tol: float | None = None) 
 
 def table_row(step: dict) -> str:
     """One step of the text table (:func:`table_header`)."""
-    ranks = " ".join(f"{x['rank']}/{x['cols']}" + ("" if x["exact"] else "!") for x in step["sensors"])
+    cells = {x["index"]: f"{x['rank']}/{x['cols']}" + ("" if x["exact"] else "!") for x in step["sensors"]}
+    cells.update({m: "-" for m in step.get("missing_sensors", [])})  # did not report
+    ranks = " ".join(cells[m] for m in sorted(cells))
     gap = f"{step['gap_norm']:.3g}" if "gap_norm" in step else "-"
     pred = f"{float(np.linalg.norm(step['predicted_gap'])):.3g}" if "predicted_gap" in step else "-"
     return (f"{step['k']:>6} {str(step['condition_holds']):>9} {str(step['exact']):>5}  {ranks:<24} "
@@ -208,6 +218,7 @@ class RunSummary:
     rules: list = field(default_factory=list)
     lost: list[StepIndices] = field(default_factory=list)
     lost_not_exact: list[StepIndices] = field(default_factory=list)
+    missing: list[StepIndices] = field(default_factory=list)
 
     def add(self, block: BlockAudit) -> None:
         self.steps += len(block.ks)
@@ -230,10 +241,13 @@ class RunSummary:
         if not self.lost:
             n = block.full_column_rank.shape[1]
             self.lost, self.lost_not_exact = [StepIndices() for _ in range(n)], [StepIndices() for _ in range(n)]
+            self.missing = [StepIndices() for _ in range(n)]
         for m in range(len(self.lost)):
             lost = ~block.full_column_rank[:, m]
             self.lost[m].append(block.ks[lost])
             self.lost_not_exact[m].append(block.ks[lost & ~block.sensor_exact[:, m]])
+            if block.reported is not None:
+                self.missing[m].append(block.ks[~block.reported[:, m]])
 
     def result(self, spooled: bool = False) -> dict:
         """The ``summary`` object; its step-index lists as :class:`StepIndices` (``spooled``, for a
@@ -247,7 +261,8 @@ class RunSummary:
             "max_gap_norm": self.max_gap, "max_gap_k": self.max_gap_k,
             "max_gap_size": self.max_gap_size, "max_gap_size_k": self.max_gap_size_k,
             "sensors": [{"index": m, "rank_lost_steps": ks(self.lost[m]),
-                         "rank_lost_not_exact_steps": ks(self.lost_not_exact[m])} for m in range(len(self.lost))],
+                         "rank_lost_not_exact_steps": ks(self.lost_not_exact[m]),
+                         "not_reported_steps": ks(self.missing[m])} for m in range(len(self.lost))],
             "rank_rule": run_rank_rule(self.rules),
         }
 

@@ -36,7 +36,7 @@ from collections.abc import Iterable, Iterator, Sequence
 import numpy as np
 
 from gpfverify.errors import CaseFileError, InputError
-from gpfverify.fusion.case import FusionCase, case_to_dict
+from gpfverify.fusion.case import FusionCase, case_to_dict, full_y, split_circular
 from gpfverify.fusion.caseblock import (CaseBlock, StepError, agreed_circular, block_from_arrays, block_from_records,
                                         checked_indices, layout)
 from gpfverify.fusion.caseformat import (CASE_DECODER, RUN_LINE_DECODER, RunLine, case_schema, decode, given,
@@ -251,8 +251,7 @@ class _JsonlState:
     def _layout(self, record: RunLine):
         """(D, sizes, circular) of a record; the first line's computed once and reused for lines
         that write the same sizes and angle lists."""
-        raw = (len(record.central.mu_p), record.central.sizes, given(record.central.circular),
-               [given(r.circular) for r in record.locals], given(record.circular_state))
+        raw = _raw_layout(record)
         if raw == self._raw_layout:
             return self.first_layout
         return layout(record)
@@ -285,8 +284,7 @@ class _JsonlState:
                    + " (give the step index on every line or on none)", record)
         if self.first_layout is None:
             self.first_layout = sig
-            self._raw_layout = (len(record.central.mu_p), record.central.sizes, given(record.central.circular),
-                                [given(r.circular) for r in record.locals], given(record.circular_state))
+            self._raw_layout = _raw_layout(record)
         elif sig != self.first_layout:
             refuse(f"{_signature_difference(sig, self.first_layout)} (every step of a run has the same "
                    f"dimensions and angle outputs)", record)
@@ -560,8 +558,20 @@ def write_run(path, cases: Iterable[FusionCase], ks: Sequence[int] | None = None
     return path
 
 
+def _whole(case: FusionCase):
+    """The centre's prediction of every sensor of the run (also of those that did not report)."""
+    return case.missing.central if case.missing is not None else case.central
+
+
+def _raw_layout(record: RunLine) -> tuple:
+    """What a line writes of its layout (D, sizes, angle lists), compared before it is checked."""
+    return (len(record.central.mu_p), record.central.sizes, given(record.central.circular),
+            [None if r is None else given(r.circular) for r in record.locals], given(record.circular_state))
+
+
 def _shape_signature(case: FusionCase) -> tuple:
-    return case.state_dim, tuple(case.central.sizes), tuple(case.central.circular), tuple(case.circular_state)
+    whole = _whole(case)
+    return case.state_dim, tuple(whole.sizes), tuple(whole.circular), tuple(case.circular_state)
 
 
 def _npz_arrays(cases: list[FusionCase], ks) -> dict[str, np.ndarray]:
@@ -570,26 +580,34 @@ def _npz_arrays(cases: list[FusionCase], ks) -> dict[str, np.ndarray]:
         if _shape_signature(case) != first:
             raise InputError(f"case {t} has other dimensions or angle outputs than case 0: "
                              f"{_shape_signature(case)} vs {first}")
-    sizes = cases[0].central.sizes
+    whole = _whole(cases[0])
+    sizes = whole.sizes
     out = {"sizes": np.array(sizes, dtype=np.int64)}
     for key in ("mu_p", "C_p", "mu_y", "C_y", "C_xy"):
-        out[f"central_{key}"] = np.stack([getattr(c.central, key) for c in cases])
-    for m in range(len(sizes)):
+        out[f"central_{key}"] = np.stack([getattr(_whole(c), key) for c in cases])
+    # each case's reports by sensor index; a sensor that did not report: NaN rows (docs/run-file-format.md)
+    reports = [dict(zip(c.sensor_ids, c.locals)) for c in cases]
+    d = cases[0].state_dim
+    circulars = split_circular(whole.circular, sizes)
+    for m, l in enumerate(sizes):
+        shapes: dict[str, tuple[int, ...]] = {"mu_p": (d,), "mu_y": (l,), "C_y": (l, l), "C_xy": (d, l), "mu_e": (d,)}
         for key in _LOCAL_KEYS[:-1]:
-            out[f"local{m}_{key}"] = np.stack([getattr(c.locals[m], key) for c in cases])
-        c_e = [c.locals[m].C_e for c in cases]
+            out[f"local{m}_{key}"] = np.stack([getattr(r[m], key) if m in r else np.full(shapes[key], np.nan)
+                                               for r in reports])
+        c_e = [r[m].C_e for r in reports if m in r]
         given = [v for v in c_e if v is not None]
-        if len(given) == len(c_e):
-            out[f"local{m}_C_e"] = np.stack(given)
+        if given and len(given) == len(c_e):
+            out[f"local{m}_C_e"] = np.stack([np.full((d, d), np.nan) if m not in r else np.asarray(r[m].C_e)
+                                             for r in reports])
         elif given:
             raise InputError(f"locals[{m}].C_e must be given at every step or at none for an npz run file")
-        if cases[0].locals[m].circular:
-            out[f"circular{m}"] = np.array(cases[0].locals[m].circular, dtype=np.int64)
+        if circulars[m]:
+            out[f"circular{m}"] = np.array(circulars[m], dtype=np.int64)
     if cases[0].circular_state:
         out["circular_state"] = np.array(cases[0].circular_state, dtype=np.int64)
     if any(c.y is not None for c in cases):
         nan = np.full(sum(sizes), np.nan)
-        out["y"] = np.stack([nan if c.y is None else c.y for c in cases])
+        out["y"] = np.stack([nan if c.y is None else full_y(c) for c in cases])
     tols = [c.rank_tol for c in cases]
     if any(v is not None for v in tols):
         out["rank_tol"] = (np.array(tols[0]) if len(set(tols)) == 1

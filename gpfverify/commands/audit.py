@@ -121,7 +121,7 @@ def format_summary(summary: dict) -> str:
     rule = summary["rank_rule"]
     rules = [rule] if not isinstance(rule, list) else rule
     text = [r.get("description", str(r)) if isinstance(r, dict) else str(r) for r in rules]
-    lines = ["(r/l! : sensor not exact at that step)", "", f"rank rule: {'; '.join(text)}",
+    lines = ["(r/l! : sensor not exact at that step; - : sensor did not report)", "", f"rank rule: {'; '.join(text)}",
              f"steps: {summary['steps']}; Proposition 1 condition held at {summary['condition_held_steps']}; "
              f"DMF exact at {summary['exact_steps']}"]
     lines.append(gap_words(summary))
@@ -132,7 +132,10 @@ def format_summary(summary: dict) -> str:
                          f"not exact at " + (f"k = {_steps(s['rank_lost_not_exact_steps'])}"
                                              if s["rank_lost_not_exact_steps"] else "none of them"))
         else:
-            lines.append(f"sensor {s['index']}: full column rank at every step")
+            lines.append(f"sensor {s['index']}: full column rank at every step"
+                         + (" it reported" if s.get("not_reported_steps") else ""))
+        if s.get("not_reported_steps"):
+            lines.append(f"sensor {s['index']}: did not report at k = {_steps(s['not_reported_steps'])}")
     return "\n".join(lines)
 
 
@@ -153,6 +156,9 @@ def verdict_line(summary: dict) -> str:
             line += (f"; sensor {s['index']} lost full column rank at k = {_steps(s['rank_lost_steps'])}"
                      + (f", not exact at k = {_steps(bad)}" if bad else ", exact anyway"))
     line += ")"
+    for s in summary["sensors"]:
+        if s.get("not_reported_steps"):
+            line += f"; sensor {s['index']} did not report at k = {_steps(s['not_reported_steps'])}"
     line += "; " + gap_words(summary)
     rule = summary["rank_rule"]
     rules = rule if isinstance(rule, list) else [rule]

@@ -111,6 +111,10 @@ def verdict_sentence(results: dict) -> str:
                    + (f" ({', '.join(reasons)})" if reasons else ""))
     sentence = (f"{verdict}; largest one-step gap {results['max_gap']:.3g} "
                 f"({results['max_gap_size']:.3g} prior standard deviations)")
+    missing = [(m, n) for m, n in enumerate(results.get("reported_steps") or []) if n < total]
+    if missing:  # the rank condition and exactness are over the sensors that reported at each step
+        sentence += "; " + ", ".join(f"sensor {m} reported at {n} of {total}" for m, n in missing) + \
+            " (each step judged over the sensors that reported)"
     failures = results.get("method_failures") or []
     for method in results.get("failed_methods") or []:
         mine = [f for f in failures if f["method"] == method]

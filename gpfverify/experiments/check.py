@@ -44,7 +44,7 @@ from gpfverify.models import batch_gp_models, fit_gp_model, learn_gp_model, requ
 from gpfverify.rng import generator
 from gpfverify.systems import load_filters, split_spec
 from gpfverify.userfiles import read_npz
-from gpfverify.validate import as_array
+from gpfverify.validate import as_array, real_floats
 
 NAME = "check"
 DEFAULT_RUNS = 1
@@ -163,18 +163,31 @@ def measurements_format(model) -> str:
 
 def logged_measurements(path: str, model) -> tuple[np.ndarray | None, np.ndarray]:
     """(truth x (T, D) or None, measurements y (T, L)) from a measurements file (``y`` required;
-    docs/check-format.md). Not an audit run file: that one is refused saying which is which."""
+    docs/check-format.md): a NaN block of ``y`` is a sensor that did not report at that step, NaN
+    anywhere else (part of a block, the truth) is refused naming the row, the sensor or component
+    and the output. Not an audit run file: that one is refused saying which is which."""
     data = _load_npz(path, "--measurements", measurements_format(model))
     if "central_mu_p" in data:
         raise InputError(f"{path} is an audit run file of fusion cases ('gpfverify audit' reads it): "
                          f"--measurements expects {measurements_format(model)}")
     if "y" not in data:
         raise InputError(f"{path} has no array 'y': --measurements expects {measurements_format(model)}")
+    name = Path(path).name
     try:
-        ys = as_array(data["y"], f"{Path(path).name}: y", shape=(None, model.measurement_dim))
+        ys = real_floats(data["y"], f"{name}: y")
+        if ys.ndim != 2 or ys.shape[1] != model.measurement_dim or not ys.shape[0]:
+            raise InputError(f"{name}: y must have shape (T, {model.measurement_dim}), got {ys.shape}")
+        model.reported(ys, f"{name}: y")  # NaN only as whole sensor blocks, some sensor at every step
         truth = None
         if "x" in data:
-            truth = as_array(data["x"], f"{Path(path).name}: x", shape=(ys.shape[0], model.state_dim))
+            truth = real_floats(data["x"], f"{name}: x")
+            if truth.shape != (ys.shape[0], model.state_dim):
+                raise InputError(f"{name}: x must have shape ({ys.shape[0]}, {model.state_dim}), got {truth.shape}")
+            if not np.isfinite(truth).all():
+                row, component = (int(i) for i in np.argwhere(~np.isfinite(truth))[0])
+                raise InputError(f"{name}: x row {row}, state component {component} is "
+                                 f"{'NaN' if np.isnan(truth[row, component]) else 'inf'}: the truth must be known "
+                                 "at every step (leave x out when it is not)")
     except InputError as exc:
         raise InputError(f"{exc}; --measurements expects {measurements_format(model)}") from None
     return truth, ys
@@ -296,10 +309,9 @@ def _measures_batch(model, runs: Sequence, ys: np.ndarray, truths: np.ndarray | 
 
     steps = [run.steps for run in runs]
     stacked = lambda get: np.array([[get(s) for s in run] for run in steps])  # noqa: E731
-    nis_cmf = Consistency.nis(ys, stacked(lambda s: s.cmf.mu_y), stacked(lambda s: s.cmf.C_y),
-                              circular=model.circular).values
-    nis_local = [Consistency.nis(ys[:, :, b], stacked(lambda s, m=m: s.local[m].mu_y),
-                                 stacked(lambda s, m=m: s.local[m].C_y), circular=sensor.circular).values
+    nis_cmf = reported_nis(ys, stacked(lambda s: s.cmf.mu_y), stacked(lambda s: s.cmf.C_y), model.circular)
+    nis_local = [reported_nis(ys[:, :, b], stacked(lambda s, m=m: s.local[m].mu_y),
+                              stacked(lambda s, m=m: s.local[m].C_y), sensor.circular)
                  for m, (b, sensor) in enumerate(zip(model.blocks, model.sensors))]
     c_p = stacked(lambda s: s.dmf.case.central.C_p)
     count, length, dim = c_p.shape[:3]
@@ -335,13 +347,23 @@ def _measures_batch(model, runs: Sequence, ys: np.ndarray, truths: np.ndarray | 
                          repaired[b].tolist(), recursive[b].tolist()) for b in range(count)]
 
 
+def reported_nis(ys: np.ndarray, mu_y: np.ndarray, C_y: np.ndarray, circular) -> np.ndarray:
+    """The NIS (:meth:`gpfverify.consistency.Consistency.nis`) of measurements ys (T, L) or (R, T, L)
+    — (T,) or (R, T) — at the steps where every one of the L outputs reported, NaN where some did
+    not (its χ² degrees of freedom would differ from L: such steps are left out of the ANIS)."""
+    missing = np.isnan(ys).any(axis=-1)
+    values = Consistency.nis(np.where(np.isnan(ys), mu_y, ys), mu_y, C_y, circular=circular).values
+    return np.where(missing, np.nan, values.reshape(missing.shape))
+
+
 def _normalised_errors(model, fused, ys: np.ndarray, truth: np.ndarray | None) -> dict:
     """NIS of CMF and of every local filter, and (with the truth) NEES of every estimate, per step
     (:class:`gpfverify.consistency.Consistency`; angle components wrapped)."""
-    cmf = [s.cmf for s in fused.steps]
     locals_ = [[s.local[m] for s in fused.steps] for m in range(len(model.sensors))]
-    out: dict[str, Any] = {"nis": {"cmf": Consistency.nis_from_records(ys, cmf, circular=model.circular).values[0],
-                   "local": [Consistency.nis_from_records(ys[:, b], records, circular=sensor.circular).values[0]
+    cmf_mu, cmf_cov = np.array([s.cmf.mu_y for s in fused.steps]), np.array([s.cmf.C_y for s in fused.steps])
+    out: dict[str, Any] = {"nis": {"cmf": reported_nis(ys, cmf_mu, cmf_cov, model.circular),
+                   "local": [reported_nis(ys[:, b], np.array([r.mu_y for r in records]),
+                                          np.array([r.C_y for r in records]), sensor.circular)
                              for b, sensor, records in zip(model.blocks, model.sensors, locals_)]}}
     if truth is not None:
         nees = lambda estimates: Consistency.from_records(  # noqa: E731
@@ -354,6 +376,19 @@ def _normalised_errors(model, fused, ys: np.ndarray, truth: np.ndarray | None) -
             out["nees"][m] = dict(zip(at, values))
         out["local_nees"] = [nees([r.posterior for r in records]) for records in locals_]
     return out
+
+
+def _with_missing(model, audit, entries: list[dict]) -> list[dict]:
+    """A step's per-sensor entries, one for every sensor in sensor order: those the audit made, and
+    for a sensor that did not report one saying so, its verdicts null (nothing was audited) and its
+    share of the gap and repair size zero (it took no part in the step)."""
+    if not audit.missing:
+        return entries
+    absent = [{"index": m, "reported": False, "rank": None, "cols": model.sizes[m], "full_column_rank": None,
+               "exact": None, "repair_dim": 0, "singular_values": [], "tol": None, "gap_share": 0.0,
+               "gap_share_size": 0.0, "min_canonical_correlation": None, "branch_offsets": [],
+               "branch_offset_count": 0} for m in audit.missing]
+    return sorted(entries + absent, key=lambda e: e["index"])
 
 
 def _record(model, fused, ys: np.ndarray, truth: np.ndarray | None, measures: StepMeasures) -> RunRecord:
@@ -380,7 +415,9 @@ def _record(model, fused, ys: np.ndarray, truth: np.ndarray | None, measures: St
             "recursive_gap_size": measures.recursive_gap_size[t],
             "unit_dependence": audit.unit_dependence,
             "condition_holds": bool(audit.condition_holds), "exact": bool(audit.exact),
-            "sensors": [{"index": s.index, "rank": int(s.rank), "cols": s.cols,
+            "reported": [m not in audit.missing for m in range(audit.sensor_count)],
+            "sensors": _with_missing(model, audit, [{
+                         "index": s.index, "reported": True, "rank": int(s.rank), "cols": s.cols,
                          "full_column_rank": bool(s.full_column_rank), "exact": bool(s.exact),
                          "repair_dim": int(s.repair_dim), "singular_values": s.singular_values.tolist(),
                          "tol": float(s.tol),
@@ -390,7 +427,7 @@ def _record(model, fused, ys: np.ndarray, truth: np.ndarray | None, measures: St
                                                        or not s.canonical_correlations.size
                                                        else float(s.canonical_correlations.min())),
                          "branch_offsets": s.branch_offsets.tolist(),
-                         "branch_offset_count": int(np.count_nonzero(s.branch_offsets))} for s in audit.sensors],
+                         "branch_offset_count": int(np.count_nonzero(s.branch_offsets))} for s in audit.sensors]),
             "means": {m: e.mean.tolist() for m, e in estimates.items()},
             "covs": {m: e.cov.tolist() for m, e in estimates.items()},
             "repaired_mean": (audit.repaired_dmf_mean.tolist() if audit.repaired_dmf_mean is not None
@@ -399,7 +436,7 @@ def _record(model, fused, ys: np.ndarray, truth: np.ndarray | None, measures: St
             "local_means": local_means[t],
             "local_covs": local_covs[t],
             "seconds": {**step.seconds, "local": list(step.local_seconds)},
-            "nis": {"cmf": measures.nis_cmf[t], "local": [v[t] for v in measures.nis_local]},
+            "nis": {"cmf": _number(measures.nis_cmf[t]), "local": [_number(v[t]) for v in measures.nis_local]},
             "case": cases[t],
         }
         if truth is not None and truths is not None:
@@ -478,12 +515,28 @@ def _per_sensor(steps_by_run: Sequence[Sequence[dict]], key: str) -> list:
     return [[[s[key] for s in e["sensors"]] for e in steps] for steps in steps_by_run]
 
 
+def _number(value: float) -> float | None:
+    """A measure as JSON: None where it is not defined (NaN: a NIS at a step where an output did
+    not report)."""
+    return None if np.isnan(value) else float(value)
+
+
 def _average(kind: str, values: np.ndarray, dof: int) -> dict:
     """ANEES / ANIS at every step of (R, T) normalised errors with its two-sided χ² band
-    (Bar-Shalom's test, :meth:`gpfverify.consistency.Consistency.average_over_runs`)."""
-    test = Consistency(kind, values, dof).average_over_runs(CONSISTENCY_LEVEL)
-    return {"average": test.values.tolist(), "band": [test.lower, test.upper], "dof": dof, "runs": test.samples,
-            "level": test.level, "fraction_inside": test.fraction_inside, "verdict": test.verdict()}
+    (Bar-Shalom's test, :meth:`gpfverify.consistency.Consistency.average_over_runs`), over the
+    steps where every run has the value (a NIS is not defined where an output did not report:
+    ``average`` is None there and ``steps`` counts the steps tested)."""
+    kept = ~np.isnan(values).any(axis=0)
+    if not kept.any():
+        return {"average": [None] * values.shape[1], "band": None, "dof": dof, "runs": values.shape[0],
+                "level": CONSISTENCY_LEVEL, "fraction_inside": None, "verdict": "not tested", "steps": 0}
+    test = Consistency(kind, values[:, kept], dof).average_over_runs(CONSISTENCY_LEVEL)
+    average: list[float | None] = [None] * values.shape[1]
+    for t, v in zip(np.flatnonzero(kept).tolist(), test.values.tolist()):
+        average[t] = v
+    return {"average": average, "band": [test.lower, test.upper], "dof": dof, "runs": test.samples,
+            "level": test.level, "fraction_inside": test.fraction_inside, "verdict": test.verdict(),
+            "steps": int(kept.sum())}
 
 
 def _trajectory(steps: Sequence[dict], methods: Sequence[str]) -> dict:
@@ -517,7 +570,8 @@ def summarize(params: Params, results: list[RunRecord], model=None, filters: Loc
     out = {
         "steps": len(first), "filter": params.filter,
         "per_step": [{"k": e["k"], "cmf_mean": e["cmf_mean"], "dmf_mean": e["dmf_mean"], "gap": e["gap"],
-                      "sensors": [{key: s[key] for key in ("index", "rank", "full_column_rank", "exact")}
+                      "sensors": [{key: s.get(key, True) for key in ("index", "reported", "rank", "full_column_rank",
+                                                                     "exact")}
                                   for s in e["sensors"]]} for e in first],
         "max_gap": max(e["gap_norm"] for e in every),
         "max_gap_size": max(e["gap_size"] for e in every),
@@ -543,15 +597,19 @@ def summarize(params: Params, results: list[RunRecord], model=None, filters: Loc
         **{key: _per_sensor(steps_by_run, key)
            for key in ("rank", "full_column_rank", "exact", "repair_dim", "gap_share", "gap_share_size", "tol",
                        "min_canonical_correlation", "branch_offset_count")},
+        "reported": [[e.get("reported", [True] * len(model.sensors)) for e in steps] for steps in steps_by_run],
+        "reported_steps": [sum(e.get("reported", [True] * len(model.sensors))[m] for e in every)
+                           for m in range(len(model.sensors))],
         "time_per_step": {**{m: float(np.mean([e["seconds"][m] for e in every])) for m in methods},
                           "local": float(np.mean([sum(e["seconds"]["local"]) for e in every]))},
         "timing_keys": list(TIMING_KEYS),
         "truth_known": all(r.truth_known for r in results),
         "trajectory": _trajectory(first, methods),
     }
-    nis = np.array([[e["nis"]["cmf"] for e in steps] for steps in steps_by_run])
+    nis = np.array([[e["nis"]["cmf"] for e in steps] for steps in steps_by_run], dtype=float)
     out["nis"] = {"cmf": _average("NIS", nis, model.measurement_dim),
-                  "local": [_average("NIS", np.array([[e["nis"]["local"][m] for e in steps] for steps in steps_by_run]),
+                  "local": [_average("NIS", np.array([[e["nis"]["local"][m] for e in steps] for steps in steps_by_run],
+                                                     dtype=float),
                                      s.size) for m, s in enumerate(model.sensors)]}
     if out["truth_known"]:
         d = model.state_dim

@@ -15,7 +15,14 @@ A fusion case holds what the fusion centre knows at time k (seed 000 §3):
   are given they must agree. Every difference of an angle output (y − μ_y, μ_y^m − μ_y(m), the CMF
   innovation) is then taken on the circle, wrapped to (−π, π] (:mod:`gpfverify.angles`);
 * optionally which state components are angles: top-level ``circular_state`` (0-based indices);
-  μ_e^m − μ_p^m in eq. 35, the fused means and the gap are then taken on the circle.
+  μ_e^m − μ_p^m in eq. 35, the fused means and the gap are then taken on the circle;
+* sensors that did not report at this step (a drop-out, a sensor that has not joined yet, one that
+  reports at a lower rate): a case holds only the sensors that did — every rule, eq. 35 and the
+  audit work on them — and ``missing`` (:class:`MissingSensors`) keeps which of the run's sensors
+  they are and the centre's prediction of all of them, so that the case's file form marks the
+  others as the measurements file does (``null`` in ``locals`` and in the sensor's block of ``y``;
+  docs/fusion-case-format.md, "Sensors that did not report"). :meth:`FusionCase.of_reports` makes
+  such a case from the centre's full prediction and the reports of the sensors that sent one.
 
 Every check raises :class:`~gpfverify.errors.CaseFileError` naming the offending entry.
 
@@ -44,8 +51,8 @@ import numpy as np
 from gpfverify.errors import InputError
 from gpfverify.fusion.caseformat import MAX_MAGNITUDE
 
-__all__ = ["MAX_MAGNITUDE", "CentralPrediction", "LocalReport", "FusionCase", "case_to_dict", "cases_to_dicts",
-           "sensor_blocks", "stack_circular", "split_circular"]
+__all__ = ["MAX_MAGNITUDE", "CentralPrediction", "LocalReport", "FusionCase", "MissingSensors", "case_to_dict",
+           "cases_to_dicts", "full_y", "sensor_blocks", "stack_circular", "split_circular"]
 
 
 @functools.lru_cache(maxsize=256)
@@ -91,6 +98,21 @@ class CentralPrediction:
         """Slice of sensor m's rows/columns in the stacked measurement."""
         return sensor_blocks(self.sizes)
 
+    def rows(self, sensors: Sequence[int]) -> np.ndarray:
+        """The rows of the sensors ``sensors`` (indices, in order) in the stacked measurement."""
+        blocks = self.blocks
+        return np.concatenate([np.arange(blocks[m].start, blocks[m].stop) for m in sensors])
+
+    def restricted(self, sensors: Sequence[int]) -> CentralPrediction:
+        """The prediction of the sensors ``sensors`` (indices, in order) alone: their blocks of
+        μ_y, C_y, C_xy and of the angle outputs."""
+        rows = self.rows(sensors)
+        local = split_circular(self.circular, self.sizes)
+        sizes = tuple(self.sizes[m] for m in sensors)
+        return CentralPrediction(self.mu_p, self.C_p, self.mu_y[rows], self.C_y[np.ix_(rows, rows)],
+                                 self.C_xy[:, rows], sizes, stack_circular([local[m] for m in sensors], sizes),
+                                 self.circular_state)
+
 
 @dataclass(frozen=True)
 class LocalReport:
@@ -108,14 +130,62 @@ class LocalReport:
 
 
 @dataclass(frozen=True)
+class MissingSensors:
+    """A step at which some of the run's sensors did not report: ``reported`` the indices (among
+    the run's N sensors, increasing) of those that did — the case's own sensors, in order — and
+    ``central`` the centre's prediction of all N (the case's own ``central`` is its block of the
+    reported ones)."""
+
+    reported: tuple[int, ...]
+    central: CentralPrediction
+
+    @property
+    def count(self) -> int:
+        """N, the run's sensors."""
+        return len(self.central.sizes)
+
+
+@dataclass(frozen=True)
 class FusionCase:
-    """One fusion step: central prediction, the sensors' reports, optional y (L,) and rank_tol.
-    The central and local angle outputs must agree (InputError otherwise)."""
+    """One fusion step: central prediction, the sensors' reports, optional y (L,) and rank_tol;
+    ``missing`` when some of the run's sensors did not report (module docstring: the case then
+    holds the others). The central and local angle outputs must agree (InputError otherwise)."""
 
     central: CentralPrediction
     locals: tuple[LocalReport, ...]
     y: np.ndarray | None = None
     rank_tol: float | None = None
+    missing: MissingSensors | None = None
+
+    @classmethod
+    def of_reports(cls, central: CentralPrediction, reports: Sequence[LocalReport | None], y=None,
+                   rank_tol: float | None = None) -> FusionCase:
+        """The case of the sensors that reported: ``central`` the centre's prediction of every
+        sensor, ``reports[m]`` sensor m's report or None where it did not report, ``y`` the
+        stacked measurement of every sensor (NaN in the blocks of those that did not) or None. At
+        least one sensor must have reported."""
+        reported = tuple(m for m, r in enumerate(reports) if r is not None)
+        if len(reports) != len(central.sizes):
+            raise InputError(f"{len(central.sizes)} sensors but {len(reports)} reports")
+        if not reported:
+            raise InputError("no sensor reported at this step: there is nothing to fuse")
+        present = tuple(r for r in reports if r is not None)
+        if len(reported) == len(reports):
+            return cls(central, present, None if y is None else np.asarray(y, dtype=float), rank_tol)
+        return cls(central.restricted(reported), present,
+                   None if y is None else np.asarray(y, dtype=float)[central.rows(reported)],
+                   rank_tol, MissingSensors(reported, central))
+
+    @property
+    def sensor_ids(self) -> tuple[int, ...]:
+        """Each of the case's sensors' index among the run's sensors (0, …, N − 1 when every one
+        reported)."""
+        return self.missing.reported if self.missing is not None else tuple(range(len(self.locals)))
+
+    @property
+    def sensor_count(self) -> int:
+        """N, the run's sensors (the case holds those of them that reported)."""
+        return self.missing.count if self.missing is not None else len(self.locals)
 
     def __post_init__(self):
         stacked = stack_circular([r.circular for r in self.locals], self.central.sizes)
@@ -163,28 +233,44 @@ def cases_to_dicts(cases: Sequence[FusionCase]) -> list[dict]:
     def listed(get) -> list:
         return np.array([get(c) for c in cases]).tolist()
 
-    central = {f: listed(lambda c, f=f: getattr(c.central, f)) for f in ("mu_p", "C_p", "mu_y", "C_y", "C_xy")}
+    whole = first.missing.central if first.missing is not None else first.central  # every sensor's
+    central = {f: listed(lambda c, f=f: getattr(c.missing.central if c.missing is not None else c.central, f))
+               for f in ("mu_p", "C_p", "mu_y", "C_y", "C_xy")}
     local = [{f: listed(lambda c, m=m, f=f: getattr(c.locals[m], f)) for f in _local_fields(r)}
              for m, r in enumerate(first.locals)]
-    ys = listed(lambda c: c.y) if first.y is not None else None
+    ys = listed(lambda c: full_y(c)) if first.y is not None else None
+    ids = first.sensor_ids
     out = []
     for t, case in enumerate(cases):
         head = {f: v[t] for f, v in central.items()}
-        entry: dict[str, Any] = {"central": {**head, "sizes": list(first.central.sizes)}, "locals": []}
-        if first.central.circular:
-            entry["central"]["circular"] = list(first.central.circular)
+        entry: dict[str, Any] = {"central": {**head, "sizes": list(whole.sizes)}, "locals": [None] * first.sensor_count}
+        if whole.circular:
+            entry["central"]["circular"] = list(whole.circular)
         for m, r in enumerate(first.locals):
             item = {f: v[t] for f, v in local[m].items()}
             if r.circular:
                 item["circular"] = list(r.circular)
-            entry["locals"].append(item)
+            entry["locals"][ids[m]] = item
         if ys is not None:
-            entry["y"] = ys[t]
+            entry["y"] = [None if isinstance(v, float) and np.isnan(v) else v for v in ys[t]] \
+                if first.missing is not None else ys[t]
         if case.rank_tol is not None:
             entry["rank_tol"] = case.rank_tol
         if first.circular_state:
             entry["circular_state"] = list(first.circular_state)
         out.append(entry)
+    return out
+
+
+def full_y(case: FusionCase) -> np.ndarray:
+    """The stacked measurement of every sensor of the run, NaN in the blocks of those that did not
+    report."""
+    assert case.y is not None
+    if case.missing is None:
+        return case.y
+    whole = case.missing.central
+    out = np.full(sum(whole.sizes), np.nan)
+    out[whole.rows(case.missing.reported)] = case.y
     return out
 
 
@@ -196,7 +282,8 @@ def _local_fields(report: LocalReport) -> tuple[str, ...]:
 def _layout(case: FusionCase) -> tuple:
     """What two cases must share to be listed together by :func:`cases_to_dicts`."""
     return (case.central.mu_p.shape, case.central.sizes, case.central.circular, case.circular_state, case.y is None,
-            tuple((r.C_e is None, r.circular) for r in case.locals))
+            tuple((r.C_e is None, r.circular) for r in case.locals),
+            None if case.missing is None else (case.missing.reported, case.missing.central.sizes))
 
 
 #END

@@ -4,8 +4,12 @@ a JSON Lines run and an npz run).
 A :class:`CaseBlock` holds B steps with the same state dimension D, the same sensor sizes and the
 same angle outputs: the centre's arrays ``mu_p`` (B, D), ``C_p`` (B, D, D), ``mu_y`` (B, L),
 ``C_y`` (B, L, L), ``C_xy`` (B, D, L); per sensor a :class:`LocalBlock`; ``y`` (B, L) with a row
-of NaN where a step has no y, ``rank_tol`` (B,) with NaN where a step has none.
-``block.case(t)`` is step t as a :class:`~gpfverify.fusion.case.FusionCase`.
+of NaN where a step has no y, ``rank_tol`` (B,) with NaN where a step has none, and ``reported``
+(B, N), which sensors reported at each step (None: every one at every step). A sensor that did not
+report at a step has NaN in its block of that step's y, and its reports there are not read (the
+file marks it ``null``, or NaN rows in an npz run file). ``block.case(t)`` is step t as a
+:class:`~gpfverify.fusion.case.FusionCase` (of the sensors that reported,
+:meth:`~gpfverify.fusion.case.FusionCase.of_reports`).
 
 :func:`block_from_records` stacks decoded JSON records (:mod:`gpfverify.fusion.caseformat`) and
 :func:`block_from_arrays` takes arrays (an npz run file); both end in :func:`check_block`, which
@@ -75,6 +79,7 @@ class CaseBlock:
     y: np.ndarray | None
     rank_tol: np.ndarray
     circular_state: tuple[int, ...] = ()
+    reported: np.ndarray | None = None
 
     def __len__(self) -> int:
         return self.mu_p.shape[0]
@@ -89,25 +94,34 @@ class CaseBlock:
             return np.zeros(len(self), dtype=bool)
         return ~np.all(np.isnan(self.y), axis=1)
 
+    @property
+    def complete(self) -> np.ndarray:
+        """(B,) True at the steps where every sensor reported."""
+        if self.reported is None:
+            return np.ones(len(self), dtype=bool)
+        return np.asarray(self.reported.all(axis=1))
+
     def take(self, steps) -> CaseBlock:
         """The block of the steps ``steps`` (a slice or index array)."""
         local = tuple(LocalBlock(r.mu_p[steps], r.mu_y[steps], r.C_y[steps], r.C_xy[steps], r.mu_e[steps],
                                  None if r.C_e is None else r.C_e[steps], r.has_C_e[steps]) for r in self.locals)
         return CaseBlock(self.sizes, self.circular, self.mu_p[steps], self.C_p[steps], self.mu_y[steps],
                          self.C_y[steps], self.C_xy[steps], local, None if self.y is None else self.y[steps],
-                         self.rank_tol[steps], self.circular_state)
+                         self.rank_tol[steps], self.circular_state,
+                         None if self.reported is None else self.reported[steps])
 
     def case(self, t: int) -> FusionCase:
-        """Step t as a FusionCase (its arrays are views of the block's)."""
+        """Step t as a FusionCase (its arrays are views of the block's): of the sensors that reported."""
         central = CentralPrediction(self.mu_p[t], self.C_p[t], self.mu_y[t], self.C_y[t], self.C_xy[t],
                                     self.sizes, self.circular, self.circular_state)
         local_circular = split_circular(self.circular, self.sizes)
-        reports = tuple(LocalReport(r.mu_p[t], r.mu_y[t], r.C_y[t], r.C_xy[t], r.mu_e[t],
-                                    r.C_e[t] if r.C_e is not None and r.has_C_e[t] else None, c)
-                        for r, c in zip(self.locals, local_circular))
+        reported = np.ones(len(self.sizes), dtype=bool) if self.reported is None else self.reported[t]
+        reports = [LocalReport(r.mu_p[t], r.mu_y[t], r.C_y[t], r.C_xy[t], r.mu_e[t],
+                               r.C_e[t] if r.C_e is not None and r.has_C_e[t] else None, c) if here else None
+                   for r, c, here in zip(self.locals, local_circular, reported)]
         y = self.y[t] if self.y is not None and not np.all(np.isnan(self.y[t])) else None
         tol = float(self.rank_tol[t])
-        return FusionCase(central, reports, y, None if np.isnan(tol) else tol)
+        return FusionCase.of_reports(central, reports, y, None if np.isnan(tol) else tol)
 
 
 # --------------------------------------------------------------------------------------------
@@ -164,18 +178,24 @@ def check_block(block: CaseBlock) -> CaseBlock:
     covariance("central.C_y", block.C_y, True)
     finite("central.C_xy", block.C_xy)
     joint_psd(block)
+    reported = np.ones((len(block), len(block.sizes)), dtype=bool) if block.reported is None else block.reported
+    checks.append((~reported.any(axis=1), lambda t: "no sensor reported (every locals entry is null): there is "
+                                                    "nothing to fuse"))
     for m, r in enumerate(block.locals):
-        where = f"locals[{m}]"
-        finite(f"{where}.mu_p", r.mu_p)
-        finite(f"{where}.mu_y", r.mu_y)
-        covariance(f"{where}.C_y", r.C_y, True)
-        finite(f"{where}.C_xy", r.C_xy)
-        finite(f"{where}.mu_e", r.mu_e)
+        where, here = f"locals[{m}]", reported[:, m]
+        finite(f"{where}.mu_p", r.mu_p, here)
+        finite(f"{where}.mu_y", r.mu_y, here)
+        covariance(f"{where}.C_y", r.C_y, True, here)
+        finite(f"{where}.C_xy", r.C_xy, here)
+        finite(f"{where}.mu_e", r.mu_e, here)
         if r.C_e is not None:
-            covariance(f"{where}.C_e", r.C_e, False, r.has_C_e)
+            covariance(f"{where}.C_e", r.C_e, False, r.has_C_e & here)
     if block.y is not None:
         has_y = block.has_y
-        finite("y", np.where(has_y[:, None], block.y, 0.0))
+        present = np.concatenate([np.repeat(reported[:, m:m + 1], size, axis=1)
+                                  for m, size in enumerate(block.sizes)], axis=1)
+        finite("y", np.where(has_y[:, None] & present, block.y, 0.0))
+        checks.append(_y_marks(block.y, has_y, present, block.sizes))
     tol = block.rank_tol
     checks.append((~np.isnan(tol) & ~((tol >= 0) & (tol <= MAX_MAGNITUDE)),
                    lambda t: f"rank_tol must be a number >= 0 of magnitude at most {MAX_MAGNITUDE:g}, "
@@ -188,7 +208,26 @@ def check_block(block: CaseBlock) -> CaseBlock:
         tuple(LocalBlock(r.mu_p, r.mu_y, sym[f"locals[{m}].C_y"], r.C_xy, r.mu_e,
                          None if r.C_e is None else sym[f"locals[{m}].C_e"], r.has_C_e)
               for m, r in enumerate(block.locals)),
-        block.y, block.rank_tol, block.circular_state)
+        block.y, block.rank_tol, block.circular_state, block.reported)
+
+
+def _y_marks(y: np.ndarray, has_y: np.ndarray, present: np.ndarray, sizes: tuple[int, ...]):
+    """The check that a step's y is NaN exactly in the blocks of the sensors that did not report."""
+    missing = np.isnan(y) & has_y[:, None]
+    wrong = has_y[:, None] & (missing == present)   # NaN where reported, or a value where not
+
+    def why(t: int) -> str:
+        i = int(np.flatnonzero(wrong[t])[0])
+        m = int(np.searchsorted(np.cumsum(sizes), i, side="right"))
+        output = i - int(np.sum(sizes[:m]))
+        if present[t, i]:
+            return (f"y[{i}] (sensor {m}'s output {output}) is missing (null or NaN), but sensor {m} reported "
+                    f"(locals[{m}] is given): a sensor that did not report has null for its report and its "
+                    "whole block of y")
+        return f"y[{i}] (sensor {m}'s output {output}) holds a value, but sensor {m} did not report (locals[{m}] " \
+               "is null)"
+
+    return wrong.any(axis=1), why
 
 
 # --------------------------------------------------------------------------------------------
@@ -207,15 +246,23 @@ def checked_indices(value, count: int, entry: str) -> tuple[int, ...] | None:
     return tuple(sorted(value))
 
 
+#: the ``locals[m].circular`` of a sensor that did not report (its entry is null): its angle
+#: outputs are those ``central.circular`` gives (a marker object, compared by identity)
+ABSENT: tuple = tuple.__new__(type("Absent", (tuple,), {"__slots__": ()}))
+
+
 def agreed_circular(central, per_sensor, sizes) -> tuple[int, ...]:
     """The stacked angle outputs from ``central.circular`` and the ``locals[m].circular`` (None
-    where absent); when both kinds are present, an absent local entry means no angles and every
-    sensor's block must agree (docs/fusion-case-format.md, "Angles")."""
+    where absent, :data:`ABSENT` for a sensor that did not report); when both kinds are present, an
+    absent local entry means no angles and every reporting sensor's block must agree
+    (docs/fusion-case-format.md, "Angles")."""
     if central is None:
-        return stack_circular([c or () for c in per_sensor], sizes)
+        return stack_circular([() if c is ABSENT else c or () for c in per_sensor], sizes)
     if all(c is None for c in per_sensor):
         return central
     for m, (expected, given_m) in enumerate(zip(split_circular(central, sizes), per_sensor)):
+        if given_m is ABSENT:  # a sensor that did not report: central.circular says
+            continue
         if expected != (given_m or ()):
             raise CaseFileError(f"locals[{m}].circular {list(given_m or ())} disagrees with "
                                 f"central.circular {list(central)} (sensor {m}'s outputs there: "
@@ -231,7 +278,7 @@ def layout(record: Case) -> tuple[int, tuple[int, ...], tuple[int, ...], tuple[i
         raise CaseFileError(f"locals has {len(record.locals)} entries but central.sizes lists "
                             f"{len(sizes)} sensors")
     central = checked_indices(given(record.central.circular), sum(sizes), "central.circular")
-    per_sensor = [checked_indices(given(r.circular), s, f"locals[{m}].circular")
+    per_sensor = [ABSENT if r is None else checked_indices(given(r.circular), s, f"locals[{m}].circular")
                   for m, (r, s) in enumerate(zip(record.locals, sizes))]
     d = len(record.central.mu_p)
     states = checked_indices(given(record.circular_state), d, "circular_state") or ()
@@ -267,9 +314,13 @@ def block_from_records(records: Sequence[Case]) -> CaseBlock:
               ("central.mu_y", lambda r: r.central.mu_y, (total,)),
               ("central.C_y", lambda r: r.central.C_y, (total, total)),
               ("central.C_xy", lambda r: r.central.C_xy, (d, total))]
+    reported = np.array([[r is not None for r in record.locals] for record in records], dtype=bool)
     for m, l in enumerate(sizes):
-        def getter(key, m=m):
-            return lambda r: getattr(r.locals[m], key)
+        stand_in = {"mu_p": np.zeros(d), "mu_y": np.zeros(l), "C_y": np.eye(l), "C_xy": np.zeros((d, l)),
+                    "mu_e": np.zeros(d)}  # the entries of a sensor that did not report: never read
+
+        def getter(key, m=m, stand_in=stand_in):
+            return lambda r: stand_in[key] if r.locals[m] is None else getattr(r.locals[m], key)
         fields += [(f"locals[{m}].mu_p", getter("mu_p"), (d,)), (f"locals[{m}].mu_y", getter("mu_y"), (l,)),
                    (f"locals[{m}].C_y", getter("C_y"), (l, l)), (f"locals[{m}].C_xy", getter("C_xy"), (d, l)),
                    (f"locals[{m}].mu_e", getter("mu_e"), (d,))]
@@ -282,9 +333,17 @@ def block_from_records(records: Sequence[Case]) -> CaseBlock:
                                           if _shape_problem(get(r), shape, entry) is not None))
         else:
             arrays[entry] = arr
+    def local_c_e(record: Case, m: int):
+        report = record.locals[m]
+        return None if report is None else given(report.C_e)
+
+    def full_y(record: Case):
+        y = given(record.y)
+        return None if y is None else [np.nan if v is None else v for v in y]  # null: a sensor not reporting
+
     optional: dict[str, tuple[list, tuple[int, ...]]] = {
-        f"locals[{m}].C_e": ([given(r.locals[m].C_e) for r in records], (d, d)) for m in range(len(sizes))}
-    optional["y"] = ([given(r.y) for r in records], (total,))
+        f"locals[{m}].C_e": ([local_c_e(r, m) for r in records], (d, d)) for m in range(len(sizes))}
+    optional["y"] = ([full_y(r) for r in records], (total,))
     for entry, (values, shape) in optional.items():
         present = [v for v in values if v is not None]
         if present and _stacked(present, shape) is None:
@@ -305,7 +364,8 @@ def block_from_records(records: Sequence[Case]) -> CaseBlock:
     rank_tol = np.array([np.nan if given(r.rank_tol) is None else r.rank_tol for r in records], dtype=float)
     return check_block(CaseBlock(sizes, circular, arrays["central.mu_p"], arrays["central.C_p"],
                                  arrays["central.mu_y"], arrays["central.C_y"], arrays["central.C_xy"],
-                                 locals_, stacked_optional.get("y"), rank_tol, circular_state))
+                                 locals_, stacked_optional.get("y"), rank_tol, circular_state,
+                                 None if reported.all() else reported))
 
 
 def _raise_shape_problem(records, t: int, fields, optional) -> None:
@@ -329,19 +389,32 @@ def block_from_arrays(sizes: Sequence[int], circular: Sequence[int], central: di
                       rank_tol: np.ndarray, circular_state: Sequence[int] = ()) -> CaseBlock:
     """A checked block from arrays already of the right shapes (an npz run file's rows):
     ``central`` with keys mu_p, C_p, mu_y, C_y, C_xy; ``local[m]`` with mu_p, mu_y, C_y, C_xy,
-    mu_e and C_e (or None); ``y`` with NaN rows where a step has none; ``rank_tol`` NaN for none."""
+    mu_e and C_e (or None); ``y`` with NaN rows where a step has none; ``rank_tol`` NaN for none.
+    A sensor whose ``mu_e`` row is all NaN at a step did not report there (its other rows are not
+    read, its block of y must be NaN)."""
     B = central["mu_p"].shape[0]
     f = {k: np.asarray(v, dtype=float) for k, v in central.items()}
-    locals_ = []
+    locals_, reported = [], []
     for r in local:
         c_e = r.get("C_e")
         mu_p, mu_y, c_y, c_xy, mu_e = (np.asarray(r[k], dtype=float) for k in ("mu_p", "mu_y", "C_y", "C_xy", "mu_e"))
+        here = ~np.all(np.isnan(mu_e.reshape(B, -1)), axis=1)
+        reported.append(here)
+        if not here.all():  # stand-ins where the sensor did not report (never read)
+            absent = ~here
+            mu_p, mu_y, mu_e, c_xy = (np.where(absent[:, *[None] * (a.ndim - 1)], 0.0, a)
+                                      for a in (mu_p, mu_y, mu_e, c_xy))
+            c_y = np.where(absent[:, None, None], np.eye(c_y.shape[-1]), c_y)
+            c_e = None if c_e is None else np.where(absent[:, None, None], np.eye(mu_p.shape[-1]),
+                                                    np.asarray(c_e, dtype=float))
         locals_.append(LocalBlock(mu_p, mu_y, c_y, c_xy, mu_e, None if c_e is None else np.asarray(c_e, dtype=float),
                                   np.full(B, c_e is not None)))
+    marks = np.stack(reported, axis=1) if reported else np.ones((B, 0), dtype=bool)
     return check_block(CaseBlock(tuple(int(s) for s in sizes), tuple(int(i) for i in circular), f["mu_p"],
                                  f["C_p"], f["mu_y"], f["C_y"], f["C_xy"], tuple(locals_),
                                  None if y is None else np.asarray(y, dtype=float),
-                                 np.asarray(rank_tol, dtype=float), tuple(int(i) for i in circular_state)))
+                                 np.asarray(rank_tol, dtype=float), tuple(int(i) for i in circular_state),
+                                 None if marks.all() else marks))
 
 
 # ---- one case: a block of one step ----------------------------------------------------------------

@@ -4,7 +4,8 @@ the JSON Schemas generated from the same types (docs/schemas/; a test compares t
 
 Decoding is strict (docs/fusion-case-format.md, "Numbers" and "Keys"):
 
-* numbers are JSON numbers: strings, booleans, ``null`` in place of a number, ``NaN`` and
+* numbers are JSON numbers: strings, booleans, ``null`` in place of a number (except in the
+  block of ``y`` of a sensor that did not report, whose ``locals`` entry is ``null``), ``NaN`` and
   ``Infinity`` are refused, and so is any magnitude above :data:`MAX_MAGNITUDE` (an integer
   literal of any length included; ``1e999`` is out of the float range);
 * integers (``sizes``, ``circular``, ``k``) are written without a fraction;
@@ -78,9 +79,12 @@ class Case(Struct, forbid_unknown_fields=True):
     """One fusion step (docs/fusion-case-format.md)."""
 
     central: Central
-    locals: Annotated[list[Local], Meta(min_length=1, description="one entry per sensor, in the order of "
-                                                                  "central.sizes")]
-    y: Annotated[Vector, Meta(description="(L,), optional stacked raw measurement")] | None | UnsetType = UNSET
+    locals: Annotated[list[Local | None], Meta(min_length=1, description="one entry per sensor, in the order of "
+                                                                         "central.sizes; null for a sensor that "
+                                                                         "did not report at this step")]
+    y: Annotated[list[Number | None], Meta(min_length=1, description="(L,), optional stacked raw measurement; "
+                                                                     "null in the block of a sensor that did "
+                                                                     "not report")] | None | UnsetType = UNSET
     rank_tol: Annotated[float, Meta(ge=0, le=MAX_MAGNITUDE, description="optional absolute singular-value "
                                                                         "tolerance for rank(C_xy^m)")] \
         | None | UnsetType = UNSET
@@ -200,7 +204,7 @@ def _present(record: Struct) -> int:
 
 def _key_count(record: Case) -> int:
     """How many keys the decoded record had in its text (every field given, null included)."""
-    return _present(record) + _present(record.central) + sum(_present(r) for r in record.locals)
+    return _present(record) + _present(record.central) + sum(_present(r) for r in record.locals if r is not None)
 
 
 def _duplicate_key(raw: bytes) -> str:

@@ -118,9 +118,14 @@ class ModelFunction:
         return out
 
     def checked_finite(self, out: np.ndarray, k: int) -> np.ndarray:
-        """``out`` unless it holds NaN or inf (InputError naming the function and the step)."""
+        """``out`` unless it holds NaN or inf (InputError naming the function, the step, the row of
+        the batch of states and the output: a NaN from a model is never read as a missing
+        measurement)."""
         if not np.isfinite(out).all():
-            raise InputError(f"{self.name} returned NaN or inf at step k={k}")
+            row, output = (int(i) for i in np.argwhere(~np.isfinite(out))[0])
+            value = "NaN" if np.isnan(out[row, output]) else "inf"
+            raise InputError(f"{self.name} returned {value} at step k={k} (output {output}, for row {row} of the "
+                             f"{out.shape[0]} state(s) it was given)")
         return out
 
     def jacobian(self, x: np.ndarray, k: int = 1) -> np.ndarray:

@@ -139,6 +139,44 @@ class StackedMeasurement:
         """Indices of the angle outputs in the stacked measurement."""
         return tuple(b.start + i for b, c in zip(self.blocks, self.sensor_circular) for i in c)
 
+    def reported(self, ys, what: str = "ys") -> np.ndarray:
+        """Which sensors reported in each row of the stacked measurements ``ys`` (..., L): (..., N),
+        False where a sensor's whole block is NaN (it did not report at that step). A block that is
+        NaN in part, an inf, or a row where no sensor reported is an :class:`InputError` naming the
+        row, the sensor and the output (``what`` names the array)."""
+        ys = np.asarray(ys, dtype=float)
+        if ys.shape[-1:] != (self.measurement_dim,):
+            raise InputError(f"{what} must have {self.measurement_dim} columns (the stacked measurement), "
+                             f"got shape {ys.shape}")
+        flat = ys.reshape(-1, self.measurement_dim)
+        if np.isinf(flat).any():
+            row, col = np.argwhere(np.isinf(flat))[0]
+            raise InputError(f"{what} {self._where(int(row), int(col), ys.shape)} is inf")
+        missing = np.isnan(flat)
+        reported = np.stack([~missing[:, b].all(axis=1) for b in self.blocks], axis=1)
+        for m, b in enumerate(self.blocks):
+            partial = missing[:, b].any(axis=1) & reported[:, m]
+            if partial.any():
+                row = int(np.argmax(partial))
+                col = b.start + int(np.argmax(missing[row, b]))
+                raise InputError(f"{what} {self._where(row, col, ys.shape)} is NaN, but not the sensor's whole "
+                                 "block: a sensor that did not report has NaN in every one of its outputs at "
+                                 "that step")
+        silent = ~reported.any(axis=1)
+        if silent.any():
+            raise InputError(f"{what} {self._where(int(np.argmax(silent)), None, ys.shape)}: no sensor reported "
+                             "(every output is NaN); each step needs at least one sensor's measurement to fuse")
+        return reported.reshape(ys.shape[:-1] + (len(self.sizes),))
+
+    def _where(self, row: int, col: int | None, shape: tuple[int, ...]) -> str:
+        """'row 4' (or 'run 2, row 4' of a (B, T, L) array), and 'sensor 1 output 0' for column ``col``."""
+        place = f"row {row}" if len(shape) <= 2 else f"run {row // shape[-2]}, row {row % shape[-2]}"
+        if col is None:
+            return place
+        ends = np.cumsum(self.sizes)
+        m = int(np.searchsorted(ends, col, side="right"))
+        return f"{place}, sensor {m} output {col - (int(ends[m - 1]) if m else 0)}"
+
 
 @dataclass(frozen=True, eq=False)
 class StateSpaceModel(StackedMeasurement):

@@ -92,8 +92,14 @@ def _min_ragged(values) -> np.ndarray:
 
 # -- the check results, as arrays ------------------------------------------------------------------
 
+def _filled(values, fill, dtype) -> np.ndarray:
+    """Nested lists as an array of ``dtype``, ``fill`` where an entry is None (JSON null)."""
+    return np.vectorize(lambda v: fill if v is None else v, otypes=[dtype])(np.asarray(values, dtype=object))
+
+
 class CheckData:
-    """Arrays of a ``check`` results dict: runs R (those that finished), steps T, sensors N."""
+    """Arrays of a ``check`` results dict: runs R (those that finished), steps T, sensors N;
+    ``reported`` (R, T, N) where each sensor reported (its per-step verdicts are counted there)."""
 
     def __init__(self, results: dict):
         self.r = results
@@ -106,9 +112,12 @@ class CheckData:
         self.recursive = np.asarray(results["recursive_gap_size" if self.drift_in_prior_sd else "recursive_gap_norm"],
                                     dtype=float)
         self.one_step = self.gap if self.drift_in_prior_sd else np.asarray(results["gap_norm"], dtype=float)
-        self.full = np.asarray(results["full_column_rank"], dtype=bool)       # (R, T, N)
-        self.exact = np.asarray(results["exact"], dtype=bool)
-        self.rank = np.asarray(results["rank"], dtype=int)
+        # where a sensor did not report its verdicts are null: nothing was audited, nothing lost
+        self.full = _filled(results["full_column_rank"], True, bool)           # (R, T, N)
+        self.exact = _filled(results["exact"], True, bool)
+        self.rank = _filled(results["rank"], 0, int)
+        self.reported = (np.asarray(results["reported"], dtype=bool) if "reported" in results
+                         else np.ones(self.full.shape, dtype=bool))
         self.repair = np.asarray(results["repair_dim"], dtype=int)
         # each sensor's share of the gap in prior standard deviations, the unit of the gap itself
         # (results.json's gap_share is in state units; older results have only that)
@@ -366,24 +375,47 @@ def _unit_sentences(d: CheckData) -> list[str]:
 # -- tables ----------------------------------------------------------------------------------------
 
 def sensor_table(d: CheckData) -> Table:
-    headers = ["sensor", "name", "outputs l_m", "angle outputs (indices from 0)", "l_m > D", "steps full rank",
-               "steps exact", "largest share of gap" + (" (prior sd)" if d.share_in_prior_sd else " (state units)"),
+    headers = ["sensor", "name", "outputs l_m", "angle outputs (indices from 0)", "l_m > D", "steps reported",
+               "of those: full rank", "exact",
+               "largest share of gap" + (" (prior sd)" if d.share_in_prior_sd else " (state units)"),
                "repair size (numbers per step where not exact)", "rank tolerance"]
     if d.canonical is not None:
         headers.append("smallest canonical correlation")
     rows = []
     for m, s in enumerate(d.sensors):
         repair = np.where(d.exact[:, :, m], 0, d.repair[:, :, m])  # a repair is needed where not exact only
-        tol = d.tol[:, :, m]
+        here = d.reported[:, :, m]
+        tol = d.tol[:, :, m][here]
+        reported = int(here.sum())
         row = [m, s.get("name", ""), s["outputs"], ", ".join(f"#{i}" for i in s.get("circular") or []) or "none",
-               "yes" if int(s["outputs"]) > d.D else "no", f"{int(d.full[:, :, m].sum())} of {d.total}",
-               f"{int(d.exact[:, :, m].sum())} of {d.total}", _g(float(d.share[:, :, m].max())),
+               "yes" if int(s["outputs"]) > d.D else "no", f"{reported} of {d.total}",
+               f"{int((d.full[:, :, m] & here).sum())} of {reported}",
+               f"{int((d.exact[:, :, m] & here).sum())} of {reported}", _g(float(d.share[:, :, m].max())),
                _repair_cell(repair),
-               _g(float(tol.min())) if tol.min() == tol.max() else f"{_g(float(tol.min()))} – {_g(float(tol.max()))}"]
+               "—" if not tol.size else _g(float(tol.min())) if tol.min() == tol.max()
+               else f"{_g(float(tol.min()))} – {_g(float(tol.max()))}"]
         if d.canonical is not None:
-            row.append(_g(float(np.nanmin(d.canonical[:, :, m])), 3))
+            row.append(_smallest(d.canonical[:, :, m]))
         rows.append(row)
     return Table(headers, rows, f"Sensors (state dimension D = {d.D}; counts over {d.total} steps{d.of_runs})")
+
+
+def reports_table(d: CheckData) -> Table | None:
+    """Which sensors reported at each step (the first run's steps, as ranges), when some sensor did
+    not report at some step; None when every sensor reported at every step."""
+    if d.reported.all():
+        return None
+    ks = np.asarray(d.ks)
+    rows = []
+    for m in range(d.n):
+        here = d.reported[0, :, m]
+        rows.append([m, d.sensors[m].get("name", ""), f"{int(here.sum())} of {d.steps}",
+                     integer_ranges(ks[here]) if here.any() else "none",
+                     integer_ranges(ks[~here]) if (~here).any() else "none"])
+    return Table(["sensor", "name", "steps reported", "reported at k", "did not report at k"], rows,
+                 "Reports per step" + (" (the first run)" if d.runs_ok > 1 else "") + ": at a step where a sensor "
+                 "did not report, its local filter only predicts, CMF and eq. 35 use the sensors that did, and "
+                 "the rank condition and exactness are judged over them")
 
 
 def _repair_cell(repair: np.ndarray) -> str:
@@ -532,6 +564,9 @@ def equivalence_sections(results: dict, fig_dir: Path, fig_prefix: str = FIGURES
                        "Recursive numbers — the drift, RMSE, NEES and the estimates in runs/run-NNNNNN.json "
                        "(\"means\") — come from each method's own filter, run from its own previous posterior."))
     head.add(sensor_table(d))
+    reports = reports_table(d)
+    if reports is not None:
+        head.add(reports)
 
     gap = Section("gap", "The gap per step")
     path, floor = ef.plot_gap(d.ks, d.gap, d.bound, ~d.step_exact, fig_dir / "gap.png", d.run_labels)
@@ -664,23 +699,27 @@ class AuditData:
         self.summary = run_audit.get("summary") or {}
         self.T = len(self.steps)
         self.ks = [s.get("k", t) for t, s in enumerate(self.steps)]
-        self.n = len(self.steps[0]["sensors"]) if self.steps else 0
+        # the sensors of a step by their index: a sensor that did not report has no entry
+        # (its "missing_sensors"); it counts as nothing lost and nothing inexact
+        self.n = max((len(step["sensors"]) + len(step.get("missing_sensors", [])) for step in self.steps), default=0)
+        by_index = [{x["index"]: x for x in step["sensors"]} for step in self.steps]
 
-        def per_sensor(key, dtype, default=np.nan):
-            return np.array([[s.get(key, default) for s in step["sensors"]] for step in self.steps], dtype=dtype)
+        def per_sensor(get, dtype, default=np.nan):
+            return np.array([[get(row[m]) if m in row else default for m in range(self.n)] for row in by_index],
+                            dtype=dtype)
 
-        self.full = per_sensor("full_column_rank", bool)
-        self.exact = per_sensor("exact", bool)
-        self.repair = per_sensor("repair_dim", int, 0)
-        self.rows = per_sensor("rows", float)
-        self.cols = per_sensor("cols", float)
-        self.tol = per_sensor("tol", float)
-        self.sigma_min = np.array([[min(s["singular_values"]) if s.get("singular_values") else np.nan
-                                    for s in step["sensors"]] for step in self.steps], dtype=float)
+        self.reported = per_sensor(lambda x: True, bool, False)
+        self.full = per_sensor(lambda x: x["full_column_rank"], bool, True)
+        self.exact = per_sensor(lambda x: x["exact"], bool, True)
+        self.repair = per_sensor(lambda x: x.get("repair_dim", 0), int, 0)
+        self.rows = per_sensor(lambda x: x.get("rows", np.nan), float)
+        self.cols = per_sensor(lambda x: x.get("cols", np.nan), float)
+        self.tol = per_sensor(lambda x: x.get("tol", np.nan), float)
+        self.sigma_min = per_sensor(lambda x: min(x["singular_values"]) if x.get("singular_values") else np.nan, float)
         self.canonical = None
         if any("canonical_correlations" in s for step in self.steps for s in step["sensors"]):
-            self.canonical = np.array([[min(s["canonical_correlations"]) if s.get("canonical_correlations")
-                                        else np.nan for s in step["sensors"]] for step in self.steps], dtype=float)
+            self.canonical = per_sensor(lambda x: min(x["canonical_correlations"]) if x.get("canonical_correlations")
+                                        else np.nan, float)
         self.gap = np.array([s.get("gap_norm", np.nan) if s.get("gap_norm") is not None else np.nan
                              for s in self.steps], dtype=float)
         self.predicted = np.array([np.linalg.norm(s["predicted_gap"]) if s.get("predicted_gap") is not None
@@ -691,13 +730,22 @@ class AuditData:
         # written before it had only the share in state units)
         self.share_in_prior_sd = any("gap_contribution_size" in x for step in self.steps for x in step["sensors"])
         key = "gap_contribution_size" if self.share_in_prior_sd else "gap_contribution"
-        self.share = np.array([[np.nan if x.get(key) is None else float(np.linalg.norm(x[key]))
-                                for x in step["sensors"]] for step in self.steps], dtype=float)
+        self.share = per_sensor(lambda x: np.nan if x.get(key) is None else float(np.linalg.norm(x[key])), float)
         self.gap_size = np.array([np.nan if s.get("gap_size") is None else s["gap_size"] for s in self.steps],
                                  dtype=float)
         self.reproduced = [s.get("reproduced") for s in self.steps]             # True, False or None (no y)
         rule = self.summary.get("rank_rule", self.steps[0].get("rank_rule") if self.steps else None)
         self.rule_name = rule.get("name") if isinstance(rule, dict) else None
+
+    def outputs(self, m: int) -> int | None:
+        """l_m, sensor m's outputs (None for a sensor that never reported)."""
+        known = self.cols[:, m][np.isfinite(self.cols[:, m])]
+        return int(known[0]) if known.size else None
+
+    @property
+    def state_dim(self) -> int | None:
+        known = self.rows[np.isfinite(self.rows)]
+        return int(known[0]) if known.size else None
 
 
 def audit_summary_paragraphs(run_audit: dict) -> list[str]:
@@ -728,10 +776,10 @@ def audit_summary_paragraphs(run_audit: dict) -> list[str]:
     out.append(head + ".")
     for m in range(a.n):
         lost = ~a.full[:, m]
-        too_many = bool(np.all(a.cols[:, m] > a.rows[:, m]))
+        l, D = a.outputs(m), a.state_dim
+        too_many = l is not None and D is not None and l > D
         if not lost.any() and not too_many:
             continue
-        l, D = int(a.cols[0, m]), int(a.rows[0, m])
         when = "at every step" if lost.all() else f"at k = {integer_ranges(np.asarray(a.ks)[lost])}"
         text = f"Sensor {m} lost full column rank {when}" if lost.any() else f"Sensor {m}"
         if too_many:
@@ -752,6 +800,12 @@ def audit_summary_paragraphs(run_audit: dict) -> list[str]:
     return out
 
 
+def _smallest(values: np.ndarray) -> str:
+    """The smallest of a sensor's per-step values where it reported (— where it never did)."""
+    finite = values[np.isfinite(values)]
+    return _g(float(finite.min()), 3) if finite.size else "—"
+
+
 def run_audit_sections(run_audit: dict, fig_dir: Path) -> list[Section]:
     from gpfverify.report import equivalence_figures as ef
 
@@ -761,17 +815,20 @@ def run_audit_sections(run_audit: dict, fig_dir: Path) -> list[Section]:
     head.add(*[Paragraph(p) for p in audit_summary_paragraphs(run_audit)])
     rows = []
     for m in range(a.n):
-        rows.append([m, int(a.cols[0, m]), "yes" if a.cols[0, m] > a.rows[0, m] else "no",
-                     f"{int(a.full[:, m].sum())} of {a.T}", f"{int(a.exact[:, m].sum())} of {a.T}",
+        l, D = a.outputs(m), a.state_dim
+        here = a.reported[:, m]
+        rows.append([m, "—" if l is None else l, "yes" if l is not None and D is not None and l > D else "no",
+                     f"{int(here.sum())} of {a.T}",
+                     f"{int((a.full[:, m] & here).sum())} of {int(here.sum())}",
+                     f"{int((a.exact[:, m] & here).sum())} of {int(here.sum())}",
                      _g(float(np.nanmax(a.share[:, m]))) if np.isfinite(a.share[:, m]).any() else "—",
-                     _repair_cell(np.where(a.exact[:, m], 0, a.repair[:, m])),
-                     _g(float(np.nanmin(a.sigma_min[:, m])), 3)]
-                    + ([_g(float(np.nanmin(a.canonical[:, m])), 3)] if a.canonical is not None else []))
-    head.add(Table(["sensor", "outputs l_m", "l_m > D", "steps full rank", "steps exact",
+                     _repair_cell(np.where(a.exact[:, m], 0, a.repair[:, m])), _smallest(a.sigma_min[:, m])]
+                    + ([_smallest(a.canonical[:, m])] if a.canonical is not None else []))
+    head.add(Table(["sensor", "outputs l_m", "l_m > D", "steps reported", "of those: full rank", "exact",
                     "largest share of gap" + (" (prior sd)" if a.share_in_prior_sd else " (state units)"),
                     "repair size (numbers per step where not exact)", "smallest singular value of C_xy^m"]
                    + (["smallest canonical correlation"] if a.canonical is not None else []), rows,
-                   f"Sensors (state dimension D = {int(a.rows[0, 0]) if a.n else '?'})"))
+                   f"Sensors (state dimension D = {a.state_dim if a.state_dim is not None else '?'})"))
     figs = Section("figures", "Per step")
     inexact = ~a.step_exact
     if np.isfinite(a.gap).any():

@@ -158,12 +158,15 @@ def _band_panel(ax, ks, series: list[tuple[str, dict]], title: str) -> None:
     """Averages of χ² statistics with their bands (one shaded band per distinct band)."""
     drawn = []
     for i, (label, stat) in enumerate(series):
+        if stat["band"] is None:  # never tested: the statistic is defined at no step (an output never reported)
+            continue
         band = tuple(stat["band"])
         color = f"C{i}"
         if band not in drawn:
             ax.axhspan(band[0], band[1], color=color, alpha=0.12)
             drawn.append(band)
-        ax.plot(ks, stat["average"], color=color, lw=1.2, ls="--" if label == "DMF" else "-",
+        # None (JSON null) where the statistic is not defined: a gap in the line
+        ax.plot(ks, np.asarray(stat["average"], dtype=float), color=color, lw=1.2, ls="--" if label == "DMF" else "-",
                 label=f"{label} ({100 * stat['fraction_inside']:.0f} % inside its band)")
     values = np.concatenate([np.asarray(stat["average"], float) for _, stat in series] +
                             [np.asarray(b, float) for b in drawn])
