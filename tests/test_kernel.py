@@ -116,6 +116,21 @@ def test_instances_decide_spd_rank_and_every_measurement_exactly():
     assert not Instance(st, frozen(broken)).holds(st.hypotheses[1])
 
 
+def test_a_matrix_with_no_rows_has_its_declared_width():
+    d = Declare()
+    d.sizes("N")
+    d.index_set("J", "N")
+    d.family_size("l", "J")
+    z = d.matrix("z", "l[#]", 1, over="J")
+    d.conclude(eq(z["j"].T * z["j"], z["j"].T * z["j"]))
+    d.free_index("j", "J")
+    st = read_statement(frozen(d.json()))
+    inst = Instance(st, frozen({"sizes": {"N": 2}, "indexed_sizes": {"l": [0, 1]}, "free_indices": {"j": 1},
+                                "values": {"z": [[], [[1]]]}}))
+    assert inst.values[("z", 1)].shape == (0, 1) and inst.values[("z", 2)].shape == (1, 1)
+    assert inst.holds(st.conclusion[0])
+
+
 def test_a_proved_statement_needs_a_witness_and_its_conclusion_must_hold_there():
     statement = fc.prop1_statement()
     proof = fc.attempt(statement, fc._templates(full_rank_hyp=1))

@@ -2,8 +2,9 @@
 
 An instance (JSON object) gives ``sizes`` {n: int}, ``indexed_sizes`` {l: [int per member]},
 ``params`` {a: number}, ``free_indices`` {j: 1-based int} and ``values`` {X: matrix, or a list
-of matrices for a family}, a matrix being a list of rows of numbers. Selectors are not given:
-S_i is the block [0; I; 0] of the partition, whose total must equal the sum of its parts.
+of matrices for a family}, a matrix being a list of rows of numbers (``[]`` for one with no rows).
+Selectors are not given: S_i is the block [0; I; 0] of the partition, whose total must equal the sum
+of its parts.
 
 Every term is evaluated exactly (sympy rationals; A⁺ from sympy's rank decomposition); an
 inverse of a singular matrix, a division by zero or a fractional power of a negative number is
@@ -36,13 +37,14 @@ class NotEvaluable(Exception):
     """A predicate the kernel cannot decide exactly at this instance (an integral, a transcendental number)."""
 
 
-def _matrix(rows, what: str) -> sp.Matrix:
+def _matrix(rows, what: str, width: int) -> sp.Matrix:
+    """A list of rows as an exact matrix; ``[]`` has no rows, and the declared ``width``."""
     if not isinstance(rows, list | tuple) or not all(isinstance(r, list | tuple) for r in rows):
         fail(f"instance: {what} is not a list of rows")
     widths = {len(r) for r in rows}
     if len(widths) > 1:
         fail(f"instance: the rows of {what} differ in length")
-    return sp.Matrix(len(rows), widths.pop() if widths else 0,
+    return sp.Matrix(len(rows), widths.pop() if widths else width,
                      [sp.Rational(number(x).numerator, number(x).denominator) for r in rows for x in r])
 
 
@@ -90,8 +92,8 @@ class Instance:
             if not isinstance(given, list | tuple) or len(given) != len(members):
                 fail(f"instance: {name} needs one matrix per member of {decl.over}")
             for i, rows in zip(members, given):
-                m = _matrix(rows, name)
                 env = {HEAD: i} if i is not None else {}
+                m = _matrix(rows, name, self.size(decl.cols, env))
                 if m.shape != (self.size(decl.rows, env), self.size(decl.cols, env)):
                     fail(f"instance: {name}{'' if i is None else f'[{i}]'} has the wrong shape {m.shape}")
                 self.values[(name, i)] = m
