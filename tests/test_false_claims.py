@@ -22,8 +22,8 @@ from gpfverify.kernel.instances import Instance, Undefined
 from gpfverify.kernel.terms import frozen, read_statement
 from gpfverify.symbolic import fusion_claims as fc
 from gpfverify.symbolic.certificate import Certificate, ListedCheck, Part
-from gpfverify.symbolic.formal import (Declare, I, Sum, Term, as_term, eq, every, exp, fcr, invertible, le,
-                                       num, spd, tr, zero)
+from gpfverify.symbolic.formal import (Declare, I, Sum, Term, as_term, eq, every, exp, fcr, forall, invertible,
+                                       le, num, spd, tr, zero)
 from tests.kernel_helpers import instance, is_refuted, matrix, outcome, problems
 
 #: rank one, 2 × 2, and a 2 × 2 SPD matrix that does not map its kernel into itself
@@ -779,6 +779,41 @@ def _self_referring_definition():
                    {"sizes": {"n": 1}})
 
 
+
+def _member_size_statement():
+    """For every m: yᵀy c_m = 0 for every y ∈ ℝ^{l_m} (that is, l_m = 0 or c_m = 0); then z_kᵀz_k c_j = 0."""
+    d = Declare()
+    d.sizes("N")
+    d.index_set("J", "N")
+    d.family_size("l", "J")
+    c, z = d.matrix("c", 1, 1, over="J"), d.matrix("z", "l[#]", 1, over="J")
+    j, k = d.free_index("j", "J"), d.free_index("k", "J")
+    y = Term(("var", "y"))
+    d.assume(every("m", "J", forall([("y", "l[m]", 1)], eq(y.T * y * c["m"], zero(1, 1)))))
+    d.conclude(eq(z[k].T * z[k] * c[j], zero(1, 1)))
+    return d.json()
+
+
+def _forall_size_of_another_member():
+    """The hypothesis at member j, its "for every y ∈ ℝ^{l_m}" read with the step's own generic m (y := z_m)."""
+    statement = _member_size_statement()
+    z_m = ("var", "z", "m")
+    lemma = ("=", ("*", ("T", z_m), z_m, ("var", "c", "j")), ("0", "1", "1"))
+    proof = {"steps": [{"id": "s1", "index": {"m": "J"}, "claim": lemma,
+                        "by": [{"gen": {"hyp": 0, "index": "j", "at": {"y": z_m}}}]},
+                       {"id": "s2", "claim": statement["conclusion"][0],
+                        "by": [{"gen": {"lemma": "s1", "index": {"m": "k"}}}]}]}
+    witness = instance({"N": 1}, {"c": [matrix([[0]])], "z": [matrix([[1]])]}, indexed_sizes={"l": [1]},
+                       free_indices={"j": 1, "k": 1})
+    return outcome(statement, proof, witness)
+
+
+def _member_size_false() -> bool:
+    """l = (0, 1), c = (1, 0): ℝ⁰ holds only y = 0 and c_2 = 0, so every hypothesis holds; z_2ᵀz_2 c_1 = 1."""
+    counterexample = instance({"N": 2}, {"c": [matrix([[1]]), matrix([[0]])], "z": [sp.zeros(0, 1), matrix([[1]])]},
+                              indexed_sizes={"l": [0, 1]}, free_indices={"j": 1, "k": 2})
+    return is_refuted(_member_size_statement(), counterexample)
+
 ADVERSARY = [
     FalseClaim("√(a²) = a, the parameter being 'positive' in sympy", "sympy assumptions", _root_of_square,
                lambda: sp.sqrt((-1) ** 2) != -1),
@@ -837,6 +872,8 @@ ADVERSARY = [
                                                                       {"X": matrix([[0, 1], [0, 0]])}))),
     FalseClaim("Y = Y + I, with Y defined as Y + I", "definition", _self_referring_definition,
                lambda: sp.eye(1) != sp.zeros(1)),
+    FalseClaim("z_kᵀz_k c_j = 0 from 'yᵀy c_m = 0 for y ∈ ℝ^{l_m}', y's size left at another member's",
+               "bound sizes", _forall_size_of_another_member, _member_size_false),
 ]
 
 FALSE_CLAIMS = PORTED + ADVERSARY

@@ -96,6 +96,17 @@ def test_an_indexed_size_is_not_a_number_and_sizes_are_never_negative():
             read_statement(frozen(d.json()))
 
 
+def test_an_index_is_renamed_in_every_size_however_it_is_written():
+    from gpfverify.kernel.rules import substitute_pred
+    from gpfverify.kernel.terms import substitute
+
+    assert substitute(("I", "l[ m ] + 2*l[m]"), index=("m", "j")) == ("I", "3*l[j]")
+    assert substitute(("I", "l[k]"), index=("m", "j")) == ("I", "l[k]")
+    renamed = substitute_pred(("forall", (("y", "l[m]", 1),), ("=", ("var", "y"), ("var", "y"))), index=("m", "j"))
+    assert renamed[1] == (("y", "l[j]", 1),)
+    assert substitute_pred(("<=", "l[m]", "D"), index=("m", "j")) == ("<=", "l[j]", "D")
+
+
 # ---- instances -------------------------------------------------------------------------------------------
 
 def test_instances_decide_spd_rank_and_every_measurement_exactly():

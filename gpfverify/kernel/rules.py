@@ -47,7 +47,8 @@ from fractions import Fraction
 import sympy as sp
 
 from gpfverify.kernel.normal import EMPTY, INTEGRATION, NF, Context, c_add, c_mul, key, refs
-from gpfverify.kernel.terms import KernelError, Size, Statement, canonical_json, fail, number, parse_size, substitute
+from gpfverify.kernel.terms import (KernelError, Size, Statement, canonical_json, fail, number, parse_size, rename_size,
+                                    substitute)
 
 #: each generator and the fields it takes (the first field present names it)
 GENERATORS = {"fcr": {"fcr", "hyp", "index"}, "penrose": {"penrose", "of"}, "inverse": {"inverse", "of"},
@@ -488,14 +489,16 @@ class Checker:
 
 
 def substitute_pred(pred, variables=None, index=None):
-    """A predicate with variables replaced / an index renamed (terms via :func:`substitute`)."""
+    """A predicate with variables replaced / an index renamed (terms via :func:`substitute`; an
+    index also in every size: a "for every x" declaration's and a size comparison's)."""
     head = pred[0]
+    size = (lambda s: rename_size(s, *index)) if index else (lambda s: s)
     if head == "every":
         return (head, pred[1], pred[2], substitute_pred(pred[3], variables, index))
     if head == "forall":
-        return (head, pred[1], substitute_pred(pred[2], variables, index))
+        return (head, tuple((x, size(r), size(c)) for x, r, c in pred[1]), substitute_pred(pred[2], variables, index))
     if head == "<=":
-        return pred
+        return (head, size(pred[1]), size(pred[2]))
     return (head, *(substitute(t, variables, index) for t in pred[1:]))
 
 
