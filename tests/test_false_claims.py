@@ -814,6 +814,33 @@ def _member_size_false() -> bool:
                               indexed_sizes={"l": [0, 1]}, free_indices={"j": 1, "k": 2})
     return is_refuted(_member_size_statement(), counterexample)
 
+
+def _nested_integral_statement():
+    """∫ e^{−½xᵀx} h(x) dx = ∫ e^{−½xᵀx} k dx, h(y) := ∫ e^{−½zᵀz} zᵀy dz (= 0), k := ∫ e^{−½zᵀz} zᵀz dz (= n(2π)^{n/2})."""
+    d = Declare()
+    d.sizes("n")
+    x, z = Term(("var", "x")), Term(("var", "z"))
+    gauss = lambda v: exp(num("-1/2") * v.T * v)  # noqa: E731
+    h = d.define("h", lambda y: Term(("int", "z", "n", as_term(gauss(z) * (z.T * y)))), args=(("y", "n", 1),))
+    k = d.define("k", Term(("int", "z", "n", as_term(gauss(z) * (z.T * z)))))
+    d.conclude(eq(Term(("int", "x", "n", as_term(gauss(x) * h(x)))), Term(("int", "x", "n", as_term(gauss(x) * k)))))
+    return d.json()
+
+
+def _integral_through_a_definition():
+    """The outer variable passed into a definition's integral took the inner variable's place."""
+    statement = _nested_integral_statement()
+    return outcome(statement, {"steps": [{"id": "s", "claim": statement["conclusion"][0], "by": []}]},
+                   {"sizes": {"n": 1}})
+
+
+def _nested_integral_false() -> bool:
+    """At n = 1 the left side is ∫ e^{−x²/2}·0 dx = 0 and the right side 2π."""
+    x, z = sp.symbols("x z", real=True)
+    inner = lambda f: sp.integrate(sp.exp(-z ** 2 / 2) * f, (z, -sp.oo, sp.oo))  # noqa: E731
+    outer = lambda f: sp.integrate(sp.exp(-x ** 2 / 2) * f, (x, -sp.oo, sp.oo))  # noqa: E731
+    return outer(inner(z * x)) == 0 and outer(inner(z * z)) == 2 * sp.pi
+
 ADVERSARY = [
     FalseClaim("√(a²) = a, the parameter being 'positive' in sympy", "sympy assumptions", _root_of_square,
                lambda: sp.sqrt((-1) ** 2) != -1),
@@ -874,6 +901,8 @@ ADVERSARY = [
                lambda: sp.eye(1) != sp.zeros(1)),
     FalseClaim("z_kᵀz_k c_j = 0 from 'yᵀy c_m = 0 for y ∈ ℝ^{l_m}', y's size left at another member's",
                "bound sizes", _forall_size_of_another_member, _member_size_false),
+    FalseClaim("∫ e^{−½xᵀx} h(x) dx = ∫ e^{−½xᵀx} k dx, the outer x captured by h's inner integral", "nested integrals",
+               _integral_through_a_definition, _nested_integral_false),
 ]
 
 FALSE_CLAIMS = PORTED + ADVERSARY

@@ -578,12 +578,13 @@ class Context:
     def _int(self, args, scope, head):
         """∫_{x ∈ ℝⁿ} body dx: an atom (its variable renamed canonically); rules apply only through G9."""
         name, size, body = args
-        if name in self.st.names or name in scope or any(b[0] == "matrix" and b[2] == INTEGRATION
-                                                         for b in scope.values() if isinstance(b, tuple)):
-            fail(f"the integration variable {name!r} is in use, or the integral is nested")
+        if name in self.st.names or name in scope:
+            fail(f"the integration variable {name!r} is in use")
         inner = self.nf(body, dict(scope, **{name: ("matrix", (self.size(size, scope), parse_size(1)), INTEGRATION)}))
         if any(binders for (_, binders, _) in inner.terms):
             fail("an integral of a sum over an index is not supported")
+        if _holds_integral(inner.frozen()):  # written inside, or brought in by a definition (whose argument
+            fail("an integral inside an integral is not supported")  # could be the outer variable)
         atom = ("int", self.size(size, scope), inner.frozen())
         if inner.shape is None:
             return self.scalar(Fraction(1), ((atom, Fraction(1)),))
@@ -623,6 +624,11 @@ class Context:
 _HANDLERS = {"var": "var", "call": "call", "sel": "sel", "I": "I", "0": "0", "+": "plus", "*": "times", "T": "T",
              "pinv": "pinv", "inv": "pinv", "sum": "sum", "num": "num", "param": "param", "size": "sizenum",
              "^": "pow", "tr": "tr", "det": "det", "exp": "exp", "2pi": "twopi", "int": "int"}
+
+
+def _holds_integral(obj) -> bool:
+    """Whether a frozen normal form holds an integral atom anywhere."""
+    return isinstance(obj, tuple) and bool(obj) and (obj[0] == "int" or any(_holds_integral(o) for o in obj))
 
 
 def _letter(term) -> bool:
