@@ -841,6 +841,29 @@ def _nested_integral_false() -> bool:
     outer = lambda f: sp.integrate(sp.exp(-x ** 2 / 2) * f, (x, -sp.oo, sp.oo))  # noqa: E731
     return outer(inner(z * x)) == 0 and outer(inner(z * z)) == 2 * sp.pi
 
+
+def _scaled_inverse_statement():
+    d = Declare()
+    d.sizes("n")
+    r, x = d.param("ρ"), d.matrix("X", "n", "n")
+    d.assume(invertible(x))
+    d.conclude(eq(r * x.inv * (r * x.inv).pinv, I("n")))
+    return d.json()
+
+
+def _scaled_inverse_invertible():
+    """ρX⁻¹ 'invertible' because X is, whatever ρ: the inverse generator's E E⁺ = I for E = ρX⁻¹."""
+    statement = _scaled_inverse_statement()
+    e = ("*", ("param", "ρ"), ("inv", ("var", "X")))
+    proof = {"steps": [{"id": "s", "claim": statement["conclusion"][0],
+                        "by": [{"gen": {"inverse": "right", "of": e}}]}]}
+    return outcome(statement, proof, instance({"n": 1}, {"X": matrix([[1]])}, params={"ρ": 1}))
+
+
+def _scaled_inverse_false() -> bool:
+    """At ρ = 0, ρX⁻¹(ρX⁻¹)⁺ = 0 ≠ I."""
+    return is_refuted(_scaled_inverse_statement(), instance({"n": 1}, {"X": matrix([[1]])}, params={"ρ": 0}))
+
 ADVERSARY = [
     FalseClaim("√(a²) = a, the parameter being 'positive' in sympy", "sympy assumptions", _root_of_square,
                lambda: sp.sqrt((-1) ** 2) != -1),
@@ -903,6 +926,8 @@ ADVERSARY = [
                "bound sizes", _forall_size_of_another_member, _member_size_false),
     FalseClaim("∫ e^{−½xᵀx} h(x) dx = ∫ e^{−½xᵀx} k dx, the outer x captured by h's inner integral", "nested integrals",
                _integral_through_a_definition, _nested_integral_false),
+    FalseClaim("ρX⁻¹(ρX⁻¹)⁺ = I for X invertible, the coefficient ρ taken for nonzero", "coefficients",
+               _scaled_inverse_invertible, _scaled_inverse_false),
 ]
 
 FALSE_CLAIMS = PORTED + ADVERSARY

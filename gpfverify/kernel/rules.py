@@ -33,11 +33,12 @@ the equation step ``id`` proves E = F₁⋯F_k, and each F is invertible (R1), r
 "const": c₀, "by": [entry, ...]}``: b − a − Σ c·tr(WᵀW) − Σ μ·(size hypothesis k: rhs − lhs) − c₀
 equals Σ tr(entry_k) in normal form, with every c > 0, μ ≥ 0, c₀ ≥ 0: tr(WᵀW) is a sum of squares.
 
-Derived facts (R1–R3): R1 E is invertible if it is SPD (R3), an invertible hypothesis, the
-inverse of an invertible matrix, or an earlier side step; R2 det(E) > 0 if E is SPD or an earlier
-side step; R3 E is SPD if it is a sum, with positive rational coefficients, of I, letters with an
-SPD hypothesis and inverses of SPD matrices. A divisor is nonzero when each of its irreducible
-factors is one of a nonzero or positive hypothesis (or a size constrained to be ≥ 1).
+Derived facts (R1–R3): R1 E is invertible if it is SPD (R3), an invertible hypothesis, c times
+the inverse of an invertible matrix (c a nonzero coefficient, as a divisor is), or an earlier side
+step; R2 det(E) > 0 if E is SPD or an earlier side step; R3 E is SPD if it is a sum, with positive
+rational coefficients, of I, letters with an SPD hypothesis and inverses of SPD matrices. A divisor
+is nonzero when each of its irreducible factors is one of a nonzero or positive hypothesis (or a
+size constrained to be ≥ 1).
 """
 
 from __future__ import annotations
@@ -126,8 +127,8 @@ class Checker:
             return True
         if len(a.terms) == 1:
             ((scalars, binders, word)), c = next(iter(a.terms.items()))
-            if scalars == EMPTY and not binders and len(word) == 1 and word[0][0] == "p":
-                return self.is_invertible(NF.thaw(word[0][1])) and c != 0
+            if scalars == EMPTY and not binders and len(word) == 1 and word[0][0] == "p":  # c·E⁻¹, c ≠ 0
+                return self.is_invertible(NF.thaw(word[0][1])) and self.nonzero(c)
         return False
 
     def is_positive(self, a: NF) -> bool:
@@ -135,6 +136,10 @@ class Checker:
         return self.spd(a) or a.frozen() in self.positive
 
     def nonzero(self, c) -> bool:
+        """A coefficient is nonzero: a rational ≠ 0, or every irreducible factor of a rational function
+        (numerator and denominator) is one of a nonzero or positive hypothesis, or a size s with 1 ≤ s."""
+        if isinstance(c, Fraction):
+            return c != 0
         factors = {}
         scope = self.ctx.scope()
         for h in self.st.hypotheses:
