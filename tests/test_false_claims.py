@@ -864,6 +864,31 @@ def _scaled_inverse_false() -> bool:
     """At ρ = 0, ρX⁻¹(ρX⁻¹)⁺ = 0 ≠ I."""
     return is_refuted(_scaled_inverse_statement(), instance({"n": 1}, {"X": matrix([[1]])}, params={"ρ": 0}))
 
+
+def _vacuous_every_statement(kind):
+    """C_j C_j⁺ = I from "for every m = 1..K: C_j is SPD (invertible)", a hypothesis free of m."""
+    d = Declare()
+    d.sizes("n", "N", "K")
+    d.index_set("J", "N")
+    d.index_set("M", "K")
+    c, j = d.matrix("C", "n", "n", over="J"), d.free_index("j", "J")
+    d.assume(every("m", "M", kind(c[j])))
+    d.conclude(eq(c[j] * c[j].pinv, I("n")))
+    return d.json()
+
+
+def _every_member_of_nothing(kind):
+    statement = _vacuous_every_statement(kind)
+    proof = {"steps": [{"id": "s", "claim": statement["conclusion"][0],
+                        "by": [{"gen": {"inverse": "right", "of": ("var", "C", "j")}}]}]}
+    return outcome(statement, proof, instance({"n": 1, "N": 1, "K": 1}, {"C": [matrix([[1]])]}, free_indices={"j": 1}))
+
+
+def _vacuous_every_false(kind) -> bool:
+    """K = 0 (no m): the hypothesis holds for C_1 = 0, and 0·0⁺ = 0 ≠ I."""
+    return is_refuted(_vacuous_every_statement(kind), instance({"n": 1, "N": 1, "K": 0}, {"C": [matrix([[0]])]},
+                                                               free_indices={"j": 1}))
+
 ADVERSARY = [
     FalseClaim("√(a²) = a, the parameter being 'positive' in sympy", "sympy assumptions", _root_of_square,
                lambda: sp.sqrt((-1) ** 2) != -1),
@@ -928,6 +953,10 @@ ADVERSARY = [
                _integral_through_a_definition, _nested_integral_false),
     FalseClaim("ρX⁻¹(ρX⁻¹)⁺ = I for X invertible, the coefficient ρ taken for nonzero", "coefficients",
                _scaled_inverse_invertible, _scaled_inverse_false),
+    FalseClaim("C_j C_j⁺ = I from 'C_j SPD for every m = 1..K', K possibly 0", "empty family",
+               lambda: _every_member_of_nothing(spd), lambda: _vacuous_every_false(spd)),
+    FalseClaim("C_j C_j⁺ = I from 'C_j invertible for every m = 1..K', K possibly 0", "empty family",
+               lambda: _every_member_of_nothing(invertible), lambda: _vacuous_every_false(invertible)),
 ]
 
 FALSE_CLAIMS = PORTED + ADVERSARY

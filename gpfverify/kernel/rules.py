@@ -93,11 +93,17 @@ class Checker:
 
     # ---- derived facts ----------------------------------------------------------------------------
     def _hyp_nfs(self, kind: str, around: NF):
-        """Normal forms of the matrices of the hypotheses ``kind`` (at every index reference met in ``around``)."""
+        """Normal forms of the matrices of the hypotheses ``kind`` (at every index reference met in ``around``).
+        "For every m ∈ J: P(m)" is used only when P(m) depends on m, and then P(r) matches ``around`` only
+        where ``around`` uses r as a member of J; a P free of m says nothing (J may be empty)."""
         for k, h in enumerate(self.st.hypotheses):
             if h[0] == kind and len(h) == 2:
                 yield k, None, self.ctx.nf(h[1], self.ctx.scope())
             elif h[0] == "every" and len(h) == 4 and isinstance(h[3], tuple) and h[3][0] == kind:
+                fresh = ("@x", next(self.ctx._fresh))
+                probe = self.ctx.nf(h[3][1], dict(self.ctx.scope(), **{h[1]: ("index", fresh, h[2])}))
+                if fresh not in refs(probe.frozen(), []):
+                    continue
                 for ref in refs(around.frozen(), []):
                     scope = dict(self.ctx.scope(), **{h[1]: ("index", ref, h[2])})
                     try:
