@@ -889,6 +889,18 @@ def _vacuous_every_false(kind) -> bool:
     return is_refuted(_vacuous_every_statement(kind), instance({"n": 1, "N": 1, "K": 0}, {"C": [matrix([[0]])]},
                                                                free_indices={"j": 1}))
 
+
+def _denesting_statement():
+    """For every x: √(3 + 2√2)·x = (1 + √2)·x — true (3 + 2√2 = (1 + √2)²), as a claim to refute."""
+    root2 = ("^", ("num", 2), "1/2")
+    lhs = ("*", ("^", ("+", ("num", 3), ("*", ("num", 2), root2)), "1/2"), ("var", "x"))
+    return {"conclusion": [("forall", (("x", "1", "1"),), ("=", lhs, ("*", ("+", ("num", 1), root2), ("var", "x"))))]}
+
+
+def _refuted_by_an_unseen_zero():
+    """'Refuted' with no instance at all: the difference (√(3 + 2√2) − 1 − √2)·x does not cancel in sympy."""
+    return judge_refutation(_denesting_statement(), {})
+
 ADVERSARY = [
     FalseClaim("√(a²) = a, the parameter being 'positive' in sympy", "sympy assumptions", _root_of_square,
                lambda: sp.sqrt((-1) ** 2) != -1),
@@ -957,6 +969,8 @@ ADVERSARY = [
                lambda: _every_member_of_nothing(spd), lambda: _vacuous_every_false(spd)),
     FalseClaim("C_j C_j⁺ = I from 'C_j invertible for every m = 1..K', K possibly 0", "empty family",
                lambda: _every_member_of_nothing(invertible), lambda: _vacuous_every_false(invertible)),
+    FalseClaim("√(3 + 2√2) x = (1 + √2) x is refuted (a true statement)", "true statement refuted",
+               _refuted_by_an_unseen_zero, lambda: sp.sqrtdenest(sp.sqrt(3 + 2 * sp.sqrt(2))) == 1 + sp.sqrt(2)),
 ]
 
 FALSE_CLAIMS = PORTED + ADVERSARY

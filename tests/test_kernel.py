@@ -142,6 +142,15 @@ def test_a_matrix_with_no_rows_has_its_declared_width():
     assert inst.holds(st.conclusion[0])
 
 
+def test_for_every_x_is_decided_only_over_the_rationals():
+    from gpfverify.kernel.instances import NotEvaluable, _exactly_zero
+
+    x = sp.Symbol("x")
+    assert _exactly_zero((x + 1) ** 2 - x ** 2 - 2 * x - 1) and not _exactly_zero(x / 2)
+    with pytest.raises(NotEvaluable):  # zero (3 + 2√2 = (1 + √2)²), which cancel does not see
+        _exactly_zero((sp.sqrt(3 + 2 * sp.sqrt(2)) - 1 - sp.sqrt(2)) * x)
+
+
 def test_a_proved_statement_needs_a_witness_and_its_conclusion_must_hold_there():
     statement = fc.prop1_statement()
     proof = fc.attempt(statement, fc._templates(full_rank_hyp=1))

@@ -256,9 +256,11 @@ def _exactly_zero(e) -> bool:
     e = sp.cancel(sp.together(sp.expand(e)))
     if e.is_Rational:
         return e == 0
-    if e.free_symbols and e.is_rational_function():
-        return e == 0
-    raise NotEvaluable("a difference that is not a rational function")
+    symbols = sorted(e.free_symbols, key=str)
+    if symbols and e.is_rational_function() and all(
+            term.as_independent(*symbols)[0].is_Rational for part in sp.fraction(e) for term in sp.Add.make_args(part)):
+        return e == 0  # over ℚ cancel decides it (an irrational coefficient could be a zero it does not see)
+    raise NotEvaluable("a difference that is not a rational function over the rationals")
 
 
 def satisfies(st: Statement, inst: Instance) -> str:

@@ -24,7 +24,7 @@ from dataclasses import dataclass
 
 from gpfverify.kernel.instances import Instance, conclusion_fails, refutes, satisfies
 from gpfverify.kernel.render import ANY_DIMENSION, hypotheses, instance_text, scope, statement_text
-from gpfverify.kernel.rules import check_proof, generator_kind
+from gpfverify.kernel.rules import check_proof, generator_kind, statement_needs
 from gpfverify.kernel.terms import KernelError, Statement, frozen, read_statement
 
 DERIVED = ("status", "statement", "hypotheses", "scope", "method", "detail")
@@ -51,7 +51,8 @@ def judge(part) -> Part:
     except KernelError as e:
         return Part("not proved", f"the statement is malformed: {e}", None)
     try:
-        if "refutation" in part:
+        if "refutation" in part:  # a well-formed statement: typed as a proof's is (its side conditions aside)
+            statement_needs(st)
             why = refutes(st, Instance(st, part["refutation"]))
             return Part("refuted" if not why else "not proved", why or "", st)
         proof = frozen(part.get("proof"))
