@@ -549,7 +549,7 @@ def _same_name_other_content():
     """Two certificates named alike: the second (false) one is judged on its own content."""
     true = one_matrix(lambda a, g: eq(a * a.pinv * a, a))
     first = Certificate("same", "", [Part(true, penrose_proof(true["conclusion"][0]),
-                                          at({"n": 1, "l": 1}, A=[[1]], G=[[1]]))])
+                                          at({"n": 2, "l": 2}, A=[[1, 0], [0, 1]], G=[[1, 0], [0, 1]]))])
     assert first.status == "proved"
     second = Certificate("same", "", [Part(a_plus_a_statement(), penrose_proof(true["conclusion"][0]),
                                            at({"n": 1, "l": 1}, A=[[1]], G=[[1]]))])
@@ -901,6 +901,46 @@ def _refuted_by_an_unseen_zero():
     """'Refuted' with no instance at all: the difference (√(3 + 2√2) − 1 − √2)·x does not cancel in sympy."""
     return judge_refutation(_denesting_statement(), {})
 
+
+def _empty_world_statement():
+    """C = −I for C SPD with C + I = 0: both hypotheses hold only at n = 0."""
+    d = Declare()
+    d.sizes("n")
+    c = d.matrix("C", "n", "n")
+    d.assume(spd(c), eq(c + I("n"), zero("n", "n")))
+    d.conclude(eq(c, -I("n")))
+    return d.json()
+
+
+def _witnessed_by_empty_matrices():
+    statement = _empty_world_statement()
+    proof = {"steps": [{"id": "s", "claim": statement["conclusion"][0], "by": [{"gen": {"hyp": 1}}]}]}
+    return outcome(statement, proof, instance({"n": 0}, {"C": sp.zeros(0, 0)}))
+
+
+def _rank_one_world_statement():
+    """u vᵀ = v uᵀ for every u, v ∈ ℝⁿ, assuming x yᵀ = y xᵀ for every x, y ∈ ℝⁿ (true only at n ≤ 1)."""
+    d = Declare()
+    d.sizes("n")
+    u, v = d.matrix("u", "n", 1), d.matrix("v", "n", 1)
+    x, y = Term(("var", "x")), Term(("var", "y"))
+    d.assume(forall([("x", "n", 1), ("y", "n", 1)], eq(x * y.T, y * x.T)))
+    d.conclude(eq(u * v.T, v * u.T))
+    return d.json()
+
+
+def _witnessed_in_dimension_one():
+    statement = _rank_one_world_statement()
+    proof = {"steps": [{"id": "s", "claim": statement["conclusion"][0],
+                        "by": [{"gen": {"hyp": 0, "at": {"x": ("var", "u"), "y": ("var", "v")}}}]}]}
+    return outcome(statement, proof, instance({"n": 1}, {"u": matrix([[1]]), "v": matrix([[2]])}))
+
+
+def _empty_world_only() -> bool:
+    """No SPD C with C + I = 0 in any dimension n ≥ 1, and e₁e₂ᵀ ≠ e₂e₁ᵀ for n ≥ 2."""
+    e1, e2 = sp.Matrix([1, 0]), sp.Matrix([0, 1])
+    return (-sp.eye(1)).is_positive_definite is False and e1 * e2.T != e2 * e1.T
+
 ADVERSARY = [
     FalseClaim("√(a²) = a, the parameter being 'positive' in sympy", "sympy assumptions", _root_of_square,
                lambda: sp.sqrt((-1) ** 2) != -1),
@@ -971,6 +1011,10 @@ ADVERSARY = [
                lambda: _every_member_of_nothing(invertible), lambda: _vacuous_every_false(invertible)),
     FalseClaim("√(3 + 2√2) x = (1 + √2) x is refuted (a true statement)", "true statement refuted",
                _refuted_by_an_unseen_zero, lambda: sp.sqrtdenest(sp.sqrt(3 + 2 * sp.sqrt(2))) == 1 + sp.sqrt(2)),
+    FalseClaim("C = −I for an SPD C with C + I = 0, witnessed at n = 0", "degenerate witness",
+               _witnessed_by_empty_matrices, _empty_world_only),
+    FalseClaim("u vᵀ = v uᵀ from 'x yᵀ = y xᵀ for every x, y ∈ ℝⁿ', witnessed at n = 1", "degenerate witness",
+               _witnessed_in_dimension_one, _empty_world_only),
 ]
 
 FALSE_CLAIMS = PORTED + ADVERSARY

@@ -294,7 +294,7 @@ def test_a_family_statement_over_no_members_is_not_read_as_one_over_all():
     d.conclude(eq(Sum("m", "J", c["m"] - c["m"].T), x * 0))
     statement = d.json()
     proof = {"steps": [{"id": "s", "claim": statement["conclusion"][0], "by": []}]}
-    witness = instance({"n": 1, "N": 1}, {"C": [matrix([[1]])], "X": matrix([[0]])})
+    witness = instance({"n": 2, "N": 2}, {"C": [sp.eye(2), 2 * sp.eye(2)], "X": sp.zeros(2, 2)})
     assert outcome(statement, proof, witness) == "proved"  # C_mᵀ = C_m for every member: used inside Σ_m
     assert not is_refuted(statement, witness)
 

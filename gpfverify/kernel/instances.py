@@ -12,7 +12,8 @@ outside the statement's domain (:class:`Undefined`). A hypothesis "for every x" 
 with the entries of x as symbols and holds when the difference cancels to 0 identically. A
 predicate is evaluated only where that is exact: otherwise :class:`NotEvaluable`.
 
-* a **witness** satisfies every hypothesis (a proved statement with none is reported vacuous);
+* a **witness** satisfies every hypothesis, with every size ≥ 2 (a proved statement with none is
+  reported vacuous);
 * a **counterexample** satisfies every hypothesis and falsifies a conclusion.
 """
 
@@ -261,6 +262,18 @@ def _exactly_zero(e) -> bool:
             term.as_independent(*symbols)[0].is_Rational for part in sp.fraction(e) for term in sp.Add.make_args(part)):
         return e == 0  # over ℚ cancel decides it (an irrational coefficient could be a zero it does not see)
     raise NotEvaluable("a difference that is not a rational function over the rationals")
+
+
+#: every size of a witness is at least this: a size symbol stands for every dimension, and hypotheses
+#: that hold only with empty or 1 × 1 blocks (where matrices commute) would make a statement vacuous
+WITNESS_SIZE = 2
+
+
+def degenerate(inst: Instance) -> str:
+    """'' when every size symbol and every member's size of a witness is ≥ WITNESS_SIZE; otherwise which is not."""
+    small = [f"{k} = {v}" for k, v in inst.sizes.items() if v < WITNESS_SIZE]
+    small += [f"{k} = {tuple(v)}" for k, v in inst.indexed.items() if any(x < WITNESS_SIZE for x in v)]
+    return f"the witness has a size below {WITNESS_SIZE} ({', '.join(small)})" if small else ""
 
 
 def satisfies(st: Statement, inst: Instance) -> str:

@@ -22,7 +22,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from gpfverify.kernel.instances import Instance, conclusion_fails, refutes, satisfies
+from gpfverify.kernel.instances import Instance, conclusion_fails, degenerate, refutes, satisfies
 from gpfverify.kernel.render import ANY_DIMENSION, hypotheses, instance_text, scope, statement_text
 from gpfverify.kernel.rules import check_proof, generator_kind, statement_needs
 from gpfverify.kernel.terms import KernelError, Statement, frozen, read_statement
@@ -58,9 +58,9 @@ def judge(part) -> Part:
         proof = frozen(part.get("proof"))
         checker = check_proof(st, proof)
         witness = Instance(st, part.get("witness") or {}, proof.get("bases"))
-        why = satisfies(st, witness)
+        why = degenerate(witness) or satisfies(st, witness)
         if why:
-            return Part("vacuous", f"the witness does not satisfy the hypotheses: {why}", st)
+            return Part("vacuous", f"no witness of the hypotheses: {why}", st)
         if conclusion_fails(st, witness):
             return Part("not proved", "the conclusion fails at the witness (a kernel error: refused)", st)
         used = sorted({str(generator_kind(e.get("gen"))) for step in proof["steps"] for part in ("by", "then")
