@@ -941,6 +941,19 @@ def _empty_world_only() -> bool:
     e1, e2 = sp.Matrix([1, 0]), sp.Matrix([0, 1])
     return (-sp.eye(1)).is_positive_definite is False and e1 * e2.T != e2 * e1.T
 
+
+def _read_as_any_dimension():
+    """Xᵀ = X with no hypothesis, true for the 1 × 1 X it declares: proved, but its words must say 1 × 1
+    (the claim refused is "every matrix is symmetric, in any dimension")."""
+    d = Declare()
+    x = d.matrix("X", 1, 1)
+    d.conclude(eq(x.T, x))
+    statement = d.json()
+    certificate = Certificate("symmetric", "", [Part(statement, {"steps": [{"id": "s", "claim": statement["conclusion"][0],
+                                                                            "by": []}]}, {"values": {"X": [[1]]}})])
+    honest = certificate.scope != "any dimension" and "X ∈ ℝ^{1 × 1}" in certificate.statement
+    return "proved at the sizes it prints" if honest else certificate.status
+
 ADVERSARY = [
     FalseClaim("√(a²) = a, the parameter being 'positive' in sympy", "sympy assumptions", _root_of_square,
                lambda: sp.sqrt((-1) ** 2) != -1),
@@ -1015,6 +1028,8 @@ ADVERSARY = [
                _witnessed_by_empty_matrices, _empty_world_only),
     FalseClaim("u vᵀ = v uᵀ from 'x yᵀ = y xᵀ for every x, y ∈ ℝⁿ', witnessed at n = 1", "degenerate witness",
                _witnessed_in_dimension_one, _empty_world_only),
+    FalseClaim("Xᵀ = X for every X in any dimension, printed from a statement about a 1 × 1 X", "statement words",
+               _read_as_any_dimension, lambda: matrix([[0, 1], [0, 0]]).T != matrix([[0, 1], [0, 0]])),
 ]
 
 FALSE_CLAIMS = PORTED + ADVERSARY
