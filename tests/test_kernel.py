@@ -81,6 +81,8 @@ def test_sums_move_constant_factors_count_and_sift_selectors():
         nf(("sum", "i", "J", ("I", "k[i]")))
     with pytest.raises(KernelError, match="already in use"):
         nf(("sum", "i", "J", ("sum", "i", "J", ("I", "n"))))
+    with pytest.raises(KernelError, match="det of a sum"):  # as docs/proofs.md says: not supported
+        nf(("*", ("det", ("sum", "i", "J", ("*", s_i, ("T", s_i)))), ("sum", "j", "J", ("*", g, s_j, ("T", s_j)))))
 
 
 def test_an_indexed_size_is_not_a_number_and_sizes_are_never_negative():

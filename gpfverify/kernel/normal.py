@@ -597,6 +597,8 @@ class Context:
         a = self.nf(args[0], scope)
         if a.shape is None or a.shape[0] != a.shape[1]:
             fail(f"det of {_shape_text(a.shape)}")
+        if any(binders for (_, binders, _) in a.terms):  # its bound positions would mix with the outer monomial's
+            fail("det of a sum over an index is not supported")
         atom = self.det_atom(a)
         return self.scalar(Fraction(1)) if atom is None else self.scalar(Fraction(1), ((atom, Fraction(1)),))
 
