@@ -319,3 +319,13 @@ def test_hostile_sizes_and_powers_are_refused_not_computed():
     with pytest.raises(KernelError, match="0..64"):
         Instance(st, frozen({"sizes": {"n": 10**6, "l": 1, "N": 0}, "indexed_sizes": {"k": []},
                              "values": {"A": []}}))
+    from gpfverify.kernel.terms import number
+
+    for text in ("1e9999999999", "0.5", "1/2/3", " 1", "٣"):  # numbers are integers or 'p/q', nothing else
+        with pytest.raises(KernelError, match="a number is"):
+            number(text)
+    with pytest.raises(KernelError, match="not expanded"):  # 2^(10¹²) would be computed digit by digit
+        ctx.nf(("^", ("num", 2), 10 ** 12), ctx.scope())
+    inst = Instance(st, frozen({"sizes": {"n": 1, "l": 0, "N": 0}, "indexed_sizes": {"k": []}, "values": {"A": [[1]]}}))
+    with pytest.raises(KernelError, match="above 256"):
+        inst.value(("I", "100000000"), {})

@@ -26,8 +26,10 @@ import sympy as sp
 from gpfverify.kernel.terms import HEAD, Size, Statement, fail, number, parse_size
 
 
-#: an instance is evaluated exactly: its sizes stay small (a witness needs no large ones)
+#: an instance is evaluated exactly: its sizes stay small (a witness needs no large ones), and so
+#: does every size it evaluates (a constant such as I of size 10⁸ in a statement is refused)
 MAX_SIZE = 64
+MAX_EVALUATED = 4 * MAX_SIZE
 
 
 class Undefined(Exception):
@@ -108,6 +110,8 @@ class Instance:
                 total += c * self.sizes[name]
             else:
                 total += c * self.indexed[name][self._index(index, env) - 1]
+        if total > MAX_EVALUATED:
+            fail(f"instance: a size evaluates to {total}, above {MAX_EVALUATED}")
         return total
 
     def _index(self, name, env):

@@ -42,7 +42,7 @@ from gpfverify.kernel.terms import HEAD, Size, Statement, _expand, fail, number,
 REFS = ("@f", "@b", "@x")  # a free index, a bound position, the index of a sum under construction
 EMPTY = ((), None)  # no scalar atoms, no exp
 INTEGRATION = "@∫"  # the canonical name of an integration variable inside its integral
-MAX_POWER = 64  # a power of a sum is expanded up to this exponent (a single monomial has any power)
+MAX_POWER = 64  # an integer power is taken up to this exponent (a power of a sum is expanded)
 
 
 # ---- coefficients -----------------------------------------------------------------------------------
@@ -386,8 +386,8 @@ class Context:
             for _ in range(int(exponent)):
                 out = self.mul(out, a)
             return out
-        if integer and exponent > MAX_POWER and len(a.terms) > 1:
-            fail(f"a power above {MAX_POWER} of a sum is not expanded")
+        if integer and abs(exponent) > MAX_POWER:  # c^e would be computed digit by digit
+            fail(f"a power beyond ±{MAX_POWER} is not expanded")
         if len(a.terms) != 1:
             fail("a negative or fractional power of a sum")
         ((powers, exp), binders, _), c = next(iter(a.terms.items()))

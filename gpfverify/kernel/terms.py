@@ -57,14 +57,19 @@ def fail(message: str) -> NoReturn:
     raise KernelError(message)
 
 
+_NUMBER = re.compile(r"^-?[0-9]{1,300}(?:/[0-9]{1,300})?$")
+
+
 def number(value) -> Fraction:
-    """An integer or a "p/q" string as an exact rational."""
-    if isinstance(value, bool) or not isinstance(value, int | str):
-        fail(f"a number is an integer or a 'p/q' string, not {value!r}")
+    """An integer or a "p/q" string as an exact rational (no decimal point, no exponent: "1e9999999999"
+    would be computed digit by digit)."""
+    if isinstance(value, bool) or not isinstance(value, int | str) or (isinstance(value, str)
+                                                                       and not _NUMBER.match(value)):
+        fail(f"a number is an integer or a 'p/q' string, not {str(value)[:40]!r}")
     try:
         return Fraction(value)
     except (ValueError, ZeroDivisionError):
-        fail(f"not a rational number: {value!r}")
+        fail(f"not a rational number: {str(value)[:40]!r}")
 
 
 def show_number(value: Fraction) -> str | int:
