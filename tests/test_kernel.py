@@ -307,8 +307,13 @@ def test_the_report_shows_a_record_the_kernel_rejects_as_checked(records):
     assert CertificateInfo.of(records["prop1-full-column-rank"]).status == "proved"
     shown = CertificateInfo.of(_edit(records["prop1-full-column-rank"], EDITS["a step removed"][1]))
     assert shown.status == "checked" and shown.detail.startswith("REJECTED by the kernel")
-    by_hand = {"claim": "x", "statement": "A⁺A = I", "status": "proved", "detail": ""}
-    assert CertificateInfo.of(by_hand).status == "checked"
+    assert shown.scope == "not proved" and shown.method == "not confirmed by the kernel"
+    by_hand = {"claim": "x", "statement": "A⁺A = I", "status": "proved", "detail": "", "scope": "any dimension",
+               "method": "kernel-checked certificate"}
+    shown = CertificateInfo.of(by_hand)  # no word of the record's own reads as a proof
+    assert (shown.status, shown.scope, shown.method) == ("checked", "not proved", "not confirmed by the kernel")
+    retold = _edit(records["prop1-full-column-rank"], lambda r: r.update(statement="DMF = CMF for any rank"))
+    assert CertificateInfo.of(retold).statement == derive(records["prop1-full-column-rank"])["statement"]
 
 
 def test_hostile_sizes_and_powers_are_refused_not_computed():
