@@ -89,6 +89,14 @@ def test_an_indexed_size_is_not_a_number_and_sizes_are_never_negative():
     ctx, _ = _context()
     with pytest.raises(KernelError):
         ctx.nf(("sum", "i", "J", ("tr", ("I", "k[i]"))), ctx.scope())
+    d = Declare()
+    d.sizes("n")
+    d.param("ρ")
+    d.index_set("J", "ρ")  # counted by a parameter: Σ_i I would be ρ I
+    d.conclude(eq(Sum("i", "J", I("n")), I("n")))
+    st = read_statement(frozen(d.json()))
+    with pytest.raises(KernelError, match="unknown size symbol"):
+        Context(st).nf(st.conclusion[0][1], {})
     for bad in ("n - 1", "-1", -2, "n + -l"):
         d = Declare()
         d.sizes("n")
@@ -331,6 +339,8 @@ def test_hostile_sizes_and_powers_are_refused_not_computed():
             number(text)
     with pytest.raises(KernelError, match="not expanded"):  # 2^(10¹²) would be computed digit by digit
         ctx.nf(("^", ("num", 2), 10 ** 12), ctx.scope())
+    with pytest.raises(KernelError, match="every size symbol"):  # true is not a size
+        Instance(st, frozen({"sizes": {"n": True, "l": 0, "N": 0}, "indexed_sizes": {"k": []}, "values": {"A": [[1]]}}))
     inst = Instance(st, frozen({"sizes": {"n": 1, "l": 0, "N": 0}, "indexed_sizes": {"k": []}, "values": {"A": [[1]]}}))
     with pytest.raises(KernelError, match="above 256"):
         inst.value(("I", "100000000"), {})

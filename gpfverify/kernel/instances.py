@@ -40,6 +40,11 @@ class NotEvaluable(Exception):
     """A predicate the kernel cannot decide exactly at this instance (an integral, a transcendental number)."""
 
 
+def _count(v) -> bool:
+    """An integer (JSON true is not 1 here)."""
+    return isinstance(v, int) and not isinstance(v, bool)
+
+
 def _matrix(rows, what: str, width: int) -> sp.Matrix:
     """A list of rows as an exact matrix; ``[]`` has no rows, and the declared ``width``."""
     if not isinstance(rows, list | tuple) or not all(isinstance(r, list | tuple) for r in rows):
@@ -60,7 +65,7 @@ class Instance:
             fail("an instance is {'sizes', 'indexed_sizes', 'params', 'free_indices', 'values'}")
         self.st = st
         self.sizes = {k: v for k, v in data.get("sizes", {}).items()}
-        if set(self.sizes) != set(st.sizes) or not all(isinstance(v, int) and 0 <= v <= MAX_SIZE
+        if set(self.sizes) != set(st.sizes) or not all(_count(v) and 0 <= v <= MAX_SIZE
                                                        for v in self.sizes.values()):
             fail(f"instance: every size symbol needs a value in 0..{MAX_SIZE} (and nothing else)")
         self.counts = {k: self.size(v, {}) for k, v in st.index_sets.items()}
@@ -68,7 +73,7 @@ class Instance:
         for name, index_set in st.indexed_sizes.items():
             values = self.indexed.get(name)
             if not isinstance(values, list | tuple) or len(values) != self.counts[index_set] or not all(
-                    isinstance(v, int) and 0 <= v <= MAX_SIZE for v in values):
+                    _count(v) and 0 <= v <= MAX_SIZE for v in values):
                 fail(f"instance: the sizes {name} need one value ≥ 0 per member of {index_set}")
         self.params = {k: sp.Rational(number(v).numerator, number(v).denominator)
                        for k, v in data.get("params", {}).items()}
@@ -76,7 +81,7 @@ class Instance:
             fail("instance: every parameter needs a value")
         self.free = dict(data.get("free_indices", {}))
         if set(self.free) != set(st.free_indices) or not all(
-                isinstance(v, int) and 1 <= v <= self.counts[st.free_indices[k]] for k, v in self.free.items()):
+                _count(v) and 1 <= v <= self.counts[st.free_indices[k]] for k, v in self.free.items()):
             fail("instance: every free index needs a value in its index set")
         self.partitions = dict(st.partitions)
         for name, size in (bases or {}).items():

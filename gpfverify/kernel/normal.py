@@ -239,6 +239,8 @@ class Context:
         for name, index, c in size.atoms:
             if index is not None:
                 fail(f"the size {size.text()} of a family member cannot be used as a number")
+            if name not in self.st.sizes:  # an index set counted by a parameter, say
+                fail(f"unknown size symbol {name!r}")
             total = c_add(total, c_mul(Fraction(c), _lower(self.gens[name])))
         return total
 
