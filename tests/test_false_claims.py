@@ -954,6 +954,29 @@ def _read_as_any_dimension():
     honest = certificate.scope != "any dimension" and "X ∈ ℝ^{1 × 1}" in certificate.statement
     return "proved at the sizes it prints" if honest else certificate.status
 
+
+def _sift_statement():
+    """exp(ρ)(Σ_i (S_iᵀS_j + I)⁺)ᵀ = exp(ρ) Σ_i (I + I)⁺, S_i the columns of I_N (exp(ρ) keeps the witness's
+    check inexact)."""
+    body = ("pinv", ("+", ("*", ("T", ("sel", "S", "i")), ("sel", "S", "j")), ("I", "1")))
+    e = ("exp", ("param", "ρ"))
+    return {"sizes": ["N"], "params": ["ρ"], "index_sets": {"J": "N"},
+            "partitions": {"S": {"over": "J", "total": "N", "part": "1"}}, "free_indices": {"j": "J"},
+            "conclusion": [("=", ("*", e, ("T", ("sum", "i", "J", body))),
+                            ("*", e, ("sum", "i", "J", ("pinv", ("+", ("I", "1"), ("I", "1"))))))]}
+
+
+def _sift_inside_a_pinv():
+    """Transposing the sum re-normalised the pinv's body with the sum's index as its own: S_iᵀS_j sifted to I."""
+    statement = _sift_statement()
+    return outcome(statement, {"steps": [{"id": "s", "claim": statement["conclusion"][0], "by": []}]},
+                   {"sizes": {"N": 2}, "params": {"ρ": 1}, "free_indices": {"j": 1}})
+
+
+def _sift_false() -> bool:
+    """N = 2, j = 1, ρ = 0: the left side is (1 + 1)⁻¹ + (0 + 1)⁻¹ = 3/2, the right side 2·(1/2) = 1."""
+    return is_refuted(_sift_statement(), {"sizes": {"N": 2}, "params": {"ρ": 0}, "free_indices": {"j": 1}})
+
 ADVERSARY = [
     FalseClaim("√(a²) = a, the parameter being 'positive' in sympy", "sympy assumptions", _root_of_square,
                lambda: sp.sqrt((-1) ** 2) != -1),
@@ -1030,6 +1053,8 @@ ADVERSARY = [
                _witnessed_in_dimension_one, _empty_world_only),
     FalseClaim("Xᵀ = X for every X in any dimension, printed from a statement about a 1 × 1 X", "statement words",
                _read_as_any_dimension, lambda: matrix([[0, 1], [0, 0]]).T != matrix([[0, 1], [0, 0]])),
+    FalseClaim("(Σ_i (S_iᵀS_j + I)⁺)ᵀ = Σ_i (I + I)⁺, the selectors sifted inside a pseudo-inverse", "sums",
+               _sift_inside_a_pinv, _sift_false),
 ]
 
 FALSE_CLAIMS = PORTED + ADVERSARY

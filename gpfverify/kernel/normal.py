@@ -260,8 +260,11 @@ class Context:
         return ((tuple(sorted(powers.items(), key=lambda t: key(t[0]))), exp), b1 + b2, w1 + w2)
 
     def canon(self, mono, shape):
-        """The canonical monomial (N3, N5) and the count factor of the sums it drops."""
+        """The canonical monomial (N3, N5) and the count factor of the sums it drops. Only the monomial's
+        own bound positions are sifted and renumbered: a normal form nested in an atom (the body of a
+        pinv, say) may mention its enclosing monomial's, and Σ_x f(S_xᵀS_y) ≠ f(I) for f nonlinear."""
         scalars, binders, word = mono
+        own = lambda r: r[0] == "@b" and r[1] < len(binders)  # noqa: E731
         removed: set = set()
         changed = True
         while changed:
@@ -274,10 +277,10 @@ class Context:
                 rest = word[:p] + word[p + 2:]
                 if x == y:  # S_iᵀS_i = I
                     word = rest
-                elif x[0] == "@b":  # Σ_x u(x) S_xᵀS_y w(x) = u(y) w(y)
+                elif own(x):  # Σ_x u(x) S_xᵀS_y w(x) = u(y) w(y)
                     scalars, word = _replace((scalars, rest), x, y)
                     removed.add(x[1])
-                elif y[0] == "@b":
+                elif own(y):
                     scalars, word = _replace((scalars, rest), y, x)
                     removed.add(y[1])
                 else:
@@ -289,9 +292,9 @@ class Context:
             words.append(self.tword(word))
         best, factor = None, Fraction(1)
         for w in words:
-            order = [r[1] for r in refs((w, scalars), []) if r[0] == "@b"]
+            order = [r[1] for r in refs((w, scalars), []) if own(r)]
             mapping = {old: new for new, old in enumerate(order)}
-            renamed = walk((scalars, w), lambda r, mapping=mapping: ("@b", mapping[r[1]]) if r[0] == "@b" else r)
+            renamed = walk((scalars, w), lambda r, mapping=mapping: ("@b", mapping[r[1]]) if own(r) else r)
             candidate = (renamed[0], tuple(binders[k] for k in order), renamed[1])
             if best is None or key(candidate) < key(best):
                 best, unused = candidate, [k for k in range(len(binders)) if k not in removed and k not in mapping]
