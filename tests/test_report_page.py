@@ -293,7 +293,7 @@ def test_proof_certificates_are_a_table(report):
     proved = rows["cert-full-rank-needs-l-le-D"]
     title = unicode_math(run_claim("full-rank-needs-l-le-D", "small").title)
     assert proved[:3] == ["full-rank-needs-l-le-D", "proved", title]
-    assert proved[3].startswith("l ≤ D (for all sizes D, l ≥ 0) — assuming: A has full column rank")
+    assert proved[3].startswith("l ≤ D (for all sizes D, l ≥ 0; all A ∈ ℝ^(D×l)) — assuming: A has full column rank")
     assert proved[4] == "any dimension" and proved[5].startswith("kernel-checked certificate")
     assert proved[6].startswith("all 3 refused and refuted: l_m + 1 ≤ D")
     assert rows["cert-dmf-exact-without-condition"][4].startswith("counterexample at D = 2")

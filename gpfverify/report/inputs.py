@@ -154,19 +154,22 @@ class CertificateInfo:
         """From one record of ``certificates.json`` (fields such as ``formal`` or ``provenance`` are
         not shown), re-checked by the kernel: a record the kernel does not confirm is shown as
         "checked", its detail starting with what the kernel found."""
-        from gpfverify.kernel.verdict import check_record
+        from gpfverify.kernel.verdict import check_record, derive
 
         try:
             controls = tuple(Control(str(c["mutant"]), bool(c["rejected"]),
                                      None if c.get("false_on_instance") is None else bool(c["false_on_instance"]))
                              for c in record.get("negative_controls", ()))
             status, detail = str(record["status"]), str(record.get("detail", ""))
+            statement, method, scope = (str(record.get(k, "")) for k in ("statement", "method", "scope"))
             problems = check_record(record)
-            if problems:
+            if problems:  # none of the record's own words stands: the statement is the kernel's rendering
                 status, detail = "checked", "REJECTED by the kernel: " + "; ".join(problems) + ". " + detail
-            return cls(str(record["claim"]), str(record.get("statement", "")), str(record.get("method", "")),
-                       status, detail, float(record.get("seconds", 0.0)), str(record.get("scope", "")), controls,
-                       str(record.get("title", "")), None if record.get("holds") is None else bool(record["holds"]))
+                statement = derive(record)["statement"] if record.get("formal") else statement
+                method, scope = "not confirmed by the kernel", "not proved"
+            return cls(str(record["claim"]), statement, method, status, detail, float(record.get("seconds", 0.0)),
+                       scope, controls, str(record.get("title", "")),
+                       None if record.get("holds") is None else bool(record["holds"]))
         except (KeyError, TypeError, ValueError) as exc:
             raise InputError(f"malformed certificate {str(record)[:80]!r}: {exc}") from None
 

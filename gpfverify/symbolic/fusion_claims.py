@@ -108,7 +108,7 @@ def attempt(statement: dict, templates: list[Template], bases: dict | None = Non
 
 # ---- instances ----------------------------------------------------------------------------------------
 
-PARTS = (1, 2)  # l_m of the two sensors of the witnesses (n = 2: both ≤ n)
+PARTS = (2, 2)  # l_m of the two sensors of the witnesses (n = 2: both ≤ n; a witness's sizes are ≥ 2)
 
 
 def instance(seed: int, full_rank: bool = True, kernel_inclusion: bool = False, measurement: bool = True,
