@@ -134,16 +134,19 @@ def _markdown_lines(blocks, page_dir: Path) -> list[str]:
     return lines
 
 
-def _html_block(block) -> str:
+def _html_block(block, ids: bool = True) -> str:
+    """One block as HTML; ``ids`` False leaves out the rows' anchors (a notebook holds many outputs in one
+    document, where they would repeat)."""
     if isinstance(block, Paragraph):
         return f"<p>{inline(_text(block.text))}</p>"
     if isinstance(block, Table):
         head = "".join(f"<th>{inline(_text(h))}</th>" for h in block.headers)
         labels = [f' data-label="{esc(_text(h))}"' for h in block.headers]
-        ids = list(block.row_ids) + [""] * (len(block.rows) - len(block.row_ids))
+        row_ids = list(block.row_ids) if ids else []
+        row_ids += [""] * (len(block.rows) - len(row_ids))
         body = "".join((f'<tr id="{esc(row_id)}">' if row_id else "<tr>")
                        + "".join(_labelled(_html_cell(c), label) for c, label in zip(row, labels)) + "</tr>"
-                       for row, row_id in zip(block.rows, ids))
+                       for row, row_id in zip(block.rows, row_ids))
         cap = f"<caption>{inline(_text(block.caption))}</caption>" if block.caption else ""
         css = f' class="{esc(block.css)}"' if block.css else ""
         return (f'<div class="table-wrap"><table{css}>{cap}<thead><tr>{head}</tr></thead>'
@@ -256,12 +259,14 @@ def to_fragment(sections: list[Section]) -> str:
     scoped = [f".gpfverify-report{{{root}}}"] + [f".gpfverify-report {line}" for line in _STYLE.splitlines()
                                                  if line.startswith((".v-", "td.verdict", "img{"))]
     return (f"<div class=\"gpfverify-report\"><style>{''.join(scoped)}</style>"
-            + "".join(_fragment(s) for s in sections) + "</div>")
+            + "".join(_fragment(s, ids=False) for s in sections) + "</div>")
 
 
-def _fragment(section: Section) -> str:
-    return (f'<section id="{esc(section.slug)}"><h2>{inline(_text(section.title))}</h2>'
-            + "".join(_html_block(b) for b in section.blocks) + "</section>")
+def _fragment(section: Section, ids: bool = True) -> str:
+    """A section as HTML, anchored by its slug and its rows' ids unless ``ids`` is False."""
+    anchor = f' id="{esc(section.slug)}"' if ids else ""
+    return (f"<section{anchor}><h2>{inline(_text(section.title))}</h2>"
+            + "".join(_html_block(b, ids) for b in section.blocks) + "</section>")
 
 
 # ---- provenance, papers, what was run, summary -----------------------------------------------------
