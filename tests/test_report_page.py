@@ -297,19 +297,31 @@ def test_progress_lines_and_heartbeat():
                      "[report  1:15] ... still working (76 s since the last line: ct2d: ct2d κ = 300 (1 of 4): 2 runs)"]
 
 
-def test_the_builds_time_left_follows_its_own_pace_and_drops_reused_work():
+def test_the_time_left_comes_from_the_pace_measured_in_this_build_and_none_before():
+    """No estimate until two runs of an experiment were saved in one batch (the first run carries the
+    workers' start-up: a quick build once opened with "about 48 min left" for 4 min of work); then
+    the seconds between runs saved times the experiment's runs still to make — in every setting, the
+    pace of the first setting timing the second —; reused runs are runs not left."""
     from gpfverify.commands.report import Eta
 
     now = [100.0]
-    eta = Eta({"a": 4.0, "b": 12.0, "render": 4.0}, clock=lambda: now[0])
-    assert eta.seconds_left() is None and eta.suffix() == ""  # no pace before any work
-    now[0] += 30.0
-    eta.ran("a", 2.0)  # 2 of 20 units in 30 s: 15 s a unit, 18 units left
-    assert eta.seconds_left() == 18 * 15.0
-    eta.ran("a", 2.0)
-    eta.finished("a")
-    eta.finished("b")  # every run of b reused from an earlier build: not left, and not done here
-    assert eta.seconds_left() == 4.0 * 30.0 / 4.0 and eta.suffix() == " (about 30 s left in all)"
+    eta = Eta({"a-1": ("a", 4), "a-2": ("a", 6), "b-1": ("b", 5)}, clock=lambda: now[0])
+    eta.batch("a")
+    now[0] += 40.0  # start-up and the first run
+    eta.ran("a-1")
+    assert eta.seconds_left("a") is None and eta.suffix("a-1") == ""  # one run saved: nothing timed yet
+    now[0] += 3.0
+    eta.ran("a-1")  # 3 s a run; 2 + 6 runs of a left
+    assert eta.seconds_left("a") == 8 * 3.0 and eta.suffix("a-1") == " (a: about 24 s of runs left)"
+    assert eta.seconds_left("b") is None  # b's pace is not a's
+    now[0] += 5.0
+    eta.ran("a-1")  # (3 + 5) / 2 = 4 s a run
+    eta.finished("a-1")  # its last run reused from an earlier build
+    assert eta.seconds_left("a") == 6 * 4.0
+    eta.batch("a")  # the next setting: its first run (start-up again) is not timed
+    now[0] += 60.0
+    eta.ran("a-2")
+    assert eta.seconds_left("a") == 5 * 4.0
 
 
 def test_report_command_runs_a_toy_section_with_progress(monkeypatch, tmp_path, capsys):
@@ -337,10 +349,11 @@ def test_report_command_runs_a_toy_section_with_progress(monkeypatch, tmp_path, 
     assert any("toy/toy-typed, small (setting 1 of 2): 3 runs" in line for line in lines)
     assert any("toy/toy-typed, large (setting 2 of 2): run 3 of 3 saved" in line for line in lines)
     assert any("toy: rendering the page" in line for line in lines)
-    # once a run is saved, section and run lines end with the build's time left
+    # a setting's first run line has no estimate (nothing timed yet); the lines after it have the measured one
     saved = [line for line in lines if " saved" in line]
-    assert saved and all(re.search(r"\(about .* left in all\)$", line) for line in saved)
-    assert re.search(r"rendering the pages \(about .* left in all\)$", out, re.M)
+    assert saved[0].endswith("run 1 of 3 saved")
+    assert all(re.search(r"\(toy-typed: about \d+ s of runs left\)$", line) for line in saved[1:3])
+    assert not re.search(r"left in all|section \d of \d: .*\(", out)  # no estimate of the whole build
     assert f"The report: {tmp_path / 'report.html'}" in out
     records = [c for r in load_section(tmp_path, "toy").results for c in read_claims(r)]
     held = sum(c.verdict == "held" for c in records)
