@@ -81,8 +81,9 @@ class Eta:
     from an earlier build are runs not left."""
 
     def __init__(self, planned: dict[str, tuple[str, int]], clock: Callable[[], float] = time.monotonic):
-        #: item (an experiment's setting) -> (the experiment, its runs still to make)
-        self.items = {item: [experiment, runs] for item, (experiment, runs) in planned.items()}
+        #: item (an experiment's setting) -> its experiment, and its runs still to make
+        self.experiment = {item: experiment for item, (experiment, _) in planned.items()}
+        self.runs_left = {item: runs for item, (_, runs) in planned.items()}
         self.clock = clock
         self.timed: dict[str, list[float]] = {}  # experiment -> [seconds timed, runs timed]
         self.last: dict[str, float | None] = {}  # experiment -> when its last run was saved in this batch
@@ -93,18 +94,18 @@ class Eta:
 
     def ran(self, item: str) -> None:
         """A run of ``item`` was saved."""
-        experiment = self.items[item][0]
+        experiment = self.experiment[item]
         now, last = self.clock(), self.last.get(experiment)
         if last is not None:
             timed = self.timed.setdefault(experiment, [0.0, 0])
             timed[0] += now - last
             timed[1] += 1
         self.last[experiment] = now
-        self.items[item][1] = max(0, self.items[item][1] - 1)
+        self.runs_left[item] = max(0, self.runs_left[item] - 1)
 
     def finished(self, item: str) -> None:
         """``item`` is over: what was not run of it was reused."""
-        self.items[item][1] = 0
+        self.runs_left[item] = 0
 
     def seconds_per_run(self, experiment: str) -> float | None:
         """The measured pace, or None before two runs of the experiment were saved in one batch."""
@@ -116,11 +117,11 @@ class Eta:
         pace = self.seconds_per_run(experiment)
         if pace is None:
             return None
-        return pace * sum(runs for name, runs in self.items.values() if name == experiment)
+        return pace * sum(runs for item, runs in self.runs_left.items() if self.experiment[item] == experiment)
 
     def suffix(self, item: str) -> str:
         """`` (ct2d: about 3 min 10 s of runs left)`` for a progress line, or nothing yet."""
-        experiment = self.items[item][0]
+        experiment = self.experiment[item]
         left = self.seconds_left(experiment)
         return "" if left is None else f" ({experiment}: about {_duration(left)} of runs left)"
 
