@@ -235,7 +235,32 @@ def test_proof_certificates_are_a_table(report):
     assert rows["cert-dmf-exact-without-condition"][4].startswith("counterexample at D = 2")
     assert rows["cert-dmf-exact-without-condition"][6] == "none"
     status = table.find_all("tr", id="cert-dmf-exact-without-condition")[0].find_all("td")[1]
-    assert "v-refuted" in status.classes
+    assert "v-refuted" in status.classes and "v-not-held" not in status.classes
+    # the record says the statement is meant to be refuted: the page says so, in the table and on its mark
+    assert status.text == "refuted, as intended" and status.attrs["title"].startswith("meant to be refuted")
+    (chip,) = [a for a in page.find_all("a", cls="chip") if a.attrs["href"] == "#cert-dmf-exact-without-condition"]
+    assert chip.attrs["title"] == "dmf-exact-without-condition: refuted, as intended"
+    assert rows["cert-full-rank-needs-l-le-D"][1] == "proved"  # no record meant to be proved says more
+
+
+def test_a_statement_that_misses_the_status_it_is_meant_to_get_is_a_failure():
+    """A record meant to be refuted that the kernel proves (or one whose "expected" was edited) is
+    shown FAILED in red, is a problem for prove --check, and makes prove exit non-zero."""
+    from gpfverify.kernel.verdict import check_record
+    from gpfverify.report.proofs import render
+    from gpfverify.report.render import to_markdown
+
+    record = json.loads((FIXTURE / "proofs" / "certificates.json").read_text(encoding="utf-8"))[1]
+    assert record["claim"] == "dmf-exact-without-condition" and record["expected"] == "refuted"
+    assert check_record(record) == []
+    edited = {**record, "expected": "proved"}
+    assert check_record(edited) == ["dmf-exact-without-condition: meant to be 'proved', the kernel derives 'refuted'"]
+    page = to_markdown(render([edited]), FIXTURE)
+    assert "| checked (meant to be proved) — FAILED |" in page  # what the kernel rejects is shown as checked
+    certificate = run_claim("dmf-exact-without-condition", "small")
+    assert certificate.failures == []
+    certificate.record["expected"] = "proved"
+    assert certificate.failures == ["meant to be proved, the kernel derives refuted"]
 
 
 def test_markdown_pages_and_index(report):

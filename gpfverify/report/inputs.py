@@ -148,6 +148,18 @@ class CertificateInfo:
     title: str = ""
     #: a numerical check that failed (False), or None for a kernel record
     holds: bool | None = None
+    #: the status the record is meant to get ("refuted" for a false variant of a theorem), or ""
+    expected: str = ""
+
+    @property
+    def as_intended(self) -> bool:
+        """A status its record says it is meant to get (a refutation that is the result)."""
+        return bool(self.expected) and self.expected == self.status
+
+    @property
+    def status_text(self) -> str:
+        """The status as the pages show it: "refuted, as intended" for a statement meant to be refuted."""
+        return f"{self.status}, as intended" if self.as_intended else self.status
 
     @classmethod
     def of(cls, record: dict) -> CertificateInfo:
@@ -166,7 +178,8 @@ class CertificateInfo:
                 status, detail = "checked", "REJECTED by the kernel: " + "; ".join(problems) + ". " + detail
             return cls(str(record["claim"]), str(record.get("statement", "")), str(record.get("method", "")),
                        status, detail, float(record.get("seconds", 0.0)), str(record.get("scope", "")), controls,
-                       str(record.get("title", "")), None if record.get("holds") is None else bool(record["holds"]))
+                       str(record.get("title", "")), None if record.get("holds") is None else bool(record["holds"]),
+                       str(record.get("expected", "")))
         except (KeyError, TypeError, ValueError) as exc:
             raise InputError(f"malformed certificate {str(record)[:80]!r}: {exc}") from None
 

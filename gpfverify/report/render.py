@@ -165,7 +165,7 @@ def _html_block(block, ids: bool = True) -> str:
 
 _STYLE = """
 :root{--held:#d7f0dc;--held-ink:#14532d;--not:#fbd9d9;--not-ink:#8b1a1a;--und:#fdecc2;--und-ink:#7a4b00;
---nd:#e4e6e9;--nd-ink:#3b4148;--proved:#c9ecd2;--refuted:#f6cfd6;--checked:#d3ebf3;--checked-ink:#114b5f;
+--nd:#e4e6e9;--nd-ink:#3b4148;--proved:#c9ecd2;--refuted:#e6def5;--refuted-ink:#3f2a7a;--checked:#d3ebf3;--checked-ink:#114b5f;
 --line:#c8ccd2;--muted:#5a6270}
 *{box-sizing:border-box}
 body{font-family:system-ui,-apple-system,"Segoe UI",Roboto,"Noto Sans","DejaVu Sans",sans-serif;margin:0;
@@ -208,7 +208,7 @@ details{margin:.3rem 0}summary{cursor:pointer;color:#1d3d6b}
 .v-undecided{background:var(--und);color:var(--und-ink)}
 .v-not-decidable{background:var(--nd);color:var(--nd-ink)}
 .v-proved{background:var(--proved);color:var(--held-ink)}
-.v-refuted{background:var(--refuted);color:var(--not-ink)}
+.v-refuted{background:var(--refuted);color:var(--refuted-ink)}
 .v-checked{background:var(--checked);color:var(--checked-ink)}
 td.verdict{white-space:nowrap}
 .caution{margin-top:.25rem;padding:.1rem .35rem;border:1px solid #b7791f;border-radius:4px;background:#fff7e6;
@@ -405,7 +405,7 @@ def summary_table(summaries: Iterable[SectionSummary]) -> Table:
             rows.append([paper_cell if first else "", Link(s.title, s.slug) if first else "", Cell("proofs", "group"),
                          *[_count_cell(0, v) for v in VERDICTS], *[_count_cell(counts.proofs[k], k) for k in STATUSES],
                          Cell(0, "zero"), Cell("—", "zero"),
-                         Chips(tuple((c.status, f"{c.claim}: {c.status}", certificate_anchor(c.claim), False)
+                         Chips(tuple((c.status, f"{c.claim}: {c.status_text}", certificate_anchor(c.claim), False)
                                      for c in s.certificates), f"{len(s.certificates)} certificates")])
     for group in total.groups:
         robust, tried_count = robust_total.get(group.group, [0, 0])
@@ -452,7 +452,8 @@ _LEGEND = ("Colours: held (green) — our runs agree with the paper's claim; NOT
            "it beyond the Monte Carlo error; undecided (amber) — the Monte Carlo interval contains the "
            "threshold, more runs would decide; not decidable (grey) — the runs as made cannot decide it. "
            "Proofs: proved (a certificate the proof kernel accepts, with an exact witness of its hypotheses), "
-           "refuted (an exact counterexample the kernel evaluates), checked (identities at listed sizes or two "
+           "refuted (violet: an exact counterexample the kernel evaluates; a statement meant to be refuted, a false "
+           "variant of a theorem, says so), checked (identities at listed sizes or two "
            f"implementations agreeing to a tolerance — not a proof). {CAUTION_MARK} marks a verdict that rests on "
            "fewer runs than the paper used or on wall-clock timing (which depends on the machine and its "
            "load): hold it loosely.")
