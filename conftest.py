@@ -32,3 +32,18 @@ def moment_path(request):
     fused.enabled = request.param == "fused"
     yield request.param
     fused.enabled = saved
+
+
+#: the tests deselected in this session (``-m "not slow"``, ``-k``), for tests/test_readme_counts.py
+DESELECTED: pytest.StashKey[list] = pytest.StashKey()
+
+
+def pytest_deselected(items):
+    if items:
+        items[0].config.stash.setdefault(DESELECTED, []).extend(items)
+
+
+@pytest.fixture
+def deselected_tests(request) -> list:
+    """The tests this session deselected (``-m``, ``-k``)."""
+    return request.config.stash.get(DESELECTED, [])
