@@ -201,6 +201,7 @@ td,th{border:1px solid var(--line);padding:.25rem .5rem;text-align:left;vertical
 th{background:#eef0f3}
 caption{font-weight:bold;text-align:left;padding:.2rem 0}
 img{max-width:100%}
+figure{margin:1rem 0}
 pre{background:#f4f4f4;padding:.5rem;overflow-x:auto}
 details{margin:.3rem 0}summary{cursor:pointer;color:#1d3d6b}
 .v-held{background:var(--held);color:var(--held-ink)}
@@ -251,14 +252,33 @@ def to_html(sections: list[Section], title: str) -> str:
     return _page(title, "", listed, {}, None)
 
 
+#: rules of the page's frame (the contents column, the main column, the title), left out of a fragment
+_FRAME = ("*", "body", ".layout", "nav", "main", ".subtitle", ".mini", "section,tr[id]")
+
+
+def fragment_style() -> str:
+    """The page's styles for a fragment: its colours and font on the fragment's ``div``, and every rule
+    of its content (tables, verdicts, figures, captions, code, details) scoped to that ``div``; the
+    page's frame (contents column, layout, window widths) left out."""
+    css = re.sub(r"@media[^{]*\{(?:[^{}]*\{[^{}]*\})*[^{}]*\}", "", _STYLE)
+    rules = re.findall(r"([^{}]+)\{([^{}]*)\}", css)
+    root = next(body for selector, body in rules if selector.strip() == ":root")
+    font = next(body for selector, body in rules if selector.strip() == "body")
+    out = [f".gpfverify-report{{{root};{font}}}"]
+    for selector, body in rules:
+        selector = selector.strip()
+        if selector == ":root" or selector.startswith(_FRAME):
+            continue
+        scoped = ",".join(f".gpfverify-report {part.strip()}" for part in selector.split(","))
+        out.append(f"{scoped}{{{body}}}")
+    return "".join(out)
+
+
 def to_fragment(sections: list[Section]) -> str:
     """``sections`` as one HTML fragment for a notebook's output cell: the page's blocks and words,
-    with only the page's verdict colours and figure width, scoped to the fragment (the notebook keeps
-    its own styles)."""
-    root = _STYLE.split(":root{", 1)[1].split("}", 1)[0]
-    scoped = [f".gpfverify-report{{{root}}}"] + [f".gpfverify-report {line}" for line in _STYLE.splitlines()
-                                                 if line.startswith((".v-", "td.verdict", "img{"))]
-    return (f"<div class=\"gpfverify-report\"><style>{''.join(scoped)}</style>"
+    styled as the page (:func:`fragment_style`, scoped to the fragment: the notebook keeps its own
+    styles), without ids (a notebook holds many outputs in one document)."""
+    return (f"<div class=\"gpfverify-report\"><style>{fragment_style()}</style>"
             + "".join(_fragment(s, ids=False) for s in sections) + "</div>")
 
 
