@@ -16,7 +16,6 @@ import argparse
 import importlib
 import json
 import shutil
-import sys
 import threading
 import time
 from collections.abc import Callable
@@ -31,6 +30,7 @@ from gpfverify.outputs import add_wait_argument, final_path, out_path, output_fo
 from gpfverify.full_report import SECTIONS, build_report, papers_title
 from gpfverify.report.inputs import VerdictCounts, write_runs
 from gpfverify.report.render import read_summaries
+from gpfverify.streams import result
 
 #: report section -> the experiments it renders (names as in gpfverify.papers.EXPERIMENTS)
 SECTION_EXPERIMENTS: dict[str, tuple[str, ...]] = {
@@ -156,7 +156,7 @@ class Progress:
 
     def __init__(self, stream: TextIO | None = None, heartbeat: float = HEARTBEAT_SECONDS,
                  clock: Callable[[], float] = time.monotonic):
-        self.stream = stream or sys.stdout
+        self.stream = stream or result()
         self.clock = clock
         self.started = self.last = clock()
         self.heartbeat = heartbeat

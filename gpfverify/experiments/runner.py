@@ -4,7 +4,10 @@
   are spread over workers.
 * Every finished run is written atomically to ``DIR/runs/run-NNNNNN.json`` (temporary file +
   ``os.replace``); a crash or Ctrl-C loses only the runs in flight, and ``resume=True`` continues.
-* A run that raises is saved with its error and seed; the summary counts it and leaves it out.
+* A run that raises is saved with its error and seed; the summary counts it and leaves it out. A
+  run that runs out of memory (:func:`gpfverify.memory.out_of_memory`) is not a failed run: the
+  command stops with :class:`~gpfverify.errors.OutOfMemory`, the runs saved so far kept for
+  ``--resume``.
 * ``results.json`` is always computed from the saved runs (JSON round-trips floats exactly), so an
   interrupted-and-resumed run ends with the same numbers as an uninterrupted one. Timing fields
   are measurements and naturally differ between executions: ``results.json`` lists their names
@@ -42,11 +45,13 @@ import numpy as np
 from gpfverify import provenance
 from gpfverify.contract.params import Params
 from gpfverify.contract.serial import from_json, to_json
-from gpfverify.errors import InputError, WorkerLost
+from gpfverify.errors import InputError, OutOfMemory, WorkerLost
+from gpfverify.memory import out_of_memory
 from gpfverify.runtime import progress_shown
 from gpfverify.runtime import BLAS_THREAD_VARS
 from gpfverify.supervise import exit_with_parent
-from gpfverify.usercode import UserCodeError, guarded, system_file
+from gpfverify.usercode import (Interrupted, UserCodeError, guarded, interrupt_received, set_time_limit, system_file,
+                                time_limit)
 
 #: a key of ``results.json`` (at any depth) whose value is a measured time, not a result
 TIMING_KEY = re.compile(r"time_per|seconds|machine_load|timing_claims")
@@ -105,7 +110,7 @@ def make_executor(workers: int = 1, scheduler: str | None = None):
 
     _quiet_manager_thread_on_interrupt()
     pool = _WorkerPool(max_workers=workers, mp_context=mp.get_context("spawn"),
-                       initializer=_start_worker, initargs=(os.getpid(),))
+                       initializer=_start_worker, initargs=(os.getpid(), time_limit()))
     try:
         yield pool
     except BaseException:
@@ -259,16 +264,23 @@ def check_seed(seed) -> int:
     return seed
 
 
-def _start_worker(parent_pid: int) -> None:
+def _start_worker(parent_pid: int, seconds: float | None = None) -> None:
     """Worker initializer: the worker ends as soon as its parent (the main process, which started
     it) is gone, killed by any signal (:func:`gpfverify.supervise.exit_with_parent`; the
     multiprocessing resource tracker exits by itself once every process holding its pipe is
     gone), and ignores Ctrl-C (SIGINT, blocked until now: :class:`_WorkerPool`): the main process
     stops the command and its workers, and a KeyboardInterrupt in a worker is then always one the
-    user's code raised itself (:func:`gpfverify.usercode.guarded`)."""
+    user's code raised itself (:func:`gpfverify.usercode.guarded`). ``seconds``: the time limit of
+    each call of the user's code (``--timeout``, :func:`gpfverify.usercode.set_time_limit`); the
+    worker's BLAS buffers are taken now, while its memory is known to be there
+    (:func:`gpfverify.memory.reserve_blas_buffers`)."""
     import signal
 
+    from gpfverify.memory import reserve_blas_buffers
+
     exit_with_parent(parent_pid)
+    set_time_limit(seconds)
+    reserve_blas_buffers()
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # a Ctrl-C pending since the worker started is dropped
     signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT})
 
@@ -298,6 +310,11 @@ def _execute(module_name: str, params: Params, seed: np.random.SeedSequence, ind
         except UserCodeError:  # the user's code tried to end the process (or to stop it): the command stops
             raise
         except Exception as exc:  # noqa: BLE001 - recorded, counted, reported
+            if interrupt_received():  # a Ctrl-C that compiled code turned into another error: not the run's
+                raise Interrupted from None
+            memory = out_of_memory(exc)
+            if memory is not None:  # the machine's fault, not the run's: the command stops, --resume continues
+                raise OutOfMemory(memory) from None
             record["status"] = "error"
             record["error"] = f"{type(exc).__name__}: {exc}"
             record["traceback"] = traceback.format_exc(limit=8)
@@ -362,12 +379,15 @@ def _check_manifest(out_dir: Path, manifest: dict, resume: bool, write: bool = T
 def _progress(enabled: bool):
     if not enabled:
         return contextlib.nullcontext(None)
+    from rich.console import Console
     from rich.progress import (BarColumn, MofNCompleteColumn, Progress, TextColumn,
                                TimeElapsedColumn, TimeRemainingColumn)
 
+    from gpfverify.streams import diagnostics
+
     return Progress(TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(),
                     TextColumn("{task.fields[rate]}"), TimeElapsedColumn(), TimeRemainingColumn(),
-                    transient=False)
+                    transient=False, console=Console(file=diagnostics()))  # progress is a diagnostic: stderr
 
 
 def run_experiment(module: ModuleType | str, params: Params, runs: int, seed: int, out_dir: Path,
@@ -431,10 +451,11 @@ def run_experiment(module: ModuleType | str, params: Params, runs: int, seed: in
                     if progress:
                         rate = n_done / max(time.perf_counter() - started, 1e-9)
                         progress.update(task, advance=1, rate=f"{rate:.2f} runs/s")
-        except KeyboardInterrupt as exc:
-            for f in in_flight:
-                f.cancel()
-            exc.add_note(_finished_note(out_dir, runs))  # what is kept of them: gpfverify.outputs says
+        except BaseException as exc:
+            if isinstance(exc, KeyboardInterrupt) or interrupt_received():  # the Ctrl-C may arrive as another error
+                for f in in_flight:
+                    f.cancel()
+                exc.add_note(_finished_note(out_dir, runs))  # what is kept of them: gpfverify.outputs says
             raise
     return write_results(module, out_dir, manifest)
 

@@ -25,7 +25,7 @@ import numpy as np
 
 from gpfverify.contract.check import verdict_sentence
 from gpfverify.report.document import Code, Figure, Paragraph, Section, Table, integer_ranges
-from gpfverify.report.render import provenance_section, to_html, to_markdown
+from gpfverify.report.render import md_escaped, provenance_section, to_html, to_markdown
 
 FIGURES = "figures"
 #: inexact steps listed one per row up to this many (the rest counted)
@@ -635,7 +635,7 @@ def _with_title(title: str, markdown: str) -> str:
     """The page title on top; every section heading one level below it."""
     lines = [("#" + line) if line.startswith("#") and line.lstrip("#").startswith(" ") else line
              for line in markdown.splitlines()]
-    return f"# {title}\n\n" + "\n".join(lines) + "\n"
+    return f"# {md_escaped(title)}\n\n" + "\n".join(lines) + "\n"
 
 
 # -- the run audit (gpfverify audit RUN --out DIR) ------------------------------------------------

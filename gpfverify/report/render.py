@@ -51,17 +51,38 @@ def _text(value) -> str:
     return unicode_math(value) if isinstance(value, str) else fmt(value)
 
 
+#: what starts raw HTML in Markdown (CommonMark): ``<`` before a tag name, ``/``, ``!`` or ``?``, and
+#: a character reference ``&name;`` or ``&#...;``
+_RAW_HTML = re.compile(r"<(?=[A-Za-z/!?])|&(?=#?\w+;)")
+
+
+def md_escaped(text: str) -> str:
+    """``text`` for a Markdown page with any raw HTML in it shown as text, as the HTML page shows
+    it (user-supplied text: a system's name, a run's error, a file name): ``<`` that would open a
+    tag and ``&`` that would start a character reference become ``&lt;`` and ``&amp;``, except
+    inside `code` spans, which Markdown shows literally. Comparisons such as ``p < 0.05`` are left
+    as they are."""
+    parts = re.split(r"(`[^`\n]+`)", text)
+    return "".join(part if i % 2 else _RAW_HTML.sub(lambda m: "&lt;" if m.group(0) == "<" else "&amp;", part)
+                   for i, part in enumerate(parts))
+
+
+def _md(value) -> str:
+    """A value's text on a Markdown page (:func:`md_escaped`)."""
+    return md_escaped(_text(value))
+
+
 def _md_cell(value) -> str:
     if isinstance(value, VerdictCell):
-        text = value.verdict + (f" {CAUTION_MARK} " + "; ".join(value.cautions) if value.cautions else "")
+        text = md_escaped(value.verdict + (f" {CAUTION_MARK} " + "; ".join(value.cautions) if value.cautions else ""))
     elif isinstance(value, Cell):
-        text = _text(value.value)
+        text = _md(value.value)
     elif isinstance(value, Link):
-        text = f"[{_text(value.text)}]({value.slug}/README.md)"
+        text = f"[{_md(value.text)}]({value.slug}/README.md)"
     elif isinstance(value, Chips):
-        text = value.text
+        text = md_escaped(value.text)
     else:
-        text = _text(value)
+        text = _md(value)
     return text.replace("|", "\\|").replace("\n", " ")
 
 
@@ -107,28 +128,29 @@ def _html_cell(value) -> str:
 # ---- blocks --------------------------------------------------------------------------------------
 
 def to_markdown(section: Section, page_dir: Path) -> str:
-    return "\n".join([f"# {_text(section.title)}", "", *_markdown_lines(section.blocks, page_dir)])
+    return "\n".join([f"# {_md(section.title)}", "", *_markdown_lines(section.blocks, page_dir)])
 
 
 def _markdown_lines(blocks, page_dir: Path) -> list[str]:
     lines = []
     for block in blocks:
         if isinstance(block, Paragraph):
-            lines += [_text(block.text), ""]
+            lines += [_md(block.text), ""]
         elif isinstance(block, Table):
             if block.caption:
-                lines += [f"**{_text(block.caption)}**", ""]
+                lines += [f"**{_md(block.caption)}**", ""]
             lines.append("| " + " | ".join(_md_cell(h) for h in block.headers) + " |")
             lines.append("|" + "---|" * len(block.headers))
             lines += ["| " + " | ".join(_md_cell(c) for c in row) + " |" for row in block.rows]
             lines.append("")
         elif isinstance(block, Figure):
             rel = os.path.relpath(block.path, page_dir)
-            lines += [f"![{_text(block.caption)}]({rel})", "", f"*{_text(block.caption)}*", ""]
+            lines += [f"![{_md(block.caption)}]({rel})", "", f"*{_md(block.caption)}*", ""]
         elif isinstance(block, Code):
-            lines += ["```", block.text, "```", ""]
+            fence = "`" * max(3, 1 + max((len(run) for run in re.findall("`+", block.text)), default=0))
+            lines += [fence, block.text, fence, ""]  # longer than any run of backticks in it: it cannot end early
         elif isinstance(block, Details):
-            lines += [f"**{_text(block.summary)}** {_text(block.text)}", ""]
+            lines += [f"**{_md(block.summary)}** {_md(block.text)}", ""]
         else:
             raise TypeError(f"unknown block {type(block).__name__}")
     return lines
@@ -565,7 +587,7 @@ def write_report(sections: list[Section], out_dir: Path, title: str, preamble: s
 
 def _index_markdown(title: str, preamble: str, listed: dict, shown: list[SectionSummary],
                     provenance: dict | None, out_dir: Path) -> str:
-    lines = [f"# {title}", "", preamble, ""]
+    lines = [f"# {md_escaped(title)}", "", md_escaped(preamble), ""]
     if shown:
         lines += ["## Summary of verdicts", "", VerdictCounts.total(s.verdicts for s in shown).line() + ".", "",
                   *_markdown_lines([summary_table(shown)], out_dir), _LEGEND, "",
