@@ -145,6 +145,8 @@ def check_record(record) -> list[str]:
     derived = derive(record)
     problems = [f"{claim}: '{k}' is {str(record.get(k))[:60]!r}, the kernel derives {str(derived[k])[:60]!r}"
                 for k in DERIVED if record.get(k) != derived[k]]
+    if "expected" in record and record["expected"] != derived["status"]:
+        problems.append(f"{claim}: meant to be {record['expected']!r}, the kernel derives {derived['status']!r}")
     for c in record.get("negative_controls", ()):
         if not isinstance(c, dict) or "statement" not in c:
             problems.append(f"{claim}: a negative control without a formal statement")

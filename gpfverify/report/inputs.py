@@ -148,6 +148,18 @@ class CertificateInfo:
     title: str = ""
     #: a numerical check that failed (False), or None for a kernel record
     holds: bool | None = None
+    #: the status the record is meant to get ("refuted" for a false variant of a theorem), or ""
+    expected: str = ""
+
+    @property
+    def as_intended(self) -> bool:
+        """A status its record says it is meant to get (a refutation that is the result)."""
+        return bool(self.expected) and self.expected == self.status
+
+    @property
+    def status_text(self) -> str:
+        """The status as the pages show it: "refuted, as intended" for a statement meant to be refuted."""
+        return f"{self.status}, as intended" if self.as_intended else self.status
 
     @classmethod
     def of(cls, record: dict) -> CertificateInfo:
@@ -169,7 +181,7 @@ class CertificateInfo:
                 method, scope = "not confirmed by the kernel", "not proved"
             return cls(str(record["claim"]), statement, method, status, detail, float(record.get("seconds", 0.0)),
                        scope, controls, str(record.get("title", "")),
-                       None if record.get("holds") is None else bool(record["holds"]))
+                       None if record.get("holds") is None else bool(record["holds"]), str(record.get("expected", "")))
         except (KeyError, TypeError, ValueError) as exc:
             raise InputError(f"malformed certificate {str(record)[:80]!r}: {exc}") from None
 
