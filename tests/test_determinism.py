@@ -124,8 +124,9 @@ def test_a_dask_scheduler_and_workers_started_from_the_shell_give_the_same_bytes
 @pytest.mark.parametrize("name", sorted(EXPERIMENTS))
 def test_sigkill_leaves_no_orphans_and_resume_gives_the_same_bytes(serial, tmp_path, name):
     out = tmp_path / "killed"
+    # one run per batch: a run is saved as soon as it ends, and the kill lands with runs still to do
     proc = subprocess.Popen(_cli("reproduce", *EXPERIMENTS[name], "--runs", RUNS, "--seed", SEED,
-                                 "--out", str(out), "--workers", "2"),
+                                 "--out", str(out), "--workers", "2", "--batch", "1"),
                             stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     children: set[int] = set()
     deadline = time.monotonic() + 120
@@ -165,8 +166,9 @@ def test_sigkill_leaves_no_orphans_and_resume_gives_the_same_bytes(serial, tmp_p
 @pytest.mark.skipif(not sys.platform.startswith("linux"), reason="reads /proc")
 def test_a_killed_worker_keeps_the_saved_runs_and_resume_gives_the_same_bytes(serial, tmp_path):
     name, out = "ungm1d", tmp_path / "out"
+    # one run per batch: a run is saved as soon as it ends, and the kill lands with runs still to do
     proc = subprocess.Popen(_cli("reproduce", *EXPERIMENTS[name], "--runs", RUNS, "--seed", SEED,
-                                 "--out", str(out), "--workers", "2"),
+                                 "--out", str(out), "--workers", "2", "--batch", "1"),
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     deadline = time.monotonic() + 120
     try:

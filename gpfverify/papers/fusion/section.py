@@ -171,8 +171,16 @@ def time_words(results: dict) -> str:
     clock = results.get("time_clock")
     if clock is None:  # runs timed before the CPU clock
         return "wall-clock time on the machine that made the runs (a busy machine inflates it)."
-    return (f"{clock} — a busy machine perturbs it far less than wall time; the timing claims compare the methods' "
-            "CPU times within each run, as paired per-run ratios, and are counted apart from the accuracy claims.")
+    words = (f"{clock} — a busy machine perturbs it far less than wall time; the timing claims compare the methods' "
+             "CPU times within each run, as paired per-run ratios, and are counted apart from the accuracy claims.")
+    load = results.get("machine_load") or {}
+    if load.get("runs_batched"):
+        words += (f" {load['runs_batched']} of the runs advanced together with others, in batches of up to "
+                  f"{load['largest_batch']} (docs/cluster.md): there a method's time per step is the batch's CPU time "
+                  "divided by its size, the same for every run of the batch, so the ratios the timing claims pair are "
+                  "the batch's; the filters, fusion rules and audit were batched, each run's GP learning was not "
+                  "(its own L-BFGS path, timed on its own).")
+    return words
 
 
 def load_words(results: dict) -> str:
