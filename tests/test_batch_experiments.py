@@ -10,7 +10,8 @@ runs one at a time (run_one, the unbatched step functions looped), and the runne
   compared with the per-run record's own rounding spread: within ten times the largest relative
   |DMF − CMF| of that run (the two differences are independent draws of the same rounding, measured
   at most 2.2 times apart), and each step's verdict (gap within its bound) the same;
-* reproduce with --batch 1, --batch 4 and --workers 2 writes the same results.json."""
+* reproduce with --batch 1, --batch 4 and --workers 2 writes the same results.json, for the fusion
+  experiments and for the particle methods' (pff1d, bearing, tbd) through their own run_batch."""
 
 import json
 
@@ -130,6 +131,26 @@ def test_reproduce_is_the_same_for_every_batch_and_worker_count(tmp_path):
     assert texts[1:] == texts[:1] * 3
     saved = json.loads((tmp_path / "b4" / "runs" / "run-000004.json").read_text())
     assert saved["batch_size"] == 1 and saved["status"] == "ok"
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("experiment", ["pff1d", "bearing", "tbd"])
+def test_reproduce_of_a_particle_experiment_is_the_same_for_every_batch_and_worker_count(experiment, tmp_path):
+    """The runner hands the particle experiments' run_batch B runs at a time (5 runs: batches of 1,
+    of 3 + 2, and of 2 + 2 + 1 over two worker processes): the same results.json every time."""
+    from gpfverify.experiments.runner import make_executor
+    from tests.test_particle_runs import _experiment_cases
+
+    module, params = _experiment_cases()[experiment]
+    outs = [without_timing(run_experiment(module, params, 5, 2, tmp_path / f"b{b}", batch=b, show_progress=False))
+            for b in (1, 3)]
+    with make_executor(2) as executor:
+        outs.append(without_timing(run_experiment(module, params, 5, 2, tmp_path / "w2", executor=executor, batch=2,
+                                                  show_progress=False)))
+    texts = [json.dumps(o, sort_keys=True) for o in outs]
+    assert texts[1:] == texts[:1] * 2
+    saved = [json.loads((tmp_path / "b3" / "runs" / f"run-{i:06d}.json").read_text())["batch_size"] for i in range(5)]
+    assert saved == [3, 3, 3, 2, 2]
 
 
 @pytest.mark.slow

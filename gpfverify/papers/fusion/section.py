@@ -216,7 +216,7 @@ def plot_per_step(series: dict, ylabel: str, title: str, path: Path, log: bool =
     ax.set_xlabel("time step")
     ax.set_ylabel(ylabel)
     ax.set_title(title)
-    ax.legend(fontsize=7, ncol=2, loc="upper left", bbox_to_anchor=(1.01, 1.0), frameon=False)
+    ax.legend(ncol=2, loc="upper left", bbox_to_anchor=(1.01, 1.0), frameon=False)
     return save(fig, path)
 
 
@@ -232,7 +232,7 @@ def plot_full_rank(results: dict, title: str, path: Path) -> Path:
     rule = ("canonical correlations > √eps" if "canonical" in results.get("rank_tolerance", "")
             else "σ_max · max(D, l) · eps")
     ax.set_title(f"{title}\n(rank rule: {rule})", fontsize=9)
-    ax.legend(fontsize=7)
+    ax.legend()
     ax = axes[0, 1]
     by_tol = results["full_rank_ratio_by_relative_tolerance"]
     tols = sorted(by_tol, key=float)
