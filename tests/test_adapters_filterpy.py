@@ -15,6 +15,7 @@
 
 from __future__ import annotations
 
+import inspect
 import json
 
 import numpy as np
@@ -302,20 +303,7 @@ EAST = np.array([250.0, 0.0])
 STARTS = [(np.array([5.0, -3.0, -3.0, 0.6]), np.diag([25.0, 1.0, 25.0, 1.0])),
           (np.array([-4.0, -2.0, 6.0, 0.0]), np.diag([100.0, 4.0, 60.0, 2.0]))]
 
-def fx(x, dt):
-    return F @ x
-
-def radar(x):
-    d = x[[0, 2]] - EAST
-    return np.array([np.hypot(*d), np.arctan2(d[1], d[0])])
-
-def position(x):
-    return x[[0, 2]]
-
-def bearing_residual(a, b):
-    d = np.subtract(a, b)
-    d[1] = (d[1] + np.pi) % (2 * np.pi) - np.pi
-    return d
+#HELPERS
 
 def kalman(H, R, start):
     kf = KalmanFilter(dim_x=4, dim_z=len(R))
@@ -333,21 +321,23 @@ def kalman_filters():
             kalman([[0, 1, 0, 0], [0, 0, 0, 1]], np.diag([0.5, 0.5]), STARTS[1])]
 
 def merwe_filters():
-    return [unscented(radar, np.diag([4.0, 0.02**2]), STARTS[0], MerweScaledSigmaPoints(4, 0.3, 2.0, 0.1),
-                      residual_z=bearing_residual),
+    return [unscented(range_bearing, np.diag([4.0, 0.02**2]), STARTS[0], MerweScaledSigmaPoints(4, 0.3, 2.0, 0.1),
+                      residual_z=residual_bearing),
             unscented(position, 4.0 * np.eye(2), STARTS[1], MerweScaledSigmaPoints(4, 0.3, 2.0, 0.1))]
 
 def julier_filters():
-    return [unscented(radar, np.diag([4.0, 0.02**2]), STARTS[0], JulierSigmaPoints(4, kappa=1.0),
-                      residual_z=bearing_residual),
+    return [unscented(range_bearing, np.diag([4.0, 0.02**2]), STARTS[0], JulierSigmaPoints(4, kappa=1.0),
+                      residual_z=residual_bearing),
             unscented(position, 4.0 * np.eye(2), STARTS[1], JulierSigmaPoints(4, kappa=1.0))]
 '''
+#: the user's file defines the model functions this module does
+HELPERS = "\n".join(inspect.getsource(f) for f in (fx, range_bearing, position, residual_bearing))
 
 
 def _starts_module(tmp_path):
     import importlib.util
 
-    (tmp_path / "starts.py").write_text(STARTS_FILE)
+    (tmp_path / "starts.py").write_text(STARTS_FILE.replace("#HELPERS", HELPERS))
     spec = importlib.util.spec_from_file_location("starts_for_the_test", tmp_path / "starts.py")
     module = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(module)
