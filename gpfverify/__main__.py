@@ -1,3 +1,3 @@
-from gpfverify.cli import program
+from gpfverify.entry import program
 
 program()

@@ -34,10 +34,10 @@ import sys
 import warnings
 from typing import NoReturn
 
-from gpfverify import __version__, provenance, supervise
-from gpfverify.errors import GpfverifyError
+from gpfverify import __version__, provenance, streams, supervise
+from gpfverify.errors import GpfverifyError, OutOfMemory
 from gpfverify.runtime import default_single_blas_thread
-from gpfverify.usercode import Interrupted, marks_interrupts
+from gpfverify.usercode import Interrupted, forget_interrupts, interrupt_received, marks_interrupts, note_interrupt
 
 #: command name -> (module, one-line help)
 COMMANDS: dict[str, tuple[str, str]] = {
@@ -61,6 +61,13 @@ class OneLineParser(argparse.ArgumentParser):
 
     def error(self, message: str):  # noqa: D401 - argparse API
         self.exit(2, f"{self.prog}: error: {one_line(message)}\n")
+
+    def _print_message(self, message: str, file=None) -> None:
+        """argparse's messages to stderr (usage errors) are gpfverify's diagnostics
+        (:func:`gpfverify.streams.diagnostics`), not other code's held output; --help and --version
+        go to standard output as argparse prints them."""
+        if message:
+            (streams.diagnostics() if file is None or file is sys.stderr else file).write(message)
 
     def parse_args(self, args=None, namespace=None):
         """Parse, then refuse non-finite numbers (argparse's ``float`` accepts inf and nan)."""
@@ -123,6 +130,13 @@ def fusion_rules(text: str) -> tuple[str, ...]:
     return tuple(dict.fromkeys(fusion_rule(name) for name in text.split(",") if name.strip()))
 
 
+#: the one description of ``--batch`` (check, reproduce)
+BATCH_HELP = ("Monte Carlo runs advanced together as arrays, B at a time (default: as many as the memory available "
+              "holds, at most 64); each batch is one task for a worker process or a dask cluster, and each run is "
+              "saved as it ends (--resume continues run by run). Results are the same bits for every B, --workers "
+              "and --scheduler.")
+
+
 #: the one description of ``--rank-rule`` (check, audit, reproduce)
 RANK_RULE_HELP = ("How the rank of each C_xy^m in eq. 35 is decided: canonical[:TAU] (canonical correlations "
                   "of state and sensor output above TAU, default sqrt(eps); unit-free), absolute:TOL "
@@ -142,6 +156,15 @@ def rank_rule_text(text: str) -> str:
     return text
 
 
+def positive_seconds(text: str) -> float:
+    """argparse type: a duration in seconds, > 0 (``--timeout``)."""
+    value = float(text)
+    if not value > 0:
+        raise argparse.ArgumentTypeError(f"must be a number of seconds > 0, got {text}")
+    return value
+
+
+positive_seconds.__name__ = "number of seconds"
 non_negative_int.__name__ = "integer >= 0"  # argparse names the type in "invalid ... value"
 positive_int.__name__ = "integer >= 1"
 
@@ -169,15 +192,22 @@ def _interrupt(signum, frame):
     """Ctrl-C (SIGINT) and SIGTERM stop the command (:class:`~gpfverify.usercode.Interrupted`);
     from the first one on, further ones are ignored, so that a second Ctrl-C cannot cut short the
     clean-up the first started (stopping the workers, keeping the saved runs, the one
-    "interrupted" line)."""
+    "interrupted" line). It is recorded too (:func:`~gpfverify.usercode.note_interrupt`): one that
+    other code swallows still ends the command as interrupted."""
+    note_interrupt()
     _ignore_further_interrupts()
     raise Interrupted
 
 
 def _user_error(exc: BaseException) -> str | None:
-    """The one-line message for an error the user caused, or None for a bug."""
-    if isinstance(exc, GpfverifyError):
+    """The one-line message for an error the user (or the machine) caused, or None for a bug."""
+    from gpfverify.memory import advice, out_of_memory
+
+    if isinstance(exc, GpfverifyError) and not isinstance(exc, OutOfMemory):
         return str(exc)
+    memory = out_of_memory(exc, near=False)
+    if memory is not None:
+        return f"out of memory ({memory}); {advice()}"
     if isinstance(exc, shutil.Error) and exc.args and isinstance(exc.args[0], list) and exc.args[0]:
         return _copy_error(exc.args[0])  # copytree's list of (source, destination, why)
     if isinstance(exc, OSError):
@@ -190,7 +220,8 @@ def _user_error(exc: BaseException) -> str | None:
     if isinstance(exc, FloatingPointError):
         return (f"numerical overflow ({exc}): the input's numbers are too large or too small in "
                 "combination")
-    return None
+    memory = out_of_memory(exc)  # a bug, unless the process came near its memory limit
+    return None if memory is None else f"out of memory ({memory}); {advice()}"
 
 
 def _copy_error(failures: list) -> str:
@@ -231,27 +262,6 @@ def _silence_stdout() -> None:
         pass
 
 
-class _Diagnostics:
-    """stderr that never stops a command: a line that cannot be written (stderr closed, on a full
-    device, a closed pipe) is dropped; stderr carries diagnostics, never the result."""
-
-    def __init__(self, stream) -> None:
-        self._stream = stream
-
-    def write(self, text: str) -> int:
-        try:
-            return self._stream.write(text) if self._stream is not None else len(text)
-        except (OSError, ValueError):  # ValueError: the stream was closed
-            return len(text)
-
-    def flush(self) -> None:
-        with contextlib.suppress(OSError, ValueError, AttributeError):
-            self._stream.flush()
-
-    def __getattr__(self, name: str):
-        return getattr(self._stream, name)
-
-
 def _occupy_closed_standard_fds() -> None:
     """Point a closed descriptor 0, 1 or 2 (``2>&-``) at /dev/null, so that no file gpfverify opens
     gets its number (a library writing to descriptor 2 would write into that file)."""
@@ -286,7 +296,7 @@ def _summarise_warnings(command: str, caught: list) -> None:
     if shown:
         first = shown[0]
         print(f"gpfverify {command}: note: {len(shown)} warning(s) while running, first: "
-              f"{first.category.__name__}: {one_line(first.message)}", file=sys.stderr)
+              f"{first.category.__name__}: {one_line(first.message)}", file=streams.diagnostics())
 
 
 def _ignore_further_interrupts() -> None:
@@ -300,34 +310,143 @@ def _ignore_further_interrupts() -> None:
 def program() -> NoReturn:
     """``gpfverify`` run as a program (the console script, ``python -m gpfverify``): the command runs
     in a child process that reports its exit status as its last act (:mod:`gpfverify.supervise`),
-    and this process ends with that status. Ends the process."""
-    _occupy_closed_standard_fds()  # before the pipe to the child takes a free descriptor
-    args = sys.argv[1:]
-    command = args[0] if args and args[0] in COMMANDS else "gpfverify"
-    supervise.start(command)  # from here on: the process running the command
+    and this process ends with that status. gpfverify prints through private duplicates of
+    descriptors 1 and 2 (:mod:`gpfverify.streams`). Once the command has returned, its status is
+    final: Ctrl-C and SIGTERM are held (one that came meanwhile makes it 130), and the ``atexit``
+    handlers of other code (a system file's) run after the status is sent, their output dropped and
+    unable to end the process with another status. Ends the process."""
+    command = "gpfverify"
     try:
-        code = main()
-    except SystemExit as exc:  # argparse: --help, --version, a usage error (printed already)
-        code = exc.code if isinstance(exc.code, int) else int(exc.code is not None)
-    except BaseException:  # GPFVERIFY_DEBUG=1: the traceback, and no second line from the parent
-        supervise.note("exit", "1")
-        raise
-    sys.exit(supervise.finish(command, code))
+        _occupy_closed_standard_fds()  # before the pipe to the child takes a free descriptor
+        args = sys.argv[1:]
+        command = args[0] if args and args[0] in COMMANDS else "gpfverify"
+        supervise.start(command, _keep_abandoned)  # from here on: the process running the command
+        held = sys.stderr  # descriptor 2: held by the parent (gpfverify.supervise)
+        sys.stdout, sys.stderr = streams.private_streams(supervise.standard_fds())
+    except KeyboardInterrupt:  # before the command started (gpfverify.entry's handler)
+        with contextlib.suppress(BaseException):
+            _say(f"gpfverify {command}: interrupted")
+        supervise.HARD_EXIT(130)
+    code, returned = 1, False
+    try:
+        try:
+            try:
+                code = main(held=held)
+                returned = True
+            finally:
+                signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT, signal.SIGTERM})
+        except SystemExit as exc:  # argparse: --help, --version, a usage error (printed already)
+            code = exc.code if isinstance(exc.code, int) else int(exc.code is not None)
+        except KeyboardInterrupt:  # before the command's own handler, or between its end and the line above
+            if returned:
+                code = _interrupted_as_it_ended(command)
+            else:
+                _say(f"gpfverify {command}: interrupted")
+                code = 130
+        if code == 0 and {signal.SIGINT, signal.SIGTERM} & signal.sigpending():  # a failure's line stands
+            code = _interrupted_as_it_ended(command)
+    except BaseException as exc:  # noqa: BLE001 - GPFVERIFY_DEBUG=1's traceback, or gpfverify failing outside main
+        code = _outside_the_command(command, exc)
+    with contextlib.suppress(BaseException):
+        code = supervise.finish(command, code)
+    with contextlib.suppress(BaseException):
+        _run_exit_handlers()
+    supervise.HARD_EXIT(code)
 
 
-def main(argv: list[str] | None = None) -> int:
-    """Run one command (see the module docstring) in this process; stderr is
-    :class:`_Diagnostics` meanwhile. Called with ``argv`` None (the program, :func:`program`), the
-    signal handlers it sets stay until the process ends; called from Python with ``argv``, they
-    are restored on return."""
-    saved = sys.stderr
+def _keep_abandoned(stage: str, out: str, made: list[str]) -> str:
+    """For :mod:`gpfverify.supervise`: the saved runs of a staging folder that a killed command
+    process left, kept at once (:func:`gpfverify.outputs.keep_abandoned`); what was kept, for the
+    end of the one line."""
+    from pathlib import Path
+
+    from gpfverify.outputs import keep_abandoned, kept_note
+
+    finished = keep_abandoned(Path(stage), Path(out), [Path(m) for m in made])
+    if finished is None:
+        return "the runs it had saved are kept for the next command on --out"
+    return kept_note(Path(out), finished)
+
+
+def _outside_the_command(command: str, exc: BaseException) -> int:
+    """The exit status, and its one line, of an exception that reached :func:`program`: the
+    traceback that ``GPFVERIFY_DEBUG=1`` asked for, or memory running out after the command
+    ended (2); anything else is a bug (1)."""
+    from gpfverify.memory import advice, out_of_memory
+
+    with contextlib.suppress(BaseException):
+        if os.environ.get("GPFVERIFY_DEBUG"):
+            import traceback
+
+            streams.diagnostics().write("".join(traceback.format_exception(exc)))
+            return 1
+        memory = out_of_memory(exc)
+        if memory is not None:
+            _say(f"gpfverify {command}: error: out of memory ({memory}); {advice()}")
+            return 2
+        _say(f"gpfverify {command}: internal error: {type(exc).__name__}: {one_line(exc)} (a bug: please report "
+             "it; GPFVERIFY_DEBUG=1 shows the traceback)")
+    return 1
+
+
+def _say(line: str) -> None:
+    """One line of gpfverify's on its diagnostics, written whole (one write: memory running out
+    cannot leave it without its end)."""
+    stream = streams.diagnostics()
+    stream.write(line + "\n")
+    stream.flush()
+
+
+def _interrupted_as_it_ended(command: str) -> int:
+    """A Ctrl-C or SIGTERM that came when the command had completed (or that other code swallowed
+    while it ran): exit status 130, never 0, and a line saying the output is complete."""
+    _say(f"gpfverify {command}: interrupted as it ended; the command had completed and its output is complete")
+    return 130
+
+
+def _run_exit_handlers() -> None:
+    """The ``atexit`` handlers of other code, run once gpfverify's status is sent and its output
+    flushed (:func:`program`): what they print is dropped, their exceptions are not shown, and an
+    ``os._exit`` among them ends only themselves."""
+    import atexit
+
+    def refuse_exit(code: int = 0) -> None:
+        raise SystemExit(code)
+
+    sys.stdout = sys.stderr = streams.Diagnostics(None)
+    sys.unraisablehook = lambda unraisable: None
+    os._exit = refuse_exit  # type: ignore[assignment]
+    atexit._run_exitfuncs()
+
+
+def _unraisable_hook(previous):
+    """``sys.unraisablehook`` while a command runs: a Ctrl-C that lands in a weak-reference
+    callback or a ``__del__`` is recorded by gpfverify's handler and ends the command as
+    interrupted, so it is not printed; anything else goes to ``previous``."""
+    def hook(unraisable) -> None:
+        if isinstance(unraisable.exc_value, KeyboardInterrupt) and interrupt_received():
+            return
+        previous(unraisable)
+
+    return hook
+
+
+def main(argv: list[str] | None = None, held=None) -> int:
+    """Run one command (see the module docstring) in this process, with gpfverify's own streams
+    (:func:`gpfverify.streams.owned`: stderr drops what it cannot write, ``sys.stdout`` carries the
+    command's result only; ``held``, where other code's writes to ``sys.stderr`` go, the program's
+    descriptor 2). Called with ``argv`` None (the program, :func:`program`), the signal handlers it
+    sets stay until the process ends; called from Python with ``argv``, they are restored on
+    return."""
     handlers = {s: signal.getsignal(s) for s in (signal.SIGINT, signal.SIGTERM)}
+    hook = sys.unraisablehook
     _occupy_closed_standard_fds()
-    sys.stderr = _Diagnostics(saved if saved is not None else open(os.devnull, "w"))
+    sys.unraisablehook = _unraisable_hook(hook)
     try:
-        return _main(argv)
+        with streams.owned(sys.stdout, sys.stderr, held):
+            return _main(argv)
     finally:
-        sys.stderr = saved
+        sys.unraisablehook = hook
         if argv is not None:
             with contextlib.suppress(ValueError, TypeError):
                 for number, handler in handlers.items():
@@ -335,7 +454,11 @@ def main(argv: list[str] | None = None) -> int:
 
 
 def _main(argv: list[str] | None) -> int:
+    from gpfverify.memory import advise, hold_reserve, release_reserve, reserve_blas_buffers
+    from gpfverify.usercode import set_time_limit
+
     default_single_blas_thread()  # before any command imports numpy (see gpfverify.runtime)
+    forget_interrupts()
     try:
         signal.signal(signal.SIGTERM, _interrupt)  # `kill` stops cleanly, like Ctrl-C
         signal.signal(signal.SIGINT, _interrupt)
@@ -351,29 +474,42 @@ def _main(argv: list[str] | None) -> int:
     with warnings.catch_warnings(record=True) as caught:
         try:
             _refuse_closed_stdout()
+            reserve_blas_buffers()  # before the command's modules load them
+            hold_reserve()  # for the clean-up, should memory run out
             module = importlib.import_module(COMMANDS[command][0])
-            args = command_parser(command).parse_args(argv[1:])
+            command_args = command_parser(command)
+            args = command_args.parse_args(argv[1:])
+            advise(command_args._option_string_actions)
+            set_time_limit(getattr(args, "timeout", None))
             with _float_errors(command):
                 code = int(module.run(args) or 0)
             sys.stdout.flush()  # a closed pipe shows here, inside the boundary
+            if interrupt_received():  # swallowed by other code on its way: the command is still interrupted
+                return _interrupted_as_it_ended(command)
         except KeyboardInterrupt as exc:
             _ignore_further_interrupts()
-            print(f"gpfverify {command}: {one_line(_with_notes('interrupted', exc))}", file=sys.stderr)
+            _say(f"gpfverify {command}: {one_line(_with_notes('interrupted', exc))}")
             return 130
         except SystemExit:  # argparse: usage error (one line) or --help
             raise
         except BaseException as exc:  # noqa: BLE001 - the one error boundary of the command line
+            release_reserve()  # room to say what happened, should memory have run out
+            streams.reinstate()  # whatever other code did to sys.stdout and sys.stderr
+            if interrupt_received():  # a Ctrl-C that reached compiled code became another error there
+                _ignore_further_interrupts()
+                _say(f"gpfverify {command}: {one_line(_with_notes('interrupted', exc))}")
+                return 130
             if isinstance(exc, BrokenPipeError):  # the reader stopped reading (| head): it knows, so no line
                 _silence_stdout()
                 return 2
             message = _user_error(exc)
             if message is not None:
-                print(f"gpfverify {command}: error: {one_line(_with_notes(message, exc))}", file=sys.stderr)
+                _say(f"gpfverify {command}: error: {one_line(_with_notes(message, exc))}")
                 return 2
             if os.environ.get("GPFVERIFY_DEBUG"):
                 raise
-            print(f"gpfverify {command}: internal error: {type(exc).__name__}: {one_line(exc)} "
-                  "(a bug: please report it; GPFVERIFY_DEBUG=1 shows the traceback)", file=sys.stderr)
+            _say(f"gpfverify {command}: internal error: {type(exc).__name__}: {one_line(exc)} "
+                 "(a bug: please report it; GPFVERIFY_DEBUG=1 shows the traceback)")
             return 1
     _summarise_warnings(command, caught)
     return code

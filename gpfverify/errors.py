@@ -30,3 +30,10 @@ class SolverError(NumericalError):
 class WorkerLost(GpfverifyError):
     """A worker process ended abruptly (a signal, the kernel's out-of-memory killer) while runs
     were being computed: the runs already saved are kept for ``--resume``, as on an interruption."""
+
+
+class OutOfMemory(GpfverifyError):
+    """The machine, or the limit set on this process (``ulimit -v``), has no memory left for what the
+    command needs: an error of the environment (exit status 2), never a failed run nor a bug. Raised
+    by :mod:`gpfverify.memory` in place of a ``MemoryError`` or an allocation failure a library
+    reported another way."""

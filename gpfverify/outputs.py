@@ -8,7 +8,8 @@ is ever changed or removed, and a command that fails leaves DIR as it found it.
 before the command's work begins:
 
 1. **Check**, before anything is created: ``DIR`` is not ``''``, not the current folder nor one
-   containing it; if it exists it is a folder whose every entry is listed in
+   containing it, and a ``..`` in it follows folders that exist (:func:`canonical`: ``nosuch/..``
+   is refused, never made); if it exists it is a folder whose every entry is listed in
    ``DIR/.gpfverify-files`` (the files gpfverify wrote there, one relative POSIX path per line);
    DIR, everything in it and the folder that will hold it are writable by their permissions (a
    folder or file made read-only is refused, never replaced — also for root, whom the operating
@@ -24,10 +25,17 @@ before the command's work begins:
 3. **Stage**: the staging folder starts as a copy of DIR's files (``keep=True``: saved runs to
    resume, report sections to keep) or empty (``keep=False``: the command rewrites all of it).
 4. **Commit** on success: the list of files is written into the staging folder, which then
-   replaces DIR by ``rename`` (DIR held only gpfverify's files, re-checked just before). On an
+   takes DIR's place by a rename that never replaces anything (:func:`rename_noreplace`:
+   ``renameat2(RENAME_NOREPLACE)`` on Linux). DIR held only gpfverify's files, re-checked just
+   before; a previous DIR is first set aside as the hidden sibling ``.gpfverify-retired-NAME-HASH``,
+   checked again there (an entry that arrived meanwhile puts it back and fails the command), and
+   then only what its list names is removed. A folder that appears at DIR while the command runs
+   (someone else's) is never replaced: the command fails and that folder is untouched. On an
    error the staging folder is removed, and so are the folders made to hold DIR: everything is as
-   it was. On an interruption (Ctrl-C, SIGTERM) or a lost worker process
-   (:class:`~gpfverify.errors.WorkerLost`) the saved runs (``manifest.json`` and
+   it was. A Ctrl-C that other code swallowed still stops the command before it commits. On an
+   interruption (Ctrl-C, SIGTERM), a lost worker process
+   (:class:`~gpfverify.errors.WorkerLost`) or memory running out (``MemoryError``,
+   :class:`~gpfverify.errors.OutOfMemory`) the saved runs (``manifest.json`` and
    ``runs/run-*.json`` at any depth, each written whole) are moved into DIR, so ``--resume``
    continues them, and a note on the exception says so; nothing else is kept.
 """
@@ -41,12 +49,14 @@ import hashlib
 import os
 import shutil
 import stat
-import sys
+import traceback
 from collections.abc import Iterable, Iterator
 from pathlib import Path, PurePosixPath
 
-from gpfverify import supervise
-from gpfverify.errors import InputError, WorkerLost
+from gpfverify import streams, supervise
+from gpfverify.errors import InputError, OutOfMemory, WorkerLost
+from gpfverify.memory import release_reserve
+from gpfverify.usercode import Interrupted, interrupt_received
 
 #: the list of files gpfverify wrote in an output folder (its own entry included)
 FILE_LIST = ".gpfverify-files"
@@ -136,11 +146,28 @@ def _existing_ancestor(path: Path) -> Path:
     return path
 
 
+def canonical(out: Path) -> Path:
+    """``out`` as an absolute path without ``..``: the part up to its last ``..`` resolved by the
+    system (so it must exist: ``nosuch/..`` is refused, never made), the rest as given. Creates
+    nothing."""
+    parts = Path(out).absolute().parts
+    if ".." not in parts:
+        return Path(out).absolute()
+    last = len(parts) - 1 - parts[::-1].index("..")
+    try:
+        base = Path(*parts[:last + 1]).resolve(strict=True)
+    except (OSError, RuntimeError):  # a missing folder before the '..', or a loop of links
+        raise InputError(f"--out {out} goes through {Path(*parts[:last])}, which is not a folder that exists; name "
+                         "the folder without '..' or through folders that exist") from None
+    return base.joinpath(*parts[last + 1:])
+
+
 def check_out(out: Path) -> None:
     """Refuse ``out`` unless gpfverify may write it (step 1 of the module docstring); creates
     nothing."""
     if str(out) == "":
         raise InputError("--out must name a folder, got an empty string")
+    out = canonical(out)
     if out.exists() and out.is_dir() and Path.cwd().resolve().is_relative_to(out.resolve()):
         raise InputError(f"--out {out} is the current folder or contains it; name a folder inside it")
     if out.is_symlink() or (out.exists() and not out.is_dir()):
@@ -243,7 +270,8 @@ def _lock(stage: Path, out: Path, wait: bool) -> int:
                 if not wait:
                     raise _Busy from None
                 if not said:
-                    print(f"waiting for the other gpfverify command writing {out} to finish", file=sys.stderr)
+                    print(f"waiting for the other gpfverify command writing {out} to finish",
+                          file=streams.diagnostics())
                     said = True
                 fcntl.flock(fd, fcntl.LOCK_EX)
             try:  # still the folder at that name (its owner may have committed it as DIR or removed it)
@@ -272,14 +300,12 @@ def _salvage_runs(stage: Path, out: Path) -> int:
         target = out / entry
         target.parent.mkdir(parents=True, exist_ok=True)
         os.replace(stage / entry, target)
-    files = sorted(listed | set(runs))
-    tmp = out / f"{FILE_LIST}.{os.getpid()}"
-    tmp.write_text("".join(f"{f}\n" for f in [FILE_LIST, *files]), encoding="utf-8")
-    os.replace(tmp, out / FILE_LIST)
+    _save_list(out, listed | set(runs))
     return finished
 
 
 def _clear(folder: Path) -> None:
+    """Empty ``folder``, a staging folder (gpfverify's own, all of it)."""
     for entry in folder.iterdir():
         if entry.is_dir() and not entry.is_symlink():
             shutil.rmtree(entry)
@@ -287,18 +313,41 @@ def _clear(folder: Path) -> None:
             entry.unlink()
 
 
-def _recover(stage: Path, out: Path) -> None:
+def _remove_listed(folder: Path) -> str | None:
+    """Remove what ``folder``'s list names (files, and the folders that only held them), then
+    ``folder`` itself when nothing is left; never anything the list does not name. The first entry
+    left (one that arrived while the folder was being replaced), or None."""
+    listed = _listed(folder)
+    for entry in sorted(listed - {FILE_LIST}) + [FILE_LIST]:
+        path = folder / entry
+        if path.is_symlink() or path.is_file():
+            path.unlink(missing_ok=True)
+    parents = {p for entry in listed for p in PurePosixPath(entry).parents if str(p) != "."}
+    for parent in sorted(parents, key=lambda p: len(p.parts), reverse=True):
+        with contextlib.suppress(OSError):  # not empty: something the list does not name is in it
+            (folder / parent).rmdir()
+    try:
+        folder.rmdir()
+    except OSError:
+        return next((entry for entry, _ in _entries(folder)), folder.name)
+    return None
+
+
+def _recover(stage: Path, out: Path) -> int:
     """Under the lock: finish what a killed command left — its saved runs into DIR, its other files
-    removed; a previous DIR set aside for a commit that did not happen put back."""
+    removed; a previous DIR set aside for a commit that did not happen put back, or removed (what
+    its list names) when the commit happened. The number of finished runs moved into DIR."""
     retired = sibling(out, RETIRED)
     if retired.exists():
         if out.exists():
-            shutil.rmtree(retired)
+            _remove_listed(retired)
         else:
-            retired.rename(out)
+            rename_noreplace(retired, out)
+    finished = 0
     if any(stage.iterdir()):
-        _salvage_runs(stage, out)
+        finished = _salvage_runs(stage, out)
         _clear(stage)
+    return finished
 
 
 def _copy_absent(src: str, dst: str) -> None:
@@ -306,23 +355,79 @@ def _copy_absent(src: str, dst: str) -> None:
         shutil.copy2(src, dst)
 
 
-def _swap_in(stage: Path, out: Path) -> None:
-    """Replace ``out`` (absent, empty, or gpfverify's files only) by the finished ``stage``."""
-    check_out(out)  # nothing foreign arrived while the command ran
-    if not out.exists():
-        stage.rename(out)
-        return
-    retired = sibling(out, RETIRED)
-    out.rename(retired)
+#: renameat2's flag: fail with EEXIST rather than replace what is at the destination (Linux ≥ 3.15)
+RENAME_NOREPLACE = 1
+#: openat's "the current folder" for renameat2
+AT_FDCWD = -100
+
+
+def _renameat2():
+    """The C library's ``renameat2``, or None where there is none (not Linux, an old C library)."""
+    import ctypes
+
     try:
-        stage.rename(out)
+        function = ctypes.CDLL(None, use_errno=True).renameat2
+    except (OSError, AttributeError):
+        return None
+    function.argtypes = [ctypes.c_int, ctypes.c_char_p, ctypes.c_int, ctypes.c_char_p, ctypes.c_uint]
+    function.restype = ctypes.c_int
+    return function
+
+
+def rename_noreplace(source: Path, target: Path) -> None:
+    """Rename the folder ``source`` to ``target`` unless something is at ``target``
+    (:class:`FileExistsError` then), atomically: ``renameat2(RENAME_NOREPLACE)`` where the system
+    has it. Elsewhere (or on a file system without the flag) a check, then ``rename``, which for a
+    folder replaces at most an *empty* folder made between the two, never a file or a folder that
+    holds anything: nothing of anyone's can be lost."""
+    import ctypes
+
+    function = _renameat2()
+    if function is not None:
+        if function(AT_FDCWD, os.fsencode(source), AT_FDCWD, os.fsencode(target), RENAME_NOREPLACE) == 0:
+            return
+        number = ctypes.get_errno()
+        if number not in (errno.ENOSYS, errno.EINVAL):  # EINVAL: the file system does not take the flag
+            raise OSError(number, os.strerror(number), str(source), None, str(target))
+    if os.path.lexists(target):
+        raise FileExistsError(errno.EEXIST, os.strerror(errno.EEXIST), str(source), None, str(target))
+    os.rename(source, target)
+
+
+def _swap_in(stage: Path, out: Path) -> str | None:
+    """Replace ``out`` (absent, empty, or gpfverify's files only) by the finished ``stage``, never
+    removing what ``out``'s list does not name: a folder that appears at ``out`` while this runs is
+    not replaced (the command fails, that folder untouched), and an entry that arrives in the old
+    ``out`` while it is replaced stays (returned, with the folder it is kept in)."""
+    check_out(out)  # nothing foreign arrived while the command ran
+    if not os.path.lexists(out):
+        try:
+            rename_noreplace(stage, out)
+        except FileExistsError:
+            raise InputError(f"--out {out} was made by another program while the command ran; its results were "
+                             "not written there (gpfverify never replaces a folder it did not make)") from None
+        return None
+    retired = sibling(out, RETIRED)
+    rename_noreplace(out, retired)
+    foreign = foreign_entry(retired)  # arrived between the check above and the rename
+    if foreign is not None:
+        with contextlib.suppress(OSError):
+            rename_noreplace(retired, out)
+        where = out if not retired.exists() else retired
+        raise InputError(f"--out {out} gained {foreign}, which gpfverify did not write, while the command was "
+                         f"writing it; the folder is as it was ({where}) and the command's results were not written")
+    try:
+        rename_noreplace(stage, out)
     except OSError:
-        retired.rename(out)
+        with contextlib.suppress(OSError):
+            rename_noreplace(retired, out)
         raise
-    shutil.rmtree(retired, ignore_errors=True)
+    left = _remove_listed(retired)
+    return None if left is None else f"{left} arrived in {out} while it was being replaced; it is kept in {retired}"
 
 
-def _kept_note(out: Path, finished: int) -> str:
+def kept_note(out: Path, finished: int) -> str:
+    """What an interrupted (or failed) command kept of its runs, for its one line."""
     if finished:
         return f"the saved runs are kept in {out}: run the command again with --resume to continue them"
     return f"nothing was written to {out}"
@@ -335,9 +440,8 @@ def output_folder(out: Path, keep: bool = True, wait: bool = False) -> Iterator[
     interrupted or lost a worker). ``keep``: start from a copy of ``out``'s files (runs to resume,
     sections to keep) rather than from an empty folder; ``wait``: wait for another command
     writing ``out`` rather than refuse. Module docstring."""
-    out = Path(out)
     check_out(out)
-    out = out.absolute()
+    out = canonical(out)
     made = _make_parents(out.parent)
     stage = sibling(out, PARTIAL)
     try:
@@ -349,6 +453,9 @@ def output_folder(out: Path, keep: bool = True, wait: bool = False) -> Iterator[
     except BaseException:
         _remove_made(made)
         raise
+    for path in made:
+        supervise.note("made", str(path))
+    supervise.note("out", str(out))
     supervise.note("stage", str(stage))
     committed = False
     try:
@@ -357,15 +464,23 @@ def output_folder(out: Path, keep: bool = True, wait: bool = False) -> Iterator[
         if keep and out.is_dir():
             shutil.copytree(out, stage, symlinks=True, dirs_exist_ok=True, copy_function=_copy_absent)
         yield stage
+        if interrupt_received():  # a Ctrl-C that other code swallowed: interrupted all the same
+            raise Interrupted
         _write_list(stage)
-        _swap_in(stage, out)
+        left = _swap_in(stage, out)
         committed = True
-    except (KeyboardInterrupt, WorkerLost) as exc:  # interrupted, or a worker lost: the saved runs are kept
-        finished = 0
-        with contextlib.suppress(OSError, InputError):
-            if stage.exists():
-                finished = _salvage_runs(stage, out)
-        exc.add_note(_kept_note(out, finished))
+        if left is not None:
+            print(f"note: {left}", file=streams.diagnostics())
+    except BaseException as exc:
+        if isinstance(exc, (MemoryError, OutOfMemory)):
+            release_reserve()  # room for keeping the runs and removing the staging folder
+            traceback.clear_frames(exc.__traceback__)  # and the memory the failed work held
+        if isinstance(exc, (KeyboardInterrupt, WorkerLost, MemoryError, OutOfMemory)) or interrupt_received():
+            finished = 0  # interrupted (also when compiled code turned the Ctrl-C into another error), a worker
+            with contextlib.suppress(OSError, InputError):  # lost, memory out: the saved runs are kept
+                if stage.exists():
+                    finished = _salvage_runs(stage, out)
+            exc.add_note(kept_note(out, finished))
         raise
     finally:
         if not committed:
@@ -374,6 +489,28 @@ def output_folder(out: Path, keep: bool = True, wait: bool = False) -> Iterator[
                 _remove_made(made)
         os.close(fd)
         supervise.note("done", str(stage))
+
+
+def keep_abandoned(stage: Path, out: Path, made: Iterable[Path]) -> int | None:
+    """What the process that supervised a command does when the command's process ended abruptly
+    (killed, out of memory) holding ``stage``: what the next command on ``out`` would do, at once —
+    the saved runs moved into ``out``, the rest removed, and the folders made to hold ``out``
+    removed when nothing was moved (:mod:`gpfverify.supervise`). The number of finished runs
+    moved; None when another command holds the folder by now or ``out`` may not be written."""
+    try:
+        fd = _lock(stage, out, wait=False)
+    except (_Busy, OSError, InputError):
+        return None
+    try:
+        finished = _recover(stage, out)
+        stage.rmdir()
+    except (OSError, InputError):
+        return None
+    finally:
+        os.close(fd)
+    if not out.exists():
+        _remove_made(list(made))
+    return finished
 
 
 def final_path(path: Path, stage: Path, out: Path) -> Path:

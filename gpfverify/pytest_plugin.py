@@ -5,7 +5,8 @@ and does nothing unless asked.
 * ``--gpfverify-cases DIR``: write the shrunk counterexample of every failing gpfverify property
   (the suites of :mod:`gpfverify.testing`, and any property using
   :func:`gpfverify.strategies.saving_case_on_failure`) as a fusion case file in DIR, which
-  ``gpfverify audit`` reads. Without it the case is printed in the failure report only.
+  ``gpfverify audit`` reads. Without it the case is printed in the failure report only. A DIR
+  that cannot be resolved (a loop of symbolic links) or is not a folder is a usage error.
 * Fixtures, each used only by a test that names it: ``gpfverify_strategies`` (the
   :mod:`gpfverify.strategies` module, for ``data.draw(...)`` inside a ``@given(st.data())`` test;
   session-scoped, so hypothesis accepts it) and ``gpfverify_cases`` (the folder given by
@@ -31,12 +32,24 @@ def pytest_addoption(parser: pytest.Parser) -> None:
                          "file in DIR (gpfverify audit reads it)")
 
 
+def _cases_folder(folder: str) -> Path:
+    """``--gpfverify-cases DIR`` as an absolute path; a path that cannot be resolved (a loop of
+    symbolic links) or names something other than a folder is a usage error, not an internal one."""
+    try:
+        path = Path(folder).resolve()
+    except (OSError, RuntimeError) as exc:  # RuntimeError: Python < 3.13's "Symlink loop"
+        raise pytest.UsageError(f"--gpfverify-cases {folder}: cannot be resolved ({exc})") from None
+    if path.exists() and not path.is_dir():
+        raise pytest.UsageError(f"--gpfverify-cases {folder}: exists and is not a folder")
+    return path
+
+
 def pytest_configure(config: pytest.Config) -> None:
     folder = config.getoption("gpfverify_cases", None)
     if folder:  # the folder reaches the properties (and worker processes) through the environment
         from gpfverify.strategies.counterexamples import ENVIRONMENT_VARIABLE
 
-        os.environ[ENVIRONMENT_VARIABLE] = str(Path(folder).resolve())
+        os.environ[ENVIRONMENT_VARIABLE] = str(_cases_folder(folder))
 
 
 @pytest.fixture(scope="session")
@@ -52,4 +65,4 @@ def gpfverify_strategies():
 def gpfverify_cases(pytestconfig: pytest.Config) -> Path | None:
     """The folder failing gpfverify properties write their case files to (``--gpfverify-cases``)."""
     folder = pytestconfig.getoption("gpfverify_cases", None)
-    return Path(folder).resolve() if folder else None
+    return _cases_folder(folder) if folder else None

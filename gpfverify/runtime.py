@@ -113,7 +113,9 @@ def progress_shown(stream=None) -> bool:
     :func:`~gpfverify.commands.audit.audit_run_file`): on a terminal, and in a Jupyter notebook, where
     rich draws it as a live output cell (with ``ipywidgets`` installed: ``pip install
     'gpfverify[notebook]'``). Off a terminal elsewhere (a log file, CI) it is not."""
-    stream = sys.stderr if stream is None else stream
+    from gpfverify.streams import diagnostics
+
+    stream = diagnostics() if stream is None else stream  # gpfverify's own stderr, not other code's
     if stream.isatty():
         return True
     if "ipykernel" not in sys.modules:  # no kernel loaded: not a notebook, and no import of rich needed

@@ -19,9 +19,25 @@ While :func:`guarded` is active:
   by the exception gpfverify's own signal handler raises (:class:`Interrupted`); in a worker
   process, which ignores SIGINT, every ``KeyboardInterrupt`` is the code's own; under a handler
   that is not gpfverify's (the Python API in a notebook), every one is taken for an interruption;
-* the current folder is restored when the block ends, so a system file that calls
-  ``os.chdir`` moves none of gpfverify's relative paths (``--out`` is resolved before the code
-  runs anyway).
+* the current folder and Python's recursion limit are restored when the block ends, so a system
+  file that calls ``os.chdir`` moves none of gpfverify's relative paths (``--out`` is resolved
+  before the code runs anyway) and one that lowers the limit (``sys.setrecursionlimit``) leaves
+  gpfverify's own code its limit (a ``RecursionError`` under the lowered limit is an error of the
+  user's code, naming the limit, not "input nested too deeply"); ``sys.stdout`` and ``sys.stderr`` are gpfverify's again
+  (:func:`gpfverify.streams.user_code`), whatever the code closed or replaced.
+
+:func:`time_limited` (``--timeout SECONDS``) stops a call of the user's code that does not return
+in time: :class:`UserTimeout`, exit status 2 and one line naming the function and the time. It
+works by ``SIGALRM`` in the thread that runs the code (the main thread of the command's process
+or of a worker process): Python code and waits (``time.sleep``, I/O) are interrupted; compiled
+code that never returns to Python is not (Ctrl-C and SIGTERM still stop the command,
+:mod:`gpfverify.supervise`). The exception it raises derives from :class:`BaseException`, so an
+``except Exception`` in the user's code does not swallow it, and it is raised again every
+:data:`REPEAT_SECONDS` until the call gives up.
+
+:func:`note_interrupt` records that a Ctrl-C or SIGTERM reached gpfverify's handler, so that one
+swallowed by other code (a weak-reference callback, the user's ``except BaseException``) still ends
+the command as interrupted.
 
 gpfverify's own hard exits (a worker whose parent died) keep the real ``os._exit``
 (:data:`gpfverify.supervise.HARD_EXIT`).
@@ -37,7 +53,7 @@ import threading
 from collections.abc import Callable, Iterator
 from typing import Any, TypeVar
 
-from gpfverify import supervise
+from gpfverify import streams, supervise
 from gpfverify.errors import InputError
 
 Handler = TypeVar("Handler", bound=Callable[..., Any])
@@ -53,8 +69,31 @@ class UserExit(UserCodeError):
     """The user's code tried to end the process."""
 
 
+class UserTimeout(UserCodeError):
+    """A call of the user's code did not return within ``--timeout`` (:func:`time_limited`)."""
+
+
 class Interrupted(KeyboardInterrupt):
     """Ctrl-C or SIGTERM, raised by gpfverify's own signal handler (:func:`marks_interrupts`)."""
+
+
+#: how many Ctrl-Cs or SIGTERMs gpfverify's handler has seen since the command started
+_interrupts = [0]
+
+
+def note_interrupt() -> None:
+    """Record that gpfverify's handler saw a Ctrl-C or SIGTERM (module docstring)."""
+    _interrupts[0] += 1
+
+
+def interrupt_received() -> bool:
+    """Whether a Ctrl-C or SIGTERM reached gpfverify's handler since :func:`forget_interrupts`."""
+    return _interrupts[0] > 0
+
+
+def forget_interrupts() -> None:
+    """A command starts: no interrupt seen yet."""
+    _interrupts[0] = 0
 
 
 def marks_interrupts(handler: Handler) -> Handler:
@@ -92,16 +131,20 @@ def guarded(what: str) -> Iterator[None]:
         raise UserExit(f"{what} called os._exit({code!r}); the system's code must not end the process")
 
     supervise.note("user", what)
-    saved_exit = os._exit
+    saved_exit, recursion_limit = os._exit, sys.getrecursionlimit()
     try:
         folder: int | None = os.open(".", os.O_RDONLY)
     except OSError:  # a current folder that cannot be opened cannot be returned to either
         folder = None
     os._exit = refuse_exit  # type: ignore[assignment]
     try:
-        with contextlib.redirect_stdout(sys.stderr):
+        with streams.user_code():
             yield
-    except InputError:
+    except Exception as exc:
+        if sys.getrecursionlimit() < recursion_limit and _caused_by(exc, RecursionError):
+            raise UserCodeError(f"{what} lowered Python's recursion limit to {sys.getrecursionlimit()} "
+                                f"(sys.setrecursionlimit; it was {recursion_limit}), too low for the code it calls; "
+                                "leave the limit as it is") from None
         raise
     except SystemExit as exc:
         raise UserExit(f"{what} called sys.exit({exc.code!r}); the system's code must not end the "
@@ -111,13 +154,12 @@ def guarded(what: str) -> Iterator[None]:
             raise
         raise UserCodeError(f"{what} raised KeyboardInterrupt{_told(exc)} itself (no Ctrl-C was pressed); "
                             "the system's code must not stop the command") from None
-    except Exception:
-        raise
     except BaseException as exc:
         raise UserCodeError(f"{what} raised {type(exc).__name__}{_told(exc)}, a BaseException that is not an "
                             "Exception; the system's code must raise Exception subclasses") from None
     finally:
         os._exit = saved_exit
+        sys.setrecursionlimit(recursion_limit)
         if folder is not None:
             with contextlib.suppress(OSError):
                 os.fchdir(folder)
@@ -128,7 +170,108 @@ def guarded(what: str) -> Iterator[None]:
         raise UserExit(f"{message}; the system's code must not end the process")
 
 
+def _caused_by(exc: BaseException, kind: type[BaseException]) -> bool:
+    """Whether ``exc`` or an exception in its chain (cause or context) is a ``kind``."""
+    seen: set[int] = set()
+    current: BaseException | None = exc
+    while current is not None and id(current) not in seen:
+        if isinstance(current, kind):
+            return True
+        seen.add(id(current))
+        current = current.__cause__ or current.__context__
+    return False
+
+
 def _told(exc: BaseException) -> str:
     """`` (its message)``, on one line, when the exception has one."""
     text = " ".join(str(exc).split())
     return f" ({text})" if text else ""
+
+
+# ---- --timeout ------------------------------------------------------------------------------------
+
+#: seconds between two raises of :class:`_TimeUp` in a call that swallowed the first
+REPEAT_SECONDS = 0.1
+
+
+class _TimeUp(BaseException):
+    """Raised in the user's code when its time is up; :func:`time_limited` turns it into
+    :class:`UserTimeout` (a BaseException, so that ``except Exception`` does not swallow it)."""
+
+
+class _Limit(threading.local):
+    """The time limit of this process (seconds or None) and the call it governs now."""
+
+    seconds: float | None = None
+    depth = 0
+    timed_out: str | None = None
+
+
+_limit = _Limit()
+
+
+def set_time_limit(seconds: float | None) -> None:
+    """Limit every call of the user's code in this process to ``seconds`` (None: no limit). Called
+    from the main thread (it sets the SIGALRM handler)."""
+    _limit.seconds = seconds
+    if seconds is not None and signal.getsignal(signal.SIGALRM) is not _time_up:
+        signal.signal(signal.SIGALRM, _time_up)
+
+
+def time_limit() -> float | None:
+    """The limit :func:`set_time_limit` set (for worker processes)."""
+    return _limit.seconds
+
+
+def _time_up(signum, frame) -> None:
+    if _limit.depth:
+        signal.setitimer(signal.ITIMER_REAL, REPEAT_SECONDS)  # again, should the code swallow this one
+        raise _TimeUp
+
+
+@contextlib.contextmanager
+def time_limited(what: str | Callable[[], str]) -> Iterator[None]:
+    """Run the block, the user's code described by ``what`` (or by what ``what()`` returns, asked
+    only when the time is up), within the limit of :func:`set_time_limit`: :class:`UserTimeout`
+    when it has not returned by then. A block inside another is governed by the outer one; no
+    limit in a thread other than the main one (no SIGALRM there)."""
+    seconds = _limit.seconds
+    if seconds is None or _limit.depth or threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    _limit.depth = 1
+    signal.setitimer(signal.ITIMER_REAL, seconds)
+    try:
+        yield
+    except _TimeUp:
+        _limit.timed_out = (f"{what() if callable(what) else what} did not return within {seconds:g} s "
+                            f"(--timeout {seconds:g}); the command stopped")
+        raise UserTimeout(_limit.timed_out) from None
+    finally:
+        _limit.depth = 0  # first: a SIGALRM arriving now is ignored
+        signal.setitimer(signal.ITIMER_REAL, 0)
+
+
+def call_limited(what: str | Callable[[], str], fn: Callable[..., Any], *args) -> Any:
+    """``fn(*args)``, the user's function described by ``what``, within the time limit (at no cost
+    when there is none)."""
+    if _limit.seconds is None:
+        return fn(*args)
+    with time_limited(what):
+        return fn(*args)
+
+
+def describe(fn: Callable) -> str:
+    """A user's function as messages name it: ``h (system.py, line 12)``."""
+    code = getattr(fn, "__code__", None)
+    name = getattr(fn, "__qualname__", None) or type(fn).__name__
+    if code is None:
+        return name
+    return f"{name} ({os.path.basename(code.co_filename)}, line {code.co_firstlineno})"
+
+
+def timed_out() -> str | None:
+    """The message of the last call that ran out of time (a caller that cannot see the exception,
+    such as pytest's report of a property, reads it here), or None; reading it forgets it."""
+    what, _limit.timed_out = _limit.timed_out, None
+    return what

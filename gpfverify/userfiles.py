@@ -6,9 +6,11 @@ is allocated, one line naming the file for every refusal.
   "file" can be endless or block forever. The check is made on the opened descriptor (no race
   between a check and the open), and the open does not wait for a pipe's writer.
 * :func:`read_npz` reads a ``numpy.savez`` archive after checking every member's ``.npy`` header:
-  numeric arrays only (pickled objects are never loaded), declared sizes within what the
-  archive holds (a truncated or empty archive is refused) and within the memory this machine
-  has free (a few kilobytes of compressed zeros may declare gigabytes). :class:`NpzArchive` does
+  numeric arrays only (pickled objects are never loaded), each name once (two members of one
+  name are refused, as a JSON key given twice is), no encrypted member, declared sizes within
+  what the archive holds (a truncated or empty archive is refused) and within the memory this
+  machine has free (a few kilobytes of compressed zeros may declare gigabytes). A member whose
+  data is damaged (a flipped byte: a bad CRC or deflate stream) is refused when it is read. :class:`NpzArchive` does
   the same for a caller that reads large arrays a block of rows at a time.
 
 Every refusal is a :class:`~gpfverify.errors.CaseFileError` (an ``InputError``) whose message
@@ -22,6 +24,7 @@ import math
 import os
 import stat
 import zipfile
+import zlib
 from dataclasses import dataclass
 from pathlib import Path
 from typing import BinaryIO
@@ -123,6 +126,12 @@ class NpyHeader:
         return math.prod(self.shape[1:]) * self.dtype.itemsize
 
 
+#: what zipfile and zlib raise for a damaged member: a bad CRC (BadZipFile), a corrupted deflate
+#: stream (zlib.error), a truncated one (EOFError), a member it cannot decompress
+#: (NotImplementedError: an unknown method; RuntimeError: a password needed)
+_DAMAGED = (zipfile.BadZipFile, zlib.error, OSError, EOFError, ValueError, NotImplementedError, RuntimeError)
+
+
 def _one_line(message: object) -> str:
     return " ".join(str(message).split())
 
@@ -150,6 +159,12 @@ class NpzArchive:
                 if not info.filename.endswith(".npy"):
                     raise CaseFileError(f"{self.path} holds {info.filename!r}, which is not a .npy array "
                                         f"(an npz archive holds only arrays)")
+                if info.filename[:-4] in self.headers:  # zipfile would read the last of them silently
+                    raise CaseFileError(f"{self.path} holds two arrays named {info.filename[:-4]!r}: which one is "
+                                        "meant is not clear (an npz archive names each array once)")
+                if info.flag_bits & 0x1:
+                    raise CaseFileError(f"{self.path}: array {info.filename[:-4]} is encrypted; gpfverify reads "
+                                        "archives as numpy.savez writes them, unencrypted")
                 header = self._header(info)
                 self.headers[header.name] = header
         except BaseException:
@@ -173,7 +188,7 @@ class NpzArchive:
     def _open(self, info: zipfile.ZipInfo):
         try:
             return self._zip.open(info)
-        except (zipfile.BadZipFile, OSError, EOFError, ValueError, NotImplementedError) as exc:
+        except _DAMAGED as exc:
             raise CaseFileError(f"{self.path}: array {info.filename[:-4]} cannot be read: "
                                 f"{_one_line(exc)}") from None
 
@@ -193,8 +208,10 @@ class NpzArchive:
                 header_bytes = member.tell()
             except CaseFileError:
                 raise
-            except (ValueError, OSError, EOFError, zipfile.BadZipFile, SyntaxError, TypeError) as exc:
+            except (ValueError, SyntaxError, TypeError) as exc:
                 raise CaseFileError(f"{where} has no readable .npy header: {_one_line(exc)}") from None
+            except _DAMAGED as exc:
+                raise CaseFileError(f"{where} cannot be read, the archive is damaged: {_one_line(exc)}") from None
         if dtype.hasobject or dtype.kind not in NPZ_KINDS or dtype.fields is not None:
             raise CaseFileError(f"{where} cannot be read: its dtype {dtype} is not numeric (arrays of "
                                 f"Python objects are never loaded)")
@@ -239,8 +256,9 @@ class NpzArchive:
                 filled += got
         except CaseFileError:
             raise
-        except (zipfile.BadZipFile, OSError, EOFError, ValueError) as exc:
-            raise CaseFileError(f"{self.path}: array {name} cannot be read: {_one_line(exc)}") from None
+        except _DAMAGED as exc:
+            raise CaseFileError(f"{self.path}: array {name} cannot be read, the archive is damaged: "
+                                f"{_one_line(exc)}") from None
         return out
 
     def row_reader(self, name: str) -> RowReader:

@@ -23,16 +23,22 @@ def _kind(value) -> str:
         return "O"
 
 
-def as_array(value, name: str, ndim: int | None = None, shape: tuple | None = None) -> np.ndarray:
-    """A finite float array; ``shape`` entries of ``None`` match any size. Booleans, complex
-    numbers and text are refused, not converted."""
+def real_floats(value, name: str) -> np.ndarray:
+    """``value`` as a float array, refused (not converted) when it holds booleans, complex numbers
+    (numpy would drop their imaginary parts) or text; no check of shape or finiteness."""
     kind = _kind(value)
     if kind in _NOT_REAL:
         raise InputError(f"{name} must be numeric (real numbers), got {_NOT_REAL[kind]}")
     try:
-        arr = np.asarray(value, dtype=float)
+        return np.asarray(value, dtype=float)
     except (TypeError, ValueError) as exc:
         raise InputError(f"{name} must be numeric: {exc}") from None
+
+
+def as_array(value, name: str, ndim: int | None = None, shape: tuple | None = None) -> np.ndarray:
+    """A finite float array; ``shape`` entries of ``None`` match any size. Booleans, complex
+    numbers and text are refused, not converted."""
+    arr = real_floats(value, name)
     if ndim is not None and arr.ndim != ndim:
         raise InputError(f"{name} must have {ndim} dimension(s), got shape {arr.shape}")
     if shape is not None:

@@ -48,3 +48,22 @@ def command_line(pid: int) -> str:
 def pool_workers(pid: int) -> list[int]:
     """The worker processes of a process pool started under ``pid`` (not the resource tracker)."""
     return [child for child in sorted(descendants(pid)) if "spawn_main" in command_line(child)]
+
+
+#: the environment variable that sets how many trials a timed sweep runs (a larger sweep for the
+#: reader who wants one; the default keeps the suite's time budget)
+TRIALS_VARIABLE = "GPFVERIFY_SWEEP_TRIALS"
+
+
+def sweep_trials(default: int) -> int:
+    """How many trials a timed sweep runs: ``GPFVERIFY_SWEEP_TRIALS`` when set, else ``default``."""
+    import os
+
+    value = os.environ.get(TRIALS_VARIABLE, "")
+    return int(value) if value.strip() else default
+
+
+def state(pid: int) -> str | None:
+    """The state letter of ``pid`` (``"Z"`` once it has ended and is not yet reaped), None when gone."""
+    fields = _stat(pid)
+    return None if fields is None else fields[0]

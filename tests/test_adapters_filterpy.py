@@ -232,3 +232,56 @@ def test_check_accepts_filterpy_filters_as_they_are(tmp_path, capsys):
                  "cmf,dmf", "--json"]) == 0
     out = json.loads(capsys.readouterr().out)
     assert out["steps"] == 5 and out["exact_steps"] == 5  # both C_xy of full column rank: DMF exact
+
+
+# -- what the user's filters do is the user's error -------------------------------------------------
+
+FAILING_FILTERS = '''
+import numpy as np
+from filterpy.kalman import KalmanFilter, MerweScaledSigmaPoints, UnscentedKalmanFilter
+
+def fx(x, dt):
+    return x
+
+def hx(x):
+    return x[:1]
+
+def broken_hx(x):
+    raise ValueError("hx of mine fails")
+
+def broken_residual(a, b):
+    raise RuntimeError("residual of mine fails")
+
+def unscented(h, residual=None):
+    ukf = UnscentedKalmanFilter(dim_x=2, dim_z=1, dt=1.0, fx=fx, hx=h, points=MerweScaledSigmaPoints(2, 0.5, 2.0, 1.0))
+    ukf.Q, ukf.R, ukf.P = 0.1 * np.eye(2), np.eye(1), np.eye(2)
+    if residual is not None:
+        ukf.residual_z = residual
+    return ukf
+
+def kalman(H):
+    kf = KalmanFilter(dim_x=2, dim_z=1)
+    kf.F, kf.Q, kf.R, kf.H = np.eye(2), 0.1 * np.eye(2), np.eye(1), np.asarray(H, dtype=float)
+    return kf
+
+hx_raises = [unscented(broken_hx), unscented(hx)]
+residual_raises = [unscented(hx, broken_residual), unscented(hx)]
+wrong_H = [kalman(np.ones((3, 3))), kalman([[1.0, 0.0]])]
+complex_H = [kalman([[1.0, 0.0]]), kalman([[1.0, 0.0]])]
+complex_H[1].H = np.array([[1.0 + 1j, 0.0]])
+'''
+
+
+@pytest.mark.parametrize("name, message", [
+    ("hx_raises", "filter 0's hx raised ValueError: hx of mine fails"),
+    ("residual_raises", "filter 0's residual_z raised RuntimeError: residual of mine fails"),
+    ("wrong_H", "filter 0's H has shape (3, 3), expected (1, 2)"),
+    ("complex_H", "filter 1's H holds complex numbers; it must hold real numbers"),
+])
+def test_a_filter_whose_functions_or_matrices_fail_is_the_users_error(tmp_path, capsys, name, message):
+    from gpfverify.cli import main
+
+    (tmp_path / "filters.py").write_text(FAILING_FILTERS)
+    assert main(["check", f"{tmp_path / 'filters.py'}:{name}", "--steps", "3", "--json"]) == 2
+    out, err = capsys.readouterr()
+    assert out == "" and err.splitlines() == [f"gpfverify check: error: filters.py:{name}: {message}"], err

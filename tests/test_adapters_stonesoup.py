@@ -19,6 +19,7 @@
 from __future__ import annotations
 
 import datetime
+import re
 import json
 
 import numpy as np
@@ -354,3 +355,52 @@ def test_the_objects_of_a_stone_soup_tracker_are_found_by_type():
     np.testing.assert_array_equal(model.prior_mean, np.asarray(prior_state().state_vector, float).ravel())
     x = np.random.default_rng(1).normal(size=(3, 4))
     np.testing.assert_array_equal(model.h(x), system(radars).h(x))
+
+
+# -- what the user's models and detections do is the user's error ------------------------------------
+
+FAILING_MODEL = '''
+import datetime
+import numpy as np
+from stonesoup.models.measurement.nonlinear import CartesianToBearingRange
+from stonesoup.models.transition.linear import CombinedLinearGaussianTransitionModel, ConstantVelocity
+from stonesoup.types.state import GaussianState
+
+class Broken(CartesianToBearingRange):
+    def function(self, state, noise=False, **kwargs):
+        raise ValueError("my model fails")
+
+cv = CombinedLinearGaussianTransitionModel([ConstantVelocity(0.1), ConstantVelocity(0.1)])
+tracker = {"transition_model": cv,
+           "measurement_models": [Broken(ndim_state=4, mapping=(0, 2), noise_covar=np.diag([0.01, 1.0]))],
+           "prior": GaussianState(np.array([[1.0], [0.1], [1.0], [0.1]]), np.eye(4)),
+           "time_interval": datetime.timedelta(seconds=1)}
+'''
+
+
+def test_a_stone_soup_model_whose_function_raises_is_the_users_error(tmp_path, capsys):
+    from gpfverify.cli import main
+
+    (tmp_path / "tracker.py").write_text(FAILING_MODEL)
+    assert main(["check", f"{tmp_path / 'tracker.py'}:tracker", "--steps", "3", "--json"]) == 2
+    out, err = capsys.readouterr()
+    assert out == "" and err.splitlines() == [
+        "gpfverify check: error: tracker.py:tracker: measurement model Broken: function raised ValueError: my "
+        "model fails"], err
+
+
+@pytest.mark.parametrize("values, what", [([0.1], "holds 1 value(s)"), ([0.1, 10.0, 3.0], "holds 3 value(s)"),
+                                          ([0.1 + 1j, 10.0], "holds complex numbers")])
+def test_a_detection_of_the_wrong_length_is_refused_not_split_across_sensors(tmp_path, values, what):
+    """Three values from the first sensor and one from the second stack to the four values the two
+    sensors measure: the values were split across the sensors at the wrong place, and check ran on
+    shifted data. Now each detection must hold what its own model measures."""
+    sensors = [bearing_range(WEST), bearing_range(EAST)]
+    second = [0.2] if len(values) == 3 else [0.2, 20.0]  # with three first values, four in all
+    detections = [Detection(StateVector(values), timestamp=START, measurement_model=sensors[0]),
+                  Detection(StateVector(second), timestamp=START, measurement_model=sensors[1])]
+    for write in (lambda: adapter.measurements(detections, sensors),
+                  lambda: adapter.write_measurements(tmp_path / "m.npz", detections, sensors)):
+        with pytest.raises(InputError, match=re.escape(f"the detection of sensor 0 at {START} {what}")):
+            write()
+    assert not (tmp_path / "m.npz").exists()

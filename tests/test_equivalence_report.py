@@ -301,3 +301,29 @@ def test_a_fusion_run_shown_as_a_page_names_its_ci_criterion():
         assert results["params"]["ci_criterion"] == criterion
         words = "trace criterion" if criterion == "trace" else "determinant criterion"
         assert any(words in p for p in summary_paragraphs(results))
+
+
+def test_html_in_user_supplied_text_is_shown_as_text_on_the_markdown_page(tmp_path):
+    """A system file, a sensor and a run's error carrying HTML: the Markdown page escapes it as the
+    HTML page does (a viewer that renders Markdown would otherwise run it), inside `code` spans
+    too nothing is interpreted, and comparisons such as ``p < 0.05`` stay as they are."""
+    from gpfverify.report.render import md_escaped
+
+    name = "<img src=x onerror=alert(1)>.py"
+    (tmp_path / name).write_text(
+        "import numpy as np\nfrom gpfverify.models import Sensor, StateSpaceModel\n"
+        "system = StateSpaceModel(transition=np.eye(2), process_cov=0.1 * np.eye(2), "
+        "sensors=[Sensor(np.eye(2), np.eye(2), name='<script>alert(2)</script>'), Sensor([[1.0, 1.0]], [[1.0]])], "
+        "prior_mean=[0.0, 0.0], prior_cov=np.eye(2))\n")
+    proc = subprocess.run([sys.executable, "-m", "gpfverify", "check", f"{name}:system", "--steps", "3",
+                           "--methods", "cmf,dmf", "--out", "out"], cwd=tmp_path, capture_output=True, text=True,
+                          timeout=300)
+    assert proc.returncode == 0, proc.stderr
+    html = (tmp_path / "out" / "report.html").read_text(encoding="utf-8")
+    assert "<img src=x" not in html and "<script>alert" not in html and "&lt;img src=x onerror=alert(1)&gt;" in html
+    markdown = (tmp_path / "out" / "README.md").read_text(encoding="utf-8")
+    outside_code = re.sub(r"`[^`\n]+`", "", markdown)  # a code span shows its text literally
+    assert "<img" not in outside_code and "<script" not in outside_code
+    assert "&lt;img src=x onerror=alert(1)>" in outside_code and "&lt;script>alert(2)&lt;/script>" in outside_code
+    assert md_escaped("p < 0.05 & q <= 1, <b>bold</b> &amp; `<i>code</i>`") == \
+        "p < 0.05 & q <= 1, &lt;b>bold&lt;/b> &amp;amp; `<i>code</i>`"

@@ -4,10 +4,14 @@ is decompressed; case files with duplicate or unknown keys are refused, and a nu
 an integer literal is the number it is. The command line exits 2 with one line and writes
 nothing."""
 
+import io
 import json
 import os
+import re
+import struct
 import subprocess
 import sys
+import warnings
 import zipfile
 
 import numpy as np
@@ -15,7 +19,7 @@ import pytest
 
 from gpfverify import userfiles
 from gpfverify.cli import main
-from gpfverify.errors import CaseFileError
+from gpfverify.errors import CaseFileError, InputError
 from gpfverify.fusion.case import case_to_dict
 from gpfverify.fusion.caseblock import load_case
 from gpfverify.audit.runfile import write_run
@@ -100,6 +104,67 @@ def test_empty_truncated_and_pickled_npz_are_input_errors(tmp_path, capsys, cont
     with pytest.raises(CaseFileError, match="run.npz"):
         read_npz(path)
     _refused(["audit", str(path)], capsys, "run.npz", tmp_path)
+
+
+def _damaged(path, how: str) -> None:
+    """A compressed npz whose member ``y.npy`` is damaged ``how``: one byte of its data flipped, its
+    deflate stream broken at the start, or marked encrypted; or an archive with two members ``y.npy``."""
+    ys = np.random.default_rng(0).normal(size=(50, 4))
+    if how == "two-of-one-name":
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", UserWarning)  # zipfile's "Duplicate name" as it writes them
+            with zipfile.ZipFile(path, "w") as z:
+                for values in (ys, ys + 100.0):
+                    buffer = io.BytesIO()
+                    np.save(buffer, values)
+                    z.writestr("y.npy", buffer.getvalue())
+        return
+    np.savez_compressed(path, y=ys)
+    data = bytearray(path.read_bytes())
+    info = zipfile.ZipFile(path).getinfo("y.npy")
+    name_length, extra_length = struct.unpack("<HH", data[info.header_offset + 26:info.header_offset + 30])
+    start = info.header_offset + 30 + name_length + extra_length
+    if how == "flipped-byte":
+        data[start + info.compress_size // 2] ^= 0x55
+    elif how == "bad-deflate":
+        data[start:start + 6] = b"\xff" * 6
+    else:  # encrypted: the flag in the local and the central header
+        data[info.header_offset + 6] |= 1
+        central = data.rfind(b"PK\x01\x02")
+        data[central + 8] |= 1
+    path.write_bytes(bytes(data))
+
+
+@pytest.mark.parametrize("how, said", [("flipped-byte", "array y cannot be read, the archive is damaged: Bad CRC-32"),
+                                       ("bad-deflate", "array y cannot be read, the archive is damaged: Error -3"),
+                                       ("encrypted", "array y is encrypted"),
+                                       ("two-of-one-name", "holds two arrays named 'y'")])
+def test_a_damaged_encrypted_or_ambiguous_npz_is_refused_in_one_line(tmp_path, capsys, how, said):
+    path = tmp_path / "m.npz"
+    _damaged(path, how)
+    with pytest.raises(CaseFileError, match=re.escape(said)):
+        read_npz(path)
+    system = tmp_path / "linear.py"
+    system.write_text("import numpy as np\nfrom gpfverify.models import linear_model\n"
+                      "system = linear_model(np.eye(2), np.vstack([np.eye(2), np.eye(2)]), np.eye(2), np.eye(4), "
+                      "prior_mean=[0, 0], prior_cov=np.eye(2), sizes=(2, 2))\n")
+    _refused(["check", f"{system}:system", "--measurements", str(path), "--json"], capsys, said, tmp_path)
+    _refused(["audit", str(path)], capsys, said, tmp_path)
+
+
+@pytest.mark.parametrize("part", ["prior_mean", "prior_cov", "process_cov", "transition", "noise_cov"])
+def test_complex_numbers_anywhere_in_a_model_are_refused_not_truncated(part):
+    """numpy turns a complex array into floats by dropping the imaginary parts (with a warning):
+    a model given one is refused, as a complex transition always was."""
+    from gpfverify.models import Sensor, StateSpaceModel
+
+    parts = {"prior_mean": np.zeros(2), "prior_cov": np.eye(2), "process_cov": 0.1 * np.eye(2),
+             "transition": np.eye(2), "noise_cov": np.eye(2)}
+    parts[part] = parts[part] + 1e-3j
+    with pytest.raises(InputError, match=r"must be numeric \(real numbers\), got complex numbers"):
+        StateSpaceModel(transition=parts["transition"], process_cov=parts["process_cov"],
+                        sensors=[Sensor(np.eye(2), parts["noise_cov"])], prior_mean=parts["prior_mean"],
+                        prior_cov=parts["prior_cov"])
 
 
 def test_duplicate_keys_are_refused_wherever_they_are(tmp_path, capsys):

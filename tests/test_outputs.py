@@ -27,15 +27,7 @@ pytestmark = pytest.mark.slow  # each test runs commands in subprocesses, some k
 HERE = Path(__file__).parent
 sys.path.insert(0, str(HERE))  # the suite imports in importlib mode: the helper beside it
 from processes import pool_workers  # noqa: E402
-LINEAR_SYSTEM = '''
-import numpy as np
-from gpfverify.models import linear_model
-F = np.array([[1.0, 1.0], [0.0, 0.95]])
-H = np.array([[1.0, 0.0], [0.0, 1.0], [1.0, 1.0], [0.5, -1.0]])
-Q = np.array([[0.2, 0.05], [0.05, 0.1]])
-R = np.diag([0.5, 0.3, 0.4, 0.2])
-system = linear_model(F, H, Q, R, prior_mean=[1.0, 0.5], prior_cov=np.eye(2), sizes=(2, 2))
-'''
+from system_files import LINEAR_SYSTEM, MEASURING_SYSTEM  # noqa: E402
 
 
 @pytest.fixture
@@ -110,6 +102,24 @@ def test_a_folder_with_a_file_gpfverify_did_not_write_is_refused(command, toy, t
     assert "figures/x.png" in err and "did not write" in err
     assert _snapshot(out_dir) == before
     assert sorted(os.listdir(tmp_path)) == sorted(p.name for p in tmp_path.iterdir() if not p.name.startswith("."))
+
+
+@pytest.mark.parametrize("through", ["nosuch/..", "nosuch/../work"])
+@pytest.mark.parametrize("command", ["audit", "check", "reproduce", "prove", "report", "props"])
+def test_an_out_through_a_missing_folder_and_back_is_refused_and_makes_nothing(command, through, toy, tmp_path,
+                                                                               capsys, monkeypatch):
+    """``--out nosuch/..`` (the current folder, once nosuch exists) and ``nosuch/../work`` (a
+    folder of the user's): refused before any folder is made, where nosuch/ was left behind."""
+    argv = _commands(tmp_path)[command]
+    work = tmp_path / "work"
+    work.mkdir()
+    (work / "notes.txt").write_text("the user's")
+    monkeypatch.chdir(tmp_path)
+    before = sorted(os.listdir(tmp_path))
+    code, out, err = _main([*argv, "--out", through], capsys)
+    assert code == 2 and out == "" and len(err.strip().splitlines()) == 1, err
+    assert "nosuch, which is not a folder that exists" in err, err
+    assert sorted(os.listdir(tmp_path)) == before and os.listdir(work) == ["notes.txt"]
 
 
 def test_audit_rewrites_its_own_folder_and_lists_every_file(tmp_path, capsys):
@@ -531,21 +541,6 @@ def test_props_refusing_its_arguments_writes_nothing_anywhere(tmp_path, monkeypa
 
 # ---- the user's system file cannot end gpfverify or print into its output -------------------------
 
-EXITING_SYSTEM = '''
-import os, sys
-import numpy as np
-from gpfverify.models import Sensor, StateSpaceModel
-calls = [0]
-{at_import}
-def h(x):
-    calls[0] += 1
-    if calls[0] > {after}:
-        {in_measurement}
-    return x[:, :1]
-system = StateSpaceModel(transition=np.eye(2), process_cov=0.1 * np.eye(2),
-                         sensors=[Sensor(np.eye(2), np.eye(2)), Sensor(h, [[1.0]])],
-                         prior_mean=[0.0, 0.0], prior_cov=np.eye(2))
-'''
 
 
 #: seconds after which a check of the exiting system counts as hung (a few seconds idle; spawning
@@ -555,7 +550,7 @@ HUNG_SECONDS = 300
 
 def _check_system(tmp_path, *extra, **parts):
     parts = {"at_import": "", "in_measurement": "pass", "after": 0, **parts}
-    (tmp_path / "system.py").write_text(EXITING_SYSTEM.format(**parts))
+    (tmp_path / "system.py").write_text(MEASURING_SYSTEM.format(**parts))
     return subprocess.run([sys.executable, "-m", "gpfverify", "check", "system.py:system", "--steps", "4",
                            "--methods", "cmf,dmf", "--json", "--out", "out", *extra],
                           capture_output=True, text=True, cwd=tmp_path, timeout=HUNG_SECONDS)
@@ -637,11 +632,14 @@ def test_an_exit_gpfverify_cannot_intercept_is_still_an_error_of_the_system_file
 
 
 def test_a_system_file_killing_its_own_process_is_one_line(tmp_path):
+    """The process running the command killed: gpfverify's own process does at once what the next
+    command on --out would (no run had finished: nothing is kept, no staging folder is left)."""
     proc = _check_system(tmp_path, in_measurement="os.kill(os.getpid(), 9)", after=6)
     assert proc.returncode == 2 and proc.stdout == ""
     assert proc.stderr.strip().splitlines() == [
         "gpfverify check: error: the process running the system file system.py was killed (SIGKILL) before it "
-        "finished; the runs it had saved are kept for the next command on --out"], proc.stderr
+        f"finished; nothing was written to {tmp_path / 'out'}"], proc.stderr
+    assert sorted(os.listdir(tmp_path)) == ["system.py"]
 
 
 @pytest.mark.parametrize("workers", ["1", "2"])

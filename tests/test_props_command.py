@@ -2,6 +2,7 @@
 (the failing one saves its shrunk counterexample as a case file), and the CLI error contract."""
 
 import json
+import os
 import subprocess
 import sys
 import textwrap
@@ -70,3 +71,16 @@ def test_usage_errors_exit_2_with_one_line(args, tmp_path):
     proc = _props(*[a if a != "x" else str(tmp_path / "o") for a in args], timeout=60)
     assert proc.returncode == 2
     assert len(proc.stderr.strip().splitlines()) == 1, proc.stderr
+
+
+def test_a_suite_that_cannot_be_imported_says_why(tmp_path):
+    """The cause (the module's import error), not pytest's ``==== ERRORS ====`` banner."""
+    suite = tmp_path / "suite"
+    suite.mkdir()
+    (suite / "test_broken.py").write_text("import no_such_module_of_yours\n\ndef test_x():\n    pass\n")
+    proc = _props("--suite", str(suite), "--out", str(tmp_path / "o"), timeout=120)
+    assert proc.returncode == 2 and proc.stdout == ""
+    assert proc.stderr.splitlines() == [
+        "gpfverify props: error: the property suite could not run (pytest exit status 2): suite/test_broken.py: "
+        "ModuleNotFoundError: No module named 'no_such_module_of_yours'"], proc.stderr
+    assert sorted(os.listdir(tmp_path)) == ["suite"]

@@ -108,3 +108,22 @@ def test_plain(request):
     result = pytester.runpytest_subprocess("-p", "no:cacheprovider", "-q", "--trace-config")
     result.assert_outcomes(passed=1)
     assert any("gpfverify.pytest_plugin" in line for line in result.outlines)  # it was loaded
+
+
+@pytest.mark.parametrize("target", ["loop", "a-file"])
+def test_a_cases_folder_that_cannot_be_one_is_a_usage_error_not_an_internal_one(pytester, target):
+    """``--gpfverify-cases`` naming a loop of symbolic links (Path.resolve raised RuntimeError in
+    pytest_configure: INTERNALERROR) or a file: pytest's usage error, exit status 4, one line."""
+    pytester.makepyfile(test_plain="def test_plain():\n    pass\n")
+    if target == "loop":
+        (pytester.path / "loop-a").symlink_to("loop-b")
+        (pytester.path / "loop-b").symlink_to("loop-a")
+        name, said = "loop-a", "cannot be resolved"
+    else:
+        (pytester.path / "a-file").write_text("not a folder")
+        name, said = "a-file", "exists and is not a folder"
+    result = pytester.runpytest_subprocess("-p", "no:cacheprovider", "-q", "--gpfverify-cases", name)
+    assert result.ret == pytest.ExitCode.USAGE_ERROR
+    assert "INTERNALERROR" not in result.stderr.str() and "Traceback" not in result.stderr.str()
+    assert any(line.startswith(f"ERROR: --gpfverify-cases {name}: {said}") for line in result.stderr.lines), \
+        result.stderr.str()

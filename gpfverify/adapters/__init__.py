@@ -5,6 +5,11 @@ The adapters live in :mod:`gpfverify.adapters.stonesoup` and :mod:`gpfverify.ada
 :func:`as_state_space_model` recognises a loaded object by the package its types come from and
 imports the one adapter it needs, so ``gpfverify check`` on a plain
 :class:`~gpfverify.models.StateSpaceModel` never loads Stone Soup or filterpy.
+
+Whatever the user's objects do while the adapters read them — a filterpy ``hx`` or ``residual_z``
+that raises, an ``H`` of the wrong shape, a Stone Soup model whose ``function`` raises — is an
+:class:`~gpfverify.errors.InputError` naming the object (:func:`user_call`, :func:`user_floats`):
+the user's error, exit status 2, never "a bug".
 """
 
 from __future__ import annotations

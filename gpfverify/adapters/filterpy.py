@@ -36,6 +36,7 @@ import numpy as np
 import scipy.linalg
 from filterpy.kalman import JulierSigmaPoints, KalmanFilter, MerweScaledSigmaPoints, UnscentedKalmanFilter
 
+from gpfverify.adapters.objects import user_call, user_floats
 from gpfverify.angles import TWO_PI, wrap_components
 from gpfverify.errors import InputError
 from gpfverify.filters.records import Gaussian
@@ -65,7 +66,7 @@ class LocalFilters:
 
 def _matrix(value, dim: int, what: str) -> np.ndarray:
     """A filterpy covariance (a scalar means that multiple of the identity, as filterpy reads it)."""
-    array = np.asarray(value, dtype=float)
+    array = user_floats(value, what)
     if array.ndim == 0 or array.size == 1 and dim > 1:
         return float(array.reshape(())) * np.eye(dim)
     if array.shape != (dim, dim):
@@ -93,7 +94,7 @@ def _circular_by_residual(residual, reference: np.ndarray, what: str) -> tuple[i
     for i in range(reference.size):
         shifted = reference.copy()
         shifted[i] += TWO_PI
-        value = np.asarray(residual(shifted, reference), dtype=float).ravel()
+        value = user_floats(user_call(what, residual, shifted, reference), f"what {what} returned").ravel()
         if value.size != reference.size:
             raise InputError(f"{what} returned {value.size} values for {reference.size} components")
         tol = algebra_rtol() * (TWO_PI + abs(float(reference[i])))
@@ -119,10 +120,12 @@ def _sigma_params(points) -> SigmaParams:
     return params
 
 
-def _row_wise(fn, *args):
-    """A filterpy per-state function (one state (D,) in, one vector out) over the rows of (N, D)."""
+def _row_wise(fn, what: str, *args):
+    """A filterpy per-state function (one state (D,) in, one vector out; ``what`` names it) over the
+    rows of (N, D)."""
     def function(x: np.ndarray) -> np.ndarray:
-        return np.array([np.asarray(fn(row, *args), dtype=float).ravel() for row in np.asarray(x, dtype=float)])
+        return np.array([user_floats(user_call(what, fn, row, *args), f"what {what} returned").ravel()
+                         for row in np.asarray(x, dtype=float)])
 
     return function
 
@@ -136,10 +139,11 @@ def _kalman(filters: Sequence, names: Sequence[str], circular, circular_state) -
             raise InputError(f"filter {m} has a process-measurement correlation (M): not part of a gpfverify model")
         if kf.alpha != 1:
             raise InputError(f"filter {m} has fading memory (alpha = {kf.alpha}): not part of a gpfverify model")
-    F = _agreeing([np.asarray(kf.F, dtype=float) for kf in filters], "F")
-    Q = _agreeing([_matrix(kf.Q, dim, "Q") for kf in filters], "Q")
-    priors = tuple(Gaussian(np.asarray(kf.x, dtype=float).ravel(), _matrix(kf.P, dim, "P")) for kf in filters)
-    sensors = [Sensor(np.asarray(kf.H, dtype=float).reshape(kf.dim_z, dim), _matrix(kf.R, kf.dim_z, f"filter {m}'s R"),
+    F = _agreeing([user_floats(kf.F, f"filter {m}'s F", (dim, dim)) for m, kf in enumerate(filters)], "F")
+    Q = _agreeing([_matrix(kf.Q, dim, f"filter {m}'s Q") for m, kf in enumerate(filters)], "Q")
+    priors = tuple(Gaussian(user_floats(kf.x, f"filter {m}'s x").ravel(), _matrix(kf.P, dim, f"filter {m}'s P"))
+                   for m, kf in enumerate(filters))
+    sensors = [Sensor(user_floats(kf.H, f"filter {m}'s H", (kf.dim_z, dim)), _matrix(kf.R, kf.dim_z, f"filter {m}'s R"),
                       circular=() if circular is None else circular[m], name=name)
                for m, (kf, name) in enumerate(zip(filters, names))]
     model = StateSpaceModel(F, Q, sensors, priors[0].mean, priors[0].cov,
@@ -156,18 +160,20 @@ def _unscented(filters: Sequence, names: Sequence[str], circular, circular_state
         if _sigma_params(ukf.points_fn) != params:
             raise InputError(f"filter {m}'s sigma points {_sigma_params(ukf.points_fn)} differ from filter 0's "
                              f"{params}")
-    priors = tuple(Gaussian(np.asarray(ukf.x, dtype=float).ravel(), _matrix(ukf.P, dim, "P")) for ukf in filters)
-    Q = _agreeing([_matrix(ukf.Q, dim, "Q") for ukf in filters], "Q")
-    transition = _row_wise(first.fx, first._dt)
+    priors = tuple(Gaussian(user_floats(ukf.x, f"filter {m}'s x").ravel(), _matrix(ukf.P, dim, f"filter {m}'s P"))
+                   for m, ukf in enumerate(filters))
+    Q = _agreeing([_matrix(ukf.Q, dim, f"filter {m}'s Q") for m, ukf in enumerate(filters)], "Q")
+    transition = _row_wise(first.fx, "filter 0's fx", first._dt)
     mean = priors[0].mean
     probe = mean + np.sqrt(np.diag(priors[0].cov)) * np.linspace(-1.0, 1.0, dim)  # a state off the axes
-    _agreeing([_row_wise(ukf.fx, ukf._dt)(np.stack([mean, probe])) for ukf in filters], "transition fx(x, dt)")
+    _agreeing([_row_wise(ukf.fx, f"filter {m}'s fx", ukf._dt)(np.stack([mean, probe]))
+               for m, ukf in enumerate(filters)], "transition fx(x, dt)")
     if circular_state is None:
         circular_state = _agreeing_circular([_circular_by_residual(ukf.residual_x, mean, f"filter {m}'s residual_x")
                                              for m, ukf in enumerate(filters)], "angle state components")
     sensors = []
     for m, (ukf, name) in enumerate(zip(filters, names)):
-        measure = _row_wise(ukf.hx)
+        measure = _row_wise(ukf.hx, f"filter {m}'s hx")
         outputs = circular[m] if circular is not None else _circular_by_residual(
             ukf.residual_z, measure(mean[None, :])[0], f"filter {m}'s residual_z")
         sensors.append(Sensor(measure, _matrix(ukf.R, ukf._dim_z, f"filter {m}'s R"), circular=outputs, name=name))

@@ -52,6 +52,7 @@ from stonesoup.types.detection import Detection
 from stonesoup.types.state import GaussianState, State
 from stonesoup.types.track import Track
 
+from gpfverify.adapters.objects import user_call, user_floats
 from gpfverify.errors import InputError
 from gpfverify.models.system import Sensor, StateSpaceModel
 
@@ -100,11 +101,13 @@ def sensor(measurement_model: MeasurementModel, prior: GaussianState, name: str 
         raise InputError(f"a measurement model must be a Stone Soup MeasurementModel, got "
                          f"{type(measurement_model).__name__}")
     name = name or type(measurement_model).__name__
-    typed = measurement_model.function(State(prior.state_vector), noise=False)
+    what = f"measurement model {name}"
+    typed = user_call(f"{what}: function", measurement_model.function, State(prior.state_vector), noise=False)
     circular = _angle_rows(typed)
-    noise = _floats(measurement_model.covar())
+    noise = user_floats(user_call(f"{what}: covar", measurement_model.covar), f"{what}'s covar")
     if isinstance(measurement_model, LinearModel):
-        return Sensor(_floats(measurement_model.matrix()), noise, circular=circular, name=name)
+        matrix = user_floats(user_call(f"{what}: matrix", measurement_model.matrix), f"{what}'s matrix")
+        return Sensor(matrix, noise, circular=circular, name=name)
     return Sensor(_evaluated(measurement_model), noise, circular=circular, jacobian=_jacobian(measurement_model),
                   name=name)
 
@@ -139,14 +142,17 @@ def state_space_model(transition_model: TransitionModel, measurement_models: Seq
     names = [type(mm).__name__ for mm in measurement_models]
     sensors = [sensor(mm, prior, f"{n} {m}" if names.count(n) > 1 else n)
                for m, (mm, n) in enumerate(zip(measurement_models, names))]
-    q = _floats(transition_model.covar(time_interval=interval))
+    what = f"transition model {type(transition_model).__name__}"
+    q = user_floats(user_call(f"{what}: covar", transition_model.covar, time_interval=interval), f"{what}'s covar")
     if isinstance(transition_model, LinearModel):
-        transition: object = _floats(transition_model.matrix(time_interval=interval))
+        transition: object = user_floats(user_call(f"{what}: matrix", transition_model.matrix, time_interval=interval),
+                                         f"{what}'s matrix")
         jacobian = None
     else:
         transition = _evaluated(transition_model, time_interval=interval)
         jacobian = _jacobian(transition_model, time_interval=interval)
-    return StateSpaceModel(transition, q, sensors, _floats(prior.state_vector).ravel(), _floats(prior.covar),
+    return StateSpaceModel(transition, q, sensors, user_floats(prior.state_vector, "the prior's state_vector").ravel(),
+                           user_floats(prior.covar, "the prior's covar"),
                            circular_state=_angle_rows(prior.state_vector), transition_jacobian=jacobian,
                            name=name or f"Stone Soup {type(transition_model).__name__}, {len(sensors)} sensors")
 
@@ -267,12 +273,32 @@ def _sensor_index(measurement_models: Sequence[MeasurementModel]):
     return index
 
 
+def _measurement_size(model, m: int) -> int:
+    """How many values sensor ``m``'s measurement model measures (its ``ndim_meas``)."""
+    size = user_call(f"measurement model {m} ({type(model).__name__}): ndim_meas", getattr, model, "ndim_meas")
+    if not isinstance(size, (int, np.integer)) or size < 1:
+        raise InputError(f"measurement model {m} ({type(model).__name__}) has ndim_meas {size!r}, not a count")
+    return int(size)
+
+
+def _detection_values(detection: Detection, m: int, size: int) -> np.ndarray:
+    """A detection of sensor ``m`` as its ``size`` real values; refused when it holds another number
+    of values (stacked, they would be split across the sensors at the wrong places)."""
+    what = f"the detection of sensor {m} at {detection.timestamp}"
+    values = user_floats(detection.state_vector, what).ravel()
+    if values.size != size:
+        raise InputError(f"{what} holds {values.size} value(s), but its measurement model "
+                         f"({type(detection.measurement_model).__name__}) measures {size}")
+    return values
+
+
 def measurements(detections, measurement_models: Sequence[MeasurementModel], *, truth=None,
                  time_interval: datetime.timedelta | None = None) -> Measurements:
     """Stone Soup detections → the stacked measurements of each time step, in the order of
     ``measurement_models`` (each detection's ``measurement_model`` says which sensor it came from;
     every sensor must report exactly one detection at every time step, the steps ``time_interval``
-    apart when it is given). ``truth``: a ``GroundTruthPath`` or states with the same timestamps
+    apart when it is given; each detection holds as many values as its model measures, its
+    ``ndim_meas``). ``truth``: a ``GroundTruthPath`` or states with the same timestamps
     (their state vectors become ``x``). Step 1 of a check is the first timestamp; the prior
     describes the state one interval before it."""
     found = _detections(detections)
@@ -297,7 +323,8 @@ def measurements(detections, measurement_models: Sequence[MeasurementModel], *, 
             raise InputError(f"no detection from sensor(s) {missing} at {time}: every sensor reports once "
                              "per step in a measurements file")
     _spacing(timestamps, None if time_interval is None else _checked_interval(time_interval))
-    y = np.array([np.concatenate([_floats(d.state_vector).ravel() for d in by_time[time]])
+    sizes = [_measurement_size(mm, m) for m, mm in enumerate(measurement_models)]
+    y = np.array([np.concatenate([_detection_values(d, m, sizes[m]) for m, d in enumerate(by_time[time])])
                   for time in timestamps])
     x = None
     if truth is not None:

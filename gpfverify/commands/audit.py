@@ -10,7 +10,6 @@ from __future__ import annotations
 import argparse
 import contextlib
 import json
-import sys
 
 from gpfverify.audit.case import (RANK_RULE_DEFAULT, RunAudit, audit_case, audit_to_dict, format_audit, parse_rank_rule)
 from gpfverify.cli import RANK_RULE_HELP, positive_int, rank_rule_text
@@ -20,6 +19,7 @@ from gpfverify.runtime import progress_shown
 from gpfverify.outputs import add_wait_argument, final_path, out_path, output_folder
 from gpfverify.report.document import integer_ranges
 from gpfverify.audit.run import copy_out, spool, stream_audit, table_header, table_row
+from gpfverify.streams import diagnostics
 
 EPILOG = ("FILE formats: a single fusion case (.json) is described in docs/fusion-case-format.md; "
           "a run of cases, one per step (.jsonl: one case per line with an optional integer \"k\"; "
@@ -161,10 +161,11 @@ def _progress(show: bool):
     """A progress bar on stderr (``show``), called as ``update(done, total)``."""
     if not show:
         return contextlib.nullcontext(None)
+    from rich.console import Console
     from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 
     return Progress(TextColumn("audit"), BarColumn(), MofNCompleteColumn(), TextColumn("steps"),
-                    TimeElapsedColumn(), transient=True)
+                    TimeElapsedColumn(), transient=True, console=Console(file=diagnostics()))
 
 
 def _audit_run(args: argparse.Namespace) -> None:
@@ -201,7 +202,7 @@ def _audit_run(args: argparse.Namespace) -> None:
         copy_out(out)
     if args.out is not None:  # after the audit itself; on stderr when stdout carries JSON
         if args.json:
-            print(f"gpfverify audit: the report page: {html}", file=sys.stderr)
+            print(f"gpfverify audit: the report page: {html}", file=diagnostics())
         else:
             print(f"the report page: {html}")
 

@@ -12,17 +12,17 @@ from __future__ import annotations
 import argparse
 import contextlib
 import json
-import sys
 import tempfile
 from pathlib import Path
 
-from gpfverify.cli import RANK_RULE_HELP, fusion_rules, rank_rule_text
+from gpfverify.cli import BATCH_HELP, RANK_RULE_HELP, fusion_rules, positive_seconds, rank_rule_text
 from gpfverify.contract.check import Params
 from gpfverify.contract.params import add_arguments as add_params_arguments
 from gpfverify.filters.families import FAMILY_NAMES
 from gpfverify.fusion.names import CHOICES_TEXT
 from gpfverify.outputs import add_wait_argument, out_path, output_folder
-from gpfverify.usercode import guarded, system_file
+from gpfverify.streams import diagnostics
+from gpfverify.usercode import guarded, system_file, time_limited
 
 
 #: steps per simulated run unless --steps says otherwise
@@ -59,15 +59,21 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--json", action="store_true", help="print results.json to stdout")
     parser.add_argument("--resume", action="store_true", help="continue the runs saved in --out")
     parser.add_argument("--workers", type=int, default=1, help="local worker processes (default 1)")
+    parser.add_argument("--timeout", type=positive_seconds, default=None, metavar="SECONDS",
+                        help="stop the command (exit status 2, one line naming the function) when one call of "
+                             "your system file's code — loading it and building NAME, or one call of one of its "
+                             "functions — has not returned after SECONDS (default: no limit)")
     parser.add_argument("--scheduler", default=None, metavar="ADDRESS",
                         help="dask.distributed scheduler address (needs gpfverify[cluster])")
+    parser.add_argument("--batch", type=int, default=None, metavar="B", help=BATCH_HELP)
 
 
 def run(args: argparse.Namespace) -> int:
     from gpfverify.errors import InputError
     from gpfverify.contract.check import verdict_sentence
     from gpfverify.experiments import check
-    from gpfverify.experiments.runner import check_run_count, check_seed, check_workers, make_executor, run_experiment
+    from gpfverify.experiments.runner import (check_batch, check_run_count, check_seed, check_workers, make_executor,
+                                              run_experiment)
     from gpfverify.systems import load_system
 
     if args.measurements is not None and args.steps is not None:
@@ -75,6 +81,8 @@ def run(args: argparse.Namespace) -> int:
     check_run_count(args.runs)  # everything that can be refused is refused before anything is written
     check_seed(args.seed)
     check_workers(args.workers)
+    if args.batch is not None:
+        check_batch(args.batch)
     if args.out is None and not args.json:
         raise InputError("give --out DIR (results and report) and/or --json (results on stdout)")
     out_dir = None if args.out is None else args.out.absolute()  # before the system file can change folder
@@ -82,8 +90,9 @@ def run(args: argparse.Namespace) -> int:
                               args.measurements,
                               args.training, args.train, args.fit_points, args.restarts, args.methods,
                               args.rank_rule, args.ci_criterion)
-    with guarded(system_file(params.system)):  # the system file's print() to stderr, its exits reported
-        model = load_system(params.system)  # fail before anything is written
+    with guarded(system_file(params.system)), \
+            time_limited(f"{system_file(params.system)} (loading it and building {params.system.rsplit(':', 1)[1]})"):
+        model = load_system(params.system)  # fail before anything is written; print() to stderr, exits reported
     if params.measurements is not None:
         if args.runs != 1:
             raise InputError("--measurements filters one logged run: --runs must be 1")
@@ -97,7 +106,8 @@ def run(args: argparse.Namespace) -> int:
             out = Path(stack.enter_context(tempfile.TemporaryDirectory()))
         stack.enter_context(guarded(system_file(params.system)))
         with make_executor(args.workers, args.scheduler) as executor:
-            results = run_experiment(check, params, args.runs, args.seed, out, args.resume, executor)
+            results = run_experiment(check, params, args.runs, args.seed, out, args.resume, executor,
+                                     batch=args.batch)
         if args.out is not None:
             check.write_run_files(out, args.runs)
             from gpfverify.report.equivalence import write_equivalence_report
@@ -106,12 +116,12 @@ def run(args: argparse.Namespace) -> int:
     if results["failed_runs"]:
         first = results["failed_runs"][0]
         print(f"gpfverify check: {len(results['failed_runs'])} run(s) failed; first: {first['error']}",
-              file=sys.stderr)
+              file=diagnostics())
     if args.json:
         print(json.dumps(results))
     else:
         print(verdict_sentence(results) + f" Results: {args.out / 'results.json'}; the report page: "
               f"{args.out / 'report.html'}")
     if args.json and args.out is not None:
-        print(f"gpfverify check: the report page: {args.out / 'report.html'}", file=sys.stderr)
+        print(f"gpfverify check: the report page: {args.out / 'report.html'}", file=diagnostics())
     return 0

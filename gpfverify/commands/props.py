@@ -32,8 +32,10 @@ import sys
 import time
 from pathlib import Path
 
+from gpfverify.cli import positive_seconds
 from gpfverify.errors import InputError
 from gpfverify.outputs import add_wait_argument, final_path, out_path, output_folder
+from gpfverify.streams import diagnostics
 
 PROFILES = ("ci", "dev", "thorough")
 FAILURE_LINES = 40
@@ -58,6 +60,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              "tree the package is installed from)")
     parser.add_argument("-k", dest="keyword", default=None, metavar="EXPR",
                         help="only properties whose name matches this pytest -k expression")
+    parser.add_argument("--timeout", type=positive_seconds, default=None, metavar="SECONDS",
+                        help="stop the command (exit status 2, one line naming the property) when one property "
+                             "has not finished after SECONDS (default: no limit)")
 
 
 def make_collector(pytest):
@@ -67,6 +72,40 @@ def make_collector(pytest):
     class Collector:
         def __init__(self) -> None:
             self.records: dict[str, dict] = {}
+            self.collection_errors: list[str] = []
+
+        def pytest_collectreport(self, report):
+            """A module of the suite that cannot be collected (an import error): its first error line."""
+            if report.failed:
+                lines = report.longreprtext.splitlines()
+                cause = next((line[1:].strip() for line in reversed(lines) if line.startswith("E ")),
+                             lines[-1].strip() if lines else "")
+                self.collection_errors.append(f"{report.nodeid or 'the suite'}: {cause}")
+
+        @pytest.hookimpl(hookwrapper=True)
+        def pytest_pyfunc_call(self, pyfuncitem):
+            """Each property within ``--timeout`` (:func:`gpfverify.usercode.time_limited`); one that
+            runs out of time stops the session."""
+            from gpfverify.usercode import time_limit, time_limited
+
+            test = pyfuncitem.obj
+            if time_limit() is None:
+                yield
+                return
+
+            def limited(*args, **kwargs):
+                try:
+                    with time_limited(f"the property {pyfuncitem.nodeid}"):
+                        return test(*args, **kwargs)
+                except InputError:
+                    pyfuncitem.session.shouldstop = "a property ran out of time"
+                    raise
+
+            pyfuncitem.obj = limited
+            try:
+                yield
+            finally:
+                pyfuncitem.obj = test
 
         def _record(self, nodeid: str) -> dict:
             return self.records.setdefault(nodeid, {"name": nodeid, "outcome": "passed",
@@ -120,6 +159,8 @@ def _run_suite(pytest, suite: Path, stage: Path, args: argparse.Namespace) -> di
 
     from hypothesis import configuration
 
+    from gpfverify.usercode import Interrupted, UserTimeout, interrupt_received, timed_out
+
     counterexamples = stage / "counterexamples"
     collector = make_collector(pytest)
     options = [str(suite), "-q", "-p", "no:cacheprovider", f"--hypothesis-profile={args.profile}",
@@ -139,11 +180,20 @@ def _run_suite(pytest, suite: Path, stage: Path, args: argparse.Namespace) -> di
             configuration.set_hypothesis_home_dir(home)
             os.environ.pop("GPFVERIFY_COUNTEREXAMPLES", None)
     seconds = time.perf_counter() - start
+    late = timed_out()
+    if late is not None:
+        raise UserTimeout(late)
+    if interrupt_received():  # Ctrl-C or SIGTERM, which pytest caught: the command is interrupted
+        raise Interrupted
+    if code == pytest.ExitCode.INTERRUPTED and not collector.collection_errors:
+        raise InputError("a property raised KeyboardInterrupt itself (no Ctrl-C was pressed): the property suite "
+                         "stopped")
     if code not in (pytest.ExitCode.OK, pytest.ExitCode.TESTS_FAILED):
-        said = [line for line in captured.getvalue().splitlines() if "error" in line.lower()]
+        said = collector.collection_errors or [line.strip() for line in captured.getvalue().splitlines()
+                                               if line.startswith(("ERROR:", "E ")) or "error:" in line.lower()]
         raise InputError(f"the property suite could not run (pytest exit status {int(code)})"
-                         + (f": {said[0].strip()}" if said else ""))
-    sys.stderr.write(captured.getvalue())
+                         + (f": {said[0]}" if said else ""))
+    diagnostics().write(captured.getvalue())
     files = sorted(counterexamples.glob("*.json")) if counterexamples.is_dir() else []
     properties = sorted(collector.records.values(), key=lambda r: r["name"])
     from gpfverify.provenance import current
@@ -186,5 +236,5 @@ def run(args: argparse.Namespace) -> int:
     totals = summary["totals"]
     print(f"props ({args.profile}): {totals['passed']} of {totals['properties']} properties hold, "
           f"{totals['examples']} examples, {seconds:.1f} s -> {out / 'summary.json'}",
-          file=sys.stdout if summary["passed"] else sys.stderr)
+          file=sys.stdout if summary["passed"] else diagnostics())
     return 0 if summary["passed"] else 1

@@ -10,12 +10,12 @@ from __future__ import annotations
 
 import argparse
 import json
-import sys
 from pathlib import Path
 
 from gpfverify.cli import non_negative_int
 from gpfverify.errors import InputError
 from gpfverify.outputs import add_wait_argument, out_path, output_folder
+from gpfverify.streams import diagnostics
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -42,7 +42,7 @@ def run(args: argparse.Namespace) -> int:
     from gpfverify.symbolic.claims import run_claims
     from gpfverify.symbolic.crosscheck import run_crosschecks
 
-    progress = lambda text: print(text, file=sys.stderr)  # noqa: E731
+    progress = lambda text: print(text, file=diagnostics())  # noqa: E731
     with output_folder(args.out, keep=False, wait=args.wait) as stage:
         certificates: list = run_claims(args.size, args.only, progress)
         if not args.no_casadi and not args.only:
@@ -57,7 +57,7 @@ def run(args: argparse.Namespace) -> int:
     print(f"{len(certificates)} certificates -> {args.out / 'certificates.json'} ({summary})")
     failures = [(c.claim, f) for c in certificates for f in c.failures]
     for claim, failure in failures:  # CONTRACT.md: a negative control that is not rejected fails the run
-        print(f"NOT A PROOF: {claim}: {failure}", file=sys.stderr)
+        print(f"NOT A PROOF: {claim}: {failure}", file=diagnostics())
     return 1 if failures else 0
 
 
@@ -75,7 +75,7 @@ def check(path: Path) -> int:
         raise InputError(f"{path} is not a certificate file (a list of records with 'claim' and 'status')")
     problems = [p for r in records for p in check_record(r)]
     for p in problems:
-        print(f"REJECTED: {p}", file=sys.stderr)
+        print(f"REJECTED: {p}", file=diagnostics())
     kernel = sum(1 for r in records if "formal" in r or "checks" in r)
     print(f"{path}: {len(records)} records, {kernel} derived by the kernel: "
           + ("every status, statement and scope confirmed" if not problems else f"{len(problems)} problems"))

@@ -19,6 +19,7 @@ from pathlib import Path
 
 from gpfverify.papers import EXPERIMENTS
 from gpfverify.outputs import add_wait_argument, out_path, output_folder
+from gpfverify.streams import diagnostics
 
 #: a progress line off a terminal every this fraction of the runs
 PROGRESS_FRACTION = 0.05
@@ -39,7 +40,7 @@ def quick_runs(module) -> int:
 
 
 def add_common_arguments(parser: argparse.ArgumentParser, default_runs: int, paper_runs: int | None = None) -> None:
-    from gpfverify.cli import non_negative_int, positive_int
+    from gpfverify.cli import BATCH_HELP, non_negative_int, positive_int
 
     paper_runs = default_runs if paper_runs is None else paper_runs
     parser.add_argument("--runs", type=positive_int, default=None,
@@ -58,7 +59,9 @@ def add_common_arguments(parser: argparse.ArgumentParser, default_runs: int, pap
                         help="local worker processes, >= 1 (BLAS pinned to 1 thread each; default 1); "
                              "results are the same for any number")
     parser.add_argument("--scheduler", default=None, metavar="ADDRESS",
-                        help="dask.distributed scheduler address (needs gpfverify[cluster])")
+                        help="dask.distributed scheduler address (needs gpfverify[cluster]; docs/cluster.md "
+                             "says how to start one)")
+    parser.add_argument("--batch", type=positive_int, default=None, metavar="B", help=BATCH_HELP)
     parser.add_argument("--interpretations", default=None, metavar="NAMES",
                         help="also run the experiment under these interpretations of what the paper leaves "
                              "unstated ('all' or comma-separated names), in OUT/interpretations/NAME, and record "
@@ -177,12 +180,15 @@ def run(args: argparse.Namespace) -> int:
     from gpfverify.contract.params import from_arguments
     from gpfverify.errors import InputError
     from gpfverify.experiments.runner import check_run_count, make_executor, run_experiment
+    from gpfverify.memory import advise
 
     if args.experiment is None:
         raise InputError(f"name the experiment to run, one of {', '.join(sorted(EXPERIMENTS))} "
                          "(gpfverify reproduce NAME --help for its options)")
     module = importlib.import_module(EXPERIMENTS[args.experiment])
-    opts = experiment_parser(args.experiment).parse_args(args.rest)
+    parser = experiment_parser(args.experiment)
+    opts = parser.parse_args(args.rest)
+    advise(parser._option_string_actions)  # what to try should memory run out: this experiment's options
     if opts.paper_scale and opts.runs is not None:
         raise InputError("--paper-scale runs the paper's count: not together with --runs")
     runs = module.DEFAULT_RUNS if opts.paper_scale else opts.runs or quick_runs(module)
@@ -206,18 +212,19 @@ def run(args: argparse.Namespace) -> int:
     else:
         scale = f"the paper's: {module.DEFAULT_RUNS}"
     header = f"{args.experiment}: {runs} run(s) ({scale}), {opts.workers} worker(s), into {opts.out}"
-    terminal = sys.stderr.isatty()  # there the runner draws a progress bar
+    terminal = diagnostics().isatty()  # there the runner draws a progress bar
     with output_folder(opts.out, keep=True, wait=opts.wait) as stage, \
             make_executor(opts.workers, opts.scheduler) as executor:
         results = run_experiment(module, params, runs, opts.seed, stage, opts.resume, executor,
-                                 on_run=None if terminal else progress_lines(args.experiment, say, header))
+                                 on_run=None if terminal else progress_lines(args.experiment, say, header),
+                                 batch=opts.batch)
         if specs:
             say(f"{args.experiment}: interpretations {', '.join(s.name for s in specs)}")
             results = run_interpretations(module, params, specs, runs, opts.seed, stage, executor,
                                           on_run=None if terminal else interpretation_lines(args.experiment, say),
-                                          interpretation_runs=opts.interpretation_runs)
+                                          interpretation_runs=opts.interpretation_runs, batch=opts.batch)
     print(f"{args.experiment}: {results['runs_ok']} of {results['runs']} runs ok -> {opts.out / 'results.json'}",
-          file=sys.stderr if results["failed_runs"] else sys.stdout)
+          file=diagnostics() if results["failed_runs"] else sys.stdout)
     print(claims_text(results))
     print(f"page: gpfverify report --from {_shell_word(opts.out)}")
     return 0
@@ -225,7 +232,7 @@ def run(args: argparse.Namespace) -> int:
 
 def say(text: str) -> None:
     """A progress line (a diagnostic: stderr, flushed at once)."""
-    print(text, file=sys.stderr, flush=True)
+    print(text, file=diagnostics(), flush=True)
 
 
 def _shell_word(path: Path) -> str:

@@ -24,7 +24,6 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import math
-import sys
 import types
 import typing
 from typing import Any, Literal, Self, Union
@@ -69,8 +68,10 @@ class DeprecatedOption(argparse.Action):
         super().__init__(option_strings, dest, **kwargs)
 
     def __call__(self, parser, namespace, values, option_string=None) -> None:
+        from gpfverify.streams import diagnostics
+
         print(f"{parser.prog}: note: {option_string} is deprecated, the same option is now {self.current}",
-              file=sys.stderr)
+              file=diagnostics())
         setattr(namespace, self.dest, values)
 
 

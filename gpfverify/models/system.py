@@ -39,9 +39,9 @@ import scipy.linalg as sla
 from gpfverify.angles import difference
 from gpfverify.errors import InputError
 from gpfverify.linalg import sampling_factor
-from gpfverify.models.functions import LinearFunction, ModelFunction, NumpyFunction
+from gpfverify.models.functions import LinearFunction, ModelFunction, NumpyFunction, RunwiseFunction, linear_matrix
 from gpfverify.tolerances import algebra_rtol
-from gpfverify.validate import as_covariance, as_indices, as_vector
+from gpfverify.validate import as_covariance, as_indices, as_vector, real_floats
 
 
 def as_model_function(obj, name: str, in_dim: int, out_dim: int, jacobian=None,
@@ -50,7 +50,7 @@ def as_model_function(obj, name: str, in_dim: int, out_dim: int, jacobian=None,
     if isinstance(obj, ModelFunction):
         fn = obj.renamed(name, circular)
     elif isinstance(obj, np.ndarray) or (isinstance(obj, (list, tuple)) and not callable(obj)):
-        matrix = np.asarray(obj, dtype=float)
+        matrix = real_floats(obj, name)
         if matrix.shape != (out_dim, in_dim):
             raise InputError(f"{name} as a matrix must have shape ({out_dim}, {in_dim}), got {matrix.shape}")
         fn = LinearFunction(matrix, name).renamed(name, circular)
@@ -103,11 +103,9 @@ class Sensor:
 
 
 def _floats(value, what: str, ndim: int) -> np.ndarray:
-    """``value`` as a float array of at least ``ndim`` dimensions (a scalar variance is 1 x 1)."""
-    try:
-        arr = np.asarray(value, dtype=float)
-    except (TypeError, ValueError):
-        raise InputError(f"{what} must be numeric") from None
+    """``value`` as a float array of at least ``ndim`` dimensions (a scalar variance is 1 x 1);
+    booleans, complex numbers and text refused, not converted."""
+    arr = real_floats(value, what)
     return np.atleast_2d(arr) if ndim == 2 else np.atleast_1d(arr)
 
 
@@ -191,7 +189,10 @@ class StateSpaceModel(StackedMeasurement):
             if not isinstance(s, Sensor):
                 raise InputError(f"sensors[{m}] must be a gpfverify.models.Sensor, got {type(s).__name__}")
             label = f"sensor {m}" + (f" ({s.name})" if s.name else "")
-            fn = as_model_function(s.measure, f"{label} measure", d, s.size, s.jacobian, s.circular)
+            if not self.probe and isinstance(s.measure, ModelFunction) and s.measure.circular == s.circular:
+                fn = s.measure  # a model derived from a built one (with_sensors): each keeps its name, "sensor 2"
+            else:
+                fn = as_model_function(s.measure, f"{label} measure", d, s.size, s.jacobian, s.circular)
             bound.append(replace(s, measure=fn) if fn is not s.measure else s)
         set_("sensors", tuple(bound))
         set_("transition", as_model_function(self.transition, "transition", d, d,
@@ -288,10 +289,10 @@ class StateSpaceModel(StackedMeasurement):
 
     @cached_property
     def _linear(self) -> tuple[np.ndarray, np.ndarray] | None:
-        linear = [h for h in self.measures if isinstance(h, LinearFunction)]
-        if not isinstance(self.transition, LinearFunction) or len(linear) != len(self.measures):
+        matrices = [m for m in (linear_matrix(fn) for fn in (self.transition, *self.measures)) if m is not None]
+        if len(matrices) != 1 + len(self.measures):
             return None
-        return self.transition.matrix, np.concatenate([h.matrix for h in linear])
+        return matrices[0], np.concatenate(matrices[1:])
 
     # -- derived models ---------------------------------------------------------------------------
 
@@ -304,6 +305,19 @@ class StateSpaceModel(StackedMeasurement):
         if not as_indices(indices, len(self.sensors), "sensor indices"):
             raise InputError("a model needs at least one sensor")
         return replace(self, sensors=tuple(self.sensors[i] for i in indices), probe=False)
+
+    def for_runs(self, runs: int) -> StateSpaceModel:
+        """The same system for filter steps of ``runs`` Monte Carlo runs at once (beliefs (B, D),
+        measurements (B, L), B = ``runs``): every function maps each run's points as that run's
+        own step would, by a call of its own (:class:`~gpfverify.models.functions.RunwiseFunction`),
+        so that a run's numbers do not depend on the other runs or on B."""
+        if isinstance(runs, bool) or not isinstance(runs, int) or runs < 1:
+            raise InputError(f"runs must be an integer >= 1, got {runs!r}")
+        def runwise(fn: ModelFunction) -> RunwiseFunction:
+            return RunwiseFunction(fn.fn if isinstance(fn, RunwiseFunction) else fn, runs)
+        return replace(self, transition=runwise(self.transition),
+                       sensors=tuple(replace(s, measure=runwise(m)) for s, m in zip(self.sensors, self.measures)),
+                       probe=False)
 
     def with_noise(self, process_cov=None, noise_covs: Sequence | None = None) -> StateSpaceModel:
         """The same functions with new noise covariances (validated; the functions are not probed
@@ -356,7 +370,7 @@ def linear_model(F, H, Q, R, prior_mean=None, prior_cov=None, sizes: Sequence[in
     """x_k = F x_{k−1} + w, y_k = H x_k + v as a :class:`StateSpaceModel` (prior N(0, I) unless
     given); ``sizes`` splits H and R into sensors (default one sensor). R must be block diagonal
     for that split."""
-    F, H, R = (np.atleast_2d(np.asarray(a, dtype=float)) for a in (F, H, R))
+    F, H, R = (np.atleast_2d(real_floats(a, name)) for a, name in ((F, "F"), (H, "H"), (R, "R")))
     d = F.shape[0]
     sizes = (H.shape[0],) if sizes is None else tuple(sizes)
     ends = np.cumsum((0,) + sizes)

@@ -2,6 +2,7 @@
 
     python -m gpfverify.papers.gpsr_upf.page RUN_DIR "COMMAND" [CONFIRM_DIR "CONFIRM_COMMAND"]
     python -m gpfverify.papers.gpsr_upf.page --committed "COMMAND"   # judge the committed results again
+    python -m gpfverify.papers.gpsr_upf.page --figures   # its figures again, from the committed results
 
 RUN_DIR is the output folder of COMMAND (``gpfverify reproduce sins-gps ... --interpretations ...``).
 Its ``results.json`` and those of its interpretations are recomputed from the saved runs with the
@@ -27,7 +28,7 @@ from gpfverify.experiments.sensitivity import merge_saved  # noqa: E402
 from gpfverify.papers.gpsr_upf import experiment as sins_gps
 from gpfverify.papers.gpsr_upf import section as section_module
 from gpfverify.papers.gpsr_upf.contract import DEFAULT_RUNS, INTERPRETATIONS, Params
-from gpfverify.reference_pages import REFERENCE, rejudge_committed, write_page
+from gpfverify.reference_pages import FIGURES, REFERENCE, redraw_figures, rejudge_committed, write_page
 from gpfverify.report.document import Paragraph  # noqa: E402
 
 HERE = REFERENCE / "sins-gps"
@@ -88,5 +89,8 @@ def main(run_dir: Path | None, command: str, confirm: tuple[Path, str] | None = 
 
 
 if __name__ == "__main__":
+    if sys.argv[1:] == [FIGURES]:
+        redraw_figures(HERE, HERE / "run" / "results.json", section_module.render)
+        sys.exit(0)
     main(None if sys.argv[1] == "--committed" else Path(sys.argv[1]), sys.argv[2],
          (Path(sys.argv[3]), sys.argv[4]) if len(sys.argv) > 4 else None)

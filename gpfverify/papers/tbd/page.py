@@ -2,6 +2,7 @@
 
     python -m gpfverify.papers.tbd.page RUN_DIR "COMMAND"        # recompute from saved runs, then render
     python -m gpfverify.papers.tbd.page --committed "COMMAND"    # judge the committed results again, render
+    python -m gpfverify.papers.tbd.page --figures                # its figures again, from the committed results
 
 RUN_DIR is the output folder of COMMAND, a ``gpfverify reproduce tbd ... --interpretations ...``
 command (stated on the page). The main ``results.json`` and that of every interpretation in
@@ -26,7 +27,7 @@ from gpfverify.contract.claims import AS_RUN, read_claims
 from gpfverify.papers.tbd import experiment as tbd
 from gpfverify.papers.tbd.contract import BIRTH_INTERPRETATIONS, IMAGE_EXIT_INTERPRETATIONS, Params
 from gpfverify.papers.tbd.section import GAIN_CLAIM, grid_only, render
-from gpfverify.reference_pages import REFERENCE, recompute_into, rejudge_committed, write_page
+from gpfverify.reference_pages import FIGURES, REFERENCE, recompute_into, redraw_figures, rejudge_committed, write_page
 from gpfverify.report.document import Paragraph, Table, fmt
 
 HERE = REFERENCE / "tbd"
@@ -126,6 +127,9 @@ def _runs_to_decide_table(results: dict) -> Table:
 
 
 if __name__ == "__main__":
-    if len(sys.argv) != 3:
+    if sys.argv[1:] == [FIGURES]:
+        redraw_figures(HERE, HERE / "run" / "results.json", render)
+    elif len(sys.argv) != 3:
         sys.exit(__doc__)
-    main(None if sys.argv[1] == "--committed" else Path(sys.argv[1]), sys.argv[2])
+    else:
+        main(None if sys.argv[1] == "--committed" else Path(sys.argv[1]), sys.argv[2])
