@@ -1,7 +1,8 @@
 """Health checks of a filter in one experiment configuration: a verdict about a paper's claim
 stands only when the filters it compares work there.
 
-Three checks, each a :class:`HealthCheck` record (name, passed, statistic, threshold, detail):
+Three checks, each a :class:`~gpfverify.contract.health_records.HealthCheck` record (name, passed,
+statistic, threshold, detail); the first two are gates, the third a consistency finding:
 
 * **weight collapse** (:func:`ess_check`) — the effective sample size of a particle filter,
   N_eff = 1 / Σ_i w_i² (Kong, Liu & Wong 1994), as a fraction of N, per step; the filter has
@@ -13,42 +14,33 @@ Three checks, each a :class:`HealthCheck` record (name, passed, statistic, thres
   ``max_fraction`` (default 0: one diverged run fails it).
 * **NEES** (:func:`nees_check`) — where the truth is known: the ANEES per step against its
   two-sided χ² interval (:class:`gpfverify.consistency.Consistency`, binomial verdict on the count
-  of steps outside). A failing filter is over- or under-confident and its errors are not what it
-  claims.
+  of steps outside). A filter outside the band is optimistic or pessimistic: its error bars are not
+  what its errors show. That is a consistency finding, reported apart on every page; it does not
+  withhold a verdict on the filter's errors (:data:`~gpfverify.contract.health_records.CONSISTENCY_CHECKS`).
 
-:func:`decide` applies the checks to a verdict: any failed check turns it into
-``"not decidable"`` with a caveat naming the failed checks and their numbers, so a page never
-reports a comparison of filters that did not work as a finding about the method.
+A claim record carries the checks of every filter it compares and applies the gates itself
+(:meth:`gpfverify.contract.claims.ClaimRecord.checked`): a failed gate turns its verdict into
+``"not decidable"``, keeping the verdict the runs gave, so a page never reports a comparison of
+filters that did not work as a finding about the method.
 """
 
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass
 
 import numpy as np
 
-from gpfverify.contract.claims import Verdict
+from gpfverify.contract.health_records import HealthCheck
 from gpfverify.errors import InputError
+
+__all__ = ["MIN_EFFECTIVE_PARTICLES", "MIN_ESS_FRACTION", "HealthCheck", "divergence_check", "ess_check",
+           "nees_check", "nees_values_check"]
 
 #: median N_eff / N at or below which a particle filter counts as collapsed
 MIN_ESS_FRACTION = 0.05
 #: ... or, with so few particles that 1/N exceeds that fraction, this many particles' worth
 #: (capped at half the set), so that a total collapse is flagged at any N
 MIN_EFFECTIVE_PARTICLES = 2.0
-
-
-@dataclass(frozen=True)
-class HealthCheck:
-    """One check of one filter configuration: ``passed`` when ``statistic`` is on the healthy side
-    of ``threshold`` (the side depends on the check; ``detail`` says it in words)."""
-
-    name: str
-    subject: str
-    passed: bool
-    statistic: float
-    threshold: float
-    detail: str
 
 
 def ess_check(subject: str, ess_fraction, n_particles: int, *,
@@ -115,19 +107,3 @@ def nees_values_check(subject: str, nees, dim: int, level: float = 0.95) -> Heal
     verdict = test.verdict()
     return HealthCheck("NEES", subject, verdict == "consistent", float(np.mean(test.values)), float(dim),
                        f"{verdict}: {test.summary()}")
-
-
-def decide(verdict: Verdict, checks: Sequence[HealthCheck]) -> tuple[Verdict, tuple[str, ...]]:
-    """The verdict with the health checks applied: unchanged when every check passed, else
-    ``"not decidable"``; the caveats name each failed check. A "NOT held" that stands says in a caveat
-    that the filters it compares passed, with each check's numbers: it is a finding about working
-    filters."""
-    failed = [c for c in checks if not c.passed]
-    if not failed:
-        if verdict == "NOT held" and checks:
-            return verdict, ("health of the filters compared: every check passed — "
-                             + "; ".join(f"{c.subject}: {c.name}, {c.detail}" for c in checks),)
-        return verdict, ()
-    caveats = tuple(f"{c.subject}: {c.name} — {c.detail}" for c in failed)
-    return "not decidable", (f"verdict withheld (would be '{verdict}'): the filters compared did not pass "
-                             "their health checks", *caveats)

@@ -12,7 +12,7 @@ import tempfile
 from collections.abc import Callable, Sequence
 from pathlib import Path
 
-from gpfverify.contract.claims import ClaimRecord, read_claims
+from gpfverify.contract.claims import ClaimRecord, carry, read_claims
 from gpfverify.experiments.runner import read_manifest, results_of
 from gpfverify.experiments.sensitivity import merge_saved
 from gpfverify.report.document import Paragraph, Section, Table
@@ -22,6 +22,30 @@ from gpfverify.report.render import to_markdown, verdicts_paragraph
 #: the committed reference pages, relative to the repository root the page scripts run from
 #: (``python -m gpfverify.papers.<paper>.page ...``)
 REFERENCE = Path("reports") / "reference"
+
+
+def rejudged(results: dict, module) -> dict:
+    """A stored ``results.json`` with its claims judged again by the current code from the stored
+    summary (the experiment's ``judge(params, body, runs) -> (claims, timing claims)``) and what only
+    the runs could give — a verdict that needs per-run data the summary does not hold, the verdicts
+    under the interpretations — carried over from the stored records
+    (:func:`gpfverify.contract.claims.carry`); the claims on computation time under
+    ``"timing_claims"``. For pages whose per-run files are no longer at hand."""
+    params = module.Params.from_json(results["params"])
+    claims, timing = module.judge(params, results, results.get("runs_ok", results["runs"]))
+    merged = carry([*claims, *timing], read_claims(results), getattr(module, "SUMMARY_FIELDS", ()))
+    timed = {c.id for c in timing}
+    out = {**results, "claims": [c.to_json() for c in merged if c.id not in timed]}
+    if timing or "timing_claims" in results:
+        out["timing_claims"] = [c.to_json() for c in merged if c.id in timed]
+    return out
+
+
+def rejudge_committed(path: Path, module) -> dict:
+    """:func:`rejudged` of the committed ``results.json`` at ``path``, written back there."""
+    results = rejudged(json.loads(path.read_text(encoding="utf-8")), module)
+    path.write_text(json.dumps(results, allow_nan=True), encoding="utf-8")  # as the runner writes it
+    return results
 
 
 def recompute_into(run_dir: Path, module, target: Path) -> dict:

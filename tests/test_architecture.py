@@ -25,7 +25,7 @@ ROOT = Path(__file__).resolve().parents[1]
 #: where docs/architecture.md's diagram starts; the fenced block after it is the diagram
 DIAGRAM_MARK = "<!-- the layers, top first: generated from pyproject.toml by tests/test_architecture.py -->"
 #: the rooms of a paper package: each module's name is a room or ends in "_<room>" (ct2d_experiment)
-ROOMS = ("scenario", "contract", "experiment", "section", "page")
+ROOMS = ("scenario", "contract", "claims", "experiment", "section", "page")
 
 
 def _contracts() -> dict[str, dict]:

@@ -78,7 +78,9 @@ def test_claims_are_records_of_every_paper_claim(cli_results):
     assert "ct2d/gp-ukf-loses-full-rank" in ids  # κ = 12 < 300
     assert all(c.n == 2 and c.paper_n == 1000 and c.setting == "κ = 12, Ω = 2π/90" for c in claims)
     assert {c.id.split("/")[1] for c in claims if c.timing} == {"dmf-cheaper-than-cmf", "dmf-update-cheaper-than-cmf",
-                                                                "rcc-ci-costs-most"}
+                                                                "rcc-ci-costs-most", "cw-fastest",
+                                                                "gp-ukf-fusion-time-vs-gp-adf"}
+    assert not any(c.needs for c in claims)  # a run's summary keeps every per-run time the claims need
     equivalence = [c for c in claims if c.id.startswith("ct2d/dmf-equals-cmf/")]
     for c in equivalence:
         family = c.id.rsplit("/", 1)[1]

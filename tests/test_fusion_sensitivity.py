@@ -9,6 +9,7 @@ import dataclasses
 import numpy as np
 import pytest
 
+from gpfverify.report.claim_words import health_words
 from gpfverify.contract import ClaimRecord, to_json
 from gpfverify.papers.fusion import ct2d_contract
 from gpfverify.papers.fusion import ungm1d_contract
@@ -141,8 +142,8 @@ def test_a_diverged_fused_filter_makes_the_comparison_not_decidable():
     assert not health[("CMF-GP-UKF", "divergence")]["passed"]
     assert health[("CMF-GP-ADF", "divergence")]["passed"]
     claim = _claim(body, "ct2d/fusion-beats-sensors/GP-UKF")
-    assert claim.verdict == "not decidable"
-    assert any("CMF-GP-UKF: divergence" in c for c in claim.caveats)
+    assert claim.verdict == "not decidable" and claim.would_be is not None
+    assert [(c.subject, c.name) for h in claim.failed_filters for c in h.failed] == [("CMF-GP-UKF", "divergence")]
     assert _claim(body, "ct2d/fusion-beats-sensors/GP-ADF").verdict != "not decidable"
 
 
@@ -155,7 +156,10 @@ def test_an_overconfident_filter_leaves_the_verdict_with_a_caveat():
     body = ct2d.summarize(params, runs)
     claim = _claim(body, "ct2d/fusion-beats-baselines/GP-ADF")
     assert claim.verdict == plain.verdict != "not decidable"
-    assert any("NEES check failed" in c and "DMF-GP-ADF optimistic" in c for c in claim.caveats)
+    # a consistency finding in the filter's health record, never a failed gate
+    (dmf,) = [h for h in claim.health if h.subject == "DMF-GP-ADF"]
+    assert not dmf.failed and [c.passed for c in dmf.consistency] == [False]
+    assert "optimistic" in dmf.consistency[0].detail and "outside for DMF-GP-ADF" in health_words(claim)
 
 
 def test_health_checks_cover_every_method():
@@ -193,7 +197,8 @@ def test_undecided_paired_claims_state_the_runs_that_would_decide_and_timing_is_
             atol = 5 * log_ratio.std(ddof=1) / np.sqrt(len(runs))
             assert claim.verdict == ("held" if log_ratio.mean() < -atol else
                                      "NOT held" if log_ratio.mean() > atol else "undecided")
-            assert claim.timing and claim.group == "timing"
+            # at κ = 12 the paper states no comparison of times (its case 2 shows CMF and DMF alone): diagnostics
+            assert claim.timing and claim.kind == "diagnostic" and claim.group == "diagnostic"
         rcc = timing[f"ct2d/rcc-ci-costs-most/{family}"]
         assert rcc.evidence.count(" / RCC-CI-") == 3  # CMF, DMF and CW each against RCC-CI
 

@@ -57,21 +57,24 @@ def test_pff1d_writes_the_contract_keys(tmp_path):
 
 def test_bearing_writes_the_contract_keys_and_wraps_bearings(tmp_path):
     res = run_experiment(bearing, bearing.Params(duration=30), 2, 1, tmp_path, show_progress=False)
-    assert set(res["rmse"]) == {"PF-N50", "PF-N200", "IE-PFF-N50"} == set(res["time_per_run"])
+    assert set(res["rmse"]) == {"PF-N50", "PF-N200", "IE-PFF-N50", "IE-PFF-N200"} == set(res["time_per_run"])
+    assert set(res["large_noise"]["rmse"]) == {"PF-N50", "PF-N200", "IE-PFF-N50"}
     # the target crosses the ±π bearing cut near t = 15 s; without wrapped residuals the flow
     # loses it by far more than the initial target–sensor distance
     scene = np.linalg.norm(INITIAL_STATE[[0, 2]] - SENSOR)
     assert all(np.all(np.isfinite(c)) and max(c) < scene for c in res["rmse"].values())
-    claims = read_claims(res)
-    assert [c.timing for c in claims] == [False, True]
-    assert all(c.paper_n == 200 and c.n == 2 for c in claims)
+    claims = {c.id.removeprefix("bearing/"): c for c in read_claims(res)}
+    assert {k for k, c in claims.items() if c.timing} == {"ie-pff-faster-same-n", "ie-pff-faster-than-larger-pf"}
+    assert len(claims) == 7 and all(c.paper_n == 200 and c.n == 2 and c.quote and not c.needs
+                                    for c in claims.values())
     # the time claim: the geometric mean of the paired per-run CPU-time ratios, against 1
     seconds = [json.loads(path.read_text())["result"]["filters"] for path in sorted((tmp_path / "runs").glob("*.json"))]
     log_ratio = np.log([s["IE-PFF-N50"]["seconds"] / s["PF-N200"]["seconds"] for s in seconds])
     atol = 5.0 * log_ratio.std(ddof=1) / np.sqrt(log_ratio.size)
-    assert claims[1].statistic == pytest.approx(np.exp(log_ratio.mean())) and claims[1].threshold == 1.0
-    assert claims[1].verdict == ("held" if log_ratio.mean() < -atol else "NOT held" if log_ratio.mean() > atol
-                                 else "undecided")
+    faster = claims["ie-pff-faster-than-larger-pf"]
+    assert faster.statistic == pytest.approx(np.exp(log_ratio.mean())) and faster.threshold == 1.0
+    assert faster.verdict == ("held" if log_ratio.mean() < -atol else "NOT held" if log_ratio.mean() > atol
+                              else "undecided")
 
 
 def test_params_and_records_round_trip_through_json_text():
@@ -84,7 +87,8 @@ def test_params_and_records_round_trip_through_json_text():
     assert _round_trip(pff1d.RunRecord, record) == record
     brg = bearing.run_one(bearing.Params(duration=4), seed)
     assert _round_trip(bearing.RunRecord, brg) == brg
-    assert set(brg.filters) == {"PF-N50", "PF-N200", "IE-PFF-N50"}
+    assert set(brg.filters) == {"PF-N50", "PF-N200", "IE-PFF-N50", "IE-PFF-N200"}
+    assert set(brg.large_noise) == {"PF-N50", "PF-N200", "IE-PFF-N50"}
 
 
 def test_defaults_are_the_papers_and_the_scenarios():
@@ -92,7 +96,8 @@ def test_defaults_are_the_papers_and_the_scenarios():
     assert (p.particles, p.steps, pff1d.DEFAULT_RUNS, bearing.DEFAULT_RUNS) == (50, 50, 30, 200)
     assert (p.ungm_prior.mean, p.ungm_prior.var) == UNGM_PRIOR
     assert (p.gamma_prior.mean, p.gamma_prior.var) == GAMMA_PRIOR
-    assert b.initial_state == tuple(INITIAL_STATE) and [f.key for f in b.filters] == ["PF-N50", "PF-N200", "IE-PFF-N50"]
+    assert b.initial_state == tuple(INITIAL_STATE)
+    assert [f.key for f in b.filters] == ["PF-N50", "PF-N200", "IE-PFF-N50", "IE-PFF-N200"]
     assert pff1d.PROFILES["full"].runs == 30 and bearing.PROFILES["full"].runs == 200
     assert pff1d.PROFILES["full"].settings[0].params == pff1d.Params()
 

@@ -40,19 +40,22 @@ def test_render_from_the_stored_results(tmp_path):
     assert len(figures) == 3 and all(f.path.exists() and f.path.parent == tmp_path for f in figures)
     tables = {b.caption.split(":")[0]: b for b in page.blocks if isinstance(b, Table)}
     assert len(tables["Table 1 (UNGM, N = 20, T = 6, 3 runs)"].rows) == len(pff["table1"])
-    assert [row[0] for row in tables["Table 2"].rows] == ["PF-N50", "PF-N200", "IE-PFF-N50"]
+    assert [row[0] for row in tables["Table 2"].rows] == ["PF-N50", "PF-N200", "IE-PFF-N50", "IE-PFF-N200"]
+    assert [row[0] for row in tables["Table 2 at larger process noise (r1 and r2 × 10"].rows] == \
+        ["PF-N50", "PF-N200", "IE-PFF-N50"]
     claims = [b for b in page.blocks if isinstance(b, Table) and b.css == "claims"]
     records = read_claims(pff) + read_claims(brg)
-    # the accuracy claims, then the timing claim in a table of its own
-    assert [len(t.rows) for t in claims] == [5, 1] and len(records) == 6  # 1 Δλ: 4 pff1d, 2 bearing
+    # the accuracy claims, the timing claims, those true by construction, each in a table of its own
+    groups = [r.group for r in records]
+    assert [len(t.rows) for t in claims] == [groups.count(g) for g in ("accuracy", "timing", "by construction")]
     rows = [row for t in claims for row in t.rows]
-    assert [row[2].verdict for row in rows] == [r.verdict for r in records if not r.timing] + \
-        [r.verdict for r in records if r.timing]
+    assert [row[2].verdict for row in rows] == [r.verdict for g in ("accuracy", "timing", "by construction")
+                                                for r in records if r.group == g]
     # every claim rests on 3 runs where the paper used 30 or 200; the run-time claim on CPU times
     assert all(row[2].cautions for row in rows)
     assert any("CPU times" in c for c in claims[1].rows[0][2].cautions)
     text = _texts(page)
-    assert "Zhou et al. 2020" in page.title and all(r.source.startswith("Zhou et al. 2020") for r in records)
+    assert "Zhou et al. 2020" in page.title and all(r.source.startswith("§3.") and r.quote for r in records)
     assert "the paper used 30" in text and "the paper used 200" in text
     divergences = ", ".join(f"{d['method']} Δλ = {d['dlambda']:g} {d['spacing']}: {d['diverged']}/{d['total']}"
                             for d in pff["divergences"])

@@ -89,21 +89,22 @@ def test_a_flow_diverging_under_one_schedule_only_makes_the_claim_not_decidable(
     claims = {c.id: c for c in read_claims(res)}
     withheld = claims["pff1d/ie-pff-beats-pf-and-edh-at-large-q/dlambda=0.1"]
     assert withheld.verdict == "not decidable"
-    assert "IE-PFF Δλ=0.1 uniform (UNGM Q = 10, R = 1): divergence" in " ".join(withheld.caveats)
+    assert ("IE-PFF Δλ=0.1 uniform (UNGM Q = 10, R = 1)", "divergence") in {
+        (c.subject, c.name) for h in withheld.failed_filters for c in h.failed}
     assert claims["pff1d/ie-pff-beats-pf-and-edh-at-large-q/dlambda=0.001"].verdict != "not decidable"
 
 
 def test_a_divergence_is_named_as_the_integrators_step_size_instability(tmp_path):
     """A flow that diverges under every schedule tried is still not decided on: explicit Euler
-    diverges for large steps whatever the flow, so the verdict is withheld and says so, pointing to
-    the schedules that kept the flow finite (none here)."""
+    diverges for large steps whatever the flow, so the comparisons of that flow are withheld and
+    the claim says why."""
     params = pff1d.Params(dlambda=(0.1,), spacings=("uniform",), **TINY)
     res = run_experiment(pff1d, params, 3, 1, tmp_path, show_progress=False)
     claim = next(c for c in read_claims(res) if c.id == "pff1d/ie-pff-beats-pf-and-edh-at-large-q/dlambda=0.1")
     assert claim.verdict == "not decidable"
     text = " ".join(claim.caveats)
     assert "step-size instability" in text and "not a failure of the continuous flow" in text
-    assert "no schedule this run tried kept it finite here" in text and "method's failure" not in text
+    assert "withheld: R = " in text and "method's failure" not in text
 
 
 def test_the_papers_fig1b_cell_is_a_claim_and_the_linear_measurement_reaches_the_model():
@@ -112,7 +113,8 @@ def test_the_papers_fig1b_cell_is_a_claim_and_the_linear_measurement_reaches_the
     res = pff1d.summarize(params, [pff1d.run_one(params, np.random.SeedSequence(i)) for i in range(2)])
     fig1b = next(c for c in res["claims"] if c.id == "pff1d/ie-pff-beats-pf-and-edh-fig1b/dlambda=0.01")
     assert "Fig. 1(b)" in fig1b.source and "Q = 1, R = 0.1" in fig1b.setting
-    assert fig1b.evidence.startswith("R = 0.1 vs PF:") and "R = 0.1 vs EDH:" in fig1b.evidence
+    assert fig1b.evidence.startswith("R = 0.1: IE-PFF vs PF:") and "R = 0.1: IE-PFF vs EDH:" in fig1b.evidence
+    assert fig1b.source == "§3.1, Fig. 1(b)" and fig1b.quote.startswith("由圖1")
     linear = {c: m for c, _, _, m, *_ in pff1d._cases(params.replace(ungm_measurement="linear"))}["ungm"]
     x = np.array([[-3.0], [2.0]])
     assert np.allclose(linear.measures[0](x), x)  # one-to-one: y = x
@@ -168,10 +170,11 @@ def test_weight_collapse_is_flagged_in_the_experiments_settings():
     # bearing: a very precise sensor collapses both PFs; the accuracy claim is then not decidable
     params = bearing.Params(duration=5, bearing_std=1e-6)
     res = bearing.summarize(params, [bearing.run_one(params, np.random.SeedSequence(i)) for i in range(2)])
-    collapse = [c for c in res["health"] if c.name == "weight collapse"]
-    assert collapse and not any(c.passed for c in collapse)
+    collapse = [c for c in res["health"] if c["name"] == "weight collapse"]
+    assert collapse and not any(c["passed"] for c in collapse)
     accuracy = res["claims"][0]
-    assert accuracy.verdict == "not decidable" and any("weight collapse" in c for c in accuracy.caveats)
+    assert accuracy.verdict == "not decidable" and accuracy.would_be is not None
+    assert "weight collapse" in {c.name for h in accuracy.failed_filters for c in h.failed}
 
 
 def test_undecided_comparisons_state_the_runs_that_would_decide():
@@ -182,3 +185,21 @@ def test_undecided_comparisons_state_the_runs_that_would_decide():
     assert c.runs_to_decide == int(np.ceil(30 * (c.critical / abs(c.t)) ** 2)) > 30
     decided = dataclasses.replace(c, verdict="held")
     assert decided.runs_to_decide is None
+
+
+def test_a_ratio_claim_is_the_paired_t_test_of_the_log_ratios_against_the_bound():
+    """ "Within a factor of" (does well, not improved by more particles): Student's t of the per-run
+    log ratios against log(bound), computed here by scipy, decides it at the page's level."""
+    from scipy.stats import ttest_1samp
+
+    from gpfverify.papers.particle_flow.methods import ratio_comparison
+
+    rng = np.random.default_rng(11)
+    b = rng.uniform(0.5, 2.0, 30)
+    a = 1.2 * b * np.exp(rng.normal(0.0, 0.1, b.size))
+    for bound, verdict in ((1.5, "held"), (1.0, "NOT held")):
+        c = ratio_comparison(list(a), list(b), bound, 0.05)
+        expected = ttest_1samp(np.log(a / b) - np.log(bound), 0.0)
+        assert c.t == pytest.approx(expected.statistic, rel=1e-10) and c.verdict == verdict
+    lost = ratio_comparison([None, *a[1:]], list(b), 1.5, 0.05)  # a diverged where b did not: a loss
+    assert lost.verdict == "NOT held" and lost.lost == 1

@@ -400,9 +400,12 @@ def test_claims_are_records_with_the_ess_and_the_health_checks(tiny_run):
             in claim.evidence
         assert any("out of reach in this scenario" in c for c in claim.caveats) == out_of_reach
         assert f"UPF {ess['UPF']:.4f}" in claim.evidence and f"GPSR-UPF {ess['GPSR-UPF']:.4f}" in claim.evidence
-        assert any("verdict withheld" in c for c in claim.caveats) == bool(failed)
-        assert all(any(c["subject"] in caveat and c["name"] in caveat for caveat in claim.caveats) for c in failed)
-        assert claim.source.startswith("Meng et al. 2015") and claim.paper == "seed001" and claim.n == 2
+        # the filters' health is the record's, with every check run of each (the gate's words are rendered from it)
+        assert (claim.would_be is not None) == (claim.verdict == "not decidable")
+        assert {(c.subject, c.name) for h in claim.failed_filters for c in h.failed} == \
+            {(c["subject"], c["name"]) for c in failed if c["subject"] in {h.subject for h in claim.health}}
+        assert claim.source == "§3, Table 1" and "33%" in claim.quote and claim.kind == "claim"
+        assert claim.paper == "seed001" and claim.n == 2
         assert any("rests on 2 runs" in c for c in claim.caveats)
     # with 4 particles the weights collapse onto one particle: the comparison is withheld
     assert not next(c for c in health if c["subject"] == "UPF")["passed"]
@@ -446,7 +449,7 @@ def test_report_page_renders_from_a_stored_results_file(tmp_path):
     # the verdict under each interpretation tried, with the robustness sentence
     (tried,) = [b for b in section.blocks if isinstance(b, Table) and b.caption.startswith("Verdict (statistic)")]
     assert tried.headers[:4] == ["claim", "as run", "q-x100", "point-proposal-q-x100"]
-    position = next(row for row in tried.rows if "position error by" in row[0] and "Supplementary" not in row[0])
+    position = next(row for row in tried.rows if row[0].startswith("GPSR-UPF lowers the position error"))
     assert position[1].startswith("not decidable") and position[2].value.startswith("not decidable")
     assert position[-2].startswith("depends on the interpretation")
     assert "First configuration in which both particle filters pass their health checks: point-proposal-q-x100" in text
@@ -508,8 +511,9 @@ def test_zero_model_error_gives_a_zero_ceiling_and_withholds_nothing_as_unreacha
     ("NOT held", 0.05, "not decidable"), ("undecided", 0.05, "undecided"), ("held", 0.05, "held"),
     ("NOT held", 0.30, "NOT held")])
 def test_a_claim_out_of_reach_is_never_not_held(verdict, ceiling, expected):
-    decided, caveats = sins_gps._within_reach(verdict, {"position": ceiling}, "position", 0.23)
+    decided, would_be, caveats = sins_gps._within_reach(verdict, {"position": ceiling}, "position", 0.23)
     assert decided == expected
+    assert would_be == (verdict if decided != verdict else None)  # the verdict the runs gave, kept
     assert bool(caveats) == (ceiling < 0.23)
 
 

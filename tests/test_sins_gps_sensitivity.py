@@ -12,7 +12,7 @@ import pytest
 from gpfverify.papers.gpsr_upf.contract import INTERPRETATIONS, ROUGHENING_CONSTANT, Params
 from gpfverify.papers.gpsr_upf import experiment as sins_gps
 from gpfverify.filters.resampling import Particles, ParticleStep
-from gpfverify.health import decide
+from gpfverify.contract.claims import ClaimRecord
 from gpfverify.papers.gpsr_upf.scenario import VELOCITY
 
 SHORT = Params(particles=8, duration=40.0, train_points=20)
@@ -96,8 +96,9 @@ def test_the_faithful_upf_collapses_and_is_flagged():
         assert len(run.ess_fraction) == 40 and np.mean(run.ess_fraction) == pytest.approx(run.ess_mean)
         check = checks[(method, "weight collapse")]
         assert not check.passed and check.statistic < 1.5 / SHORT.particles and "one particle" in check.detail
-    verdict, caveats = decide("NOT held", list(checks.values()))
-    assert verdict == "not decidable" and any("weight collapse" in c for c in caveats)
+    claim = ClaimRecord("c", "s", "NOT held", 0.0, 0.0, 1, "e").checked(["UPF", "GPSR-UPF"], checks.values())
+    assert claim.verdict == "not decidable" and claim.would_be == "NOT held"
+    assert {c.name for h in claim.failed_filters for c in h.failed} == {"weight collapse"}
 
 
 def test_the_point_proposal_keeps_the_weights_healthy():

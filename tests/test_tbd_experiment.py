@@ -15,6 +15,7 @@ from gpfverify.contract import VERDICTS, ClaimRecord, from_json, read_claims, to
 from gpfverify.papers.tbd.contract import PROFILES, MethodRun, Params, RunRecord, SnrRun, TbdMethod
 from gpfverify.errors import InputError
 from gpfverify.papers.tbd import experiment as tbd
+from gpfverify.papers.tbd.claims import STATEMENTS
 from gpfverify.experiments.runner import run_experiment, without_timing
 from gpfverify.report.document import Figure, Paragraph, Section, Table
 from gpfverify.report.inputs import load_section
@@ -123,9 +124,8 @@ def test_invalid_params_name_the_option(changes, option):
 def test_claims_are_records_decided_from_the_data(small_run):
     small_results, out = small_run
     records = read_claims(small_results)
-    assert sorted(c.id for c in records) == sorted(["tbd/snr-gain-equal-n", "tbd/time-equal-n",
-                                                    "tbd/half-n-detects-as-well", "tbd/time-half-n", "tbd/zeta-best",
-                                                    "tbd/only-zeta-0.4-worse"])
+    # every claim of the catalogue but the one on SNRs at or below 3 dB, which these runs do not have
+    assert sorted(c.id for c in records) == sorted(f"tbd/{slug}" for slug in STATEMENTS if slug != "gain-shrinks-low-snr")
     # the two resting on CPU times are kept apart from the claims that repeat exactly
     assert {c["id"] for c in small_results["timing_claims"]} == {"tbd/time-equal-n", "tbd/time-half-n"}
     by_id = {c.id: c for c in records}
@@ -151,7 +151,8 @@ def test_claims_are_records_decided_from_the_data(small_run):
     pd = small_results["pd_at_pfa"]
     assert by_id["tbd/half-n-detects-as-well"].statistic == pytest.approx(pd["TPFTBD-N40"] - pd["PFTBD-N80"])
     for c in records:
-        assert c.paper == "seed004" and c.n == 3 and c.paper_n == 3000 and c.source.startswith("Chen et al. 2015")
+        assert c.paper == "seed004" and c.n == 3 and c.paper_n == 3000 and c.source.startswith("§3.") and c.quote
+        assert not c.needs  # a run's summary keeps every per-run value the claims need
         assert any("3 runs" in caution for caution in c.cautions)  # fewer runs than the paper's 3000
         assert ClaimRecord.from_json(json.loads(json.dumps(c.to_json()))) == c
 
@@ -328,9 +329,12 @@ def test_the_gain_claim_is_shown_under_every_birth_proposal_and_detection_readin
          "1.11 dB: undecided, about 19000 runs would decide", "0.7 dB: NOT held", "0.86 dB: NOT held"],
         ["uniform over the image (2000 runs)", "0.9 dB: undecided, about 7000 runs would decide", "1.4 dB: held",
          "—", "—"]]
+    # the headline is the verdict as run; the largest reading's gain is a bound, said with how many readings there are
     favourable = next(b.text for b in blocks if isinstance(b, Paragraph) and "most favourable" in b.text)
-    assert "'uniform over the image' with detection 'last-frame'" in favourable and "1.4 dB over 2000 runs: held" \
-        in favourable
+    assert favourable.startswith("The headline is the verdict as run — birth proposal 'cells above 1σ, 10 % uniform', "
+                                 "detection 'frames': 0.57 dB, NOT held.")
+    assert ("The most favourable of the 6 readings tried reaches 1.4 dB (birth proposal 'uniform over the image', "
+            "detection 'last-frame', 2000 runs; that reading alone: held): a bound") in favourable
     sensitivity = tbd_section._sensitivity_blocks([gain])
     shown = {name for block in sensitivity if isinstance(block, Table) for row in block.rows for name in row[:1]}
     assert "birth-uniform" in shown and "birth-uniform-detection-last-frame" not in shown

@@ -1,27 +1,35 @@
 """Claims as data: every verdict of a reproduction is a :class:`ClaimRecord` in ``results.json``
 (CONTRACT.md, "Claims as records"), computed by the experiment and rendered by the report.
 
-A record says what the paper claims (``claim``, ``paper``, ``source``: equation / figure /
-table), the verdict, the statistic it rests on and the threshold it was compared with, how many
-runs (``n``) against the paper's own count (``paper_n``), the evidence in words, caveats, the
-group it is counted in (:attr:`ClaimRecord.group`: the paper's accuracy claims — the headline —, a
-theorem of the paper checked on the runs, or computation time), and — for sensitivity studies —
-the verdict under each interpretation tried. Verdicts:
+A record says what is claimed (``claim``, ``paper``, ``source``: section and equation / figure /
+table located exactly, ``quote``: the paper's own words), whose claim it is (``kind``: a claim the
+paper makes, or a ``"diagnostic"`` — a check of the toolkit's own that the paper does not make), the
+verdict, the statistic it rests on and the threshold it was compared with, how many runs (``n``)
+against the paper's own count (``paper_n``), the evidence in words, caveats, the health of every
+filter it compares (``health``: the checks run of each, :mod:`gpfverify.contract.health_records`),
+the group it is counted in (:attr:`ClaimRecord.group`) and — for sensitivity studies — the verdict
+under each interpretation tried. Verdicts:
 
 * ``held`` / ``NOT held`` — decided by the statistic against the threshold;
 * ``undecided`` — the Monte Carlo interval contains the threshold: more runs would decide;
-* ``not decidable`` — the experiment cannot decide it as run (e.g. the filter failed its health
-  checks, or the setting the claim needs is not in this profile).
+* ``not decidable`` — the experiment cannot decide it as run: a filter it compares failed a health
+  gate (``would_be`` keeps the verdict the runs gave), or the runs did not keep what it needs
+  (``needs`` says what).
+
+Every word a page says about a claim — its kind, source, health, the group it is counted in — is
+rendered from these fields, never from the text of a caveat.
 """
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Iterable
 from dataclasses import dataclass
 from typing import Any, Literal
 
 import numpy as np
 
+from gpfverify.contract.health_records import FilterHealth, filter_health
 from gpfverify.contract.serial import from_json, to_json
 from gpfverify.errors import InputError
 from gpfverify.tolerances import MONTE_CARLO_SIGMAS, monte_carlo_atol
@@ -29,6 +37,8 @@ from gpfverify.views import HtmlView
 
 Verdict = Literal["held", "NOT held", "undecided", "not decidable"]
 VERDICTS: tuple[Verdict, ...] = ("held", "NOT held", "undecided", "not decidable")
+#: a claim the paper makes, or a check of the toolkit's own (a comparison the paper does not make)
+Kind = Literal["claim", "diagnostic"]
 
 
 def verdict_of(held: bool | None) -> Verdict:
@@ -48,8 +58,13 @@ def combine(verdicts: list[Verdict]) -> Verdict:
 
 #: the group of the claims on computation time (CPU times compared as paired per-run ratios)
 TIMING = "timing"
-#: the group of every claim that is neither a theorem's nor on computation time: the headline
+#: the group of the paper's claims that are neither a theorem's nor on computation time: the headline
 ACCURACY = "accuracy"
+#: the group of the claims on computation time that hold by construction of the implementation
+#: (more λ-steps take more time): reported, never counted as evidence
+BY_CONSTRUCTION = "by construction"
+#: the group of the toolkit's own checks, which the paper does not make
+DIAGNOSTIC = "diagnostic"
 #: the fusion paper's theorem: DMF (eq. 35) equals CMF when every C_xy^m has full column rank
 PROPOSITION_1 = "Proposition 1"
 
@@ -105,16 +120,67 @@ class ClaimRecord(HtmlView):
     runs_to_decide: int | None = None
     #: the paper's theorem the claim checks on the runs (:data:`PROPOSITION_1`), "" for an empirical claim
     theorem: str = ""
+    #: "claim": the paper makes it (``quote`` or ``source`` locates where); "diagnostic": the toolkit's own
+    kind: Kind = "claim"
+    #: the paper's words that make the claim (its language; see docs/claims.md for the conventions)
+    quote: str = ""
+    #: every filter the verdict compares, with the health checks run of it (none: no checks run)
+    health: tuple[FilterHealth, ...] = ()
+    #: for a verdict withheld by a failed health gate: the verdict the runs gave
+    would_be: Verdict | None = None
+    #: why the claim holds by construction of the implementation (a timing claim that measures no
+    #: property of the methods): such a verdict is reported and never counted as evidence
+    by_construction: str = ""
+    #: for a claim the runs could not judge: what a judgement needs that they did not keep
+    needs: str = ""
+    #: the health gate was applied comparison by comparison (a comparison of filters that failed a
+    #: gate withheld, the others deciding), not to the claim as a whole
+    parts_gated: bool = False
 
     def __post_init__(self):
+        name = self.id or self.claim
         if self.timing and self.theorem:
-            raise InputError(f"claim {self.id or self.claim!r}: a claim on computation time checks no theorem")
+            raise InputError(f"claim {name!r}: a claim on computation time checks no theorem")
+        if self.would_be is not None and self.verdict != "not decidable":
+            raise InputError(f"claim {name!r}: only a withheld ('not decidable') verdict has a 'would_be'")
+        if self.needs and self.verdict != "not decidable":
+            raise InputError(f"claim {name!r}: a claim the runs could not judge is 'not decidable'")
 
     @property
     def group(self) -> str:
-        """The group the verdict is counted in: :data:`TIMING` for a claim on computation time, the
-        theorem's name for a claim checking one, else :data:`ACCURACY` (the headline)."""
+        """The group the verdict is counted in: :data:`DIAGNOSTIC` for the toolkit's own checks,
+        :data:`BY_CONSTRUCTION` for a claim on computation time that holds by construction,
+        :data:`TIMING` for the other claims on computation time, the theorem's name for a claim
+        checking one, else :data:`ACCURACY` (the headline)."""
+        if self.kind == "diagnostic":
+            return DIAGNOSTIC
+        if self.by_construction:
+            return BY_CONSTRUCTION
         return TIMING if self.timing else self.theorem or ACCURACY
+
+    @property
+    def gated(self) -> bool:
+        """Does a failed health gate of a compared filter withhold the whole verdict? Yes, except for
+        a theorem checked step by step from the same prediction (eq. 35 against CMF), which stands
+        whatever the filters' health, and a claim gated comparison by comparison (``parts_gated``)."""
+        return not self.theorem and not self.parts_gated
+
+    @property
+    def failed_filters(self) -> tuple[FilterHealth, ...]:
+        """The compared filters that failed a health gate."""
+        return tuple(h for h in self.health if h.failed)
+
+    def checked(self, subjects, checks) -> ClaimRecord:
+        """This record with the health of the filters it compares (``subjects``, each with its
+        checks among ``checks``; :func:`~gpfverify.contract.health_records.filter_health`) and the
+        health gate applied: when a compared filter failed a gate, the verdict is withheld
+        ("not decidable", the verdict the runs gave kept in ``would_be``) — unless the record is
+        not :attr:`gated`."""
+        health = filter_health(subjects, checks)
+        record = dataclasses.replace(self, health=health)
+        if not record.gated or not record.failed_filters or record.verdict == "not decidable":
+            return record
+        return dataclasses.replace(record, verdict="not decidable", would_be=self.verdict, runs_to_decide=None)
 
     def to_json(self) -> dict[str, Any]:
         return to_json(self)
@@ -135,6 +201,75 @@ class ClaimRecord(HtmlView):
         return out
 
 
+@dataclass(frozen=True)
+class Statement:
+    """Where a claim comes from, as a paper's catalogue of claims states it: ``kind`` (the paper's
+    claim or the toolkit's diagnostic), ``source`` (section and figure / table / equation, exactly),
+    ``quote`` (the paper's words; empty only where a figure or table alone makes the claim) and, for
+    a timing claim that holds by construction of the implementation, why."""
+
+    kind: Kind
+    source: str
+    quote: str = ""
+    by_construction: str = ""
+
+    def __post_init__(self):
+        if self.kind == "claim" and not self.quote and not any(w in self.source for w in ("Fig", "Table", "eq.")):
+            raise InputError(f"a paper's claim names its sentence (quote) or its figure, table or equation: "
+                             f"{self.source!r}")
+
+    def applied(self, record: ClaimRecord) -> ClaimRecord:
+        """``record`` said to come from this statement."""
+        return dataclasses.replace(record, kind=self.kind, source=self.source, quote=self.quote,
+                                   by_construction=self.by_construction)
+
+
+#: how caveats written by the health gate of earlier versions began; the gate's words are now
+#: rendered from a record's health records, so a carried record drops them (:func:`carry`)
+_OLD_GATE_CAVEATS = ("health of the filters compared:", "verdict withheld (would be")
+
+
+def carry(fresh: Iterable[ClaimRecord], stored: Iterable[ClaimRecord],
+          summary_fields: Iterable[str] = ()) -> list[ClaimRecord]:
+    """The claims of ``fresh`` (what the current code judges from a stored ``results.json`` body)
+    with what only the runs could give carried over from ``stored`` (the records of that file,
+    judged from the runs when they were made), matched by id:
+
+    * a fresh record that could not be judged from the body (its ``needs`` says why) is replaced by
+      the stored record, said to come from the fresh record's statement (kind, source, quote, by
+      construction) and re-checked against the fresh record's health records (the gate applied);
+      without a stored record it stays as it is ("not decidable", with what it needs);
+    * a fresh record judged from the body keeps the stored record's verdicts under the
+      interpretations tried (they rest on runs the body does not hold).
+
+    Stored claims the current code no longer makes are dropped. A timing claim keeps no verdict of
+    an interpretation that only reads the same runs another way (every parameter it changes is in
+    ``summary_fields``): its CPU times are the main run's, so that is one verdict, not another."""
+    by_id = {c.id: c for c in stored}
+    reads_only = frozenset(summary_fields)
+    out = []
+    for record in fresh:
+        old = by_id.get(record.id)
+        if old is None:
+            out.append(record)
+            continue
+        tried = tuple(i for i in old.interpretations
+                      if not (record.timing and i.name != AS_RUN and i.params and set(i.params) <= reads_only))
+        if record.needs:
+            kept = dataclasses.replace(
+                old, kind=record.kind, source=record.source, quote=record.quote,
+                by_construction=record.by_construction, interpretations=tried,
+                caveats=tuple(c for c in old.caveats if not c.startswith(_OLD_GATE_CAVEATS)))
+            if kept.verdict == "not decidable" and kept.would_be is None and not kept.needs:
+                raise InputError(f"claim {record.id!r}: a stored verdict withheld by the earlier gate cannot be "
+                                 "carried (the verdict it would have been is not recorded); make its runs again")
+            out.append(kept.checked([h.subject for h in record.health],
+                                    [c for h in record.health for c in h.checks]))
+        else:
+            out.append(dataclasses.replace(record, interpretations=tried))
+    return out
+
+
 def read_claims(results: dict) -> list[ClaimRecord]:
     """The claim records of a ``results.json``: ``"claims"`` and then ``"timing_claims"`` (those
     resting on measured times, kept apart because they differ between executions); an empty list
@@ -144,10 +279,11 @@ def read_claims(results: dict) -> list[ClaimRecord]:
 
 def group_order(groups: Iterable[str]) -> list[str]:
     """Groups in the order a summary shows them: accuracy (the headline), each theorem in order of
-    first appearance, timing."""
+    first appearance, timing, timing by construction, the toolkit's diagnostics."""
     seen = list(dict.fromkeys(groups))
-    theorems = [g for g in seen if g not in (ACCURACY, TIMING)]
-    return [g for g in (ACCURACY, *theorems, TIMING) if g in seen]
+    fixed = (ACCURACY, TIMING, BY_CONSTRUCTION, DIAGNOSTIC)
+    theorems = [g for g in seen if g not in fixed]
+    return [g for g in (ACCURACY, *theorems, *fixed[1:]) if g in seen]
 
 
 @dataclass(frozen=True)
@@ -165,8 +301,8 @@ class PairedDifference:
     def runs_to_decide(self) -> int | None:
         """For an undecided verdict, the run count n' at which the same mean would lie outside
         ±atol: atol scales as 1/√n, so n' = ⌈n (atol / |mean|)²⌉ (None when decided, when the mean
-        is exactly zero or with fewer than two runs)."""
-        if self.verdict != "undecided" or self.atol is None or self.mean == 0.0:
+        is exactly zero or with fewer than two runs, whose spread is unknown)."""
+        if self.verdict != "undecided" or self.atol is None or not np.isfinite(self.atol) or self.mean == 0.0:
             return None
         return int(np.ceil(self.n * (self.atol / abs(self.mean)) ** 2))
 
@@ -179,6 +315,42 @@ class PairedDifference:
         mean = float(np.mean(d))
         held = True if mean < -atol else False if mean > atol else None
         return cls(verdict_of(held), mean, atol, int(d.size))
+
+
+@dataclass(frozen=True)
+class Band:
+    """Does a quantity lie within [``low``, ``high``] (a two-sided claim: "about 0.5 dB", "similar
+    time")? From its estimate ``value`` and Monte Carlo tolerance ``atol``: held when
+    [value − atol, value + atol] lies inside the band, NOT held when it lies wholly outside,
+    undecided otherwise (a one-sided claim is a band with an infinite side)."""
+
+    verdict: Verdict
+    value: float
+    atol: float | None
+    low: float
+    high: float
+    n: int
+
+    @property
+    def margin(self) -> float:
+        """The distance from ``value`` to the nearer edge: positive inside the band, negative outside."""
+        return min(self.value - self.low, self.high - self.value)
+
+    @property
+    def runs_to_decide(self) -> int | None:
+        """For an undecided verdict, the run count at which the same margin would exceed the
+        tolerance (the tolerance scales as 1/√n, :attr:`PairedDifference.runs_to_decide`)."""
+        if self.verdict != "undecided" or self.atol is None or self.margin == 0.0:
+            return None
+        return int(np.ceil(self.n * (self.atol / abs(self.margin)) ** 2))
+
+    @classmethod
+    def of(cls, value: float, atol: float | None, low: float, high: float, n: int) -> Band:
+        if not low < high:
+            raise ValueError(f"a band needs low < high, got [{low}, {high}]")
+        margin = min(value - low, high - value)
+        held = None if atol is None else True if margin > atol else False if margin < -atol else None
+        return cls(verdict_of(held), float(value), atol, float(low), float(high), int(n))
 
 
 @dataclass(frozen=True)
@@ -222,6 +394,12 @@ class PairedRatio:
         spread = np.inf if d.atol is None else d.atol
         return cls(d.verdict, float(np.exp(centre)), float(np.exp(centre - spread)), float(np.exp(centre + spread)),
                    float(bound), d, int(np.sum(~kept)))
+
+    def within(self, low: float, high: float) -> Band:
+        """The ratio judged two-sided: is it between ``low`` and ``high`` (on the log scale, with the
+        same tolerance as the one-sided verdict)? :class:`Band` of log(ratio)."""
+        centre = float(np.log(self.ratio)) if np.isfinite(self.ratio) and self.ratio > 0 else float("nan")
+        return Band.of(centre, self.log_difference.atol, float(np.log(low)), float(np.log(high)), self.n)
 
     def evidence(self, a: str, b: str) -> str:
         """The ratio in words: "A / B = 0.82 (geometric mean of 1000 paired per-run ratios; [0.80, 0.84] at 5

@@ -21,6 +21,11 @@ An experiment module (listed in :data:`gpfverify.papers.EXPERIMENTS`) defines
   batch size (:func:`gpfverify.experiments.runner.default_batch`);
 * ``summarize(params, records) -> dict`` — the ``results.json`` body from the successful runs, in
   run order, with its ``"claims"`` (a list of :class:`~gpfverify.contract.claims.ClaimRecord` as JSON);
+* optionally ``judge(params, body, runs) -> (claims, timing claims)`` — the claims judged from such a body
+  alone (``summarize`` writes what it returns; a reference page judges a stored ``results.json``
+  again with it, :func:`gpfverify.contract.claims.carry`); a claim whose per-run data the body
+  lacks is "not decidable" with what it ``needs``. Each claim says where the paper makes it from
+  the paper's catalogue (``gpfverify/papers/<paper>/claims.py``);
 * optionally ``TIMING_KEYS`` — names of measured-time fields that :data:`TIMING_KEY` does not match.
 
 The contract types of an experiment (``Params``, ``RunRecord``, ``PROFILES``, summary records)

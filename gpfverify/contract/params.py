@@ -117,6 +117,23 @@ class Params:
         """A copy with ``changes`` applied, validated again."""
         return dataclasses.replace(self, **changes)
 
+    def cli_options(self) -> list[str]:
+        """The command-line options that give these parameters from the defaults (every
+        command-line field whose value differs, by :func:`field_flag`): ``["--kappa", "30"]``."""
+        defaults = type(self)()
+        out: list[str] = []
+        for field in cli_fields(type(self)):
+            value = getattr(self, field.name)
+            if value == getattr(defaults, field.name):
+                continue
+            if isinstance(value, bool):
+                out.append(field_flag(field) if value else "--no-" + field_flag(field)[2:])
+                continue
+            out.append(field_flag(field))
+            values = value if isinstance(value, tuple) else (value,)
+            out += ["none" if v is None else f"{v!r}" if isinstance(v, float) else str(v) for v in values]
+        return out
+
 
 def _check_bounds(field: dataclasses.Field, value: Any) -> None:
     meta, name = field.metadata, field_flag(field)

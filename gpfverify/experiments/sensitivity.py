@@ -86,12 +86,16 @@ def summary_results(module: ModuleType, run_dir: Path, spec: InterpretationSpec)
     return results
 
 
-def merge(main: dict, tried: Sequence[tuple[InterpretationSpec, dict]], as_run: Sequence[dict] = ()) -> dict:
-    """``main`` results with each claim's ``interpretations`` (the timing claims' too) set from the
-    results of each interpretation, with its run count (a claim absent under an interpretation gets
-    no entry for it). ``as_run``: the main run's results on fewer runs (its first n, the count the
-    interpretations ran), each added as the claim's :data:`~gpfverify.contract.claims.AS_RUN` entry
-    at that count, so that verdicts are compared on equal run counts."""
+def merge(main: dict, tried: Sequence[tuple[InterpretationSpec, dict]], as_run: Sequence[dict] = (),
+          summary_fields: Sequence[str] = ()) -> dict:
+    """``main`` results with each claim's ``interpretations`` set from the results of each
+    interpretation, with its run count (a claim absent under an interpretation gets no entry for
+    it). A timing claim gets no entry for an interpretation that changes only ``summary_fields``
+    (how the same runs are read): its CPU times are the main run's, one verdict, not another.
+    ``as_run``: the main run's results on fewer runs (its first n, the count the interpretations
+    ran), each added as the claim's :data:`~gpfverify.contract.claims.AS_RUN` entry at that count,
+    so that verdicts are compared on equal run counts."""
+    reads_only = frozenset(summary_fields)
     def entry(claim: ClaimRecord, name: str, params: dict, results: dict) -> Interpretation | None:
         other = next((c for c in read_claims(results) if c.id == claim.id and claim.id), None)
         return None if other is None else Interpretation(name, params, other.verdict, other.statistic, other.n,
@@ -104,7 +108,7 @@ def merge(main: dict, tried: Sequence[tuple[InterpretationSpec, dict]], as_run: 
         for raw in main.get(key, []):
             claim = ClaimRecord.from_json(raw)
             entries = [entry(claim, spec.name, to_json(spec.changes), results) for spec, results in tried
-                       if spec.bears_on_claim(claim.id)]
+                       if spec.bears_on_claim(claim.id) and not (claim.timing and set(spec.changes) <= reads_only)]
             entries += [entry(claim, AS_RUN, {}, results) for results in as_run if results.get("runs") in counts]
             claims.append(to_json(dataclasses.replace(claim, interpretations=tuple(e for e in entries if e))))
         if key in main:
@@ -145,7 +149,8 @@ def _merged_on_equal_counts(module: ModuleType, run_dir: Path, main: dict,
 
     fewer = sorted({r["runs"] for _, r in tried if r["runs"] < main["runs"]})
     manifest = read_manifest(run_dir) if fewer else {}
-    return merge(main, tried, [results_of(module, run_dir, manifest, n) for n in fewer])
+    return merge(main, tried, [results_of(module, run_dir, manifest, n) for n in fewer],
+                 getattr(module, "SUMMARY_FIELDS", ()))
 
 
 def run_interpretations(module: ModuleType, params: Params, specs: Sequence[InterpretationSpec], runs: int,

@@ -11,8 +11,9 @@ from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from gpfverify.contract.claims import AS_RUN, ClaimRecord, group_order
+from gpfverify.contract.claims import ACCURACY, AS_RUN, BY_CONSTRUCTION, DIAGNOSTIC, TIMING, ClaimRecord, group_order
 from gpfverify.contract.interpretations import robustness
+from gpfverify.report.claim_words import health_summary, health_words, source_words, verdict_note
 
 
 @dataclass(frozen=True)
@@ -125,56 +126,56 @@ class Claim:
     evidence: str
 
 
-#: words by which a claim's caveat reports a failed health check (divergence, NEES, particle degeneracy)
-HEALTH_WORDS = ("health", "NEES", "diverge", "N_eff")
-
-
 def not_held_note(record: ClaimRecord) -> str:
     """What a NOT held verdict is read with: the interpretations it was tried under
     (:func:`~gpfverify.contract.interpretations.robustness`) and the health of the filters it
-    compares (whether its caveats report a failed check)."""
+    compares, from its health records (:func:`~gpfverify.report.claim_words.health_summary`)."""
     tried = robustness(record) or "no other documented reading was tried"
-    failed = any(word in caveat for caveat in record.caveats for word in HEALTH_WORDS)
-    health = ("a failed health check of the filters compared is among its caveats" if failed else
-              "no failed health check is recorded for the filters compared" if record.group != "timing" else
-              "a claim on CPU times, which no filter health gates")
-    return f"NOT held — interpretations tried: {tried}; health: {health}"
+    return f"NOT held — interpretations tried: {tried}; health: {health_summary(record)}"
 
 
 def claim_records_table(records, caption: str = "Claims checked") -> Table:
     """Claim records (:class:`gpfverify.contract.ClaimRecord`, as stored in ``results.json``) as a
-    table: claim, where the paper makes it, verdict (coloured, with one caution mark when it rests
-    on fewer runs than the paper or on measured times), evidence and the record's caveats — for a
-    NOT held verdict also the interpretations it was tried under and the health of the filters it
-    compares (:func:`not_held_note`). Rows are anchored by the record's ``id`` so that the summary
-    links to them."""
+    table: claim, where the paper makes it (its words quoted; a diagnostic says the paper does not),
+    verdict (coloured, with one caution mark when it rests on fewer runs than the paper or on
+    measured times), evidence, the health of the filters it compares, and notes — how the verdict
+    came about (withheld, not judged, by construction), the record's caveats and, for a NOT held
+    verdict, the interpretations it was tried under (:func:`not_held_note`). Every word of the
+    source, health and notes columns is rendered from the record's fields
+    (:mod:`gpfverify.report.claim_words`). Rows are anchored by the record's ``id`` so that the
+    summary links to them."""
     rows, ids = [], []
     for r in records:
         evidence = r.evidence
         if r.verdict == "undecided" and r.runs_to_decide:
             evidence += (f" About {r.runs_to_decide} runs would decide it, were the mean and spread seen "
                          "here the true ones.")
-        notes = [*r.caveats, *((not_held_note(r),) if r.verdict == "NOT held" else ())]
-        rows.append([r.claim + (f" ({r.setting})" if r.setting else ""), r.source,
-                     VerdictCell(r.verdict, tuple(r.cautions)), evidence, "; ".join(notes)])
+        notes = [n for n in (verdict_note(r),) if n]
+        notes += [*r.caveats, *((not_held_note(r),) if r.verdict == "NOT held" else ())]
+        rows.append([r.claim + (f" ({r.setting})" if r.setting else ""), source_words(r),
+                     VerdictCell(r.verdict, tuple(r.cautions)), evidence, health_words(r), "; ".join(notes)])
         ids.append(claim_anchor(r))
-    headers = ["claim", "source", "verdict", "evidence", "caveats"]
+    headers = ["claim", "source", "verdict", "evidence", "health of the filters compared", "notes"]
     if not any(row[-1] for row in rows):  # no empty column
         headers, rows = headers[:-1], [row[:-1] for row in rows]
     return Table(headers, rows, caption, tuple(ids), "claims")
 
 
 #: what each group's table says under its caption
-GROUP_WORDS = {"accuracy": "accuracy and behaviour (the headline)",
-               "timing": "computation time: CPU times of the methods compared as paired per-run ratios, counted "
-                         "apart from the accuracy claims"}
+GROUP_WORDS = {ACCURACY: "the paper's claims on accuracy and behaviour (the headline)",
+               TIMING: "the paper's claims on computation time: CPU times of the methods compared as paired per-run "
+                       "ratios, counted apart from the accuracy claims",
+               BY_CONSTRUCTION: "claims on computation time that hold by construction of the implementation: "
+                                "reported, never counted as evidence",
+               DIAGNOSTIC: "diagnostics: the toolkit's own checks, which the paper does not make, counted apart "
+                           "from its claims"}
 
 
 def claim_tables(records, caption: str = "Claims checked") -> list[Table]:
     """Claim records as one :func:`claim_records_table` per group (accuracy, each theorem checked on
-    the runs, timing; :attr:`~gpfverify.contract.claims.ClaimRecord.group`), so that a page shows
-    them apart as its summary counts them; one table with ``caption`` alone when every record is an
-    accuracy claim."""
+    the runs, timing, timing by construction, diagnostics;
+    :attr:`~gpfverify.contract.claims.ClaimRecord.group`), so that a page shows them apart as its
+    summary counts them; one table with ``caption`` alone when every record is an accuracy claim."""
     groups = group_order(r.group for r in records)
     if groups in ([], ["accuracy"]):
         return [claim_records_table(records, caption)]

@@ -17,13 +17,13 @@ import re
 from collections.abc import Iterable
 from pathlib import Path
 
-from gpfverify.contract.claims import ACCURACY, TIMING, VERDICTS
+from gpfverify.contract.claims import ACCURACY, VERDICTS
 from gpfverify.contract.interpretations import is_robust, robustness
 from gpfverify.contract.papers import PAPERS
 from gpfverify.report import cjk_font
-from gpfverify.report.document import (CAUTION_MARK, VERDICT_CLASSES, Cell, Chips, Code, Details, Figure, Link,
-                                       Paragraph, Section, Table, VerdictCell, anchor_id, claim_anchor, fmt,
-                                       unicode_math)
+from gpfverify.report.document import (CAUTION_MARK, GROUP_WORDS, VERDICT_CLASSES, Cell, Chips, Code, Details,
+                                       Figure, Link, Paragraph, Section, Table, VerdictCell, anchor_id, claim_anchor,
+                                       fmt, unicode_math)
 from gpfverify.report.inputs import STATUSES, RunInfo, SectionSummary, VerdictCounts
 
 esc = html.escape
@@ -375,10 +375,9 @@ def run_table(summary: SectionSummary) -> Table:
 
 
 def verdicts_paragraph(counts: VerdictCounts) -> Paragraph:
-    """A page's verdicts counted per group, and what each group present holds."""
-    words = {ACCURACY: "the paper's accuracy claims (the headline)", TIMING: "its timing claims (CPU times "
-             "compared as paired per-run ratios)"}
-    groups = [words.get(g.group, f"{g.group} (the paper's theorem, checked on the runs)") for g in counts.groups]
+    """A page's verdicts counted per group, and what each group present holds
+    (:data:`~gpfverify.report.document.GROUP_WORDS`)."""
+    groups = [GROUP_WORDS.get(g.group, f"{g.group} (the paper's theorem, checked on the runs)") for g in counts.groups]
     return Paragraph(f"Verdicts on this page: {counts.groups_text()}." + (
         f" Counted apart: {'; '.join(groups)}." if len(groups) > 1 else ""))
 
@@ -463,8 +462,10 @@ def summary_table(summaries: Iterable[SectionSummary]) -> Table:
                      *[_count_cell(total.proofs[k], k, "total") for k in STATUSES], Cell(0, "zero"), "—", ""])
     return Table(["paper", "section", "group", *VERDICTS, *STATUSES, f"{CAUTION_MARK} caution",
                   "same verdict under every interpretation tried", "each verdict (hover, click)"],
-                 rows, "Verdicts per paper, section and group: accuracy (the headline), Proposition 1 (the theorem "
-                 "checked on the runs) and timing (CPU-time ratios) are counted apart", css="summary")
+                 rows, "Verdicts per paper, section and group: the papers' accuracy claims (the headline), "
+                 "Proposition 1 (the theorem checked on the runs), their timing claims (CPU-time ratios), timing "
+                 "claims that hold by construction (not evidence) and the toolkit's diagnostics are counted apart",
+                 css="summary")
 
 
 def _chip(c) -> tuple[str, str, str, bool]:
@@ -671,7 +672,7 @@ def _page(title: str, preamble: str, listed: dict, summaries: dict[str, SectionS
 #: measured again whenever the window changes (without scripts it scrolls sideways instead)
 _FIT_SCRIPT = ("<script>(function(){function fit(){document.querySelectorAll('.table-wrap').forEach(function(w){"
                "var t=w.querySelector('table');t.classList.remove('stacked');"
-               "if(t.getBoundingClientRect().width>w.clientWidth+1)t.classList.add('stacked');});}"
+               "if(t.getBoundingClientRect().width>w.clientWidth)t.classList.add('stacked');});}"
                "addEventListener('load',fit);addEventListener('resize',fit);})();</script>")
 
 

@@ -52,6 +52,9 @@ class TbdConfig:
     Two-stage (TPFTBD): ``zeta`` is the transfer parameter ζ ∈ [0, 1] (ζ = 1: no particle is
     replaced); the second-stage measurement is the (2r+1)² patch, r = second_stage_radius, centred
     on the cell nearest to the PF estimate.
+    ``exit_absent``: a continuing particle whose position left the image is a target that left the
+    observed region (its mass joins the absent hypothesis, step ②); False keeps it with its weight,
+    the image being noise for it (the rule seed 004 does not state, read the other way).
     """
 
     n_particles: int = 2000
@@ -60,6 +63,7 @@ class TbdConfig:
     two_stage: bool = False
     zeta: float = 0.6
     second_stage_radius: int = 2
+    exit_absent: bool = True
 
     def __post_init__(self):
         if int(self.n_particles) != self.n_particles or self.n_particles < 2 or self.n_particles % 2:
@@ -168,7 +172,7 @@ def pf_tbd_stage(belief: Particles, model: TbdModel, image: np.ndarray, *, rng: 
     n_prev = belief.size
     log_prior = _log((1.0 - model.p_death) * prev / n_prev) + (normalize_log_weights(belief.log_weights)
                                                                + math.log(n_prev))
-    left = ~model.in_image(continuing)
+    left = ~model.in_image(continuing) if config.exit_absent else np.zeros(continuing.shape[:-1], dtype=bool)
     log_w[:, config.n_birth:] += np.where(left, -math.inf, log_prior)
     log_mass = log_sum_exp(log_w)
     log_stay = _log(model.p_death * prev + (1.0 - model.p_birth) * (1.0 - prev))

@@ -20,6 +20,7 @@ from typing import Any
 import numpy as np
 
 from gpfverify.contract.claims import ClaimRecord, Verdict, combine
+from gpfverify.papers.fusion.claims import CLOSED_FORM_CHECKS
 from gpfverify.papers.fusion.moments_contract import (CLOSED_FORM, DEFAULT_RUNS, ILLUSTRATION_BINS, ILLUSTRATION_GRID,
                                                       ILLUSTRATION_MEAN, ILLUSTRATION_POINTS, ILLUSTRATION_RANGE,
                                                       ILLUSTRATION_VAR, MOMENTS, MONTE_CARLO, NAME, PAPER, PROFILES,
@@ -157,7 +158,8 @@ def _nodes(case: CaseRecord) -> str:
 
 
 def claims(params: Params, records: list[RunRecord]) -> list[ClaimRecord]:
-    """The closed form against each oracle, over every case and run."""
+    """The closed form against each oracle, over every case and run: diagnostics of the toolkit's
+    implementation of eqs. 8–11 (:data:`~gpfverify.papers.fusion.claims.CLOSED_FORM_CHECKS`)."""
     source = f"{PAPERS[PAPER].short}, {SOURCE_EQUATIONS}"
     common: dict[str, Any] = {"paper": PAPER, "n": len(records), "paper_n": None}
     by_case = [[r.cases[i] for r in records] for i in range(len(params.cases))]
@@ -210,4 +212,4 @@ def claims(params: Params, records: list[RunRecord]) -> list[ClaimRecord]:
         evidence=f"largest |closed form − Monte Carlo| / standard error over every entry, {params.samples} samples "
                  "per case: " + "; ".join(f"{shape.label}: {max(row):.2f}" for shape, row in zip(params.cases, z)),
         id=f"{NAME}/closed-form-equals-monte-carlo", **common))
-    return out
+    return [CLOSED_FORM_CHECKS.applied(r) for r in out]

@@ -1,7 +1,7 @@
 """Render the committed reference pages of the fusion paper's experiments.
 
     python -m gpfverify.papers.fusion.page RUNS_DIR     # recompute from saved runs, then render
-    python -m gpfverify.papers.fusion.page --committed  # render the committed results.json only
+    python -m gpfverify.papers.fusion.page --committed  # judge the committed results.json again, render
 
 RUNS_DIR holds one ``gpfverify reproduce`` output folder per setting (named as in COMMANDS). Each
 ``results.json`` is recomputed from the saved runs with the current summaries — with the verdicts
@@ -9,7 +9,9 @@ under every interpretation found in ``<folder>/interpretations/<name>/`` merged 
 and copied (with its manifest) to ``reports/reference/<experiment>/<setting>/``. With
 ``--committed`` the pages are rendered from those committed copies alone. The pages go to
 ``reports/reference/ct2d/README.md``, ``reports/reference/ungm1d/README.md`` and one
-self-contained ``reports/reference/fusion-paper.html``. The per-run files are not committed.
+self-contained ``reports/reference/fusion-paper.html``. The per-run files are not committed; with
+``--committed`` each committed ``results.json`` has its claims judged again by the current code
+from its stored summary, what only the runs gave carried over, and is written back.
 """
 
 from __future__ import annotations
@@ -27,7 +29,8 @@ from gpfverify.papers.fusion import ungm1d_experiment as ungm1d
 from gpfverify.papers.fusion import ungm1d_section as fusion_ungm1d
 from gpfverify.papers.fusion.ct2d_contract import Params as CT2DParams
 from gpfverify.papers.fusion.section import rank_rules_table
-from gpfverify.reference_pages import REFERENCE, recompute_into, runs_needed_table, verdicts_by_run_count, write_page
+from gpfverify.reference_pages import (REFERENCE, recompute_into, rejudge_committed, runs_needed_table,
+                                      verdicts_by_run_count, write_page)
 from gpfverify.report.render import to_html
 
 HERE = REFERENCE
@@ -74,11 +77,14 @@ def command(name: str, results: dict) -> str:
 
 
 def committed(name: str) -> dict | None:
+    """The committed results of a folder with its claims judged again by the current code from the
+    stored summary (:func:`~gpfverify.reference_pages.rejudge_committed`), None when there are none."""
     path = target(name) / "results.json"
     if not path.exists():
         return None
-    results = json.loads(path.read_text(encoding="utf-8"))
-    return results if "claims" in results else None  # older, untyped results are not rendered
+    if "claims" not in json.loads(path.read_text(encoding="utf-8")):
+        return None  # older, untyped results are not rendered
+    return rejudge_committed(path, ct2d if name.startswith("ct2d") else ungm1d)
 
 
 #: each folder's verdicts on its first runs (reference_pages.RUN_LADDER), committed next to its results

@@ -36,7 +36,6 @@ O(fit_points³) per evaluation (measured in
 
 from __future__ import annotations
 
-import dataclasses
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
@@ -45,9 +44,11 @@ from typing import Any, Literal
 import numpy as np
 
 from gpfverify.audit.case import CaseAudit, audit_case
-from gpfverify.contract.claims import PROPOSITION_1, ClaimRecord, PairedDifference, Verdict, combine
-from gpfverify.papers.fusion.contract import (DEFAULT_RULE, FAMILIES, FUSION_RULES, LOCAL_FILTERS, METHODS, NEES_POLICY,
-                                              PAPER, AuditEntry, FamilyRun, FittedModels, FusionRun, GPHyperparameters,
+from gpfverify.experiments.batching import BATCH_TIMING
+from gpfverify.contract.claims import (PROPOSITION_1, ClaimRecord, PairedDifference, PairedRatio, Statement, Verdict,
+                                      combine)
+from gpfverify.papers.fusion.contract import (DEFAULT_RULE, FAMILIES, FUSION_RULES, LOCAL_FILTERS, METHODS, PAPER,
+                                              AuditEntry, FamilyRun, FittedModels, FusionRun, GPHyperparameters,
                                               SensorAuditRecord, family_methods)
 from gpfverify.contract.methods import Method
 from gpfverify.filters.families import gaussian_family
@@ -58,7 +59,7 @@ from gpfverify.fusion.convex import convex_combination
 from gpfverify.fusion.exactness import equivalence_tolerance, gap_size, parse_rank_rule
 from gpfverify.model_fusion import cmf_step, dmf_step
 from gpfverify.fusion.rcc_ci import rcc_ci
-from gpfverify.health import HealthCheck, decide, divergence_check, nees_values_check
+from gpfverify.health import HealthCheck, divergence_check, nees_values_check
 from gpfverify.linalg import solve_spd
 from gpfverify.models import GPModel, fit_gp_model
 from gpfverify.papers.fusion.scenario import FusionData
@@ -357,6 +358,10 @@ def summarize_setting(results: Sequence[FusionRun], rank_rule: str) -> dict:
         "online_time_per_step": {m: float(np.mean(online[m])) for m in online},
         "time_per_step_series": {m: np.mean(seconds[m], axis=0).tolist() for m in METHOD_KEYS},
         "run_mean_sq_err": {m: np.mean(sq_err[m], axis=1).tolist() for m in METHOD_KEYS},
+        # each method's CPU seconds per run (the whole fusion step; and CMF's and DMF's update alone):
+        # what the claims on computation time compare as paired per-run ratios
+        "run_seconds": {m: np.sum(seconds[m], axis=1).tolist() for m in METHOD_KEYS},
+        "run_online_seconds": {m: np.sum(online[m], axis=1).tolist() for m in online},
         "run_mean_mahalanobis": {m: np.mean(maha[m], axis=1).tolist() for m in METHOD_KEYS},
     }
     out["max_equivalence_gap"] = {}
@@ -421,68 +426,55 @@ def health_checks(results: Sequence[FusionRun], dim: int, divergence_bound: floa
     return out
 
 
-def checks_of(health: Sequence[dict], methods: Sequence[Method]) -> list[HealthCheck]:
-    """The health checks (as stored in results.json) of ``methods``."""
-    keys = {m.key for m in methods}
-    return [HealthCheck(**h) for h in health if h["subject"] in keys]
-
-
-def apply_health(verdict: Verdict, checks: Sequence[HealthCheck]) -> tuple[Verdict, tuple[str, ...]]:
-    """Divergence withholds the verdict (:func:`gpfverify.health.decide`); a failed NEES check of
-    the paper's filters leaves it standing with a caveat (:data:`NEES_POLICY`)."""
-    diverged = [c for c in checks if c.name == "divergence"]
-    verdict, caveats = decide(verdict, diverged)
-    nees = [c for c in checks if c.name == "NEES" and not c.passed]
-    if nees:
-        failed = ", ".join(f"{c.subject} {c.detail.split(':')[0]} (mean ANEES {c.statistic:.3g}, {c.threshold:g} "
-                           "expected)" for c in nees)
-        words = {c.detail.split(":")[0] for c in nees}
-        why = []
-        if "optimistic" in words or any(w.startswith("NEES not finite") for w in words):
-            why.append(NEES_POLICY)
-        if "pessimistic" in words:
-            why.append("a pessimistic (conservative) filter claims more uncertainty than its errors show — by "
-                       "design for covariance intersection (RCC-CI) and the convex combination; its errors are "
-                       "what the claim compares")
-        caveats = (*caveats, f"NEES check failed: {failed}. " + "; ".join(why))
-    return verdict, caveats
-
-
 # -- claims ----------------------------------------------------------------------------------------
 
 def _num(value: float | None, digits: int = 3) -> str:
     return "none" if value is None else f"{value:.{digits}g}"
 
 
+#: what a claim on computation time needs that runs summarised before per-run times were kept lack
+PER_RUN_TIMES = ("each method's CPU time in every run (results.json 'run_seconds'), which runs summarised before "
+                 "they were kept do not have: their means alone decide no paired ratio")
+
+
 @dataclass(frozen=True)
 class ClaimContext:
     """What every claim of one setting shares: the experiment, the setting's label and slug (for
-    ids), the runs used and the paper's count."""
+    ids), the runs used and the paper's count, the statement of each claim at this setting (the
+    paper's catalogue, :mod:`gpfverify.papers.fusion.claims`) and the setting's health checks."""
 
     experiment: str
     setting: str
     slug: str
     n: int
     paper_n: int | None
+    statement: Callable[[str], Statement]
+    checks: tuple[HealthCheck, ...] = ()
 
-    def record(self, name: str, claim: str, source: str, verdict, statistic: float | None,
-               threshold: float | None, evidence: str, caveats: tuple[str, ...] = (), timing: bool = False,
-               paper_n: int | None | Literal["same"] = "same", theorem: str = "") -> ClaimRecord:
+    def record(self, name: str, claim: str, verdict: Verdict, statistic: float | None, threshold: float | None,
+               evidence: str, compared: Sequence[Method] = (), caveats: tuple[str, ...] = (), timing: bool = False,
+               paper_n: int | None | Literal["same"] = "same", theorem: str = "", runs_to_decide: int | None = None,
+               needs: str = "") -> ClaimRecord:
+        """The claim ``name`` ("fusion-beats-sensors/GP-ADF": its statement is the first part's),
+        said to come from its statement, with the health of the ``compared`` methods (the gate
+        applied, :meth:`~gpfverify.contract.claims.ClaimRecord.checked`)."""
         slug = f"{self.slug}/" if self.slug else ""
-        return ClaimRecord(claim=claim, source=source, verdict=verdict, statistic=statistic, threshold=threshold,
-                           n=self.n, evidence=evidence, caveats=caveats, id=f"{self.experiment}/{slug}{name}",
-                           paper=PAPER, setting=self.setting,
-                           paper_n=self.paper_n if paper_n == "same" else paper_n, timing=timing, theorem=theorem)
+        statement = self.statement(name.split("/")[0])
+        record = ClaimRecord(claim=claim, source=statement.source, verdict=verdict, statistic=statistic,
+                             threshold=threshold, n=self.n, evidence=evidence, caveats=caveats,
+                             id=f"{self.experiment}/{slug}{name}", paper=PAPER, setting=self.setting,
+                             paper_n=self.paper_n if paper_n == "same" else paper_n, timing=timing, theorem=theorem,
+                             runs_to_decide=runs_to_decide if verdict == "undecided" else None, needs=needs)
+        return statement.applied(record).checked([m.key for m in compared], self.checks)
 
 
-def paired_claim(ctx: ClaimContext, name: str, claim: str, source: str, per_run: dict[str, list[float]],
-                 pairs: Sequence[tuple[Method, Method]], unit: str, **kwargs: Any) -> ClaimRecord:
+def paired_claim(ctx: ClaimContext, name: str, claim: str, per_run: dict[str, list[float]],
+                 pairs: Sequence[tuple[Method, Method]], unit: str, caveats: tuple[str, ...] = ()) -> ClaimRecord:
     """"A beats B" for every pair (A, B), each by the paired Monte Carlo difference of per-run mean
     errors (:class:`~gpfverify.contract.claims.PairedDifference`); the statistic is the least
     favourable pair's mean difference (largest against its tolerance) and the threshold that
-    pair's tolerance."""
+    pair's tolerance. The health gate of the compared methods applies (:meth:`ClaimContext.record`)."""
     results = [(a, b, PairedDifference.of(per_run[a.key], per_run[b.key])) for a, b in pairs]
-    health = kwargs.pop("health", None)
 
     def standing(d: PairedDifference) -> float:
         return d.mean / d.atol if d.atol else (np.inf if d.mean > 0 else -np.inf if d.mean < 0 else 0.0)
@@ -494,37 +486,64 @@ def paired_claim(ctx: ClaimContext, name: str, claim: str, source: str, per_run:
                 "held when every difference is below minus its tolerance, NOT held when one is above it)")
     verdict = combine([d.verdict for _, _, d in results])
     undecided = [d.runs_to_decide for _, _, d in results if d.verdict == "undecided" and d.runs_to_decide]
-    if health is not None:
-        verdict, caveats = apply_health(verdict, checks_of(health, [m for pair in pairs for m in pair[:2]]))
-        kwargs["caveats"] = (*kwargs.get("caveats", ()), *caveats)
-    runs_to_decide = max(undecided) if verdict == "undecided" and undecided else None
-    record = ctx.record(name, claim, source, verdict, worst.mean, worst.atol, evidence, **kwargs)
-    return dataclasses.replace(record, runs_to_decide=runs_to_decide)
+    return ctx.record(name, claim, verdict, worst.mean, worst.atol, evidence, [m for pair in pairs for m in pair],
+                      caveats, runs_to_decide=max(undecided) if undecided else None)
 
 
 def fusion_beats_sensors(ctx: ClaimContext, results: dict, family: str, per_run_key: str, unit: str,
-                         source: str, **kwargs: Any) -> ClaimRecord:
+                         caveats: tuple[str, ...] = ()) -> ClaimRecord:
     pairs = [(Method(rule, family), Method.sensor_filter(m, family)) for rule in ("CMF", "DMF") for m in (1, 2)]
     return paired_claim(ctx, f"fusion-beats-sensors/{family}", f"{family}: CMF and DMF beat each single sensor",
-                        source, results[per_run_key], pairs, unit, **kwargs)
+                        results[per_run_key], pairs, unit, caveats)
 
 
 def fusion_beats_baselines(ctx: ClaimContext, results: dict, family: str, per_run_key: str, unit: str,
-                           source: str, **kwargs: Any) -> ClaimRecord:
+                           caveats: tuple[str, ...] = ()) -> ClaimRecord:
     pairs = [(Method(rule, family), Method(base, family)) for rule in ("CMF", "DMF") for base in ("RCC-CI", "CW")]
     return paired_claim(ctx, f"fusion-beats-baselines/{family}", f"{family}: CMF and DMF beat RCC-CI and CW",
-                        source, results[per_run_key], pairs, unit, **kwargs)
+                        results[per_run_key], pairs, unit, caveats)
 
 
-def equivalence_claim(ctx: ClaimContext, results: dict, family: str, metric: str, source: str,
-                      **kwargs: Any) -> ClaimRecord:
+def family_claim(ctx: ClaimContext, name: str, claim: str, results: dict, per_run_key: str, better: str,
+                 worse: str, unit: str, caveats: tuple[str, ...] = ()) -> ClaimRecord:
+    """Fusion with the ``better`` family beats fusion with the ``worse`` one: CMF against CMF and DMF
+    against DMF, each by the paired rule (:func:`paired_claim`)."""
+    pairs = [(Method(rule, better), Method(rule, worse)) for rule in ("CMF", "DMF")]
+    return paired_claim(ctx, name, claim, results[per_run_key], pairs, unit, caveats)
+
+
+def time_claim(ctx: ClaimContext, name: str, claim: str, parts: list[tuple[Method, Method, str]],
+               results: dict, words: str) -> ClaimRecord:
+    """A claim on computation time: for every part (A, B, field) A's CPU seconds per run at most B's,
+    paired per run (:class:`~gpfverify.contract.claims.PairedRatio`: held when the geometric mean
+    of the per-run ratios lies below 1 beyond the Monte Carlo tolerance, NOT held above it, undecided
+    in between; held when every part is, NOT held when one is). ``field``: "run_seconds" (the whole
+    fusion step) or "run_online_seconds" (the update alone); a summary without them (runs made
+    before they were kept) judges nothing and says what it needs."""
+    compared = [m for a, b, _ in parts for m in (a, b)]
+    if any(field not in results for _, _, field in parts):
+        return ctx.record(name, claim, "not decidable", None, 1.0, words, compared, timing=True,
+                          needs=PER_RUN_TIMES)
+    ratios = [(a.key, b.key, PairedRatio.of(results[field][a.key], results[field][b.key])) for a, b, field in parts]
+    worst = max(ratios, key=lambda item: item[2].ratio)[2]
+    evidence = (f"{words}; " + "; ".join(r.evidence(a, b) for a, b, r in ratios)
+                + ("" if len(ratios) == 1 else "; held when every ratio is, NOT held when one is"))
+    verdict = combine([r.verdict for _, _, r in ratios])
+    undecided = [r.runs_to_decide for _, _, r in ratios if r.verdict == "undecided" and r.runs_to_decide]
+    return ctx.record(name, claim, verdict, worst.ratio, worst.bound, evidence, compared, caveats=(BATCH_TIMING,),
+                      timing=True, runs_to_decide=max(undecided) if undecided else None)
+
+
+def equivalence_claim(ctx: ClaimContext, results: dict, family: str, metric: str,
+                      caveats: tuple[str, ...] = ()) -> ClaimRecord:
     """DMF = CMF on the steps where every C_xy^m has full column rank: eq. 35 against CMF from the
     same central prediction, each step judged as the audit judges it (reproduced: the gap, in prior
     standard deviations, within the step's own rounding bound). NOT held when a full-rank step's
     gap exceeds its bound; full-rank steps whose bound does not resolve the comparison (above
     RESOLVABLE_GAP: eq. 35 at the rank decided amplifies rounding that far) decide nothing and are
     named in a caveat; not decidable when no full-rank step is resolved. Statistic: the full-rank
-    steps beyond their bound (threshold 0)."""
+    steps beyond their bound (threshold 0). The family's filters' health is recorded; it withholds
+    nothing (one step of eq. 35 from the same prediction stands whatever the filters' health)."""
     g = results["one_step_gap"][family]
     dmf, cmf = Method("DMF", family).key, Method("CMF", family).key
     curves = np.abs(np.subtract(results[metric][dmf], results[metric][cmf]))
@@ -544,12 +563,12 @@ def equivalence_claim(ctx: ClaimContext, results: dict, family: str, metric: str
                 f"‖μ(DMF) − μ(CMF)‖ = {_num(results['max_equivalence_gap'][family])}, one step amplifies a "
                 f"{sensitivity['probe']:g} relative nudge of the prior mean to {_num(sensitivity['median'])} (median); "
                 f"largest |DMF − CMF| of the per-step curves {_num(float(curves.max()))}")
-    caveats = list(kwargs.pop("caveats", ()))
+    notes = list(caveats)
     if n == 0:
-        caveats.insert(0, "no step had full column rank: Proposition 1's condition never held")
+        notes.insert(0, "no step had full column rank: Proposition 1's condition never held")
     if unresolved:
         rho = g["unresolved_max_smallest_correlation"]
-        caveats.insert(0, (
+        notes.insert(0, (
             f"{unresolved} full-rank step(s) unresolved: their rounding bound exceeds {RESOLVABLE_GAP:.2g} prior "
             f"standard deviations (up to {_num(g['max_gap_bound_unresolved'])}), so the arithmetic cannot tell DMF "
             f"from CMF there (largest gap {_num(g['max_gap_size_unresolved'])}); the smaller σ_min(Cₓᵧᵐ) of the two "
@@ -560,5 +579,5 @@ def equivalence_claim(ctx: ClaimContext, results: dict, family: str, metric: str
             + " — its pseudo-inverse in eq. 35 multiplies the rounding of μₑᵐ − μₚᵐ"))
     return ctx.record(f"dmf-equals-cmf/{family}",
                       f"{family}: DMF = CMF when the rank condition holds (eq. 35 from the same central prediction)",
-                      source, verdict, float(outside), 0.0, evidence, caveats=tuple(caveats), theorem=PROPOSITION_1,
-                      **kwargs)
+                      verdict, float(outside), 0.0, evidence, family_methods(family), tuple(notes),
+                      theorem=PROPOSITION_1)

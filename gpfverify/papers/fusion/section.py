@@ -11,6 +11,7 @@ from pathlib import Path
 import numpy as np
 
 from gpfverify.papers.fusion.contract import FAMILIES, LOCAL_FILTERS, METHODS
+from gpfverify.contract.health_records import stored_checks
 from gpfverify.contract.interpretations import InterpretationSpec
 from gpfverify.contract.methods import Method
 from gpfverify.report.document import Cell, Paragraph, Table, fmt
@@ -103,34 +104,37 @@ def audit_table(results_by_label: dict, limit: int = 20) -> Table:
 
 
 def health_table(results_by_label: dict) -> Table | None:
-    """The health checks of every setting (divergence and NEES per method), None without any."""
+    """The health checks of every setting per method: the divergence gate and, apart, the NEES
+    consistency finding (within or outside its χ² band, with its numbers); None without any."""
     rows = []
     for label, r in results_by_label.items():
-        checks = {(h["subject"], h["name"]): h for h in r.get("health", [])}
+        checks = {(c.subject, c.name): c for c in stored_checks(r.get("health", []))}
         for m in METHODS:
             div, nees = checks.get((m.key, "divergence")), checks.get((m.key, "NEES"))
             if div is None or nees is None:
                 continue
-            rows.append([label, m.key, Cell("passed" if div["passed"] else "FAILED", "v-held" if div["passed"]
-                                            else "v-not-held", div["detail"]),
-                         Cell("consistent" if nees["passed"] else nees["detail"].split(":")[0],
-                              "v-held" if nees["passed"] else "v-undecided", nees["detail"]),
-                         fmt(nees["statistic"], 3), fmt(nees["threshold"])])
+            rows.append([label, m.key, Cell("passed" if div.passed else "FAILED", "v-held" if div.passed
+                                            else "v-not-held", div.detail),
+                         Cell("within its band" if nees.passed else "outside its band",
+                              "v-held" if nees.passed else "v-undecided", nees.detail),
+                         fmt(nees.statistic, 3), fmt(nees.threshold)])
     if not rows:
         return None
-    return Table(["setting", "method", "divergence", "NEES (ANEES per step against its χ² interval)",
+    return Table(["setting", "method", "divergence (a health gate)",
+                  "NEES: ANEES per step against its χ² band (a consistency finding; hover for the counts)",
                   "mean ANEES", "expected (D)"], rows,
-                 "Health of the filters compared: divergence of any run, and NEES consistency where the truth is "
-                 "known")
+                 "Health of the filters compared: the divergence gate (any run diverged), and apart the NEES "
+                 "consistency where the truth is known")
 
 
 def health_paragraph(policy: str) -> Paragraph:
     """How the health checks enter the verdicts (the policy the claims applied)."""
     return Paragraph(
         "Health checks before a verdict stands: a filter that diverged in some run (error above the bound or not "
-        "finite) makes every comparison it is part of 'not decidable'. " + policy + ". The NEES of a "
-        "consistent Gaussian filter has mean D; 'optimistic' means over-confident (errors large against the "
-        "filter's own covariance).")
+        "finite) fails its health gate and makes every comparison it is part of 'not decidable'. " + policy + ". "
+        "The NEES of a consistent Gaussian filter has mean D; a filter is called optimistic when more steps' ANEES "
+        "lie above the band than below it (errors large against its own covariance), pessimistic when more lie "
+        "below — so a mean near D can still be outside the band, the counts are in the table.")
 
 
 def interpretations_paragraph(specs: Sequence[InterpretationSpec], option: str) -> Paragraph:

@@ -11,18 +11,21 @@ seeds of the run's seed). Parameters, profiles and the run record: :mod:`gpfveri
 from __future__ import annotations
 
 import dataclasses
+import functools
 from collections.abc import Sequence
 
 import numpy as np
 
 from gpfverify.contract.claims import ClaimRecord, combine
 from gpfverify.papers.fusion.contract import FAMILIES, METHODS, PAPER, family_methods
+from gpfverify.contract.health_records import stored_checks
 from gpfverify.contract.methods import Method
 from gpfverify.papers.fusion.ungm1d_contract import (DEFAULT_RUNS, FIGURE_NOISES, INTERPRETATIONS, NAME, PROFILES,
                                                      SUMMARY_FIELDS, Params, RunRecord, noise_key)
 from gpfverify.contract.serial import to_json
 from gpfverify.papers.fusion.batch import gp_batch_bytes, run_setting_batch
-from gpfverify.papers.fusion.run import (CPU_CLOCK, ClaimContext, RunInputs, _num, checks_of, equivalence_claim,
+from gpfverify.papers.fusion.claims import ungm1d_statement
+from gpfverify.papers.fusion.run import (CPU_CLOCK, ClaimContext, RunInputs, _num, equivalence_claim,
                                          fusion_beats_baselines, fusion_beats_sensors, health_checks, paired_claim,
                                          run_setting, sigma_params, summarize_setting, train_models)
 from gpfverify.filters.records import Gaussian
@@ -30,7 +33,7 @@ from gpfverify.rng import generator
 from gpfverify.papers.fusion.scenario import simulate_data, ungm_scenario
 
 __all__ = ["DEFAULT_RUNS", "INTERPRETATIONS", "NAME", "PAPER", "PROFILES", "Params", "RunRecord", "SUMMARY_FIELDS",
-           "batch_run_bytes", "run_batch", "run_one", "summarize"]
+           "batch_run_bytes", "judge", "run_batch", "run_one", "summarize"]
 
 #: the per-σ² fields repeated under "sweep" for σ² other than the main one
 SWEEP_FIELDS = ("rmse", "max_equivalence_gap", "one_step_gap", "full_rank_ratio", "time_per_step", "health")
@@ -131,58 +134,49 @@ def metric_of(params: Params) -> tuple[str, str]:
 
 
 def claims(params: Params, per_noise: dict[str, dict], n: int) -> list[ClaimRecord]:
+    """Every claim judged on the per-σ² summaries ``per_noise`` of ``n`` runs: what :func:`summarize`
+    writes, and what a reference page re-judges from a stored ``results.json`` (:func:`judge`)."""
     out = []
     for noise in params.noise_vars:
         key = noise_key(noise)
         in_figure = noise in FIGURE_NOISES
-        ctx = ClaimContext(NAME, f"σ² = {noise:g}", f"s{key}", n, DEFAULT_RUNS if in_figure else None)
+        ctx = ClaimContext(NAME, f"σ² = {noise:g}", f"s{key}", n, DEFAULT_RUNS if in_figure else None,
+                           functools.partial(ungm1d_statement, noise=noise), stored_checks(per_noise[key]["health"]))
         out += setting_claims(ctx, per_noise[key], noise, in_figure, metric_of(params))
     out.append(sweep_claim(params, out, n))
     return out
+
+
+def judge(params: Params, body: dict, runs: int) -> tuple[list[ClaimRecord], list[ClaimRecord]]:
+    """The claims judged on a stored ``results.json`` body (the main σ²'s summary at top level, the
+    others under ``"per_noise"``), as :func:`summarize` judged them; no claim on computation time."""
+    main = {k: v for k, v in body.items() if k not in ("per_noise", "sweep", "claims", "timing_claims")}
+    per_noise = {**body["per_noise"], body["main_noise"]: main}
+    return claims(params, per_noise, runs), []
 
 
 def setting_claims(ctx: ClaimContext, r: dict, noise: float, in_figure: bool,
                    metric: tuple[str, str] = METRIC_KEYS[("mahalanobis", "squared")]) -> list[ClaimRecord]:
     """The claims of one σ²; every comparison through the paired Monte Carlo rule and the health
     gate (:func:`~gpfverify.papers.fusion.run.paired_claim`) on the per-run ``metric``."""
-    source = "Figs. 2, 3 (§4.1)" if in_figure else "Fig. 4 (§4.1)"
     caveats = () if in_figure else ("the paper shows this σ² only in Fig. 4, without a run count; the σ² values of "
                                     "Fig. 4 are an interpretation (lost in extraction)",)
     key, words = metric
-    compared = (f"compared: the per-run mean of the {words}",)
+    compared = (*caveats, f"compared: the per-run mean of the {words}")
     out = []
     for family in FAMILIES:
-        out += [equivalence_claim(ctx, r, family, "average_mahalanobis", "Proposition 1 and eq. 35; " + source,
-                                  caveats=(*caveats, *health_caveats(r, family))),
-                fusion_beats_sensors(ctx, r, family, key, "", source, caveats=(*caveats, *compared),
-                                     health=r["health"]),
-                fusion_beats_baselines(ctx, r, family, key, "", source, caveats=(*caveats, *compared),
-                                       health=r["health"]),
+        out += [equivalence_claim(ctx, r, family, "average_mahalanobis", caveats),
+                fusion_beats_sensors(ctx, r, family, key, "", compared),
+                fusion_beats_baselines(ctx, r, family, key, "", compared),
                 paired_claim(ctx, f"sensor2-beats-sensor1/{family}", f"{family}: Sensor 2 performs better than "
-                             "Sensor 1", source, r[key],
-                             [(Method.sensor_filter(2, family), Method.sensor_filter(1, family))], "",
-                             caveats=(*caveats, *compared), health=r["health"])]
+                             "Sensor 1", r[key], [(Method.sensor_filter(2, family), Method.sensor_filter(1, family))],
+                             "", compared)]
     if noise in FIGURE_NOISES:
         better, worse = ("GP-ADF", "GP-UKF") if noise == FIGURE_NOISES[0] else ("GP-UKF", "GP-ADF")
         out.append(paired_claim(ctx, f"fusion-{better.lower()}-beats-{worse.lower()}",
-                                f"σ² = {noise:g}: fusion with {better} beats fusion with {worse}",
-                                "§4.1, Figs. 2, 3", r[key],
-                                [(Method("CMF", better), Method("CMF", worse))], "", caveats=compared,
-                                health=r["health"]))
+                                f"σ² = {noise:g}: fusion with {better} beats fusion with {worse}", r[key],
+                                [(Method("CMF", better), Method("CMF", worse))], "", compared))
     return out
-
-
-def health_caveats(r: dict, family: str) -> tuple[str, ...]:
-    """The failed health checks of a family's filters, as a caveat of the equivalence claim: eq. 35 is
-    compared with CMF one step at a time from the same central prediction, which does not need the
-    filters to be healthy, but the steps it covers are those these filters reached."""
-    failed = [c for c in checks_of(r["health"], family_methods(family)) if not c.passed]
-    if not failed:
-        return ()
-    return (f"the {family} filters failed health checks here — " + "; ".join(f"{c.subject}: {c.name} ({c.detail})"
-                                                                          for c in failed)
-            + " — the verdict compares one step of eq. 35 with CMF from the same central prediction, which stands "
-              "whatever the filters' health, but the steps it covers are those these filters reached",)
 
 
 def sweep_claim(params: Params, records: list[ClaimRecord], n: int) -> ClaimRecord:
@@ -190,23 +184,31 @@ def sweep_claim(params: Params, records: list[ClaimRecord], n: int) -> ClaimReco
     each single sensor" of both families, each decided by the paired rule and the health gate, made
     one: NOT held when one part is, held when all are, not decidable when a part is (and none is NOT
     held), undecided otherwise. Statistic: the least favourable part's (its mean difference and
-    tolerance)."""
+    tolerance). Its health is every part's."""
     parts = [c for c in records if "/fusion-beats-sensors/" in c.id]
     verdict = combine([c.verdict for c in parts])
     decided = [c for c in parts if c.statistic is not None and c.threshold]
     worst = max(decided, key=lambda c: (c.statistic or 0.0) / (c.threshold or 1.0), default=None)
     undecided = [c.runs_to_decide for c in parts if c.verdict == "undecided" and c.runs_to_decide]
-    withheld = [f"{c.setting}, {c.claim.split(':')[0]}: {c.caveats[0]}" for c in parts
-                if c.verdict == "not decidable" and c.caveats]
-    ctx = ClaimContext(NAME, "", "", n, None)
+
+    def part(c: ClaimRecord) -> str:
+        return f"{c.setting} {c.id.rsplit('/', 1)[-1]}"
+
+    withheld = [f"{part(c)}: withheld (the runs gave '{c.would_be}'; "
+                + ", ".join(h.subject for h in c.failed_filters) + " failed a health gate)"
+                for c in parts if c.would_be is not None]
+    ctx = ClaimContext(NAME, "", "", n, None, functools.partial(ungm1d_statement, noise=None))
     record = ctx.record(
-        "fusion-beats-sensors-every-noise", "fusion beats the single sensors for every σ²", "Fig. 4 (§4.1)", verdict,
+        "fusion-beats-sensors-every-noise", "fusion beats the single sensors for every σ²", verdict,
         None if worst is None else worst.statistic, None if worst is None else worst.threshold,
         "the claims 'CMF and DMF beat each single sensor' at every σ² and for both families, each by the paired "
         f"difference of per-run means of the {metric_of(params)[1]} over runs (± 5 standard errors) with the "
-        "health gate: " + "; ".join(f"{c.setting} {c.claim.split(':')[0]}: {c.verdict}" for c in parts)
-        + ("" if worst is None else f"; least favourable part ({worst.setting}, {worst.claim.split(':')[0]}): "
+        "health gate: " + "; ".join(f"{part(c)}: {c.verdict}" for c in parts)
+        + ("" if worst is None else f"; least favourable part ({part(worst)}): "
                                     f"{_num(worst.statistic)} against its tolerance {_num(worst.threshold)}"),
         caveats=(*withheld, "the paper states no run count for Fig. 4; its σ² values are an interpretation (lost in "
-                            "extraction)"))
-    return dataclasses.replace(record, runs_to_decide=max(undecided) if verdict == "undecided" and undecided else None)
+                            "extraction)"),
+        runs_to_decide=max(undecided) if undecided else None)
+    # the parts' health, each filter at each σ² (a part's gate has already withheld what it had to)
+    return dataclasses.replace(record, health=tuple(dataclasses.replace(h, subject=f"{h.subject} at {c.setting}")
+                                                    for c in parts for h in c.health))

@@ -95,8 +95,8 @@ def render(results: dict, folder: Path, command: str | None = None) -> Section:
             section.add(table)
     noises = by_noise(results)
     section.add(health_paragraph(NEES_POLICY + "; the claims here compare the paper's metric, the average squared "
-                                 "Mahalanobis distance, which is the NEES itself: an over-confident filter scores "
-                                 "worse on it, as the paper reads it"))
+                                 "Mahalanobis distance, which is the NEES itself: an optimistic filter scores worse "
+                                 "on it, as the paper reads it"))
     health = health_table({f"σ² = {fmt(float(k))}": r for k, r in noises.items()})
     if health is not None:
         section.add(health)

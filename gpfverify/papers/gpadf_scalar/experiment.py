@@ -26,10 +26,10 @@ from typing import Any
 import numpy as np
 
 from gpfverify.contract.claims import ClaimRecord, PairedDifference, combine
+from gpfverify.papers.gpadf_scalar.claims import TABLE_1
 from gpfverify.papers.gpadf_scalar.contract import (CALIBRATED_EXCEEDANCE, DEFAULT_RUNS, GP_ADF, METHODS, NAME, PAPER,
                                                     PROFILES, Cases, Example, FittedGPs, Hyperparameters, Params,
                                                     PerRun, Posterior, RunRecord, Scores, TableRow)
-from gpfverify.contract.papers import PAPERS
 from gpfverify.filters.ekf import ekf_step
 from gpfverify.filters.gp_adf import gp_adf_step
 from gpfverify.filters.gp_ukf import gp_ukf_step
@@ -48,7 +48,6 @@ __all__ = ["DEFAULT_RUNS", "METHODS", "NAME", "PAPER", "PROFILES", "Params", "Ru
 SCORES = ("nll", "maha", "sq_err")
 _LOG_2PI = float(np.log(2.0 * np.pi))
 #: where Deisenroth et al. state the claims
-SOURCE = "{short}, §5 and Table 1 (ref. [7] of Liao et al. 2019)"
 
 
 def _setting(params: Params) -> ScalarSetting:
@@ -167,7 +166,7 @@ def _pm(value: float, se: float) -> str:
 def claims(table: dict[str, TableRow], per_run: dict[str, PerRun], runs: int) -> list[ClaimRecord]:
     """The claims of Deisenroth et al. (2009) on this benchmark, decided on the pooled table and
     the per-run means."""
-    source = SOURCE.format(short=PAPERS[PAPER].short)
+    source = TABLE_1.source
     common: dict[str, Any] = {"paper": PAPER, "n": runs, "paper_n": DEFAULT_RUNS}
     adf = table[GP_ADF.key]
     others = [m for m in METHODS if m != GP_ADF]
@@ -213,4 +212,4 @@ def claims(table: dict[str, TableRow], per_run: dict[str, PerRun], runs: int) ->
                      f"{100 * limit:.2f} %: 4.55 % plus {MONTE_CARLO_SIGMAS:g} binomial standard errors); NEES "
                      f"{_pm(row.nees, row.nees_se)}",
             id=f"{NAME}/over-confident/{m.key}", **common))
-    return out
+    return [TABLE_1.applied(r) for r in out]

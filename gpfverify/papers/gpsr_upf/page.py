@@ -1,6 +1,7 @@
 """Render the committed sins-gps reference page from a run with interpretations.
 
     python -m gpfverify.papers.gpsr_upf.page RUN_DIR "COMMAND" [CONFIRM_DIR "CONFIRM_COMMAND"]
+    python -m gpfverify.papers.gpsr_upf.page --committed "COMMAND"   # judge the committed results again
     python -m gpfverify.papers.gpsr_upf.page --figures   # its figures again, from the committed results
 
 RUN_DIR is the output folder of COMMAND (``gpfverify reproduce sins-gps ... --interpretations ...``).
@@ -27,7 +28,7 @@ from gpfverify.experiments.sensitivity import merge_saved  # noqa: E402
 from gpfverify.papers.gpsr_upf import experiment as sins_gps
 from gpfverify.papers.gpsr_upf import section as section_module
 from gpfverify.papers.gpsr_upf.contract import DEFAULT_RUNS, INTERPRETATIONS, Params
-from gpfverify.reference_pages import FIGURES, REFERENCE, redraw_figures, write_page
+from gpfverify.reference_pages import FIGURES, REFERENCE, redraw_figures, rejudge_committed, write_page
 from gpfverify.report.document import Paragraph  # noqa: E402
 
 HERE = REFERENCE / "sins-gps"
@@ -60,16 +61,19 @@ def confirmation(run_dir: Path, command: str) -> dict:
             "mean_ess_fraction": r["mean_ess_fraction"], "rms": r["rms"], "claims": _claims(r)}
 
 
-def main(run_dir: Path, command: str, confirm: tuple[Path, str] | None = None) -> None:
-    # recomputed from the saved runs (main and interpretations) with the current summary
-    results = merge_saved(run_dir, sins_gps)
-    results["interpretation_summaries"] = summaries(run_dir)
-    if confirm is not None:
-        results["confirmation"] = confirmation(*confirm)
+def main(run_dir: Path | None, command: str, confirm: tuple[Path, str] | None = None) -> None:
     target = HERE / "run"
-    target.mkdir(parents=True, exist_ok=True)
-    (target / "results.json").write_text(json.dumps(results, allow_nan=False), encoding="utf-8")
-    shutil.copy(run_dir / "manifest.json", target / "manifest.json")
+    if run_dir is None:  # the committed results judged again from their stored summary
+        results = rejudge_committed(target / "results.json", sins_gps)
+        run_dir = target
+    else:  # recomputed from the saved runs (main and interpretations) with the current summary
+        results = merge_saved(run_dir, sins_gps)
+        results["interpretation_summaries"] = summaries(run_dir)
+        if confirm is not None:
+            results["confirmation"] = confirmation(*confirm)
+        target.mkdir(parents=True, exist_ok=True)
+        (target / "results.json").write_text(json.dumps(results, allow_nan=False), encoding="utf-8")
+        shutil.copy(run_dir / "manifest.json", target / "manifest.json")
     section = section_module.render(results, HERE)
     also = "" if confirm is None else f" and `{confirm[1]}`"
     extra = "" if confirm is None else " CONFIRM_DIR \"CONFIRM_COMMAND\""
@@ -79,7 +83,8 @@ def main(run_dir: Path, command: str, confirm: tuple[Path, str] | None = None) -
                           f"runs {DEFAULT_RUNS})."))
     section.add(Paragraph(f"Made by `{command}`{also}, then `python -m gpfverify.papers.gpsr_upf.page RUN_DIR "
                           f"\"COMMAND\"{extra}` (which adds the interpretations' health and errors, and the "
-                          "confirmation run's, to the committed results.json)."))
+                          "confirmation run's, to the committed results.json); the committed results judged again by "
+                          "the current code with `python -m gpfverify.papers.gpsr_upf.page --committed \"COMMAND\"`."))
     write_page(section, HERE, [results])
 
 
@@ -87,4 +92,5 @@ if __name__ == "__main__":
     if sys.argv[1:] == [FIGURES]:
         redraw_figures(HERE, HERE / "run" / "results.json", section_module.render)
         sys.exit(0)
-    main(Path(sys.argv[1]), sys.argv[2], (Path(sys.argv[3]), sys.argv[4]) if len(sys.argv) > 4 else None)
+    main(None if sys.argv[1] == "--committed" else Path(sys.argv[1]), sys.argv[2],
+         (Path(sys.argv[3]), sys.argv[4]) if len(sys.argv) > 4 else None)

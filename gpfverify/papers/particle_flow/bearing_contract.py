@@ -2,8 +2,9 @@
 profiles, the filters it compares and the per-run record.
 
 ``results.json`` (CONTRACT.md): ``"rmse"``, ``"time_per_run"``, ``"mean_rmse"``, ``"diverged"``,
-``"run_rmse"``: {filter key} with the keys of :attr:`Params.filters` ("PF-N50", "PF-N200",
-"IE-PFF-N50" at the paper's particle counts); ``"health"``: a list of
+``"run_rmse"``, ``"run_seconds"``: {filter key} with the keys of :attr:`Params.filters` ("PF-N50",
+"PF-N200", "IE-PFF-N50" at the paper's particle counts, and "IE-PFF-N200"); ``"large_noise"``: the
+same for the trajectory with the larger process noise; ``"health"``: a list of
 :class:`~gpfverify.health.HealthCheck` (divergence of every filter, weight collapse of the PFs);
 ``"significance_level"``; ``"claims"``.
 
@@ -14,7 +15,7 @@ deviations).
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 from typing import Literal
 
@@ -72,6 +73,11 @@ class Params(ParamsBase):
     pf_small: int = option(50, "particles of the smaller bootstrap PF", minimum=2)
     pf_large: int = option(200, "particles of the larger bootstrap PF", minimum=2)
     flow_particles: int = option(50, "particles of the IE-PFF", minimum=2)
+    flow_particles_large: int = option(200, "particles of the second IE-PFF (§3.2: more particles do not make the "
+                                            "flow more accurate)", minimum=2)
+    large_noise_factor: float = option(10.0, "process noise of the second trajectory of every run, as a multiple of "
+                                             "r1 and r2 (§3.2: Table 2's rows at larger process noise, whose values "
+                                             "were lost)", above=1.0)
     initial_state: tuple[float, float, float, float] = option(
         INITIAL_STATE, "the target's initial state x₀ = [x, ẋ, y, ẏ] (m, m/s), the filters' prior mean",
         cli=False)
@@ -86,12 +92,21 @@ class Params(ParamsBase):
     def check(self) -> None:
         if self.pf_small == self.pf_large:
             raise InputError(f"--pf-small and --pf-large must differ, both are {self.pf_small}")
+        if self.flow_particles == self.flow_particles_large:
+            raise InputError(f"--flow-particles and --flow-particles-large must differ, both are "
+                             f"{self.flow_particles}")
 
     @property
-    def filters(self) -> tuple[SizedFilter, SizedFilter, SizedFilter]:
-        """The filters compared, in the paper's order: PF (small N), PF (large N), IE-PFF."""
+    def filters(self) -> tuple[SizedFilter, SizedFilter, SizedFilter, SizedFilter]:
+        """The filters compared, in the paper's order: PF (small N), PF (large N), IE-PFF, then the
+        IE-PFF with more particles."""
         return (SizedFilter(PF, self.pf_small), SizedFilter(PF, self.pf_large),
-                SizedFilter(IE_PFF, self.flow_particles))
+                SizedFilter(IE_PFF, self.flow_particles), SizedFilter(IE_PFF, self.flow_particles_large))
+
+    @property
+    def large_noise_filters(self) -> tuple[SizedFilter, SizedFilter, SizedFilter]:
+        """The filters run on the trajectory with the larger process noise: Table 2's three."""
+        return self.filters[:3]
 
 
 
@@ -131,6 +146,9 @@ class FilterRun:
 
 @dataclass(frozen=True)
 class RunRecord:
-    """One Monte Carlo run: every filter of :attr:`Params.filters`, by key."""
+    """One Monte Carlo run: every filter of :attr:`Params.filters`, by key; and on a second
+    trajectory with the process noise × :attr:`Params.large_noise_factor`, the filters of
+    :attr:`Params.large_noise_filters`."""
 
     filters: dict[str, FilterRun]
+    large_noise: dict[str, FilterRun] = field(default_factory=dict)

@@ -6,13 +6,15 @@ and the CPU time (and, for the weighted filters, N_eff/N per step). A filter tha
 as diverged instead of ending the run.
 
 :func:`paired_comparison` is the decision rule of the experiments' claims (a paired t-test over
-runs in which a divergence counts as a loss); :func:`divergence_health` and :func:`ess_health` are
+runs in which a divergence counts as a loss), :func:`ratio_comparison` its form for "within a factor
+of"; :func:`divergence_health` and :func:`ess_health` are
 the health checks (:mod:`gpfverify.health`) the claims apply before a verdict stands."""
 
 from __future__ import annotations
 
 import time
 from collections.abc import Sequence
+import dataclasses
 from dataclasses import dataclass
 
 import numpy as np
@@ -194,6 +196,11 @@ class Comparison:
         return int(np.ceil(self.n * (self.critical / abs(self.t)) ** 2))
 
 
+def _finite(values) -> list[float | None]:
+    """Per-run values with every one that is not a finite number as None (diverged)."""
+    return [None if v is None or not np.isfinite(v) else float(v) for v in values]
+
+
 def paired_comparison(better: tuple[float | None, ...] | list[float | None],
                       worse: tuple[float | None, ...] | list[float | None], level: float) -> Comparison:
     """Is ``better`` (per-run RMSE, None = diverged) more accurate than ``worse``?
@@ -201,7 +208,9 @@ def paired_comparison(better: tuple[float | None, ...] | list[float | None],
     NOT held when ``better`` diverged in a run where ``worse`` did not; otherwise a paired t-test on
     the runs where both are finite, d = mean(better − worse) with standard error se and
     t* = the (1 − level/2) quantile of Student's t with n − 1 degrees of freedom: held when
-    d < −t*·se, NOT held when d > t*·se, undecided in between."""
+    d < −t*·se, NOT held when d > t*·se, undecided in between. A value that is not finite (an
+    error that overflowed) counts as a divergence."""
+    better, worse = _finite(better), _finite(worse)
     lost = sum(b is None and w is not None for b, w in zip(better, worse))
     pairs = np.array([(b, w) for b, w in zip(better, worse) if b is not None and w is not None], float)
     if lost:
@@ -221,3 +230,22 @@ def paired_comparison(better: tuple[float | None, ...] | list[float | None],
     t = d / se
     held = True if t < -critical else False if t > critical else None
     return Comparison(verdict_of(held), t, critical, len(diff), 0, text)
+
+
+def ratio_comparison(a: tuple[float | None, ...] | list[float | None], b: tuple[float | None, ...] | list[float | None],
+                     bound: float, level: float) -> Comparison:
+    """Is filter ``a``'s per-run RMSE at most ``bound`` times filter ``b``'s (None = diverged)? The
+    paired t-test of :func:`paired_comparison` on log(a) − log(bound) against log(b): held when the
+    mean log ratio lies below log(bound) beyond t*·se, NOT held when above it, undecided in between;
+    NOT held when ``a`` diverged in a run where ``b`` did not."""
+    def log(values, shift: float = 0.0) -> list[float | None]:
+        return [None if v is None else float(np.log(v)) - shift for v in values]
+
+    a, b = _finite(a), _finite(b)
+    c = paired_comparison(log(a, float(np.log(bound))), log(b), level)
+    pairs = [x / y for x, y in zip(a, b) if x is not None and y is not None]
+    if c.lost or not pairs:
+        return c
+    ratio = float(np.exp(np.mean(np.log(pairs))))
+    return dataclasses.replace(c, evidence=f"per-run RMSE ratio {ratio:.3g} (geometric mean over n = {len(pairs)} "
+                                           f"runs; at most {bound:.3g} × for the claim)")

@@ -9,9 +9,10 @@ verdicts under each interpretation are merged into the main one, which is copied
 manifest) to ``reports/reference/particle-flow/<experiment>/``, and the page is written to
 ``reports/reference/particle-flow/README.md`` with its figures. The Table-1 grid on the second
 model (the interpretation vdm-gaussian) is rendered next to the main one, and its results.json
-copied with its manifest to ``.../pff1d/vdm-gaussian/``. An experiment whose folder is not in RUNS_DIR keeps its
-committed results (the page states the commit each was made at). The per-run files are not
-committed.
+copied with its manifest to ``.../pff1d/vdm-gaussian/``. An experiment whose folder is not in RUNS_DIR
+keeps its committed results, judged again by the current code from their stored summaries
+(:func:`~gpfverify.reference_pages.rejudge_committed`; the page states the commit each was made at).
+The per-run files are not committed.
 """
 
 from __future__ import annotations
@@ -25,7 +26,7 @@ from gpfverify.contract.experiment import RunEntry, SectionRuns
 from gpfverify.papers.particle_flow import bearing_experiment as bearing
 from gpfverify.papers.particle_flow import pff1d_experiment as pff1d
 from gpfverify.papers.particle_flow import section as particle_flow
-from gpfverify.reference_pages import REFERENCE, recompute_into, write_page
+from gpfverify.reference_pages import REFERENCE, recompute_into, rejudge_committed, write_page
 from gpfverify.report.document import Paragraph
 from gpfverify.report.inputs import SectionInput
 
@@ -48,7 +49,7 @@ OUTSIDE_RUN = ("an independent implementation of the same model at Q = 1, R = 0.
 def main(runs_dir: Path) -> None:
     results = {name: recompute_into(runs_dir / name, MODULES[name], HERE / name)
                if (runs_dir / name / "manifest.json").is_file()
-               else json.loads((HERE / name / "results.json").read_text(encoding="utf-8")) for name in COMMANDS}
+               else rejudge_committed(HERE / name / "results.json", MODULES[name]) for name in COMMANDS}
     entries = tuple(RunEntry(name, "", name, f"{name}/results.json") for name in COMMANDS)
     data = SectionInput(particle_flow.SLUG, HERE, SectionRuns(particle_flow.SLUG, "reference", 1, entries),
                         tuple(results[name] for name in COMMANDS))
@@ -59,6 +60,8 @@ def main(runs_dir: Path) -> None:
         target.mkdir(parents=True, exist_ok=True)
         for name in ("results.json", "manifest.json"):
             shutil.copy(second.parent / name, target / name)
+    elif (HERE / "pff1d" / SECOND_MODEL / "results.json").is_file():
+        rejudge_committed(HERE / "pff1d" / SECOND_MODEL / "results.json", pff1d)
     if (HERE / "pff1d" / SECOND_MODEL / "results.json").is_file():
         section.blocks[-1:-1] = _second_model_blocks(
             json.loads((HERE / "pff1d" / SECOND_MODEL / "results.json").read_text(encoding="utf-8")))

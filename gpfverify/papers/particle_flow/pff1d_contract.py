@@ -210,6 +210,9 @@ class Table1Row:
     rmse: tuple[float, ...]
     #: per run √(mean over steps of err²), None where the filter diverged
     run_rmse: tuple[float | None, ...]
+    #: per run the filter's CPU seconds in this cell (what the timing claims compare; empty in a
+    #: summary made before they were kept)
+    run_seconds: tuple[float, ...] = ()
 
     @property
     def variant(self) -> Variant:
