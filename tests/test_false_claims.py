@@ -977,6 +977,35 @@ def _sift_false() -> bool:
     """N = 2, j = 1, ρ = 0: the left side is (1 + 1)⁻¹ + (0 + 1)⁻¹ = 3/2, the right side 2·(1/2) = 1."""
     return is_refuted(_sift_statement(), {"sizes": {"N": 2}, "params": {"ρ": 0}, "free_indices": {"j": 1}})
 
+def _capture_statement():
+    """Z_j = Σ_m X_m X_j, where Z_h := Σ_m X_m X_h (true by Z's definition)."""
+    d = Declare()
+    d.sizes("n", "N")
+    d.index_set("K", "N")
+    x = d.matrix("X", "n", "n", over="K")
+    z = d.define("Z", lambda h: Sum("m", "K", x["m"] * x[h]), over="K")
+    d.free_index("j", "K")
+    d.conclude(eq(z["j"], Sum("m", "K", x["m"] * x["j"])))
+    return d.json()
+
+
+def _printed_under_its_own_sum():
+    """A family's definition was printed with m for its own index, under its body's Σ_m: 'Z_m := Σ_m X_m X_m'
+    beside 'Z_j = Σ_m X_m X_j' reads Σ_m X_m X_m = Σ_m X_m X_j. Proved, its words must keep the two apart."""
+    statement = _capture_statement()
+    certificate = Certificate("capture", "", [Part(statement, {"steps": [{"id": "s", "claim": statement["conclusion"][0]}]},
+                                                   instance({"n": 2, "N": 2}, {"X": [sp.eye(2), sp.eye(2)]},
+                                                            free_indices={"j": 1}))])
+    captured = "Σ_{m=1}^{N} X_m X_m" in certificate.statement
+    return certificate.status if captured else "proved, and printed as proved"
+
+
+def _captured_reading_false() -> bool:
+    """The reading Σ_m X_m X_m = Σ_m X_m X_j fails at N = 2, j = 1, X_1 = 0, X_2 = I (I ≠ 0)."""
+    x1, x2 = sp.zeros(2), sp.eye(2)
+    return x1 * x1 + x2 * x2 != x1 * x1 + x2 * x1
+
+
 ADVERSARY = [
     FalseClaim("√(a²) = a, the parameter being 'positive' in sympy", "sympy assumptions", _root_of_square,
                lambda: sp.sqrt((-1) ** 2) != -1),
@@ -1055,6 +1084,8 @@ ADVERSARY = [
                _read_as_any_dimension, lambda: matrix([[0, 1], [0, 0]]).T != matrix([[0, 1], [0, 0]])),
     FalseClaim("(Σ_i (S_iᵀS_j + I)⁺)ᵀ = Σ_i (I + I)⁺, the selectors sifted inside a pseudo-inverse", "sums",
                _sift_inside_a_pinv, _sift_false),
+    FalseClaim("Σ_m X_m X_m = Σ_m X_m X_j, printed from Z_j = Σ_m X_m X_j with Z_h := Σ_m X_m X_h", "statement words",
+               _printed_under_its_own_sum, _captured_reading_false),
 ]
 
 FALSE_CLAIMS = PORTED + ADVERSARY

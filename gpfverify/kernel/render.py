@@ -7,6 +7,8 @@ The statement text is the conclusion, its definitions ("where …") and every hy
 
 from __future__ import annotations
 
+import itertools
+
 from gpfverify.kernel.terms import HEAD, Statement, _expand, number, parse_size
 
 ANY_DIMENSION = "any dimension"
@@ -111,8 +113,11 @@ class Renderer:
 
     @property
     def member_index(self) -> str:
-        """The letter that names a family's member in the text (one no declaration uses)."""
-        return next(i for i in ("m", "k", "i", "r", "s", "t", "m′") if i not in self.st.names)
+        """The letter that names a family's member in the text: one the statement uses nowhere, declared
+        or bound (a definition's body read with m for its own index must not put it under a Σ_m)."""
+        used = _strings(self.st.data, set())
+        return next(i for i in itertools.chain("mkirst", (f"m{'′' * k}" for k in itertools.count(1)))
+                    if i not in used)
 
     def shapes(self, entries) -> str:
         """'A, B ∈ ℝ^{n × l}; C_m ∈ ℝ^{l_m × l_m} (m = 1..N)' for (name, rows, cols[, members]) entries."""
@@ -153,6 +158,20 @@ class Renderer:
         for name, s in self.st.free_indices.items():
             text += f"; every {name} = 1..{size_text(self.st.index_sets[s])}"
         return text
+
+
+def _strings(value, out: set) -> set:
+    """Every string of a JSON value (its keys included)."""
+    if isinstance(value, str):
+        out.add(value)
+    elif isinstance(value, dict):
+        for k, v in value.items():
+            out.add(k)
+            _strings(v, out)
+    elif isinstance(value, tuple | list):
+        for v in value:
+            _strings(v, out)
+    return out
 
 
 def _renamed(size, index):
