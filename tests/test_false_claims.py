@@ -697,6 +697,18 @@ def _divergent_integral():
     return outcome(statement, proof, {"sizes": {"n": 1}})
 
 
+def _infinity_minus_itself():
+    """∫ e^{+½xᵀx} dx − ∫ e^{+½xᵀx} dx = 0 by the normal form alone (the two atoms cancel), ∞ − ∞ 'in any
+    dimension'."""
+    x = Term(("var", "x"))
+    integral = Term(("int", "x", "n", as_term(exp(num("1/2") * x.T * x))))
+    d = Declare()
+    d.sizes("n")
+    d.conclude(eq(integral - integral, num(0)))
+    statement = d.json()
+    return outcome(statement, {"steps": [{"id": "s", "claim": statement["conclusion"][0]}]}, {"sizes": {"n": 2}})
+
+
 def _square_roots_statement():
     d = Declare()
     d.sizes("n")
@@ -1043,6 +1055,9 @@ ADVERSARY = [
     FalseClaim("det(−Σ)^{1/2} squared is det(−Σ), 'det(−Σ) > 0' from the factors −I, Σ", "determinant powers",
                _root_of_negative_det, _negative_root_undefined),
     FalseClaim("∫ exp(+½xᵀx) dx = (2π)^{n/2}, the Gaussian rule with A = −I", "integrals", _divergent_integral,
+               lambda: sp.integrate(sp.exp(sp.Symbol("x") ** 2 / 2), (sp.Symbol("x"), -sp.oo, sp.oo)) == sp.oo),
+    FalseClaim("∫ e^{+½xᵀx} dx − ∫ e^{+½xᵀx} dx = 0, a divergent integral cancelled as an atom", "integrals",
+               _infinity_minus_itself,
                lambda: sp.integrate(sp.exp(sp.Symbol("x") ** 2 / 2), (sp.Symbol("x"), -sp.oo, sp.oo)) == sp.oo),
     FalseClaim("A = B from A² = B², by a 'congruence' under the square root", "congruence",
                _congruence_by_square_root,

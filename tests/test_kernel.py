@@ -344,3 +344,22 @@ def test_hostile_sizes_and_powers_are_refused_not_computed():
     inst = Instance(st, frozen({"sizes": {"n": 1, "l": 0, "N": 0}, "indexed_sizes": {"k": []}, "values": {"A": [[1]]}}))
     with pytest.raises(KernelError, match="above 256"):
         inst.value(("I", "100000000"), {})
+
+
+def _integral_cancels(sign: str, hypotheses=()) -> str:
+    """∫ p(x) e^{q(x)} dx − the same integral = 0 (the atoms cancel), q = sign·½xᵀΣ⁻¹x + bᵀx."""
+    x = ("var", "x")
+    q = ("+", ("*", ("num", sign), ("T", x), ("inv", ("var", "Σ")), x), ("*", ("T", ("var", "b")), x))
+    integral = ("int", "x", "n", ("*", x, ("T", x), ("var", "b"), ("exp", q)))
+    statement = {"sizes": ["n"], "variables": {"Σ": {"rows": "n", "cols": "n"}, "b": {"rows": "n", "cols": 1}},
+                 "hypotheses": list(hypotheses), "conclusion": [["=", ["+", integral, ["*", ["num", -1], integral]],
+                                                                  ["0", "n", 1]]]}
+    witness = instance({"n": 2}, {"Σ": sp.eye(2), "b": sp.zeros(2, 1)})
+    return outcome(statement, {"steps": [{"id": "s", "claim": statement["conclusion"][0]}]}, witness)
+
+
+def test_an_integral_needs_a_gaussian_integrand_with_an_spd_quadratic_part():
+    """R4: a polynomial times e^{−½xᵀAx + bᵀx}, A SPD, converges; anything else is not shown finite."""
+    assert _integral_cancels("-1/2", [["spd", ["var", "Σ"]]]) == "proved"
+    assert _integral_cancels("-1/2") == "not proved"  # Σ not known SPD
+    assert _integral_cancels("1/2", [["spd", ["var", "Σ"]]]) == "not proved"  # e^{+½xᵀΣ⁻¹x}
