@@ -23,7 +23,7 @@ from gpfverify.kernel.terms import frozen, read_statement
 from gpfverify.symbolic import fusion_claims as fc
 from gpfverify.symbolic.certificate import Certificate, ListedCheck, Part
 from gpfverify.symbolic.formal import (Declare, I, Sum, Term, as_term, eq, every, exp, fcr, forall, invertible,
-                                       le, num, spd, tr, zero)
+                                       le, num, size, spd, tr, zero)
 from tests.kernel_helpers import instance, is_refuted, matrix, outcome, problems
 
 #: rank one, 2 × 2, and a 2 × 2 SPD matrix that does not map its kernel into itself
@@ -1018,6 +1018,30 @@ def _captured_reading_false() -> bool:
     return x1 * x1 + x2 * x2 != x1 * x1 + x2 * x1
 
 
+def _pinned_statement():
+    """n X = 2 X assuming n = 2: proved (the hypothesis times X)."""
+    d = Declare()
+    d.sizes("n")
+    x = d.matrix("X", "n", "n")
+    d.assume(eq(size("n"), num(2)))
+    d.conclude(eq(size("n") * x, num(2) * x))
+    return d.json()
+
+
+def _any_dimension_under_n_equals_two():
+    """Its scope read 'any dimension' (no number is a size in it), its conclusion holding only at n = 2."""
+    statement = _pinned_statement()
+    proof = {"steps": [{"id": "s", "claim": statement["conclusion"][0],
+                        "by": [{"gen": {"hyp": 0}, "right": ("var", "X")}]}]}
+    certificate = Certificate("pinned", "", [Part(statement, proof, instance({"n": 2}, {"X": sp.eye(2)}))])
+    return certificate.status if certificate.scope == "any dimension" else "proved where the hypotheses allow"
+
+
+def _pinned_conclusion_false() -> bool:
+    """Without the hypothesis, n X = 2 X fails at n = 3, X = I: the conclusion holds at n = 2 only."""
+    return 3 * sp.eye(3) != 2 * sp.eye(3)
+
+
 ADVERSARY = [
     FalseClaim("√(a²) = a, the parameter being 'positive' in sympy", "sympy assumptions", _root_of_square,
                lambda: sp.sqrt((-1) ** 2) != -1),
@@ -1101,6 +1125,8 @@ ADVERSARY = [
                _sift_inside_a_pinv, _sift_false),
     FalseClaim("Σ_m X_m X_m = Σ_m X_m X_j, printed from Z_j = Σ_m X_m X_j with Z_h := Σ_m X_m X_h", "statement words",
                _printed_under_its_own_sum, _captured_reading_false),
+    FalseClaim("n X = 2 X in any dimension, the hypothesis n = 2 a scalar equation", "scope words",
+               _any_dimension_under_n_equals_two, _pinned_conclusion_false),
 ]
 
 FALSE_CLAIMS = PORTED + ADVERSARY

@@ -2,7 +2,8 @@
 
 The statement text is the conclusion, its definitions ("where …") and every hypothesis
 ("assuming: …"); the scope is "any dimension" when no dimension is fixed to a number ≥ 2
-(every size is a symbol, each ≥ 0), else the fixed sizes. Nothing here decides a status.
+(every size is a symbol, each ≥ 0) nor constrained by a hypothesis, else the fixed sizes or
+"constrained". Nothing here decides a status.
 """
 
 from __future__ import annotations
@@ -12,6 +13,7 @@ import itertools
 from gpfverify.kernel.terms import HEAD, Statement, _expand, number, parse_size
 
 ANY_DIMENSION = "any dimension"
+CONSTRAINED = "dimensions constrained by the hypotheses"
 _SUP = str.maketrans("0123456789-", "⁰¹²³⁴⁵⁶⁷⁸⁹⁻")
 
 
@@ -201,9 +203,10 @@ def statement_text(st: Statement) -> str:
     return text + (" — assuming: " + "; ".join(hyps) if hyps else " — with no hypothesis")
 
 
-def scope(st: Statement) -> str:
+def scope(st: Statement, sizes_as_numbers: bool = False) -> str:
     """"any dimension" unless a dimension is fixed: a number other than 1 as a size anywhere (a shape,
-    a count of members, a block, an identity's or an integral's size), or no size symbol at all."""
+    a count of members, a block, an identity's or an integral's size), or no size symbol at all; or
+    constrained: a hypothesis reads a size as a number (``sizes_as_numbers``: n = 2, say)."""
     dims = list(st.index_sets.values())
     dims += [s for d in st.variables.values() for s in (d.rows, d.cols)]
     dims += [s for d in st.definitions.values() for _, r, c in d.args for s in (r, c)]
@@ -214,7 +217,9 @@ def scope(st: Statement) -> str:
         _predicate_sizes(pred, dims)
     numbers = {s.const for s in dims if not s.atoms}
     fixed = numbers - {1} if any(s.atoms for s in dims) else numbers
-    return ANY_DIMENSION if not fixed else "dimensions fixed at " + ", ".join(map(str, sorted(fixed)))
+    if fixed:
+        return "dimensions fixed at " + ", ".join(map(str, sorted(fixed)))
+    return CONSTRAINED if sizes_as_numbers else ANY_DIMENSION
 
 
 def _predicate_sizes(pred, out: list) -> None:

@@ -573,6 +573,27 @@ def statement_needs(st: Statement, like: Context | None = None) -> list:
     return ctx.needs
 
 
+def sizes_read_as_numbers(st: Statement) -> bool:
+    """Whether a hypothesis reads a size as a number (n = 2, tr(I_n) = 2, Σ_i X = 2X): a coefficient of its
+    normal form depends on a size symbol, so it may fix a dimension that no shape shows."""
+    ctx = Context(st)
+    sizes = {ctx.gens[s].numer.as_expr() for s in st.sizes}
+    for pred in st.hypotheses:
+        for _, term, scope in predicate_terms(pred, ctx.scope(), ctx):
+            if _coefficient_symbols(ctx.nf(term, scope).frozen()) & sizes:
+                return True
+    return False
+
+
+def _coefficient_symbols(obj) -> set:
+    """The symbols of every coefficient in a frozen normal form (nested ones included)."""
+    if isinstance(obj, tuple):
+        return set().union(*(_coefficient_symbols(o) for o in obj))
+    if hasattr(obj, "numer"):  # a rational function of the sizes and parameters
+        return obj.numer.as_expr().free_symbols | obj.denom.as_expr().free_symbols
+    return set()
+
+
 def predicate_terms(pred, scope: dict, ctx: Context):
     """(term, scope) for every term of a predicate (validating its form)."""
     if not isinstance(pred, tuple) or not pred or pred[0] not in ("=", "sym", "spd", "fcr", "invertible", "nonzero",
