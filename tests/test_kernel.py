@@ -221,6 +221,9 @@ EDITS = {
                                            .__setitem__("rejected", False)),
     "a negative control's instance replaced": ("prop1-full-column-rank", lambda r: r["negative_controls"][0]
                                                .__setitem__("instance", fc.instance(1, deficient=True))),
+    "a negative control made the claim itself, recorded as such": ("prop1-full-column-rank", lambda r: r[
+        "negative_controls"][0].update(statement=r["formal"][0]["statement"], proof=r["formal"][0]["proof"],
+                                       instance=r["formal"][0]["witness"], rejected=False, false_on_instance=False)),
 }
 
 
@@ -363,3 +366,10 @@ def test_an_integral_needs_a_gaussian_integrand_with_an_spd_quadratic_part():
     assert _integral_cancels("-1/2", [["spd", ["var", "Σ"]]]) == "proved"
     assert _integral_cancels("-1/2") == "not proved"  # Σ not known SPD
     assert _integral_cancels("1/2", [["spd", ["var", "Σ"]]]) == "not proved"  # e^{+½xᵀΣ⁻¹x}
+
+
+def test_a_negative_control_the_kernel_proves_is_a_problem_of_the_file(records):
+    """A control recorded honestly as accepted (rejected=False): the kernel proves a mutant meant to be false,
+    so the file is rejected by name, not only through the detail's count."""
+    claim, change = EDITS["a negative control made the claim itself, recorded as such"]
+    assert any("accepted by the kernel" in p for p in check_record(_edit(records[claim], change)))

@@ -155,6 +155,9 @@ def check_record(record) -> list[str]:
         if (c.get("rejected"), c.get("false_on_instance")) != (rejected, false):
             problems.append(f"{claim}: negative control {c.get('mutant')!r}: recorded rejected={c.get('rejected')}, "
                             f"false_on_instance={c.get('false_on_instance')}; the kernel finds {rejected}, {false}")
+        elif not (rejected and false):  # a mutant proved (and refuted: the kernel contradicts itself), or true
+            problems.append(f"{claim}: negative control {c.get('mutant')!r} is "
+                            f"{'accepted by the kernel' if not rejected else 'not shown false'}")
     return problems
 
 
