@@ -327,6 +327,20 @@ def test_the_report_shows_a_record_the_kernel_rejects_as_checked(records):
     assert CertificateInfo.of(retold).statement == derive(records["prop1-full-column-rank"])["statement"]
 
 
+def test_the_report_reads_a_certificate_file_as_prove_check_does(records, tmp_path):
+    """A record naming 'status' twice reads 'proved' to a first-wins reader and 'checked' to json.loads: the page
+    refuses the file, as prove --check does, rather than pick one."""
+    from gpfverify.errors import InputError
+    from gpfverify.report.inputs import _read
+
+    text = json.dumps([records["prop1-full-column-rank"]], ensure_ascii=False)
+    path = tmp_path / "certificates.json"
+    path.write_text(text.replace('"status": "proved"', '"status": "proved", "status": "checked"', 1), encoding="utf-8")
+    with pytest.raises(InputError, match="twice"):
+        _read(path)
+    assert main(["prove", "--check", str(path)]) == 2
+
+
 def test_hostile_sizes_and_powers_are_refused_not_computed():
     ctx, st = _context(A=("n", "n"))
     big = ("^", ("+", ("tr", ("var", "A")), ("num", 1)), "1000000")
