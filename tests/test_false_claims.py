@@ -23,7 +23,7 @@ from gpfverify.kernel.terms import frozen, read_statement
 from gpfverify.symbolic import fusion_claims as fc
 from gpfverify.symbolic.certificate import Certificate, ListedCheck, Part
 from gpfverify.symbolic.formal import (Declare, I, Sum, Term, as_term, eq, every, exp, fcr, forall, invertible,
-                                       le, num, spd, tr, zero)
+                                       le, num, size, spd, tr, zero)
 from tests.kernel_helpers import instance, is_refuted, matrix, outcome, problems
 
 #: rank one, 2 × 2, and a 2 × 2 SPD matrix that does not map its kernel into itself
@@ -697,6 +697,18 @@ def _divergent_integral():
     return outcome(statement, proof, {"sizes": {"n": 1}})
 
 
+def _infinity_minus_itself():
+    """∫ e^{+½xᵀx} dx − ∫ e^{+½xᵀx} dx = 0 by the normal form alone (the two atoms cancel), ∞ − ∞ 'in any
+    dimension'."""
+    x = Term(("var", "x"))
+    integral = Term(("int", "x", "n", as_term(exp(num("1/2") * x.T * x))))
+    d = Declare()
+    d.sizes("n")
+    d.conclude(eq(integral - integral, num(0)))
+    statement = d.json()
+    return outcome(statement, {"steps": [{"id": "s", "claim": statement["conclusion"][0]}]}, {"sizes": {"n": 2}})
+
+
 def _square_roots_statement():
     d = Declare()
     d.sizes("n")
@@ -977,6 +989,59 @@ def _sift_false() -> bool:
     """N = 2, j = 1, ρ = 0: the left side is (1 + 1)⁻¹ + (0 + 1)⁻¹ = 3/2, the right side 2·(1/2) = 1."""
     return is_refuted(_sift_statement(), {"sizes": {"N": 2}, "params": {"ρ": 0}, "free_indices": {"j": 1}})
 
+def _capture_statement():
+    """Z_j = Σ_m X_m X_j, where Z_h := Σ_m X_m X_h (true by Z's definition)."""
+    d = Declare()
+    d.sizes("n", "N")
+    d.index_set("K", "N")
+    x = d.matrix("X", "n", "n", over="K")
+    z = d.define("Z", lambda h: Sum("m", "K", x["m"] * x[h]), over="K")
+    d.free_index("j", "K")
+    d.conclude(eq(z["j"], Sum("m", "K", x["m"] * x["j"])))
+    return d.json()
+
+
+def _printed_under_its_own_sum():
+    """A family's definition was printed with m for its own index, under its body's Σ_m: 'Z_m := Σ_m X_m X_m'
+    beside 'Z_j = Σ_m X_m X_j' reads Σ_m X_m X_m = Σ_m X_m X_j. Proved, its words must keep the two apart."""
+    statement = _capture_statement()
+    certificate = Certificate("capture", "", [Part(statement, {"steps": [{"id": "s", "claim": statement["conclusion"][0]}]},
+                                                   instance({"n": 2, "N": 2}, {"X": [sp.eye(2), sp.eye(2)]},
+                                                            free_indices={"j": 1}))])
+    captured = "Σ_{m=1}^{N} X_m X_m" in certificate.statement
+    return certificate.status if captured else "proved, and printed as proved"
+
+
+def _captured_reading_false() -> bool:
+    """The reading Σ_m X_m X_m = Σ_m X_m X_j fails at N = 2, j = 1, X_1 = 0, X_2 = I (I ≠ 0)."""
+    x1, x2 = sp.zeros(2), sp.eye(2)
+    return x1 * x1 + x2 * x2 != x1 * x1 + x2 * x1
+
+
+def _pinned_statement():
+    """n X = 2 X assuming n = 2: proved (the hypothesis times X)."""
+    d = Declare()
+    d.sizes("n")
+    x = d.matrix("X", "n", "n")
+    d.assume(eq(size("n"), num(2)))
+    d.conclude(eq(size("n") * x, num(2) * x))
+    return d.json()
+
+
+def _any_dimension_under_n_equals_two():
+    """Its scope read 'any dimension' (no number is a size in it), its conclusion holding only at n = 2."""
+    statement = _pinned_statement()
+    proof = {"steps": [{"id": "s", "claim": statement["conclusion"][0],
+                        "by": [{"gen": {"hyp": 0}, "right": ("var", "X")}]}]}
+    certificate = Certificate("pinned", "", [Part(statement, proof, instance({"n": 2}, {"X": sp.eye(2)}))])
+    return certificate.status if certificate.scope == "any dimension" else "proved where the hypotheses allow"
+
+
+def _pinned_conclusion_false() -> bool:
+    """Without the hypothesis, n X = 2 X fails at n = 3, X = I: the conclusion holds at n = 2 only."""
+    return 3 * sp.eye(3) != 2 * sp.eye(3)
+
+
 ADVERSARY = [
     FalseClaim("√(a²) = a, the parameter being 'positive' in sympy", "sympy assumptions", _root_of_square,
                lambda: sp.sqrt((-1) ** 2) != -1),
@@ -1014,6 +1079,9 @@ ADVERSARY = [
     FalseClaim("det(−Σ)^{1/2} squared is det(−Σ), 'det(−Σ) > 0' from the factors −I, Σ", "determinant powers",
                _root_of_negative_det, _negative_root_undefined),
     FalseClaim("∫ exp(+½xᵀx) dx = (2π)^{n/2}, the Gaussian rule with A = −I", "integrals", _divergent_integral,
+               lambda: sp.integrate(sp.exp(sp.Symbol("x") ** 2 / 2), (sp.Symbol("x"), -sp.oo, sp.oo)) == sp.oo),
+    FalseClaim("∫ e^{+½xᵀx} dx − ∫ e^{+½xᵀx} dx = 0, a divergent integral cancelled as an atom", "integrals",
+               _infinity_minus_itself,
                lambda: sp.integrate(sp.exp(sp.Symbol("x") ** 2 / 2), (sp.Symbol("x"), -sp.oo, sp.oo)) == sp.oo),
     FalseClaim("A = B from A² = B², by a 'congruence' under the square root", "congruence",
                _congruence_by_square_root,
@@ -1055,6 +1123,10 @@ ADVERSARY = [
                _read_as_any_dimension, lambda: matrix([[0, 1], [0, 0]]).T != matrix([[0, 1], [0, 0]])),
     FalseClaim("(Σ_i (S_iᵀS_j + I)⁺)ᵀ = Σ_i (I + I)⁺, the selectors sifted inside a pseudo-inverse", "sums",
                _sift_inside_a_pinv, _sift_false),
+    FalseClaim("Σ_m X_m X_m = Σ_m X_m X_j, printed from Z_j = Σ_m X_m X_j with Z_h := Σ_m X_m X_h", "statement words",
+               _printed_under_its_own_sum, _captured_reading_false),
+    FalseClaim("n X = 2 X in any dimension, the hypothesis n = 2 a scalar equation", "scope words",
+               _any_dimension_under_n_equals_two, _pinned_conclusion_false),
 ]
 
 FALSE_CLAIMS = PORTED + ADVERSARY

@@ -221,6 +221,9 @@ EDITS = {
                                            .__setitem__("rejected", False)),
     "a negative control's instance replaced": ("prop1-full-column-rank", lambda r: r["negative_controls"][0]
                                                .__setitem__("instance", fc.instance(1, deficient=True))),
+    "a negative control made the claim itself, recorded as such": ("prop1-full-column-rank", lambda r: r[
+        "negative_controls"][0].update(statement=r["formal"][0]["statement"], proof=r["formal"][0]["proof"],
+                                       instance=r["formal"][0]["witness"], rejected=False, false_on_instance=False)),
 }
 
 
@@ -324,6 +327,20 @@ def test_the_report_shows_a_record_the_kernel_rejects_as_checked(records):
     assert CertificateInfo.of(retold).statement == derive(records["prop1-full-column-rank"])["statement"]
 
 
+def test_the_report_reads_a_certificate_file_as_prove_check_does(records, tmp_path):
+    """A record naming 'status' twice reads 'proved' to a first-wins reader and 'checked' to json.loads: the page
+    refuses the file, as prove --check does, rather than pick one."""
+    from gpfverify.errors import InputError
+    from gpfverify.report.inputs import _read
+
+    text = json.dumps([records["prop1-full-column-rank"]], ensure_ascii=False)
+    path = tmp_path / "certificates.json"
+    path.write_text(text.replace('"status": "proved"', '"status": "proved", "status": "checked"', 1), encoding="utf-8")
+    with pytest.raises(InputError, match="twice"):
+        _read(path)
+    assert main(["prove", "--check", str(path)]) == 2
+
+
 def test_hostile_sizes_and_powers_are_refused_not_computed():
     ctx, st = _context(A=("n", "n"))
     big = ("^", ("+", ("tr", ("var", "A")), ("num", 1)), "1000000")
@@ -344,3 +361,29 @@ def test_hostile_sizes_and_powers_are_refused_not_computed():
     inst = Instance(st, frozen({"sizes": {"n": 1, "l": 0, "N": 0}, "indexed_sizes": {"k": []}, "values": {"A": [[1]]}}))
     with pytest.raises(KernelError, match="above 256"):
         inst.value(("I", "100000000"), {})
+
+
+def _integral_cancels(sign: str, hypotheses=()) -> str:
+    """∫ p(x) e^{q(x)} dx − the same integral = 0 (the atoms cancel), q = sign·½xᵀΣ⁻¹x + bᵀx."""
+    x = ("var", "x")
+    q = ("+", ("*", ("num", sign), ("T", x), ("inv", ("var", "Σ")), x), ("*", ("T", ("var", "b")), x))
+    integral = ("int", "x", "n", ("*", x, ("T", x), ("var", "b"), ("exp", q)))
+    statement = {"sizes": ["n"], "variables": {"Σ": {"rows": "n", "cols": "n"}, "b": {"rows": "n", "cols": 1}},
+                 "hypotheses": list(hypotheses), "conclusion": [["=", ["+", integral, ["*", ["num", -1], integral]],
+                                                                  ["0", "n", 1]]]}
+    witness = instance({"n": 2}, {"Σ": sp.eye(2), "b": sp.zeros(2, 1)})
+    return outcome(statement, {"steps": [{"id": "s", "claim": statement["conclusion"][0]}]}, witness)
+
+
+def test_an_integral_needs_a_gaussian_integrand_with_an_spd_quadratic_part():
+    """R4: a polynomial times e^{−½xᵀAx + bᵀx}, A SPD, converges; anything else is not shown finite."""
+    assert _integral_cancels("-1/2", [["spd", ["var", "Σ"]]]) == "proved"
+    assert _integral_cancels("-1/2") == "not proved"  # Σ not known SPD
+    assert _integral_cancels("1/2", [["spd", ["var", "Σ"]]]) == "not proved"  # e^{+½xᵀΣ⁻¹x}
+
+
+def test_a_negative_control_the_kernel_proves_is_a_problem_of_the_file(records):
+    """A control recorded honestly as accepted (rejected=False): the kernel proves a mutant meant to be false,
+    so the file is rejected by name, not only through the detail's count."""
+    claim, change = EDITS["a negative control made the claim itself, recorded as such"]
+    assert any("accepted by the kernel" in p for p in check_record(_edit(records[claim], change)))

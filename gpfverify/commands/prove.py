@@ -63,10 +63,11 @@ def run(args: argparse.Namespace) -> int:
 
 def check(path: Path) -> int:
     """The kernel's re-check of a certificate file."""
+    from gpfverify.kernel.terms import read_json
     from gpfverify.kernel.verdict import check_record
 
     try:
-        records = json.loads(path.read_text(encoding="utf-8"), object_pairs_hook=_no_duplicates)
+        records = read_json(path.read_text(encoding="utf-8"))
     except json.JSONDecodeError as e:
         raise InputError(f"{path} is not JSON: {e}") from None
     if not isinstance(records, list) or not records or not all(
@@ -81,9 +82,3 @@ def check(path: Path) -> int:
           + ("every status, statement and scope confirmed" if not problems else f"{len(problems)} problems"))
     return 1 if problems else 0
 
-
-def _no_duplicates(pairs):
-    keys = [k for k, _ in pairs]
-    if len(keys) != len(set(keys)):
-        raise InputError(f"a JSON object names {sorted({k for k in keys if keys.count(k) > 1})} twice")
-    return dict(pairs)

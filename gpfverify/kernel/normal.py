@@ -23,7 +23,8 @@ What the normal form identifies, each valid for all real matrices of the right s
 
 Definitions are expanded where they are used (a letter's meaning is fixed once, by the
 statement). The side conditions met while normalising (every inv(X) needs X invertible, a
-fractional power of det(X) needs det(X) > 0, a division needs a nonzero divisor) are collected
+fractional power of det(X) needs det(X) > 0, a division needs a nonzero divisor, an integral a
+convergent integrand) are collected
 in :attr:`Context.needs` for :mod:`gpfverify.kernel.rules` to discharge.
 """
 
@@ -196,7 +197,8 @@ class Context:
                     self.symmetric.add(body[1][1])
                     if body[0] == "spd":
                         self.spd.add(body[1][1])
-        #: side conditions met while normalising: ("invertible" | "positive", frozen NF) or ("nonzero", coefficient)
+        #: side conditions met while normalising: ("invertible" | "positive", frozen NF), ("nonzero", coefficient)
+        #: or ("integrable", integral atom)
         self.needs: list = []
         self._fresh = itertools.count()
         self._definitions: dict = {}
@@ -591,6 +593,7 @@ class Context:
         if _holds_integral(inner.frozen()):  # written inside, or brought in by a definition (whose argument
             fail("an integral inside an integral is not supported")  # could be the outer variable)
         atom = ("int", self.size(size, scope), inner.frozen())
+        self.needs.append(("integrable", atom))
         if inner.shape is None:
             return self.scalar(Fraction(1), ((atom, Fraction(1)),))
         return self.atom(atom, inner.shape)

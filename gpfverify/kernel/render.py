@@ -2,14 +2,18 @@
 
 The statement text is the conclusion, its definitions ("where …") and every hypothesis
 ("assuming: …"); the scope is "any dimension" when no dimension is fixed to a number ≥ 2
-(every size is a symbol, each ≥ 0), else the fixed sizes. Nothing here decides a status.
+(every size is a symbol, each ≥ 0) nor constrained by a hypothesis, else the fixed sizes or
+"constrained". Nothing here decides a status.
 """
 
 from __future__ import annotations
 
+import itertools
+
 from gpfverify.kernel.terms import HEAD, Statement, _expand, number, parse_size
 
 ANY_DIMENSION = "any dimension"
+CONSTRAINED = "dimensions constrained by the hypotheses"
 _SUP = str.maketrans("0123456789-", "⁰¹²³⁴⁵⁶⁷⁸⁹⁻")
 
 
@@ -111,8 +115,11 @@ class Renderer:
 
     @property
     def member_index(self) -> str:
-        """The letter that names a family's member in the text (one no declaration uses)."""
-        return next(i for i in ("m", "k", "i", "r", "s", "t", "m′") if i not in self.st.names)
+        """The letter that names a family's member in the text: one the statement uses nowhere, declared
+        or bound (a definition's body read with m for its own index must not put it under a Σ_m)."""
+        used = _strings(self.st.data, set())
+        return next(i for i in itertools.chain("mkirst", (f"m{'′' * k}" for k in itertools.count(1)))
+                    if i not in used)
 
     def shapes(self, entries) -> str:
         """'A, B ∈ ℝ^{n × l}; C_m ∈ ℝ^{l_m × l_m} (m = 1..N)' for (name, rows, cols[, members]) entries."""
@@ -155,6 +162,20 @@ class Renderer:
         return text
 
 
+def _strings(value, out: set) -> set:
+    """Every string of a JSON value (its keys included)."""
+    if isinstance(value, str):
+        out.add(value)
+    elif isinstance(value, dict):
+        for k, v in value.items():
+            out.add(k)
+            _strings(v, out)
+    elif isinstance(value, tuple | list):
+        for v in value:
+            _strings(v, out)
+    return out
+
+
 def _renamed(size, index):
     """A declared size with its member's own index ``#`` written ``index``."""
     return size if index is None else size.renamed(HEAD, index)
@@ -182,9 +203,10 @@ def statement_text(st: Statement) -> str:
     return text + (" — assuming: " + "; ".join(hyps) if hyps else " — with no hypothesis")
 
 
-def scope(st: Statement) -> str:
+def scope(st: Statement, sizes_as_numbers: bool = False) -> str:
     """"any dimension" unless a dimension is fixed: a number other than 1 as a size anywhere (a shape,
-    a count of members, a block, an identity's or an integral's size), or no size symbol at all."""
+    a count of members, a block, an identity's or an integral's size), or no size symbol at all; or
+    constrained: a hypothesis reads a size as a number (``sizes_as_numbers``: n = 2, say)."""
     dims = list(st.index_sets.values())
     dims += [s for d in st.variables.values() for s in (d.rows, d.cols)]
     dims += [s for d in st.definitions.values() for _, r, c in d.args for s in (r, c)]
@@ -195,7 +217,9 @@ def scope(st: Statement) -> str:
         _predicate_sizes(pred, dims)
     numbers = {s.const for s in dims if not s.atoms}
     fixed = numbers - {1} if any(s.atoms for s in dims) else numbers
-    return ANY_DIMENSION if not fixed else "dimensions fixed at " + ", ".join(map(str, sorted(fixed)))
+    if fixed:
+        return "dimensions fixed at " + ", ".join(map(str, sorted(fixed)))
+    return CONSTRAINED if sizes_as_numbers else ANY_DIMENSION
 
 
 def _predicate_sizes(pred, out: list) -> None:

@@ -33,10 +33,11 @@ the equation step ``id`` proves E = F₁⋯F_k, and each F is invertible (R1), r
 "const": c₀, "by": [entry, ...]}``: b − a − Σ c·tr(WᵀW) − Σ μ·(size hypothesis k: rhs − lhs) − c₀
 equals Σ tr(entry_k) in normal form, with every c > 0, μ ≥ 0, c₀ ≥ 0: tr(WᵀW) is a sum of squares.
 
-Derived facts (R1–R3): R1 E is invertible if it is SPD (R3), an invertible hypothesis, c times
+Derived facts (R1–R4): R1 E is invertible if it is SPD (R3), an invertible hypothesis, c times
 the inverse of an invertible matrix (c a nonzero coefficient, as a divisor is), or an earlier side
 step; R2 det(E) > 0 if E is SPD or an earlier side step; R3 E is SPD if it is a sum, with positive
-rational coefficients, of I, letters with an SPD hypothesis and inverses of SPD matrices. A divisor
+rational coefficients, of I, letters with an SPD hypothesis and inverses of SPD matrices; R4 an
+integral converges when its integrand is a polynomial times e^{−½xᵀAx + …} with A SPD. A divisor
 is nonzero when each of its irreducible factors is one of a nonzero or positive hypothesis (or a
 size constrained to be ≥ 1).
 """
@@ -141,6 +142,29 @@ class Checker:
         """R2: det(a) > 0."""
         return self.spd(a) or a.frozen() in self.positive
 
+    def integrable(self, atom) -> bool:
+        """R4: ∫ Σ_k p_k(x) e^{q_k(x)} dx converges when every q_k is −½xᵀAx + (terms of degree ≤ 1 in x) with A
+        SPD (R3) and every p_k a polynomial in x (x in no pseudo-inverse, trace or determinant): Gaussian moments.
+        An integral the kernel cannot show finite (∫ e^{+½xᵀx} dx, say) is outside every statement's domain."""
+        _, n, integrand = atom
+        ctx, x = self.ctx, ("v", INTEGRATION, None)
+        for ((powers, exp), _, word), _ in NF.thaw(integrand).terms.items():
+            if exp is None or INTEGRATION in str((powers, [a for a in word if a[:3] != x])):
+                return False
+            a = NF((n, n), {})
+            for (_, _, w), c in NF.thaw(exp).terms.items():
+                at = [k for k, atom_ in enumerate(w) if atom_[:3] == x]
+                if INTEGRATION in str([atom_ for k, atom_ in enumerate(w) if k not in at]) or len(at) > 2:
+                    return False
+                if len(at) == 2:  # c xᵀMx: −½xᵀAx with A = −c(M + Mᵀ)
+                    if at != [0, len(w) - 1] or not w[0][3] or w[-1][3]:
+                        return False
+                    m = NF((n, n), {(EMPTY, (), w[1:-1]): Fraction(1)})
+                    a = ctx.add(a, ctx.scale(ctx.add(m, ctx.transpose(m)), c_mul(c, Fraction(-1))))
+            if not self.spd(a):
+                return False
+        return True
+
     def nonzero(self, c) -> bool:
         """A coefficient is nonzero: a rational ≠ 0, or every irreducible factor of a rational function
         (numerator and denominator) is one of a nonzero or positive hypothesis, or a size s with 1 ≤ s."""
@@ -166,6 +190,8 @@ class Checker:
                 ok = self.nonzero(value)
             elif kind == "invertible":
                 ok = self.is_invertible(NF.thaw(value))
+            elif kind == "integrable":
+                ok = self.integrable(value)
             else:
                 ok = self.is_positive(NF.thaw(value))
             if not ok:
@@ -545,6 +571,27 @@ def statement_needs(st: Statement, like: Context | None = None) -> list:
             if head in ("nonzero", "positive") and value.shape is not None:
                 fail(f"'{head}' of a matrix")
     return ctx.needs
+
+
+def sizes_read_as_numbers(st: Statement) -> bool:
+    """Whether a hypothesis reads a size as a number (n = 2, tr(I_n) = 2, Σ_i X = 2X): a coefficient of its
+    normal form depends on a size symbol, so it may fix a dimension that no shape shows."""
+    ctx = Context(st)
+    sizes = {ctx.gens[s].numer.as_expr() for s in st.sizes}
+    for pred in st.hypotheses:
+        for _, term, scope in predicate_terms(pred, ctx.scope(), ctx):
+            if _coefficient_symbols(ctx.nf(term, scope).frozen()) & sizes:
+                return True
+    return False
+
+
+def _coefficient_symbols(obj) -> set:
+    """The symbols of every coefficient in a frozen normal form (nested ones included)."""
+    if isinstance(obj, tuple):
+        return set().union(*(_coefficient_symbols(o) for o in obj))
+    if hasattr(obj, "numer"):  # a rational function of the sizes and parameters
+        return obj.numer.as_expr().free_symbols | obj.denom.as_expr().free_symbols
+    return set()
 
 
 def predicate_terms(pred, scope: dict, ctx: Context):

@@ -178,6 +178,17 @@ def canonical_json(value) -> str:
     return json.dumps(thawed(value), sort_keys=True, separators=(",", ":"), ensure_ascii=False)
 
 
+def read_json(text: str):
+    """JSON text as the kernel reads it: an object naming a key twice is refused (readers differ on which
+    value counts, so the page and ``prove --check`` could read two records from one file)."""
+    def pairs(items):
+        keys = [k for k, _ in items]
+        if len(keys) != len(set(keys)):
+            raise InputError(f"a JSON object names {sorted({k for k in keys if keys.count(k) > 1})} twice")
+        return dict(items)
+    return json.loads(text, object_pairs_hook=pairs)
+
+
 def _mapping(data: dict, key: str) -> dict:
     value = data.get(key, {})
     if not isinstance(value, dict):

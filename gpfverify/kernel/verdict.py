@@ -24,7 +24,7 @@ from dataclasses import dataclass
 
 from gpfverify.kernel.instances import Instance, conclusion_fails, degenerate, refutes, satisfies
 from gpfverify.kernel.render import ANY_DIMENSION, hypotheses, instance_text, scope, statement_text
-from gpfverify.kernel.rules import check_proof, generator_kind, statement_needs
+from gpfverify.kernel.rules import check_proof, generator_kind, sizes_read_as_numbers, statement_needs
 from gpfverify.kernel.terms import KernelError, Statement, frozen, read_statement
 
 DERIVED = ("status", "statement", "hypotheses", "scope", "method", "detail")
@@ -98,7 +98,7 @@ def derive(record: dict) -> dict:
     lines, status, scope_text = [], "checked", ""
     if parts and all(p.outcome == "proved" for p in parts):
         status = "proved"
-        scopes = {scope(s) for s in statements}
+        scopes = {scope(s, sizes_read_as_numbers(s)) for s in statements}
         scope_text = scopes.pop() if len(scopes) == 1 else "; ".join(sorted(scopes))
         for k, (p, raw) in enumerate(zip(parts, record["formal"])):
             lines.append(f"{label(k)}Kernel-checked: {p.steps} step{'s' if p.steps != 1 else ''} from the generators "
@@ -155,6 +155,9 @@ def check_record(record) -> list[str]:
         if (c.get("rejected"), c.get("false_on_instance")) != (rejected, false):
             problems.append(f"{claim}: negative control {c.get('mutant')!r}: recorded rejected={c.get('rejected')}, "
                             f"false_on_instance={c.get('false_on_instance')}; the kernel finds {rejected}, {false}")
+        elif not (rejected and false):  # a mutant proved (and refuted: the kernel contradicts itself), or true
+            problems.append(f"{claim}: negative control {c.get('mutant')!r} is "
+                            f"{'accepted by the kernel' if not rejected else 'not shown false'}")
     return problems
 
 

@@ -15,6 +15,7 @@ from gpfverify.contract.claims import ACCURACY, VERDICTS, ClaimRecord, group_ord
 from gpfverify.contract.experiment import RunEntry, SectionRuns
 from gpfverify.contract.serial import from_json, to_json
 from gpfverify.errors import InputError
+from gpfverify.kernel.terms import read_json
 
 if TYPE_CHECKING:
     from gpfverify.report.document import Section
@@ -55,7 +56,7 @@ class SectionInput:
 
 def _read(path: Path) -> object:
     try:
-        return json.loads(path.read_text(encoding="utf-8"))
+        return read_json(path.read_text(encoding="utf-8"))
     except OSError as exc:
         raise InputError(f"cannot read {path}: {exc.strerror or exc}") from None
     except ValueError as exc:
