@@ -37,10 +37,10 @@ import time
 from pathlib import Path
 
 import numpy as np
+from threadpoolctl import threadpool_limits
 
 from _timing import markdown_table, median_cpu_seconds
 
-os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
 
 def load() -> str:
@@ -242,8 +242,8 @@ def main() -> None:
     args = parser.parse_args()
     started = load()
     text = [f"Machine: {platform.processor() or platform.machine()}, {os.cpu_count()} cores, Python "
-            f"{platform.python_version()}, numpy {np.__version__}; BLAS threads "
-            f"{os.environ.get('OPENBLAS_NUM_THREADS')}; load average (1, 5, 15 min) at the start {started}"]
+            f"{platform.python_version()}, numpy {np.__version__}; BLAS threads 1 "
+            f"(threadpoolctl); load average (1, 5, 15 min) at the start {started}"]
     if args.only != "dims":
         rows = runs_axis(args.rounds, args.runs)
         text += ["", "Runs per CPU-second, one process, per-run (run_one in a loop) and batched (run_batch of all "
@@ -271,4 +271,5 @@ def main() -> None:
 
 
 if __name__ == "__main__":
-    main()
+    with threadpool_limits(1):  # numpy is imported already: the environment variable would come too late
+        main()
