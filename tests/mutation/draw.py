@@ -185,7 +185,7 @@ def _enumerate(path: Path, source: str, digest: str) -> ModuleMutations:
             if any(lo <= tuple(start) < hi for lo, hi in spans):
                 continue
             sites.setdefault(tuple(start), []).append((name, occurrence))
-    rel = str(path.relative_to(ROOT))
+    rel = str(path.relative_to(ROOT)) if path.is_relative_to(ROOT) else str(path)
     return ModuleMutations(rel, len(statement_lines(tree)), digest, dict(sorted(sites.items())))
 
 
@@ -238,8 +238,8 @@ def draw(size: int, seed: int, log=print) -> list[Drawn]:
         order = rng.sample(sites, len(sites))  # the sites in random order: the first ones are drawn
         picks = [(site, rng.choice(m.sites[site])) for site in order]
         # a module with fewer sites than its share: further mutants at its sites, without repeats
-        picks += rng.sample([(s, op) for s in sites for op in m.sites[s] if (s, op) not in picks],
-                            max(0, count - len(sites)))
+        rest = [(s, op) for s in sites for op in m.sites[s] if (s, op) not in picks]
+        picks += rng.sample(rest, min(len(rest), max(0, count - len(sites))))
         path = ROOT / m.path
         original = path.read_text(encoding="utf-8")
         taken = 0

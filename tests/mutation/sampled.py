@@ -98,7 +98,7 @@ def judge(mutant: drawing.Drawn, workspace: Path, cmap: selection.CoverageMap) -
     properties = [t for t in tests if t.startswith(PROPERTY_ROOT)]
     others = [t for t in tests if not t.startswith(PROPERTY_ROOT)]
     record = {**mutant.record(), "selected_properties": len(properties), "selected_tests": len(others),
-              "map": cmap.fingerprint[:12]}
+              "map": f"{cmap.fingerprint[:8]}/{cmap.tests[:8]}"}
     if not tests:
         return {**record, "verdict": "not executed", "killed_by": None, "seconds": 0.0}
     mutated = drawing.mutated_source(ROOT / mutant.path, mutant.operator, mutant.occurrence)
@@ -167,7 +167,7 @@ def main(argv=None) -> int:
     todo = [d for d in drawn if d.key not in results or results[d.key]["verdict"] in args.retry]
     todo = [d for d in todo if not args.only or args.only in d.path]
     log(f"{len(drawn) - len(todo)} of {len(drawn)} mutants have a stored result; {len(todo)} to run")
-    cmap = selection.load(workspace=CACHE / "workspace-coverage", workers=args.jobs, log=log)
+    cmap = selection.load(CACHE / "workspace-coverage", workers=args.jobs, log=log)
     workspaces: Queue[Path] = Queue()
     for i in range(args.jobs):
         workspaces.put(sync(CACHE / f"workspace-{i}"))

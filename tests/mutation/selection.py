@@ -7,8 +7,9 @@ then runs only the tests that execute its line (:func:`tests_for`); a line execu
 modules are imported (a constant, a decorator, a default argument) selects the tests that execute
 the body of its definition, and failing that, every test that executes any line of its module.
 
-The map is stored with the fingerprint of the files it was made from (:func:`fingerprint`); a
-changed package or test file makes it stale, and the mutation run rebuilds it.
+The map is stored with the fingerprint of the package it was made from (:func:`fingerprint`); a
+changed package makes it stale, and the mutation run rebuilds it; tests added since it was made
+are run alone under coverage and merged into it (:func:`update`).
 """
 
 from __future__ import annotations
@@ -31,20 +32,26 @@ NOT_SELECTED = ("tests/mutation/",)
 MAP_FILE = CACHE / "coverage_map.json"
 
 
-def fingerprint() -> str:
-    """A digest of every Python file of the package and of the test folders, and of conftest.py and
-    pyproject.toml: the map is valid for exactly these contents."""
+def fingerprint(folders=("gpfverify",), extra=("pyproject.toml",)) -> str:
+    """A digest of every Python file of ``folders`` and of the ``extra`` files. The map's lines are
+    valid for one package fingerprint (a changed module moves lines: the map is rebuilt); tests added
+    since (a new property) are run alone under coverage and merged (:func:`update`)."""
     digest = hashlib.sha256()
-    files = sorted(p for folder in ("gpfverify", *TEST_ROOTS) for p in (ROOT / folder).rglob("*.py"))
-    for path in [*files, ROOT / "conftest.py", ROOT / "pyproject.toml"]:
+    files = sorted(p for folder in folders for p in (ROOT / folder).rglob("*.py"))
+    for path in [*files, *(ROOT / name for name in extra)]:
         digest.update(str(path.relative_to(ROOT)).encode())
         digest.update(path.read_bytes())
     return digest.hexdigest()
 
 
+def tests_fingerprint() -> str:
+    return fingerprint(TEST_ROOTS, ("conftest.py",))
+
+
 @dataclass(frozen=True)
 class CoverageMap:
-    fingerprint: str
+    fingerprint: str  #: the package's (:func:`fingerprint`)
+    tests: str  #: the test folders' (:func:`tests_fingerprint`) when the map was last completed
     #: "gpfverify/x.py" -> line -> sorted test node ids
     lines: dict[str, dict[int, list[str]]]
     #: test node id -> seconds (under coverage: an upper bound of its plain duration)
@@ -117,35 +124,79 @@ def _read_junit(report: Path) -> tuple[dict[str, float], list[str]]:
     return durations, sorted(failing)
 
 
+def _run_under_coverage(workspace: Path, workers: int, targets: list[str]):
+    """Run ``targets`` in ``workspace`` under coverage with per-test contexts: (lines, durations, failing)."""
+    database, junit = workspace / ".coverage", workspace / "junit.xml"
+    database.unlink(missing_ok=True)
+    junit.unlink(missing_ok=True)
+    workers_args = ["-n", str(workers), "--dist", "loadfile"] if workers > 0 else ["-n", "0"]
+    cmd = pytest_command("--hypothesis-profile=ci", *workers_args, "--cov=gpfverify", "--cov-context=test",
+                         "--cov-report=", f"--junitxml={junit}", *[f"--ignore={p}" for p in NOT_SELECTED], *targets)
+    env = dict(environment(workspace, "ci"), COVERAGE_FILE=str(database))
+    subprocess.run(cmd, cwd=workspace, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, check=False)
+    durations, failing = _read_junit(junit) if junit.exists() else ({}, [])
+    return (_read_coverage(database, workspace) if database.exists() else {}), durations, failing
+
+
+def _save(cmap: CoverageMap) -> CoverageMap:
+    MAP_FILE.parent.mkdir(parents=True, exist_ok=True)
+    MAP_FILE.write_text(json.dumps(cmap.__dict__), encoding="utf-8")
+    return cmap
+
+
 def build(workspace: Path, workers: int = 2, log=print) -> CoverageMap:
     """Run the suite once under coverage in ``workspace`` (``workers`` xdist processes) and store the map."""
     sync(workspace)
-    database, junit = workspace / ".coverage", workspace / "junit.xml"
-    database.unlink(missing_ok=True)
-    stamp = fingerprint()
+    stamp, tests = fingerprint(), tests_fingerprint()
     start = time.perf_counter()
-    log(f"coverage map: running the suite once under coverage ({workers} processes; about half an hour)")
-    cmd = pytest_command("--hypothesis-profile=ci", "-n", str(workers), "--dist", "loadfile",
-                         "--cov=gpfverify", "--cov-context=test", "--cov-report=", f"--junitxml={junit}",
-                         *[f"--ignore={p}" for p in NOT_SELECTED], *TEST_ROOTS)
-    env = dict(environment(workspace, "ci"), COVERAGE_FILE=str(database))
-    subprocess.run(cmd, cwd=workspace, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, check=False)
-    durations, failing = _read_junit(junit)
-    result = CoverageMap(stamp, _read_coverage(database, workspace), durations, failing,
-                         round(time.perf_counter() - start, 1))
-    MAP_FILE.parent.mkdir(parents=True, exist_ok=True)
-    MAP_FILE.write_text(json.dumps(result.__dict__), encoding="utf-8")
+    log(f"coverage map: running the suite once under coverage ({workers} processes; about an hour on a busy "
+        "two-core machine)")
+    lines, durations, failing = _run_under_coverage(workspace, workers, list(TEST_ROOTS))
+    result = _save(CoverageMap(stamp, tests, lines, durations, failing, round(time.perf_counter() - start, 1)))
     log(f"coverage map: {len(durations)} tests, {len(failing)} failing unmutated, {result.seconds} s")
     return result
 
 
-def load(rebuild_if_stale: bool = True, workspace: Path | None = None, workers: int = 2, log=print) -> CoverageMap:
-    """The stored map if it matches the working tree, else a new one (``rebuild_if_stale``)."""
+def collected(workspace: Path) -> set[str]:
+    """The node ids the suite collects now (``--collect-only``)."""
+    proc = subprocess.run(pytest_command("--collect-only", "-n", "0", *[f"--ignore={p}" for p in NOT_SELECTED],
+                                         *TEST_ROOTS),
+                          cwd=workspace, env=environment(workspace, "ci"), capture_output=True, text=True)
+    return {line.strip() for line in proc.stdout.splitlines() if "::" in line}
+
+
+def update(cmap: CoverageMap, workspace: Path, log=print) -> CoverageMap:
+    """Tests the map does not know (added or renamed since it was made): run them alone under coverage
+    and merge them into the map. Lines of the package are unchanged (same package fingerprint)."""
+    sync(workspace)
+    known = set(cmap.durations)
+    missing = sorted(collected(workspace) - known)
+    if missing:
+        log(f"coverage map: {len(missing)} tests the map does not know; running them under coverage")
+        lines, durations, failing = _run_under_coverage(workspace, 0, missing)
+        merged = {p: {n: list(t) for n, t in v.items()} for p, v in cmap.lines.items()}
+        for path, per_line in lines.items():
+            for n, tests in per_line.items():
+                merged.setdefault(path, {}).setdefault(n, [])
+                merged[path][n] = sorted(set(merged[path][n]) | set(tests))
+        cmap = CoverageMap(cmap.fingerprint, tests_fingerprint(), merged, {**cmap.durations, **durations},
+                           sorted(set(cmap.failing) | set(failing)), cmap.seconds)
+    else:
+        cmap = CoverageMap(cmap.fingerprint, tests_fingerprint(), cmap.lines, cmap.durations, cmap.failing,
+                           cmap.seconds)
+    return _save(cmap)
+
+
+def load(workspace: Path | None = None, workers: int = 2, log=print) -> CoverageMap:
+    """The stored map if it was made from the package as it is now (updated with the tests added since),
+    else a new one."""
+    workspace = workspace or CACHE / "workspace-coverage"
     if MAP_FILE.exists():
         data = json.loads(MAP_FILE.read_text(encoding="utf-8"))
         data["lines"] = {p: {int(n): t for n, t in v.items()} for p, v in data["lines"].items()}
+        data.setdefault("tests", "")
         stored = CoverageMap(**data)
-        if stored.fingerprint == fingerprint() or not rebuild_if_stale:
-            return stored
-        log("coverage map: the package or its tests changed since the stored map; rebuilding it")
-    return build(workspace or CACHE / "workspace-coverage", workers, log)
+        if stored.fingerprint == fingerprint():
+            return stored if stored.tests == tests_fingerprint() else update(stored, workspace, log)
+        log("coverage map: the package changed since the stored map; rebuilding it")
+    return build(workspace, workers, log)
