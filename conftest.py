@@ -15,6 +15,8 @@ from gpfverify.strategies.profiles import load_profile  # noqa: E402
 load_profile()
 
 
+import gc  # noqa: E402
+
 import pytest  # noqa: E402
 
 from gpfverify.gp import fused  # noqa: E402
@@ -32,3 +34,29 @@ def moment_path(request):
     fused.enabled = request.param == "fused"
     yield request.param
     fused.enabled = saved
+
+
+#: the tests deselected in this session (``-m "not slow"``, ``-k``), for tests/test_readme_counts.py
+DESELECTED: pytest.StashKey[list] = pytest.StashKey()
+
+
+def pytest_deselected(items):
+    if items:
+        items[0].config.stash.setdefault(DESELECTED, []).extend(items)
+
+
+@pytest.fixture
+def deselected_tests(request) -> list:
+    """The tests this session deselected (``-m``, ``-k``)."""
+    return request.config.stash.get(DESELECTED, [])
+
+
+def pytest_sessionfinish(session):
+    """In a pytest-xdist worker, collect the session's garbage and freeze what is left before the worker
+    reports that it has finished. pytest's last full collection (when it unconfigures, to report
+    unraisable exceptions) then has nothing to walk; before, on a busy machine, that collection of a
+    long session's heap outlasted the 5 s execnet waits for a worker to stop before it sends it a SIGINT,
+    and the KeyboardInterrupt landed in a weakref callback: a stray traceback after every test passed."""
+    if hasattr(session.config, "workerinput"):
+        gc.collect()
+        gc.freeze()

@@ -130,6 +130,13 @@ def fusion_rules(text: str) -> tuple[str, ...]:
     return tuple(dict.fromkeys(fusion_rule(name) for name in text.split(",") if name.strip()))
 
 
+#: the one description of ``--batch`` (check, reproduce)
+BATCH_HELP = ("Monte Carlo runs advanced together as arrays, B at a time (default: as many as the memory available "
+              "holds, at most 64); each batch is one task for a worker process or a dask cluster, and each run is "
+              "saved as it ends (--resume continues run by run). Results are the same bits for every B, --workers "
+              "and --scheduler.")
+
+
 #: the one description of ``--rank-rule`` (check, audit, reproduce)
 RANK_RULE_HELP = ("How the rank of each C_xy^m in eq. 35 is decided: canonical[:TAU] (canonical correlations "
                   "of state and sensor output above TAU, default sqrt(eps); unit-free), absolute:TOL "

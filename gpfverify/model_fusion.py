@@ -33,7 +33,7 @@ from __future__ import annotations
 import time
 from dataclasses import dataclass, field
 from functools import partial
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 from collections.abc import Callable, Sequence
 
 import numpy as np
@@ -51,10 +51,10 @@ from gpfverify.models.system import StateSpaceModel, require_model
 from gpfverify.validate import as_matrix, as_vector
 from gpfverify.runtime import one_blas_thread
 from gpfverify.views import HtmlView
+from gpfverify.fusion.estimates import FusedEstimate
 
 if TYPE_CHECKING:
     from gpfverify.audit.case import CaseAudit, RunAudit
-    from gpfverify.fusion.estimates import FusedEstimate
     from gpfverify.fusion.rcc_ci import RccCiResult
 
 #: the fusion rules :func:`run_fusion` can run: every rule (one list for every command)
@@ -91,13 +91,14 @@ def cmf_step(belief: Gaussian, model, y, *, k: int = 1, family: str = "ukf",
 @dataclass(frozen=True)
 class DMFStep:
     """The fused ``record`` (central prediction and moments, DMF posterior), the fusion ``case``
-    the centre saw, the eq. 35 ``result`` with per-sensor rank/exactness diagnostics and
+    the centre saw, the eq. 35 ``result`` with per-sensor rank/exactness diagnostics (None for a
+    step of :func:`run_fusion_batch`, whose audit carries them) and
     ``update_seconds``, the time of eq. 35 itself on :func:`dmf_step`'s ``clock`` (:func:`dmf_update`:
     what is left to do once the measurements arrive; a measurement, left out of comparisons)."""
 
     record: StepRecord
     case: FusionCase
-    result: DMFResult
+    result: DMFResult | None
     update_seconds: float = field(default=0.0, compare=False)
 
 
@@ -325,4 +326,142 @@ def run_fusion(model, ys, *, family: str = "ukf", methods: Sequence[str] = DEFAU
 def _audit(dmf: DMFStep) -> CaseAudit:
     from gpfverify.audit.case import audit_case
 
+    assert dmf.result is not None  # dmf_step's
     return audit_case(dmf.case, rank_rule=dmf.result.rank_rule)
+
+
+def _per_run(belief: Gaussian | None, runs: int, dim: int) -> Gaussian:
+    """A belief for every run: one with a leading run axis as it is, one belief repeated."""
+    assert belief is not None
+    mean, cov = np.asarray(belief.mean, dtype=float), np.asarray(belief.cov, dtype=float)
+    if mean.shape == (runs, dim):
+        return Gaussian(mean, cov)
+    return Gaussian(np.broadcast_to(mean, (runs, dim)).copy(), np.broadcast_to(cov, (runs, dim, dim)).copy())
+
+
+def _batch_baselines(methods: Sequence[str], rcc_size: float | None, circular_state: Sequence[int],
+                     ci_criterion: str) -> dict[str, Callable]:
+    """The requested baselines over a batch: ``rule(means (B, N, D), covs (B, N, D, D))`` →
+    (means, covs, why each run failed or None). CC, CI and RCC-CI on arrays; ICI and EI run by run
+    (pairwise rules, each a scalar root). A rule that cannot fuse every run at once fuses each run
+    alone (:func:`_attempt`), so that one run's failure is its own."""
+    singles = _baselines(methods, rcc_size, circular_state, ci_criterion)
+    out: dict[str, Callable] = {}
+    for name, single in singles.items():
+        if name == "cc":
+            from gpfverify.fusion.batched import convex_combination_batch
+            batched: Callable | None = partial(convex_combination_batch, circular_state=circular_state)
+        elif name == "ci":
+            from gpfverify.fusion.ci import covariance_intersection_batch
+            batched = partial(covariance_intersection_batch, criterion=ci_criterion, circular_state=circular_state)
+        elif name == "rcc-ci":
+            from gpfverify.fusion.rcc_ci import rcc_ci_batch
+            batched = partial(rcc_ci_batch, c=rcc_size, on_empty="enlarge", circular_state=circular_state)
+        else:
+            batched = None
+        out[name] = partial(_fuse_runs, batched, single)
+    return out
+
+
+def _fuse_runs(batched: Callable | None, single: Callable, means: np.ndarray, covs: np.ndarray
+               ) -> tuple[np.ndarray, np.ndarray, list[str | None]]:
+    """(fused means, covs, failures) of every run: ``batched`` on all, else ``single`` run by run."""
+    runs = means.shape[0]
+    if batched is not None:
+        try:
+            fused = batched(means, covs)
+        except (NumericalError, np.linalg.LinAlgError):
+            pass
+        else:
+            failures = list(getattr(fused, "failures", [None] * runs))
+            return fused.mean, fused.cov, failures
+    dim = means.shape[-1]
+    out_mean, out_cov, failures = np.full((runs, dim), np.nan), np.full((runs, dim, dim), np.nan), []
+    for b in range(runs):
+        estimate, why, _ = _attempt(single, [Gaussian(m, c) for m, c in zip(means[b], covs[b])])
+        failures.append(why)
+        if why is None:
+            alone: Any = estimate  # a FusedEstimate or an RccCiResult: both have mean and cov
+            out_mean[b], out_cov[b] = alone.mean, alone.cov
+    return out_mean, out_cov, failures
+
+
+@one_blas_thread
+def run_fusion_batch(model, ys, *, family: str = "ukf", methods: Sequence[str] = DEFAULT_METHODS,
+                     first_k: int = 1, params: SigmaParams = SigmaParams(), rank_tol: float | None = None,
+                     local_priors: Sequence[Gaussian] | None = None, fused_prior: Gaussian | None = None,
+                     audit: bool = True, rcc_size: float | None = None, rank_rule: RankRule | str | None = None,
+                     ci_criterion: str = "trace") -> list[FusionRun]:
+    """:func:`run_fusion` of B Monte Carlo runs at once: ``ys`` (B, T, L), run b's measurements at
+    b; ``model`` the system every run filters (a :class:`~gpfverify.models.StateSpaceModel`, its
+    functions then applied run by run, :meth:`~gpfverify.models.StateSpaceModel.for_runs`) or the
+    runs' own GP models (:func:`~gpfverify.models.batch_gp_models`); priors one belief for every run
+    or beliefs with a leading run axis. Every sensor's local filter, CMF and DMF step all runs
+    together; eq. 35 and the audit by the block route (:func:`gpfverify.audit.block.dmf_runs`); CC,
+    CI and RCC-CI on arrays, ICI and EI run by run. Returns one :class:`FusionRun` per run, as
+    :func:`run_fusion` would (its DMF steps carry no ``result``: their ``audit`` has the evidence),
+    a run's numbers independent of the other runs and of B; ``seconds`` of a step is the batch's
+    wall-clock time per run."""
+    from gpfverify.audit.block import case_block, dmf_runs
+
+    chosen = model_family(family, model, params)
+    methods = _checked_methods(methods, audit)
+    ys = np.asarray(ys, dtype=float)
+    if ys.ndim != 3 or ys.shape[2] != model.measurement_dim or not ys.shape[0] or not ys.shape[1]:
+        raise InputError(f"ys must have shape (B, T, {model.measurement_dim}) with B, T >= 1, got {ys.shape}")
+    if ci_criterion not in ("trace", "det"):
+        raise InputError(f"ci_criterion must be 'trace' or 'det', got {ci_criterion!r}")
+    runs, dim = ys.shape[0], model.state_dim
+    stepped = model.for_runs(runs) if isinstance(model, StateSpaceModel) else model
+    local_priors, fused_prior = _priors(model, local_priors, fused_prior)
+    local_beliefs = [_per_run(b, runs, dim) for b in local_priors]
+    cmf_belief = dmf_belief = _per_run(fused_prior, runs, dim)
+    sensor_models = [stepped.sensor_model(m) for m in range(len(model.sizes))]
+    blocks = sensor_blocks(model.sizes)
+    rule = resolve_rank_rule(None, rank_rule, rank_tol)
+    baselines = _batch_baselines(methods, rcc_size, model.circular_state, ci_criterion)
+    per_run: list[list[FusionStep]] = [[] for _ in range(runs)]
+    for t in range(ys.shape[1]):
+        k, y = first_k + t, ys[:, t]
+        timed = [_timed(chosen.step, b, sm, y[:, block], k=k)
+                 for b, sm, block in zip(local_beliefs, sensor_models, blocks)]
+        local = [r for r, _ in timed]
+        local_beliefs = [r.posterior for r in local]
+        seconds: dict[str, float] = {"local": sum(s for _, s in timed) / runs}
+        cmf = dmf = None
+        if "cmf" in methods:
+            cmf, elapsed = _timed(chosen.step, cmf_belief, stepped, y, k=k)
+            seconds["cmf"] = elapsed / runs
+            cmf_belief = cmf.posterior
+        if "dmf" in methods:
+            start = time.perf_counter()
+            _, central = central_prediction(dmf_belief, stepped, k=k, family=family, params=params)
+            block = case_block(central, local, y, central.sizes, central.circular, central.circular_state)
+            dmf = dmf_runs(block, rule)
+            seconds["dmf"] = (time.perf_counter() - start - dmf.audit_seconds) / runs
+            dmf_belief = Gaussian(dmf.mean, dmf.cov)
+        means = np.stack([b.mean for b in local_beliefs], axis=1)
+        covs = np.stack([b.cov for b in local_beliefs], axis=1)
+        fused = {}
+        for name, rule_of in baselines.items():
+            fused[name], elapsed = _timed(rule_of, means, covs)
+            seconds[name] = elapsed / runs
+        for b in range(runs):
+            step_dmf = None
+            if dmf is not None:
+                record = StepRecord(block.mu_p[b], block.C_p[b], block.mu_y[b], block.C_y[b], block.C_xy[b],
+                                    dmf.mean[b], dmf.cov[b])
+                step_dmf = DMFStep(record, block.case(b), None, dmf.online)
+            estimates = {name: FusedEstimate(f[0][b], f[1][b]) for name, f in fused.items() if f[2][b] is None}
+            failed = {name: f[2][b] for name, f in fused.items() if f[2][b] is not None}
+            per_run[b].append(FusionStep(k, tuple(_run_record(r, b) for r in local),
+                                         None if cmf is None else _run_record(cmf, b), step_dmf,
+                                         estimates, dmf.audits[b] if audit and dmf is not None else None, seconds,
+                                         tuple(s / runs for _, s in timed), failed))
+    return [FusionRun(family, methods, tuple(steps), model, ys[b], ci_criterion) for b, steps in enumerate(per_run)]
+
+
+def _run_record(record: StepRecord, b: int) -> StepRecord:
+    """Run b's record of a batched step record (views)."""
+    return StepRecord(record.mu_p[b], record.C_p[b], record.mu_y[b], record.C_y[b], record.C_xy[b], record.mu_e[b],
+                      record.C_e[b])

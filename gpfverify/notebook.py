@@ -3,15 +3,18 @@ page renderers as the reports (:mod:`gpfverify.report`), so a notebook says what
 
 * :func:`fusion_run_html` — a :func:`~gpfverify.model_fusion.run_fusion` result on a
   :class:`~gpfverify.models.StateSpaceModel` with CMF, DMF and the audit: the page of
-  ``gpfverify check`` for that one run (verdict, sensors, gap per step against its rounding bound,
-  consistency; RMSE and NEES when the truth is given). A run without them: its fused means.
+  ``gpfverify check`` for that one run, compact (verdict, sensors, the gap per step against its
+  rounding bound, each method's RMSE, NEES and NIS when the truth is given, settings; a few tens of
+  kilobytes, drawn in well under a second); :func:`write_page` writes the whole page with every
+  figure. A run without them: its fused means.
 * :func:`run_audit_html` — a :class:`~gpfverify.audit.case.RunAudit`: the page of ``gpfverify audit
   RUN --out DIR`` (steps numbered from 0).
 * :func:`case_audit_html` — a :class:`~gpfverify.audit.case.CaseAudit`: what ``gpfverify audit CASE.json``
   prints.
 * :func:`claims_html` — claim records: the report's claims table.
 
-Figures are drawn with matplotlib (Agg) into a temporary folder and embedded in the HTML.
+Figures are drawn with matplotlib (Agg) into a temporary folder and embedded in the HTML, styled as
+the pages are (:func:`gpfverify.report.render.to_fragment`).
 The records do not import this module: it registers each function above for its record type in
 :mod:`gpfverify.views`, the registry their ``_repr_html_`` asks, so the display sits on top of the
 objects it shows (docs/architecture.md). Progress bars, on a terminal and in a notebook:
@@ -37,18 +40,30 @@ def _fragment(sections) -> str:
     return to_fragment(sections)
 
 
-def fusion_run_html(fused, truth=None, system: str = "run_fusion") -> str:
-    """The check page of one :func:`~gpfverify.model_fusion.run_fusion` result (module docstring)."""
-    from gpfverify.experiments.check import results_of_run
+#: where the compact view says the whole page is
+WHOLE_PAGE = ("The check page of this run with every figure — the rank verdicts per step and sensor, the recursive "
+              "drift, the trajectory, RMSE and the χ² bands of NEES and NIS — is written by "
+              "`gpfverify.notebook.write_page(run, \"DIR\")`.")
+
+
+def _checkable(fused) -> bool:
     from gpfverify.models.system import StateSpaceModel
 
-    if (isinstance(fused.model, StateSpaceModel) and fused.ys is not None and fused.steps[0].audit is not None
-            and "cmf" in fused.methods):
+    return (isinstance(fused.model, StateSpaceModel) and fused.ys is not None and fused.steps[0].audit is not None
+            and "cmf" in fused.methods)
+
+
+def fusion_run_html(fused, truth=None, system: str = "run_fusion") -> str:
+    """The compact check page of one :func:`~gpfverify.model_fusion.run_fusion` result (module docstring)."""
+    from gpfverify.experiments.check import results_of_run
+
+    if _checkable(fused):
         from gpfverify.report.equivalence import equivalence_sections
 
         results = results_of_run(fused, truth, system)
         with tempfile.TemporaryDirectory(prefix="gpfverify-notebook-") as folder:
-            return _fragment(equivalence_sections(results, Path(folder)))
+            return _fragment(equivalence_sections(results, Path(folder), compact=WHOLE_PAGE,
+                                                  estimates="`run.means(method)`"))
     from gpfverify.report.document import Paragraph, Section, Table
 
     last = fused.steps[-1]
@@ -59,6 +74,20 @@ def fusion_run_html(fused, truth=None, system: str = "run_fusion") -> str:
                       [[m, "—" if m in last.failed else ", ".join(f"{v:.4g}" for v in last.estimate(m).mean)]
                        for m in fused.methods], "Fused means"))
     return _fragment([section])
+
+
+def write_page(fused, out_dir, truth=None, system: str = "run_fusion") -> Path:
+    """The whole check page of one :func:`~gpfverify.model_fusion.run_fusion` result, with every figure,
+    as ``gpfverify check --out DIR`` writes it: ``DIR/report.html``, ``DIR/README.md`` and the
+    figures; returns the HTML page's path. ``truth`` (T, D) adds RMSE and NEES."""
+    from gpfverify.errors import InputError
+    from gpfverify.experiments.check import results_of_run
+    from gpfverify.report.equivalence import write_equivalence_report
+
+    if not _checkable(fused):
+        raise InputError("write_page needs a run_fusion result on a StateSpaceModel with its measurements, CMF "
+                         "and the audit")
+    return write_equivalence_report(results_of_run(fused, truth, system), Path(out_dir))
 
 
 def run_audit_html(run_audit) -> str:

@@ -8,7 +8,8 @@ from __future__ import annotations
 
 import json
 import shutil
-from collections.abc import Sequence
+import tempfile
+from collections.abc import Callable, Sequence
 from pathlib import Path
 
 from gpfverify.contract.claims import ClaimRecord, read_claims
@@ -100,3 +101,24 @@ def write_page(section: Section, page_dir: Path, results: Sequence[dict] = ()) -
     path = page_dir / "README.md"
     path.write_text(to_markdown(section, page_dir), encoding="utf-8")
     return path
+
+
+#: the option of a page script that draws the page's figures again from its committed results
+FIGURES = "--figures"
+
+
+def redraw_figures(page_dir: Path, results_path: Path, render: Callable[[dict, Path], object]) -> list[Path]:
+    """The figures of a committed page drawn again from its committed ``results.json`` (the saved runs
+    are not committed): ``render(results, folder)`` renders the page's section with its figures into
+    a temporary folder, and every PNG the page already has is replaced by its new drawing; the page's
+    text is left as it is. Returns the figures replaced."""
+    results = json.loads(results_path.read_text(encoding="utf-8"))
+    replaced = []
+    with tempfile.TemporaryDirectory(prefix="gpfverify-figures-") as folder:
+        render(results, Path(folder))
+        for png in sorted(Path(folder).rglob("*.png")):
+            target = page_dir / png.relative_to(folder)
+            if target.is_file():
+                shutil.copyfile(png, target)
+                replaced.append(target)
+    return replaced

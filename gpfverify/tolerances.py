@@ -87,6 +87,11 @@ def kkt_reject_tol(condition_number: float) -> float:
     return KKT_REJECT_TOL + ALGEBRA_SAFETY * EPS * max(float(condition_number), 1.0)
 
 
+def kkt_reject_tol_batch(condition_numbers) -> np.ndarray:
+    """:func:`kkt_reject_tol` of every condition number of an array."""
+    return KKT_REJECT_TOL + ALGEBRA_SAFETY * EPS * np.maximum(np.asarray(condition_numbers, dtype=float), 1.0)
+
+
 def monte_carlo_atol(sample_std, n_samples: int, sigmas: float = MONTE_CARLO_SIGMAS):
     """Absolute tolerance ``sigmas * std / sqrt(n)`` for a Monte Carlo mean, elementwise."""
     return sigmas * np.asarray(sample_std, dtype=float) / np.sqrt(n_samples)

@@ -82,7 +82,8 @@ def browser() -> list[str] | None:
 
 
 #: measures every table: its right edge against the main column's, its scroll overflow, and each
-#: cell's width and whether its text overflows it; the result as JSON in the page title
+#: cell's width and whether its text overflows it; and every image: its width as shown and its own
+#: (natural) width, in document order; the result as JSON in the page title
 PROBE = """<script>addEventListener('load',()=>{
 const main=document.querySelector('main')||document.body, mr=main.getBoundingClientRect(),
   pad=parseFloat(getComputedStyle(main).paddingRight)||0;
@@ -95,12 +96,14 @@ const tables=[...document.querySelectorAll('table')].map((t,i)=>{
   return {i, cls:t.className, caption:(t.caption?t.caption.textContent:'').slice(0,60),
     right:Math.ceil(r.right), limit:Math.floor(mr.right-pad), width:Math.round(r.width),
     scroll:wrap.scrollWidth>wrap.clientWidth+1, cells};});
-document.title='MEASURED'+JSON.stringify({window:window.innerWidth, tables});});
+const images=[...document.querySelectorAll('img')].map((m,i)=>({i, natural:m.naturalWidth,
+  shown:m.getBoundingClientRect().width}));
+document.title='MEASURED'+JSON.stringify({window:window.innerWidth, tables, images});});
 </script>"""
 
 
 def measure(command: list[str], page: Path, width: int, work: Path) -> dict:
-    """Every table of ``page`` measured in the headless browser at ``width`` px (:data:`PROBE`)."""
+    """Every table and image of ``page`` measured in the headless browser at ``width`` px (:data:`PROBE`)."""
     probe = work / f"measured-{page.parent.name}.html"
     probe.write_text(page.read_text(encoding="utf-8").replace("</body>", PROBE + "</body>"), encoding="utf-8")
     proc = subprocess.run([*command, "--headless", "--no-sandbox", "--disable-gpu", f"--window-size={width},900",
@@ -110,3 +113,24 @@ def measure(command: list[str], page: Path, width: int, work: Path) -> dict:
     import html
 
     return json.loads(html.unescape(found.group(1)))
+
+
+def figures_shown(html_text: str) -> list[dict]:
+    """What :func:`gpfverify.report.figures.save` recorded in each PNG a page embeds, in document order."""
+    import base64
+
+    from gpfverify.report.figures import measured
+
+    return [measured(base64.b64decode(data)) for data in re.findall(r'<img [^>]*src="data:image/png;base64,([^"]+)"',
+                                                                    html_text)]
+
+
+def figures_page(pngs: list[Path], folder: Path) -> Path:
+    """A page in the report's layout showing ``pngs`` as the report shows its figures."""
+    from gpfverify.report.document import Figure, Section
+    from gpfverify.report.render import to_html
+
+    section = Section("figures", "Figures", [Figure(png, str(png.relative_to(ROOT))) for png in pngs])
+    page = folder / "figures.html"
+    page.write_text(to_html([section], "Figures"), encoding="utf-8")
+    return page

@@ -1,6 +1,8 @@
 """CONTRACT.md, "Provenance": apart from ``provenance`` and the fields named in ``timing_keys``,
 ``results.json`` is byte-identical for any ``--workers``, with ``--scheduler`` (a dask cluster
-whose workers are separate processes) and after a SIGKILL and ``--resume`` — checked end to end
+whose workers are separate processes: a ``LocalCluster``, and a ``dask scheduler`` with a ``dask
+worker`` started as docs/cluster.md starts them, each compared with ``--workers 2``) and after a
+SIGKILL and ``--resume`` — checked end to end
 through the command line on a small ct2d (RCC-CI included, whose solver once depended on the
 process's earlier solves) and a small ungm1d. The SIGKILL also checks that neither the command's
 process, nor a worker process, nor the resource tracker outlives the killed main process; a worker
@@ -58,27 +60,73 @@ def serial(tmp_path_factory):
             for name in EXPERIMENTS}
 
 
-@pytest.mark.parametrize("name", sorted(EXPERIMENTS))
-def test_two_workers_give_the_same_bytes(serial, tmp_path, name):
-    _reproduce(name, tmp_path / "w2", "--workers", "2")
-    assert _canonical(tmp_path / "w2") == serial[name]
+@pytest.fixture(scope="module")
+def two_workers(tmp_path_factory):
+    """The same runs in two local worker processes."""
+    base = tmp_path_factory.mktemp("workers-2")
+    return {name: _canonical(_reproduce(name, base / name, "--workers", "2") and base / name) for name in EXPERIMENTS}
 
 
 @pytest.mark.parametrize("name", sorted(EXPERIMENTS))
-def test_a_dask_cluster_of_worker_processes_gives_the_same_bytes(serial, tmp_path, name):
+def test_two_workers_give_the_same_bytes(serial, two_workers, name):
+    assert two_workers[name] == serial[name]
+
+
+@pytest.mark.parametrize("name", sorted(EXPERIMENTS))
+def test_a_dask_cluster_of_worker_processes_gives_the_same_bytes(two_workers, tmp_path, name):
     distributed = pytest.importorskip("distributed")
     with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
                                   dashboard_address=None) as cluster:
         _reproduce(name, tmp_path / "dask", "--scheduler", cluster.scheduler_address)
-    assert _canonical(tmp_path / "dask") == serial[name]
+    assert _canonical(tmp_path / "dask") == two_workers[name]
+
+
+def test_a_dask_scheduler_and_workers_started_from_the_shell_give_the_same_bytes(two_workers, tmp_path):
+    """``dask scheduler`` and ``dask worker ADDRESS --nworkers 2 --nthreads 1`` as separate commands
+    (docs/cluster.md), then ``reproduce --scheduler ADDRESS``: the bytes of ``--workers 2``."""
+    distributed = pytest.importorskip("distributed")
+    dask = Path(sys.executable).with_name("dask")
+    if not dask.exists():
+        pytest.skip("no dask command beside this Python (pip install 'gpfverify[cluster]')")
+    log = tmp_path / "scheduler.log"
+    with open(log, "w") as sink:
+        scheduler = subprocess.Popen([str(dask), "scheduler", "--host", "127.0.0.1", "--port", "0",
+                                      "--no-dashboard"], stdout=sink, stderr=subprocess.STDOUT)
+    worker = None
+    try:
+        address = None
+        deadline = time.monotonic() + 60
+        while address is None and time.monotonic() < deadline and scheduler.poll() is None:
+            found = [line.split("Scheduler at:", 1)[1].strip() for line in log.read_text().splitlines()
+                     if "Scheduler at:" in line]
+            address = found[0] if found else None
+            time.sleep(0.2)
+        assert address, log.read_text()
+        worker = subprocess.Popen([str(dask), "worker", address, "--nworkers", "2", "--nthreads", "1",
+                                   "--no-dashboard"], stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
+                                  env={**os.environ, "OPENBLAS_NUM_THREADS": "1"})
+        with distributed.Client(address, timeout=60) as client:
+            client.wait_for_workers(2, timeout=120)
+        _reproduce("ungm1d", tmp_path / "shell-cluster", "--scheduler", address)
+    finally:
+        for proc in (worker, scheduler):
+            if proc is not None and proc.poll() is None:
+                proc.terminate()
+                try:
+                    proc.wait(timeout=30)
+                except subprocess.TimeoutExpired:
+                    proc.kill()
+                    proc.wait()
+    assert _canonical(tmp_path / "shell-cluster") == two_workers["ungm1d"]
 
 
 @pytest.mark.skipif(not sys.platform.startswith("linux"), reason="reads /proc")
 @pytest.mark.parametrize("name", sorted(EXPERIMENTS))
 def test_sigkill_leaves_no_orphans_and_resume_gives_the_same_bytes(serial, tmp_path, name):
     out = tmp_path / "killed"
+    # one run per batch: a run is saved as soon as it ends, and the kill lands with runs still to do
     proc = subprocess.Popen(_cli("reproduce", *EXPERIMENTS[name], "--runs", RUNS, "--seed", SEED,
-                                 "--out", str(out), "--workers", "2"),
+                                 "--out", str(out), "--workers", "2", "--batch", "1"),
                             stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     children: set[int] = set()
     deadline = time.monotonic() + 120
@@ -118,8 +166,9 @@ def test_sigkill_leaves_no_orphans_and_resume_gives_the_same_bytes(serial, tmp_p
 @pytest.mark.skipif(not sys.platform.startswith("linux"), reason="reads /proc")
 def test_a_killed_worker_keeps_the_saved_runs_and_resume_gives_the_same_bytes(serial, tmp_path):
     name, out = "ungm1d", tmp_path / "out"
+    # one run per batch: a run is saved as soon as it ends, and the kill lands with runs still to do
     proc = subprocess.Popen(_cli("reproduce", *EXPERIMENTS[name], "--runs", RUNS, "--seed", SEED,
-                                 "--out", str(out), "--workers", "2"),
+                                 "--out", str(out), "--workers", "2", "--batch", "1"),
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     deadline = time.monotonic() + 120
     try:

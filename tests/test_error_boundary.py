@@ -148,6 +148,11 @@ def test_cases_at_the_range_bound_fuse_or_are_refused_without_warnings(tmp_path,
         data = _scaled(CASE, scale / biggest, covariances_only=which == "covariances")
         path = _write(tmp_path, f"case-{which}.json", json.dumps(data))
         code, out, err = run_cli([command[0], path, *command[1:]], capsys)
+        # the one note a solver may add: its solution is inaccurate (RCC-CI's enlarged ellipsoids at
+        # this scale; test_solver_chatter_never_reaches_the_terminal), said in gpfverify's words
+        solver_note = [line for line in err.splitlines() if line.startswith(f"gpfverify {command[0]}: note:")
+                       and "Solution may be inaccurate" in line]
+        err = "\n".join(line for line in err.splitlines() if line not in solver_note)
         assert "Traceback" not in err and "warning" not in err.lower(), err
         if code == 0:
             assert err == "" and np.isfinite(np.array(json.loads(out).get("mean", 0.0))).all()

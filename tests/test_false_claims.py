@@ -22,8 +22,8 @@ from gpfverify.kernel.instances import Instance, Undefined
 from gpfverify.kernel.terms import frozen, read_statement
 from gpfverify.symbolic import fusion_claims as fc
 from gpfverify.symbolic.certificate import Certificate, ListedCheck, Part
-from gpfverify.symbolic.formal import (Declare, I, Sum, Term, as_term, eq, every, exp, fcr, invertible, le,
-                                       num, spd, tr, zero)
+from gpfverify.symbolic.formal import (Declare, I, Sum, Term, as_term, eq, every, exp, fcr, forall, invertible,
+                                       le, num, spd, tr, zero)
 from tests.kernel_helpers import instance, is_refuted, matrix, outcome, problems
 
 #: rank one, 2 × 2, and a 2 × 2 SPD matrix that does not map its kernel into itself
@@ -549,7 +549,7 @@ def _same_name_other_content():
     """Two certificates named alike: the second (false) one is judged on its own content."""
     true = one_matrix(lambda a, g: eq(a * a.pinv * a, a))
     first = Certificate("same", "", [Part(true, penrose_proof(true["conclusion"][0]),
-                                          at({"n": 1, "l": 1}, A=[[1]], G=[[1]]))])
+                                          at({"n": 2, "l": 2}, A=[[1, 0], [0, 1]], G=[[1, 0], [0, 1]]))])
     assert first.status == "proved"
     second = Certificate("same", "", [Part(a_plus_a_statement(), penrose_proof(true["conclusion"][0]),
                                            at({"n": 1, "l": 1}, A=[[1]], G=[[1]]))])
@@ -779,6 +779,204 @@ def _self_referring_definition():
                    {"sizes": {"n": 1}})
 
 
+
+def _member_size_statement():
+    """For every m: yᵀy c_m = 0 for every y ∈ ℝ^{l_m} (that is, l_m = 0 or c_m = 0); then z_kᵀz_k c_j = 0."""
+    d = Declare()
+    d.sizes("N")
+    d.index_set("J", "N")
+    d.family_size("l", "J")
+    c, z = d.matrix("c", 1, 1, over="J"), d.matrix("z", "l[#]", 1, over="J")
+    j, k = d.free_index("j", "J"), d.free_index("k", "J")
+    y = Term(("var", "y"))
+    d.assume(every("m", "J", forall([("y", "l[m]", 1)], eq(y.T * y * c["m"], zero(1, 1)))))
+    d.conclude(eq(z[k].T * z[k] * c[j], zero(1, 1)))
+    return d.json()
+
+
+def _forall_size_of_another_member():
+    """The hypothesis at member j, its "for every y ∈ ℝ^{l_m}" read with the step's own generic m (y := z_m)."""
+    statement = _member_size_statement()
+    z_m = ("var", "z", "m")
+    lemma = ("=", ("*", ("T", z_m), z_m, ("var", "c", "j")), ("0", "1", "1"))
+    proof = {"steps": [{"id": "s1", "index": {"m": "J"}, "claim": lemma,
+                        "by": [{"gen": {"hyp": 0, "index": "j", "at": {"y": z_m}}}]},
+                       {"id": "s2", "claim": statement["conclusion"][0],
+                        "by": [{"gen": {"lemma": "s1", "index": {"m": "k"}}}]}]}
+    witness = instance({"N": 1}, {"c": [matrix([[0]])], "z": [matrix([[1]])]}, indexed_sizes={"l": [1]},
+                       free_indices={"j": 1, "k": 1})
+    return outcome(statement, proof, witness)
+
+
+def _member_size_false() -> bool:
+    """l = (0, 1), c = (1, 0): ℝ⁰ holds only y = 0 and c_2 = 0, so every hypothesis holds; z_2ᵀz_2 c_1 = 1."""
+    counterexample = instance({"N": 2}, {"c": [matrix([[1]]), matrix([[0]])], "z": [sp.zeros(0, 1), matrix([[1]])]},
+                              indexed_sizes={"l": [0, 1]}, free_indices={"j": 1, "k": 2})
+    return is_refuted(_member_size_statement(), counterexample)
+
+
+def _nested_integral_statement():
+    """∫ e^{−½xᵀx} h(x) dx = ∫ e^{−½xᵀx} k dx, h(y) := ∫ e^{−½zᵀz} zᵀy dz (= 0), k := ∫ e^{−½zᵀz} zᵀz dz (= n(2π)^{n/2})."""
+    d = Declare()
+    d.sizes("n")
+    x, z = Term(("var", "x")), Term(("var", "z"))
+    gauss = lambda v: exp(num("-1/2") * v.T * v)  # noqa: E731
+    h = d.define("h", lambda y: Term(("int", "z", "n", as_term(gauss(z) * (z.T * y)))), args=(("y", "n", 1),))
+    k = d.define("k", Term(("int", "z", "n", as_term(gauss(z) * (z.T * z)))))
+    d.conclude(eq(Term(("int", "x", "n", as_term(gauss(x) * h(x)))), Term(("int", "x", "n", as_term(gauss(x) * k)))))
+    return d.json()
+
+
+def _integral_through_a_definition():
+    """The outer variable passed into a definition's integral took the inner variable's place."""
+    statement = _nested_integral_statement()
+    return outcome(statement, {"steps": [{"id": "s", "claim": statement["conclusion"][0], "by": []}]},
+                   {"sizes": {"n": 1}})
+
+
+def _nested_integral_false() -> bool:
+    """At n = 1 the left side is ∫ e^{−x²/2}·0 dx = 0 and the right side 2π."""
+    x, z = sp.symbols("x z", real=True)
+    inner = lambda f: sp.integrate(sp.exp(-z ** 2 / 2) * f, (z, -sp.oo, sp.oo))  # noqa: E731
+    outer = lambda f: sp.integrate(sp.exp(-x ** 2 / 2) * f, (x, -sp.oo, sp.oo))  # noqa: E731
+    return outer(inner(z * x)) == 0 and outer(inner(z * z)) == 2 * sp.pi
+
+
+def _scaled_inverse_statement():
+    d = Declare()
+    d.sizes("n")
+    r, x = d.param("ρ"), d.matrix("X", "n", "n")
+    d.assume(invertible(x))
+    d.conclude(eq(r * x.inv * (r * x.inv).pinv, I("n")))
+    return d.json()
+
+
+def _scaled_inverse_invertible():
+    """ρX⁻¹ 'invertible' because X is, whatever ρ: the inverse generator's E E⁺ = I for E = ρX⁻¹."""
+    statement = _scaled_inverse_statement()
+    e = ("*", ("param", "ρ"), ("inv", ("var", "X")))
+    proof = {"steps": [{"id": "s", "claim": statement["conclusion"][0],
+                        "by": [{"gen": {"inverse": "right", "of": e}}]}]}
+    return outcome(statement, proof, instance({"n": 1}, {"X": matrix([[1]])}, params={"ρ": 1}))
+
+
+def _scaled_inverse_false() -> bool:
+    """At ρ = 0, ρX⁻¹(ρX⁻¹)⁺ = 0 ≠ I."""
+    return is_refuted(_scaled_inverse_statement(), instance({"n": 1}, {"X": matrix([[1]])}, params={"ρ": 0}))
+
+
+def _vacuous_every_statement(kind):
+    """C_j C_j⁺ = I from "for every m = 1..K: C_j is SPD (invertible)", a hypothesis free of m."""
+    d = Declare()
+    d.sizes("n", "N", "K")
+    d.index_set("J", "N")
+    d.index_set("M", "K")
+    c, j = d.matrix("C", "n", "n", over="J"), d.free_index("j", "J")
+    d.assume(every("m", "M", kind(c[j])))
+    d.conclude(eq(c[j] * c[j].pinv, I("n")))
+    return d.json()
+
+
+def _every_member_of_nothing(kind):
+    statement = _vacuous_every_statement(kind)
+    proof = {"steps": [{"id": "s", "claim": statement["conclusion"][0],
+                        "by": [{"gen": {"inverse": "right", "of": ("var", "C", "j")}}]}]}
+    return outcome(statement, proof, instance({"n": 1, "N": 1, "K": 1}, {"C": [matrix([[1]])]}, free_indices={"j": 1}))
+
+
+def _vacuous_every_false(kind) -> bool:
+    """K = 0 (no m): the hypothesis holds for C_1 = 0, and 0·0⁺ = 0 ≠ I."""
+    return is_refuted(_vacuous_every_statement(kind), instance({"n": 1, "N": 1, "K": 0}, {"C": [matrix([[0]])]},
+                                                               free_indices={"j": 1}))
+
+
+def _denesting_statement():
+    """For every x: √(3 + 2√2)·x = (1 + √2)·x — true (3 + 2√2 = (1 + √2)²), as a claim to refute."""
+    root2 = ("^", ("num", 2), "1/2")
+    lhs = ("*", ("^", ("+", ("num", 3), ("*", ("num", 2), root2)), "1/2"), ("var", "x"))
+    return {"conclusion": [("forall", (("x", "1", "1"),), ("=", lhs, ("*", ("+", ("num", 1), root2), ("var", "x"))))]}
+
+
+def _refuted_by_an_unseen_zero():
+    """'Refuted' with no instance at all: the difference (√(3 + 2√2) − 1 − √2)·x does not cancel in sympy."""
+    return judge_refutation(_denesting_statement(), {})
+
+
+def _empty_world_statement():
+    """C = −I for C SPD with C + I = 0: both hypotheses hold only at n = 0."""
+    d = Declare()
+    d.sizes("n")
+    c = d.matrix("C", "n", "n")
+    d.assume(spd(c), eq(c + I("n"), zero("n", "n")))
+    d.conclude(eq(c, -I("n")))
+    return d.json()
+
+
+def _witnessed_by_empty_matrices():
+    statement = _empty_world_statement()
+    proof = {"steps": [{"id": "s", "claim": statement["conclusion"][0], "by": [{"gen": {"hyp": 1}}]}]}
+    return outcome(statement, proof, instance({"n": 0}, {"C": sp.zeros(0, 0)}))
+
+
+def _rank_one_world_statement():
+    """u vᵀ = v uᵀ for every u, v ∈ ℝⁿ, assuming x yᵀ = y xᵀ for every x, y ∈ ℝⁿ (true only at n ≤ 1)."""
+    d = Declare()
+    d.sizes("n")
+    u, v = d.matrix("u", "n", 1), d.matrix("v", "n", 1)
+    x, y = Term(("var", "x")), Term(("var", "y"))
+    d.assume(forall([("x", "n", 1), ("y", "n", 1)], eq(x * y.T, y * x.T)))
+    d.conclude(eq(u * v.T, v * u.T))
+    return d.json()
+
+
+def _witnessed_in_dimension_one():
+    statement = _rank_one_world_statement()
+    proof = {"steps": [{"id": "s", "claim": statement["conclusion"][0],
+                        "by": [{"gen": {"hyp": 0, "at": {"x": ("var", "u"), "y": ("var", "v")}}}]}]}
+    return outcome(statement, proof, instance({"n": 1}, {"u": matrix([[1]]), "v": matrix([[2]])}))
+
+
+def _empty_world_only() -> bool:
+    """No SPD C with C + I = 0 in any dimension n ≥ 1, and e₁e₂ᵀ ≠ e₂e₁ᵀ for n ≥ 2."""
+    e1, e2 = sp.Matrix([1, 0]), sp.Matrix([0, 1])
+    return (-sp.eye(1)).is_positive_definite is False and e1 * e2.T != e2 * e1.T
+
+
+def _read_as_any_dimension():
+    """Xᵀ = X with no hypothesis, true for the 1 × 1 X it declares: proved, but its words must say 1 × 1
+    (the claim refused is "every matrix is symmetric, in any dimension")."""
+    d = Declare()
+    x = d.matrix("X", 1, 1)
+    d.conclude(eq(x.T, x))
+    statement = d.json()
+    certificate = Certificate("symmetric", "", [Part(statement, {"steps": [{"id": "s", "claim": statement["conclusion"][0],
+                                                                            "by": []}]}, {"values": {"X": [[1]]}})])
+    honest = certificate.scope != "any dimension" and "X ∈ ℝ^{1 × 1}" in certificate.statement
+    return "proved at the sizes it prints" if honest else certificate.status
+
+
+def _sift_statement():
+    """exp(ρ)(Σ_i (S_iᵀS_j + I)⁺)ᵀ = exp(ρ) Σ_i (I + I)⁺, S_i the columns of I_N (exp(ρ) keeps the witness's
+    check inexact)."""
+    body = ("pinv", ("+", ("*", ("T", ("sel", "S", "i")), ("sel", "S", "j")), ("I", "1")))
+    e = ("exp", ("param", "ρ"))
+    return {"sizes": ["N"], "params": ["ρ"], "index_sets": {"J": "N"},
+            "partitions": {"S": {"over": "J", "total": "N", "part": "1"}}, "free_indices": {"j": "J"},
+            "conclusion": [("=", ("*", e, ("T", ("sum", "i", "J", body))),
+                            ("*", e, ("sum", "i", "J", ("pinv", ("+", ("I", "1"), ("I", "1"))))))]}
+
+
+def _sift_inside_a_pinv():
+    """Transposing the sum re-normalised the pinv's body with the sum's index as its own: S_iᵀS_j sifted to I."""
+    statement = _sift_statement()
+    return outcome(statement, {"steps": [{"id": "s", "claim": statement["conclusion"][0], "by": []}]},
+                   {"sizes": {"N": 2}, "params": {"ρ": 1}, "free_indices": {"j": 1}})
+
+
+def _sift_false() -> bool:
+    """N = 2, j = 1, ρ = 0: the left side is (1 + 1)⁻¹ + (0 + 1)⁻¹ = 3/2, the right side 2·(1/2) = 1."""
+    return is_refuted(_sift_statement(), {"sizes": {"N": 2}, "params": {"ρ": 0}, "free_indices": {"j": 1}})
+
 ADVERSARY = [
     FalseClaim("√(a²) = a, the parameter being 'positive' in sympy", "sympy assumptions", _root_of_square,
                lambda: sp.sqrt((-1) ** 2) != -1),
@@ -837,6 +1035,26 @@ ADVERSARY = [
                                                                       {"X": matrix([[0, 1], [0, 0]])}))),
     FalseClaim("Y = Y + I, with Y defined as Y + I", "definition", _self_referring_definition,
                lambda: sp.eye(1) != sp.zeros(1)),
+    FalseClaim("z_kᵀz_k c_j = 0 from 'yᵀy c_m = 0 for y ∈ ℝ^{l_m}', y's size left at another member's",
+               "bound sizes", _forall_size_of_another_member, _member_size_false),
+    FalseClaim("∫ e^{−½xᵀx} h(x) dx = ∫ e^{−½xᵀx} k dx, the outer x captured by h's inner integral", "nested integrals",
+               _integral_through_a_definition, _nested_integral_false),
+    FalseClaim("ρX⁻¹(ρX⁻¹)⁺ = I for X invertible, the coefficient ρ taken for nonzero", "coefficients",
+               _scaled_inverse_invertible, _scaled_inverse_false),
+    FalseClaim("C_j C_j⁺ = I from 'C_j SPD for every m = 1..K', K possibly 0", "empty family",
+               lambda: _every_member_of_nothing(spd), lambda: _vacuous_every_false(spd)),
+    FalseClaim("C_j C_j⁺ = I from 'C_j invertible for every m = 1..K', K possibly 0", "empty family",
+               lambda: _every_member_of_nothing(invertible), lambda: _vacuous_every_false(invertible)),
+    FalseClaim("√(3 + 2√2) x = (1 + √2) x is refuted (a true statement)", "true statement refuted",
+               _refuted_by_an_unseen_zero, lambda: sp.sqrtdenest(sp.sqrt(3 + 2 * sp.sqrt(2))) == 1 + sp.sqrt(2)),
+    FalseClaim("C = −I for an SPD C with C + I = 0, witnessed at n = 0", "degenerate witness",
+               _witnessed_by_empty_matrices, _empty_world_only),
+    FalseClaim("u vᵀ = v uᵀ from 'x yᵀ = y xᵀ for every x, y ∈ ℝⁿ', witnessed at n = 1", "degenerate witness",
+               _witnessed_in_dimension_one, _empty_world_only),
+    FalseClaim("Xᵀ = X for every X in any dimension, printed from a statement about a 1 × 1 X", "statement words",
+               _read_as_any_dimension, lambda: matrix([[0, 1], [0, 0]]).T != matrix([[0, 1], [0, 0]])),
+    FalseClaim("(Σ_i (S_iᵀS_j + I)⁺)ᵀ = Σ_i (I + I)⁺, the selectors sifted inside a pseudo-inverse", "sums",
+               _sift_inside_a_pinv, _sift_false),
 ]
 
 FALSE_CLAIMS = PORTED + ADVERSARY

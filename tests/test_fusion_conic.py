@@ -19,8 +19,8 @@ def _parameter_values(ests, c=None, dual=False):
     """The normalised RCC-CI parameters of ``ests`` in the order of the primal (dual) problem."""
     checked = checked_estimates(ests)
     c = rcc.default_size(checked[0].mean.shape[0]) if c is None else c
-    norm = rcc._normalise(checked, information_form(checked), c)
-    return [*norm.A, *norm.b, norm.d] if dual else norm.primal_values()
+    norm, primal = rcc._normalise_one(checked, information_form(checked), c)
+    return [*norm.A, *norm.b, norm.d] if dual else primal
 
 
 def _cases(seed, count):

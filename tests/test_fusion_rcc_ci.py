@@ -220,3 +220,16 @@ def test_a_solve_is_bitwise_independent_of_earlier_solves(target, earlier):
     for seed in earlier:  # other problems of the same size, through the same cached problem
         rcc.rcc_ci(_estimates(seed, n, d), on_empty="enlarge")
     assert _bits(rcc.rcc_ci(ests, on_empty="enlarge")) == first
+
+
+@pytest.mark.parametrize("dim, seed", [(1, 0), (2, 1), (3, 2), (5, 3)])
+def test_two_ellipsoid_size_is_the_conic_programs(dim, seed):
+    """The closed form of c_min for two ellipsoids (minimax duality, one scalar root) against the
+    conic program min t s.t. both quadratics ≤ t, for ellipsoids apart, overlapping and nested."""
+    rng = np.random.default_rng(seed)
+    for spread in (0.1, 1.0, 30.0):
+        a, b = rng.normal(size=(2, dim, dim))
+        ests = [Gaussian(rng.normal(size=dim) * spread, a @ a.T + 0.1 * np.eye(dim)),
+                Gaussian(rng.normal(size=dim) * spread, b @ b.T + 0.1 * np.eye(dim))]
+        closed = rcc.two_ellipsoid_size(*ests)
+        assert closed == pytest.approx(rcc.conic_intersecting_size(ests), rel=SOLVER_TOL, abs=SOLVER_TOL)

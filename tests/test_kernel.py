@@ -81,12 +81,22 @@ def test_sums_move_constant_factors_count_and_sift_selectors():
         nf(("sum", "i", "J", ("I", "k[i]")))
     with pytest.raises(KernelError, match="already in use"):
         nf(("sum", "i", "J", ("sum", "i", "J", ("I", "n"))))
+    with pytest.raises(KernelError, match="det of a sum"):  # as docs/proofs.md says: not supported
+        nf(("*", ("det", ("sum", "i", "J", ("*", s_i, ("T", s_i)))), ("sum", "j", "J", ("*", g, s_j, ("T", s_j)))))
 
 
 def test_an_indexed_size_is_not_a_number_and_sizes_are_never_negative():
     ctx, _ = _context()
     with pytest.raises(KernelError):
         ctx.nf(("sum", "i", "J", ("tr", ("I", "k[i]"))), ctx.scope())
+    d = Declare()
+    d.sizes("n")
+    d.param("ρ")
+    d.index_set("J", "ρ")  # counted by a parameter: Σ_i I would be ρ I
+    d.conclude(eq(Sum("i", "J", I("n")), I("n")))
+    st = read_statement(frozen(d.json()))
+    with pytest.raises(KernelError, match="unknown size symbol"):
+        Context(st).nf(st.conclusion[0][1], {})
     for bad in ("n - 1", "-1", -2, "n + -l"):
         d = Declare()
         d.sizes("n")
@@ -94,6 +104,17 @@ def test_an_indexed_size_is_not_a_number_and_sizes_are_never_negative():
         d.conclude(eq(I("n"), I("n")))
         with pytest.raises(KernelError):
             read_statement(frozen(d.json()))
+
+
+def test_an_index_is_renamed_in_every_size_however_it_is_written():
+    from gpfverify.kernel.rules import substitute_pred
+    from gpfverify.kernel.terms import substitute
+
+    assert substitute(("I", "l[ m ] + 2*l[m]"), index=("m", "j")) == ("I", "3*l[j]")
+    assert substitute(("I", "l[k]"), index=("m", "j")) == ("I", "l[k]")
+    renamed = substitute_pred(("forall", (("y", "l[m]", 1),), ("=", ("var", "y"), ("var", "y"))), index=("m", "j"))
+    assert renamed[1] == (("y", "l[j]", 1),)
+    assert substitute_pred(("<=", "l[m]", "D"), index=("m", "j")) == ("<=", "l[j]", "D")
 
 
 # ---- instances -------------------------------------------------------------------------------------------
@@ -114,6 +135,30 @@ def test_instances_decide_spd_rank_and_every_measurement_exactly():
     broken = fc._one_sensor(sp.eye(2), measurement=False, free={"j": 1})
     assert Instance(st, frozen(exact)).holds(st.hypotheses[1])
     assert not Instance(st, frozen(broken)).holds(st.hypotheses[1])
+
+
+def test_a_matrix_with_no_rows_has_its_declared_width():
+    d = Declare()
+    d.sizes("N")
+    d.index_set("J", "N")
+    d.family_size("l", "J")
+    z = d.matrix("z", "l[#]", 1, over="J")
+    d.conclude(eq(z["j"].T * z["j"], z["j"].T * z["j"]))
+    d.free_index("j", "J")
+    st = read_statement(frozen(d.json()))
+    inst = Instance(st, frozen({"sizes": {"N": 2}, "indexed_sizes": {"l": [0, 1]}, "free_indices": {"j": 1},
+                                "values": {"z": [[], [[1]]]}}))
+    assert inst.values[("z", 1)].shape == (0, 1) and inst.values[("z", 2)].shape == (1, 1)
+    assert inst.holds(st.conclusion[0])
+
+
+def test_for_every_x_is_decided_only_over_the_rationals():
+    from gpfverify.kernel.instances import NotEvaluable, _exactly_zero
+
+    x = sp.Symbol("x")
+    assert _exactly_zero((x + 1) ** 2 - x ** 2 - 2 * x - 1) and not _exactly_zero(x / 2)
+    with pytest.raises(NotEvaluable):  # zero (3 + 2√2 = (1 + √2)²), which cancel does not see
+        _exactly_zero((sp.sqrt(3 + 2 * sp.sqrt(2)) - 1 - sp.sqrt(2)) * x)
 
 
 def test_a_proved_statement_needs_a_witness_and_its_conclusion_must_hold_there():
@@ -259,7 +304,7 @@ def test_a_family_statement_over_no_members_is_not_read_as_one_over_all():
     d.conclude(eq(Sum("m", "J", c["m"] - c["m"].T), x * 0))
     statement = d.json()
     proof = {"steps": [{"id": "s", "claim": statement["conclusion"][0], "by": []}]}
-    witness = instance({"n": 1, "N": 1}, {"C": [matrix([[1]])], "X": matrix([[0]])})
+    witness = instance({"n": 2, "N": 2}, {"C": [sp.eye(2), 2 * sp.eye(2)], "X": sp.zeros(2, 2)})
     assert outcome(statement, proof, witness) == "proved"  # C_mᵀ = C_m for every member: used inside Σ_m
     assert not is_refuted(statement, witness)
 
@@ -270,8 +315,13 @@ def test_the_report_shows_a_record_the_kernel_rejects_as_checked(records):
     assert CertificateInfo.of(records["prop1-full-column-rank"]).status == "proved"
     shown = CertificateInfo.of(_edit(records["prop1-full-column-rank"], EDITS["a step removed"][1]))
     assert shown.status == "checked" and shown.detail.startswith("REJECTED by the kernel")
-    by_hand = {"claim": "x", "statement": "A⁺A = I", "status": "proved", "detail": ""}
-    assert CertificateInfo.of(by_hand).status == "checked"
+    assert shown.scope == "not proved" and shown.method == "not confirmed by the kernel"
+    by_hand = {"claim": "x", "statement": "A⁺A = I", "status": "proved", "detail": "", "scope": "any dimension",
+               "method": "kernel-checked certificate"}
+    shown = CertificateInfo.of(by_hand)  # no word of the record's own reads as a proof
+    assert (shown.status, shown.scope, shown.method) == ("checked", "not proved", "not confirmed by the kernel")
+    retold = _edit(records["prop1-full-column-rank"], lambda r: r.update(statement="DMF = CMF for any rank"))
+    assert CertificateInfo.of(retold).statement == derive(records["prop1-full-column-rank"])["statement"]
 
 
 def test_hostile_sizes_and_powers_are_refused_not_computed():
@@ -282,3 +332,15 @@ def test_hostile_sizes_and_powers_are_refused_not_computed():
     with pytest.raises(KernelError, match="0..64"):
         Instance(st, frozen({"sizes": {"n": 10**6, "l": 1, "N": 0}, "indexed_sizes": {"k": []},
                              "values": {"A": []}}))
+    from gpfverify.kernel.terms import number
+
+    for text in ("1e9999999999", "0.5", "1/2/3", " 1", "٣"):  # numbers are integers or 'p/q', nothing else
+        with pytest.raises(KernelError, match="a number is"):
+            number(text)
+    with pytest.raises(KernelError, match="not expanded"):  # 2^(10¹²) would be computed digit by digit
+        ctx.nf(("^", ("num", 2), 10 ** 12), ctx.scope())
+    with pytest.raises(KernelError, match="every size symbol"):  # true is not a size
+        Instance(st, frozen({"sizes": {"n": True, "l": 0, "N": 0}, "indexed_sizes": {"k": []}, "values": {"A": [[1]]}}))
+    inst = Instance(st, frozen({"sizes": {"n": 1, "l": 0, "N": 0}, "indexed_sizes": {"k": []}, "values": {"A": [[1]]}}))
+    with pytest.raises(KernelError, match="above 256"):
+        inst.value(("I", "100000000"), {})

@@ -12,7 +12,6 @@ import re
 import shutil
 import sys
 import types
-from html.parser import HTMLParser
 from pathlib import Path
 
 import pytest
@@ -25,71 +24,8 @@ from gpfverify.symbolic.claims import run_claim
 HERE = Path(__file__).parent
 FIXTURE = HERE / "fixtures" / "report"
 ROOT = HERE.parent
-
-
-# ---- a small DOM from html.parser ------------------------------------------------------------------
-
-class Node:
-    def __init__(self, tag: str, attrs: dict[str, str], parent: Node | None):
-        self.tag, self.attrs, self.parent, self.children = tag, attrs, parent, []
-        self.parts: list = []  # text and child nodes in document order
-
-    @property
-    def classes(self) -> set[str]:
-        return set(self.attrs.get("class", "").split())
-
-    @property
-    def text(self) -> str:
-        return "".join(p if isinstance(p, str) else p.text for p in self.parts)
-
-    def iter(self):
-        yield self
-        for child in self.children:
-            yield from child.iter()
-
-    def find_all(self, tag: str | None = None, cls: str | None = None, **attrs: str) -> list[Node]:
-        return [n for n in self.iter() if (tag is None or n.tag == tag) and (cls is None or cls in n.classes)
-                and all(n.attrs.get(k) == v for k, v in attrs.items())]
-
-    def ancestor(self, tag: str) -> Node | None:
-        node = self.parent
-        while node is not None and node.tag != tag:
-            node = node.parent
-        return node
-
-
-VOID = {"meta", "img", "br", "hr", "link", "input"}
-
-
-class DomBuilder(HTMLParser):
-    def __init__(self):
-        super().__init__(convert_charrefs=True)
-        self.root = self.node = Node("#document", {}, None)
-
-    def handle_starttag(self, tag, attrs):
-        node = Node(tag, {k: v or "" for k, v in attrs}, self.node)
-        self.node.children.append(node)
-        self.node.parts.append(node)
-        if tag not in VOID:
-            self.node = node
-
-    def handle_endtag(self, tag):
-        node = self.node
-        while node is not None and node.tag != tag:
-            node = node.parent
-        assert node is not None and node.parent is not None, f"unbalanced </{tag}>"
-        self.node = node.parent
-
-    def handle_data(self, data):
-        self.node.parts.append(data)
-
-
-def parse(html_text: str) -> Node:
-    builder = DomBuilder()
-    builder.feed(html_text)
-    builder.close()
-    assert builder.node is builder.root, "unclosed elements"
-    return builder.root
+sys.path.insert(0, str(HERE))  # the suite imports in importlib mode: the helper beside it
+from html_dom import parse  # noqa: E402
 
 
 # ---- the fixture report, rendered ------------------------------------------------------------------
@@ -293,13 +229,38 @@ def test_proof_certificates_are_a_table(report):
     proved = rows["cert-full-rank-needs-l-le-D"]
     title = unicode_math(run_claim("full-rank-needs-l-le-D", "small").title)
     assert proved[:3] == ["full-rank-needs-l-le-D", "proved", title]
-    assert proved[3].startswith("l ≤ D (for all sizes D, l ≥ 0) — assuming: A has full column rank")
+    assert proved[3].startswith("l ≤ D (for all sizes D, l ≥ 0; all A ∈ ℝ^(D×l)) — assuming: A has full column rank")
     assert proved[4] == "any dimension" and proved[5].startswith("kernel-checked certificate")
     assert proved[6].startswith("all 3 refused and refuted: l_m + 1 ≤ D")
     assert rows["cert-dmf-exact-without-condition"][4].startswith("counterexample at D = 2")
     assert rows["cert-dmf-exact-without-condition"][6] == "none"
     status = table.find_all("tr", id="cert-dmf-exact-without-condition")[0].find_all("td")[1]
-    assert "v-refuted" in status.classes
+    assert "v-refuted" in status.classes and "v-not-held" not in status.classes
+    # the record says the statement is meant to be refuted: the page says so, in the table and on its mark
+    assert status.text == "refuted, as intended" and status.attrs["title"].startswith("meant to be refuted")
+    (chip,) = [a for a in page.find_all("a", cls="chip") if a.attrs["href"] == "#cert-dmf-exact-without-condition"]
+    assert chip.attrs["title"] == "dmf-exact-without-condition: refuted, as intended"
+    assert rows["cert-full-rank-needs-l-le-D"][1] == "proved"  # no record meant to be proved says more
+
+
+def test_a_statement_that_misses_the_status_it_is_meant_to_get_is_a_failure():
+    """A record meant to be refuted that the kernel proves (or one whose "expected" was edited) is
+    shown FAILED in red, is a problem for prove --check, and makes prove exit non-zero."""
+    from gpfverify.kernel.verdict import check_record
+    from gpfverify.report.proofs import render
+    from gpfverify.report.render import to_markdown
+
+    record = json.loads((FIXTURE / "proofs" / "certificates.json").read_text(encoding="utf-8"))[1]
+    assert record["claim"] == "dmf-exact-without-condition" and record["expected"] == "refuted"
+    assert check_record(record) == []
+    edited = {**record, "expected": "proved"}
+    assert check_record(edited) == ["dmf-exact-without-condition: meant to be 'proved', the kernel derives 'refuted'"]
+    page = to_markdown(render([edited]), FIXTURE)
+    assert "| checked (meant to be proved) — FAILED |" in page  # what the kernel rejects is shown as checked
+    certificate = run_claim("dmf-exact-without-condition", "small")
+    assert certificate.failures == []
+    certificate.record["expected"] = "proved"
+    assert certificate.failures == ["meant to be proved, the kernel derives refuted"]
 
 
 def test_markdown_pages_and_index(report):
@@ -361,19 +322,31 @@ def test_progress_lines_and_heartbeat():
                      "[report  1:15] ... still working (76 s since the last line: ct2d: ct2d κ = 300 (1 of 4): 2 runs)"]
 
 
-def test_the_builds_time_left_follows_its_own_pace_and_drops_reused_work():
+def test_the_time_left_comes_from_the_pace_measured_in_this_build_and_none_before():
+    """No estimate until two runs of an experiment were saved in one batch (the first run carries the
+    workers' start-up: a quick build once opened with "about 48 min left" for 4 min of work); then
+    the seconds between runs saved times the experiment's runs still to make — in every setting, the
+    pace of the first setting timing the second —; reused runs are runs not left."""
     from gpfverify.commands.report import Eta
 
     now = [100.0]
-    eta = Eta({"a": 4.0, "b": 12.0, "render": 4.0}, clock=lambda: now[0])
-    assert eta.seconds_left() is None and eta.suffix() == ""  # no pace before any work
-    now[0] += 30.0
-    eta.ran("a", 2.0)  # 2 of 20 units in 30 s: 15 s a unit, 18 units left
-    assert eta.seconds_left() == 18 * 15.0
-    eta.ran("a", 2.0)
-    eta.finished("a")
-    eta.finished("b")  # every run of b reused from an earlier build: not left, and not done here
-    assert eta.seconds_left() == 4.0 * 30.0 / 4.0 and eta.suffix() == " (about 30 s left in all)"
+    eta = Eta({"a-1": ("a", 4), "a-2": ("a", 6), "b-1": ("b", 5)}, clock=lambda: now[0])
+    eta.batch("a")
+    now[0] += 40.0  # start-up and the first run
+    eta.ran("a-1")
+    assert eta.seconds_left("a") is None and eta.suffix("a-1") == ""  # one run saved: nothing timed yet
+    now[0] += 3.0
+    eta.ran("a-1")  # 3 s a run; 2 + 6 runs of a left
+    assert eta.seconds_left("a") == 8 * 3.0 and eta.suffix("a-1") == " (a: about 24 s of runs left)"
+    assert eta.seconds_left("b") is None  # b's pace is not a's
+    now[0] += 5.0
+    eta.ran("a-1")  # (3 + 5) / 2 = 4 s a run
+    eta.finished("a-1")  # its last run reused from an earlier build
+    assert eta.seconds_left("a") == 6 * 4.0
+    eta.batch("a")  # the next setting: its first run (start-up again) is not timed
+    now[0] += 60.0
+    eta.ran("a-2")
+    assert eta.seconds_left("a") == 5 * 4.0
 
 
 def test_report_command_runs_a_toy_section_with_progress(monkeypatch, tmp_path, capsys):
@@ -401,10 +374,11 @@ def test_report_command_runs_a_toy_section_with_progress(monkeypatch, tmp_path, 
     assert any("toy/toy-typed, small (setting 1 of 2): 3 runs" in line for line in lines)
     assert any("toy/toy-typed, large (setting 2 of 2): run 3 of 3 saved" in line for line in lines)
     assert any("toy: rendering the page" in line for line in lines)
-    # once a run is saved, section and run lines end with the build's time left
+    # a setting's first run line has no estimate (nothing timed yet); the lines after it have the measured one
     saved = [line for line in lines if " saved" in line]
-    assert saved and all(re.search(r"\(about .* left in all\)$", line) for line in saved)
-    assert re.search(r"rendering the pages \(about .* left in all\)$", out, re.M)
+    assert saved[0].endswith("run 1 of 3 saved")
+    assert all(re.search(r"\(toy-typed: about \d+ s of runs left\)$", line) for line in saved[1:3])
+    assert not re.search(r"left in all|section \d of \d: .*\(", out)  # no estimate of the whole build
     assert f"The report: {tmp_path / 'report.html'}" in out
     records = [c for r in load_section(tmp_path, "toy").results for c in read_claims(r)]
     held = sum(c.verdict == "held" for c in records)

@@ -15,7 +15,7 @@ import json
 import tempfile
 from pathlib import Path
 
-from gpfverify.cli import RANK_RULE_HELP, fusion_rules, positive_seconds, rank_rule_text
+from gpfverify.cli import BATCH_HELP, RANK_RULE_HELP, fusion_rules, positive_seconds, rank_rule_text
 from gpfverify.contract.check import Params
 from gpfverify.contract.params import add_arguments as add_params_arguments
 from gpfverify.filters.families import FAMILY_NAMES
@@ -65,13 +65,15 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              "functions — has not returned after SECONDS (default: no limit)")
     parser.add_argument("--scheduler", default=None, metavar="ADDRESS",
                         help="dask.distributed scheduler address (needs gpfverify[cluster])")
+    parser.add_argument("--batch", type=int, default=None, metavar="B", help=BATCH_HELP)
 
 
 def run(args: argparse.Namespace) -> int:
     from gpfverify.errors import InputError
     from gpfverify.contract.check import verdict_sentence
     from gpfverify.experiments import check
-    from gpfverify.experiments.runner import check_run_count, check_seed, check_workers, make_executor, run_experiment
+    from gpfverify.experiments.runner import (check_batch, check_run_count, check_seed, check_workers, make_executor,
+                                              run_experiment)
     from gpfverify.systems import load_system
 
     if args.measurements is not None and args.steps is not None:
@@ -79,6 +81,8 @@ def run(args: argparse.Namespace) -> int:
     check_run_count(args.runs)  # everything that can be refused is refused before anything is written
     check_seed(args.seed)
     check_workers(args.workers)
+    if args.batch is not None:
+        check_batch(args.batch)
     if args.out is None and not args.json:
         raise InputError("give --out DIR (results and report) and/or --json (results on stdout)")
     out_dir = None if args.out is None else args.out.absolute()  # before the system file can change folder
@@ -102,7 +106,8 @@ def run(args: argparse.Namespace) -> int:
             out = Path(stack.enter_context(tempfile.TemporaryDirectory()))
         stack.enter_context(guarded(system_file(params.system)))
         with make_executor(args.workers, args.scheduler) as executor:
-            results = run_experiment(check, params, args.runs, args.seed, out, args.resume, executor)
+            results = run_experiment(check, params, args.runs, args.seed, out, args.resume, executor,
+                                     batch=args.batch)
         if args.out is not None:
             check.write_run_files(out, args.runs)
             from gpfverify.report.equivalence import write_equivalence_report

@@ -5,9 +5,10 @@ and the proofs, then render the verification report from the files they wrote
 Progress is one line per event with the elapsed time, on a terminal or not (``make report``, CI
 logs): each setting started, every tenth run saved (and at least every ten seconds), each proof,
 each page rendered; a heartbeat line says what is still running after
-:data:`HEARTBEAT_SECONDS` without news. Once work has been done, section and run lines end with
-the time the whole build has left (:class:`Eta`). The command ends with where the report is and the
-verdict counts."""
+:data:`HEARTBEAT_SECONDS` without news. Once this build has timed two runs of an experiment, its
+run lines end with the time that experiment's runs have left, from the pace measured (:class:`Eta`);
+nothing is estimated before that. The command ends with where the report is and the verdict
+counts."""
 
 from __future__ import annotations
 
@@ -53,22 +54,6 @@ CERTIFICATES = "certificates.json"
 HEARTBEAT_SECONDS = 20.0
 #: a run line at least this often while runs are being saved (besides every tenth run)
 RUN_LINE_SECONDS = 10.0
-#: seconds one run of each experiment's quick settings took (its interpretations' runs included),
-#: for the build's time left (:class:`Eta`); only their ratios count — the pace of the build itself
-#: scales them. Measured in one quick build (21 min 39 s) on a 2-core Intel Xeon under a load
-#: average of 13–20; an experiment without an entry counts as :data:`DEFAULT_RUN_SECONDS`.
-RUN_SECONDS: dict[str, float] = {
-    "moments": 7.0, "gpadf-scalar": 0.4, "ungm1d": 3.5, "ct2d": 2.4, "tbd": 6.2, "pff1d": 14.0, "bearing": 1.3,
-    "sins-gps": 72.0,
-}
-DEFAULT_RUN_SECONDS = 5.0
-#: seconds of the proofs section at the quick profile's small sizes (the full profile's large ones
-#: count :data:`LARGE_PROOFS` times as much, a guess) and of rendering the pages, on the same scale
-PROOF_SECONDS = 117.0
-LARGE_PROOFS = 10.0
-RENDER_SECONDS = 86.0
-
-
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--full", action="store_true",
                         help="the papers' run counts (hours) instead of the quick profile (minutes)")
@@ -88,51 +73,68 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 class Eta:
-    """The time the whole build has left: every item of work (a setting's runs with those of its
-    interpretations, the proofs, the rendering) weighed in :data:`RUN_SECONDS` and the like; the
-    work done so far in this build and the time it took give the pace, which turns the weight
-    still to do into seconds. Runs reused from an earlier build are work not left, not work done."""
+    """The time each experiment's runs have left in this build, from the pace this build measured:
+    the seconds between two runs of the experiment saved one after the other, times the runs of it
+    still to make (every setting's, with the interpretations' that run). A batch's first run is not
+    timed (it carries the start of the workers and the compilation of kernels), so an experiment has
+    an estimate from its second run saved on and none before: a guess is never shown. Runs reused
+    from an earlier build are runs not left."""
 
-    def __init__(self, planned: dict[str, float], clock: Callable[[], float] = time.monotonic):
-        self.left = dict(planned)
-        self.done = 0.0
+    def __init__(self, planned: dict[str, tuple[str, int]], clock: Callable[[], float] = time.monotonic):
+        #: item (an experiment's setting) -> its experiment, and its runs still to make
+        self.experiment = {item: experiment for item, (experiment, _) in planned.items()}
+        self.runs_left = {item: runs for item, (_, runs) in planned.items()}
         self.clock = clock
-        self.started = clock()
+        self.timed: dict[str, list[float]] = {}  # experiment -> [seconds timed, runs timed]
+        self.last: dict[str, float | None] = {}  # experiment -> when its last run was saved in this batch
 
-    def ran(self, item: str, weight: float) -> None:
-        """``weight`` of ``item`` was done (a run saved)."""
-        self.left[item] = max(0.0, self.left[item] - weight)
-        self.done += weight
+    def batch(self, experiment: str) -> None:
+        """A batch of the experiment's runs starts: its first run will not be timed."""
+        self.last[experiment] = None
 
-    def finished(self, item: str, ran: bool = False) -> None:
-        """``item`` is over; what was not done of it was reused (or, ``ran``, done now)."""
-        if ran:
-            self.done += self.left[item]
-        self.left[item] = 0.0
+    def ran(self, item: str) -> None:
+        """A run of ``item`` was saved."""
+        experiment = self.experiment[item]
+        now, last = self.clock(), self.last.get(experiment)
+        if last is not None:
+            timed = self.timed.setdefault(experiment, [0.0, 0])
+            timed[0] += now - last
+            timed[1] += 1
+        self.last[experiment] = now
+        self.runs_left[item] = max(0, self.runs_left[item] - 1)
 
-    def seconds_left(self) -> float | None:
-        """The estimate, or None before any work was done."""
-        if self.done <= 0:
+    def finished(self, item: str) -> None:
+        """``item`` is over: what was not run of it was reused."""
+        self.runs_left[item] = 0
+
+    def seconds_per_run(self, experiment: str) -> float | None:
+        """The measured pace, or None before two runs of the experiment were saved in one batch."""
+        seconds, runs = self.timed.get(experiment, (0.0, 0))
+        return seconds / runs if runs else None
+
+    def seconds_left(self, experiment: str) -> float | None:
+        """The experiment's runs still to make at its measured pace, or None before it has one."""
+        pace = self.seconds_per_run(experiment)
+        if pace is None:
             return None
-        return sum(self.left.values()) * (self.clock() - self.started) / self.done
+        return pace * sum(runs for item, runs in self.runs_left.items() if self.experiment[item] == experiment)
 
-    def suffix(self) -> str:
-        """`` (about 3 min 10 s left in all)`` for a progress line, or nothing yet."""
-        left = self.seconds_left()
-        return "" if left is None else f" (about {_duration(left)} left in all)"
+    def suffix(self, item: str) -> str:
+        """`` (ct2d: about 3 min 10 s of runs left)`` for a progress line, or nothing yet."""
+        experiment = self.experiment[item]
+        left = self.seconds_left(experiment)
+        return "" if left is None else f" ({experiment}: about {_duration(left)} of runs left)"
 
 
-def plan(ctx: ReportContext, selected: list[str]) -> dict[str, float]:
-    """The work of a build (:class:`Eta`): per setting, its runs and those of its interpretations
-    that run (a summary-only one reads the main runs) at :data:`RUN_SECONDS`; the proofs; the
-    rendering."""
+def plan(ctx: ReportContext, selected: list[str]) -> dict[str, tuple[str, int]]:
+    """The runs of a build (:class:`Eta`): per setting, its experiment and its runs with those of
+    its interpretations that run (a summary-only one reads the main runs)."""
     from gpfverify.papers import EXPERIMENTS
     from gpfverify.experiments.sensitivity import select, summary_only
 
-    work: dict[str, float] = {}
+    work: dict[str, tuple[str, int]] = {}
     for slug in selected:
         if slug == PROOFS:
-            work[PROOFS] = PROOF_SECONDS * (1.0 if ctx.quick else LARGE_PROOFS)
             continue
         for name in SECTION_EXPERIMENTS[slug]:
             module = importlib.import_module(EXPERIMENTS[name])
@@ -142,8 +144,7 @@ def plan(ctx: ReportContext, selected: list[str]) -> dict[str, float]:
                 specs = select(module, ",".join(profile.interpretations))
                 with_runs += sum(not summary_only(module, spec) for spec in specs)
             for setting in profile.settings:
-                work[f"{name}-{setting.tag}"] = profile.runs * with_runs * RUN_SECONDS.get(name, DEFAULT_RUN_SECONDS)
-    work["render"] = RENDER_SECONDS
+                work[f"{name}-{setting.tag}"] = (name, profile.runs * with_runs)
     return work
 
 
@@ -239,29 +240,33 @@ def run_section(ctx: ReportContext, slug: str, progress: Callable[[str], None], 
             step = max(1, profile.runs // 10)
             last = [time.monotonic(), 0.0]  # time of the last line, runs saved now
 
-            item, weight = folder, RUN_SECONDS.get(name, DEFAULT_RUN_SECONDS)
-
             def on_run(done: int, total: int, where: str = where, step: int = step, last: list = last,
-                       item: str = item, weight: float = weight) -> None:
+                       item: str = folder) -> None:
                 now = time.monotonic()
                 last[1] += 1
-                eta.ran(item, weight)
+                eta.ran(item)
                 if done == total or done % step == 0 or now - last[0] >= RUN_LINE_SECONDS:
-                    progress(f"{where}: run {done} of {total} saved{eta.suffix()}")
+                    progress(f"{where}: run {done} of {total} saved{eta.suffix(item)}")
                     last[0] = now
 
             with make_executor(ctx.workers) as executor:
+                eta.batch(name)
                 run_experiment(module, setting.params, profile.runs, ctx.seed, run_dir, resume=True,
                                executor=executor, show_progress=False, on_run=on_run)
                 if profile.interpretations:
                     progress(f"{where}: interpretations {', '.join(profile.interpretations)}")
+                    current = [""]
 
-                    def named(spec: str, done: int, total: int, where: str = where) -> None:
+                    def named(spec: str, done: int, total: int, where: str = where, current: list = current,
+                              name: str = name) -> None:
+                        if spec != current[0]:  # a new batch: the summary of the last one is not a run's time
+                            current[0] = spec
+                            eta.batch(name)
                         on_run(done, total, where=f"{where}, interpretation {spec}")
 
                     run_interpretations(module, setting.params, select(module, ",".join(profile.interpretations)),
                                         profile.runs, ctx.seed, run_dir, executor, on_run=named)
-            eta.finished(item)
+            eta.finished(folder)
             if not last[1]:
                 progress(f"{where}: every run saved by an earlier build with the same settings, reused")
             entries.append(RunEntry(name, setting.label, setting.tag, f"{folder}/run/results.json"))
@@ -321,13 +326,12 @@ def build(ctx: ReportContext, only: list[str] | None, progress: Progress) -> Pat
     selected = [s for s in SECTIONS if not only or s in only]
     eta = Eta(plan(ctx, selected))
     for number, slug in enumerate(selected, 1):
-        progress(f"section {number} of {len(selected)}: {slug}{eta.suffix()}")
+        progress(f"section {number} of {len(selected)}: {slug}")
         if slug == PROOFS:
             run_proofs(ctx, progress)
-            eta.finished(PROOFS, ran=True)
         else:
             run_section(ctx, slug, progress, eta)
-    progress(f"rendering the pages{eta.suffix()}")
+    progress("rendering the pages")
     return build_report(ctx.out_dir, only, progress)
 
 

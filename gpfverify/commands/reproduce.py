@@ -40,7 +40,7 @@ def quick_runs(module) -> int:
 
 
 def add_common_arguments(parser: argparse.ArgumentParser, default_runs: int, paper_runs: int | None = None) -> None:
-    from gpfverify.cli import non_negative_int, positive_int
+    from gpfverify.cli import BATCH_HELP, non_negative_int, positive_int
 
     paper_runs = default_runs if paper_runs is None else paper_runs
     parser.add_argument("--runs", type=positive_int, default=None,
@@ -59,7 +59,9 @@ def add_common_arguments(parser: argparse.ArgumentParser, default_runs: int, pap
                         help="local worker processes, >= 1 (BLAS pinned to 1 thread each; default 1); "
                              "results are the same for any number")
     parser.add_argument("--scheduler", default=None, metavar="ADDRESS",
-                        help="dask.distributed scheduler address (needs gpfverify[cluster])")
+                        help="dask.distributed scheduler address (needs gpfverify[cluster]; docs/cluster.md "
+                             "says how to start one)")
+    parser.add_argument("--batch", type=positive_int, default=None, metavar="B", help=BATCH_HELP)
     parser.add_argument("--interpretations", default=None, metavar="NAMES",
                         help="also run the experiment under these interpretations of what the paper leaves "
                              "unstated ('all' or comma-separated names), in OUT/interpretations/NAME, and record "
@@ -214,12 +216,13 @@ def run(args: argparse.Namespace) -> int:
     with output_folder(opts.out, keep=True, wait=opts.wait) as stage, \
             make_executor(opts.workers, opts.scheduler) as executor:
         results = run_experiment(module, params, runs, opts.seed, stage, opts.resume, executor,
-                                 on_run=None if terminal else progress_lines(args.experiment, say, header))
+                                 on_run=None if terminal else progress_lines(args.experiment, say, header),
+                                 batch=opts.batch)
         if specs:
             say(f"{args.experiment}: interpretations {', '.join(s.name for s in specs)}")
             results = run_interpretations(module, params, specs, runs, opts.seed, stage, executor,
                                           on_run=None if terminal else interpretation_lines(args.experiment, say),
-                                          interpretation_runs=opts.interpretation_runs)
+                                          interpretation_runs=opts.interpretation_runs, batch=opts.batch)
     print(f"{args.experiment}: {results['runs_ok']} of {results['runs']} runs ok -> {opts.out / 'results.json'}",
           file=diagnostics() if results["failed_runs"] else sys.stdout)
     print(claims_text(results))

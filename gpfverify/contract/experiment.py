@@ -12,6 +12,13 @@ An experiment module (listed in :data:`gpfverify.papers.EXPERIMENTS`) defines
   back through the same type);
 * ``run_one(params, seed_sequence) -> RunRecord`` — one independent run (a picklable top-level
   function);
+* optionally ``run_batch(params, seed_sequences) -> list[RunRecord]`` — the same runs advancing
+  together; ``run_batch(p, seeds)[i]`` is the same bits for every way of splitting the runs into
+  batches (``run_batch(p, [seeds[i]])[0]`` included) in every non-timing field, equals ``run_one``
+  to :data:`~gpfverify.tolerances.PER_RUN_RTOL`, and each run consumes its own stream in an order that
+  does not depend on the batch. The runner then always uses it (``--batch`` never changes a result);
+  ``batch_run_bytes(params) -> int``, the working memory of one run in a batch, sets the default
+  batch size (:func:`gpfverify.experiments.runner.default_batch`);
 * ``summarize(params, records) -> dict`` — the ``results.json`` body from the successful runs, in
   run order, with its ``"claims"`` (a list of :class:`~gpfverify.contract.claims.ClaimRecord` as JSON);
 * optionally ``TIMING_KEYS`` — names of measured-time fields that :data:`TIMING_KEY` does not match.

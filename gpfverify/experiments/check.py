@@ -20,6 +20,7 @@ from independent child streams of its seed.
 from __future__ import annotations
 
 from collections.abc import Sequence
+from dataclasses import dataclass
 from typing import Any
 from pathlib import Path
 
@@ -32,12 +33,12 @@ from gpfverify.errors import CaseFileError, InputError
 from gpfverify.filters.families import GP_FAMILIES
 from gpfverify.filters.records import Gaussian
 from gpfverify.audit.case import rank_rule_to_dict
-from gpfverify.fusion.case import case_to_dict
+from gpfverify.fusion.case import cases_to_dicts
 from gpfverify.fusion.caseblock import case_from_dict
 from gpfverify.fusion.exactness import gap_size, parse_rank_rule
-from gpfverify.model_fusion import run_fusion
+from gpfverify.model_fusion import run_fusion, run_fusion_batch
 from gpfverify.audit.runfile import write_run
-from gpfverify.models import fit_gp_model, learn_gp_model
+from gpfverify.models import batch_gp_models, fit_gp_model, learn_gp_model
 from gpfverify.rng import generator
 from gpfverify.systems import load_system, split_spec
 from gpfverify.userfiles import read_npz
@@ -133,22 +134,130 @@ def _gp_model(model, params: Params, rng: np.random.Generator):
                         circular_state=model.circular_state)
 
 
-def run_one(params: Params, seed: np.random.SeedSequence) -> RunRecord:
-    """One run of the check (module docstring)."""
-    model = load_system(params.system)
-    data_rng, train_rng = (generator(s) for s in seed.spawn(2))
+def _run_inputs(params: Params, model, seed: np.random.SeedSequence):
+    """(truth or None, measurements, the model the run's filters use) of one run: its measurements
+    and training data from independent child streams of its seed."""
+    # the first two children of the run's seed, built explicitly (the streams seed.spawn(2) gives a
+    # fresh seed): spawn() would depend on the seed's earlier spawns
+    data_rng, train_rng = (generator(np.random.SeedSequence(seed.entropy, spawn_key=(*seed.spawn_key, i)))
+                           for i in range(2))
     truth: np.ndarray | None
     if params.measurements is None:
         truth, ys = model.simulate(params.steps, data_rng)
     else:
         truth, ys = logged_measurements(params.measurements, model)
-    prior = Gaussian(model.prior_mean, model.prior_cov)
     fusion_model = _gp_model(model, params, train_rng) if params.filter in GP_FAMILIES else model
+    return truth, ys, fusion_model
+
+
+def run_one(params: Params, seed: np.random.SeedSequence) -> RunRecord:
+    """One run of the check (module docstring)."""
+    model = load_system(params.system)
+    truth, ys, fusion_model = _run_inputs(params, model, seed)
+    prior = Gaussian(model.prior_mean, model.prior_cov)
     fused = run_fusion(fusion_model, ys, family=params.filter, methods=params.methods,
                        rank_rule=params.rank_rule, ci_criterion=params.ci_criterion,
                        local_priors=[prior] * len(model.sensors),
                        fused_prior=prior)
-    return _record(model, fused, ys, truth)
+    return _record(model, fused, ys, truth, _measures(model, fused, ys, truth))
+
+
+def run_batch(params: Params, seeds: Sequence[np.random.SeedSequence]) -> list[RunRecord]:
+    """:func:`run_one` of every seed, the runs' filters, fusion and audits advancing together
+    (:func:`~gpfverify.model_fusion.run_fusion_batch`); each run draws its data from its own
+    streams, and a GP family learns each run's GPs on their own (per-run L-BFGS), as in :func:`run_one`."""
+    model = load_system(params.system)
+    inputs = [_run_inputs(params, model, seed) for seed in seeds]
+    ys = np.stack([i[1] for i in inputs])
+    truths = None if inputs[0][0] is None else np.stack([i[0] for i in inputs])
+    fusion_model = batch_gp_models([i[2] for i in inputs]) if params.filter in GP_FAMILIES else model
+    prior = Gaussian(model.prior_mean, model.prior_cov)
+    fused = run_fusion_batch(fusion_model, ys, family=params.filter, methods=params.methods,
+                             rank_rule=params.rank_rule, ci_criterion=params.ci_criterion,
+                             local_priors=[prior] * len(model.sensors), fused_prior=prior)
+    measures = _measures_batch(model, fused, ys, truths)
+    return [_record(model, run, ys[b], None if truths is None else truths[b], measures[b])
+            for b, run in enumerate(fused)]
+
+
+@dataclass(frozen=True)
+class StepMeasures:
+    """One run's normalised errors and gap sizes per step, which its record reports: the NIS of CMF
+    and of each sensor's local filter, with the truth the NEES of every method (per step where it
+    fused) and of each local filter, and the repaired and the recursive DMF − CMF gaps in prior
+    standard deviations (:func:`~gpfverify.fusion.exactness.gap_size`)."""
+
+    nis_cmf: list[float]
+    nis_local: list[list[float]]
+    nees: dict[str, dict[int, float]] | None
+    local_nees: list[list[float]] | None
+    repaired_gap_size: list[float]
+    recursive_gap_size: list[float]
+
+
+def _measures(model, fused, ys: np.ndarray, truth: np.ndarray | None) -> StepMeasures:
+    """:class:`StepMeasures` of one run (module docstring: the per-step definitions)."""
+    errors = _normalised_errors(model, fused, ys, truth)
+    repaired, recursive = [], []
+    for step in fused.steps:
+        audit = step.audit
+        repaired.append(gap_size(step.dmf.case, difference(audit.repaired_dmf_mean, audit.cmf_mean,
+                                                           model.circular_state)))
+        recursive.append(gap_size(step.dmf.case, difference(step.estimate("dmf").mean, step.estimate("cmf").mean,
+                                                            model.circular_state)))
+    return StepMeasures([float(v) for v in errors["nis"]["cmf"]],
+                        [[float(x) for x in v] for v in errors["nis"]["local"]],
+                        {m: {int(t): float(x) for t, x in v.items()} for m, v in errors["nees"].items()}
+                        if truth is not None else None,
+                        [[float(x) for x in v] for v in errors["local_nees"]] if truth is not None else None,
+                        repaired, recursive)
+
+
+def _measures_batch(model, runs: Sequence, ys: np.ndarray, truths: np.ndarray | None) -> list[StepMeasures]:
+    """:class:`StepMeasures` of B runs, each measure computed over the runs and steps at once
+    (the same formulas as :func:`_measures`, stacked: :class:`~gpfverify.consistency.Consistency`
+    takes runs × steps, the gaps are whitened by every step's equilibrated factor of C_p)."""
+    from gpfverify.audit.blockexactness import apply, equilibrated, solve_lower
+
+    steps = [run.steps for run in runs]
+    stacked = lambda get: np.array([[get(s) for s in run] for run in steps])  # noqa: E731
+    nis_cmf = Consistency.nis(ys, stacked(lambda s: s.cmf.mu_y), stacked(lambda s: s.cmf.C_y),
+                              circular=model.circular).values
+    nis_local = [Consistency.nis(ys[:, :, b], stacked(lambda s, m=m: s.local[m].mu_y),
+                                 stacked(lambda s, m=m: s.local[m].C_y), circular=sensor.circular).values
+                 for m, (b, sensor) in enumerate(zip(model.blocks, model.sensors))]
+    c_p = stacked(lambda s: s.dmf.case.central.C_p)
+    count, length, dim = c_p.shape[:3]
+    d, factor = equilibrated(c_p.reshape(-1, dim, dim))
+    inverse = solve_lower(factor, np.broadcast_to(np.eye(dim), factor.shape) / d[:, :, None])  # L_p⁻¹
+
+    def sizes(first, second) -> np.ndarray:
+        diff = difference(stacked(first), stacked(second), model.circular_state).reshape(-1, dim)
+        return np.linalg.norm(apply(inverse, diff), axis=1).reshape(count, length)
+
+    repaired = sizes(lambda s: s.audit.repaired_dmf_mean, lambda s: s.audit.cmf_mean)
+    recursive = sizes(lambda s: s.estimate("dmf").mean, lambda s: s.estimate("cmf").mean)
+    nees: list[dict[str, dict[int, float]] | None] = [None] * count
+    local_nees = None
+    if truths is not None:
+        methods = runs[0].methods
+        fused_by = {m: stacked(lambda s, m=m: m not in s.failed) for m in methods}
+        values = {}
+        for m in methods:
+            ok = fused_by[m]
+            mean = stacked(lambda s, m=m: s.estimate(m).mean if m not in s.failed else np.zeros(dim))
+            cov = stacked(lambda s, m=m: s.estimate(m).cov if m not in s.failed else np.eye(dim))
+            values[m] = np.where(ok, Consistency.from_estimates(truths, mean, cov,
+                                                                circular_state=model.circular_state).values, np.nan)
+        nees = [{m: {t: float(values[m][b, t]) for t in range(length) if fused_by[m][b, t]} for m in methods}
+                for b in range(count)]
+        local_nees = [Consistency.from_estimates(truths, stacked(lambda s, m=m: s.local[m].mu_e),
+                                                 stacked(lambda s, m=m: s.local[m].C_e),
+                                                 circular_state=model.circular_state).values
+                      for m in range(len(model.sensors))]
+    return [StepMeasures(nis_cmf[b].tolist(), [v[b].tolist() for v in nis_local], nees[b],
+                         None if local_nees is None else [v[b].tolist() for v in local_nees],
+                         repaired[b].tolist(), recursive[b].tolist()) for b in range(count)]
 
 
 def _normalised_errors(model, fused, ys: np.ndarray, truth: np.ndarray | None) -> dict:
@@ -172,23 +281,27 @@ def _normalised_errors(model, fused, ys: np.ndarray, truth: np.ndarray | None) -
     return out
 
 
-def _record(model, fused, ys: np.ndarray, truth: np.ndarray | None) -> RunRecord:
-    errors = _normalised_errors(model, fused, ys, truth)
+def _record(model, fused, ys: np.ndarray, truth: np.ndarray | None, measures: StepMeasures) -> RunRecord:
     steps = []
+    cases = cases_to_dicts([step.dmf.case for step in fused.steps])
+    audits = [step.audit for step in fused.steps]
+    # the per-step vectors turned into lists once per run (a numpy call per field, not per step)
+    listed = {name: np.array([get(a) for a in audits]).tolist() for name, get in (
+        ("cmf_mean", lambda a: a.cmf_mean), ("dmf_mean", lambda a: a.dmf_mean), ("gap", lambda a: a.gap))}
+    local_means = np.array([[r.mu_e for r in step.local] for step in fused.steps]).tolist()
+    truths = None if truth is None else np.asarray(truth).tolist()
     for t, step in enumerate(fused.steps):
-        audit = step.audit
-        fused_by = [m for m in fused.methods if m not in step.failed]
+        audit = audits[t]
+        estimates = {m: step.estimate(m) for m in fused.methods if m not in step.failed}
         entry = {
-            "k": step.k, "cmf_mean": audit.cmf_mean.tolist(), "dmf_mean": audit.dmf_mean.tolist(),
-            "gap": audit.gap.tolist(), "gap_norm": float(np.linalg.norm(audit.gap)),
+            "k": step.k, "cmf_mean": listed["cmf_mean"][t], "dmf_mean": listed["dmf_mean"][t],
+            "gap": listed["gap"][t], "gap_norm": float(np.linalg.norm(audit.gap)),
             "predicted_gap_norm": float(np.linalg.norm(audit.predicted_gap)),
             "gap_size": float(audit.gap_size), "gap_bound": float(audit.gap_bound),
             "repaired_gap_norm": float(np.linalg.norm(audit.repaired_dmf_mean - audit.cmf_mean)),
-            "repaired_gap_size": gap_size(step.dmf.case, difference(audit.repaired_dmf_mean, audit.cmf_mean,
-                                                                    model.circular_state)),
-            "recursive_gap_norm": float(np.linalg.norm(step.estimate("dmf").mean - step.estimate("cmf").mean)),
-            "recursive_gap_size": gap_size(step.dmf.case, difference(step.estimate("dmf").mean,
-                                                                     step.estimate("cmf").mean, model.circular_state)),
+            "repaired_gap_size": measures.repaired_gap_size[t],
+            "recursive_gap_norm": float(np.linalg.norm(estimates["dmf"].mean - estimates["cmf"].mean)),
+            "recursive_gap_size": measures.recursive_gap_size[t],
             "unit_dependence": audit.unit_dependence,
             "condition_holds": bool(audit.condition_holds), "exact": bool(audit.exact),
             "sensors": [{"index": s.index, "rank": int(s.rank), "cols": s.cols,
@@ -202,26 +315,26 @@ def _record(model, fused, ys: np.ndarray, truth: np.ndarray | None) -> RunRecord
                                                        else float(s.canonical_correlations.min())),
                          "branch_offsets": s.branch_offsets.tolist(),
                          "branch_offset_count": int(np.count_nonzero(s.branch_offsets))} for s in audit.sensors],
-            "means": {m: step.estimate(m).mean.tolist() for m in fused_by},
-            "covs": {m: step.estimate(m).cov.tolist() for m in fused_by},
+            "means": {m: e.mean.tolist() for m, e in estimates.items()},
+            "covs": {m: e.cov.tolist() for m, e in estimates.items()},
             "repaired_mean": (audit.repaired_dmf_mean.tolist() if audit.repaired_dmf_mean is not None
                               and any(s.repair_dim for s in audit.sensors) else None),
             "failed": dict(step.failed),
-            "local_means": [r.mu_e.tolist() for r in step.local],
+            "local_means": local_means[t],
             "seconds": {**step.seconds, "local": list(step.local_seconds)},
-            "nis": {"cmf": float(errors["nis"]["cmf"][t]),
-                    "local": [float(v[t]) for v in errors["nis"]["local"]]},
-            "case": case_to_dict(step.dmf.case),
+            "nis": {"cmf": measures.nis_cmf[t], "local": [v[t] for v in measures.nis_local]},
+            "case": cases[t],
         }
-        if truth is not None:
+        if truth is not None and truths is not None:
             x = truth[t]
-            entry["truth"] = x.tolist()
-            entry["sq_err"] = {m: float(np.sum(difference(x, step.estimate(m).mean, model.circular_state) ** 2))
-                               for m in fused_by}
-            entry["nees"] = {m: float(v[t]) for m, v in errors["nees"].items() if t in v}
+            entry["truth"] = truths[t]
+            entry["sq_err"] = {m: float(np.sum(difference(x, e.mean, model.circular_state) ** 2))
+                               for m, e in estimates.items()}
+            assert measures.nees is not None and measures.local_nees is not None  # measured with the truth
+            entry["nees"] = {m: v[t] for m, v in measures.nees.items() if t in v}
             entry["local_sq_err"] = [float(np.sum(difference(x, r.mu_e, model.circular_state) ** 2))
                                      for r in step.local]
-            entry["local_nees"] = [float(v[t]) for v in errors["local_nees"]]
+            entry["local_nees"] = [v[t] for v in measures.local_nees]
         steps.append(entry)
     return RunRecord(truth is not None, tuple(steps))
 
@@ -383,6 +496,6 @@ def results_of_run(fused, truth: np.ndarray | None = None, system: str = "") -> 
     rule = fused.steps[0].audit.rank_rule
     params = Params(system=system, filter=fused.family, steps=len(fused.steps), methods=fused.methods,
                     rank_rule=rule.spec, ci_criterion=fused.ci_criterion)
-    record = _record(fused.model, fused, fused.ys, truth)
+    record = _record(fused.model, fused, fused.ys, truth, _measures(fused.model, fused, fused.ys, truth))
     return {"experiment": NAME, "runs": 1, "seed": None, "runs_ok": 1, "failed_runs": [], "params": params.to_json(),
             **summarize(params, [record], fused.model)}

@@ -26,6 +26,7 @@
 from __future__ import annotations
 
 import contextlib
+import functools
 import importlib
 import itertools
 import json
@@ -36,9 +37,10 @@ import time
 import traceback
 import warnings
 from concurrent.futures import FIRST_COMPLETED, BrokenExecutor, Executor, Future, ProcessPoolExecutor, wait
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from pathlib import Path
 from types import ModuleType
+from typing import Any
 
 import numpy as np
 
@@ -285,44 +287,114 @@ def _start_worker(parent_pid: int, seconds: float | None = None) -> None:
     signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT})
 
 
-def _in_flight_limit(executor: Executor) -> int:
-    """How many runs to keep submitted at once: two per local worker process (so none idles), one
-    for the serial executor, and many for a cluster executor whose size is not known here."""
+def _local_workers(executor: Executor) -> int | None:
+    """The executor's worker processes: 1 for the serial executor, the pool's size for a local
+    pool, None for a cluster executor whose size is not known here."""
     if isinstance(executor, SerialExecutor):
         return 1
-    workers = getattr(executor, "_max_workers", None)
-    return 2 * workers if workers else 1024
+    return getattr(executor, "_max_workers", None)
 
 
-def _execute(module_name: str, params: Params, seed: np.random.SeedSequence, index: int) -> dict:
-    """One run, never raising: the record saved under ``runs/``."""
+def _in_flight_limit(executor: Executor) -> int:
+    """How many batches to keep submitted at once: two per local worker process (so none idles),
+    one for the serial executor, and many for a cluster executor whose size is not known here."""
+    workers = _local_workers(executor)
+    return 1 if workers == 1 else 2 * workers if workers else 1024
+
+
+def _execute(module_name: str, params: Params, seed_entropy: int, indices: Sequence[int]) -> list[dict]:
+    """The runs ``indices`` of one batch, never raising: one record per run, as saved under ``runs/``.
+
+    With the experiment's ``run_batch`` the runs advance together (each on its own seed stream,
+    :func:`run_seed`); should the batch raise, each of its runs is run again alone (``run_batch`` of
+    one, the same bits as in any batch), so that a failing run is recorded with its own error and
+    the others are kept. Without ``run_batch``, ``run_one`` runs each in turn. A run's ``seconds`` is
+    the batch's wall time divided by its size; its warnings (numpy's floating-point ones, kept with
+    the runs instead of printed by whichever process ran them) are those of its batch."""
     module = importlib.import_module(module_name)
+    seeds = [run_seed(seed_entropy, i) for i in indices]
+    batched = getattr(module, "run_batch", None)
+    spec = getattr(params, "system", None)  # check: the user's system file; print() to stderr, exits reported
+    label = system_file(spec) if spec else f"the code run by {module.NAME}"
     start = time.perf_counter()
-    record = {"index": index, "seed_entropy": str(seed.entropy), "spawn_key": list(seed.spawn_key)}
-    # warnings (numpy's floating-point ones) are kept with the run instead of printed by whichever
-    # process ran it; filters set to "error" (as in the test suite) still raise
     with warnings.catch_warnings(record=True) as caught:
-        try:
-            spec = getattr(params, "system", None)  # check: the user's system file; print() to stderr, exits reported
-            with guarded(system_file(spec) if spec else f"the code run by {module.NAME}"):
-                record["result"] = to_json(module.run_one(params, seed))
-            record["status"] = "ok"
-        except UserCodeError:  # the user's code tried to end the process (or to stop it): the command stops
-            raise
-        except Exception as exc:  # noqa: BLE001 - recorded, counted, reported
-            if interrupt_received():  # a Ctrl-C that compiled code turned into another error: not the run's
-                raise Interrupted from None
-            memory = out_of_memory(exc)
-            if memory is not None:  # the machine's fault, not the run's: the command stops, --resume continues
-                raise OutOfMemory(memory) from None
-            record["status"] = "error"
-            record["error"] = f"{type(exc).__name__}: {exc}"
-            record["traceback"] = traceback.format_exc(limit=8)
-    if caught:
-        record["warnings"] = sorted({f"{w.category.__name__}: {w.message}" for w in caught})
-    record["seconds"] = time.perf_counter() - start
-    record["machine_load"] = machine_load()
-    return record
+        outcomes: list[tuple[str, Any]] = []
+        if batched is not None and len(seeds) > 1:
+            outcomes = _attempt(label, lambda: batched(params, seeds))
+        if not outcomes or outcomes[0][0] == "error":  # one by one: each run's own error
+            outcomes = [_attempt(label, functools.partial(_one_run, module, params, seed))[0] for seed in seeds]
+    seconds = (time.perf_counter() - start) / len(seeds)
+    load = machine_load()
+    records = []
+    for index, seed, (status, value) in zip(indices, seeds, outcomes):
+        record: dict[str, Any] = {"index": index, "seed_entropy": str(seed.entropy), "spawn_key": list(seed.spawn_key)}
+        if status == "ok":
+            record["result"], record["status"] = value, "ok"
+        else:
+            record["status"], (record["error"], record["traceback"]) = "error", value
+        if caught:
+            record["warnings"] = sorted({f"{w.category.__name__}: {w.message}" for w in caught})
+        record["seconds"] = seconds
+        record["batch_size"] = len(seeds)
+        record["machine_load"] = load
+        records.append(record)
+    return records
+
+
+def _one_run(module: ModuleType, params: Params, seed: np.random.SeedSequence) -> list:
+    """Run ``seed`` alone: the experiment's ``run_batch`` of one when it has one (the same bits as in
+    any batch), else its ``run_one``."""
+    batched = getattr(module, "run_batch", None)
+    return batched(params, [seed]) if batched is not None else [module.run_one(params, seed)]
+
+
+def _attempt(label: str, fn: Callable[[], list]) -> list[tuple[str, Any]]:
+    """``[("ok", run record as JSON), …]`` for the runs ``fn`` returns, or ``[("error", (message,
+    traceback))]`` when it raises; the user's code trying to end the process stops the command."""
+    try:
+        with guarded(label):
+            return [("ok", to_json(record)) for record in fn()]
+    except UserCodeError:  # the user's code tried to end the process (or to stop it): the command stops
+        raise
+    except Exception as exc:  # noqa: BLE001 - recorded, counted, reported
+        if interrupt_received():  # a Ctrl-C that compiled code turned into another error: not the run's
+            raise Interrupted from None
+        memory = out_of_memory(exc)
+        if memory is not None:  # the machine's fault, not the run's: the command stops, --resume continues
+            raise OutOfMemory(memory) from None
+        return [("error", (f"{type(exc).__name__}: {exc}", traceback.format_exc(limit=8)))]
+
+
+#: the largest batch the runner chooses by itself: beyond it a batch's arrays outgrow the caches and
+#: the time per run stops falling (benchmarks/results/batch.md), while a crash loses more runs
+MAX_DEFAULT_BATCH = 64
+#: the working memory of one run in a batch when the experiment does not state its own
+#: (``batch_run_bytes``)
+DEFAULT_RUN_BYTES = 32 << 20
+
+
+def check_batch(batch) -> int:
+    """``batch`` as a batch size: an integer >= 1 (InputError otherwise)."""
+    if isinstance(batch, bool) or not isinstance(batch, int) or batch < 1:
+        raise InputError(f"--batch must be an integer >= 1, got {batch!r}")
+    return batch
+
+
+def default_batch(module: ModuleType, params: Params, pending: int, workers: int | None) -> int:
+    """Runs per batch when ``--batch`` is not given: 1 for an experiment without ``run_batch``;
+    else as many as the memory available holds for every worker at once (the experiment's
+    ``batch_run_bytes(params)`` per run, :func:`gpfverify.userfiles.memory_budget`), at most
+    :data:`MAX_DEFAULT_BATCH`, and no more than gives every local worker a batch of the ``pending``
+    runs. Results do not depend on it."""
+    from gpfverify.userfiles import memory_budget
+
+    if not hasattr(module, "run_batch"):
+        return 1
+    sizer = getattr(module, "batch_run_bytes", None)
+    per_run = max(1, int(sizer(params)) if sizer is not None else DEFAULT_RUN_BYTES)
+    fits = memory_budget() // (per_run * (workers or 1))
+    spread = -(-pending // workers) if workers else pending
+    return max(1, min(MAX_DEFAULT_BATCH, fits, spread))
 
 
 def _atomic_write_json(path: Path, obj) -> None:
@@ -393,16 +465,21 @@ def _progress(enabled: bool):
 def run_experiment(module: ModuleType | str, params: Params, runs: int, seed: int, out_dir: Path,
                    resume: bool = False, executor: Executor | None = None,
                    show_progress: bool | None = None,
-                   on_run: Callable[[int, int], None] | None = None) -> dict:
+                   on_run: Callable[[int, int], None] | None = None, batch: int | None = None) -> dict:
     """Run (or finish) ``runs`` Monte Carlo runs of an experiment and write ``results.json``.
 
     ``params`` is the experiment's ``Params`` (see :mod:`gpfverify.contract.experiment`);
     ``on_run(saved, runs)`` is called after every saved run (progress off a terminal);
-    ``show_progress`` draws rich's progress bar (default: on a terminal and in a Jupyter notebook)."""
+    ``show_progress`` draws rich's progress bar (default: on a terminal and in a Jupyter notebook);
+    ``batch`` the runs each task advances together (default :func:`default_batch`): the runs still to
+    do, in order, are cut into batches, each batch is one task for the executor (a worker process or
+    a dask cluster receives batches, not runs), and each of its runs is saved as it comes back."""
     module = importlib.import_module(module) if isinstance(module, str) else module
     name = module.NAME
     check_run_count(runs)
     check_seed(seed)
+    if batch is not None:
+        check_batch(batch)
     check_runs_fit(runs)
     out_dir = Path(out_dir)
     for folder in (out_dir, out_dir / "runs"):
@@ -425,32 +502,34 @@ def run_experiment(module: ModuleType | str, params: Params, runs: int, seed: in
         progress = stack.enter_context(_progress(show))
         task = progress.add_task(name, total=runs, completed=runs - len(pending), rate="") if progress else None
         started = time.perf_counter()
-        queue = iter(pending)
+        size = batch or default_batch(module, run_params, len(pending), _local_workers(executor))
+        queue = iter([pending[i:i + size] for i in range(0, len(pending), size)])
         in_flight: set[Future] = set()
         limit = _in_flight_limit(executor)
         n_done = 0
         try:
             while True:
-                # submit lazily so each run is saved as soon as it finishes, whatever the executor
-                for i in itertools.islice(queue, max(0, limit - len(in_flight))):
-                    in_flight.add(executor.submit(_execute, module.__name__, run_params, run_seed(seed, i), i))
+                # submit lazily so each batch's runs are saved as soon as it finishes, whatever the executor
+                for indices in itertools.islice(queue, max(0, limit - len(in_flight))):
+                    in_flight.add(executor.submit(_execute, module.__name__, run_params, seed, indices))
                 if not in_flight:
                     break
                 done, in_flight = wait(in_flight, return_when=FIRST_COMPLETED)
                 for future in done:
                     try:
-                        record = future.result()
+                        records = future.result()
                     except BrokenExecutor:
                         lost = WorkerLost("a worker process ended abruptly (killed by a signal or out of memory)")
                         lost.add_note(_finished_note(out_dir, runs))
                         raise lost from None
-                    _atomic_write_json(_run_path(out_dir, record["index"]), record)
-                    n_done += 1
-                    if on_run is not None:
-                        on_run(runs - len(pending) + n_done, runs)
+                    for record in records:
+                        _atomic_write_json(_run_path(out_dir, record["index"]), record)
+                        n_done += 1
+                        if on_run is not None:
+                            on_run(runs - len(pending) + n_done, runs)
                     if progress:
                         rate = n_done / max(time.perf_counter() - started, 1e-9)
-                        progress.update(task, advance=1, rate=f"{rate:.2f} runs/s")
+                        progress.update(task, advance=len(records), rate=f"{rate:.2f} runs/s")
         except BaseException as exc:
             if isinstance(exc, KeyboardInterrupt) or interrupt_received():  # the Ctrl-C may arrive as another error
                 for f in in_flight:
@@ -489,13 +568,17 @@ def machine_load() -> dict:
 
 def runs_machine_load(records: list[dict]) -> dict:
     """The load the runs met: the median of each load average over the runs that recorded one
-    (at their end), the largest core count among them and how many runs recorded a load. Runs
+    (at their end), the largest core count among them and how many runs recorded a load; and how the
+    runs were batched (the largest batch, and how many runs shared a batch with others: their
+    methods' times per step are the batch's divided by its size). Runs
     saved before runs recorded their load give an empty ``load_average`` (unknown), never the load
     at the time ``results.json`` is recomputed."""
     loads = [r["machine_load"] for r in records if len((r.get("machine_load") or {}).get("load_average") or []) == 3]
     average = [round(float(v), 2) for v in np.median([m["load_average"] for m in loads], axis=0)] if loads else []
     cpus = max((m["cpus"] for m in loads if isinstance(m.get("cpus"), int)), default=None)
-    return {"load_average": average, "cpus": cpus, "runs_measured": len(loads)}
+    sizes = [r["batch_size"] for r in records if isinstance(r.get("batch_size"), int)]
+    return {"load_average": average, "cpus": cpus, "runs_measured": len(loads),
+            "largest_batch": max(sizes, default=1), "runs_batched": sum(size > 1 for size in sizes)}
 
 
 def _well_formed(record, index: int) -> bool:
@@ -552,6 +635,16 @@ def timing_keys(module: ModuleType, body) -> list[str]:
 
     walk(body)
     return sorted(found)
+
+
+def untimed(value):
+    """``value`` (a run record as JSON, or any part of one) without the keys, at any depth, that
+    :data:`TIMING_KEY` matches: what must be the same bits for every batch, worker and scheduler."""
+    if isinstance(value, dict):
+        return {k: untimed(v) for k, v in value.items() if not TIMING_KEY.search(str(k))}
+    if isinstance(value, (list, tuple)):
+        return [untimed(v) for v in value]
+    return value
 
 
 def without_timing(results: dict) -> dict:

@@ -151,12 +151,13 @@ def _merged_on_equal_counts(module: ModuleType, run_dir: Path, main: dict,
 def run_interpretations(module: ModuleType, params: Params, specs: Sequence[InterpretationSpec], runs: int,
                         seed: int, out_dir: Path, executor: Executor,
                         on_run: Callable[[str, int, int], None] | None = None,
-                        interpretation_runs: int | None = None) -> dict:
+                        interpretation_runs: int | None = None, batch: int | None = None) -> dict:
     """Run every interpretation next to the main run in ``out_dir`` (which must hold its
     ``results.json``; a summary-only one reads the main run's runs, :func:`summary_results`) and
     rewrite that file with the merged claims; returns it. ``interpretation_runs``: the runs of each
     interpretation with runs of its own (default ``runs``); on fewer runs than the main run, each
-    claim's verdict under it is compared with the main run's on as many (its first) runs.
+    claim's verdict under it is compared with the main run's on as many (its first) runs. ``batch``:
+    runs advanced together (:func:`~gpfverify.experiments.runner.run_experiment`).
     ``on_run(name, saved, runs)`` after every run saved, with the interpretation's name."""
     from gpfverify.experiments.runner import _atomic_write_json, run_experiment
 
@@ -172,7 +173,8 @@ def run_interpretations(module: ModuleType, params: Params, specs: Sequence[Inte
         changed = params.replace(**spec.changes)
         results = run_experiment(module, changed, interpretation_runs or runs, seed,
                                  Path(out_dir) / "interpretations" / spec.name, resume=True, executor=executor,
-                                 on_run=None if on_run is None else functools.partial(on_run, spec.name))
+                                 on_run=None if on_run is None else functools.partial(on_run, spec.name),
+                                 batch=batch)
         tried.append((spec, results))
     merged = _merged_on_equal_counts(module, Path(out_dir), main, tried)
     _atomic_write_json(main_path, merged)

@@ -54,14 +54,18 @@ def moment_match_batched(gp, belief: Gaussian, name: str = "belief") -> tuple[np
             mm.cross_cov.reshape(batch + (d, e)))
 
 
+def noise_matrix(gp) -> np.ndarray:
+    """diag(σ_ε²) of a GP's learned noise: (E, E), or (B, E, E) for a batch of runs' GPs."""
+    return gp.noise_var[..., :, None] * np.eye(gp.output_dim)
+
+
 def gp_adf_predict(belief: Gaussian, model, *, k: int = 1) -> Gaussian:
     """N(μ_p, C_p), eq. 18–19: moment matching at the belief plus the learned transition noise
     (``k`` is accepted for the common protocol; a GP model does not depend on it)."""
     require_model(model, GPModel, "GP-ADF")
     belief = check_belief(belief, model.state_dim)
     mean, cov, _ = moment_match_batched(model.transition, Gaussian(model.on_training_branch(belief.mean), belief.cov))
-    return Gaussian(wrap_components(mean, model.circular_state),
-                    symmetrize(cov + np.diag(model.transition.noise_var)))
+    return Gaussian(wrap_components(mean, model.circular_state), symmetrize(cov + noise_matrix(model.transition)))
 
 
 def gp_adf_measurement(prediction: Gaussian, model, *, k: int = 1) -> MeasurementMoments:
@@ -71,7 +75,7 @@ def gp_adf_measurement(prediction: Gaussian, model, *, k: int = 1) -> Measuremen
     prediction = check_belief(prediction, model.state_dim, "prediction")
     mu_y, cov, cross = moment_match_batched(gp, Gaussian(model.on_training_branch(prediction.mean), prediction.cov),
                                             "prediction")
-    return MeasurementMoments(wrap_components(mu_y, model.circular), symmetrize(cov + np.diag(gp.noise_var)), cross)
+    return MeasurementMoments(wrap_components(mu_y, model.circular), symmetrize(cov + noise_matrix(gp)), cross)
 
 
 @one_blas_thread

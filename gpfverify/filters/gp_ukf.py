@@ -34,9 +34,9 @@ from gpfverify.runtime import one_blas_thread
 
 def gp_noise_covariance(gp, means: np.ndarray) -> np.ndarray:
     """diag(latent predictive variance + learned noise) of ``gp`` at every mean (..., D):
-    (..., E, E) — GP^Σ of eq. 22 and 26."""
+    (..., E, E) — GP^Σ of eq. 22 and 26 (for a batch of runs' GPs, means (B, D), run b's at b)."""
     _, var = gp.predict(means.reshape(-1, means.shape[-1]))
-    total = (var + gp.noise_var).reshape(means.shape[:-1] + (gp.output_dim,))
+    total = var.reshape(means.shape[:-1] + (gp.output_dim,)) + gp.noise_var
     return total[..., :, None] * np.eye(gp.output_dim)
 
 

@@ -33,18 +33,19 @@ import numpy as np
 from gpfverify.angles import wrap_components
 from gpfverify.filters.records import Gaussian, MeasurementMoments, StepRecord
 from gpfverify.filters.update import check_belief, condition
-from gpfverify.linalg import matmul_for, symmetrize
+from gpfverify.linalg import matmul_for, rows_times, symmetrize
 from gpfverify.models.system import StateSpaceModel, require_model
 from gpfverify.runtime import one_blas_thread
 
 
 def _predict(belief: Gaussian, F: np.ndarray, Q: np.ndarray, circular_state=()) -> Gaussian:
-    return Gaussian(wrap_components(belief.mean @ F.T, circular_state), symmetrize(F @ belief.cov @ F.T + Q))
+    return Gaussian(wrap_components(rows_times(belief.mean, F.T), circular_state), symmetrize(F @ belief.cov @ F.T + Q))
 
 
 def _measurement(prediction: Gaussian, H: np.ndarray, R: np.ndarray, circular=()) -> MeasurementMoments:
     C_xy = prediction.cov @ H.T
-    return MeasurementMoments(wrap_components(prediction.mean @ H.T, circular), symmetrize(H @ C_xy + R), C_xy)
+    return MeasurementMoments(wrap_components(rows_times(prediction.mean, H.T), circular), symmetrize(H @ C_xy + R),
+                              C_xy)
 
 
 def kf_predict(belief: Gaussian, model, *, k: int = 1) -> Gaussian:
@@ -105,7 +106,7 @@ def kf_step(belief: Gaussian, model, y, *, k: int = 1) -> StepRecord:
     mul = matmul_for(belief.cov)
     half = mul(mul(joint.A, belief.cov), joint.half_A_T) + joint.half_B
     cov = half + half.swapaxes(-1, -2)
-    mean = mul(belief.mean, joint.A_T)
+    mean = rows_times(belief.mean, joint.A_T)
     d = joint.state_dim
     mu_p, mu_y = mean[..., :d], mean[..., d:]
     if model.circular_state:

@@ -55,7 +55,10 @@ def weighted_moments(points_x: np.ndarray, points_y: np.ndarray, wm: np.ndarray,
     points_x (..., S, D), points_y (..., S, L). Returns (..., L), (..., L, L), (..., D, L).
 
     Components listed in ``circular_x`` / ``circular_y`` are angles: their means are taken on the
-    circle and their deviations wrapped to (−π, π] (:func:`gpfverify.angles.weighted_mean`)."""
+    circle and their deviations wrapped to (−π, π] (:func:`gpfverify.angles.weighted_mean`).
+    The points are made C-ordered first: numpy's weighted sums may add in another order over a
+    strided layout, and a run's numbers must not depend on the layout its batch came in."""
+    points_x, points_y = np.ascontiguousarray(points_x), np.ascontiguousarray(points_y)
     mean_x = weighted_mean(points_x, wm, circular_x)
     mean_y = weighted_mean(points_y, wm, circular_y)
     dx = difference(points_x, mean_x[..., None, :], circular_x)

@@ -35,6 +35,7 @@ floating-point overflow as an error). A case file must be a regular file of UTF-
 from __future__ import annotations
 
 import functools
+from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -43,8 +44,8 @@ import numpy as np
 from gpfverify.errors import InputError
 from gpfverify.fusion.caseformat import MAX_MAGNITUDE
 
-__all__ = ["MAX_MAGNITUDE", "CentralPrediction", "LocalReport", "FusionCase", "case_to_dict", "sensor_blocks",
-           "stack_circular", "split_circular"]
+__all__ = ["MAX_MAGNITUDE", "CentralPrediction", "LocalReport", "FusionCase", "case_to_dict", "cases_to_dicts",
+           "sensor_blocks", "stack_circular", "split_circular"]
 
 
 @functools.lru_cache(maxsize=256)
@@ -145,27 +146,57 @@ class FusionCase:
 
 def case_to_dict(case: FusionCase) -> dict:
     """The JSON-able form read back by :func:`~gpfverify.fusion.caseblock.case_from_dict`."""
-    c = case.central
-    out: dict[str, Any] = {"central": {"mu_p": c.mu_p.tolist(), "C_p": c.C_p.tolist(), "mu_y": c.mu_y.tolist(),
-                       "C_y": c.C_y.tolist(), "C_xy": c.C_xy.tolist(), "sizes": list(c.sizes)},
-           "locals": []}
-    if c.circular:
-        out["central"]["circular"] = list(c.circular)
-    for r in case.locals:
-        entry = {"mu_p": r.mu_p.tolist(), "mu_y": r.mu_y.tolist(), "C_y": r.C_y.tolist(),
-                 "C_xy": r.C_xy.tolist(), "mu_e": r.mu_e.tolist()}
-        if r.C_e is not None:
-            entry["C_e"] = r.C_e.tolist()
-        if r.circular:
-            entry["circular"] = list(r.circular)
-        out["locals"].append(entry)
-    if case.y is not None:
-        out["y"] = case.y.tolist()
-    if case.rank_tol is not None:
-        out["rank_tol"] = case.rank_tol
-    if case.circular_state:
-        out["circular_state"] = list(case.circular_state)
+    return cases_to_dicts([case])[0]
+
+
+def cases_to_dicts(cases: Sequence[FusionCase]) -> list[dict]:
+    """:func:`case_to_dict` of many cases: the cases of one layout (state dimension, sizes, angles,
+    which optional fields they have) stacked field by field, each field turned into lists once
+    (a run's steps, or many runs', at the cost of a few numpy calls instead of a few per case)."""
+    if not cases:
+        return []
+    layout = {_layout(c) for c in cases}
+    if len(layout) > 1:
+        return [d for c in cases for d in cases_to_dicts([c])]
+    first = cases[0]
+
+    def listed(get) -> list:
+        return np.array([get(c) for c in cases]).tolist()
+
+    central = {f: listed(lambda c, f=f: getattr(c.central, f)) for f in ("mu_p", "C_p", "mu_y", "C_y", "C_xy")}
+    local = [{f: listed(lambda c, m=m, f=f: getattr(c.locals[m], f)) for f in _local_fields(r)}
+             for m, r in enumerate(first.locals)]
+    ys = listed(lambda c: c.y) if first.y is not None else None
+    out = []
+    for t, case in enumerate(cases):
+        head = {f: v[t] for f, v in central.items()}
+        entry: dict[str, Any] = {"central": {**head, "sizes": list(first.central.sizes)}, "locals": []}
+        if first.central.circular:
+            entry["central"]["circular"] = list(first.central.circular)
+        for m, r in enumerate(first.locals):
+            item = {f: v[t] for f, v in local[m].items()}
+            if r.circular:
+                item["circular"] = list(r.circular)
+            entry["locals"].append(item)
+        if ys is not None:
+            entry["y"] = ys[t]
+        if case.rank_tol is not None:
+            entry["rank_tol"] = case.rank_tol
+        if first.circular_state:
+            entry["circular_state"] = list(first.circular_state)
+        out.append(entry)
     return out
+
+
+def _local_fields(report: LocalReport) -> tuple[str, ...]:
+    """The fields of a sensor's report a case file holds, in the file's order."""
+    return ("mu_p", "mu_y", "C_y", "C_xy", "mu_e") + (("C_e",) if report.C_e is not None else ())
+
+
+def _layout(case: FusionCase) -> tuple:
+    """What two cases must share to be listed together by :func:`cases_to_dicts`."""
+    return (case.central.mu_p.shape, case.central.sizes, case.central.circular, case.circular_state, case.y is None,
+            tuple((r.C_e is None, r.circular) for r in case.locals))
 
 
 #END

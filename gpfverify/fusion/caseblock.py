@@ -89,6 +89,14 @@ class CaseBlock:
             return np.zeros(len(self), dtype=bool)
         return ~np.all(np.isnan(self.y), axis=1)
 
+    def take(self, steps) -> CaseBlock:
+        """The block of the steps ``steps`` (a slice or index array)."""
+        local = tuple(LocalBlock(r.mu_p[steps], r.mu_y[steps], r.C_y[steps], r.C_xy[steps], r.mu_e[steps],
+                                 None if r.C_e is None else r.C_e[steps], r.has_C_e[steps]) for r in self.locals)
+        return CaseBlock(self.sizes, self.circular, self.mu_p[steps], self.C_p[steps], self.mu_y[steps],
+                         self.C_y[steps], self.C_xy[steps], local, None if self.y is None else self.y[steps],
+                         self.rank_tol[steps], self.circular_state)
+
     def case(self, t: int) -> FusionCase:
         """Step t as a FusionCase (its arrays are views of the block's)."""
         central = CentralPrediction(self.mu_p[t], self.C_p[t], self.mu_y[t], self.C_y[t], self.C_xy[t],

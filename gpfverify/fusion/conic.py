@@ -133,6 +133,16 @@ def _evaluated_parameters(program: Parametrised) -> tuple[int, ...]:
 
 
 @dataclass(frozen=True)
+class RawSolution:
+    """One solve's cvxpy status name and Clarabel's primal ``u`` and dual ``z`` (empty without a
+    solution)."""
+
+    status: str
+    u: np.ndarray
+    z: np.ndarray
+
+
+@dataclass(frozen=True)
 class ClarabelProgram:
     """The conic data of a :class:`Parametrised` problem as an affine map of its parameters, and
     where its results sit in Clarabel's solution (see the module docstring)."""
@@ -238,6 +248,45 @@ class ClarabelProgram:
         b = np.zeros(self.a_shape[0])
         b[self.b_rows] = nonzeros[self.a_nonzeros:]
         return q, A, b
+
+    def _parameter_matrix(self, batched_values: Sequence[np.ndarray]) -> np.ndarray:
+        """The parameter vectors of B problems as the columns of one (len(p), B) array: each
+        parameter's values (B, *shape) flattened column-major per problem, as :meth:`_parameter_vector`."""
+        runs = np.shape(batched_values[0])[0]
+        p = np.zeros((self.constant_column + 1, runs))
+        p[self.constant_column] = 1.0
+        for (start, size), value in zip(self.slots, batched_values, strict=True):
+            value = np.asarray(value, dtype=float).reshape((runs, -1) if size == 1 else np.shape(value))
+            per_problem = value.transpose(0, *range(value.ndim - 1, 0, -1)).reshape(runs, size)
+            p[start:start + size] = per_problem.T
+        return p
+
+    def solve_raw_batch(self, batched_values: Sequence[np.ndarray]) -> list[RawSolution]:
+        """B problems, each by a new Clarabel solver with default settings, their data formed at
+        once: ``batched_values`` holds each parameter's values for all B problems (a leading axis),
+        in the order of :attr:`Parametrised.parameters`. The data of problem b are those
+        :meth:`solve` forms for its values alone (the tensor's product with the parameter vectors
+        as columns adds each row's terms in the same order) and the solve is a function of them alone.
+        Returns cvxpy's status name and Clarabel's u and z (empty when it reports no solution), for
+        callers that read their entries themselves (:attr:`dual_index`)."""
+        p = self._parameter_matrix(batched_values)
+        nonzeros = np.ascontiguousarray((self.tensor @ p).T)              # (B, nnz)
+        q = self.q if self.q_tensor is None else None
+        A = sp.csc_array((-nonzeros[0, :self.a_nonzeros], self.a_indices, self.a_indptr), shape=self.a_shape)
+        settings = clarabel.DefaultSettings()
+        settings.verbose = False
+        out = []
+        for b in range(p.shape[1]):
+            A.data = -nonzeros[b, :self.a_nonzeros]  # the same pattern for every problem: only the values change
+            rhs = np.zeros(self.a_shape[0])
+            rhs[self.b_rows] = nonzeros[b, self.a_nonzeros:]
+            linear = q if q is not None else (self.q_tensor @ p[:, b])[:self.a_shape[1]]
+            result = clarabel.DefaultSolver(self.P, linear, A, rhs, list(self.cones), settings).solve()
+            status = CLARABEL.STATUS_MAP.get(str(result.status), cvxpy_status.SOLVER_ERROR)
+            present = status in cvxpy_status.SOLUTION_PRESENT
+            out.append(RawSolution(status, np.asarray(result.x) if present else np.zeros(0),
+                                   np.asarray(result.z) if present else np.zeros(0)))
+        return out
 
     def solve(self, parameter_values: Sequence) -> ConicSolution:
         """One solve by a new Clarabel solver with default settings; parameter values in the order

@@ -60,14 +60,20 @@ def on_one_branch(estimates: Sequence[Gaussian], circular_state: Sequence[int]) 
     circular mean r of the local angles: x_m ← r + wrap(x_m − r) (module docstring)."""
     if not circular_state or not estimates:
         return list(estimates)
+    means = on_one_branch_arrays(np.array([e.mean for e in estimates]), circular_state)
+    return [Gaussian(mean, e.cov) for mean, e in zip(means, estimates)]
+
+
+def on_one_branch_arrays(means: np.ndarray, circular_state: Sequence[int]) -> np.ndarray:
+    """:func:`on_one_branch` on the means alone, (..., N, D) for N estimates (with any leading axes,
+    e.g. Monte Carlo runs): a new array, the angle components moved within π of their circular mean."""
+    if not circular_state:
+        return means
     idx = list(circular_state)
-    angles = np.array([e.mean[idx] for e in estimates])
-    reference = np.arctan2(np.sin(angles).sum(axis=0), np.cos(angles).sum(axis=0))
-    out = []
-    for e, a in zip(estimates, angles):
-        mean = e.mean.copy()
-        mean[idx] = reference + wrap(a - reference)
-        out.append(Gaussian(mean, e.cov))
+    angles = means[..., idx]
+    reference = np.arctan2(np.sin(angles).sum(axis=-2), np.cos(angles).sum(axis=-2))[..., None, :]
+    out = means.copy()
+    out[..., idx] = reference + wrap(angles - reference)
     return out
 
 

@@ -12,7 +12,7 @@ from __future__ import annotations
 import os
 import sys
 from collections.abc import Iterator
-from contextlib import contextmanager
+from contextlib import contextmanager, redirect_stderr, redirect_stdout
 
 
 def _open_descriptor(fd: int) -> bool:
@@ -25,8 +25,10 @@ def _open_descriptor(fd: int) -> bool:
 
 @contextmanager
 def solver_output_discarded() -> Iterator[None]:
-    """Descriptors 1 and 2 (those that are open) write to os.devnull inside the block; Python's
-    buffered streams are flushed first so nothing written before the block is lost or reordered."""
+    """Descriptors 1 and 2 (those that are open) write to os.devnull inside the block, and so do
+    Python's ``sys.stdout`` and ``sys.stderr`` (a solver's Python interface prints there, e.g. SCS's
+    "WARNING - large complementary slackness residual"); Python's buffered streams are flushed first
+    so nothing written before the block is lost or reordered."""
     for stream in (sys.stdout, sys.stderr):
         if stream is not None:
             stream.flush()
@@ -35,7 +37,8 @@ def solver_output_discarded() -> Iterator[None]:
     try:
         for fd, _ in saved:
             os.dup2(null, fd)
-        yield
+        with open(os.devnull, "w") as sink, redirect_stdout(sink), redirect_stderr(sink):
+            yield
     finally:
         for fd, copy in saved:
             os.dup2(copy, fd)

@@ -57,9 +57,11 @@ from scipy.stats import chi2
 
 from gpfverify.angles import difference, wrap_components
 from gpfverify.errors import InputError, SolverError
+from gpfverify.filters.records import Gaussian
 from gpfverify.fusion.conic import ClarabelProgram, ConicSolution, Parametrised, solve_with_cvxpy
 from gpfverify.fusion.estimates import (FusedEstimate, checked_estimates, information_form,
                                         weighted_information_fusion)
+from gpfverify.fusion.pairwise import joint_diagonalise, minimise_convex_on_unit_interval
 from gpfverify.validate import as_positive
 
 #: Confidence level whose χ²_D quantile is the default ellipsoid size c.
@@ -113,18 +115,29 @@ class RccCiResult:
 
 @dataclass(frozen=True)
 class _Normalised:
-    centre: np.ndarray
-    scale: float
-    A: np.ndarray  # (N, D, D)
-    b: np.ndarray  # (N, D)
-    d: np.ndarray  # (N,)
-    T: np.ndarray  # (D, D): the primal's change of variables ξ = T ξ' (module docstring)
+    """The normalised problem of B runs (a leading run axis on every field, B = 1 for one fusion):
+    ``centre`` x̄ (B, D), ``scale`` s (B,), ``A`` (B, N, D, D), ``b`` (B, N, D), ``d`` (B, N) and the
+    primal's change of variables ``T`` (B, D, D), ξ = T ξ' (module docstring)."""
 
-    def primal_values(self) -> list:
-        """The primal's parameters: TᵀA_mT, Tᵀb_m, d_m, T and M = TᵀT."""
-        a = np.einsum("ji,mjk,kl->mil", self.T, self.A, self.T)
-        a = 0.5 * (a + np.swapaxes(a, 1, 2))
-        return [*a, *(self.b @ self.T), *self.d, self.T, self.T.T @ self.T]
+    centre: np.ndarray
+    scale: np.ndarray
+    A: np.ndarray
+    b: np.ndarray
+    d: np.ndarray
+    T: np.ndarray
+
+    def primal_values(self) -> list[np.ndarray]:
+        """The primal's parameters, each with the leading run axis: TᵀA_mT, Tᵀb_m, d_m, T and M = TᵀT."""
+        n = self.A.shape[1]
+        a = np.einsum("bji,bmjk,bkl->bmil", self.T, self.A, self.T)
+        a = 0.5 * (a + np.swapaxes(a, -1, -2))
+        tb = self.b @ self.T
+        return [*(a[:, m] for m in range(n)), *(tb[:, m] for m in range(n)), *(self.d[:, m] for m in range(n)),
+                self.T, np.swapaxes(self.T, -1, -2) @ self.T]
+
+    def one(self) -> _Normalised:
+        """The first run's problem without the run axis (for one fusion)."""
+        return _Normalised(*(getattr(self, f)[0] for f in ("centre", "scale", "A", "b", "d", "T")))
 
 
 def _checked_size(c) -> float:
@@ -137,17 +150,31 @@ def _checked_size(c) -> float:
     return c
 
 
-def _normalise(estimates, info, c: float) -> _Normalised:
-    centre = np.mean([e.mean for e in estimates], axis=0)
-    scale = float(np.sqrt(c * max(np.linalg.eigvalsh(e.cov)[-1] for e in estimates)))
-    a = info.matrices * (scale**2 / c)
-    xi = (np.array([e.mean for e in estimates]) - centre) / scale
-    b = -np.einsum("mij,mj->mi", a, xi)
-    d = np.einsum("mi,mij,mj->m", xi, a, xi) - 1.0
-    a = 0.5 * (a + np.swapaxes(a, 1, 2))
+def _normalise(means: np.ndarray, covs: np.ndarray, matrices: np.ndarray, c: np.ndarray) -> _Normalised:
+    """The normalised problem (module docstring, "Numerics") of B runs' N estimates: means
+    (B, N, D), covs (B, N, D, D), their information matrices (B, N, D, D) and sizes c (B,). One
+    fusion is a run of one: one routine, so that a batch's problems are formed exactly as each
+    alone would be."""
+    centre = means.mean(axis=1)
+    scale = np.sqrt(c * np.linalg.eigvalsh(covs)[..., -1].max(axis=1))
+    a = matrices * (scale ** 2 / c)[:, None, None, None]
+    xi = (means - centre[:, None, :]) / scale[:, None, None]
+    b = -np.einsum("bmij,bmj->bmi", a, xi)
+    d = np.einsum("bmi,bmij,bmj->bm", xi, a, xi) - 1.0
+    a = 0.5 * (a + np.swapaxes(a, -1, -2))
     # T = L⁻ᵀ with L Lᵀ the mean of the A_m: TᵀA_mT are O(1) for ellipsoids of similar shape
-    whitening = np.linalg.solve(np.linalg.cholesky(a.mean(axis=0)), np.eye(a.shape[1])).T
+    lower = np.linalg.cholesky(a.mean(axis=1))
+    whitening = np.swapaxes(np.linalg.solve(lower, np.broadcast_to(np.eye(a.shape[-1]), lower.shape)), -1, -2)
     return _Normalised(centre, scale, a, b, d, whitening)
+
+
+def _normalise_one(estimates, info, c: float) -> tuple[_Normalised, list[np.ndarray]]:
+    """:func:`_normalise` of one fusion (checked estimates, their :class:`Information`): the problem
+    without the run axis and the primal's parameter values."""
+    means = np.array([e.mean for e in estimates])[None]
+    covs = np.array([e.cov for e in estimates])[None]
+    batched = _normalise(means, covs, info.matrices[None], np.array([c]))
+    return batched.one(), [v[0] for v in batched.primal_values()]
 
 
 @lru_cache(maxsize=32)
@@ -248,8 +275,41 @@ def _centre(norm: _Normalised, solution: ConicSolution) -> np.ndarray | None:
 
 def smallest_intersecting_size(estimates: Sequence, circular_state: Sequence[int] = ()) -> float:
     """c_min = min_x max_m (x − x_m)ᵀP_m⁻¹(x − x_m): the ellipsoids meet iff c ≥ c_min (angle
-    components ``circular_state`` on one branch, as in :func:`rcc_ci`)."""
+    components ``circular_state`` on one branch, as in :func:`rcc_ci`). Two estimates: the closed
+    form of :func:`two_ellipsoid_size`; more: a conic program (:func:`conic_intersecting_size`)."""
     checked = checked_estimates(estimates, circular_state=circular_state)
+    if len(checked) == 2:
+        return two_ellipsoid_size(checked[0], checked[1])
+    return conic_intersecting_size(checked)
+
+
+def two_ellipsoid_size(first, second) -> float:
+    """c_min of two ellipsoids by minimax duality: min_x max(q_1, q_2) = max_{λ∈[0,1]} min_x
+    [λq_1 + (1 − λ)q_2] (convex quadratics), and the inner minimum is
+    g(λ) = dᵀ(P_1/λ + P_2/(1 − λ))⁻¹d with d = x_1 − x_2. In the joint basis Vᵀ P_1 V = I,
+    Vᵀ P_2 V = diag(μ) (:mod:`gpfverify.fusion.pairwise`), with u = Vᵀd,
+
+        g(λ) = Σ_i u_i² λ(1 − λ) / ((1 − λ) + λμ_i),   g'(λ) = Σ_i u_i² ((1 − λ)² − λ²μ_i) / ((1 − λ) + λμ_i)²,
+
+    concave, g'(0) = ‖u‖² ≥ 0 ≥ g'(1) = −Σ μ_i u_i²: c_min = g at the root of g' (Brent's method,
+    :func:`~gpfverify.fusion.pairwise.minimise_convex_on_unit_interval` on −g). The conic program of
+    :func:`conic_intersecting_size` gives the same number to its accuracy (tests/test_fusion_rcc_ci.py)."""
+    jd = joint_diagonalise(first, second)
+    mu = jd.ratios
+    weights = (jd.u1 - jd.u2) ** 2  # u = Vᵀ(x_1 − x_2)
+
+    def g(lam: float) -> float:
+        return float(np.sum(weights * lam * (1.0 - lam) / ((1.0 - lam) + lam * mu)))
+
+    def slope(lam: float) -> float:  # −g'(λ): the derivative of the convex −g
+        return float(-np.sum(weights * ((1.0 - lam) ** 2 - lam ** 2 * mu) / ((1.0 - lam) + lam * mu) ** 2))
+
+    return g(minimise_convex_on_unit_interval(slope))
+
+
+def conic_intersecting_size(checked: Sequence) -> float:
+    """c_min of any number of ellipsoids as the conic program min t s.t. ‖L_m⁻¹(x − x_m)‖² ≤ t
+    (Clarabel through cvxpy)."""
     # c_min is invariant under x -> (x - x̄)/s with P_m -> P_m/s²: solve in those coordinates
     # (as the primal) so that the solver sees numbers of order one whatever the units
     centre = np.mean([e.mean for e in checked], axis=0)
@@ -283,8 +343,8 @@ def rcc_ci(estimates: Sequence, c: float | None = None, on_empty: str = "error",
     info = information_form(checked)
     enlarged = False
     while True:
-        norm = _normalise(checked, info, c)
-        solution = _solve_parametrised(_primal_problem, (len(checked), dim), norm.primal_values(),
+        norm, values = _normalise_one(checked, info, c)
+        solution = _solve_parametrised(_primal_problem, (len(checked), dim), values,
                                        solver, "RCC-CI primal")
         status = solution.status
         if status == "optimal_inaccurate" and not _in_every_ellipsoid(norm, _centre(norm, solution)):
@@ -314,7 +374,82 @@ def rcc_ci(estimates: Sequence, c: float | None = None, on_empty: str = "error",
     angles = tuple(sorted(circular_state))
     return RccCiResult(mean=wrap_components(fused.mean, angles), cov=fused.cov, weights=weights, alpha=alpha,
                        c=c, primal_mean=wrap_components(norm.centre + norm.scale * xi, angles),
-                       primal_value=solution.value * norm.scale**2, enlarged=enlarged, circular_state=angles)
+                       primal_value=float(solution.value * norm.scale**2), enlarged=enlarged, circular_state=angles)
+
+
+@dataclass(frozen=True)
+class RccCiBatch:
+    """RCC-CI of B runs: ``mean`` (B, D) (CI form from the duals), ``cov`` (B, D, D), ``weights``
+    ω (B, N), ``c`` (B,) the size used and ``enlarged`` (B,) whether it was enlarged."""
+
+    mean: np.ndarray
+    cov: np.ndarray
+    weights: np.ndarray
+    c: np.ndarray
+    enlarged: np.ndarray
+
+
+def rcc_ci_batch(means: np.ndarray, covs: np.ndarray, c: float | None = None, on_empty: str = "enlarge",
+                 circular_state: Sequence[int] = ()) -> RccCiBatch:
+    """:func:`rcc_ci` of B runs' N local estimates (means (B, N, D), covs (B, N, D, D), positive
+    definite: a filter's outputs, not checked again) by Clarabel. The runs' problems are solved one
+    by one — an interior-point method run on all of them at once would couple their iterations, and
+    a run's answer would depend on its batch — but their data are formed at once
+    (:meth:`~gpfverify.fusion.conic.ClarabelProgram.solve_raw_batch`: the same data as a solve of
+    its own, from each run's information matrices formed as :func:`rcc_ci` forms them), and the
+    CI-form estimates computed over the runs
+    (:func:`gpfverify.fusion.batched.weighted_information_batch`). A run whose ellipsoids miss at
+    c is solved again at :data:`EMPTY_GROWTH` · c_min (``on_empty="enlarge"``); a run whose solve
+    ends otherwise than "optimal" or infeasible (an inaccurate or failed solve) is left to
+    :func:`rcc_ci`, which checks it, retries with SCS or says why it cannot fuse."""
+    from gpfverify.fusion.batched import weighted_information_batch
+    from gpfverify.fusion.estimates import on_one_branch_arrays
+
+    if on_empty not in ("error", "enlarge"):
+        raise InputError(f"on_empty must be 'error' or 'enlarge', got {on_empty!r}")
+    runs, n, dim = means.shape
+    angles = tuple(sorted(circular_state))
+    means = on_one_branch_arrays(means, angles)
+    sizes = np.full(runs, default_size(dim) if c is None else _checked_size(c))
+    enlarged = np.zeros(runs, dtype=bool)
+    # each run's information as rcc_ci forms it (the same factorisations: the same problem data, and
+    # so the same duals, as a solve of its own)
+    forms = [information_form([Gaussian(m, v) for m, v in zip(run_means, run_covs)])
+             for run_means, run_covs in zip(means, covs)]
+    matrices, vectors = np.array([f.matrices for f in forms]), np.array([f.vectors for f in forms])
+    weights = np.full((runs, n), np.nan)
+    program = _clarabel_program(_primal_problem, n, dim)
+    alone = list(range(runs)) if program is None else []
+    pending = [] if program is None else list(range(runs))
+    while pending and program is not None:
+        at = np.array(pending)
+        raw = program.solve_raw_batch(_normalise(means[at], covs[at], matrices[at], sizes[at]).primal_values())
+        pending = []
+        for run, solution in zip(at.tolist(), raw):
+            if solution.status == "optimal":
+                alpha = np.clip(np.concatenate([np.ravel(solution.z[i]) for i in program.dual_index]), 0.0, None)
+                if alpha.sum() > 0:
+                    weights[run] = alpha / alpha.sum()
+                    continue
+            elif "infeasible" in solution.status and on_empty == "enlarge" and not enlarged[run]:
+                estimates = [Gaussian(m, v) for m, v in zip(means[run], covs[run])]
+                c_min = smallest_intersecting_size(estimates)
+                if sizes[run] < c_min:
+                    sizes[run], enlarged[run] = EMPTY_GROWTH * c_min, True
+                    pending.append(run)
+                    continue
+            alone.append(run)
+    mean, cov = np.empty((runs, dim)), np.empty((runs, dim, dim))
+    solved = np.flatnonzero(~np.isnan(weights[:, 0]))
+    if solved.size:
+        fused = weighted_information_batch(matrices[solved], vectors[solved], weights[solved])
+        mean[solved], cov[solved] = fused.mean, fused.cov
+    for run in sorted(alone):
+        single = rcc_ci([Gaussian(m, v) for m, v in zip(means[run], covs[run])], c=c, on_empty=on_empty,
+                        circular_state=angles)
+        mean[run], cov[run], weights[run], sizes[run], enlarged[run] = (single.mean, single.cov, single.weights,
+                                                                        single.c, single.enlarged)
+    return RccCiBatch(wrap_components(mean, angles), cov, weights, sizes, enlarged)
 
 
 @dataclass(frozen=True)
@@ -334,11 +469,11 @@ def rcc_ci_dual(estimates: Sequence, c: float | None = None, solver: str = cp.CL
     dim = checked[0].mean.shape[0]
     c = default_size(dim) if c is None else _checked_size(c)
     info = information_form(checked)
-    norm = _normalise(checked, info, c)
+    norm, _ = _normalise_one(checked, info, c)
     solution = _solve_parametrised(_dual_problem, (len(checked), dim), [*norm.A, *norm.b, norm.d],
                                    solver, "RCC-CI dual")
     if solution.status not in SOLVED:
         raise SolverError(f"RCC-CI dual ended with status {solution.status}")
     a = np.clip(solution.values[0], 0.0, None)
     fused = weighted_information_fusion(info, a / a.sum())
-    return RccCiDual(a, solution.value * norm.scale**2, wrap_components(fused.mean, circular_state))
+    return RccCiDual(a, float(solution.value * norm.scale**2), wrap_components(fused.mean, circular_state))

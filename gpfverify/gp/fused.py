@@ -66,11 +66,12 @@ def _kernels():
 
 def first_moments(x: np.ndarray, lengthscales: np.ndarray, signal_var: np.ndarray, beta: np.ndarray,
                   mu: np.ndarray, sigma: np.ndarray) -> tuple[np.ndarray, ...] | None:
-    """(mean (B, E), cross_cov (B, D, E), log q (B, E, n), t (B, E, n), log|B_a + I| (B, E), q (B, E, n)) of one
-    GP (training inputs x, lengthscales (E, D), signal variances (E,), β (E, n)) at the inputs
-    N(mu[b], sigma[b]) by :func:`gpfverify.gp.fused_kernels.first_moments`, or None when the
+    """(mean (B, E), cross_cov (B, D, E), log q (B, E, n), t (B, E, n), log|B_a + I| (B, E), q (B, E, n)) of a
+    GP at the inputs N(mu[b], sigma[b]) by :func:`gpfverify.gp.fused_kernels.first_moments`, or None when the
     compiled path is off (the caller's numpy path, :func:`gpfverify.gp.moments._first_moments`,
-    computes the same to rounding)."""
+    computes the same to rounding). The GP's arrays carry a leading axis of G models, 1 or B (input b
+    against model b): training inputs x (G, n, D), lengthscales (G, E, D), signal variances (G, E),
+    β (G, E, n)."""
     if not enabled:
         return None
     return _kernels().first_moments(x, 1.0 / lengthscales, np.log(signal_var), beta, mu, sigma)
@@ -80,23 +81,31 @@ def centred_sums(x_a: np.ndarray, x_b: np.ndarray, mu: np.ndarray, sigma: np.nda
                  ell_b: np.ndarray, b_logdet_a: np.ndarray, b_logdet_b: np.ndarray, ia: np.ndarray,
                  ib: np.ndarray, t_a: np.ndarray, t_b: np.ndarray, q_a: np.ndarray, q_b: np.ndarray,
                  beta_a: np.ndarray, beta_b: np.ndarray, k_inv: np.ndarray, factors_t: np.ndarray,
-                 diagonal: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
-    """(Cov (B, P), trace (B, P)) of the output pairs (ia[p], ib[p]) by the fused kernel, its
-    O(n) inputs formed by :func:`gpfverify.gp.fused_kernels.prepare` (arguments as there, with
-    k_inv, factors_t (E_a, n_a, n_a) and ``diagonal`` as in
-    :func:`gpfverify.gp.fused_kernels.centred_sums`),
-    or None when numba is not installed or an exponent may exceed :data:`EXPM1_SAFE` (the
-    caller's numpy path handles both). The bound d_ij ≤ max_i r_i + max_j c_j + max_i ‖z_i‖ ·
-    max_j ‖w_j‖ (Cauchy–Schwarz) decides, before any exponent is formed; the same inputs always
-    take the same path."""
+                 diagonal: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
+    """(Cov (B, P), trace (B, P), computed (B,)) of the output pairs (ia[p], ib[p]) by the fused
+    kernel, its O(n) inputs formed by :func:`gpfverify.gp.fused_kernels.prepare` (arguments as there,
+    every GP array with its leading axis of G models, k_inv and factors_t (G, E_a, n_a, n_a) and
+    ``diagonal`` as in :func:`gpfverify.gp.fused_kernels.centred_sums`), or None when numba is not
+    installed. ``computed[b]`` is False for an input at which an exponent may exceed
+    :data:`EXPM1_SAFE` (its row of Cov and trace is left unset; the caller's numpy path handles it):
+    the bound d_ij ≤ max_i r_i + max_j c_j + max_i ‖z_i‖ · max_j ‖w_j‖ (Cauchy–Schwarz) decides, per
+    input and before any exponent is formed, so the same input always takes the same path whatever
+    else is in the batch."""
     if not enabled:
         return None
     fused_kernels = _kernels()
     *prepared, bound = fused_kernels.prepare(x_a, x_b, mu, sigma, ell_a, ell_b, b_logdet_a, b_logdet_b,
                                              ia, ib, t_a, t_b, q_a, q_b, beta_a, beta_b)
-    if not bound <= EXPM1_SAFE:
-        return None
+    computed = bound <= EXPM1_SAFE
     shape = (mu.shape[0], ia.size)
     cov, trace = np.empty(shape), np.empty(shape)
-    fused_kernels.centred_sums(*prepared, k_inv, factors_t, diagonal, cov, trace)
-    return cov, trace
+    if computed.all():
+        fused_kernels.centred_sums(*prepared, k_inv, factors_t, diagonal, cov, trace)
+    elif computed.any():
+        keep = np.flatnonzero(computed)
+        per_model = k_inv.shape[0] > 1
+        part_cov, part_trace = np.empty((keep.size, ia.size)), np.empty((keep.size, ia.size))
+        fused_kernels.centred_sums(*(a[keep] for a in prepared), k_inv[keep] if per_model else k_inv,
+                                   factors_t[keep] if per_model else factors_t, diagonal, part_cov, part_trace)
+        cov[keep], trace[keep] = part_cov, part_trace
+    return cov, trace, computed

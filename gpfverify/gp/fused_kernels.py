@@ -125,49 +125,54 @@ def _column_square(columns: np.ndarray, i: int) -> float:
 @_jit
 def first_moments(x: np.ndarray, inv_ell: np.ndarray, log_signal_var: np.ndarray, beta: np.ndarray,
                   mu: np.ndarray, sigma: np.ndarray):
-    """Eq. 8–9 and 20 for every output a of one GP at every input N(mu[b], sigma[b]), as
+    """Eq. 8–9 and 20 for every output a of a GP at every input N(mu[b], sigma[b]), as
     :func:`gpfverify.gp.moments._first_moments` computes them: with B_a = Λ_a^{-½}ΣΛ_a^{-½} and
     s_i = Λ_a^{-½}ν_i, log q_ai = log α_a² − ½log|B_a + I| − ½ s_iᵀ(B_a + I)⁻¹s_i,
     t_ai = s_iᵀ(B_a + I)⁻¹B_a s_i, M_a = Σ_i β_ai q_ai and Cov[x, f_a] = ΣΛ_a^{-½}(B_a + I)⁻¹Λ_a^{-½}
     Σ_i β_ai q_ai ν_i.
 
-    x (n, D), inv_ell (E, D) = 1/ℓ, log_signal_var (E,), beta (E, n), mu (B, D), sigma (B, D, D);
-    returns mean (B, E), cross_cov (B, D, E), log_q (B, E, n), t (B, E, n), b_logdet (B, E) and
-    q = exp(log q) (B, E, n)."""
+    The GP's arrays carry a leading axis of G models: G = 1 (every input against one GP) or G = B
+    (input b against GP b, a batch of Monte Carlo runs each with its own GP); what input b computes
+    depends on its own input and GP alone. x (G, n, D), inv_ell (G, E, D) = 1/ℓ,
+    log_signal_var (G, E), beta (G, E, n), mu (B, D), sigma (B, D, D); returns mean (B, E),
+    cross_cov (B, D, E), log_q (B, E, n), t (B, E, n), b_logdet (B, E) and q = exp(log q) (B, E, n)."""
     batch, dim = mu.shape
-    outputs, n = beta.shape
+    models, outputs, n = beta.shape
     mean, cross = np.zeros((batch, outputs)), np.zeros((batch, dim, outputs))
     log_q, t, b_logdet = np.empty((batch, outputs, n)), np.empty((batch, outputs, n)), np.empty((batch, outputs))
     q = np.empty((batch, outputs, n))
     scaled_sigma, b_inv, b_ratio = np.empty((dim, dim)), np.empty((dim, dim)), np.empty((dim, dim))
     weighted_nu, solved = np.empty(dim), np.empty(dim)
-    x_t, scaled, projected = np.ascontiguousarray(x.T), np.empty((dim, n)), np.empty((dim, n))
+    x_all_t = np.ascontiguousarray(np.transpose(x, (0, 2, 1)))
+    scaled, projected = np.empty((dim, n)), np.empty((dim, n))
     maha, quad = np.empty(n), np.empty(n)
     for b in range(batch):
+        g = b if models > 1 else 0
+        x_g, x_t = x[g], x_all_t[g]
         for a in range(outputs):
             for k in range(dim):
                 for m in range(dim):
-                    scaled_sigma[k, m] = sigma[b, k, m] * inv_ell[a, k] * inv_ell[a, m]
+                    scaled_sigma[k, m] = sigma[b, k, m] * inv_ell[g, a, k] * inv_ell[g, a, m]
             logdet = _shifted(scaled_sigma, b_inv, b_ratio)
             b_logdet[b, a] = logdet
             weighted_nu[:] = 0.0
             total = 0.0
-            _projected(x_t, mu[b], inv_ell[a], b_inv, scaled, projected, maha)  # s_iᵀ(B_a + I)⁻¹s_i
-            _projected(x_t, mu[b], inv_ell[a], b_ratio, scaled, projected, quad)  # t_ai
+            _projected(x_t, mu[b], inv_ell[g, a], b_inv, scaled, projected, maha)  # s_iᵀ(B_a + I)⁻¹s_i
+            _projected(x_t, mu[b], inv_ell[g, a], b_ratio, scaled, projected, quad)  # t_ai
             for i in range(n):
-                value = log_signal_var[a] - 0.5 * logdet - 0.5 * maha[i]
+                value = log_signal_var[g, a] - 0.5 * logdet - 0.5 * maha[i]
                 log_q[b, a, i], t[b, a, i] = value, quad[i]
                 q[b, a, i] = np.exp(value)
-                weight = beta[a, i] * q[b, a, i]
+                weight = beta[g, a, i] * q[b, a, i]
                 total += weight
                 for k in range(dim):
-                    weighted_nu[k] += weight * (x[i, k] - mu[b, k])
+                    weighted_nu[k] += weight * (x_g[i, k] - mu[b, k])
             mean[b, a] = total
             for k in range(dim):
                 acc = 0.0
                 for m in range(dim):
-                    acc += b_inv[k, m] * (inv_ell[a, m] * weighted_nu[m])
-                solved[k] = inv_ell[a, k] * acc
+                    acc += b_inv[k, m] * (inv_ell[g, a, m] * weighted_nu[m])
+                solved[k] = inv_ell[g, a, k] * acc
             for k in range(dim):
                 acc = 0.0
                 for m in range(dim):
@@ -185,23 +190,27 @@ def prepare(x_a: np.ndarray, x_b: np.ndarray, mu: np.ndarray, sigma: np.ndarray,
     with Ξ = Λ_a⁻¹ + Λ_b⁻¹, S = Ξ^½ΣΞ^½, A = R⁻¹Σ = Ξ^{-½}(S + I)⁻¹SΞ^{-½} and
     const = ½(log|B_a + I| + log|B_b + I| − log|S + I|): z_a = Λ_a⁻¹ν_i A,
     row_i = −½t_ai + ½(Λ_a⁻¹ν_i)ᵀA(Λ_a⁻¹ν_i) + const, w_j = Λ_b⁻¹ν'_j, col_j = −½t_bj + ½w_jᵀAw_j,
-    q_a, u = β_a ∘ q_a, v = β_b ∘ q_b — and the largest bound max_i row_i + max_j col_j +
-    max_i ‖z_i‖ · max_j ‖w_j‖ (Cauchy–Schwarz) on any exponent.
+    q_a, u = β_a ∘ q_a, v = β_b ∘ q_b — and, per input, the largest bound max_i row_i + max_j col_j +
+    max_i ‖z_i‖ · max_j ‖w_j‖ (Cauchy–Schwarz) on any of its exponents.
 
-    x_a (n_a, D), x_b (n_b, D), mu (B, D), sigma (B, D, D), ell_a (E_a, D), ell_b (E_b, D) the lengthscales,
+    The GPs' arrays carry a leading axis of G models (1, or B: input b against GP b; see
+    :func:`first_moments`): x_a (G, n_a, D), x_b (G, n_b, D), ell_a (G, E_a, D), ell_b (G, E_b, D) the
+    lengthscales, beta_a (G, E_a, n_a), beta_b (G, E_b, n_b); mu (B, D), sigma (B, D, D),
     b_logdet_a (B, E_a), b_logdet_b (B, E_b), t_a/first_q_a (B, E_a, n_a), t_b/first_q_b (B, E_b, n_b)
-    (the first moments' t and q), beta_a (E_a, n_a), beta_b (E_b, n_b)."""
-    inv_l2_a, inv_l2_b = 1.0 / ell_a ** 2, 1.0 / ell_b ** 2  # Λ⁻¹ diagonals, (E, D)
+    (the first moments' t and q). The bound is returned per input (B,)."""
+    inv_l2_a, inv_l2_b = 1.0 / ell_a ** 2, 1.0 / ell_b ** 2  # Λ⁻¹ diagonals, (G, E, D)
     batch, dim = mu.shape
+    models = x_a.shape[0]
     pairs = ia.size
-    n_a, n_b = x_a.shape[0], x_b.shape[0]
+    n_a, n_b = x_a.shape[1], x_b.shape[1]
     a_mat, const = np.empty((batch, pairs, dim, dim)), np.empty((batch, pairs))
     xi_half, scaled_sigma = np.empty(dim), np.empty((dim, dim))
     s_inv, s_ratio = np.empty((dim, dim)), np.empty((dim, dim))
     for b in range(batch):
+        g = b if models > 1 else 0
         for p in range(pairs):
             for k in range(dim):
-                xi_half[k] = np.sqrt(inv_l2_a[ia[p], k] + inv_l2_b[ib[p], k])
+                xi_half[k] = np.sqrt(inv_l2_a[g, ia[p], k] + inv_l2_b[g, ib[p], k])
             for k in range(dim):
                 for m in range(dim):
                     scaled_sigma[k, m] = sigma[b, k, m] * (xi_half[k] * xi_half[m])
@@ -210,32 +219,34 @@ def prepare(x_a: np.ndarray, x_b: np.ndarray, mu: np.ndarray, sigma: np.ndarray,
                 for m in range(dim):
                     a_mat[b, p, k, m] = s_ratio[k, m] / (xi_half[k] * xi_half[m])
             const[b, p] = 0.5 * (b_logdet_a[b, ia[p]] + b_logdet_b[b, ib[p]] - r_logdet)
-    x_a_t, x_b_t = np.ascontiguousarray(x_a.T), np.ascontiguousarray(x_b.T)
+    x_a_all_t = np.ascontiguousarray(np.transpose(x_a, (0, 2, 1)))
+    x_b_all_t = np.ascontiguousarray(np.transpose(x_b, (0, 2, 1)))
     z_a = np.empty((batch, pairs, dim, n_a))
     z_b_t = np.empty((batch, pairs, dim, n_b))
     row, u, q_a = np.empty((batch, pairs, n_a)), np.empty((batch, pairs, n_a)), np.empty((batch, pairs, n_a))
     col, v = np.empty((batch, pairs, n_b)), np.empty((batch, pairs, n_b))
     scaled_a, quadratic_a = np.empty((dim, n_a)), np.empty(n_a)
     projected_b, quadratic_b = np.empty((dim, n_b)), np.empty(n_b)
-    bound = -np.inf
+    bound = np.full(batch, -np.inf)
     for b in range(batch):
+        g = b if models > 1 else 0
         for p in range(pairs):
             a, e = ia[p], ib[p]
-            _projected(x_a_t, mu[b], inv_l2_a[a], a_mat[b, p], scaled_a, z_a[b, p], quadratic_a)
+            _projected(x_a_all_t[g], mu[b], inv_l2_a[g, a], a_mat[b, p], scaled_a, z_a[b, p], quadratic_a)
             top_row, top_z = -np.inf, 0.0
             for i in range(n_a):
                 row[b, p, i] = -0.5 * t_a[b, a, i] + 0.5 * quadratic_a[i] + const[b, p]
                 q = first_q_a[b, a, i]
                 q_a[b, p, i] = q
-                u[b, p, i] = beta_a[a, i] * q
+                u[b, p, i] = beta_a[g, a, i] * q
                 top_row, top_z = max(top_row, row[b, p, i]), max(top_z, _column_square(z_a[b, p], i))
-            _projected(x_b_t, mu[b], inv_l2_b[e], a_mat[b, p], z_b_t[b, p], projected_b, quadratic_b)
+            _projected(x_b_all_t[g], mu[b], inv_l2_b[g, e], a_mat[b, p], z_b_t[b, p], projected_b, quadratic_b)
             top_col, top_w = -np.inf, 0.0
             for j in range(n_b):
                 col[b, p, j] = -0.5 * t_b[b, e, j] + 0.5 * quadratic_b[j]
-                v[b, p, j] = beta_b[e, j] * first_q_b[b, e, j]
+                v[b, p, j] = beta_b[g, e, j] * first_q_b[b, e, j]
                 top_col, top_w = max(top_col, col[b, p, j]), max(top_w, _column_square(z_b_t[b, p], j))
-            bound = max(bound, top_row + top_col + np.sqrt(top_z * top_w))
+            bound[b] = max(bound[b], top_row + top_col + np.sqrt(top_z * top_w))
     return z_a, row, z_b_t, col, u, v, q_a, bound
 
 @_jit_fma
@@ -244,10 +255,11 @@ def centred_sums(z_a: np.ndarray, row: np.ndarray, z_b_t: np.ndarray, col: np.nd
                  cov: np.ndarray, trace: np.ndarray) -> None:
     """Both sums of the module docstring for a batch of inputs b and output pairs p:
     z_a (B, P, D, n_a), row (B, P, n_a), z_b_t (B, P, D, n_b), col (B, P, n_b), u (B, P, n_a),
-    v (B, P, n_b), q_a (B, P, n_a); k_inv (E, n_a, n_a), factors_t (E, n_a, n_a) the transposed
-    Cholesky factors L_aᵀ of K_a, and diagonal (P,) the output a of a diagonal pair (−1
-    otherwise). Writes cov (B, P) and, for the diagonal pairs, trace (B, P) =
-    tr(K_a⁻¹Q^{aa}) = ‖L_a⁻¹q_a‖² + tr(K_a⁻¹(Q^{aa} − q_a q_aᵀ)) (zero off the diagonal pairs).
+    v (B, P, n_b), q_a (B, P, n_a); k_inv (G, E, n_a, n_a), factors_t (G, E, n_a, n_a) the transposed
+    Cholesky factors L_aᵀ of K_a (G models, as in :func:`first_moments`: 1, or B with input b
+    against model b), and diagonal (P,) the output a of a diagonal pair (−1 otherwise). Writes
+    cov (B, P) and, for the diagonal pairs, trace (B, P) = tr(K_a⁻¹Q^{aa}) = ‖L_a⁻¹q_a‖²
+    + tr(K_a⁻¹(Q^{aa} − q_a q_aᵀ)) (zero off the diagonal pairs).
     Every exponent must be at most :data:`EXPM1_SAFE` (see :func:`gpfverify.gp.fused.centred_sums`).
 
     The sums run column-wise: acc_j = Σ_i u_i E_ij over the rows, then Cov = Σ_j acc_j v_j (and
@@ -260,10 +272,13 @@ def centred_sums(z_a: np.ndarray, row: np.ndarray, z_b_t: np.ndarray, col: np.nd
     input and output, with no call of its own."""
     batch, pairs, dim, n_a = z_a.shape
     n_b = z_b_t.shape[3]
+    models = k_inv.shape[0]
     d = np.empty(n_b)
     acc, acc_trace, white = np.empty(n_b), np.empty(n_b), np.empty(n_a)
     last = dim - 1
     for b in range(batch):
+        g = b if models > 1 else 0
+        model_k_inv, model_factors_t = k_inv[g], factors_t[g]
         for p in range(pairs):
             a = diagonal[p]
             acc[:] = 0.0
@@ -295,19 +310,19 @@ def centred_sums(z_a: np.ndarray, row: np.ndarray, z_b_t: np.ndarray, col: np.nd
                         acc[j] += weight * _expm1(row_d[j] + z * w_last[j])
                     continue
                 # a diagonal pair: E_ii once, E_ij (j > i) twice; row i of the whitening
-                x_i = white[i] / factors_t[a, i, i]
+                x_i = white[i] / model_factors_t[a, i, i]
                 white_sq += x_i * x_i
-                rest, factor_column = white[i + 1:], factors_t[a, i, i + 1:]
+                rest, factor_column = white[i + 1:], model_factors_t[a, i, i + 1:]
                 for j in range(rest.size):
                     rest[j] -= x_i * factor_column[j]
                 e = _expm1(row_d[0] + z * w_last[i])
                 acc[i] += u[b, p, i] * e
-                acc_trace[i] += q_a[b, p, i] * (e * k_inv[a, i, i])
+                acc_trace[i] += q_a[b, p, i] * (e * model_k_inv[a, i, i])
                 weight, weight_trace = 2.0 * u[b, p, i], 2.0 * q_a[b, p, i]
                 for j in range(1, width):
                     e = _expm1(row_d[j] + z * w_last[i + j])
                     acc[i + j] += weight * e
-                    acc_trace[i + j] += weight_trace * (e * k_inv[a, i, i + j])
+                    acc_trace[i + j] += weight_trace * (e * model_k_inv[a, i, i + j])
             cov[b, p] = _dot(acc, v[b, p])
             trace[b, p] = white_sq + _dot(acc_trace, q_a[b, p]) if a >= 0 else 0.0
 

@@ -120,17 +120,30 @@ def _stack_firsts(firsts: list[_FirstMoments]) -> _FirstMoments:
     return _FirstMoments(*(np.stack([getattr(f, name) for f in firsts]) for name in _FIELDS))
 
 
+def _model_arrays(gp) -> tuple[np.ndarray, ...]:
+    """(X, lengthscales, signal_var, β, K⁻¹, Lᵀ) of a GP with a leading axis of models: 1 for one
+    GP (views), B for a :class:`~gpfverify.gp.batch.GaussianProcessBatch` (run b's GP at b)."""
+    arrays = (gp.X, gp.lengthscales, gp.signal_var, gp.beta, gp.K_inv, gp.factors_t)
+    return arrays if getattr(gp, "runs", None) is not None else tuple(a[None] for a in arrays)
+
+
+def _member(gp, b: int):
+    """The GP input b is matched against: run b's of a batch, else the one GP."""
+    return gp.members[b] if getattr(gp, "runs", None) is not None else gp
+
+
 def _first_moments_batch(gp, mu: np.ndarray, sigma: np.ndarray) -> _FirstMoments:
-    """One GP's first moments at a batch of inputs N(mu[b], sigma[b]), each field with a leading
-    batch axis: by the compiled kernel when it is enabled, else input by input with
-    :func:`_first_moments` (the reference)."""
-    compiled = fused_first_moments(gp.X, gp.lengthscales, gp.signal_var, gp.beta, mu, sigma)
+    """A GP's first moments at a batch of inputs N(mu[b], sigma[b]) (input b against run b's GP for
+    a batch of GPs), each field with a leading batch axis: by the compiled kernel when it is
+    enabled, else input by input with :func:`_first_moments` (the reference)."""
+    x, lengthscales, signal_var, beta, _, _ = _model_arrays(gp)
+    compiled = fused_first_moments(x, lengthscales, signal_var, beta, mu, sigma)
     if compiled is not None:
         return _FirstMoments(*compiled)
-    return _stack_firsts([_first_moments(gp, mu[b], sigma[b]) for b in range(mu.shape[0])])
+    return _stack_firsts([_first_moments(_member(gp, b), mu[b], sigma[b]) for b in range(mu.shape[0])])
 
 
-def _batch_part(first: _FirstMoments, part: slice) -> _FirstMoments:
+def _batch_part(first: _FirstMoments, part) -> _FirstMoments:
     return _FirstMoments(*(getattr(first, name)[part] for name in _FIELDS))
 
 
@@ -139,20 +152,49 @@ def _centred_second_moments(gp_a, gp_b, ia: np.ndarray, ib: np.ndarray, first_a:
                             ) -> tuple[np.ndarray, np.ndarray]:
     """Cov[m_a, m_b] = β_aᵀ (Q^{ab} − q_a q_bᵀ) β_b (B, P) for the output pairs (ia[p] of gp_a,
     ib[p] of gp_b) at a batch of inputs N(mu[b], sigma[b]) (mu (B, D), sigma (B, D, D), first
-    moments with a leading batch axis), and the traces tr(K_a⁻¹Q^{aa}) = ‖L_a⁻¹q_a‖² +
-    tr(K_a⁻¹(Q^{aa} − q_a q_aᵀ)) (B, P) of the pairs p with ``diagonal[p]`` = a ≥ 0 (the pair (a, a)
-    of one GP; zero elsewhere) (eq. 10–11).
+    moments with a leading batch axis; for batches of GPs, input b against run b's GPs), and the
+    traces tr(K_a⁻¹Q^{aa}) = ‖L_a⁻¹q_a‖² + tr(K_a⁻¹(Q^{aa} − q_a q_aᵀ)) (B, P) of the pairs p with
+    ``diagonal[p]`` = a ≥ 0 (the pair (a, a) of one GP; zero elsewhere) (eq. 10–11).
+
+    The n_a × n_b sums go through the fused kernel (:mod:`gpfverify.gp.fused`) when it is enabled,
+    else through numpy (:func:`_numpy_centred_second_moments`, the reference: the same sums to
+    rounding); an input whose exponents the kernel cannot bound takes the numpy path alone, so what
+    an input gets depends on it alone, not on the rest of the batch."""
+    x_a, ell_a, _, beta_a, k_inv, factors_t = _model_arrays(gp_a)
+    x_b, ell_b, _, beta_b, _, _ = _model_arrays(gp_b)
+    fused = centred_sums(x_a, x_b, mu, sigma, ell_a, ell_b, first_a.b_logdet, first_b.b_logdet, ia, ib,
+                         first_a.t, first_b.t, first_a.q, first_b.q, beta_a, beta_b, k_inv, factors_t, diagonal)
+    if fused is not None:
+        cov, traces, computed = fused
+        if computed.all():
+            return cov, traces
+        rest = np.flatnonzero(~computed)
+    else:
+        cov, traces = np.empty((mu.shape[0], ia.size)), np.empty((mu.shape[0], ia.size))
+        rest = np.arange(mu.shape[0])
+    if getattr(gp_a, "runs", None) is None and getattr(gp_b, "runs", None) is None and fused is None:
+        for part in _chunks(rest.size, ia.size * x_a.shape[1] * x_b.shape[1]):
+            index = rest[part]
+            cov[index], traces[index] = _numpy_centred_second_moments(
+                gp_a, gp_b, ia, ib, _batch_part(first_a, index), _batch_part(first_b, index), mu[index],
+                sigma[index], diagonal)
+        return cov, traces
+    for b in rest.tolist():  # one input at a time, against its own GPs
+        one = slice(b, b + 1)
+        cov[one], traces[one] = _numpy_centred_second_moments(
+            _member(gp_a, b), _member(gp_b, b), ia, ib, _batch_part(first_a, one), _batch_part(first_b, one),
+            mu[one], sigma[one], diagonal)
+    return cov, traces
+
+
+def _numpy_centred_second_moments(gp_a, gp_b, ia: np.ndarray, ib: np.ndarray, first_a: _FirstMoments,
+                                  first_b: _FirstMoments, mu: np.ndarray, sigma: np.ndarray, diagonal: np.ndarray
+                                  ) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`_centred_second_moments` in numpy for one GP pair (a, b) at a batch of inputs.
 
     Q_ij = q_ai q_bj exp(d_ij) with the small exponent
     d_ij = −½t_ai − ½t_bj + ½ z_ijᵀR⁻¹Σz_ij − ½log|R| + ½log|B_a + I| + ½log|B_b + I|,
-    so Q − q_a q_bᵀ = q_ai q_bj expm1(d_ij) without cancellation. The n_a × n_b sums go through
-    the fused kernel (:mod:`gpfverify.gp.fused`) when it is enabled, else through numpy (the
-    reference: the same sums to rounding)."""
-    fused = centred_sums(gp_a.X, gp_b.X, mu, sigma, gp_a.lengthscales, gp_b.lengthscales, first_a.b_logdet,
-                         first_b.b_logdet, ia, ib, first_a.t, first_b.t, first_a.q, first_b.q, gp_a.beta, gp_b.beta,
-                         gp_a.K_inv, gp_a.factors_t, diagonal)
-    if fused is not None:
-        return fused
+    so Q − q_a q_bᵀ = q_ai q_bj expm1(d_ij) without cancellation."""
     inv_l2_a = 1.0 / gp_a.lengthscales[ia] ** 2  # (P, D)
     inv_l2_b = 1.0 / gp_b.lengthscales[ib] ** 2
     xi_half = np.sqrt(inv_l2_a + inv_l2_b)  # Ξ^½ diagonal, (P, D)
@@ -263,7 +305,9 @@ def moment_match_stack_batch(gps, mu: np.ndarray, sigma: np.ndarray) -> MomentMa
     batch of Gaussian inputs N(mu[b], sigma[b]): mu (B, D), sigma (B, D, D); returns mean (B, E),
     cov (B, E, E), cross_cov (B, D, E). Arguments are assumed checked. Each input gets the same
     numbers as a call of its own (:func:`moment_match_stack`), to rounding; the small per-input
-    algebra is done once for the whole batch."""
+    algebra is done once for the whole batch. For :class:`~gpfverify.gp.batch.GaussianProcessBatch`
+    members (one GP per Monte Carlo run, B of them), input b is matched against run b's GPs, and
+    what it gets does not depend on the other runs in the batch (the same bits for any batch)."""
     batch = mu.shape[0]
     firsts = [_first_moments_batch(gp, mu, sigma) for gp in gps]
     mean = np.concatenate([f.mean for f in firsts], axis=-1)
@@ -276,20 +320,14 @@ def moment_match_stack_batch(gps, mu: np.ndarray, sigma: np.ndarray) -> MomentMa
         for h in range(g, len(gps)):
             gp_b = gps[h]
             ia, ib, diagonal, on_diagonal = _block_pairs(gp_a.output_dim, gp_b.output_dim, g == h)
-            blocks = np.empty((ia.size, batch))  # Cov[f_a, f_b] per output pair and input
-            parts = _chunks(batch, ia.size * gp_a.X.shape[0] * gp_b.X.shape[0])
-            for part in parts:
-                first_a, first_b = ((firsts[g], firsts[h]) if len(parts) == 1 else
-                                    (_batch_part(firsts[g], part), _batch_part(firsts[h], part)))
-                pair_cov, traces = _centred_second_moments(gp_a, gp_b, ia, ib, first_a, first_b, mu[part],
-                                                           sigma[part], diagonal)
-                block = pair_cov.T  # (P, B)
-                if on_diagonal.size:
-                    block[on_diagonal] += _model_uncertainty(gp_a, traces[:, on_diagonal]).T
-                blocks[:, part] = block
+            pair_cov, traces = _centred_second_moments(gp_a, gp_b, ia, ib, firsts[g], firsts[h], mu, sigma,
+                                                       diagonal)
+            block = pair_cov.T  # (P, B): Cov[f_a, f_b] per output pair and input
+            if on_diagonal.size:
+                block[on_diagonal] += _model_uncertainty(gp_a, traces[:, on_diagonal]).T
             rows, cols = offsets[g] + ia, offsets[h] + ib
-            cov[:, rows, cols] = blocks.T
-            cov[:, cols, rows] = blocks.T
+            cov[:, rows, cols] = block.T
+            cov[:, cols, rows] = block.T
     return MomentMatch(mean=mean, cov=cov, cross_cov=cross_cov)
 
 

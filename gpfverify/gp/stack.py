@@ -25,6 +25,8 @@ class GaussianProcessStack:
         self.gps = tuple(gps)
         if not self.gps:
             raise InputError("a GaussianProcessStack needs at least one GP")
+        if len({getattr(gp, "runs", None) for gp in self.gps}) != 1:
+            raise InputError("stacked GPs must all be single GPs or all batches of the same runs")
         dims = {gp.input_dim for gp in self.gps}
         if len(dims) != 1:
             raise InputError(f"stacked GPs must share the input dimension, got {sorted(dims)}")
@@ -42,12 +44,19 @@ class GaussianProcessStack:
         return sum(self.sizes)
 
     @property
+    def runs(self) -> int | None:
+        """B when the members are :class:`~gpfverify.gp.batch.GaussianProcessBatch`\\ es of B runs,
+        else None."""
+        return getattr(self.gps[0], "runs", None)
+
+    @property
     def noise_var(self) -> np.ndarray:
-        return np.concatenate([gp.noise_var for gp in self.gps])
+        """(E,), or (B, E) for a stack of batches."""
+        return np.concatenate([gp.noise_var for gp in self.gps], axis=-1)
 
     @property
     def signal_var(self) -> np.ndarray:
-        return np.concatenate([gp.signal_var for gp in self.gps])
+        return np.concatenate([gp.signal_var for gp in self.gps], axis=-1)
 
     def predict(self, Xs) -> tuple[np.ndarray, np.ndarray]:
         parts = [gp.predict(Xs) for gp in self.gps]
@@ -64,5 +73,7 @@ class GaussianProcessStack:
     def predict_uncertain_batch(self, mus, Sigmas) -> MomentMatch:
         """Joint moments at many Gaussian inputs (see
         :meth:`GaussianProcess.predict_uncertain_batch`)."""
+        if self.runs is not None:  # batches of runs' GPs check what they take (the filters' beliefs)
+            return moment_match_stack_batch(self.gps, *self.gps[0].checked_inputs(mus, Sigmas))
         m, s = checked_batch(mus, Sigmas, self.input_dim)
         return moment_match_stack_batch(self.gps, m, s)

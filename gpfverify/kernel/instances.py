@@ -2,8 +2,9 @@
 
 An instance (JSON object) gives ``sizes`` {n: int}, ``indexed_sizes`` {l: [int per member]},
 ``params`` {a: number}, ``free_indices`` {j: 1-based int} and ``values`` {X: matrix, or a list
-of matrices for a family}, a matrix being a list of rows of numbers. Selectors are not given:
-S_i is the block [0; I; 0] of the partition, whose total must equal the sum of its parts.
+of matrices for a family}, a matrix being a list of rows of numbers (``[]`` for one with no rows).
+Selectors are not given: S_i is the block [0; I; 0] of the partition, whose total must equal the sum
+of its parts.
 
 Every term is evaluated exactly (sympy rationals; A⁺ from sympy's rank decomposition); an
 inverse of a singular matrix, a division by zero or a fractional power of a negative number is
@@ -11,7 +12,8 @@ outside the statement's domain (:class:`Undefined`). A hypothesis "for every x" 
 with the entries of x as symbols and holds when the difference cancels to 0 identically. A
 predicate is evaluated only where that is exact: otherwise :class:`NotEvaluable`.
 
-* a **witness** satisfies every hypothesis (a proved statement with none is reported vacuous);
+* a **witness** satisfies every hypothesis, with every size ≥ 2 (a proved statement with none is
+  reported vacuous);
 * a **counterexample** satisfies every hypothesis and falsifies a conclusion.
 """
 
@@ -24,8 +26,10 @@ import sympy as sp
 from gpfverify.kernel.terms import HEAD, Size, Statement, fail, number, parse_size
 
 
-#: an instance is evaluated exactly: its sizes stay small (a witness needs no large ones)
+#: an instance is evaluated exactly: its sizes stay small (a witness needs no large ones), and so
+#: does every size it evaluates (a constant such as I of size 10⁸ in a statement is refused)
 MAX_SIZE = 64
+MAX_EVALUATED = 4 * MAX_SIZE
 
 
 class Undefined(Exception):
@@ -36,13 +40,19 @@ class NotEvaluable(Exception):
     """A predicate the kernel cannot decide exactly at this instance (an integral, a transcendental number)."""
 
 
-def _matrix(rows, what: str) -> sp.Matrix:
+def _count(v) -> bool:
+    """An integer (JSON true is not 1 here)."""
+    return isinstance(v, int) and not isinstance(v, bool)
+
+
+def _matrix(rows, what: str, width: int) -> sp.Matrix:
+    """A list of rows as an exact matrix; ``[]`` has no rows, and the declared ``width``."""
     if not isinstance(rows, list | tuple) or not all(isinstance(r, list | tuple) for r in rows):
         fail(f"instance: {what} is not a list of rows")
     widths = {len(r) for r in rows}
     if len(widths) > 1:
         fail(f"instance: the rows of {what} differ in length")
-    return sp.Matrix(len(rows), widths.pop() if widths else 0,
+    return sp.Matrix(len(rows), widths.pop() if widths else width,
                      [sp.Rational(number(x).numerator, number(x).denominator) for r in rows for x in r])
 
 
@@ -55,7 +65,7 @@ class Instance:
             fail("an instance is {'sizes', 'indexed_sizes', 'params', 'free_indices', 'values'}")
         self.st = st
         self.sizes = {k: v for k, v in data.get("sizes", {}).items()}
-        if set(self.sizes) != set(st.sizes) or not all(isinstance(v, int) and 0 <= v <= MAX_SIZE
+        if set(self.sizes) != set(st.sizes) or not all(_count(v) and 0 <= v <= MAX_SIZE
                                                        for v in self.sizes.values()):
             fail(f"instance: every size symbol needs a value in 0..{MAX_SIZE} (and nothing else)")
         self.counts = {k: self.size(v, {}) for k, v in st.index_sets.items()}
@@ -63,7 +73,7 @@ class Instance:
         for name, index_set in st.indexed_sizes.items():
             values = self.indexed.get(name)
             if not isinstance(values, list | tuple) or len(values) != self.counts[index_set] or not all(
-                    isinstance(v, int) and 0 <= v <= MAX_SIZE for v in values):
+                    _count(v) and 0 <= v <= MAX_SIZE for v in values):
                 fail(f"instance: the sizes {name} need one value ≥ 0 per member of {index_set}")
         self.params = {k: sp.Rational(number(v).numerator, number(v).denominator)
                        for k, v in data.get("params", {}).items()}
@@ -71,7 +81,7 @@ class Instance:
             fail("instance: every parameter needs a value")
         self.free = dict(data.get("free_indices", {}))
         if set(self.free) != set(st.free_indices) or not all(
-                isinstance(v, int) and 1 <= v <= self.counts[st.free_indices[k]] for k, v in self.free.items()):
+                _count(v) and 1 <= v <= self.counts[st.free_indices[k]] for k, v in self.free.items()):
             fail("instance: every free index needs a value in its index set")
         self.partitions = dict(st.partitions)
         for name, size in (bases or {}).items():
@@ -90,8 +100,8 @@ class Instance:
             if not isinstance(given, list | tuple) or len(given) != len(members):
                 fail(f"instance: {name} needs one matrix per member of {decl.over}")
             for i, rows in zip(members, given):
-                m = _matrix(rows, name)
                 env = {HEAD: i} if i is not None else {}
+                m = _matrix(rows, name, self.size(decl.cols, env))
                 if m.shape != (self.size(decl.rows, env), self.size(decl.cols, env)):
                     fail(f"instance: {name}{'' if i is None else f'[{i}]'} has the wrong shape {m.shape}")
                 self.values[(name, i)] = m
@@ -105,6 +115,8 @@ class Instance:
                 total += c * self.sizes[name]
             else:
                 total += c * self.indexed[name][self._index(index, env) - 1]
+        if total > MAX_EVALUATED:
+            fail(f"instance: a size evaluates to {total}, above {MAX_EVALUATED}")
         return total
 
     def _index(self, name, env):
@@ -254,9 +266,23 @@ def _exactly_zero(e) -> bool:
     e = sp.cancel(sp.together(sp.expand(e)))
     if e.is_Rational:
         return e == 0
-    if e.free_symbols and e.is_rational_function():
-        return e == 0
-    raise NotEvaluable("a difference that is not a rational function")
+    symbols = sorted(e.free_symbols, key=str)
+    if symbols and e.is_rational_function() and all(
+            term.as_independent(*symbols)[0].is_Rational for part in sp.fraction(e) for term in sp.Add.make_args(part)):
+        return e == 0  # over ℚ cancel decides it (an irrational coefficient could be a zero it does not see)
+    raise NotEvaluable("a difference that is not a rational function over the rationals")
+
+
+#: every size of a witness is at least this: a size symbol stands for every dimension, and hypotheses
+#: that hold only with empty or 1 × 1 blocks (where matrices commute) would make a statement vacuous
+WITNESS_SIZE = 2
+
+
+def degenerate(inst: Instance) -> str:
+    """'' when every size symbol and every member's size of a witness is ≥ WITNESS_SIZE; otherwise which is not."""
+    small = [f"{k} = {v}" for k, v in inst.sizes.items() if v < WITNESS_SIZE]
+    small += [f"{k} = {tuple(v)}" for k, v in inst.indexed.items() if any(x < WITNESS_SIZE for x in v)]
+    return f"the witness has a size below {WITNESS_SIZE} ({', '.join(small)})" if small else ""
 
 
 def satisfies(st: Statement, inst: Instance) -> str:

@@ -42,7 +42,7 @@ from gpfverify.kernel.terms import HEAD, Size, Statement, _expand, fail, number,
 REFS = ("@f", "@b", "@x")  # a free index, a bound position, the index of a sum under construction
 EMPTY = ((), None)  # no scalar atoms, no exp
 INTEGRATION = "@∫"  # the canonical name of an integration variable inside its integral
-MAX_POWER = 64  # a power of a sum is expanded up to this exponent (a single monomial has any power)
+MAX_POWER = 64  # an integer power is taken up to this exponent (a power of a sum is expanded)
 
 
 # ---- coefficients -----------------------------------------------------------------------------------
@@ -239,6 +239,8 @@ class Context:
         for name, index, c in size.atoms:
             if index is not None:
                 fail(f"the size {size.text()} of a family member cannot be used as a number")
+            if name not in self.st.sizes:  # an index set counted by a parameter, say
+                fail(f"unknown size symbol {name!r}")
             total = c_add(total, c_mul(Fraction(c), _lower(self.gens[name])))
         return total
 
@@ -258,8 +260,11 @@ class Context:
         return ((tuple(sorted(powers.items(), key=lambda t: key(t[0]))), exp), b1 + b2, w1 + w2)
 
     def canon(self, mono, shape):
-        """The canonical monomial (N3, N5) and the count factor of the sums it drops."""
+        """The canonical monomial (N3, N5) and the count factor of the sums it drops. Only the monomial's
+        own bound positions are sifted and renumbered: a normal form nested in an atom (the body of a
+        pinv, say) may mention its enclosing monomial's, and Σ_x f(S_xᵀS_y) ≠ f(I) for f nonlinear."""
         scalars, binders, word = mono
+        own = lambda r: r[0] == "@b" and r[1] < len(binders)  # noqa: E731
         removed: set = set()
         changed = True
         while changed:
@@ -272,10 +277,10 @@ class Context:
                 rest = word[:p] + word[p + 2:]
                 if x == y:  # S_iᵀS_i = I
                     word = rest
-                elif x[0] == "@b":  # Σ_x u(x) S_xᵀS_y w(x) = u(y) w(y)
+                elif own(x):  # Σ_x u(x) S_xᵀS_y w(x) = u(y) w(y)
                     scalars, word = _replace((scalars, rest), x, y)
                     removed.add(x[1])
-                elif y[0] == "@b":
+                elif own(y):
                     scalars, word = _replace((scalars, rest), y, x)
                     removed.add(y[1])
                 else:
@@ -287,9 +292,9 @@ class Context:
             words.append(self.tword(word))
         best, factor = None, Fraction(1)
         for w in words:
-            order = [r[1] for r in refs((w, scalars), []) if r[0] == "@b"]
+            order = [r[1] for r in refs((w, scalars), []) if own(r)]
             mapping = {old: new for new, old in enumerate(order)}
-            renamed = walk((scalars, w), lambda r, mapping=mapping: ("@b", mapping[r[1]]) if r[0] == "@b" else r)
+            renamed = walk((scalars, w), lambda r, mapping=mapping: ("@b", mapping[r[1]]) if own(r) else r)
             candidate = (renamed[0], tuple(binders[k] for k in order), renamed[1])
             if best is None or key(candidate) < key(best):
                 best, unused = candidate, [k for k in range(len(binders)) if k not in removed and k not in mapping]
@@ -386,8 +391,8 @@ class Context:
             for _ in range(int(exponent)):
                 out = self.mul(out, a)
             return out
-        if integer and exponent > MAX_POWER and len(a.terms) > 1:
-            fail(f"a power above {MAX_POWER} of a sum is not expanded")
+        if integer and abs(exponent) > MAX_POWER:  # c^e would be computed digit by digit
+            fail(f"a power beyond ±{MAX_POWER} is not expanded")
         if len(a.terms) != 1:
             fail("a negative or fractional power of a sum")
         ((powers, exp), binders, _), c = next(iter(a.terms.items()))
@@ -578,12 +583,13 @@ class Context:
     def _int(self, args, scope, head):
         """∫_{x ∈ ℝⁿ} body dx: an atom (its variable renamed canonically); rules apply only through G9."""
         name, size, body = args
-        if name in self.st.names or name in scope or any(b[0] == "matrix" and b[2] == INTEGRATION
-                                                         for b in scope.values() if isinstance(b, tuple)):
-            fail(f"the integration variable {name!r} is in use, or the integral is nested")
+        if name in self.st.names or name in scope:
+            fail(f"the integration variable {name!r} is in use")
         inner = self.nf(body, dict(scope, **{name: ("matrix", (self.size(size, scope), parse_size(1)), INTEGRATION)}))
         if any(binders for (_, binders, _) in inner.terms):
             fail("an integral of a sum over an index is not supported")
+        if _holds_integral(inner.frozen()):  # written inside, or brought in by a definition (whose argument
+            fail("an integral inside an integral is not supported")  # could be the outer variable)
         atom = ("int", self.size(size, scope), inner.frozen())
         if inner.shape is None:
             return self.scalar(Fraction(1), ((atom, Fraction(1)),))
@@ -596,6 +602,8 @@ class Context:
         a = self.nf(args[0], scope)
         if a.shape is None or a.shape[0] != a.shape[1]:
             fail(f"det of {_shape_text(a.shape)}")
+        if any(binders for (_, binders, _) in a.terms):  # its bound positions would mix with the outer monomial's
+            fail("det of a sum over an index is not supported")
         atom = self.det_atom(a)
         return self.scalar(Fraction(1)) if atom is None else self.scalar(Fraction(1), ((atom, Fraction(1)),))
 
@@ -623,6 +631,11 @@ class Context:
 _HANDLERS = {"var": "var", "call": "call", "sel": "sel", "I": "I", "0": "0", "+": "plus", "*": "times", "T": "T",
              "pinv": "pinv", "inv": "pinv", "sum": "sum", "num": "num", "param": "param", "size": "sizenum",
              "^": "pow", "tr": "tr", "det": "det", "exp": "exp", "2pi": "twopi", "int": "int"}
+
+
+def _holds_integral(obj) -> bool:
+    """Whether a frozen normal form holds an integral atom anywhere."""
+    return isinstance(obj, tuple) and bool(obj) and (obj[0] == "int" or any(_holds_integral(o) for o in obj))
 
 
 def _letter(term) -> bool:

@@ -7,7 +7,7 @@ The statement text is the conclusion, its definitions ("where …") and every hy
 
 from __future__ import annotations
 
-from gpfverify.kernel.terms import HEAD, Statement, number, parse_size
+from gpfverify.kernel.terms import HEAD, Statement, _expand, number, parse_size
 
 ANY_DIMENSION = "any dimension"
 _SUP = str.maketrans("0123456789-", "⁰¹²³⁴⁵⁶⁷⁸⁹⁻")
@@ -109,35 +109,55 @@ class Renderer:
                  "invertible": "is invertible", "nonzero": "≠ 0", "positive": "> 0"}
         return f"{self.term(p[1], 1)} {words[head]}"
 
+    @property
+    def member_index(self) -> str:
+        """The letter that names a family's member in the text (one no declaration uses)."""
+        return next(i for i in ("m", "k", "i", "r", "s", "t", "m′") if i not in self.st.names)
+
+    def shapes(self, entries) -> str:
+        """'A, B ∈ ℝ^{n × l}; C_m ∈ ℝ^{l_m × l_m} (m = 1..N)' for (name, rows, cols[, members]) entries."""
+        groups: dict = {}
+        for name, rows, cols, *members in entries:
+            key = f"ℝ^{{{size_text(rows)} × {size_text(cols)}}}" + (f" ({members[0]})" if members else "")
+            groups.setdefault(key, []).append(name)
+        return "; ".join(f"{', '.join(names)} ∈ {shape}" for shape, names in groups.items())
+
     def definitions(self) -> list[str]:
         out = []
+        m = self.member_index
         for name, d in self.st.definitions.items():
-            index = None if d.over is None else "m" if "m" not in self.st.names else "k"
+            index = None if d.over is None else m
             head = member(name, index) + ("(" + ", ".join(a[0] for a in d.args) + ")" if d.args else "")
             body = self.term(_rename_head(d.body, index)) if index else self.term(d.body)
-            out.append(f"{head} := {body}")
+            shapes = self.shapes((a, _renamed(r, index), _renamed(c, index)) for a, r, c in d.args)
+            out.append(f"{head} := {body}" + (f" for {shapes}" if d.args else ""))
         return out
 
     def quantifiers(self) -> str:
+        m = self.member_index
         sizes = [member(s, None) for s in self.st.sizes]
-        families = [f"{member(n, 'm')} (m = 1..{size_text(self.st.index_sets[s])})"
+        families = [f"{member(n, m)} ({m} = 1..{size_text(self.st.index_sets[s])})"
                     for n, s in self.st.indexed_sizes.items()]
         text = "for all sizes " + ", ".join(sizes + families) + " ≥ 0" if sizes or families else ""
         if self.st.params:
             text += ("; " if text else "for ") + "all real " + ", ".join(self.st.params)
+        if self.st.variables:
+            text += ("; " if text else "for ") + "all " + self.shapes(
+                (name, d.rows, d.cols) if d.over is None else
+                (member(name, m), _renamed(d.rows, m), _renamed(d.cols, m),
+                 f"{m} = 1..{size_text(self.st.index_sets[d.over])}") for name, d in self.st.variables.items())
         for name, (over, total, part) in self.st.partitions.items():
             count = size_text(self.st.index_sets[over])
-            text += (f"; {member(name, 'm')} (m = 1..{count}) the column blocks of I of size {size_text(total)} "
-                     f"= Σ_m {size_text(_rename_part(part))}")
+            text += (f"; {member(name, m)} ({m} = 1..{count}) the column blocks of I of size {size_text(total)} "
+                     f"= Σ_{m} {size_text(_renamed(part, m))}")
         for name, s in self.st.free_indices.items():
             text += f"; every {name} = 1..{size_text(self.st.index_sets[s])}"
         return text
 
 
-def _rename_part(part):
-    from gpfverify.kernel.terms import Size
-
-    return Size.of(part.const, {(n, "m" if i == HEAD else i): c for n, i, c in part.atoms})
+def _renamed(size, index):
+    """A declared size with its member's own index ``#`` written ``index``."""
+    return size if index is None else size.renamed(HEAD, index)
 
 
 def _rename_head(term, index: str):
@@ -163,13 +183,46 @@ def statement_text(st: Statement) -> str:
 
 
 def scope(st: Statement) -> str:
-    """"any dimension" unless a dimension is fixed to a number ≥ 2."""
-    fixed = set()
-    for d in st.variables.values():
-        for s in (d.rows, d.cols):
-            if not s.atoms and s.const >= 2:
-                fixed.add(s.const)
+    """"any dimension" unless a dimension is fixed: a number other than 1 as a size anywhere (a shape,
+    a count of members, a block, an identity's or an integral's size), or no size symbol at all."""
+    dims = list(st.index_sets.values())
+    dims += [s for d in st.variables.values() for s in (d.rows, d.cols)]
+    dims += [s for d in st.definitions.values() for _, r, c in d.args for s in (r, c)]
+    dims += [s for _, total, part in st.partitions.values() for s in (total, part)]
+    for d in st.definitions.values():
+        _term_sizes(d.body, dims)
+    for pred in (*st.hypotheses, *st.conclusion):
+        _predicate_sizes(pred, dims)
+    numbers = {s.const for s in dims if not s.atoms}
+    fixed = numbers - {1} if any(s.atoms for s in dims) else numbers
     return ANY_DIMENSION if not fixed else "dimensions fixed at " + ", ".join(map(str, sorted(fixed)))
+
+
+def _predicate_sizes(pred, out: list) -> None:
+    head = pred[0]
+    if head == "every":
+        _predicate_sizes(pred[3], out)
+    elif head == "forall":
+        out.extend(parse_size(s) for _, r, c in pred[1] for s in (r, c))
+        _predicate_sizes(pred[2], out)
+    elif head == "<=":
+        out.extend(parse_size(s) for s in pred[1:])
+    else:
+        for t in pred[1:]:
+            _term_sizes(t, out)
+
+
+def _term_sizes(term, out: list) -> None:
+    """The sizes written in a term (an identity's, a zero's, an integral's; a size used as a number is not one)."""
+    head, args = term[0], term[1:]
+    for kind, value in zip(_expand(head, len(args)), args):
+        if kind == "size" and head != "size":
+            out.append(parse_size(value))
+        elif kind == "term" or (kind == "exponent" and isinstance(value, tuple)):
+            _term_sizes(value, out)
+        elif kind == "terms":
+            for t in value:
+                _term_sizes(t, out)
 
 
 def instance_text(data: dict) -> str:

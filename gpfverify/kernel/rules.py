@@ -33,11 +33,12 @@ the equation step ``id`` proves E = F₁⋯F_k, and each F is invertible (R1), r
 "const": c₀, "by": [entry, ...]}``: b − a − Σ c·tr(WᵀW) − Σ μ·(size hypothesis k: rhs − lhs) − c₀
 equals Σ tr(entry_k) in normal form, with every c > 0, μ ≥ 0, c₀ ≥ 0: tr(WᵀW) is a sum of squares.
 
-Derived facts (R1–R3): R1 E is invertible if it is SPD (R3), an invertible hypothesis, the
-inverse of an invertible matrix, or an earlier side step; R2 det(E) > 0 if E is SPD or an earlier
-side step; R3 E is SPD if it is a sum, with positive rational coefficients, of I, letters with an
-SPD hypothesis and inverses of SPD matrices. A divisor is nonzero when each of its irreducible
-factors is one of a nonzero or positive hypothesis (or a size constrained to be ≥ 1).
+Derived facts (R1–R3): R1 E is invertible if it is SPD (R3), an invertible hypothesis, c times
+the inverse of an invertible matrix (c a nonzero coefficient, as a divisor is), or an earlier side
+step; R2 det(E) > 0 if E is SPD or an earlier side step; R3 E is SPD if it is a sum, with positive
+rational coefficients, of I, letters with an SPD hypothesis and inverses of SPD matrices. A divisor
+is nonzero when each of its irreducible factors is one of a nonzero or positive hypothesis (or a
+size constrained to be ≥ 1).
 """
 
 from __future__ import annotations
@@ -47,7 +48,8 @@ from fractions import Fraction
 import sympy as sp
 
 from gpfverify.kernel.normal import EMPTY, INTEGRATION, NF, Context, c_add, c_mul, key, refs
-from gpfverify.kernel.terms import KernelError, Size, Statement, canonical_json, fail, number, parse_size, substitute
+from gpfverify.kernel.terms import (KernelError, Size, Statement, canonical_json, fail, number, parse_size, rename_size,
+                                    substitute)
 
 #: each generator and the fields it takes (the first field present names it)
 GENERATORS = {"fcr": {"fcr", "hyp", "index"}, "penrose": {"penrose", "of"}, "inverse": {"inverse", "of"},
@@ -91,11 +93,17 @@ class Checker:
 
     # ---- derived facts ----------------------------------------------------------------------------
     def _hyp_nfs(self, kind: str, around: NF):
-        """Normal forms of the matrices of the hypotheses ``kind`` (at every index reference met in ``around``)."""
+        """Normal forms of the matrices of the hypotheses ``kind`` (at every index reference met in ``around``).
+        "For every m ∈ J: P(m)" is used only when P(m) depends on m, and then P(r) matches ``around`` only
+        where ``around`` uses r as a member of J; a P free of m says nothing (J may be empty)."""
         for k, h in enumerate(self.st.hypotheses):
             if h[0] == kind and len(h) == 2:
                 yield k, None, self.ctx.nf(h[1], self.ctx.scope())
             elif h[0] == "every" and len(h) == 4 and isinstance(h[3], tuple) and h[3][0] == kind:
+                fresh = ("@x", next(self.ctx._fresh))
+                probe = self.ctx.nf(h[3][1], dict(self.ctx.scope(), **{h[1]: ("index", fresh, h[2])}))
+                if fresh not in refs(probe.frozen(), []):
+                    continue
                 for ref in refs(around.frozen(), []):
                     scope = dict(self.ctx.scope(), **{h[1]: ("index", ref, h[2])})
                     try:
@@ -125,8 +133,8 @@ class Checker:
             return True
         if len(a.terms) == 1:
             ((scalars, binders, word)), c = next(iter(a.terms.items()))
-            if scalars == EMPTY and not binders and len(word) == 1 and word[0][0] == "p":
-                return self.is_invertible(NF.thaw(word[0][1])) and c != 0
+            if scalars == EMPTY and not binders and len(word) == 1 and word[0][0] == "p":  # c·E⁻¹, c ≠ 0
+                return self.is_invertible(NF.thaw(word[0][1])) and self.nonzero(c)
         return False
 
     def is_positive(self, a: NF) -> bool:
@@ -134,6 +142,10 @@ class Checker:
         return self.spd(a) or a.frozen() in self.positive
 
     def nonzero(self, c) -> bool:
+        """A coefficient is nonzero: a rational ≠ 0, or every irreducible factor of a rational function
+        (numerator and denominator) is one of a nonzero or positive hypothesis, or a size s with 1 ≤ s."""
+        if isinstance(c, Fraction):
+            return c != 0
         factors = {}
         scope = self.ctx.scope()
         for h in self.st.hypotheses:
@@ -488,14 +500,16 @@ class Checker:
 
 
 def substitute_pred(pred, variables=None, index=None):
-    """A predicate with variables replaced / an index renamed (terms via :func:`substitute`)."""
+    """A predicate with variables replaced / an index renamed (terms via :func:`substitute`; an
+    index also in every size: a "for every x" declaration's and a size comparison's)."""
     head = pred[0]
+    size = (lambda s: rename_size(s, *index)) if index else (lambda s: s)
     if head == "every":
         return (head, pred[1], pred[2], substitute_pred(pred[3], variables, index))
     if head == "forall":
-        return (head, pred[1], substitute_pred(pred[2], variables, index))
+        return (head, tuple((x, size(r), size(c)) for x, r, c in pred[1]), substitute_pred(pred[2], variables, index))
     if head == "<=":
-        return pred
+        return (head, size(pred[1]), size(pred[2]))
     return (head, *(substitute(t, variables, index) for t in pred[1:]))
 
 

@@ -57,14 +57,19 @@ def fail(message: str) -> NoReturn:
     raise KernelError(message)
 
 
+_NUMBER = re.compile(r"^-?[0-9]{1,300}(?:/[0-9]{1,300})?$")
+
+
 def number(value) -> Fraction:
-    """An integer or a "p/q" string as an exact rational."""
-    if isinstance(value, bool) or not isinstance(value, int | str):
-        fail(f"a number is an integer or a 'p/q' string, not {value!r}")
+    """An integer or a "p/q" string as an exact rational (no decimal point, no exponent: "1e9999999999"
+    would be computed digit by digit)."""
+    if isinstance(value, bool) or not isinstance(value, int | str) or (isinstance(value, str)
+                                                                       and not _NUMBER.match(value)):
+        fail(f"a number is an integer or a 'p/q' string, not {str(value)[:40]!r}")
     try:
         return Fraction(value)
     except (ValueError, ZeroDivisionError):
-        fail(f"not a rational number: {value!r}")
+        fail(f"not a rational number: {str(value)[:40]!r}")
 
 
 def show_number(value: Fraction) -> str | int:
@@ -89,20 +94,35 @@ class Size:
         return Size(const, tuple(sorted(((n, i, c) for (n, i), c in atoms.items() if c), key=repr)))
 
     def __add__(self, other: Size) -> Size:
-        total: dict = {(n, i): c for n, i, c in self.atoms}
-        for n, i, c in other.atoms:
-            total[(n, i)] = total.get((n, i), 0) + c
-        return Size.of(self.const + other.const, total)
+        return Size.of(self.const + other.const, _merged(self.atoms + other.atoms))
 
     @property
     def is_one(self) -> bool:
         return self.const == 1 and not self.atoms
 
-    def text(self) -> str:
-        parts = [(f"{c}·" if c != 1 else "") + n + (f"[{i}]" if i is not None else "") for n, i, c in self.atoms]
+    def text(self, times: str = "·") -> str:
+        parts = [(f"{c}{times}" if c != 1 else "") + n + (f"[{i}]" if i is not None else "") for n, i, c in self.atoms]
         if self.const or not parts:
             parts.append(str(self.const))
         return " + ".join(parts)
+
+    def renamed(self, old: str, new: str) -> Size:
+        """The size with every member index ``old`` renamed ``new``."""
+        return Size.of(self.const, _merged((n, new if i == old else i, c) for n, i, c in self.atoms))
+
+
+def _merged(atoms) -> dict:
+    total: dict = {}
+    for n, i, c in atoms:
+        total[(n, i)] = total.get((n, i), 0) + c
+    return total
+
+
+def rename_size(text, old: str, new: str):
+    """A size as written (a string or an integer) with the member index ``old`` renamed ``new``:
+    read, renamed atom by atom and written back, so that ``l[ m ]`` is renamed like ``l[m]``."""
+    size = parse_size(text)
+    return size.renamed(old, new).text(times="*") if any(i == old for _, i, _ in size.atoms) else text
 
 
 def parse_size(text) -> Size:
@@ -301,8 +321,8 @@ def substitute(term, variables: dict | None = None, index: tuple | None = None):
                        else substitute(value, variables, index))
         elif kind.startswith("index") and index and value == index[0]:
             out.append(index[1])
-        elif kind == "size" and index and isinstance(value, str):
-            out.append(value.replace(f"[{index[0]}]", f"[{index[1]}]"))
+        elif kind == "size" and index:
+            out.append(rename_size(value, *index))
         else:
             out.append(value)
     return tuple(out)

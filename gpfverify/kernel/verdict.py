@@ -22,9 +22,9 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from gpfverify.kernel.instances import Instance, conclusion_fails, refutes, satisfies
+from gpfverify.kernel.instances import Instance, conclusion_fails, degenerate, refutes, satisfies
 from gpfverify.kernel.render import ANY_DIMENSION, hypotheses, instance_text, scope, statement_text
-from gpfverify.kernel.rules import check_proof, generator_kind
+from gpfverify.kernel.rules import check_proof, generator_kind, statement_needs
 from gpfverify.kernel.terms import KernelError, Statement, frozen, read_statement
 
 DERIVED = ("status", "statement", "hypotheses", "scope", "method", "detail")
@@ -51,15 +51,16 @@ def judge(part) -> Part:
     except KernelError as e:
         return Part("not proved", f"the statement is malformed: {e}", None)
     try:
-        if "refutation" in part:
+        if "refutation" in part:  # a well-formed statement: typed as a proof's is (its side conditions aside)
+            statement_needs(st)
             why = refutes(st, Instance(st, part["refutation"]))
             return Part("refuted" if not why else "not proved", why or "", st)
         proof = frozen(part.get("proof"))
         checker = check_proof(st, proof)
         witness = Instance(st, part.get("witness") or {}, proof.get("bases"))
-        why = satisfies(st, witness)
+        why = degenerate(witness) or satisfies(st, witness)
         if why:
-            return Part("vacuous", f"the witness does not satisfy the hypotheses: {why}", st)
+            return Part("vacuous", f"no witness of the hypotheses: {why}", st)
         if conclusion_fails(st, witness):
             return Part("not proved", "the conclusion fails at the witness (a kernel error: refused)", st)
         used = sorted({str(generator_kind(e.get("gen"))) for step in proof["steps"] for part in ("by", "then")
@@ -144,6 +145,8 @@ def check_record(record) -> list[str]:
     derived = derive(record)
     problems = [f"{claim}: '{k}' is {str(record.get(k))[:60]!r}, the kernel derives {str(derived[k])[:60]!r}"
                 for k in DERIVED if record.get(k) != derived[k]]
+    if "expected" in record and record["expected"] != derived["status"]:
+        problems.append(f"{claim}: meant to be {record['expected']!r}, the kernel derives {derived['status']!r}")
     for c in record.get("negative_controls", ()):
         if not isinstance(c, dict) or "statement" not in c:
             problems.append(f"{claim}: a negative control without a formal statement")

@@ -72,6 +72,11 @@ class ModelFunction:
         return self.name
 
     def __call__(self, x: np.ndarray, k: int = 1) -> np.ndarray:
+        return self.checked_finite(self.shaped(x, k), k)
+
+    def shaped(self, x: np.ndarray, k: int) -> np.ndarray:
+        """The function's real values at x (N, D) as an (N, E) float array — the user's exceptions,
+        types and shape checked, not yet finiteness (:meth:`checked_finite`)."""
         try:
             raw = np.asarray(call_limited(self.described, self.evaluate, x, k))
         except GpfverifyError:
@@ -94,6 +99,10 @@ class ModelFunction:
             else:
                 raise InputError(f"{self.name} returned shape {out.shape} for {n} state(s); "
                                  f"expected ({n}, {self.out_dim})")
+        return out
+
+    def checked_finite(self, out: np.ndarray, k: int) -> np.ndarray:
+        """``out`` unless it holds NaN or inf (InputError naming the function and the step)."""
         if not np.isfinite(out).all():
             raise InputError(f"{self.name} returned NaN or inf at step k={k}")
         return out
@@ -190,3 +199,48 @@ class LinearFunction(ModelFunction):
     def jacobian(self, x, k=1):
         x = np.asarray(x, dtype=float)
         return np.broadcast_to(self.matrix, x.shape[:-1] + self.matrix.shape)
+
+
+def linear_matrix(fn: ModelFunction) -> np.ndarray | None:
+    """The matrix M of a linear function x ↦ M x (also when applied run by run), else None."""
+    inner = fn.fn if isinstance(fn, RunwiseFunction) else fn
+    return inner.matrix if isinstance(inner, LinearFunction) else None
+
+
+class RunwiseFunction(ModelFunction):
+    """``fn`` applied to the points of B Monte Carlo runs run by run: x (N, D) holds run b's N/B
+    points in its b-th block of rows (how a filter step of B runs lays out (B, …, D) points
+    flattened), and each block is mapped exactly as one run's filter maps it alone — by a call of
+    its own, or for a linear map by one stacked matrix product (one BLAS call per run) — so a run's
+    values do not depend on the other runs or on B. A user's function may map a row differently in
+    a larger call (a matrix product inside it lets BLAS choose its kernel by the number of rows):
+    called per run it cannot. Jacobians: the central differences of the wrapped function (each
+    run's 2D perturbed points in one call of their own), the user's per state, or the matrix."""
+
+    def __init__(self, fn: ModelFunction, runs: int):
+        super().__init__(fn.name, fn.in_dim, fn.out_dim, fn.circular)
+        self.fn, self.runs = fn, int(runs)
+
+    def renamed(self, name: str, circular: Sequence[int]) -> ModelFunction:
+        return RunwiseFunction(self.fn.renamed(name, circular), self.runs)
+
+    def _blocks(self, x: np.ndarray) -> np.ndarray:
+        if x.ndim != 2 or x.shape[0] % self.runs:
+            raise InputError(f"{self.name} of {self.runs} runs takes points (B·m, {self.in_dim}) with B = "
+                             f"{self.runs}, got {x.shape}")
+        return x.reshape(self.runs, -1, x.shape[-1])
+
+    def __call__(self, x: np.ndarray, k: int = 1) -> np.ndarray:
+        blocks = self._blocks(np.asarray(x, dtype=float))
+        if isinstance(self.fn, LinearFunction):
+            return (blocks @ self.fn.matrix.T).reshape(-1, self.out_dim)
+        # each run's block by a call of its own; finiteness checked once for the whole batch
+        return self.fn.checked_finite(np.concatenate([self.fn.shaped(block, k) for block in blocks]), k)
+
+    def evaluate(self, x, k):
+        return self(x, k)
+
+    def jacobian(self, x, k=1):
+        if isinstance(self.fn, NumpyFunction) and self.fn.user_jacobian is None:
+            return central_difference_jacobian(self, x, k)
+        return self.fn.jacobian(x, k)

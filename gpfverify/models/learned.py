@@ -102,24 +102,35 @@ class GPModel(StackedMeasurement):
         """The sensors' GP, or their stack when there are several."""
         return self.sensors[0] if len(self.sensors) == 1 else GaussianProcessStack(self.sensors)
 
+    @property
+    def runs(self) -> int | None:
+        """B for a model of B Monte Carlo runs' GPs (:func:`batch_gp_models`), else None."""
+        return getattr(self.transition, "runs", None)
+
     @cached_property
     def angle_reference(self) -> np.ndarray | None:
         """r: the mean of the transition GP's training inputs' angle state components, on the
         branch they were learned on (None without angle states, or for a GP that does not expose
-        its inputs ``X``)."""
+        its inputs ``X``); (B, k) for a batch of runs' GPs, one per run."""
         inputs = getattr(self.transition, "X", None)
         if not self.circular_state or inputs is None:
             return None
-        return np.asarray(inputs, dtype=float)[:, list(self.circular_state)].mean(axis=0)
+        return np.asarray(inputs, dtype=float)[..., list(self.circular_state)].mean(axis=-2)
 
     def on_training_branch(self, states: np.ndarray) -> np.ndarray:
         """``states`` (..., D) with the angle components θ moved to r + wrap(θ − r), the branch of
-        the GPs' training data (module docstring); unchanged without angle states."""
+        the GPs' training data (module docstring); unchanged without angle states. For a batch of
+        runs, ``states`` holds run b's states in its b-th block of rows ((B, D), or (B·m, D) as the
+        GPs take points)."""
         reference = self.angle_reference
         if reference is None:
             return states
         out = np.array(states, dtype=float)
         idx = list(self.circular_state)
+        if reference.ndim == 2:  # one reference per run
+            runs = out.reshape(reference.shape[0], -1, out.shape[-1])
+            runs[..., idx] = reference[:, None, :] + wrap(runs[..., idx] - reference[:, None, :])
+            return out
         out[..., idx] = reference + wrap(out[..., idx] - reference)
         return out
 
@@ -132,6 +143,25 @@ class GPModel(StackedMeasurement):
             raise InputError("a GP model needs at least one sensor")
         return replace(self, sensors=tuple(self.sensors[i] for i in indices),
                        sensor_circular=tuple(self.sensor_circular[i] for i in indices))
+
+
+def batch_gp_models(models: Sequence[GPModel]) -> GPModel:
+    """The GP models of B Monte Carlo runs as one model whose GPs are
+    :class:`~gpfverify.gp.batch.GaussianProcessBatch`\\ es (run b's GPs at b): the GP filters step
+    beliefs with a leading run axis (B, D) through it, run b against run b's GPs. The runs must
+    share the GPs' shapes and the angle indices (InputError otherwise)."""
+    from gpfverify.gp.batch import GaussianProcessBatch
+
+    models = list(models)
+    if not models:
+        raise InputError("batch_gp_models needs at least one model")
+    first = models[0]
+    if any((m.sizes, m.sensor_circular, m.circular_state) != (first.sizes, first.sensor_circular,
+                                                               first.circular_state) for m in models):
+        raise InputError("the runs' GP models must share their sensors' sizes and angle indices")
+    return GPModel(GaussianProcessBatch([m.transition for m in models]),
+                   tuple(GaussianProcessBatch([m.sensors[s] for m in models]) for s in range(len(first.sensors))),
+                   first.sensor_circular, first.circular_state)
 
 
 def fit_capped(X: np.ndarray, Y: np.ndarray, restarts: int, fit_points: int | None, seed: int) -> GaussianProcess:

@@ -39,7 +39,7 @@ import scipy.linalg as sla
 from gpfverify.angles import difference
 from gpfverify.errors import InputError
 from gpfverify.linalg import sampling_factor
-from gpfverify.models.functions import LinearFunction, ModelFunction, NumpyFunction
+from gpfverify.models.functions import LinearFunction, ModelFunction, NumpyFunction, RunwiseFunction, linear_matrix
 from gpfverify.tolerances import algebra_rtol
 from gpfverify.validate import as_covariance, as_indices, as_vector, real_floats
 
@@ -289,10 +289,10 @@ class StateSpaceModel(StackedMeasurement):
 
     @cached_property
     def _linear(self) -> tuple[np.ndarray, np.ndarray] | None:
-        linear = [h for h in self.measures if isinstance(h, LinearFunction)]
-        if not isinstance(self.transition, LinearFunction) or len(linear) != len(self.measures):
+        matrices = [m for m in (linear_matrix(fn) for fn in (self.transition, *self.measures)) if m is not None]
+        if len(matrices) != 1 + len(self.measures):
             return None
-        return self.transition.matrix, np.concatenate([h.matrix for h in linear])
+        return matrices[0], np.concatenate(matrices[1:])
 
     # -- derived models ---------------------------------------------------------------------------
 
@@ -305,6 +305,19 @@ class StateSpaceModel(StackedMeasurement):
         if not as_indices(indices, len(self.sensors), "sensor indices"):
             raise InputError("a model needs at least one sensor")
         return replace(self, sensors=tuple(self.sensors[i] for i in indices), probe=False)
+
+    def for_runs(self, runs: int) -> StateSpaceModel:
+        """The same system for filter steps of ``runs`` Monte Carlo runs at once (beliefs (B, D),
+        measurements (B, L), B = ``runs``): every function maps each run's points as that run's
+        own step would, by a call of its own (:class:`~gpfverify.models.functions.RunwiseFunction`),
+        so that a run's numbers do not depend on the other runs or on B."""
+        if isinstance(runs, bool) or not isinstance(runs, int) or runs < 1:
+            raise InputError(f"runs must be an integer >= 1, got {runs!r}")
+        def runwise(fn: ModelFunction) -> RunwiseFunction:
+            return RunwiseFunction(fn.fn if isinstance(fn, RunwiseFunction) else fn, runs)
+        return replace(self, transition=runwise(self.transition),
+                       sensors=tuple(replace(s, measure=runwise(m)) for s, m in zip(self.sensors, self.measures)),
+                       probe=False)
 
     def with_noise(self, process_cov=None, noise_covs: Sequence | None = None) -> StateSpaceModel:
         """The same functions with new noise covariances (validated; the functions are not probed

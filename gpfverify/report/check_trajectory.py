@@ -84,7 +84,7 @@ def plot_trajectory(trajectory: dict, path: Path) -> Path:
         ax.set_xlabel("x₀" if planar else "step k")
         ax.set_ylabel("x₁" if planar else "x₀")
         ax.grid(True, alpha=0.3)
-        ax.legend(fontsize=7, frameon=False)
+        ax.legend(frameon=False)
     for index in range(len(methods), rows * cols):
         axes[index // cols][index % cols].set_visible(False)
     return save(fig, path)

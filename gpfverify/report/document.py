@@ -82,8 +82,9 @@ CAUTION_MARK = "\u26a0"
 
 
 def anchor_id(text: str) -> str:
-    """``text`` as an HTML id (letters, digits, '-', '_')."""
-    return re.sub(r"[^A-Za-z0-9_-]+", "-", text).strip("-") or "x"
+    """``text`` as an HTML id: its letters and digits (Greek ones too, so that κ = 30 and κ = 300 stay
+    apart), '_', and '-' for every run of anything else."""
+    return re.sub(r"[^\w-]+", "-", text).strip("-") or "x"
 
 
 @dataclass(frozen=True)
@@ -183,8 +184,9 @@ def claim_tables(records, caption: str = "Claims checked") -> list[Table]:
 
 
 def claim_anchor(record) -> str:
-    """The HTML id of a claim record's row (from its ``id``, else its claim and setting)."""
-    return "claim-" + anchor_id(record.id or f"{record.claim}-{record.setting}")
+    """The HTML id of a claim record's row: its ``id`` (else its claim) and its setting, for a page
+    shows the same claim once per setting (ct2d at κ = 30 and at κ = 300)."""
+    return "claim-" + anchor_id("-".join(part for part in (record.id or record.claim, record.setting) if part))
 
 
 def claims_table(claims: list[Claim], caption: str = "Claims checked") -> Table:

@@ -474,8 +474,16 @@ def failed_table(results: dict) -> Table | None:
 
 # -- the page --------------------------------------------------------------------------------------
 
-def equivalence_sections(results: dict, fig_dir: Path, fig_prefix: str = FIGURES) -> list[Section]:
-    """The report's sections, figures drawn into ``fig_dir`` (Figure paths point there)."""
+#: where the check page says each method's estimates are (its run files)
+ESTIMATES_IN_RUN_FILES = 'runs/run-NNNNNN.json ("means")'
+
+
+def equivalence_sections(results: dict, fig_dir: Path, fig_prefix: str = FIGURES, compact: str = "",
+                         estimates: str = ESTIMATES_IN_RUN_FILES) -> list[Section]:
+    """The report's sections, figures drawn into ``fig_dir`` (Figure paths point there). ``compact``
+    (a sentence saying where the whole page is) draws the gap figure alone, small, and says that
+    sentence in place of the other figures (a notebook's view); ``estimates`` says where each
+    method's estimates are."""
     from gpfverify.report import equivalence_figures as ef
 
     d = CheckData(results)
@@ -489,17 +497,20 @@ def equivalence_sections(results: dict, fig_dir: Path, fig_prefix: str = FIGURES
                        "One-step numbers — the gap, its rounding bound, the rank and exactness verdicts, the shares "
                        "and the repair sizes — compare both rules from the same central prediction, DMF's (the "
                        "centre predicts from DMF's previous posterior; the audit applies CMF's update to it). "
-                       "Recursive numbers — the drift, RMSE, NEES and the estimates in runs/run-NNNNNN.json "
-                       "(\"means\") — come from each method's own filter, run from its own previous posterior."))
+                       f"Recursive numbers — the drift, RMSE, NEES and the estimates in {estimates} — come from "
+                       "each method's own filter, run from its own previous posterior."))
     head.add(sensor_table(d))
 
     gap = Section("gap", "The gap per step")
-    path, floor = ef.plot_gap(d.ks, d.gap, d.bound, ~d.step_exact, fig_dir / "gap.png", d.run_labels)
+    path, floor = ef.plot_gap(d.ks, d.gap, d.bound, ~d.step_exact, fig_dir / "gap.png", d.run_labels,
+                              dpi=ef.COMPACT_DPI if compact else None)
     gap.add(Figure(path, "‖L_p⁻¹(μ_DMF − μ_CMF)‖ per step, in prior standard deviations, from the same central "
                          "prediction (solid) against the rounding bound of that step (dashed, "
                          "docs/fusion-definitions.md), log scale; circles: steps judged not exact"
                    + (f"; zero gaps drawn at {_g(floor)}" if (d.gap <= 0).any() else "")
                    + (" (median and range over runs)" if d.runs_ok > ef.MAX_RUN_LINES else "")))
+    if compact:
+        return _compact_sections(results, d, head, gap, compact)
     gap.add(Figure(ef.plot_verdict_strip(d.ks, d.full, d.exact, labels, fig_dir / "verdicts.png",
                                          f"run {d.run_labels[0]}"),
                    "Rank verdict and exactness per step and sensor: green full column rank, amber rank lost but "
@@ -522,10 +533,7 @@ def equivalence_sections(results: dict, fig_dir: Path, fig_prefix: str = FIGURES
                          "prediction, log scale"
                    + (f"; zeros drawn at {_g(floor)}" if (d.one_step <= 0).any() or (d.recursive <= 0).any()
                       else "")))
-    gap.add(Paragraph(f"The recursive filters ended at most {_g(float(d.recursive.max()))} {unit} apart (largest "
-                      f"over steps and runs; {_g(float(np.median(d.recursive[:, -1])))} at the last step, median of "
-                      "runs). Where every step is exact this drift is rounding carried through the recursion; where "
-                      "steps are inexact it accumulates their gaps."))
+    gap.add(Paragraph(_drift_sentence(d)))
 
     acc = Section("accuracy", "Accuracy and consistency")
     if results.get("trajectory"):  # results written before it was recorded have none
@@ -560,6 +568,22 @@ def equivalence_sections(results: dict, fig_dir: Path, fig_prefix: str = FIGURES
     if failed is not None:
         settings.add(failed)
     return sections + [settings]
+
+
+def _drift_sentence(d: CheckData) -> str:
+    """How far apart the two recursive filters ended, and what that drift is."""
+    unit = "prior standard deviations" if d.drift_in_prior_sd else "state units"
+    return (f"The recursive filters ended at most {_g(float(d.recursive.max()))} {unit} apart (largest over steps "
+            f"and runs; {_g(float(np.median(d.recursive[:, -1])))} at the last step, median of runs). Where every "
+            "step is exact this drift is rounding carried through the recursion; where steps are inexact it "
+            "accumulates their gaps.")
+
+
+def _compact_sections(results: dict, d: CheckData, head: Section, gap: Section, whole_page: str) -> list[Section]:
+    """The summary, the gap figure, the methods' table and the settings, with where the other figures are."""
+    gap.add(Paragraph(f"{_drift_sentence(d)} {whole_page}"))
+    settings = Section("settings", "Settings").add(settings_table(results, d))
+    return [head, gap, Section("accuracy", "Accuracy and consistency").add(method_table(d)), settings]
 
 
 def _markdown(sections: list[Section], page_dir: Path) -> str:

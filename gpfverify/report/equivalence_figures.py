@@ -14,6 +14,9 @@ from gpfverify.report.figures import save as _save
 
 #: runs drawn one line each; with more, the median and the min–max range
 MAX_RUN_LINES = 5
+#: pixels per inch of a compact view's figure (a notebook shows it at its own size: its 10 pt text at
+#: 11 px), a third of the bytes of the pages' (gpfverify.report.figures.DPI)
+COMPACT_DPI = 80
 #: strip categories: full column rank (exact), rank lost but exact, not exact
 VERDICT_COLORS = ("#4daf4a", "#ffbf00", "#e41a1c")
 VERDICT_LABELS = ("full column rank", "rank lost, exact anyway", "not exact")
@@ -25,18 +28,18 @@ def _log_steps_axes(ax, ylabel: str, title: str) -> None:
     ax.set_xlabel("step k")
     ax.set_ylabel(ylabel)
     ax.set_title(title)
-    ax.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0), frameon=False)
+    ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), frameon=False)
     ax.grid(True, which="major", alpha=0.3)
 
 
-def save(fig, path: Path) -> Path:
-    """Save with integer step ticks on every x axis labelled 'step k'."""
+def save(fig, path: Path, dpi: int | None = None) -> Path:
+    """Save with integer step ticks on every x axis labelled 'step k' (at ``dpi``, default the pages')."""
     from matplotlib.ticker import MaxNLocator
 
     for ax in fig.axes:
         if ax.get_xlabel() == "step k" or ax.get_title().startswith(("rank verdict", "fraction", "ANIS", "ANEES")):
             ax.xaxis.set_major_locator(MaxNLocator(integer=True))
-    return _save(fig, path)
+    return _save(fig, path) if dpi is None else _save(fig, path, dpi=dpi)
 
 
 def log_floor(*arrays) -> float:
@@ -69,7 +72,8 @@ GAP_IN_STATE_UNITS = ("‖μ_DMF − μ_CMF‖", "one-step gap (state units)")
 
 
 def plot_gap(ks, gap: np.ndarray, bound: np.ndarray | None, inexact: np.ndarray, path: Path, run_labels=None,
-             predicted: np.ndarray | None = None, quantity: tuple[str, str] = GAP_IN_PRIOR_SD) -> tuple[Path, float]:
+             predicted: np.ndarray | None = None, quantity: tuple[str, str] = GAP_IN_PRIOR_SD,
+             dpi: int | None = None) -> tuple[Path, float]:
     """The one-step gap per step against the rounding bound, log scale; steps judged not exact
     marked. ``gap``/``bound``/``inexact`` are (R, T); ``quantity`` names what ``gap`` holds (legend,
     axis): :data:`GAP_IN_PRIOR_SD` or :data:`GAP_IN_STATE_UNITS`. Returns the path and the floor
@@ -88,7 +92,7 @@ def plot_gap(ks, gap: np.ndarray, bound: np.ndarray | None, inexact: np.ndarray,
         ax.scatter(np.asarray(ks)[cols], shown, s=22, facecolors="none", edgecolors="tab:red", zorder=5,
                    label="step judged not exact")
     _log_steps_axes(ax, quantity[1], "DMF − CMF from the same central prediction")
-    return save(fig, path), floor
+    return save(fig, path, dpi), floor
 
 
 def verdict_codes(full_rank: np.ndarray, exact: np.ndarray) -> np.ndarray:
@@ -123,7 +127,7 @@ def plot_verdict_strip(ks, full_rank: np.ndarray, exact: np.ndarray, sensor_labe
     _strip(ax, ks, verdict_codes(full_rank[0], exact[0]), sensor_labels)
     ax.set_title(f"rank verdict and exactness per step ({first_label})", fontsize=9)
     ax.legend(handles=[Patch(color=c, label=l) for c, l in zip(VERDICT_COLORS, VERDICT_LABELS)],
-              fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0), frameon=False)
+              loc="upper left", bbox_to_anchor=(1.01, 1.0), frameon=False)
     if runs > 1:
         ks_arr = np.asarray(ks)
         step = ks_arr[1] - ks_arr[0] if len(ks_arr) > 1 else 1
@@ -172,7 +176,7 @@ def _band_panel(ax, ks, series: list[tuple[str, dict]], title: str) -> None:
         ax.set_yscale("log")
     ax.set_title(title, fontsize=9)
     ax.set_xlabel("step k")
-    ax.legend(fontsize=7)
+    ax.legend()
     ax.grid(True, which="major", alpha=0.3)
 
 
@@ -239,7 +243,7 @@ def plot_min_per_sensor(ks, values: np.ndarray, sensor_labels: list[str], path: 
     ax.set_xlabel("step k")
     ax.set_ylabel(ylabel)
     ax.set_title(title, fontsize=10)
-    ax.legend(fontsize=7, ncol=2)
+    ax.legend(ncol=2)
     ax.grid(True, which="major", alpha=0.3)
     return save(fig, path)
 
@@ -258,5 +262,5 @@ def plot_repair(ks, repair_dim: np.ndarray, sensor_labels: list[str], path: Path
     ax.set_ylabel("numbers per step")
     ax.set_title("repair message size l_m − rank C_xy^m")
     ax.yaxis.get_major_locator().set_params(integer=True)
-    ax.legend(fontsize=7)
+    ax.legend()
     return save(fig, path)

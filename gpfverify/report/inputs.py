@@ -148,25 +148,40 @@ class CertificateInfo:
     title: str = ""
     #: a numerical check that failed (False), or None for a kernel record
     holds: bool | None = None
+    #: the status the record is meant to get ("refuted" for a false variant of a theorem), or ""
+    expected: str = ""
+
+    @property
+    def as_intended(self) -> bool:
+        """A status its record says it is meant to get (a refutation that is the result)."""
+        return bool(self.expected) and self.expected == self.status
+
+    @property
+    def status_text(self) -> str:
+        """The status as the pages show it: "refuted, as intended" for a statement meant to be refuted."""
+        return f"{self.status}, as intended" if self.as_intended else self.status
 
     @classmethod
     def of(cls, record: dict) -> CertificateInfo:
         """From one record of ``certificates.json`` (fields such as ``formal`` or ``provenance`` are
         not shown), re-checked by the kernel: a record the kernel does not confirm is shown as
         "checked", its detail starting with what the kernel found."""
-        from gpfverify.kernel.verdict import check_record
+        from gpfverify.kernel.verdict import check_record, derive
 
         try:
             controls = tuple(Control(str(c["mutant"]), bool(c["rejected"]),
                                      None if c.get("false_on_instance") is None else bool(c["false_on_instance"]))
                              for c in record.get("negative_controls", ()))
             status, detail = str(record["status"]), str(record.get("detail", ""))
+            statement, method, scope = (str(record.get(k, "")) for k in ("statement", "method", "scope"))
             problems = check_record(record)
-            if problems:
+            if problems:  # none of the record's own words stands: the statement is the kernel's rendering
                 status, detail = "checked", "REJECTED by the kernel: " + "; ".join(problems) + ". " + detail
-            return cls(str(record["claim"]), str(record.get("statement", "")), str(record.get("method", "")),
-                       status, detail, float(record.get("seconds", 0.0)), str(record.get("scope", "")), controls,
-                       str(record.get("title", "")), None if record.get("holds") is None else bool(record["holds"]))
+                statement = derive(record)["statement"] if record.get("formal") else statement
+                method, scope = "not confirmed by the kernel", "not proved"
+            return cls(str(record["claim"]), statement, method, status, detail, float(record.get("seconds", 0.0)),
+                       scope, controls, str(record.get("title", "")),
+                       None if record.get("holds") is None else bool(record["holds"]), str(record.get("expected", "")))
         except (KeyError, TypeError, ValueError) as exc:
             raise InputError(f"malformed certificate {str(record)[:80]!r}: {exc}") from None
 

@@ -6,7 +6,7 @@ from __future__ import annotations
 from collections import Counter
 from pathlib import Path
 
-from gpfverify.report.document import Cell, Details, Paragraph, Section, Table, VerdictCell, fmt
+from gpfverify.report.document import VERDICT_CLASSES, Cell, Details, Paragraph, Section, Table, VerdictCell, fmt
 from gpfverify.report.inputs import STATUSES, CertificateInfo, SectionInput
 from gpfverify.report.render import certificate_anchor
 
@@ -31,7 +31,15 @@ def _controls(c: CertificateInfo) -> Cell:
 
 
 def _status(c: CertificateInfo) -> Cell | VerdictCell:
-    return VerdictCell(c.status) if c.holds is not False else Cell(f"{c.status} — FAILED", "v-not-held")
+    """The status, coloured; a statement meant to be refuted says so (its record's ``expected``), and one
+    that did not get the status it was meant to, or a failed check, is marked FAILED."""
+    if c.holds is False or (c.expected and not c.as_intended):
+        meant = f" (meant to be {c.expected})" if c.expected and not c.as_intended else ""
+        return Cell(f"{c.status}{meant} — FAILED", "v-not-held")
+    if c.as_intended:
+        return Cell(c.status_text, VERDICT_CLASSES[c.status],
+                    f"meant to be {c.expected}: a false variant of a theorem, whose {c.expected} status is the result")
+    return VerdictCell(c.status)
 
 
 def render(certificates: list[dict], out_dir: Path | None = None) -> Section:
@@ -47,7 +55,9 @@ def render(certificates: list[dict], out_dir: Path | None = None) -> Section:
                   "and an exact witness satisfies every hypothesis; refuted when the kernel evaluates an exact "
                   "counterexample that satisfies every hypothesis; checked when identities hold at listed sizes or "
                   "two implementations agree within a stated tolerance — checked is not a proof. Each negative "
-                  "control is a mutated statement that the kernel must refuse and refute on an exact instance. "
+                  "control is a mutated statement that the kernel must refuse and refute on an exact instance. A "
+                  "statement whose record says it is meant to be refuted (a false variant of a theorem, such as "
+                  "\"full column rank is necessary\") shows \"refuted, as intended\": its refutation is the result. "
                   "`gpfverify prove --check certificates.json` derives every status and statement again with the "
                   "kernel alone. Totals: " + ", ".join(f"{counts[s]} {s}" for s in STATUSES) + "."),
         Table(["claim", "status", "title", "statement", "scope", "method", "negative controls", "seconds"],

@@ -156,16 +156,19 @@ def _markdown_lines(blocks, page_dir: Path) -> list[str]:
     return lines
 
 
-def _html_block(block) -> str:
+def _html_block(block, ids: bool = True) -> str:
+    """One block as HTML; ``ids`` False leaves out the rows' anchors (a notebook holds many outputs in one
+    document, where they would repeat)."""
     if isinstance(block, Paragraph):
         return f"<p>{inline(_text(block.text))}</p>"
     if isinstance(block, Table):
         head = "".join(f"<th>{inline(_text(h))}</th>" for h in block.headers)
         labels = [f' data-label="{esc(_text(h))}"' for h in block.headers]
-        ids = list(block.row_ids) + [""] * (len(block.rows) - len(block.row_ids))
+        row_ids = list(block.row_ids) if ids else []
+        row_ids += [""] * (len(block.rows) - len(row_ids))
         body = "".join((f'<tr id="{esc(row_id)}">' if row_id else "<tr>")
                        + "".join(_labelled(_html_cell(c), label) for c, label in zip(row, labels)) + "</tr>"
-                       for row, row_id in zip(block.rows, ids))
+                       for row, row_id in zip(block.rows, row_ids))
         cap = f"<caption>{inline(_text(block.caption))}</caption>" if block.caption else ""
         css = f' class="{esc(block.css)}"' if block.css else ""
         return (f'<div class="table-wrap"><table{css}>{cap}<thead><tr>{head}</tr></thead>'
@@ -184,7 +187,7 @@ def _html_block(block) -> str:
 
 _STYLE = """
 :root{--held:#d7f0dc;--held-ink:#14532d;--not:#fbd9d9;--not-ink:#8b1a1a;--und:#fdecc2;--und-ink:#7a4b00;
---nd:#e4e6e9;--nd-ink:#3b4148;--proved:#c9ecd2;--refuted:#f6cfd6;--checked:#d3ebf3;--checked-ink:#114b5f;
+--nd:#e4e6e9;--nd-ink:#3b4148;--proved:#c9ecd2;--refuted:#e6def5;--refuted-ink:#3f2a7a;--checked:#d3ebf3;--checked-ink:#114b5f;
 --line:#c8ccd2;--muted:#5a6270}
 *{box-sizing:border-box}
 body{font-family:system-ui,-apple-system,"Segoe UI",Roboto,"Noto Sans","DejaVu Sans",sans-serif;margin:0;
@@ -220,6 +223,7 @@ td,th{border:1px solid var(--line);padding:.25rem .5rem;text-align:left;vertical
 th{background:#eef0f3}
 caption{font-weight:bold;text-align:left;padding:.2rem 0}
 img{max-width:100%}
+figure{margin:1rem 0}
 pre{background:#f4f4f4;padding:.5rem;overflow-x:auto}
 details{margin:.3rem 0}summary{cursor:pointer;color:#1d3d6b}
 .v-held{background:var(--held);color:var(--held-ink)}
@@ -227,7 +231,7 @@ details{margin:.3rem 0}summary{cursor:pointer;color:#1d3d6b}
 .v-undecided{background:var(--und);color:var(--und-ink)}
 .v-not-decidable{background:var(--nd);color:var(--nd-ink)}
 .v-proved{background:var(--proved);color:var(--held-ink)}
-.v-refuted{background:var(--refuted);color:var(--not-ink)}
+.v-refuted{background:var(--refuted);color:var(--refuted-ink)}
 .v-checked{background:var(--checked);color:var(--checked-ink)}
 td.verdict{white-space:nowrap}
 .caution{margin-top:.25rem;padding:.1rem .35rem;border:1px solid #b7791f;border-radius:4px;background:#fff7e6;
@@ -270,20 +274,41 @@ def to_html(sections: list[Section], title: str) -> str:
     return _page(title, "", listed, {}, None)
 
 
+#: rules of the page's frame (the contents column, the main column, the title), left out of a fragment
+_FRAME = ("*", "body", ".layout", "nav", "main", ".subtitle", ".mini", "section,tr[id]")
+
+
+def fragment_style() -> str:
+    """The page's styles for a fragment: its colours and font on the fragment's ``div``, and every rule
+    of its content (tables, verdicts, figures, captions, code, details) scoped to that ``div``; the
+    page's frame (contents column, layout, window widths) left out."""
+    css = re.sub(r"@media[^{]*\{(?:[^{}]*\{[^{}]*\})*[^{}]*\}", "", _STYLE)
+    rules = re.findall(r"([^{}]+)\{([^{}]*)\}", css)
+    root = next(body for selector, body in rules if selector.strip() == ":root")
+    font = next(body for selector, body in rules if selector.strip() == "body")
+    out = [f".gpfverify-report{{{root};{font}}}"]
+    for selector, body in rules:
+        selector = selector.strip()
+        if selector == ":root" or selector.startswith(_FRAME):
+            continue
+        scoped = ",".join(f".gpfverify-report {part.strip()}" for part in selector.split(","))
+        out.append(f"{scoped}{{{body}}}")
+    return "".join(out)
+
+
 def to_fragment(sections: list[Section]) -> str:
     """``sections`` as one HTML fragment for a notebook's output cell: the page's blocks and words,
-    with only the page's verdict colours and figure width, scoped to the fragment (the notebook keeps
-    its own styles)."""
-    root = _STYLE.split(":root{", 1)[1].split("}", 1)[0]
-    scoped = [f".gpfverify-report{{{root}}}"] + [f".gpfverify-report {line}" for line in _STYLE.splitlines()
-                                                 if line.startswith((".v-", "td.verdict", "img{"))]
-    return (f"<div class=\"gpfverify-report\"><style>{''.join(scoped)}</style>"
-            + "".join(_fragment(s) for s in sections) + "</div>")
+    styled as the page (:func:`fragment_style`, scoped to the fragment: the notebook keeps its own
+    styles), without ids (a notebook holds many outputs in one document)."""
+    return (f"<div class=\"gpfverify-report\"><style>{fragment_style()}</style>"
+            + "".join(_fragment(s, ids=False) for s in sections) + "</div>")
 
 
-def _fragment(section: Section) -> str:
-    return (f'<section id="{esc(section.slug)}"><h2>{inline(_text(section.title))}</h2>'
-            + "".join(_html_block(b) for b in section.blocks) + "</section>")
+def _fragment(section: Section, ids: bool = True) -> str:
+    """A section as HTML, anchored by its slug and its rows' ids unless ``ids`` is False."""
+    anchor = f' id="{esc(section.slug)}"' if ids else ""
+    return (f"<section{anchor}><h2>{inline(_text(section.title))}</h2>"
+            + "".join(_html_block(b, ids) for b in section.blocks) + "</section>")
 
 
 # ---- provenance, papers, what was run, summary -----------------------------------------------------
@@ -422,7 +447,7 @@ def summary_table(summaries: Iterable[SectionSummary]) -> Table:
             rows.append([paper_cell if first else "", Link(s.title, s.slug) if first else "", Cell("proofs", "group"),
                          *[_count_cell(0, v) for v in VERDICTS], *[_count_cell(counts.proofs[k], k) for k in STATUSES],
                          Cell(0, "zero"), Cell("—", "zero"),
-                         Chips(tuple((c.status, f"{c.claim}: {c.status}", certificate_anchor(c.claim), False)
+                         Chips(tuple((c.status, f"{c.claim}: {c.status_text}", certificate_anchor(c.claim), False)
                                      for c in s.certificates), f"{len(s.certificates)} certificates")])
     for group in total.groups:
         robust, tried_count = robust_total.get(group.group, [0, 0])
@@ -469,7 +494,8 @@ _LEGEND = ("Colours: held (green) — our runs agree with the paper's claim; NOT
            "it beyond the Monte Carlo error; undecided (amber) — the Monte Carlo interval contains the "
            "threshold, more runs would decide; not decidable (grey) — the runs as made cannot decide it. "
            "Proofs: proved (a certificate the proof kernel accepts, with an exact witness of its hypotheses), "
-           "refuted (an exact counterexample the kernel evaluates), checked (identities at listed sizes or two "
+           "refuted (violet: an exact counterexample the kernel evaluates; a statement meant to be refuted, a false "
+           "variant of a theorem, says so), checked (identities at listed sizes or two "
            f"implementations agreeing to a tolerance — not a proof). {CAUTION_MARK} marks a verdict that rests on "
            "fewer runs than the paper used or on wall-clock timing (which depends on the machine and its "
            "load): hold it loosely.")

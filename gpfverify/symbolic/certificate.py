@@ -65,10 +65,16 @@ class ListedCheck:
 
 
 class Certificate:
-    """A claim's record: formal content in, every word derived by the kernel."""
+    """A claim's record: formal content in, every word derived by the kernel. ``expected`` is the
+    status its author means it to get, for a statement made to be refuted (a false variant of a
+    theorem whose refutation is the result: "full column rank is necessary" is not): the page says
+    so, and a certificate that does not get it fails (:attr:`failures`, ``prove --check``)."""
 
-    def __init__(self, claim: str, title: str, parts=(), controls=(), checks=(), seconds: float = 0.0):
+    def __init__(self, claim: str, title: str, parts=(), controls=(), checks=(), seconds: float = 0.0,
+                 expected: str | None = None):
         core: dict = {"claim": claim, "title": title, "formal": [p.json() for p in parts]}
+        if expected is not None:
+            core["expected"] = expected
         if not parts:
             del core["formal"]
         if checks:
@@ -95,6 +101,8 @@ class Certificate:
         out = [f"negative control {c['mutant']!r} was {'accepted' if not c['rejected'] else 'not shown false'}"
                for c in self.negative_controls if not (c["rejected"] and c["false_on_instance"])]
         out += [f"the check '{c['what']}' fails" for c in self.record.get("checks", ()) if not c["holds"]]
+        if self.record.get("expected", self.status) != self.status:
+            out.append(f"meant to be {self.record['expected']}, the kernel derives {self.status}")
         return out
 
     def to_json(self) -> dict:

@@ -108,7 +108,7 @@ def attempt(statement: dict, templates: list[Template], bases: dict | None = Non
 
 # ---- instances ----------------------------------------------------------------------------------------
 
-PARTS = (1, 2)  # l_m of the two sensors of the witnesses (n = 2: both ≤ n)
+PARTS = (2, 2)  # l_m of the two sensors of the witnesses (n = 2: both ≤ n; a witness's sizes are ≥ 2)
 
 
 def instance(seed: int, full_rank: bool = True, kernel_inclusion: bool = False, measurement: bool = True,
@@ -312,10 +312,10 @@ def refute_full_rank_necessary(size: str = "small") -> Certificate:
     start = time.perf_counter()
     counterexample = _one_sensor(_RANK_ONE * _CY.inv(), measurement=False, free={"j": 1})
     return Certificate("full-column-rank-necessary",
-                       "Full column rank of every C_xy^m is necessary for DMF = CMF (expected false: the kernel-"
-                       "inclusion condition is weaker)",
+                       "Full column rank of every C_xy^m is necessary for DMF = CMF (the kernel-inclusion condition "
+                       "is weaker)",
                        [Part(necessity_of_full_rank_statement(), refutation=counterexample)],
-                       seconds=time.perf_counter() - start)
+                       seconds=time.perf_counter() - start, expected="refuted")
 
 
 def without_condition_statement() -> dict:
@@ -329,9 +329,9 @@ def refute_exact_without_condition(size: str = "small") -> Certificate:
     """eq. 35 applied with G = I when kernel inclusion fails: a measurement with a nonzero gap."""
     start = time.perf_counter()
     return Certificate("dmf-exact-without-condition",
-                       "DMF (eq. 35) equals CMF for every measurement without any rank or kernel condition (expected "
-                       "false)", [Part(without_condition_statement(), refutation=_one_sensor(sp.eye(2), True))],
-                       seconds=time.perf_counter() - start)
+                       "DMF (eq. 35) equals CMF for every measurement without any rank or kernel condition",
+                       [Part(without_condition_statement(), refutation=_one_sensor(sp.eye(2), True))],
+                       seconds=time.perf_counter() - start, expected="refuted")
 
 
 def _weaker_counterexample() -> dict:

@@ -44,7 +44,7 @@ from typing import Any, Literal
 
 import numpy as np
 
-from gpfverify.audit.case import audit_case
+from gpfverify.audit.case import CaseAudit, audit_case
 from gpfverify.contract.claims import PROPOSITION_1, ClaimRecord, PairedDifference, Verdict, combine
 from gpfverify.papers.fusion.contract import (DEFAULT_RULE, FAMILIES, FUSION_RULES, LOCAL_FILTERS, METHODS, NEES_POLICY,
                                               PAPER, AuditEntry, FamilyRun, FittedModels, FusionRun, GPHyperparameters,
@@ -90,6 +90,23 @@ def train_models(data: FusionData, restarts: int, fit_points: int, rng: np.rando
                         data.measurement_targets, rng, restarts=restarts, fit_points=fit_points)
 
 
+@dataclass(frozen=True)
+class RunInputs:
+    """What a run filters: its ``data``, its learned GP ``models``, each sensor's starting belief and
+    the fused filters' one, and the CPU seconds its GPs took to learn."""
+
+    data: FusionData
+    models: GPModel
+    local_starts: Sequence[Gaussian]
+    fused_start: Gaussian
+    training_seconds: float
+
+
+def sigma_params(params) -> SigmaParams:
+    """The sigma-point parameters of an experiment's ``params`` (``alpha``, ``beta``, ``sigma_kappa``)."""
+    return SigmaParams(params.alpha, params.beta, params.sigma_kappa)
+
+
 def hyperparameters(models: GPModel) -> FittedModels:
     """The fitted hyperparameters as a record."""
     def one(gp) -> GPHyperparameters:
@@ -131,8 +148,8 @@ def _rcc_ci(estimates, size: float | None, on_empty: str, circular_state=()) -> 
     return Gaussian(result.mean, result.cov), result.enlarged
 
 
-def _audit_entry(step: int, family: str, case, rule) -> AuditEntry:
-    audit = audit_case(case, rank_rule=rule)  # eq. 35's rule
+def _audit_entry(step: int, family: str, audit: CaseAudit, mu_p: np.ndarray) -> AuditEntry:
+    """The record of a rank-failure step's audit (``mu_p`` the centre's prior mean)."""
     gap, predicted = audit.gap, audit.predicted_gap
     if gap is None or predicted is None:  # audit_case computes both when the case has measurements
         raise ValueError("the audit of a rank-failure step needs the measurements")
@@ -140,7 +157,7 @@ def _audit_entry(step: int, family: str, case, rule) -> AuditEntry:
         step=step + 1, family=family, condition_holds=bool(audit.condition_holds), exact=bool(audit.exact),
         gap_norm=float(np.linalg.norm(gap)), predicted_gap_norm=float(np.linalg.norm(predicted)),
         gap_error=float(np.linalg.norm(gap - predicted)),
-        correction_norm=float(np.linalg.norm(audit.cmf_mean - case.central.mu_p)),
+        correction_norm=float(np.linalg.norm(audit.cmf_mean - mu_p)),
         sensors=tuple(SensorAuditRecord(int(s.index), int(s.rank), int(s.cols), float(s.tol),
                                         tuple(float(v) for v in s.singular_values), float(s.gap_gain_norm),
                                         bool(s.exact)) for s in audit.sensors))
@@ -221,7 +238,8 @@ def run_family(family: str, models: GPModel, data: FusionData, local_starts: Seq
         sizes.append(gap_size(dmf.case, gap, dmf.result.scale))
         bounds.append(equivalence_tolerance(dmf.case, dmf.result.gain, dmf.result.sensors, dmf.result.scale))
         if not dmf.result.condition_holds:
-            audit.append(_audit_entry(k, family, dmf.case, dmf.result.rank_rule))
+            audit.append(_audit_entry(k, family, audit_case(dmf.case, rank_rule=dmf.result.rank_rule),
+                                      dmf.case.central.mu_p))
     return FamilyRun(
         sq_err={n: tuple(v) for n, v in sq_err.items()}, maha={n: tuple(v) for n, v in maha.items()},
         singular_values={n: tuple(v) for n, v in singular_values.items()},

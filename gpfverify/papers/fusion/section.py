@@ -171,8 +171,16 @@ def time_words(results: dict) -> str:
     clock = results.get("time_clock")
     if clock is None:  # runs timed before the CPU clock
         return "wall-clock time on the machine that made the runs (a busy machine inflates it)."
-    return (f"{clock} — a busy machine perturbs it far less than wall time; the timing claims compare the methods' "
-            "CPU times within each run, as paired per-run ratios, and are counted apart from the accuracy claims.")
+    words = (f"{clock} — a busy machine perturbs it far less than wall time; the timing claims compare the methods' "
+             "CPU times within each run, as paired per-run ratios, and are counted apart from the accuracy claims.")
+    load = results.get("machine_load") or {}
+    if load.get("runs_batched"):
+        words += (f" {load['runs_batched']} of the runs advanced together with others, in batches of up to "
+                  f"{load['largest_batch']} (docs/cluster.md): there a method's time per step is the batch's CPU time "
+                  "divided by its size, the same for every run of the batch, so the ratios the timing claims pair are "
+                  "the batch's; the filters, fusion rules and audit were batched, each run's GP learning was not "
+                  "(its own L-BFGS path, timed on its own).")
+    return words
 
 
 def load_words(results: dict) -> str:
@@ -208,7 +216,7 @@ def plot_per_step(series: dict, ylabel: str, title: str, path: Path, log: bool =
     ax.set_xlabel("time step")
     ax.set_ylabel(ylabel)
     ax.set_title(title)
-    ax.legend(fontsize=7, ncol=2, loc="upper left", bbox_to_anchor=(1.01, 1.0), frameon=False)
+    ax.legend(ncol=2, loc="upper left", bbox_to_anchor=(1.01, 1.0), frameon=False)
     return save(fig, path)
 
 
@@ -224,7 +232,7 @@ def plot_full_rank(results: dict, title: str, path: Path) -> Path:
     rule = ("canonical correlations > √eps" if "canonical" in results.get("rank_tolerance", "")
             else "σ_max · max(D, l) · eps")
     ax.set_title(f"{title}\n(rank rule: {rule})", fontsize=9)
-    ax.legend(fontsize=7)
+    ax.legend()
     ax = axes[0, 1]
     by_tol = results["full_rank_ratio_by_relative_tolerance"]
     tols = sorted(by_tol, key=float)

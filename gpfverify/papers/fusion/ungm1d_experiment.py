@@ -11,6 +11,7 @@ seeds of the run's seed). Parameters, profiles and the run record: :mod:`gpfveri
 from __future__ import annotations
 
 import dataclasses
+from collections.abc import Sequence
 
 import numpy as np
 
@@ -20,16 +21,16 @@ from gpfverify.contract.methods import Method
 from gpfverify.papers.fusion.ungm1d_contract import (DEFAULT_RUNS, FIGURE_NOISES, INTERPRETATIONS, NAME, PROFILES,
                                                      SUMMARY_FIELDS, Params, RunRecord, noise_key)
 from gpfverify.contract.serial import to_json
-from gpfverify.papers.fusion.run import (CPU_CLOCK, ClaimContext, _num, checks_of, equivalence_claim,
+from gpfverify.papers.fusion.batch import gp_batch_bytes, run_setting_batch
+from gpfverify.papers.fusion.run import (CPU_CLOCK, ClaimContext, RunInputs, _num, checks_of, equivalence_claim,
                                          fusion_beats_baselines, fusion_beats_sensors, health_checks, paired_claim,
-                                         run_setting, summarize_setting, train_models)
+                                         run_setting, sigma_params, summarize_setting, train_models)
 from gpfverify.filters.records import Gaussian
-from gpfverify.filters.sigma_points import SigmaParams
 from gpfverify.rng import generator
 from gpfverify.papers.fusion.scenario import simulate_data, ungm_scenario
 
 __all__ = ["DEFAULT_RUNS", "INTERPRETATIONS", "NAME", "PAPER", "PROFILES", "Params", "RunRecord", "SUMMARY_FIELDS",
-           "run_one", "summarize"]
+           "batch_run_bytes", "run_batch", "run_one", "summarize"]
 
 #: the per-σ² fields repeated under "sweep" for σ² other than the main one
 SWEEP_FIELDS = ("rmse", "max_equivalence_gap", "one_step_gap", "full_rank_ratio", "time_per_step", "health")
@@ -37,23 +38,49 @@ SWEEP_FIELDS = ("rmse", "max_equivalence_gap", "one_step_gap", "full_rank_ratio"
 STATE_DIM = 1
 
 
-def run_one(params: Params, seed_sequence: np.random.SeedSequence) -> RunRecord:
-    sigma = SigmaParams(params.alpha, params.beta, params.sigma_kappa)
+def _prepare(params: Params, seed_sequence: np.random.SeedSequence, setting: int) -> RunInputs:
+    """Run ``seed_sequence``'s data, learned GPs (timed) and starts at the ``setting``-th σ², from the
+    setting-th child of the run's seed (built explicitly: spawn() would depend on earlier spawns)."""
+    child = np.random.SeedSequence(seed_sequence.entropy, spawn_key=tuple(seed_sequence.spawn_key) + (setting,))
+    rng = generator(child)
+    scenario = ungm_scenario(params.noise_vars[setting], params.measurement_noise_var, params.trajectory_start_var,
+                             params.train, params.test_steps, tuple(params.sensor_phases))
+    data = simulate_data(scenario, rng)
+    started = CPU_CLOCK()
+    models = train_models(data, params.restarts, params.fit_points, rng)
+    training = CPU_CLOCK() - started
     prior = Gaussian(np.array([params.prior_mean]), np.array([[params.prior_var]]))
+    return RunInputs(data, models, [prior, prior], prior, training)
+
+
+def run_one(params: Params, seed_sequence: np.random.SeedSequence) -> RunRecord:
     settings = {}
     for i, noise_var in enumerate(params.noise_vars):
-        # the i-th child of the run's seed, built explicitly: spawn() would depend on earlier spawns
-        child = np.random.SeedSequence(seed_sequence.entropy, spawn_key=tuple(seed_sequence.spawn_key) + (i,))
-        rng = generator(child)
-        scenario = ungm_scenario(noise_var, params.measurement_noise_var, params.trajectory_start_var, params.train,
-                                 params.test_steps, tuple(params.sensor_phases))
-        data = simulate_data(scenario, rng)
-        started = CPU_CLOCK()
-        models = train_models(data, params.restarts, params.fit_points, rng)
-        training = CPU_CLOCK() - started
-        settings[noise_key(noise_var)] = run_setting(data, models, [prior, prior], prior, sigma, params.rcc_size,
-                                                     params.rank_rule_spec, training, params.rcc_on_empty)
+        run = _prepare(params, seed_sequence, i)
+        settings[noise_key(noise_var)] = run_setting(run.data, run.models, run.local_starts, run.fused_start,
+                                                     sigma_params(params), params.rcc_size, params.rank_rule_spec,
+                                                     run.training_seconds, params.rcc_on_empty)
     return RunRecord(settings)
+
+
+def run_batch(params: Params, seed_sequences: Sequence[np.random.SeedSequence]) -> list[RunRecord]:
+    """:func:`run_one` of every seed, each σ²'s runs advancing together
+    (:func:`~gpfverify.papers.fusion.batch.run_setting_batch`); each run's GPs are learned on
+    its own, by its own optimiser path (per-run L-BFGS), as in :func:`run_one`."""
+    per_setting = {}
+    for i, noise_var in enumerate(params.noise_vars):
+        runs = [_prepare(params, seed, i) for seed in seed_sequences]
+        per_setting[noise_key(noise_var)] = run_setting_batch(
+            [r.data for r in runs], [r.models for r in runs], [r.local_starts for r in runs],
+            [r.fused_start for r in runs], sigma_params(params), params.rcc_size, params.rank_rule_spec,
+            [r.training_seconds for r in runs], params.rcc_on_empty)
+    return [RunRecord({key: records[b] for key, records in per_setting.items()}) for b in range(len(seed_sequences))]
+
+
+def batch_run_bytes(params: Params) -> int:
+    """Working memory of one run in a batch: its GPs' K⁻¹ and Cholesky factors (the transition GP and
+    each sensor's, n training points), twice for the rest of the step's arrays."""
+    return gp_batch_bytes(params.train, 1 + len(params.sensor_phases))
 
 
 def summarize(params: Params, results: list[RunRecord]) -> dict:

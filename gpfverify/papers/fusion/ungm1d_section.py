@@ -135,5 +135,5 @@ def _sweep_figure(results: dict, path: Path) -> Path:
     ax.set_yscale("log")
     ax.set_xlabel("system noise σ²")
     ax.set_ylabel("average Mahalanobis distance (squared)")
-    ax.legend(fontsize=7, ncol=2, loc="upper left", bbox_to_anchor=(1.01, 1.0), frameon=False)
+    ax.legend(ncol=2, loc="upper left", bbox_to_anchor=(1.01, 1.0), frameon=False)
     return save(fig, path)

@@ -1,6 +1,7 @@
 """Render the committed gpadf-scalar reference page from saved runs.
 
     python -m gpfverify.papers.gpadf_scalar.page RUN_DIR "COMMAND"
+    python -m gpfverify.papers.gpadf_scalar.page --figures   # its figures again, from the committed results
 
 RUN_DIR is the output folder of COMMAND, the exact ``gpfverify reproduce gpadf-scalar`` command that
 made it (stated on the page). The page goes to ``reports/reference/gpadf-scalar/`` with its figures,
@@ -13,7 +14,7 @@ import sys
 from pathlib import Path
 
 from gpfverify.papers.gpadf_scalar import experiment, section
-from gpfverify.reference_pages import REFERENCE, recompute_into, write_page
+from gpfverify.reference_pages import FIGURES, REFERENCE, recompute_into, redraw_figures, write_page
 from gpfverify.report.document import Paragraph
 
 
@@ -27,4 +28,8 @@ def main(run_dir: Path, command: str) -> None:
 
 
 if __name__ == "__main__":
-    main(Path(sys.argv[1]), sys.argv[2])
+    if sys.argv[1:] == [FIGURES]:
+        page_dir = REFERENCE / experiment.NAME
+        redraw_figures(page_dir, page_dir / "run" / "results.json", section.render)
+    else:
+        main(Path(sys.argv[1]), sys.argv[2])

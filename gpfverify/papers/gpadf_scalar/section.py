@@ -99,5 +99,5 @@ def _figure(example: Example, path: Path) -> Path:
         ax.set_title(method.key)
         ax.set_xlabel("prior mean μ₀")
         ax.set_ylabel("x₁")
-        ax.legend(fontsize=7, loc="upper left")
+        ax.legend(loc="upper left")
     return save(fig, path)

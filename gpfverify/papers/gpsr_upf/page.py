@@ -1,6 +1,7 @@
 """Render the committed sins-gps reference page from a run with interpretations.
 
     python -m gpfverify.papers.gpsr_upf.page RUN_DIR "COMMAND" [CONFIRM_DIR "CONFIRM_COMMAND"]
+    python -m gpfverify.papers.gpsr_upf.page --figures   # its figures again, from the committed results
 
 RUN_DIR is the output folder of COMMAND (``gpfverify reproduce sins-gps ... --interpretations ...``).
 Its ``results.json`` and those of its interpretations are recomputed from the saved runs with the
@@ -26,7 +27,7 @@ from gpfverify.experiments.sensitivity import merge_saved  # noqa: E402
 from gpfverify.papers.gpsr_upf import experiment as sins_gps
 from gpfverify.papers.gpsr_upf import section as section_module
 from gpfverify.papers.gpsr_upf.contract import DEFAULT_RUNS, INTERPRETATIONS, Params
-from gpfverify.reference_pages import REFERENCE, write_page
+from gpfverify.reference_pages import FIGURES, REFERENCE, redraw_figures, write_page
 from gpfverify.report.document import Paragraph  # noqa: E402
 
 HERE = REFERENCE / "sins-gps"
@@ -83,4 +84,7 @@ def main(run_dir: Path, command: str, confirm: tuple[Path, str] | None = None) -
 
 
 if __name__ == "__main__":
+    if sys.argv[1:] == [FIGURES]:
+        redraw_figures(HERE, HERE / "run" / "results.json", section_module.render)
+        sys.exit(0)
     main(Path(sys.argv[1]), sys.argv[2], (Path(sys.argv[3]), sys.argv[4]) if len(sys.argv) > 4 else None)

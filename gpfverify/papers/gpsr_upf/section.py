@@ -321,7 +321,7 @@ def _band_figure(results: dict, quantity: str, path: Path) -> Path:
         ax.set_title(f"{method.key}: {quantity} error")
         ax.set_xlabel("t (s)")
         ax.set_ylabel(UNITS[quantity])
-        ax.legend(fontsize=7, loc="upper right")
+        ax.legend(loc="upper right")
     lo = min(ax.get_ylim()[0] for ax in axes[0])
     hi = max(ax.get_ylim()[1] for ax in axes[0])
     for ax in axes[0]:
@@ -331,8 +331,8 @@ def _band_figure(results: dict, quantity: str, path: Path) -> Path:
 
 def _rms_figure(results: dict, path: Path) -> Path:
     time, manoeuvre = np.asarray(results["time"]), np.asarray(results["manoeuvre"], bool)
-    fig, axes = new_figure(3, 1, width=4.4, height=3.2)
-    for ax, quantity in zip(axes[0], QUANTITIES):
+    fig, axes = new_figure(1, 3, width=9.0, height=2.4)  # one row per error, the time axes aligned
+    for row, (ax, quantity) in enumerate(zip(axes[:, 0], QUANTITIES)):
         _shade_manoeuvres(ax, time, manoeuvre)
         for i, method in enumerate(PARTICLE_FILTERS):
             ax.plot(time, results[f"{quantity}_error"][method.key], color=f"C{i}", lw=0.9, label=method.key)
@@ -341,7 +341,9 @@ def _rms_figure(results: dict, path: Path) -> Path:
                     label=method.key)
         ax.set_yscale("log")
         ax.set_title(f"{quantity} error norm (RMS)")
-        ax.set_xlabel("t (s)")
         ax.set_ylabel(UNITS[quantity])
-        ax.legend(fontsize=7)
+        if row == len(QUANTITIES) - 1:
+            ax.set_xlabel("t (s)")
+        if row == 0:  # the same methods in every row: one legend, right of the first
+            ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), frameon=False)
     return save(fig, path)

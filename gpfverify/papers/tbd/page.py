@@ -1,6 +1,7 @@
 """Render the committed tbd reference page from a run made with its interpretations.
 
     python -m gpfverify.papers.tbd.page RUN_DIR "COMMAND"
+    python -m gpfverify.papers.tbd.page --figures   # its figures again, from the committed results
 
 RUN_DIR is the output folder of COMMAND, a ``gpfverify reproduce tbd ... --interpretations all``
 command (stated on the page). The main ``results.json`` and that of every interpretation in
@@ -21,7 +22,7 @@ from gpfverify.contract.claims import read_claims  # noqa: E402
 from gpfverify.papers.tbd import experiment as tbd
 from gpfverify.papers.tbd.contract import BIRTH_INTERPRETATIONS
 from gpfverify.papers.tbd.section import GAIN_CLAIM, grid_only, render
-from gpfverify.reference_pages import REFERENCE, recompute_into, write_page
+from gpfverify.reference_pages import FIGURES, REFERENCE, recompute_into, redraw_figures, write_page
 from gpfverify.report.document import Paragraph, Table  # noqa: E402
 
 HERE = REFERENCE / "tbd"
@@ -118,4 +119,7 @@ def _runs_to_decide_table(results: dict, tried: list) -> Table:
 
 
 if __name__ == "__main__":
-    main(Path(sys.argv[1]), sys.argv[2])
+    if sys.argv[1:] == [FIGURES]:
+        redraw_figures(HERE, HERE / "run" / "results.json", render)
+    else:
+        main(Path(sys.argv[1]), sys.argv[2])

@@ -1,0 +1,274 @@
+"""Monte Carlo runs advanced together as arrays, against the same runs one at a time, and the cost of
+every fusion rule and the audit along the state dimension.
+
+Runs axis. For ct2d (κ = 300 and κ = 30), ungm1d and ``check`` on examples/three_sensor_system.py
+(UKF, 40 steps), the experiment's ``run_one`` over R runs and its ``run_batch`` of the same R runs
+in one call, in one process, alternated over ``--rounds`` rounds; each side timed by process CPU
+time with BLAS on one thread, and its runs per CPU-second reported (the median over rounds). Before
+timing, the batch's records are checked to be those of the runs batched one by one (run_batch of
+one, bit for bit outside the timing fields). Each side also reports the part of its time spent in
+GP learning (per run in both: each run's L-BFGS keeps its own path) and the floor: the CPU time
+inside the calls that do the arithmetic — LAPACK and BLAS through numpy and scipy, the compiled
+moment kernels (the n² expm1 sums), numpy's exp and expm1, Clarabel's solves and the evidence's
+factorisations — counted by wrapping those functions (outermost calls only) in a batched pass of
+its own: how far the batched path is from the arithmetic's own cost. Matrix products written with
+``@`` and einsum cannot be wrapped and are not in the floor (so the floor is low, and the distance
+from it an upper bound); each wrapped call's own timer reads are in it.
+
+State dimension. A linear system with D states and three sensors of D/2 outputs each (random
+orthogonal-times-0.95 transition, random H), :func:`~gpfverify.model_fusion.run_fusion`
+with the Kalman family and every rule, a few steps: the median CPU time per step of each rule and of
+the per-step audit (:func:`~gpfverify.audit.audit_case`), D = 8 … 512 (RCC-CI, a semidefinite
+program whose interior-point cost grows much faster, up to ``--rcc-max``). Goals: no rule above
+twice CMF + DMF at any D, and the cost growing no faster than D³ from D = 64 (the exponent per
+doubling, log₂ of the ratio).
+
+    .venv/bin/python benchmarks/bench_batch.py --out benchmarks/results/batch.md
+"""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+import functools
+import os
+import platform
+import time
+from pathlib import Path
+
+import numpy as np
+
+from _timing import markdown_table, median_cpu_seconds
+
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+
+
+def load() -> str:
+    try:
+        return ", ".join(f"{v:.2f}" for v in os.getloadavg())
+    except OSError:
+        return "unknown"
+
+
+# -- the floor: time inside the arithmetic's own calls ---------------------------------------------
+
+def _arithmetic_calls():
+    """(owner, attribute) of the functions whose time is the floor."""
+    import clarabel
+    import scipy.linalg as sla
+
+    from gpfverify import linalg
+    from gpfverify.gp import fused_kernels
+
+    calls = [(np.linalg, name) for name in ("cholesky", "solve", "svd", "eigh", "eigvalsh", "pinv", "inv", "cond",
+                                            "lstsq", "det", "slogdet", "qr")]
+    calls += [(sla.lapack, name) for name in ("dpotrf", "dpotrs", "dpotri", "dgesv", "dgejsv")]
+    calls += [(sla.blas, name) for name in ("dtrsv", "dtrsm", "ddot")]
+    calls += [(linalg, name) for name in ("_ddot", "_dgejsv")]  # bound when gpfverify.linalg is imported
+    calls += [(np, name) for name in ("exp", "expm1")]
+    calls += [(fused_kernels, name) for name in ("first_moments", "prepare", "centred_sums")]
+    calls += [(clarabel, "DefaultSolver")]  # a Rust class: its construction and its solve, through a wrapper
+    return calls
+
+
+class Floor:
+    """Accumulates the process CPU time spent inside :func:`_arithmetic_calls` (outermost only)."""
+
+    def __init__(self):
+        self.seconds = 0.0
+        self.depth = 0
+
+    @contextlib.contextmanager
+    def counting(self):
+        saved = []
+        for owner, name in _arithmetic_calls():
+            original = getattr(owner, name)
+            saved.append((owner, name, original))
+            setattr(owner, name, self._wrapped(original))
+        try:
+            yield self
+        finally:
+            for owner, name, original in saved:
+                setattr(owner, name, original)
+
+    def _wrapped(self, fn):
+        if isinstance(fn, type):  # Clarabel's solver: time its construction and its solve
+            floor, make = self, self._timed(fn)
+
+            class Timed:
+                def __init__(self, *args, **kwargs):
+                    self.solver = make(*args, **kwargs)
+
+                def solve(self):
+                    return floor._timed(self.solver.solve)()
+            return Timed
+        return self._timed(fn)
+
+    def _timed(self, fn):
+        @functools.wraps(fn)
+        def timed(*args, **kwargs):
+            if self.depth:
+                return fn(*args, **kwargs)
+            self.depth += 1
+            start = time.process_time()
+            try:
+                return fn(*args, **kwargs)
+            finally:
+                self.seconds += time.process_time() - start
+                self.depth -= 1
+        return timed
+
+
+# -- the runs axis ----------------------------------------------------------------------------------
+
+def _training(records) -> float:
+    """CPU seconds of GP learning the records report (ct2d, ungm1d), summed."""
+    from gpfverify.contract.serial import to_json
+
+    total = 0.0
+    for r in records:
+        body = to_json(r)
+        settings = body.get("settings", {"": body}).values()
+        total += sum(s.get("training_seconds", 0.0) for s in settings)
+    return total
+
+
+def experiments(runs: int):
+    from gpfverify.experiments import check
+    from gpfverify.papers.fusion import ct2d_experiment as ct2d
+    from gpfverify.papers.fusion import ungm1d_experiment as ungm1d
+
+    tracker = check.params_for("examples/three_sensor_system.py:tracker", filter="ukf", steps=40)
+    return [("ct2d, κ = 300, Ω = 2π/90 (50 steps, 12 methods)", ct2d, ct2d.Params(), runs, 10),
+            ("ct2d, κ = 30, Ω = 2π/90", ct2d, ct2d.Params(kappa=30), runs, 10),
+            ("ungm1d (4 σ², 50 steps, 12 methods each)", ungm1d, ungm1d.Params(), runs, 3),
+            ("check three_sensor_system.py, UKF, 40 steps", check, tracker, 4 * runs, 10)]
+
+
+def runs_axis(rounds: int, runs: int) -> list[list]:
+    from gpfverify.contract.serial import to_json
+    from gpfverify.experiments.runner import untimed
+
+    rows = []
+    for label, module, params, count, goal in experiments(runs):
+        seeds = [np.random.SeedSequence(2024, spawn_key=(i,)) for i in range(count)]
+        module.run_batch(params, seeds[:2])  # compile and import outside the timing
+        batched = [untimed(to_json(r)) for r in module.run_batch(params, seeds[:3])]
+        assert batched == [untimed(to_json(module.run_batch(params, [s])[0])) for s in seeds[:3]], label
+        per_run, per_batch, floors, train_one, train_batch = [], [], [], [], []
+        for _ in range(rounds):
+            start = time.process_time()
+            records = [module.run_one(params, s) for s in seeds]
+            per_run.append(time.process_time() - start)
+            train_one.append(_training(records))
+            start = time.process_time()
+            records = module.run_batch(params, seeds)
+            per_batch.append(time.process_time() - start)
+            train_batch.append(_training(records))
+            floor = Floor()  # a pass of its own: the wrappers' overhead stays out of the batched time
+            with floor.counting():
+                module.run_batch(params, seeds)
+            floors.append(floor.seconds)
+        one, batch, floor_s = np.median(per_run), np.median(per_batch), np.median(floors)
+        ratio = one / batch
+        rows.append([label, count, f"{count / one:.2f}", f"{count / batch:.2f}", f"{ratio:.1f}×", f"≥ {goal}×",
+                     f"{np.median(train_one) / one:.0%} / {np.median(train_batch) / batch:.0%}",
+                     f"{count / floor_s:.1f}", f"{batch / floor_s:.1f}×"])
+        print(" | ".join(str(c) for c in rows[-1]), flush=True)
+    return rows
+
+
+# -- the state dimension ----------------------------------------------------------------------------
+
+def system(d: int, rng: np.random.Generator):
+    from gpfverify.models import linear_model
+
+    F = 0.95 * np.linalg.qr(rng.normal(size=(d, d)))[0]
+    H = rng.normal(size=(3 * d // 2, d)) / np.sqrt(d)
+    return linear_model(F, H, 0.1 * np.eye(d), 0.5 * np.eye(3 * d // 2), sizes=(d // 2,) * 3)
+
+
+def state_axis(dims: list[int], steps: int, rcc_max: int) -> tuple[list[list], dict]:
+    from gpfverify.audit.case import audit_case
+    from gpfverify.model_fusion import _baselines, cmf_step, dmf_step, run_fusion
+
+    rows, per_method = [], {}
+    for d in dims:
+        rng = np.random.default_rng(d)
+        model = system(d, rng)
+        _, ys = model.simulate(steps + 1, rng)
+        methods = ("cmf", "dmf", "cc", "ci", "ei", "ici") + (("rcc-ci",) if d <= rcc_max else ())
+        fused = run_fusion(model, ys, family="kf", methods=methods, audit=False)
+        before, step, y = fused.steps[-2], fused.steps[-1], ys[-1]  # the last step, from the one before
+        repeats = max(3, min(30, int(2e4 / d ** 2)))
+        beliefs = [r.posterior for r in step.local]
+        timers = {"cmf": functools.partial(cmf_step, before.estimate("cmf"), model, y, k=step.k, family="kf"),
+                  "dmf": functools.partial(dmf_step, before.estimate("dmf"), model, y, local_records=step.local,
+                                           k=step.k, family="kf"),
+                  "audit": functools.partial(audit_case, step.dmf.case, rank_rule=step.dmf.result.rank_rule)}
+        for name, rule in _baselines(methods, None, (), "trace").items():
+            timers[name] = functools.partial(rule, beliefs)
+        cpu = {name: median_cpu_seconds(fn, repeats=repeats if name != "rcc-ci" else 3) for name, fn in timers.items()}
+        base = cpu["cmf"] + cpu["dmf"]
+        per_method[d] = cpu
+        worst = max((m for m in cpu if m not in ("cmf", "dmf", "rcc-ci")), key=lambda m: cpu[m])
+        rows.append([d, *(f"{cpu[m] * 1e3:.2f}" if m in cpu else "–" for m in
+                          ("cmf", "dmf", "cc", "ci", "ei", "ici", "rcc-ci", "audit")),
+                     f"{worst} {cpu[worst] / base:.2f}"])
+        print(" | ".join(str(c) for c in rows[-1]), flush=True)
+    return rows, per_method
+
+
+def growth(per_method: dict, start: int = 64) -> list[list]:
+    """The exponent per doubling of D, log₂(t(2D)/t(D)), of each rule from D = ``start`` on."""
+    dims = [d for d in sorted(per_method) if d >= start]
+    rows = []
+    for m in ("cmf", "dmf", "cc", "ci", "ei", "ici", "audit"):
+        steps = [np.log2(per_method[b][m] / per_method[a][m]) for a, b in zip(dims, dims[1:])
+                 if m in per_method[a] and m in per_method[b]]
+        rows.append([m, *(f"{s:.2f}" for s in steps), f"{max(steps):.2f}" if steps else "–"])
+    return [["rule", *(f"{a}→{b}" for a, b in zip(dims, dims[1:])), "largest"]] + rows
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--rounds", type=int, default=3)
+    parser.add_argument("--runs", type=int, default=16, help="runs per experiment (check: four times as many)")
+    parser.add_argument("--dims", default="8,16,32,64,128,256,512")
+    parser.add_argument("--steps", type=int, default=3, help="steps run before the one timed")
+    parser.add_argument("--rcc-max", type=int, default=32)
+    parser.add_argument("--only", choices=("runs", "dims"), default=None)
+    parser.add_argument("--out", type=Path, default=None)
+    args = parser.parse_args()
+    started = load()
+    text = [f"Machine: {platform.processor() or platform.machine()}, {os.cpu_count()} cores, Python "
+            f"{platform.python_version()}, numpy {np.__version__}; BLAS threads "
+            f"{os.environ.get('OPENBLAS_NUM_THREADS')}; load average (1, 5, 15 min) at the start {started}"]
+    if args.only != "dims":
+        rows = runs_axis(args.rounds, args.runs)
+        text += ["", "Runs per CPU-second, one process, per-run (run_one in a loop) and batched (run_batch of all "
+                 "the runs), median of the rounds; GP learning's share of each side's time; the floor: runs per "
+                 "CPU-second if only the arithmetic's own calls (LAPACK/BLAS, the compiled moment kernels, "
+                 "Clarabel) took time, and the batched path's time over it.", "",
+                 markdown_table(["experiment", "runs", "per-run", "batched", "ratio", "goal",
+                                 "GP learning (per-run / batched)", "floor", "batched / floor"], rows)]
+    if args.only != "runs":
+        dims = [int(d) for d in args.dims.split(",")]
+        rows, per_method = state_axis(dims, args.steps, args.rcc_max)
+        text += ["", "CPU milliseconds of one step of each rule (Kalman family: CMF and DMF from the previous "
+                 "fused posterior, the baselines on the sensors' posteriors) and of the step's audit, the median "
+                 "of repeated calls on the last step of a short run; the last column: the costliest rule other "
+                 "than RCC-CI against CMF + DMF (goal ≤ 2).", "",
+                 markdown_table(["D", "CMF", "DMF", "CC", "CI", "EI", "ICI", "RCC-CI", "audit", "max / (CMF + DMF)"],
+                                rows),
+                 "", "Growth per doubling of D (goal ≤ 3, the arithmetic's D³):", "",
+                 markdown_table(*(lambda t: (t[0], t[1:]))(growth(per_method)))]
+    text += ["", f"load average at the end {load()}"]
+    out = "\n".join(text)
+    print(out)
+    if args.out:
+        args.out.write_text(out + "\n", encoding="utf-8")
+
+
+if __name__ == "__main__":
+    main()
