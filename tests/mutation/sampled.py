@@ -99,6 +99,8 @@ def judge(mutant: drawing.Drawn, workspace: Path, cmap: selection.CoverageMap) -
     others = [t for t in tests if not t.startswith(PROPERTY_ROOT)]
     record = {**mutant.record(), "selected_properties": len(properties), "selected_tests": len(others),
               "map": f"{cmap.fingerprint[:8]}/{cmap.tests[:8]}"}
+    if not cmap.mapped(mutant.path):
+        return {**record, "verdict": "not mapped", "killed_by": None, "seconds": 0.0}
     if not tests:
         return {**record, "verdict": "not executed", "killed_by": None, "seconds": 0.0}
     mutated = drawing.mutated_source(ROOT / mutant.path, mutant.operator, mutant.occurrence)
@@ -149,6 +151,8 @@ def main(argv=None) -> int:
     parser.add_argument("--report-only", action="store_true", help="write the report from the stored results")
     parser.add_argument("--retry", choices=("survived", "timeout", "not executed"), action="append", default=[],
                         help="rerun the stored mutants with this verdict (after a new property)")
+    parser.add_argument("--remap", action="store_true",
+                        help="rebuild the coverage map (the whole suite once under coverage) before running")
     parser.add_argument("--only", help="run only the sampled mutants whose path contains this text")
     args = parser.parse_args(argv)
     args.out.mkdir(parents=True, exist_ok=True)
@@ -167,7 +171,7 @@ def main(argv=None) -> int:
     todo = [d for d in drawn if d.key not in results or results[d.key]["verdict"] in args.retry]
     todo = [d for d in todo if not args.only or args.only in d.path]
     log(f"{len(drawn) - len(todo)} of {len(drawn)} mutants have a stored result; {len(todo)} to run")
-    cmap = selection.load(CACHE / "workspace-coverage", workers=args.jobs, log=log)
+    cmap = selection.load(CACHE / "workspace-coverage", workers=args.jobs, log=log, remap=args.remap)
     workspaces: Queue[Path] = Queue()
     for i in range(args.jobs):
         workspaces.put(sync(CACHE / f"workspace-{i}"))
@@ -182,8 +186,9 @@ def main(argv=None) -> int:
         finally:
             workspaces.put(workspace)
         with lock:
-            with (args.out / "results.jsonl").open("a", encoding="utf-8") as stream:
-                stream.write(json.dumps(row, ensure_ascii=False) + "\n")
+            if row["verdict"] != "not mapped":  # no verdict: it runs once the map covers its module
+                with (args.out / "results.jsonl").open("a", encoding="utf-8") as stream:
+                    stream.write(json.dumps(row, ensure_ascii=False) + "\n")
             done += 1
             log(f"[{done}/{len(todo)}] {row['verdict']:18s} {mutant.name} ({row['seconds']} s)")
 

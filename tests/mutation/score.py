@@ -59,10 +59,11 @@ def summarise(drawn: list[Drawn], results: dict[str, dict]) -> dict:
         earlier = [h for h in row.get("history", []) if h["verdict"] not in KILLED]
         row["answered_by"] = row["killed_by"] if earlier and row["verdict"] in KILLED else None
         rows.append(row)
-    areas = sorted({r["area"] for r in rows})
-    return {"sample_size": len(drawn), "run": len(rows), "verdicts": dict(Counter(r["verdict"] for r in rows)),
+    areas = sorted({d.area for d in drawn})
+    drawn_in = Counter(d.area for d in drawn)
+    return {"sample_size": len(drawn), "run": len(rows), "drawn_by_area": dict(sorted(drawn_in.items())), "verdicts": dict(Counter(r["verdict"] for r in rows)),
             "overall": _measure(rows),
-            "areas": {a: _measure([r for r in rows if r["area"] == a]) for a in areas},
+            "areas": {a: {**_measure([r for r in rows if r["area"] == a]), "drawn": drawn_in[a]} for a in areas},
             "maps": sorted({r["map"] for r in rows}),
             "seconds": round(sum(r["seconds"] for r in rows), 1), "rows": rows}
 
@@ -83,7 +84,8 @@ def render(record: dict, seed: int) -> str:
     o = record["overall"]
     out = ["# Sampled mutation report", "",
            f"Mutants drawn by cosmic-ray over the whole package: a seeded sample (seed {seed}) of "
-           f"{record['sample_size']} in proportion to each module's statement lines; {record['run']} of them run. "
+           f"{record['sample_size']} in proportion to each module's statement lines; {record['run']} of them run "
+           "(the scores are over the mutants run; the table by area says which were not). "
            "How it is made, what it costs and how to regenerate it: [README.md](README.md).", "",
            "| measure | killed | of | share | 95 % interval |", "|---|---|---|---|---|",
            f"| whole suite | {o['killed_by_suite']} | {o['counted']} | {_pct(o['suite_score'])} | "
@@ -94,10 +96,10 @@ def render(record: dict, seed: int) -> str:
            + ", ".join(f"{v} {n}" for v, n in sorted(record["verdicts"].items())) + ". "
            f"Test time: {record['seconds'] / 3600:.1f} h of processes.", "",
            "## By area", "",
-           "| area | mutants | equivalent | suite | 95 % interval | property_tests | 95 % interval |",
-           "|---|---|---|---|---|---|---|"]
+           "| area | drawn | run | equivalent | suite | 95 % interval | property_tests | 95 % interval |",
+           "|---|---|---|---|---|---|---|---|"]
     for area, m in record["areas"].items():
-        out.append(f"| {area} | {m['mutants']} | {m['equivalent']} | {m['killed_by_suite']} ({_pct(m['suite_score'])}) "
+        out.append(f"| {area} | {m['drawn']} | {m['mutants']} | {m['equivalent']} | {m['killed_by_suite']} ({_pct(m['suite_score'])}) "
                    f"| {_interval(m['suite_interval'])} | {m['killed_by_properties']} ({_pct(m['property_score'])}) "
                    f"| {_interval(m['property_interval'])} |")
     survivors = [r for r in record["rows"] if r["verdict"] not in KILLED]

@@ -7,9 +7,11 @@ then runs only the tests that execute its line (:func:`tests_for`); a line execu
 modules are imported (a constant, a decorator, a default argument) selects the tests that execute
 the body of its definition, and failing that, every test that executes any line of its module.
 
-The map is stored with the fingerprint of the package it was made from (:func:`fingerprint`); a
-changed package makes it stale, and the mutation run rebuilds it; tests added since it was made
-are run alone under coverage and merged into it (:func:`update`).
+The map stores the digest of every module it recorded (:func:`module_digests`): its lines hold for
+a module whose contents are unchanged. After the package changes, a mutant of a changed module has
+no selection (*not mapped*, reported apart and not scored) until the map is rebuilt
+(``--remap``: the whole suite again); tests added since the map was made are run alone under
+coverage and merged into it (:func:`update`).
 """
 
 from __future__ import annotations
@@ -44,6 +46,12 @@ def fingerprint(folders=("gpfverify",), extra=("pyproject.toml",)) -> str:
     return digest.hexdigest()
 
 
+def module_digests() -> dict[str, str]:
+    """``gpfverify/x.py`` -> the sha256 of its bytes, for every module of the package."""
+    return {str(p.relative_to(ROOT)): hashlib.sha256(p.read_bytes()).hexdigest()
+            for p in sorted((ROOT / "gpfverify").rglob("*.py"))}
+
+
 def tests_fingerprint() -> str:
     return fingerprint(TEST_ROOTS, ("conftest.py",))
 
@@ -59,6 +67,12 @@ class CoverageMap:
     #: tests that fail on the unmutated package (never selected: they cannot tell a mutant)
     failing: list[str]
     seconds: float
+    #: "gpfverify/x.py" -> the digest of the module whose lines the map recorded
+    modules: dict[str, str]
+
+    def mapped(self, path: str) -> bool:
+        """Whether the map's lines of ``path`` were recorded from the module as it is now."""
+        return self.modules.get(path) == module_digests().get(path)
 
     def tests_for(self, path: str, line: int, body: range | None = None) -> list[str]:
         """The tests that execute ``line`` of ``path``; else those executing ``body`` (the lines of
@@ -152,7 +166,8 @@ def build(workspace: Path, workers: int = 2, log=print) -> CoverageMap:
     log(f"coverage map: running the suite once under coverage ({workers} processes; about an hour on a busy "
         "two-core machine)")
     lines, durations, failing = _run_under_coverage(workspace, workers, list(TEST_ROOTS))
-    result = _save(CoverageMap(stamp, tests, lines, durations, failing, round(time.perf_counter() - start, 1)))
+    result = _save(CoverageMap(stamp, tests, lines, durations, failing, round(time.perf_counter() - start, 1),
+                               module_digests()))
     log(f"coverage map: {len(durations)} tests, {len(failing)} failing unmutated, {result.seconds} s")
     return result
 
@@ -180,23 +195,26 @@ def update(cmap: CoverageMap, workspace: Path, log=print) -> CoverageMap:
                 merged.setdefault(path, {}).setdefault(n, [])
                 merged[path][n] = sorted(set(merged[path][n]) | set(tests))
         cmap = CoverageMap(cmap.fingerprint, tests_fingerprint(), merged, {**cmap.durations, **durations},
-                           sorted(set(cmap.failing) | set(failing)), cmap.seconds)
+                           sorted(set(cmap.failing) | set(failing)), cmap.seconds, cmap.modules)
     else:
         cmap = CoverageMap(cmap.fingerprint, tests_fingerprint(), cmap.lines, cmap.durations, cmap.failing,
-                           cmap.seconds)
+                           cmap.seconds, cmap.modules)
     return _save(cmap)
 
 
-def load(workspace: Path | None = None, workers: int = 2, log=print) -> CoverageMap:
-    """The stored map if it was made from the package as it is now (updated with the tests added since),
-    else a new one."""
+def load(workspace: Path | None = None, workers: int = 2, log=print, remap: bool = False) -> CoverageMap:
+    """The stored map (updated with the tests added since), unless ``remap`` or there is none: then a
+    new one. Modules changed since the stored map was made are not mapped (:meth:`CoverageMap.mapped`)."""
     workspace = workspace or CACHE / "workspace-coverage"
-    if MAP_FILE.exists():
+    if MAP_FILE.exists() and not remap:
         data = json.loads(MAP_FILE.read_text(encoding="utf-8"))
         data["lines"] = {p: {int(n): t for n, t in v.items()} for p, v in data["lines"].items()}
         data.setdefault("tests", "")
         stored = CoverageMap(**data)
-        if stored.fingerprint == fingerprint():
-            return stored if stored.tests == tests_fingerprint() else update(stored, workspace, log)
-        log("coverage map: the package changed since the stored map; rebuilding it")
+        if stored.fingerprint != fingerprint():
+            now = module_digests()
+            changed = sum(stored.modules.get(p) != d for p, d in now.items())
+            log(f"coverage map: {changed} of {len(now)} modules changed since the map was made; their mutants "
+                "are not mapped (--remap rebuilds the map: the whole suite once under coverage)")
+        return stored if stored.tests == tests_fingerprint() else update(stored, workspace, log)
     return build(workspace, workers, log)

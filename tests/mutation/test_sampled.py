@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 import scipy.stats
 
-from tests.mutation import draw, score
+from tests.mutation import draw, score, selection
 from tests.mutation.workspace import ROOT
 
 @pytest.mark.parametrize("k,n", [(0, 10), (3, 10), (10, 10), (381, 420), (1, 1)])
@@ -57,3 +57,14 @@ def test_the_committed_report_renders_its_record():
     survivors = [r for r in record["rows"] if r["verdict"] not in score.KILLED]
     assert f"## Survivors ({len(survivors)})" in page
     assert o["killed_by_suite"] == sum(r["verdict"] in score.KILLED and not r["equivalent"] for r in record["rows"])
+
+
+def test_a_module_changed_since_the_map_was_made_is_not_mapped():
+    """The map's lines hold for the module contents they were recorded from, and for no other."""
+    now = selection.module_digests()
+    path = "gpfverify/errors.py"
+    stale = {**now, path: "0" * 64}
+    cmap = selection.CoverageMap("", "", {path: {1: ["tests/test_x.py::test_y"]}}, {}, [], 0.0, stale)
+    assert not cmap.mapped(path)
+    assert cmap.mapped("gpfverify/tolerances.py")
+    assert selection.CoverageMap("", "", {}, {}, [], 0.0, now).mapped(path)
