@@ -50,7 +50,7 @@ test-fast: $(VENV)/.test-installed
 
 # the sampled mutation report in reports/mutation (hours on two cores; resumes where it stopped)
 mutation: $(VENV)/.test-installed
-	MPLBACKEND=Agg $(BIN)/python -m tests.mutation.sampled
+	MPLBACKEND=Agg $(BIN)/python -m tests.mutation.sampled $(ARGS)
 
 clean:
 	rm -rf $(VENV) reports/quick

@@ -18,6 +18,8 @@ import math
 from collections import Counter
 from pathlib import Path
 
+import numpy as np
+
 from tests.mutation.draw import Drawn
 from tests.mutation.equivalents import reason_for
 
@@ -61,11 +63,13 @@ def summarise(drawn: list[Drawn], results: dict[str, dict]) -> dict:
         rows.append(row)
     areas = sorted({d.area for d in drawn})
     drawn_in = Counter(d.area for d in drawn)
-    return {"sample_size": len(drawn), "run": len(rows), "drawn_by_area": dict(sorted(drawn_in.items())), "verdicts": dict(Counter(r["verdict"] for r in rows)),
+    return {"sample_size": len(drawn), "run": len(rows), "drawn_by_area": dict(sorted(drawn_in.items())),
+            "verdicts": dict(Counter(r["verdict"] for r in rows)),
             "overall": _measure(rows),
             "areas": {a: {**_measure([r for r in rows if r["area"] == a]), "drawn": drawn_in[a]} for a in areas},
             "maps": sorted({r["map"] for r in rows}),
-            "seconds": round(sum(r["seconds"] for r in rows), 1), "rows": rows}
+            "seconds": round(sum(r["seconds"] for r in rows), 1),
+            "median_seconds": float(np.median([r["seconds"] for r in rows])) if rows else None, "rows": rows}
 
 
 def _pct(x: float | None) -> str:
@@ -94,12 +98,14 @@ def render(record: dict, seed: int) -> str:
            f"{_interval(o['property_interval'])} |", "",
            f"{o['equivalent']} survivors classed equivalent are not counted. Verdicts: "
            + ", ".join(f"{v} {n}" for v, n in sorted(record["verdicts"].items())) + ". "
-           f"Test time: {record['seconds'] / 3600:.1f} h of processes.", "",
+           f"Test time: {record['seconds'] / 3600:.1f} h of processes, "
+           f"a median {record['median_seconds']} s per mutant run.", "",
            "## By area", "",
            "| area | drawn | run | equivalent | suite | 95 % interval | property_tests | 95 % interval |",
            "|---|---|---|---|---|---|---|---|"]
     for area, m in record["areas"].items():
-        out.append(f"| {area} | {m['drawn']} | {m['mutants']} | {m['equivalent']} | {m['killed_by_suite']} ({_pct(m['suite_score'])}) "
+        out.append(f"| {area} | {m['drawn']} | {m['mutants']} | {m['equivalent']} "
+                   f"| {m['killed_by_suite']} ({_pct(m['suite_score'])}) "
                    f"| {_interval(m['suite_interval'])} | {m['killed_by_properties']} ({_pct(m['property_score'])}) "
                    f"| {_interval(m['property_interval'])} |")
     survivors = [r for r in record["rows"] if r["verdict"] not in KILLED]
