@@ -9,7 +9,7 @@ TEST_WORKERS ?= auto
 PYTEST := MPLBACKEND=Agg $(BIN)/python -m pytest -p no:cacheprovider --hypothesis-profile=ci \
           -n $(TEST_WORKERS) --dist loadfile
 
-.PHONY: report test test-fast install clean
+.PHONY: report test test-fast install clean mutation
 
 $(BIN)/python:
 	@echo "creating a virtual environment in $(VENV) (first run only)..."
@@ -47,6 +47,10 @@ test-fast: $(VENV)/.test-installed
 	$(BIN)/ruff check gpfverify
 	$(BIN)/lint-imports
 	$(PYTEST) -m "not slow"
+
+# the sampled mutation report in reports/mutation (hours on two cores; resumes where it stopped)
+mutation: $(VENV)/.test-installed
+	MPLBACKEND=Agg $(BIN)/python -m tests.mutation.sampled $(ARGS)
 
 clean:
 	rm -rf $(VENV) reports/quick

@@ -23,7 +23,7 @@ from hypothesis import strategies as st
 
 from gpfverify.consistency import (CONSISTENT, OPTIMISTIC, PESSIMISTIC, ChiSquareTest, Consistency, chi2_interval,
                                    conservativeness)
-from gpfverify.strategies import scaled_examples, spd_matrices
+from gpfverify.strategies import mixed_angle_states, scaled_examples, spd_matrices
 from gpfverify.strategies.matrices import float_arrays, log_uniform, unit_floats
 from gpfverify.tolerances import ALGEBRA_RTOL, EPS, algebra_rtol, bounded_mean_atol
 
@@ -225,3 +225,18 @@ def test_conservativeness_bound_is_exceeded_at_most_one_minus_level_at_the_bound
         errors = np.einsum("...ij,...j->...i", factors, g)
         exceeded.append(not conservativeness(errors, covs, level).passed)
     assert np.mean(exceeded) <= (1.0 - level) + bounded_mean_atol(1.0, REPEATS), (np.mean(exceeded), level)
+
+
+@given(states=mixed_angle_states(), data=st.data())
+def test_nees_wraps_the_angle_components_and_only_those(states, data):
+    """States mixing angles near ±π and lengths whose differences exceed π: NEES is the quadratic
+    form of the difference with the angle components wrapped and the lengths left as they are
+    (wrapped here with numpy's remainder, :meth:`MixedStates.difference`)."""
+    n, dim = states.first.shape
+    covs = np.stack([data.draw(spd_matrices(dim, 1e2, log_uniform(1e-2, 1e2)), label="P") for _ in range(n)])
+    nees = Consistency.from_estimates(states.first, states.second, covs, circular_state=states.angles)
+    want = _quadratic_forms(states.difference(), covs)
+    cond = max(np.linalg.cond(p) for p in covs)
+    size = np.abs(states.first) + np.abs(states.second) + 2.0 * np.pi
+    tol = algebra_rtol(cond) * np.einsum("...i,...i->...", size, size) / np.linalg.eigvalsh(covs)[..., 0]
+    np.testing.assert_allclose(nees.values.ravel(), want, rtol=0, atol=tol.max())

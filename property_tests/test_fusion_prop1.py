@@ -20,9 +20,11 @@ Counterexamples are saved as case files (see :mod:`gpfverify.strategies.countere
 ones in ``regressions/<check>--<name>.json`` are replayed as ``@example`` s of their property.
 """
 
+import dataclasses
 from pathlib import Path
 
 import numpy as np
+import pytest
 import scipy.linalg as sla
 from hypothesis import event, example, given
 from hypothesis.control import currently_in_test_context
@@ -232,6 +234,8 @@ def test_dmf_exact_iff_kernel_inclusion(drawn):
         if drawn.exact_by_design:  # the step's verdict and every sensor's, as the audit reports them
             assert audit.exact and all(s.exact for s in audit.sensors), [s.exact for s in audit.sensors]
         assert audit.condition_holds == drawn.condition_holds_by_design
+        with pytest.raises(dataclasses.FrozenInstanceError):  # the record every rendering reads stays as audited
+            audit.exact = not audit.exact
 
 
 @given(drawn=fusion_cases(kinds=("full", "decoupled"), sensors=2, prior="shared", correlated_noise=True,

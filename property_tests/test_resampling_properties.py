@@ -14,8 +14,9 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy.special import logsumexp
 
-from gpfverify.filters.resampling import reweight_and_resample, systematic_resample
-from gpfverify.strategies import scaled_examples
+from gpfverify.filters.resampling import (effective_sample_size, needs_resampling, reweight_and_resample,
+                                          systematic_resample)
+from gpfverify.strategies import scaled_examples, weights_with_ess
 from gpfverify.tolerances import EPS, bounded_mean_atol
 
 DRAWS = 2000
@@ -91,3 +92,18 @@ def test_reweight_and_resample_resamples_exactly_below_the_effective_sample_size
         assert np.all(w[idx] > 0)
     else:
         assert step.posterior is step.weighted
+
+
+@given(designed=weights_with_ess(), side=st.sampled_from([-1.0, 0.0, 1.0]), margin=st.floats(1e-6, 0.5))
+def test_resampling_decision_follows_a_designed_effective_sample_size(designed, side, margin):
+    """Weights whose N_eff is known in closed form (k particles sharing a mass s, the rest 1 − s,
+    shuffled, shifted, zeros allowed): effective_sample_size is that N_eff, and needs_resampling
+    decides on the threshold t = (N_eff / N)(1 + side · margin) exactly as N_eff < t N says — just
+    above, just below, and t ≥ 1 (every step)."""
+    n = designed.log_weights.size
+    assert abs(effective_sample_size(designed.log_weights) - designed.ess) <= n * 8 * EPS * designed.ess
+    threshold = designed.ess / n * (1.0 + side * margin)
+    if side:  # off the boundary by more than N_eff's rounding: the side is decided
+        assert needs_resampling(designed.log_weights, threshold) == (side > 0 or threshold >= 1.0)
+    assert needs_resampling(designed.log_weights, 1.0)
+    assert not needs_resampling(designed.log_weights, 0.0)

@@ -37,11 +37,17 @@ def tbd_models(draw):
                     intensity_range=(lo, lo + draw(log_uniform(1.0, 20.0))))
 
 
+def imaged_interval(model: TbdModel) -> tuple[float, float]:
+    """The interval the cells image on each axis, from the grid's parameters (not the model's own
+    extent): cell centres 0, Δ, …, (n − 1)Δ, each covering half a cell either side."""
+    return -model.cell_size / 2.0, model.grid_size * model.cell_size - model.cell_size / 2.0
+
+
 @st.composite
 def states_around(draw, model: TbdModel, count=st.integers(1, 12)):
     """States (N, 5) with positions up to p + 2 cells beyond the image on every side."""
     n = draw(count)
-    lo, hi = model.image_extent
+    lo, hi = imaged_interval(model)
     margin = (model.patch_radius + 2) * model.cell_size
     x = draw(float_arrays((n, 2), lo - margin, hi + margin))
     velocity = draw(float_arrays((n, 2), -1.0, 1.0))
@@ -126,7 +132,7 @@ def test_pf_tbd_step_weights_and_existence_are_eqs_1_to_10_on_the_image(drawn):
     n_b, prev = config.n_birth, belief.existence
     assert merged.shape == (config.n_particles, 5)
     births = merged[:n_b]
-    lo, hi = model.image_extent
+    lo, hi = imaged_interval(model)
     assert np.all((births[:, [0, 2]] >= lo) & (births[:, [0, 2]] <= hi))
     log_l, magnitude = whole_image_log_ratio(model, merged, image)
     # a continuing particle off the image is a target that left it: its prior mass counts as absent
@@ -172,7 +178,7 @@ def weighted_clouds(draw, model: TbdModel):
 def test_second_stage_is_the_textbook_conditioning_of_weighted_sample_moments(model, radius, data):
     merged, log_w = data.draw(weighted_clouds(model), label="cloud")
     image = data.draw(images(model), label="image")
-    lo, hi = model.image_extent
+    lo, hi = imaged_interval(model)
     estimate = np.array([data.draw(unit_floats(lo - 2.0, hi + 2.0)), 0.0, data.draw(unit_floats(lo - 2.0, hi + 2.0)),
                          0.0, 10.0])
     config = TbdConfig(2, two_stage=True, second_stage_radius=radius)

@@ -28,7 +28,7 @@ from gpfverify.angles import wrap
 from gpfverify.filters.records import Gaussian
 from gpfverify.filters.ukf import ukf_measurement, ukf_step
 from gpfverify.models import Sensor, StateSpaceModel
-from gpfverify.strategies import sigma_params, spd_matrices
+from gpfverify.strategies import chunk_sizes, sigma_params, spd_matrices
 from gpfverify.strategies.matrices import float_arrays, log_uniform, unit_floats
 from gpfverify.strategies.models import angle_models, batched_beliefs
 from gpfverify.tolerances import algebra_rtol
@@ -140,3 +140,27 @@ def test_a_batch_of_beliefs_filtered_at_once_equals_each_filtered_alone(dim, dat
             want, got = getattr(alone, name), getattr(together, name)[i]
             scale = max(np.abs(want).max(), np.abs(alone.C_p).max(), np.abs(alone.C_y).max(), 1.0)
             np.testing.assert_allclose(got, want, rtol=0, atol=tol * scale, err_msg=name)
+
+
+@given(dim=st.integers(1, 3), data=st.data())
+def test_a_batch_filtered_in_chunks_equals_the_batch_filtered_at_once(dim, data):
+    """Metamorphic: the beliefs of a batch cut into chunks of drawn, uneven sizes (ones included),
+    each chunk filtered by its own ukf_step call, give the batch's own results row for row."""
+    beliefs = data.draw(batched_beliefs(dim, batch=st.integers(2, 7)), label="beliefs")
+    b = beliefs.mean.shape[0]
+    chunks = data.draw(chunk_sizes(b), label="chunks")
+    params = data.draw(sigma_params(dim, min_alpha=0.1), label="sigma params")
+    ys = data.draw(float_arrays((b, 2), -3.0, 3.0), label="y")
+    model = _nonlinear_model(dim, data.draw(log_uniform(0.01, 1.0), label="R scale"))
+    together = ukf_step(beliefs, model, ys, params=params)
+    start = 0
+    for size in chunks:
+        rows = slice(start, start + size)
+        part = ukf_step(Gaussian(beliefs.mean[rows], beliefs.cov[rows]), model, ys[rows], params=params)
+        for name in ("mu_p", "C_p", "mu_y", "C_y", "C_xy", "mu_e", "C_e"):
+            want, got = getattr(together, name)[rows], getattr(part, name)
+            tol = _tolerance(params, dim, *together.C_p[rows], *together.C_y[rows])
+            scale = max(np.abs(want).max(), np.abs(together.C_p[rows]).max(), np.abs(together.C_y[rows]).max(), 1.0)
+            np.testing.assert_allclose(got, want, rtol=0, atol=tol * scale, err_msg=name)
+        start += size
+    assert start == b

@@ -128,6 +128,8 @@ def test_records_do_not_load_their_display_until_shown():
 def test_moved_names_answer_with_a_deprecation_warning(name, home):
     import gpfverify.fusion
 
-    with pytest.warns(DeprecationWarning, match=f"gpfverify.fusion.{name} moved to"):
+    with pytest.warns(DeprecationWarning, match=f"gpfverify.fusion.{name} moved to") as caught:
         old = getattr(gpfverify.fusion, name)
     assert old is getattr(importlib.import_module(home), name)
+    # the warning names the line that used the old name (the user's), not the package's own
+    assert [Path(w.filename).resolve() for w in caught] == [Path(__file__).resolve()]

@@ -561,3 +561,20 @@ def test_fuzz_user_code_that_changes_folder_leaves_the_current_folder_as_it_was(
         assert os.getcwd() == str(tmp_path / "a" / "b")
     finally:
         os.chdir(before)
+
+
+def test_messages_name_a_users_function_by_its_file_and_line_and_an_object_by_its_type():
+    """usercode.describe: how an error message names the user's function that failed."""
+    import functools
+    import inspect
+
+    from gpfverify.usercode import describe
+
+    def measurement(x):
+        return x
+
+    line = inspect.getsourcelines(measurement)[1]
+    want = f"{measurement.__qualname__} ({Path(__file__).name}, line {line})"
+    assert describe(measurement) == want
+    assert describe(functools.partial(max, 1)) == "partial"  # no __qualname__, no __code__
+    assert describe(np.sin) == "sin"  # a ufunc: a __qualname__ but no __code__

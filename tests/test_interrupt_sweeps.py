@@ -163,3 +163,29 @@ def test_a_command_stuck_where_no_handler_runs_still_obeys_sigterm(tmp_path):
         f"(stuck where no signal reaches it, such as compiled code) and was killed; nothing was written to "
         f"{tmp_path / 'out'}"], err
     assert sorted(os.listdir(tmp_path)) == ["stuck", "stuck.py"]
+
+
+@pytest.mark.parametrize("code, noted", [(0, True), (2, False)])
+def test_a_finished_command_leaves_a_lingering_thread_with_a_note_only_when_it_succeeded(monkeypatch, capsys,
+                                                                                       code, noted):
+    """supervise.finish: threads that are not daemons get the grace period, then the process ends
+    without them with the command's own status; a success says so on stderr (a failure has already said
+    its one line)."""
+    import threading
+
+    from gpfverify import supervise
+
+    exits: list[int] = []
+    monkeypatch.setattr(supervise, "THREAD_GRACE_SECONDS", 0.0)
+    monkeypatch.setattr(supervise, "HARD_EXIT", exits.append)
+    release = threading.Event()
+    lingering = threading.Thread(target=release.wait, name="lingering-writer")
+    lingering.start()
+    try:
+        supervise.finish("audit", code)
+    finally:
+        release.set()
+        lingering.join()
+    assert exits == [code]
+    err = capsys.readouterr().err
+    assert ("not waiting for 1 thread(s) still running (lingering-writer)" in err) == noted, err

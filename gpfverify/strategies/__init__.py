@@ -22,6 +22,11 @@ Models (:mod:`~gpfverify.strategies.models`)
     ``gaussian_processes``, ``gaussian_inputs``, ``linear_gaussian_models``, ``sigma_params``,
     ``angle_models`` (a linear-Gaussian model with an angle state and an angle output, a batch of
     beliefs near ±π), ``batched_beliefs`` (B Gaussian beliefs stacked on a leading axis).
+Corners (:mod:`~gpfverify.strategies.corners`)
+    ``singular_covariances`` (noise of designed rank), ``chunk_sizes`` (a batch cut into blocks),
+    ``mixed_angle_states`` (angles and lengths, differences beyond π), ``lists_with_twins`` (equal
+    but distinct elements), ``uneven_points`` (components of very different sizes),
+    ``weights_with_ess`` (a known effective sample size).
 Counterexamples (:mod:`~gpfverify.strategies.counterexamples`)
     ``saving_case_on_failure(case, name)`` writes a failing property's shrunk case as a case file.
 Profiles (:mod:`~gpfverify.strategies.profiles`)
@@ -29,6 +34,8 @@ Profiles (:mod:`~gpfverify.strategies.profiles`)
 """
 
 from gpfverify.strategies.counterexamples import saving_case_on_failure, write_case
+from gpfverify.strategies.corners import (DesignedWeights, MixedStates, chunk_sizes, lists_with_twins,
+                                          mixed_angle_states, singular_covariances, uneven_points, weights_with_ess)
 from gpfverify.strategies.estimates import (AngleEstimates, CorrelatedEstimates, correlated_estimates,
                                             estimate_pairs, estimates_across_the_cut)
 from gpfverify.strategies.fusion import PRIORS, DrawnCase, fusion_case_files, fusion_cases
@@ -47,4 +54,6 @@ __all__ = ["saving_case_on_failure", "write_case", "AngleEstimates", "Correlated
            "orthonormal_matrices", "spd_matrices", "LinearGaussianModel", "gaussian_inputs",
            "gaussian_processes", "gp_stacks", "GPStackCase", "linear_gaussian_models", "psd_matrices", "sigma_params",
            "AngleModel", "angle_models", "batched_beliefs",
+           "DesignedWeights", "MixedStates", "chunk_sizes", "lists_with_twins", "mixed_angle_states",
+           "singular_covariances", "uneven_points", "weights_with_ess",
            "PROFILES", "load_profile", "register_profiles", "scaled_examples"]
