@@ -35,7 +35,8 @@ before the command's work begins:
    it was. A Ctrl-C that other code swallowed still stops the command before it commits. On an
    interruption (Ctrl-C, SIGTERM), a lost worker process
    (:class:`~gpfverify.errors.WorkerLost`) or memory running out (``MemoryError``,
-   :class:`~gpfverify.errors.OutOfMemory`) the saved runs (``manifest.json`` and
+   :class:`~gpfverify.errors.OutOfMemory`, or an error compiled code raised near the address-space
+   limit: :func:`gpfverify.memory.out_of_memory`) the saved runs (``manifest.json`` and
    ``runs/run-*.json`` at any depth, each written whole) are moved into DIR, so ``--resume``
    continues them, and a note on the exception says so; nothing else is kept.
 """
@@ -54,8 +55,8 @@ from collections.abc import Iterable, Iterator
 from pathlib import Path, PurePosixPath
 
 from gpfverify import streams, supervise
-from gpfverify.errors import InputError, OutOfMemory, WorkerLost
-from gpfverify.memory import release_reserve
+from gpfverify.errors import InputError, WorkerLost
+from gpfverify.memory import out_of_memory, release_reserve
 from gpfverify.usercode import Interrupted, interrupt_received
 
 #: the list of files gpfverify wrote in an output folder (its own entry included)
@@ -472,10 +473,13 @@ def output_folder(out: Path, keep: bool = True, wait: bool = False) -> Iterator[
         if left is not None:
             print(f"note: {left}", file=streams.diagnostics())
     except BaseException as exc:
-        if isinstance(exc, (MemoryError, OutOfMemory)):
+        # an allocation failure, also one that compiled code reported as another error (a SystemError
+        # near the address-space limit, :func:`gpfverify.memory.out_of_memory`)
+        memory_out = isinstance(exc, Exception) and out_of_memory(exc) is not None
+        if memory_out:
             release_reserve()  # room for keeping the runs and removing the staging folder
             traceback.clear_frames(exc.__traceback__)  # and the memory the failed work held
-        if isinstance(exc, (KeyboardInterrupt, WorkerLost, MemoryError, OutOfMemory)) or interrupt_received():
+        if isinstance(exc, (KeyboardInterrupt, WorkerLost)) or memory_out or interrupt_received():
             finished = 0  # interrupted (also when compiled code turned the Ctrl-C into another error), a worker
             with contextlib.suppress(OSError, InputError):  # lost, memory out: the saved runs are kept
                 if stage.exists():

@@ -834,3 +834,29 @@ def test_a_killed_worker_is_one_line_and_no_leaked_semaphore_warning(tmp_path):
     assert "leaked" not in err
     _assert_one_true_interrupt_line(err, "gpfverify check: error: a worker process ended abruptly (killed by a "
                                     "signal or out of memory)", tmp_path / "out", 4)
+
+
+@pytest.mark.parametrize("near", [True, False])
+def test_an_error_compiled_code_raised_near_the_memory_limit_keeps_runs_and_leaves_no_staging(tmp_path, monkeypatch,
+                                                                                            near):
+    """A ``SystemError`` near the address-space limit is memory running out (gpfverify.memory): the
+    reserve is given back, the saved runs are kept for ``--resume`` and the staging folder removed.
+    Far from the limit the same error is a bug: nothing is kept."""
+    from gpfverify import memory, outputs
+
+    released = []
+    monkeypatch.setattr(memory, "near_limit", lambda: "its address space reached 379 MB of the 380 MB limit"
+                        if near else None)
+    monkeypatch.setattr(outputs, "release_reserve", lambda: released.append(True))
+    out = tmp_path / "out"
+    with pytest.raises(SystemError) as raised:
+        with outputs.output_folder(out) as stage:
+            (stage / "runs").mkdir()
+            (stage / "manifest.json").write_text("{}")
+            (stage / "runs" / "run-000000.json").write_text("{}")
+            raise SystemError("error return without exception set")
+    assert os.listdir(tmp_path) == (["out"] if near else [])
+    assert released == ([True] if near else [])
+    if near:
+        assert set(_snapshot(out)) == {"manifest.json", "runs/run-000000.json", FILE_LIST}
+        assert any("--resume" in note for note in raised.value.__notes__)
