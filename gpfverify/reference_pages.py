@@ -13,6 +13,7 @@ from collections.abc import Callable, Sequence
 from pathlib import Path
 
 from gpfverify.contract.claims import ClaimRecord, carry, read_claims
+from gpfverify.experiments.batching import batching_caveat, with_batching_caveat
 from gpfverify.experiments.runner import read_manifest, results_of
 from gpfverify.experiments.sensitivity import merge_saved
 from gpfverify.report.document import Paragraph, Section, Table
@@ -38,7 +39,7 @@ def rejudged(results: dict, module) -> dict:
     out = {**results, "claims": [c.to_json() for c in merged if c.id not in timed]}
     if timing or "timing_claims" in results:
         out["timing_claims"] = [c.to_json() for c in merged if c.id in timed]
-    return out
+    return with_batching_caveat(out, batching_caveat(module))
 
 
 def rejudge_committed(path: Path, module) -> dict:

@@ -154,6 +154,24 @@ def test_reproduce_of_a_particle_experiment_is_the_same_for_every_batch_and_work
 
 
 @pytest.mark.slow
+@pytest.mark.parametrize("experiment", ["pff1d", "bearing", "tbd"])
+def test_timing_claims_say_runs_shared_a_batch_only_when_the_saved_runs_did(experiment, tmp_path):
+    """The words on how a timing claim's seconds were measured follow the saved runs' batch sizes:
+    at --batch 1 every run was timed alone and no claim says its runs shared a batch's time; at
+    --batch 3 every timing claim says so, once, in the experiment's own words."""
+    from gpfverify.experiments.batching import batching_caveat
+    from tests.test_particle_runs import _experiment_cases
+
+    module, params = _experiment_cases()[experiment]
+    words = batching_caveat(module)
+    for batch, expected in ((1, 0), (3, 1)):
+        results = run_experiment(module, params, 5, 2, tmp_path / f"b{batch}", batch=batch, show_progress=False)
+        assert results["machine_load"]["runs_batched"] == (0 if batch == 1 else 5)
+        assert results["timing_claims"], "the experiment's timing claims were not judged"
+        assert [c["caveats"].count(words) for c in results["timing_claims"]] == [expected] * len(results["timing_claims"])
+
+
+@pytest.mark.slow
 def test_resume_finishes_a_batched_run_with_the_same_results(tmp_path):
     params = ct2d.Params(kappa=30, test_steps=4)
     whole = without_timing(run_experiment(ct2d, params, 5, 3, tmp_path / "whole", batch=3))

@@ -8,6 +8,26 @@ BATCH_TIMING = ("runs filtered together (reproduce --batch B) each carry their b
                 "same runs at the same batch size; its standard error counts those runs as independent, and the "
                 "interpreter's per-step overhead, which batching divides by B, weighs less than at B = 1")
 
+
+def batching_caveat(module) -> str:
+    """The words an experiment module gives for its timing claims when runs were filtered together:
+    its ``BATCH_TIMING_CAVEAT`` when it states one (what its batching times differently), else
+    :data:`BATCH_TIMING`."""
+    return getattr(module, "BATCH_TIMING_CAVEAT", BATCH_TIMING)
+
+
+def with_batching_caveat(results: dict, caveat: str = BATCH_TIMING) -> dict:
+    """``results`` (a ``results.json`` body) with ``caveat`` added to every claim on computation time
+    when the record says some of its runs were filtered together (``machine_load.runs_batched`` > 0,
+    counted from the saved runs' ``batch_size``); unchanged when every run was timed alone (B = 1) or
+    the runs did not record it. The words follow the runs, not the experiment's code."""
+    if not (results.get("machine_load") or {}).get("runs_batched") or "timing_claims" not in results:
+        return results
+    claims = [{**c, "caveats": [*c.get("caveats", []), caveat]} if caveat not in c.get("caveats", []) else c
+              for c in results["timing_claims"]]
+    return {**results, "timing_claims": claims}
+
+
 def without_seconds(value):
     """A run record in JSON form (``contract.serial.to_json``) with every ``seconds`` field set to
     None: what must not depend on how the runs were batched."""

@@ -48,6 +48,7 @@ from gpfverify import provenance
 from gpfverify.contract.params import Params
 from gpfverify.contract.serial import from_json, to_json
 from gpfverify.errors import InputError, OutOfMemory, WorkerLost
+from gpfverify.experiments.batching import batching_caveat, with_batching_caveat
 from gpfverify.memory import out_of_memory
 from gpfverify.runtime import progress_shown
 from gpfverify.runtime import BLAS_THREAD_VARS
@@ -696,6 +697,7 @@ def results_of(module: ModuleType, out_dir: Path, manifest: dict, runs: int | No
                                     [_typed_record(module, r["result"]) for r in ok]))
     body["machine_load"] = runs_machine_load(records)
     _separate_timing_claims(body)
+    body = with_batching_caveat(body, batching_caveat(module))
     results = {"experiment": manifest["experiment"], "runs": manifest["runs"], "seed": manifest["seed"],
                "params": manifest["params"], "runs_ok": len(ok), "failed_runs": failed, **body,
                "timing_keys": timing_keys(module, body), "provenance": provenance.current()}

@@ -44,7 +44,6 @@ from typing import Any, Literal
 import numpy as np
 
 from gpfverify.audit.case import CaseAudit, audit_case
-from gpfverify.experiments.batching import BATCH_TIMING
 from gpfverify.contract.claims import (PROPOSITION_1, ClaimRecord, PairedDifference, PairedRatio, Statement, Verdict,
                                       combine)
 from gpfverify.papers.fusion.contract import (DEFAULT_RULE, FAMILIES, FUSION_RULES, LOCAL_FILTERS, METHODS, PAPER,
@@ -530,8 +529,8 @@ def time_claim(ctx: ClaimContext, name: str, claim: str, parts: list[tuple[Metho
                 + ("" if len(ratios) == 1 else "; held when every ratio is, NOT held when one is"))
     verdict = combine([r.verdict for _, _, r in ratios])
     undecided = [r.runs_to_decide for _, _, r in ratios if r.verdict == "undecided" and r.runs_to_decide]
-    return ctx.record(name, claim, verdict, worst.ratio, worst.bound, evidence, compared, caveats=(BATCH_TIMING,),
-                      timing=True, runs_to_decide=max(undecided) if undecided else None)
+    return ctx.record(name, claim, verdict, worst.ratio, worst.bound, evidence, compared, timing=True,
+                      runs_to_decide=max(undecided) if undecided else None)
 
 
 def equivalence_claim(ctx: ClaimContext, results: dict, family: str, metric: str,

@@ -26,7 +26,6 @@ from gpfverify.papers.particle_flow.bearing_contract import (INTERPRETATIONS, NA
 from gpfverify.contract.claims import ClaimRecord, PairedRatio, combine
 from gpfverify.contract.health_records import HealthCheck, stored_checks
 from gpfverify.contract.serial import to_json
-from gpfverify.experiments.batching import BATCH_TIMING
 from gpfverify.papers.particle_flow.claims import statement_of
 from gpfverify.papers.particle_flow.contract import IE_PFF, PAPER
 from gpfverify.papers.particle_flow.methods import (Comparison, divergence_health, ess_health, flow_steps,
@@ -185,7 +184,7 @@ def judge(params: Params, body: dict, runs: int) -> tuple[list[ClaimRecord], lis
             runs_to_decide=t.runs_to_decide if t.verdict == "undecided" else None,
             caveats=("CPU (process) time of this Python implementation; one run at a time the PF's cost is dominated "
                      "by per-step overhead, not by N, so the ratio says little about the algorithms' operation "
-                     "counts; " + BATCH_TIMING,),
+                     "counts",),
             id=f"{NAME}/{slug}", paper=PAPER, setting=setting, paper_n=PAPER_RUNS, timing=True)
         return statement_of(made.id).applied(made).checked([a, b], checks)
 

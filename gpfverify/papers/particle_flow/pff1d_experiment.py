@@ -32,7 +32,6 @@ from gpfverify.contract.health_records import HealthCheck, stored_checks
 from gpfverify.contract.serial import from_json, to_json
 from gpfverify.papers.particle_flow.claims import statement_of
 from gpfverify.contract.methods import Method
-from gpfverify.experiments.batching import BATCH_TIMING
 from gpfverify.papers.particle_flow.contract import EDH, FLOWS, IE_PFF, PAPER, PF, UPF, Variant
 from gpfverify.papers.particle_flow.pff1d_contract import (GAMMA_METHODS, INTERPRETATIONS, NAME, PAPER_RUNS, PROFILES,
                                                            TABLE_METHODS, TABLE_MODEL_NAMES, Case, DivergenceCount,
@@ -421,7 +420,7 @@ IMPLEMENTATION_RATIO = ("the ratio is a property of this implementation, not of 
 TIME_CAVEAT = ("CPU (process) time of this Python implementation, per run summed over the cells compared; a cell in "
                "which either filter of a pair failed its health gate (diverged in some run) is left out, so the "
                "claim rests on the cells where both filters worked; one run at a time the PF's cost is dominated by "
-               "per-step overhead, not by N; " + BATCH_TIMING)
+               "per-step overhead, not by N")
 
 
 @dataclasses.dataclass(frozen=True)
