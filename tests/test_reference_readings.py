@@ -66,3 +66,20 @@ def test_tbd_page_reads_the_gain_claim_under_every_birth_proposal_and_detection_
             assert f"{birth.name}-{detection}" in tried
     runs = {i.n or gain.n for i in gain.interpretations if i.name.startswith("birth-")}
     assert len(runs) == 1  # the birth readings rest on equal run counts
+
+
+def test_fusion_pages_give_the_batch_their_runs_were_timed_at():
+    """The command a fusion page prints remakes its runs as they were timed: ``--batch 1`` when the
+    record says no run shared a batch (its timing claims pair per-run CPU times), no option when
+    runs were batched (the runner's default batches them)."""
+    from gpfverify.papers.fusion.page import command
+
+    alone = {"runs": 1000, "claims": [], "machine_load": {"runs_batched": 0, "largest_batch": 1}}
+    batched = {"runs": 1000, "claims": [], "machine_load": {"runs_batched": 1000, "largest_batch": 64}}
+    assert " --batch 1 " in command("ct2d-k300-w0.5", alone)
+    assert "--batch" not in command("ct2d-k300-w0.5", batched)
+    for name in ("ct2d-k300-w0.0698", "ct2d-k300-w0.5", "ct2d-k30-w0.0698", "ct2d-k60-w0.0698", "ungm1d-sweep"):
+        folder = REFERENCE / "ct2d" / name.removeprefix("ct2d-") if name.startswith("ct2d") else REFERENCE / "ungm1d"
+        results = json.loads((folder / "results.json").read_text(encoding="utf-8"))
+        page = (REFERENCE / name.split("-")[0] / "README.md").read_text(encoding="utf-8")
+        assert command(name, results) in page, name

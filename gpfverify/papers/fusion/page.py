@@ -42,7 +42,7 @@ RUNS_NEEDED = ("each claim's verdict as run on the first n runs (the same seeds)
 #: folder name -> the command that makes it (run from the repository root, OUT = RUNS_DIR): the main
 #: run's RUNS runs and each interpretation's INTERPRETED runs (the same seed), both counts read from
 #: the results; the same bytes whether it runs at once or is interrupted and continued with --resume.
-MADE = ("gpfverify reproduce {experiment} {options}--runs RUNS --seed 1 --interpretations WHICH "
+MADE = ("gpfverify reproduce {experiment} {options}--runs RUNS --seed 1 BATCH--interpretations WHICH "
         "--interpretation-runs INTERPRETED --out OUT/{name}")
 #: folder name -> the experiment's options besides the run counts and the seed
 OPTIONS = {"ct2d-k300-w0.0698": "--kappa 300 --omega 0.0698 ", "ct2d-k300-w0.5": "--kappa 300 --omega 0.5 ",
@@ -63,17 +63,26 @@ def command(name: str, results: dict) -> str:
     """The commands that made ``results``: the interpretations tried and their run count read from
     its claims, the main run's count from its ``runs``."""
     module = ct2d if name.startswith("ct2d") else ungm1d
+    batch = batch_option(results)
     tried = [i for c in read_claims(results) for i in c.interpretations if i.name != AS_RUN]
     names = list(dict.fromkeys(i.name for i in tried))
     which = "all" if set(names) == {s.name for s in module.INTERPRETATIONS} else ",".join(names)
     if not names:
         options = OPTIONS[name]
-        return f"gpfverify reproduce {name.split('-')[0]} {options}--runs {results['runs']} --seed 1 --out OUT/{name}"
+        return (f"gpfverify reproduce {name.split('-')[0]} {options}--runs {results['runs']} --seed 1 {batch}"
+                f"--out OUT/{name}")
     # the interpretations with runs of their own ran fewer; those that read the main run's runs have its count
     counts = ", ".join(str(n) for n in sorted({i.n for i in tried if i.n and i.n != results["runs"]})) \
         or str(results["runs"])
     return (COMMANDS[name].replace("INTERPRETED", counts).replace("WHICH", which)
-            .replace("RUNS", str(results["runs"])))
+            .replace("RUNS", str(results["runs"])).replace("BATCH", batch))
+
+
+def batch_option(results: dict) -> str:
+    """``--batch 1 `` when the record says every run was filtered alone (its timing claims then pair
+    per-run CPU times, and a remake with the default batch would time batches instead); nothing when
+    runs shared batches (the runner's default then remakes them, the same bits)."""
+    return "" if (results.get("machine_load") or {}).get("runs_batched") else "--batch 1 "
 
 
 def committed(name: str) -> dict | None:
