@@ -27,6 +27,7 @@ from pathlib import Path
 
 from gpfverify.contract.claims import AS_RUN, ClaimRecord, read_claims
 from gpfverify.papers import EXPERIMENTS
+from gpfverify.reference_pages import reading_name
 from gpfverify.report.document import Paragraph, Section, Table
 from gpfverify.report.render import to_markdown
 
@@ -115,12 +116,8 @@ def reading_of(folder: Path, manifest: dict, reference: Path = REFERENCE) -> tup
         return own, AS_RUN
     page_manifest = json.loads((parent / "manifest.json").read_text(encoding="utf-8"))
     module = importlib.import_module(EXPERIMENTS[manifest["experiment"]])
-    specs = {s.name: s for s in getattr(module, "INTERPRETATIONS", ())}
-    name = manifest.get("interpretation") or folder.name
-    if page_manifest["experiment"] != manifest["experiment"] or name not in specs:
-        return own, AS_RUN
-    page_params = module.Params.from_json(page_manifest["params"])
-    if page_params.replace(**specs[name].changes) != module.Params.from_json(manifest["params"]):
+    name = reading_name(manifest, page_manifest, module, folder.name)
+    if name is None:
         return own, AS_RUN
     return parent.relative_to(reference).as_posix(), name
 
