@@ -86,3 +86,43 @@ def test_reproduce_refuses_an_interpretation_that_contradicts_the_options(monkey
     assert cli.main(["reproduce", "toy", "--interpretation", "shifted", *args, "--runs", "2", "--out", str(out)]) == 2
     assert message in capsys.readouterr().err
     assert not (out / "manifest.json").exists()
+
+
+def test_a_readings_own_run_gives_the_page_its_verdict_under_that_reading(monkeypatch, tmp_path, capsys):
+    import shutil
+
+    from gpfverify.contract.claims import read_claims
+    from gpfverify.reference_pages import reading_commands, readings_into, with_reading_runs
+
+    monkeypatch.syspath_prepend(str(HERE))
+    monkeypatch.setitem(EXPERIMENTS, "toy", "toy_experiment")
+    toy = importlib.import_module("toy_experiment")
+    monkeypatch.setattr(toy, "judge", lambda params, body, runs: (read_claims(body), []), raising=False)
+    runs = tmp_path / "runs"
+    assert cli.main(["reproduce", "toy", "--runs", "6", "--interpretations", "shifted", "--interpretation-runs", "2",
+                     "--out", str(runs / "toy")]) == 0
+    assert cli.main(["reproduce", "toy", "--interpretation", "shifted", "--runs", "6",
+                     "--out", str(runs / "toy-shifted")]) == 0
+    capsys.readouterr()
+    page = tmp_path / "page"
+    page.mkdir()
+    for name in ("results.json", "manifest.json"):
+        shutil.copy(runs / "toy" / name, page / name)
+    results = json.loads((page / "results.json").read_text(encoding="utf-8"))
+    before = {c.id: {i.name: i.n for i in c.interpretations} for c in read_claims(results)}
+    assert before["toy/mean-below-1"]["shifted"] == 2
+    assert readings_into(runs, "toy", page, toy) == ["shifted"]
+    after = with_reading_runs(results, page, toy)
+    entries = {c.id: {i.name: i for i in c.interpretations} for c in read_claims(after)}
+    shifted = entries["toy/mean-below-1"]["shifted"]
+    alone = next(c for c in read_claims(json.loads((runs / "toy-shifted" / "results.json").read_text())) if
+                 c.id == "toy/mean-below-1")
+    assert (shifted.n, shifted.verdict, shifted.statistic) == (6, alone.verdict, alone.statistic)
+    assert entries["toy/mean-below-1"]["as run"].n == 2  # the main run's first runs, as they were
+    assert json.loads((page / "results.json").read_text(encoding="utf-8")) == after  # written back
+    said = reading_commands(page, toy, lambda name, n: f"reproduce toy --interpretation {name} --runs {n}")
+    assert said.startswith("reproduce toy --interpretation shifted --runs 6 ")
+    # a run with fewer runs than the one committed does not replace it
+    assert cli.main(["reproduce", "toy", "--interpretation", "shifted", "--runs", "3",
+                     "--out", str(tmp_path / "fewer" / "toy-shifted")]) == 0
+    assert readings_into(tmp_path / "fewer", "toy", page, toy) == []
