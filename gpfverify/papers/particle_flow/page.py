@@ -21,6 +21,7 @@ The per-run files are not committed.
 
 from __future__ import annotations
 
+import functools
 import json
 import shutil
 import sys
@@ -73,9 +74,7 @@ def main(runs_dir: Path) -> None:
     if (HERE / "pff1d" / SECOND_MODEL / "results.json").is_file():
         section.blocks[-1:-1] = _second_model_blocks(
             json.loads((HERE / "pff1d" / SECOND_MODEL / "results.json").read_text(encoding="utf-8")))
-    alone = [reading_commands(HERE / name, MODULES[name], lambda reading, runs, name=name: (
-        f"gpfverify reproduce {name} --interpretation {reading} --runs {runs} --seed 1 --out OUT/{name}-{reading}"))
-        for name in COMMANDS]
+    alone = [reading_commands(HERE / name, MODULES[name], functools.partial(_alone, name)) for name in COMMANDS]
     command = "; ".join([*COMMANDS.values(), *filter(None, alone)]) + \
         "; then python -m gpfverify.papers.particle_flow.page OUT"
     second_runs = _runs_of(HERE / "pff1d" / SECOND_MODEL)
@@ -95,6 +94,11 @@ def main(runs_dir: Path) -> None:
         "undecided verdicts as run, were the observed mean and spread the true ones: "
         + ("; ".join(undecided) or "none") + "."))
     write_page(section, HERE, list(results.values()))
+
+
+def _alone(name: str, reading: str, runs: int) -> str:
+    """The command that runs the interpretation ``reading`` of ``name`` on its own."""
+    return f"gpfverify reproduce {name} --interpretation {reading} --runs {runs} --seed 1 --out OUT/{name}-{reading}"
 
 
 def _runs_of(folder: Path) -> int | None:
