@@ -6,15 +6,17 @@ current summaries and copied, with its manifest, next to the page that shows it.
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import shutil
 import tempfile
 from collections.abc import Callable, Sequence
 from pathlib import Path
 
-from gpfverify.contract.claims import ClaimRecord, carry, read_claims
+from gpfverify.contract.claims import ClaimRecord, Interpretation, carry, read_claims
+from gpfverify.contract.serial import to_json
 from gpfverify.experiments.batching import batching_caveat, with_batching_caveat
-from gpfverify.experiments.runner import read_manifest, results_of
+from gpfverify.experiments.runner import read_manifest, results_of, rewrite_results
 from gpfverify.experiments.sensitivity import merge_saved
 from gpfverify.report.document import Paragraph, Section, Table
 from gpfverify.report.inputs import VerdictCounts
@@ -59,6 +61,112 @@ def recompute_into(run_dir: Path, module, target: Path) -> dict:
     for name in ("results.json", "manifest.json"):
         shutil.copy(run_dir / name, target / name)
     return results
+
+
+def reading_name(manifest: dict, page_manifest: dict, module, folder_name: str) -> str | None:
+    """The interpretation whose run ``manifest`` describes, as a reading of the page whose run
+    ``page_manifest`` describes: the one its manifest names (``gpfverify reproduce NAME
+    --interpretation NAME``), else the one the folder is named after — either only when the
+    experiment is the page's and the parameters are the page's with that interpretation's changes;
+    None for any other run."""
+    specs = {s.name: s for s in getattr(module, "INTERPRETATIONS", ())}
+    name = manifest.get("interpretation") or folder_name
+    if manifest.get("experiment") != page_manifest.get("experiment") or name not in specs:
+        return None
+    page_params = module.Params.from_json(page_manifest["params"])
+    if page_params.replace(**specs[name].changes) != module.Params.from_json(manifest["params"]):
+        return None
+    return name
+
+
+def reading_runs(page_dir: Path, module) -> dict[str, Path]:
+    """The runs of single interpretations committed in the page's folder: ``<page_dir>/<name>/``
+    holding the ``results.json`` and ``manifest.json`` of ``gpfverify reproduce ... --interpretation
+    NAME`` at the page's parameters (:func:`reading_name`), by interpretation name."""
+    page_manifest = json.loads((page_dir / "manifest.json").read_text(encoding="utf-8"))
+    out = {}
+    for spec in getattr(module, "INTERPRETATIONS", ()):
+        folder = page_dir / spec.name
+        if (folder / "results.json").is_file() and (folder / "manifest.json").is_file():
+            manifest = json.loads((folder / "manifest.json").read_text(encoding="utf-8"))
+            if reading_name(manifest, page_manifest, module, spec.name) == spec.name:
+                out[spec.name] = folder
+    return out
+
+
+def readings_into(runs_dir: Path, prefix: str, page_dir: Path, module) -> list[str]:
+    """Each interpretation's own run in ``runs_dir/<prefix>-<name>/`` (``gpfverify reproduce ...
+    --interpretation NAME`` at the page's parameters) recomputed from its saved runs and copied, with
+    its manifest, to ``page_dir/<name>/`` — unless the run committed there has more runs. Returns the
+    names copied."""
+    page_manifest = json.loads((page_dir / "manifest.json").read_text(encoding="utf-8"))
+    copied = []
+    for spec in getattr(module, "INTERPRETATIONS", ()):
+        source = runs_dir / f"{prefix}-{spec.name}"
+        if not (source / "manifest.json").is_file():
+            continue
+        manifest = read_manifest(source)
+        if reading_name(manifest, page_manifest, module, spec.name) != spec.name:
+            continue
+        target = page_dir / spec.name
+        if (target / "manifest.json").is_file() and \
+                json.loads((target / "manifest.json").read_text(encoding="utf-8"))["runs"] > manifest["runs"]:
+            continue
+        rewrite_results(source, module)
+        target.mkdir(parents=True, exist_ok=True)
+        for name in ("results.json", "manifest.json"):
+            shutil.copy(source / name, target / name)
+        copied.append(spec.name)
+    return copied
+
+
+def with_reading_runs(results: dict, page_dir: Path, module) -> dict:
+    """``results`` (the page's, as committed in ``page_dir``) with each claim's verdict under an
+    interpretation taken from that interpretation's own run committed in the page's folder
+    (:func:`reading_runs`, judged again by the current code and written back), where that run has at
+    least as many runs as the entry rests on; on the claims the interpretation bears on (a timing
+    claim keeps no entry of an interpretation that only reads the same runs another way). Written
+    back to ``page_dir/results.json`` and returned."""
+    runs = {name: rejudge_committed(folder / "results.json", module)
+            for name, folder in reading_runs(page_dir, module).items()}
+    if not runs:
+        return results
+    specs = {s.name: s for s in module.INTERPRETATIONS}
+    reads_only = frozenset(getattr(module, "SUMMARY_FIELDS", ()))
+    out = dict(results)
+    for key in ("claims", "timing_claims"):
+        if key not in results:
+            continue
+        claims = []
+        for raw in results[key]:
+            claim = ClaimRecord.from_json(raw)
+            entries = {i.name: i for i in claim.interpretations}
+            for name, reading in runs.items():
+                spec = specs[name]
+                other = next((c for c in read_claims(reading) if c.id == claim.id and claim.id), None)
+                if other is None or not spec.bears_on_claim(claim.id) or \
+                        (claim.timing and set(spec.changes) <= reads_only):
+                    continue
+                old = entries.get(name)
+                if old is not None and (old.n or claim.n) > other.n:
+                    continue
+                entries[name] = Interpretation(name, to_json(spec.changes), other.verdict, other.statistic,
+                                               other.n, other.runs_to_decide)
+            claims.append(to_json(dataclasses.replace(claim, interpretations=tuple(entries.values()))))
+        out[key] = claims
+    (page_dir / "results.json").write_text(json.dumps(out, allow_nan=True), encoding="utf-8")
+    return out
+
+
+def reading_commands(page_dir: Path, module, command: Callable[[str, int], str]) -> str:
+    """The commands that made the interpretations' own runs committed in the page's folder:
+    ``command(name, runs)`` each, then the copy of its results.json and manifest.json; "" when none."""
+    said = []
+    for name, folder in reading_runs(page_dir, module).items():
+        runs = json.loads((folder / "manifest.json").read_text(encoding="utf-8"))["runs"]
+        said.append(f"{command(name, runs)} (its results.json and manifest.json in "
+                    f"{folder.as_posix()}/)")
+    return "; ".join(said)
 
 
 #: the run counts at which a reference page shows each claim's verdict (those below the main run's)

@@ -172,12 +172,39 @@ def experiment_parser(name: str) -> argparse.ArgumentParser:
     module = importlib.import_module(EXPERIMENTS[name])
     parser = OneLineParser(prog=f"gpfverify reproduce {name}", description=plain_help(module.__doc__))
     add_common_arguments(parser, quick_runs(module), module.DEFAULT_RUNS)
+    declared = [s.name for s in getattr(module, "INTERPRETATIONS", ())]
+    if declared:
+        parser.add_argument("--interpretation", default=None, choices=declared, metavar="NAME",
+                            help="run the experiment under this one interpretation of what the paper leaves "
+                                 "unstated: its parameter changes applied to the options given, its name recorded "
+                                 f"in manifest.json and results.json (one of {', '.join(declared)})")
     add_params_arguments(parser, module.Params)
     return parser
 
 
+def experiment_params(module, opts: argparse.Namespace):
+    """The experiment's ``Params`` from parsed options: the options given, and, with
+    ``--interpretation NAME``, that interpretation's parameter changes applied over them. An option
+    given at another value than the interpretation sets is refused (the one reading would be two)."""
+    from gpfverify.contract.params import cli_fields, field_flag, from_arguments
+    from gpfverify.errors import InputError
+
+    params = from_arguments(module.Params, opts)
+    name = getattr(opts, "interpretation", None)
+    if name is None:
+        return params
+    spec = next(s for s in module.INTERPRETATIONS if s.name == name)
+    changed = params.replace(**spec.changes)
+    defaults = module.Params()
+    flags = {f.name: field_flag(f) for f in cli_fields(module.Params)}
+    for field in spec.changes:
+        given = getattr(params, field)
+        if field in flags and given != getattr(defaults, field) and given != getattr(changed, field):
+            raise InputError(f"--interpretation {name} sets {flags[field]}; it was given at another value")
+    return changed
+
+
 def run(args: argparse.Namespace) -> int:
-    from gpfverify.contract.params import from_arguments
     from gpfverify.errors import InputError
     from gpfverify.experiments.runner import check_run_count, make_executor, run_experiment
     from gpfverify.memory import advise
@@ -192,7 +219,10 @@ def run(args: argparse.Namespace) -> int:
     if opts.paper_scale and opts.runs is not None:
         raise InputError("--paper-scale runs the paper's count: not together with --runs")
     runs = module.DEFAULT_RUNS if opts.paper_scale else opts.runs or quick_runs(module)
-    params = from_arguments(module.Params, opts)
+    interpretation = getattr(opts, "interpretation", None)
+    if interpretation is not None and opts.interpretations is not None:
+        raise InputError("--interpretation runs one reading as the main run: not together with --interpretations")
+    params = experiment_params(module, opts)
     check_run_count(runs)  # refused before anything is written
     specs = None
     if opts.interpretations is not None:
@@ -211,13 +241,14 @@ def run(args: argparse.Namespace) -> int:
         scale = f"the quick profile; --paper-scale for the paper's {module.DEFAULT_RUNS}"
     else:
         scale = f"the paper's: {module.DEFAULT_RUNS}"
-    header = f"{args.experiment}: {runs} run(s) ({scale}), {opts.workers} worker(s), into {opts.out}"
+    reading = f", interpretation {interpretation}" if interpretation else ""
+    header = f"{args.experiment}{reading}: {runs} run(s) ({scale}), {opts.workers} worker(s), into {opts.out}"
     terminal = diagnostics().isatty()  # there the runner draws a progress bar
     with output_folder(opts.out, keep=True, wait=opts.wait) as stage, \
             make_executor(opts.workers, opts.scheduler) as executor:
         results = run_experiment(module, params, runs, opts.seed, stage, opts.resume, executor,
                                  on_run=None if terminal else progress_lines(args.experiment, say, header),
-                                 batch=opts.batch)
+                                 batch=opts.batch, interpretation=interpretation)
         if specs:
             say(f"{args.experiment}: interpretations {', '.join(s.name for s in specs)}")
             results = run_interpretations(module, params, specs, runs, opts.seed, stage, executor,

@@ -117,14 +117,15 @@ class Params:
         """A copy with ``changes`` applied, validated again."""
         return dataclasses.replace(self, **changes)
 
-    def cli_options(self) -> list[str]:
+    def cli_options(self, always: tuple[str, ...] = ()) -> list[str]:
         """The command-line options that give these parameters from the defaults (every
-        command-line field whose value differs, by :func:`field_flag`): ``["--kappa", "30"]``."""
+        command-line field whose value differs, by :func:`field_flag`): ``["--kappa", "30"]``;
+        the fields named in ``always`` are given at their value even where it is the default."""
         defaults = type(self)()
         out: list[str] = []
         for field in cli_fields(type(self)):
             value = getattr(self, field.name)
-            if value == getattr(defaults, field.name):
+            if value == getattr(defaults, field.name) and field.name not in always:
                 continue
             if isinstance(value, bool):
                 out.append(field_flag(field) if value else "--no-" + field_flag(field)[2:])

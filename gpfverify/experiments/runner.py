@@ -439,8 +439,8 @@ def _check_manifest(out_dir: Path, manifest: dict, resume: bool, write: bool = T
     existing_runs = list((out_dir / "runs").glob("run-*.json")) if (out_dir / "runs").exists() else []
     if path.exists() and (resume or not existing_runs):
         old = read_manifest(out_dir)
-        if resume and {k: old.get(k) for k in ("experiment", "seed", "params")} != \
-                {k: manifest[k] for k in ("experiment", "seed", "params")}:
+        if resume and {k: old.get(k) for k in (*SETTINGS_KEYS, "interpretation")} != \
+                {k: manifest.get(k) for k in (*SETTINGS_KEYS, "interpretation")}:
             raise InputError("--out holds runs of different settings; use a new --out")
     elif existing_runs and not resume:
         raise InputError(f"--out already holds {len(existing_runs)} saved runs; "
@@ -466,7 +466,8 @@ def _progress(enabled: bool):
 def run_experiment(module: ModuleType | str, params: Params, runs: int, seed: int, out_dir: Path,
                    resume: bool = False, executor: Executor | None = None,
                    show_progress: bool | None = None,
-                   on_run: Callable[[int, int], None] | None = None, batch: int | None = None) -> dict:
+                   on_run: Callable[[int, int], None] | None = None, batch: int | None = None,
+                   interpretation: str | None = None) -> dict:
     """Run (or finish) ``runs`` Monte Carlo runs of an experiment and write ``results.json``.
 
     ``params`` is the experiment's ``Params`` (see :mod:`gpfverify.contract.experiment`);
@@ -474,7 +475,9 @@ def run_experiment(module: ModuleType | str, params: Params, runs: int, seed: in
     ``show_progress`` draws rich's progress bar (default: on a terminal and in a Jupyter notebook);
     ``batch`` the runs each task advances together (default :func:`default_batch`): the runs still to
     do, in order, are cut into batches, each batch is one task for the executor (a worker process or
-    a dask cluster receives batches, not runs), and each of its runs is saved as it comes back."""
+    a dask cluster receives batches, not runs), and each of its runs is saved as it comes back;
+    ``interpretation``: the name of the interpretation whose changes ``params`` carries (``gpfverify
+    reproduce NAME --interpretation``), recorded in ``manifest.json`` and ``results.json``."""
     module = importlib.import_module(module) if isinstance(module, str) else module
     name = module.NAME
     check_run_count(runs)
@@ -489,6 +492,8 @@ def run_experiment(module: ModuleType | str, params: Params, runs: int, seed: in
     if not isinstance(params, module.Params):
         raise InputError(f"{name} takes its own Params, got {type(params).__name__}")
     manifest = {"experiment": name, "seed": seed, "runs": runs, "params": params.to_json()}
+    if interpretation is not None:
+        manifest["interpretation"] = interpretation
     manifest = json.loads(json.dumps(manifest))  # exactly what a resumed run reads back
     run_params = _typed_params(module, manifest["params"])
     if out_dir.exists():  # check before writing anything: a refused run leaves no trace
@@ -699,7 +704,9 @@ def results_of(module: ModuleType, out_dir: Path, manifest: dict, runs: int | No
     _separate_timing_claims(body)
     body = with_batching_caveat(body, batching_caveat(module))
     results = {"experiment": manifest["experiment"], "runs": manifest["runs"], "seed": manifest["seed"],
-               "params": manifest["params"], "runs_ok": len(ok), "failed_runs": failed, **body,
+               "params": manifest["params"],
+               **({"interpretation": manifest["interpretation"]} if manifest.get("interpretation") else {}),
+               "runs_ok": len(ok), "failed_runs": failed, **body,
                "timing_keys": timing_keys(module, body), "provenance": provenance.current()}
     if runs is not None:
         results["runs"] = len(records)

@@ -11,7 +11,11 @@ and copied (with its manifest) to ``reports/reference/<experiment>/<setting>/``.
 ``reports/reference/ct2d/README.md``, ``reports/reference/ungm1d/README.md`` and one
 self-contained ``reports/reference/fusion-paper.html``. The per-run files are not committed; with
 ``--committed`` each committed ``results.json`` has its claims judged again by the current code
-from its stored summary, what only the runs gave carried over, and is written back.
+from its stored summary, what only the runs gave carried over, and is written back. An
+interpretation run on its own at a setting's parameters (``gpfverify reproduce ... --interpretation
+NAME --out RUNS_DIR/<folder>-<NAME>``) is copied likewise to ``.../<setting>/<NAME>/``, and the
+setting's claims take their verdict under that interpretation from it where it has more runs than
+the entry they hold (:func:`gpfverify.reference_pages.with_reading_runs`).
 """
 
 from __future__ import annotations
@@ -29,8 +33,9 @@ from gpfverify.papers.fusion import ungm1d_experiment as ungm1d
 from gpfverify.papers.fusion import ungm1d_section as fusion_ungm1d
 from gpfverify.papers.fusion.ct2d_contract import Params as CT2DParams
 from gpfverify.papers.fusion.section import rank_rules_table
-from gpfverify.reference_pages import (REFERENCE, recompute_into, rejudge_committed, runs_needed_table,
-                                      verdicts_by_run_count, write_page)
+from gpfverify.reference_pages import (REFERENCE, reading_commands, reading_runs, readings_into, recompute_into,
+                                      rejudge_committed, runs_needed_table, verdicts_by_run_count,
+                                      with_reading_runs, write_page)
 from gpfverify.report.render import to_html
 
 HERE = REFERENCE
@@ -72,10 +77,16 @@ def command(name: str, results: dict) -> str:
         return (f"gpfverify reproduce {name.split('-')[0]} {options}--runs {results['runs']} --seed 1 {batch}"
                 f"--out OUT/{name}")
     # the interpretations with runs of their own ran fewer; those that read the main run's runs have its count
-    counts = ", ".join(str(n) for n in sorted({i.n for i in tried if i.n and i.n != results["runs"]})) \
+    alone = reading_runs(target(name), module)  # run on their own: their commands follow the main one
+    counts = ", ".join(str(n) for n in sorted({i.n for i in tried
+                                               if i.n and i.n != results["runs"] and i.name not in alone})) \
         or str(results["runs"])
-    return (COMMANDS[name].replace("INTERPRETED", counts).replace("WHICH", which)
+    main = (COMMANDS[name].replace("INTERPRETED", counts).replace("WHICH", which)
             .replace("RUNS", str(results["runs"])).replace("BATCH", batch))
+    own = reading_commands(target(name), module, lambda reading, runs: (
+        f"gpfverify reproduce {name.split('-')[0]} {OPTIONS[name]}--interpretation {reading} --runs {runs} "
+        f"--seed 1 --out OUT/{name}-{reading}"))
+    return f"{main}; {own}" if own else main
 
 
 def batch_option(results: dict) -> str:
@@ -155,6 +166,10 @@ def main(runs_dir: Path | None) -> None:
             found[name] = recompute_into(runs_dir / name, module, target(name))
         elif (results := committed(name)) is not None:
             found[name] = results
+        if name in found:  # the interpretations run on their own (OUT/<name>-<interpretation>), committed beside
+            if runs_dir is not None:
+                readings_into(runs_dir, name, target(name), module)
+            found[name] = with_reading_runs(found[name], target(name), module)
     source = {name: runs_dir if runs_dir is not None and (runs_dir / name).is_dir() else None for name in found}
     ladders = {name: by_run_count(name, source[name], r) for name, r in found.items()}
     rules = {name: rank_rule_readings(name, source[name], r) for name, r in found.items()}

@@ -12,11 +12,16 @@ model (the interpretation vdm-gaussian) is rendered next to the main one, and it
 copied with its manifest to ``.../pff1d/vdm-gaussian/``. An experiment whose folder is not in RUNS_DIR
 keeps its committed results, judged again by the current code from their stored summaries
 (:func:`~gpfverify.reference_pages.rejudge_committed`; the page states the commit each was made at).
+An interpretation run on its own (``gpfverify reproduce NAME --interpretation READING --out
+RUNS_DIR/NAME-READING``) is copied likewise to ``.../<experiment>/<READING>/`` (the second model's
+too, replacing the one run next to the main run when it has more runs), and the claims take their
+verdict under that interpretation from it (:func:`~gpfverify.reference_pages.with_reading_runs`).
 The per-run files are not committed.
 """
 
 from __future__ import annotations
 
+import functools
 import json
 import shutil
 import sys
@@ -26,7 +31,8 @@ from gpfverify.contract.experiment import RunEntry, SectionRuns
 from gpfverify.papers.particle_flow import bearing_experiment as bearing
 from gpfverify.papers.particle_flow import pff1d_experiment as pff1d
 from gpfverify.papers.particle_flow import section as particle_flow
-from gpfverify.reference_pages import REFERENCE, recompute_into, rejudge_committed, write_page
+from gpfverify.reference_pages import (REFERENCE, reading_commands, readings_into, recompute_into, rejudge_committed,
+                                      with_reading_runs, write_page)
 from gpfverify.report.document import Paragraph
 from gpfverify.report.inputs import SectionInput
 
@@ -50,12 +56,15 @@ def main(runs_dir: Path) -> None:
     results = {name: recompute_into(runs_dir / name, MODULES[name], HERE / name)
                if (runs_dir / name / "manifest.json").is_file()
                else rejudge_committed(HERE / name / "results.json", MODULES[name]) for name in COMMANDS}
+    for name in COMMANDS:  # the interpretations run on their own (OUT/<name>-<interpretation>), committed beside
+        readings_into(runs_dir, name, HERE / name, MODULES[name])
+        results[name] = with_reading_runs(results[name], HERE / name, MODULES[name])
     entries = tuple(RunEntry(name, "", name, f"{name}/results.json") for name in COMMANDS)
     data = SectionInput(particle_flow.SLUG, HERE, SectionRuns(particle_flow.SLUG, "reference", 1, entries),
                         tuple(results[name] for name in COMMANDS))
     section = particle_flow.render_section(data)
     second = runs_dir / "pff1d" / "interpretations" / SECOND_MODEL / "results.json"
-    if second.is_file():
+    if second.is_file() and not _committed_has_more(HERE / "pff1d" / SECOND_MODEL, second.parent):
         target = HERE / "pff1d" / SECOND_MODEL
         target.mkdir(parents=True, exist_ok=True)
         for name in ("results.json", "manifest.json"):
@@ -65,7 +74,10 @@ def main(runs_dir: Path) -> None:
     if (HERE / "pff1d" / SECOND_MODEL / "results.json").is_file():
         section.blocks[-1:-1] = _second_model_blocks(
             json.loads((HERE / "pff1d" / SECOND_MODEL / "results.json").read_text(encoding="utf-8")))
-    command = "; ".join(COMMANDS.values()) + "; then python -m gpfverify.papers.particle_flow.page OUT"
+    alone = [reading_commands(HERE / name, MODULES[name], functools.partial(_alone, name)) for name in COMMANDS]
+    command = "; ".join([*COMMANDS.values(), *filter(None, alone)]) + \
+        "; then python -m gpfverify.papers.particle_flow.page OUT"
+    second_runs = _runs_of(HERE / "pff1d" / SECOND_MODEL)
     from gpfverify.contract.claims import read_claims
 
     undecided = [f"{c.id}: about {c.runs_to_decide}" for r in results.values() for c in read_claims(r)
@@ -76,12 +88,29 @@ def main(runs_dir: Path) -> None:
         f"Scale: pff1d ran {runs['pff1d']} runs (the paper: {pff1d.PAPER_RUNS}) on the paper's whole Table-1 grid "
         "(Q ∈ {0.1, 1, 10}, R ∈ {0.1, 1}, Δλ ∈ {0.1, 0.01, 0.001}, uniform and exponential λ-steps), the Fig. 1(b) "
         f"cell Q = 1, R = 0.1 included, and the gamma case at every R; the same grid on the second model "
-        f"({SECOND_MODEL}) at the same count with uniform λ-steps; bearing {runs['bearing']} runs (the "
+        f"({SECOND_MODEL}) at {second_runs} runs with uniform λ-steps; bearing {runs['bearing']} runs (the "
         f"paper: {bearing.PAPER_RUNS}); the interpretations at " + _interpretation_runs(results) + ". Runs that "
         "would decide the "
         "undecided verdicts as run, were the observed mean and spread the true ones: "
         + ("; ".join(undecided) or "none") + "."))
     write_page(section, HERE, list(results.values()))
+
+
+def _alone(name: str, reading: str, runs: int) -> str:
+    """The command that runs the interpretation ``reading`` of ``name`` on its own."""
+    return f"gpfverify reproduce {name} --interpretation {reading} --runs {runs} --seed 1 --out OUT/{name}-{reading}"
+
+
+def _runs_of(folder: Path) -> int | None:
+    """The runs of the run committed in ``folder`` (its manifest), None when there is none."""
+    path = folder / "manifest.json"
+    return json.loads(path.read_text(encoding="utf-8"))["runs"] if path.is_file() else None
+
+
+def _committed_has_more(committed: Path, run_dir: Path) -> bool:
+    """Has the run committed in ``committed`` more runs than the one in ``run_dir``?"""
+    mine, theirs = _runs_of(committed), _runs_of(run_dir)
+    return mine is not None and theirs is not None and mine > theirs
 
 
 def _interpretation_runs(results: dict) -> str:
