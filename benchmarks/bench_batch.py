@@ -28,18 +28,35 @@ doubling, log₂ of the ratio).
 
 from __future__ import annotations
 
-import argparse
-import contextlib
-import functools
 import os
-import platform
-import time
-from pathlib import Path
 
-import numpy as np
-from threadpoolctl import threadpool_limits
+# one BLAS thread in every BLAS library, numpy's and scipy's (scipy's OpenBLAS is loaded only when
+# gpfverify first imports scipy.linalg, after any threadpoolctl limit set here: a limit alone left it
+# at its default thread count, and the rules timed outside gpfverify's one-thread entry points ran
+# their LAPACK calls on two threads, the second spinning — milliseconds of CPU at D = 64); as the
+# command line sets them (gpfverify.runtime.default_single_blas_thread)
+for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "VECLIB_MAXIMUM_THREADS",
+             "NUMEXPR_NUM_THREADS"):
+    os.environ.setdefault(_var, "1")
 
-from _timing import markdown_table
+import argparse  # noqa: E402
+import contextlib  # noqa: E402
+import functools  # noqa: E402
+import platform  # noqa: E402
+import time  # noqa: E402
+from pathlib import Path  # noqa: E402
+
+import numpy as np  # noqa: E402
+import scipy.linalg  # noqa: E402,F401  (its BLAS loaded before the limit below)
+from threadpoolctl import threadpool_info, threadpool_limits  # noqa: E402
+
+from _timing import markdown_table  # noqa: E402
+
+
+def blas_threads() -> str:
+    """Every loaded BLAS library and its thread count (threadpoolctl)."""
+    return ", ".join(f"{os.path.basename(i['filepath'])} {i['num_threads']}" for i in threadpool_info()
+                     if i.get("user_api") == "blas")
 
 
 
@@ -304,8 +321,8 @@ def main() -> None:
     args = parser.parse_args()
     started = load()
     text = [f"Machine: {platform.processor() or platform.machine()}, {os.cpu_count()} cores, Python "
-            f"{platform.python_version()}, numpy {np.__version__}; BLAS threads 1 "
-            f"(threadpoolctl); load average (1, 5, 15 min) at the start {started}"]
+            f"{platform.python_version()}, numpy {np.__version__}; BLAS threads 1 (the thread variables "
+            f"and threadpoolctl: {blas_threads()}); load average (1, 5, 15 min) at the start {started}"]
     if args.only != "dims":
         rows = runs_axis(args.rounds, args.runs)
         text += ["", "Runs per CPU-second, one process, per-run (run_one in a loop) and batched (run_batch of all "
@@ -333,7 +350,7 @@ def main() -> None:
                  markdown_table(*(lambda t: (t[0], t[1:]))(growth(best))),
                  "", "Goal ≤ 2 × (CMF + DMF), from the best-of times:", "", *verdicts(best, args.rcc_max)]
         text += ["", *notes] if notes else []
-    text += ["", f"load average at the end {load()}"]
+    text += ["", f"load average at the end {load()}; BLAS threads at the end: {blas_threads()}"]
     out = "\n".join(text)
     print(out)
     if args.out:
@@ -341,5 +358,5 @@ def main() -> None:
 
 
 if __name__ == "__main__":
-    with threadpool_limits(1):  # numpy is imported already: the environment variable would come too late
+    with threadpool_limits(1):  # and the environment variables above, for any BLAS loaded later
         main()
