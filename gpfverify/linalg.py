@@ -128,15 +128,17 @@ def cholesky(a: np.ndarray, name: str = "matrix", allow_jitter: bool = True) -> 
     """
     a = symmetrize(np.asarray(a, dtype=float))
     n = a.shape[0]
-    scale = float(np.mean(np.abs(np.diag(a)))) if n else 1.0
-    scale = scale if scale > 0 else 1.0
+    scale = 0.0  # the mean |diagonal|, computed only when a jitter is tried (most factorisations need none)
     steps = JITTER_STEPS if allow_jitter else (0.0,)
     for rel in steps:
+        if rel and not scale:
+            scale = float(np.mean(np.abs(np.diag(a)))) if n else 1.0
+            scale = scale if scale > 0 else 1.0
         jitter = rel * scale
         # LAPACK potrf directly: numpy's cholesky gives the same factor (to rounding: the two may link
         # different LAPACK builds) at four times the overhead
         factor, info = sla.lapack.dpotrf(a + jitter * np.eye(n) if jitter else a, lower=1, clean=1)
-        if info == 0 and np.all(np.isfinite(factor)):
+        if info == 0 and all_finite(factor):
             return Cholesky(factor, jitter)
     raise NumericalError(f"{name} is not positive definite (Cholesky failed even with jitter "
                          f"{steps[-1]:g} x mean diagonal)")
