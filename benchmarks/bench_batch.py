@@ -253,7 +253,7 @@ def state_axis(dims: list[int], steps: int, rcc_max: int, rounds: int, cap: floa
             if first > cap:
                 capped.add(name)
                 notes.append(f"{name} took {first:.1f} CPU-s at D = {d} (one call): not timed at larger D")
-        repeats = rounds if d <= 128 else max(3, rounds // 3)
+        repeats = 4 * rounds if d <= 32 else rounds if d <= 128 else max(3, rounds // 3)
         for _ in range(repeats):
             for name, fn in timers.items():
                 if name == "rcc-ci" and len(times.get(name, ())) >= 3:
@@ -314,7 +314,7 @@ def main() -> None:
     parser.add_argument("--dims", default="8,16,32,64,128,256,512")
     parser.add_argument("--steps", type=int, default=3, help="steps run before the one timed")
     parser.add_argument("--rcc-max", type=int, default=32)
-    parser.add_argument("--dim-rounds", type=int, default=15, help="interleaved rounds per D (a third from D = 256)")
+    parser.add_argument("--dim-rounds", type=int, default=15, help="interleaved rounds per D (four times as many up to D = 32, a third from D = 256)")
     parser.add_argument("--cap", type=float, default=20.0, help="CPU-s of one call above which a rule stops")
     parser.add_argument("--only", choices=("runs", "dims"), default=None)
     parser.add_argument("--out", type=Path, default=None)
