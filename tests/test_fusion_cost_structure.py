@@ -43,7 +43,7 @@ def _system(d: int, rng: np.random.Generator):
     return linear_model(f, h, 0.1 * np.eye(d), 0.5 * np.eye(3 * d // 2), sizes=(d // 2,) * 3)
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def _step(d: int):
     """Each rule's one step at the last step of a four-step run, as a call without arguments."""
     rng = np.random.default_rng(d)
