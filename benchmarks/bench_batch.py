@@ -239,7 +239,9 @@ def state_axis(dims: list[int], steps: int, rcc_max: int, rounds: int, cap: floa
         timers = {"cmf": functools.partial(cmf_step, before.estimate("cmf"), model, y, k=step.k, family="kf"),
                   "dmf": functools.partial(dmf_step, before.estimate("dmf"), model, y, local_records=step.local,
                                            k=step.k, family="kf"),
-                  "audit": functools.partial(audit_case, step.dmf.case, rank_rule=step.dmf.result.rank_rule)}
+                  # the audit as run_fusion(..., audit=True) runs it: reusing the step's eq. 35
+                  "audit": functools.partial(audit_case, step.dmf.case, rank_rule=step.dmf.result.rank_rule,
+                                             dmf=step.dmf.result)}
         for name, rule in _baselines(methods, None, (), "trace").items():
             timers[name] = functools.partial(rule, beliefs)
         times: dict[str, list[float]] = {}

@@ -22,9 +22,11 @@ import sys
 import numpy as np
 import pytest
 
-from gpfverify.audit.case import audit_case
+from gpfverify.audit.case import audit_case, audit_to_dict
 from gpfverify.fusion.ci import covariance_intersection
 from gpfverify.fusion.convex import convex_combination
+from gpfverify.fusion.distributed import dmf_update
+from gpfverify.fusion.exactness import parse_rank_rule
 from gpfverify.model_fusion import _baselines, cmf_step, dmf_step, run_fusion
 from gpfverify.models import linear_model
 from gpfverify.tolerances import algebra_rtol, kkt_reject_tol
@@ -120,3 +122,15 @@ def test_cc_and_ci_agree_with_explicit_inverses_at_large_dimension(d):
     assert grads.max() / (w @ grads) - 1.0 <= kkt_reject_tol(cond), (w, grads)
     # and no vertex (a single estimate) has a smaller trace
     assert np.trace(ci.cov) <= min(np.trace(c) for c in covs) * (1.0 + rtol)
+
+
+@pytest.mark.parametrize("d", [8, 64])
+def test_the_audit_given_the_steps_dmf_is_the_audit_that_computes_it(d):
+    """run_fusion's audit reuses the step's eq. 35 (``dmf=``) instead of solving it again; a result
+    under another rule is not reused. The audit's fields are the same bits either way."""
+    audit = _step(d)[0]["audit"]
+    case, rule = audit.args[0], audit.keywords["rank_rule"]
+    alone = audit_to_dict(audit_case(case, rank_rule=rule))
+    assert audit_to_dict(audit_case(case, rank_rule=rule, dmf=dmf_update(case, rank_rule=rule))) == alone
+    other = dmf_update(case, rank_rule=parse_rank_rule("numpy"))
+    assert audit_to_dict(audit_case(case, rank_rule=rule, dmf=other)) == alone
