@@ -369,7 +369,7 @@ def _audit(dmf: DMFStep) -> CaseAudit:
     from gpfverify.audit.case import audit_case
 
     assert dmf.result is not None  # dmf_step's
-    return audit_case(dmf.case, rank_rule=dmf.result.rank_rule)
+    return audit_case(dmf.case, rank_rule=dmf.result.rank_rule, dmf=dmf.result)  # the step's eq. 35, not again
 
 
 def _per_run(belief: Gaussian | None, runs: int, dim: int) -> Gaussian:

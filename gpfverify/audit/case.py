@@ -242,14 +242,20 @@ def _unit_free_variant(case: FusionCase, rule: RankRule, dmf: DMFResult) -> tupl
 
 @one_blas_thread
 def audit_case(case: FusionCase, rank_tol: float | None = None, sensitivity: bool = False,
-               rank_rule: RankRule | str | None = None) -> CaseAudit:
+               rank_rule: RankRule | str | None = None, dmf: DMFResult | None = None) -> CaseAudit:
     """The rank-condition audit of one case under ``rank_rule`` (a :class:`RankRule` or its string,
     :func:`parse_rank_rule`), else the absolute ``rank_tol``, else the case's ``rank_tol``
     (absolute), else the canonical rule; ``sensitivity`` adds the per-sensor Jacobian norms
     (imports casadi; their pseudo-inverse follows the absolute/numpy rule — the canonical rule's
-    split is not available to the casadi forms, so under it they use numpy's rule)."""
+    split is not available to the casadi forms, so under it they use numpy's rule).
+
+    ``dmf``: the caller's :func:`~gpfverify.fusion.distributed.dmf_update` of this same ``case``
+    (a fusion run's step has it already), used instead of computing it again when it was made under
+    the rule the audit resolves (and is not the unit-free variant); otherwise it is computed here.
+    The audit is the same either way: ``dmf_update`` is a function of the case and the rule alone."""
     rule = resolve_rank_rule(case, rank_rule, rank_tol)
-    dmf = dmf_update(case, rank_rule=rule)
+    if dmf is None or dmf.rank_rule != rule or dmf.unit_free:
+        dmf = dmf_update(case, rank_rule=rule)
     has_y = case.y is not None
     jacobians: list[SensorSensitivity | None] = [None] * len(dmf.sensors)
     if sensitivity:

@@ -50,7 +50,7 @@ from gpfverify.fusion.estimates import (FusedEstimate, Information, checked_esti
 from gpfverify.fusion.quiet import solver_output_discarded
 from gpfverify.fusion.pairwise import (criterion_derivative, joint_diagonalise,
                                        minimise_convex_on_unit_interval)
-from gpfverify.linalg import cholesky, cholesky_batched, symmetrize
+from gpfverify.linalg import cholesky, inverse_lower_factors, symmetrize
 from gpfverify.angles import wrap_components
 from gpfverify.tolerances import (CI_NEWTON_JOIN_TOL, CI_NEWTON_MAX_STEPS, CI_NEWTON_TOL, SLSQP_FTOL, kkt_reject_tol,
                                    kkt_reject_tol_batch)
@@ -132,9 +132,9 @@ def _whitened_information_batch(matrices: np.ndarray) -> tuple[np.ndarray, np.nd
 
 def _lower_inverse(spd: np.ndarray, name: str) -> np.ndarray:
     """L⁻¹ of the lower Cholesky factor of every matrix of a stack (..., D, D) (no jitter:
-    :class:`NumericalError` naming ``name`` when one is not positive definite)."""
-    factor = cholesky_batched(spd, name)
-    return np.linalg.solve(factor, np.broadcast_to(np.eye(spd.shape[-1]), spd.shape))
+    :class:`NumericalError` naming ``name`` when one is not positive definite;
+    :func:`gpfverify.linalg.inverse_lower_factors`)."""
+    return inverse_lower_factors(spd, name)
 
 
 def _weighted(mats: np.ndarray, w: np.ndarray) -> np.ndarray:
@@ -456,23 +456,33 @@ def _newton_ci(matrices: np.ndarray, vectors: np.ndarray, criterion: str, solver
     candidates = np.concatenate([solved[:, None], np.broadcast_to(np.eye(n), (runs, n, n))], axis=1)  # (B, N+1, N)
     usable = np.concatenate([converged[:, None], np.ones((runs, n), dtype=bool)], axis=1)
     candidates = np.where(usable[..., None], candidates, np.eye(n)[0])  # any vertex in place of a failed solve
-    fused = weighted_information_batch(np.repeat(matrices, n + 1, axis=0), np.repeat(vectors, n + 1, axis=0),
-                                       candidates.reshape(-1, n))
-    covs = fused.cov.reshape(runs, n + 1, dim, dim)
+    # each candidate's criterion from the factor of its information S = Σ ω_m I_m, S⁻¹ = L⁻ᵀL⁻¹:
+    # tr S⁻¹ = ‖L⁻¹‖²_F, log det S⁻¹ = 2 Σ log (L⁻¹)_ii; the fused estimate of the best alone
+    totals = np.matmul(candidates, matrices.reshape(runs, n, dim * dim)).reshape(runs, n + 1, dim, dim)
+    half = _lower_inverse(totals, "fused information")
     if criterion == "trace":
-        value = np.trace(covs, axis1=-2, axis2=-1)
+        value = np.sum(half * half, axis=(-2, -1))
     else:
-        value = 2.0 * np.sum(np.log(np.diagonal(np.linalg.cholesky(covs), axis1=-2, axis2=-1)), axis=-1)
+        value = 2.0 * np.sum(np.log(np.diagonal(half, axis1=-2, axis2=-1)), axis=-1)
     best = np.argmin(np.where(usable, value, np.inf), axis=1)
     pick = np.arange(runs), best
     weights = candidates[pick]
+    fused = weighted_information_batch(matrices, vectors, weights)
     violation = _kkt_violations(matrices, weights, criterion)
-    tol = kkt_reject_tol_batch(np.linalg.cond(_weighted(matrices, weights)))
-    mean, cov = fused.mean.reshape(runs, n + 1, dim)[pick], covs[pick]
+    tol = kkt_reject_tol_batch(_spd_condition(_weighted(matrices, weights)))
+    mean, cov = fused.mean, fused.cov
     for b in np.flatnonzero(violation > tol).tolist():
         failures[b] = _not_optimal(criterion, float(violation[b]), float(tol[b]))
         mean[b], cov[b], weights[b] = np.nan, np.nan, np.nan
     return CiBatch(mean, cov, weights, tuple(failures))
+
+
+def _spd_condition(spd: np.ndarray) -> np.ndarray:
+    """The 2-norm condition number of every symmetric positive definite matrix of a stack, λ_max/λ_min
+    from its eigenvalues (its singular values: ``np.linalg.cond`` without the SVD)."""
+    lam = np.abs(np.linalg.eigvalsh(symmetrize(spd)))
+    with np.errstate(divide="ignore"):
+        return lam.max(axis=-1) / lam.min(axis=-1)
 
 
 def _each_alone(matrices: np.ndarray, vectors: np.ndarray, criterion: str, solver: str) -> CiBatch:

@@ -238,7 +238,7 @@ def run_family(family: str, models: GPModel, data: FusionData, local_starts: Seq
         sizes.append(gap_size(dmf.case, gap, dmf.result.scale))
         bounds.append(equivalence_tolerance(dmf.case, dmf.result.gain, dmf.result.sensors, dmf.result.scale))
         if not dmf.result.condition_holds:
-            audit.append(_audit_entry(k, family, audit_case(dmf.case, rank_rule=dmf.result.rank_rule),
+            audit.append(_audit_entry(k, family, audit_case(dmf.case, rank_rule=dmf.result.rank_rule, dmf=dmf.result),
                                       dmf.case.central.mu_p))
     return FamilyRun(
         sq_err={n: tuple(v) for n, v in sq_err.items()}, maha={n: tuple(v) for n, v in maha.items()},
