@@ -175,10 +175,13 @@ def reading_commands(page_dir: Path, module, command: Callable[[str, int], str])
     said = []
     for name, folder in reading_runs(page_dir, module).items():
         runs = json.loads((folder / "manifest.json").read_text(encoding="utf-8"))["runs"]
-        alike = timed_alike(page, json.loads((folder / "results.json").read_text(encoding="utf-8")))
-        said.append(f"{command(name, runs)} (its results.json and manifest.json in {folder.as_posix()}/"
-                    + ("" if alike else "; timed in batches, unlike the setting's runs: its claims on computation "
-                       "time are not taken, the setting's own runs under this interpretation decide them") + ")")
+        reading = json.loads((folder / "results.json").read_text(encoding="utf-8"))
+        one_by_one = not (reading.get("machine_load") or {}).get("runs_batched")
+        said.append(f"{command(name, runs)}{' --batch 1' if one_by_one else ''} (its results.json and manifest.json "
+                    f"in {folder.as_posix()}/"
+                    + ("" if timed_alike(page, reading) else "; timed in batches, unlike the setting's runs: its "
+                       "claims on computation time are not taken, the setting's own runs under this interpretation "
+                       "decide them") + ")")
     return "; ".join(said)
 
 
