@@ -120,13 +120,24 @@ def readings_into(runs_dir: Path, prefix: str, page_dir: Path, module) -> list[s
     return copied
 
 
+def timed_alike(results: dict, other: dict) -> bool:
+    """Were the two runs' CPU times measured alike: both one run at a time, or both in batches
+    (``machine_load.runs_batched``)? In a batch every run records the batch's time divided by its
+    size, so its per-run ratios are the batch's, not independent runs' — and the batched code path
+    costs the methods differently — so a claim on computation time is not compared across the two."""
+    def batched(r: dict) -> bool:
+        return bool((r.get("machine_load") or {}).get("runs_batched"))
+    return batched(results) == batched(other)
+
+
 def with_reading_runs(results: dict, page_dir: Path, module) -> dict:
     """``results`` (the page's, as committed in ``page_dir``) with each claim's verdict under an
     interpretation taken from that interpretation's own run committed in the page's folder
     (:func:`reading_runs`, judged again by the current code and written back), where that run has at
     least as many runs as the entry rests on; on the claims the interpretation bears on (a timing
-    claim keeps no entry of an interpretation that only reads the same runs another way). Written
-    back to ``page_dir/results.json`` and returned."""
+    claim keeps no entry of an interpretation that only reads the same runs another way, and keeps
+    its own entry where the two runs were not timed alike, :func:`timed_alike`). Written back to
+    ``page_dir/results.json`` and returned."""
     runs = {name: rejudge_committed(folder / "results.json", module)
             for name, folder in reading_runs(page_dir, module).items()}
     if not runs:
@@ -145,7 +156,7 @@ def with_reading_runs(results: dict, page_dir: Path, module) -> dict:
                 spec = specs[name]
                 other = next((c for c in read_claims(reading) if c.id == claim.id and claim.id), None)
                 if other is None or not spec.bears_on_claim(claim.id) or \
-                        (claim.timing and set(spec.changes) <= reads_only):
+                        (claim.timing and (set(spec.changes) <= reads_only or not timed_alike(results, reading))):
                     continue
                 old = entries.get(name)
                 if old is not None and (old.n or claim.n) > other.n:
@@ -161,11 +172,17 @@ def with_reading_runs(results: dict, page_dir: Path, module) -> dict:
 def reading_commands(page_dir: Path, module, command: Callable[[str, int], str]) -> str:
     """The commands that made the interpretations' own runs committed in the page's folder:
     ``command(name, runs)`` each, then the copy of its results.json and manifest.json; "" when none."""
+    page = json.loads((page_dir / "results.json").read_text(encoding="utf-8"))
     said = []
     for name, folder in reading_runs(page_dir, module).items():
         runs = json.loads((folder / "manifest.json").read_text(encoding="utf-8"))["runs"]
-        said.append(f"{command(name, runs)} (its results.json and manifest.json in "
-                    f"{folder.as_posix()}/)")
+        reading = json.loads((folder / "results.json").read_text(encoding="utf-8"))
+        one_by_one = not (reading.get("machine_load") or {}).get("runs_batched")
+        said.append(f"{command(name, runs)}{' --batch 1' if one_by_one else ''} (its results.json and manifest.json "
+                    f"in {folder.as_posix()}/"
+                    + ("" if timed_alike(page, reading) else "; timed in batches, unlike the setting's runs: its "
+                       "claims on computation time are not taken, the setting's own runs under this interpretation "
+                       "decide them") + ")")
     return "; ".join(said)
 
 

@@ -27,7 +27,7 @@ from pathlib import Path
 
 from gpfverify.contract.claims import AS_RUN, ClaimRecord, read_claims
 from gpfverify.papers import EXPERIMENTS
-from gpfverify.reference_pages import reading_name
+from gpfverify.reference_pages import reading_name, timed_alike
 from gpfverify.report.document import Paragraph, Section, Table
 from gpfverify.report.render import to_markdown
 
@@ -70,10 +70,12 @@ class Command:
     decides: tuple[OpenClaim, ...]
 
 
-def _command(experiment: str, options: list[str], reading: str, runs: int, seed: int, out: str) -> str:
+def _command(experiment: str, options: list[str], reading: str, runs: int, seed: int, out: str,
+             timed: bool = False) -> str:
     chosen = [] if reading == AS_RUN else ["--interpretation", reading]
+    one_by_one = ["--batch", "1"] if timed else []  # a batch's runs share its time: no independent ratios
     return " ".join(["gpfverify", "reproduce", experiment, *options, *chosen, "--runs", str(runs), "--seed", str(seed),
-                     "--out", out])
+                     *one_by_one, "--out", out])
 
 
 def open_claims(results: dict, limit: int = LIMIT, readings: bool = True) -> list[OpenClaim]:
@@ -158,29 +160,34 @@ def commands(reference: Path = REFERENCE, limit: int = LIMIT) -> list[Command]:
     runs = committed_runs(reference)
     always = page_fields(runs)
     pages = {r.folder: r for r in runs if r.reading == AS_RUN}
-    committed_readings = {(r.page, r.reading) for r in runs if r.reading != AS_RUN}
-    out = []
+    # a reading's own run decides its claims for the page; its claims on computation time only when
+    # timed as the page's runs were (timed_alike)
+    committed_readings = {(r.page, r.reading): timed_alike(pages[r.page].results, r.results)
+                          for r in runs if r.reading != AS_RUN}
+    found: dict[tuple[str, str], list[OpenClaim]] = {}  # (page, reading) -> its open verdicts, in order
     for run in runs:
-        module = importlib.import_module(EXPERIMENTS[run.manifest["experiment"]])
-        specs = {s.name: s for s in getattr(module, "INTERPRETATIONS", ())}
-        page = pages[run.page]
-        params = module.Params.from_json(page.manifest["params"])
-        by_reading: dict[str, list[OpenClaim]] = {}
         if run.reading == AS_RUN:
             for item in open_claims(run.results, limit):
-                if (run.page, item.reading) not in committed_readings:
-                    by_reading.setdefault(item.reading, []).append(item)
+                alike = committed_readings.get((run.page, item.reading))
+                if alike is None or (item.claim.timing and not alike):
+                    found.setdefault((run.page, item.reading), []).append(item)
         else:
-            spec = specs[run.reading]
+            module = importlib.import_module(EXPERIMENTS[run.manifest["experiment"]])
+            spec = next(s for s in module.INTERPRETATIONS if s.name == run.reading)
             for item in open_claims(run.results, limit, readings=False):
-                if spec.bears_on_claim(item.claim.id):
-                    by_reading.setdefault(run.reading, []).append(dataclasses.replace(item, reading=run.reading))
-        for reading, items in by_reading.items():
-            planned_runs = max(planned(i.estimate, i.runs) if i.estimate else i.runs for i in items)
-            tag = run.page.replace("/", "-") + ("" if reading == AS_RUN else f"-{reading}")
-            text = _command(page.manifest["experiment"], params.cli_options(always[page.manifest["experiment"]]),
-                            reading, planned_runs, page.manifest["seed"], f"OUT/{tag}")
-            out.append(Command(run.page, reading, text, planned_runs, tuple(items)))
+                if spec.bears_on_claim(item.claim.id) and (not item.claim.timing
+                                                           or committed_readings[(run.page, run.reading)]):
+                    found.setdefault((run.page, run.reading), []).append(dataclasses.replace(item, reading=run.reading))
+    out = []
+    for (folder, reading), items in found.items():
+        page = pages[folder]
+        experiment = page.manifest["experiment"]
+        params = importlib.import_module(EXPERIMENTS[experiment]).Params.from_json(page.manifest["params"])
+        planned_runs = max(planned(i.estimate, i.runs) if i.estimate else i.runs for i in items)
+        tag = folder.replace("/", "-") + ("" if reading == AS_RUN else f"-{reading}")
+        text = _command(experiment, params.cli_options(always[experiment]), reading, planned_runs,
+                        page.manifest["seed"], f"OUT/{tag}", timed=any(i.claim.timing for i in items))
+        out.append(Command(folder, reading, text, planned_runs, tuple(items)))
     return out
 
 
@@ -206,9 +213,11 @@ def section(found: list[Command], limit: int = LIMIT) -> Section:
         "checks the parameters it gives), at twice the largest estimate of the verdicts it decides (there the "
         "tolerance is 1/√2 of the margin seen), at least the runs made, rounded up to a hundred; a claim not judged "
         "for want of data is decided by the page's own runs made again with the current code, which keeps what it "
-        "needs. A reading's run committed under its page's folder (`<page>/<reading>/`, its results.json and "
+        "needs. A command that decides a claim on computation time runs one run at a time (`--batch 1`): in a "
+        "batch every run records the batch's time, so its per-run ratios would not be independent runs'. A "
+        "reading's run committed under its page's folder (`<page>/<reading>/`, its results.json and "
         "manifest.json) is what the page shows for that reading and what this list reads for it, on the claims the "
-        "reading bears on."))
+        "reading bears on (on the claims on computation time only when it was timed as the page's runs were)."))
     page.add(Table(["page", "reading", "runs", "command", "open verdicts it would decide"],
                    [[c.page, c.reading, c.runs, f"`{c.text}`", _decides(c.decides)] for c in found],
                    f"{len(found)} commands, {sum(len(c.decides) for c in found)} open verdicts"))

@@ -126,3 +126,11 @@ def test_a_readings_own_run_gives_the_page_its_verdict_under_that_reading(monkey
     assert cli.main(["reproduce", "toy", "--interpretation", "shifted", "--runs", "3",
                      "--out", str(tmp_path / "fewer" / "toy-shifted")]) == 0
     assert readings_into(tmp_path / "fewer", "toy", page, toy) == []
+
+
+def test_a_command_deciding_a_claim_on_computation_time_runs_one_run_at_a_time():
+    found = undecided.commands(ROOT / undecided.REFERENCE)
+    timed = [c for c in found if any(i.claim.timing for i in c.decides)]
+    assert timed
+    for command in found:
+        assert (" --batch 1 " in command.text) == (command in timed), command.text

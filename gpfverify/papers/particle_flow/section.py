@@ -305,7 +305,8 @@ def _sensitivity(records: list[ClaimRecord]) -> list:
         return [Paragraph("No interpretation was tried for these runs (gpfverify reproduce NAME "
                           "--interpretations all runs them).")]
     blocks: list = [interpretations_table(tried, "Sensitivity: every claim's verdict (statistic) under each "
-                                                 "interpretation tried (same seed and run count; '—': the "
+                                                 "interpretation tried (the same seeds; a column whose runs "
+                                                 "differ from the main run's says how many; '—': the "
                                                  "interpretation does not run that claim's setting)")]
     declared = _declared()
     names = list(dict.fromkeys((r.id.split("/")[0], i.name) for r in tried for i in r.interpretations
