@@ -15,7 +15,7 @@ from pathlib import Path
 
 from gpfverify.contract.claims import ClaimRecord, Interpretation, carry, read_claims
 from gpfverify.contract.serial import to_json
-from gpfverify.experiments.batching import batching_caveat, with_batching_caveat
+from gpfverify.experiments.batching import batching_caveat, runs_batched, with_batching_caveat
 from gpfverify.experiments.runner import read_manifest, results_of, rewrite_results
 from gpfverify.experiments.sensitivity import merge_saved
 from gpfverify.report.document import Paragraph, Section, Table
@@ -125,9 +125,7 @@ def timed_alike(results: dict, other: dict) -> bool:
     (``machine_load.runs_batched``)? In a batch every run records the batch's time divided by its
     size, so its per-run ratios are the batch's, not independent runs' — and the batched code path
     costs the methods differently — so a claim on computation time is not compared across the two."""
-    def batched(r: dict) -> bool:
-        return bool((r.get("machine_load") or {}).get("runs_batched"))
-    return batched(results) == batched(other)
+    return runs_batched(results) == runs_batched(other)
 
 
 def with_reading_runs(results: dict, page_dir: Path, module) -> dict:
@@ -177,8 +175,8 @@ def reading_commands(page_dir: Path, module, command: Callable[[str, int], str])
     for name, folder in reading_runs(page_dir, module).items():
         runs = json.loads((folder / "manifest.json").read_text(encoding="utf-8"))["runs"]
         reading = json.loads((folder / "results.json").read_text(encoding="utf-8"))
-        one_by_one = not (reading.get("machine_load") or {}).get("runs_batched")
-        said.append(f"{command(name, runs)}{' --batch 1' if one_by_one else ''} (its results.json and manifest.json "
+        batch = "" if runs_batched(reading) else " --batch 1"
+        said.append(f"{command(name, runs)}{batch} (its results.json and manifest.json "
                     f"in {folder.as_posix()}/"
                     + ("" if timed_alike(page, reading) else "; timed in batches, unlike the setting's runs: its "
                        "claims on computation time are not taken, the setting's own runs under this interpretation "

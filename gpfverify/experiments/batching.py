@@ -16,12 +16,18 @@ def batching_caveat(module) -> str:
     return getattr(module, "BATCH_TIMING_CAVEAT", BATCH_TIMING)
 
 
+def runs_batched(results: dict) -> bool:
+    """Whether the record says some of its runs were filtered together (``machine_load.runs_batched``
+    > 0, counted from the saved runs' ``batch_size``): their CPU times are then the batch's."""
+    return bool((results.get("machine_load") or {}).get("runs_batched"))
+
+
 def with_batching_caveat(results: dict, caveat: str = BATCH_TIMING) -> dict:
     """``results`` (a ``results.json`` body) with ``caveat`` added to every claim on computation time
     when the record says some of its runs were filtered together (``machine_load.runs_batched`` > 0,
     counted from the saved runs' ``batch_size``); unchanged when every run was timed alone (B = 1) or
     the runs did not record it. The words follow the runs, not the experiment's code."""
-    if not (results.get("machine_load") or {}).get("runs_batched") or "timing_claims" not in results:
+    if not runs_batched(results) or "timing_claims" not in results:
         return results
     claims = [{**c, "caveats": [*c.get("caveats", []), caveat]} if caveat not in c.get("caveats", []) else c
               for c in results["timing_claims"]]

@@ -27,6 +27,7 @@ from pathlib import Path
 from gpfverify.contract.claims import AS_RUN, ClaimRecord, read_claims
 from gpfverify.contract.serial import to_json
 from gpfverify.experiments.runner import read_manifest, results_of
+from gpfverify.experiments.batching import runs_batched
 from gpfverify.papers.fusion import ct2d_experiment as ct2d
 from gpfverify.papers.fusion import ct2d_section as fusion_ct2d
 from gpfverify.papers.fusion import ungm1d_experiment as ungm1d
@@ -93,7 +94,7 @@ def batch_option(results: dict) -> str:
     """``--batch 1 `` when the record says every run was filtered alone (its timing claims then pair
     per-run CPU times, and a remake with the default batch would time batches instead); nothing when
     runs shared batches (the runner's default then remakes them, the same bits)."""
-    return "" if (results.get("machine_load") or {}).get("runs_batched") else "--batch 1 "
+    return "" if runs_batched(results) else "--batch 1 "
 
 
 def committed(name: str) -> dict | None:
