@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import contextlib
 import functools
+import gc
 import os
 import sys
 import threading
@@ -105,6 +106,22 @@ def one_blas_thread(fn: F) -> F:
             return fn(*args, **kwargs)
 
     return limited  # type: ignore[return-value]
+
+
+@contextlib.contextmanager
+def no_cycle_collection() -> Iterator[None]:
+    """Python's cyclic garbage collector paused for a block that builds many containers without
+    cycles (run records: lists and dicts of floats, tens of thousands per batch of runs). Each of its
+    collections walks every live container, so building a batch's records with it running took about
+    twice as long (measured on ``check``'s three-sensor tracker, 64 runs of 40 steps). Restored on
+    leaving, as it was; reference counting frees everything as usual meanwhile."""
+    enabled = gc.isenabled()
+    gc.disable()
+    try:
+        yield
+    finally:
+        if enabled:
+            gc.enable()
 
 
 def progress_shown(stream=None) -> bool:

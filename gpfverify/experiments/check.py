@@ -42,6 +42,7 @@ from gpfverify.model_fusion import run_fusion, run_fusion_batch
 from gpfverify.audit.runfile import write_run
 from gpfverify.models import batch_gp_models, fit_gp_model, learn_gp_model, require_step_free
 from gpfverify.rng import generator
+from gpfverify.runtime import no_cycle_collection
 from gpfverify.systems import load_filters, split_spec
 from gpfverify.userfiles import read_npz
 from gpfverify.validate import as_array, real_floats
@@ -245,7 +246,7 @@ def run_one(params: Params, seed: np.random.SeedSequence) -> RunRecord:
                        params=sigma_settings(filters, params),
                        rank_rule=params.rank_rule, ci_criterion=params.ci_criterion, rcc_metric=params.rcc_metric,
                        local_priors=local_starts(filters), fused_prior=prior)
-    return _record(model, fused, ys, truth, _measures(model, fused, ys, truth))
+    return _one_record(model, fused, ys, truth)
 
 
 def run_batch(params: Params, seeds: Sequence[np.random.SeedSequence]) -> list[RunRecord]:
@@ -263,9 +264,7 @@ def run_batch(params: Params, seeds: Sequence[np.random.SeedSequence]) -> list[R
                              params=sigma_settings(filters, params),
                              rank_rule=params.rank_rule, ci_criterion=params.ci_criterion,
                              rcc_metric=params.rcc_metric, local_priors=local_starts(filters), fused_prior=prior)
-    measures = _measures_batch(model, fused, ys, truths)
-    return [_record(model, run, ys[b], None if truths is None else truths[b], measures[b])
-            for b, run in enumerate(fused)]
+    return _records(model, fused, truths, _measures_batch(model, fused, ys, truths))
 
 
 @dataclass(frozen=True)
@@ -332,8 +331,7 @@ def _measures_batch(model, runs: Sequence, ys: np.ndarray, truths: np.ndarray | 
         values = {}
         for m in methods:
             ok = fused_by[m]
-            mean = stacked(lambda s, m=m: s.estimate(m).mean if m not in s.failed else np.zeros(dim))
-            cov = stacked(lambda s, m=m: s.estimate(m).cov if m not in s.failed else np.eye(dim))
+            mean, cov = _stacked_estimates(steps, m, Gaussian(np.zeros(dim), np.eye(dim)))
             values[m] = np.where(ok, Consistency.from_estimates(truths, mean, cov,
                                                                 circular_state=model.circular_state).values, np.nan)
         nees = [{m: {t: float(values[m][b, t]) for t in range(length) if fused_by[m][b, t]} for m in methods}
@@ -345,6 +343,14 @@ def _measures_batch(model, runs: Sequence, ys: np.ndarray, truths: np.ndarray | 
     return [StepMeasures(nis_cmf[b].tolist(), [v[b].tolist() for v in nis_local], nees[b],
                          None if local_nees is None else [v[b].tolist() for v in local_nees],
                          repaired[b].tolist(), recursive[b].tolist()) for b in range(count)]
+
+
+def _stacked_estimates(steps: Sequence[Sequence], method: str, missing: Gaussian) -> tuple[np.ndarray, np.ndarray]:
+    """(B, T, D) means and (B, T, D, D) covariances of ``method`` in B runs' ``steps``, ``missing``'s
+    at the steps where it did not fuse."""
+    estimates = [[s.estimate(method) if method not in s.failed else missing for s in run] for run in steps]
+    return (np.array([[e.mean for e in run] for run in estimates]),
+            np.array([[e.cov for e in run] for run in estimates]))
 
 
 def reported_nis(ys: np.ndarray, mu_y: np.ndarray, C_y: np.ndarray, circular) -> np.ndarray:
@@ -391,66 +397,108 @@ def _with_missing(model, audit, entries: list[dict]) -> list[dict]:
     return sorted(entries + absent, key=lambda e: e["index"])
 
 
-def _record(model, fused, ys: np.ndarray, truth: np.ndarray | None, measures: StepMeasures) -> RunRecord:
-    steps = []
-    cases = cases_to_dicts([step.dmf.case for step in fused.steps])
-    audits = [step.audit for step in fused.steps]
-    # the per-step vectors turned into lists once per run (a numpy call per field, not per step)
-    listed = {name: np.array([get(a) for a in audits]).tolist() for name, get in (
-        ("cmf_mean", lambda a: a.cmf_mean), ("dmf_mean", lambda a: a.dmf_mean), ("gap", lambda a: a.gap))}
-    local_means = np.array([[r.mu_e for r in step.local] for step in fused.steps]).tolist()
-    local_covs = np.array([[r.C_e for r in step.local] for step in fused.steps]).tolist()
-    truths = None if truth is None else np.asarray(truth).tolist()
-    for t, step in enumerate(fused.steps):
-        audit = audits[t]
-        estimates = {m: step.estimate(m) for m in fused.methods if m not in step.failed}
-        entry = {
-            "k": step.k, "cmf_mean": listed["cmf_mean"][t], "dmf_mean": listed["dmf_mean"][t],
-            "gap": listed["gap"][t], "gap_norm": float(np.linalg.norm(audit.gap)),
-            "predicted_gap_norm": float(np.linalg.norm(audit.predicted_gap)),
-            "gap_size": float(audit.gap_size), "gap_bound": float(audit.gap_bound),
-            "repaired_gap_norm": float(np.linalg.norm(audit.repaired_dmf_mean - audit.cmf_mean)),
-            "repaired_gap_size": measures.repaired_gap_size[t],
-            "recursive_gap_norm": float(np.linalg.norm(estimates["dmf"].mean - estimates["cmf"].mean)),
-            "recursive_gap_size": measures.recursive_gap_size[t],
-            "unit_dependence": audit.unit_dependence,
-            "condition_holds": bool(audit.condition_holds), "exact": bool(audit.exact),
-            "reported": [m not in audit.missing for m in range(audit.sensor_count)],
-            "sensors": _with_missing(model, audit, [{
-                         "index": s.index, "reported": True, "rank": int(s.rank), "cols": s.cols,
-                         "full_column_rank": bool(s.full_column_rank), "exact": bool(s.exact),
-                         "repair_dim": int(s.repair_dim), "singular_values": s.singular_values.tolist(),
-                         "tol": float(s.tol),
-                         "gap_share": float(np.linalg.norm(s.gap_contribution)),
-                         "gap_share_size": float(s.gap_contribution_size),
-                         "min_canonical_correlation": (None if s.canonical_correlations is None
-                                                       or not s.canonical_correlations.size
-                                                       else float(s.canonical_correlations.min())),
-                         "branch_offsets": s.branch_offsets.tolist(),
-                         "branch_offset_count": int(np.count_nonzero(s.branch_offsets))} for s in audit.sensors]),
-            "means": {m: e.mean.tolist() for m, e in estimates.items()},
-            "covs": {m: e.cov.tolist() for m, e in estimates.items()},
-            "repaired_mean": (audit.repaired_dmf_mean.tolist() if audit.repaired_dmf_mean is not None
-                              and any(s.repair_dim for s in audit.sensors) else None),
-            "failed": dict(step.failed),
-            "local_means": local_means[t],
-            "local_covs": local_covs[t],
-            "seconds": {**step.seconds, "local": list(step.local_seconds)},
-            "nis": {"cmf": _number(measures.nis_cmf[t]), "local": [_number(v[t]) for v in measures.nis_local]},
-            "case": cases[t],
-        }
-        if truth is not None and truths is not None:
-            x = truth[t]
-            entry["truth"] = truths[t]
-            entry["sq_err"] = {m: float(np.sum(difference(x, e.mean, model.circular_state) ** 2))
-                               for m, e in estimates.items()}
-            assert measures.nees is not None and measures.local_nees is not None  # measured with the truth
-            entry["nees"] = {m: v[t] for m, v in measures.nees.items() if t in v}
-            entry["local_sq_err"] = [float(np.sum(difference(x, r.mu_e, model.circular_state) ** 2))
-                                     for r in step.local]
-            entry["local_nees"] = [v[t] for v in measures.local_nees]
-        steps.append(entry)
-    return RunRecord(truth is not None, tuple(steps))
+def _one_record(model, fused, ys: np.ndarray, truth: np.ndarray | None) -> RunRecord:
+    """The :class:`RunRecord` of one run (its :class:`StepMeasures` by :func:`_measures`)."""
+    return _records(model, [fused], None if truth is None else np.asarray(truth)[None],
+                    [_measures(model, fused, ys, truth)])[0]
+
+
+def _records(model, runs: Sequence, truths: np.ndarray | None, measures: Sequence[StepMeasures]) -> list[RunRecord]:
+    """The :class:`RunRecord` of each of B runs (``truths`` (B, T, D) or None,
+    ``measures`` one :class:`StepMeasures` per run): every per-step array of every run stacked once
+    per field over runs and steps, its norms and squared errors computed on the stack, and each
+    stack turned into lists once (a few numpy calls per field, not a few per step)."""
+    with no_cycle_collection():
+        return _built_records(model, runs, truths, measures)
+
+
+def _built_records(model, runs: Sequence, truths: np.ndarray | None,
+                   measures: Sequence[StepMeasures]) -> list[RunRecord]:
+    methods = runs[0].methods
+    steps = [run.steps for run in runs]
+    circular = model.circular_state
+
+    def stacked(get) -> np.ndarray:  # (B, T, ...)
+        return np.array([[get(s) for s in run] for run in steps])
+
+    audits = stacked(lambda s: (s.audit.cmf_mean, s.audit.dmf_mean, s.audit.gap, s.audit.predicted_gap,
+                                s.audit.repaired_dmf_mean))
+    cmf_mean, dmf_mean, gap, predicted_gap, repaired_mean = np.moveaxis(audits, 2, 0)
+    missing = Gaussian(np.full(model.state_dim, np.nan), np.full((model.state_dim,) * 2, np.nan))
+    estimates = {m: _stacked_estimates(steps, m, missing) for m in methods}
+    means = {m: mean for m, (mean, _) in estimates.items()}
+    covs = {m: cov.tolist() for m, (_, cov) in estimates.items()}
+    local_means = stacked(lambda s: [r.mu_e for r in s.local])
+    local_covs = stacked(lambda s: [r.C_e for r in s.local]).tolist()
+    norm = lambda v: np.linalg.norm(v, axis=-1).tolist()  # noqa: E731
+    gap_norm, predicted_gap_norm = norm(gap), norm(predicted_gap)
+    repaired_gap_norm = norm(repaired_mean - cmf_mean)
+    recursive_gap_norm = norm(means["dmf"] - means["cmf"])
+    cases = cases_to_dicts([step.dmf.case for run in steps for step in run])
+    if truths is not None:
+        truth = np.asarray(truths)[:, :, None, :]
+        sq_err = {m: np.sum(difference(truths, means[m], circular) ** 2, axis=-1).tolist() for m in methods}
+        local_sq_err = np.sum(difference(truth, local_means, circular) ** 2, axis=-1).tolist()
+        truths_listed = np.asarray(truths).tolist()
+    listed = {m: means[m].tolist() for m in methods}
+    columns = {"cmf_mean": cmf_mean.tolist(), "dmf_mean": dmf_mean.tolist(), "gap": gap.tolist(),
+               "repaired_mean": repaired_mean.tolist(), "local_means": local_means.tolist()}
+    records = []
+    for b, run in enumerate(steps):
+        measured = measures[b]
+        entries = []
+        for t, step in enumerate(run):
+            audit = step.audit
+            ok = [m for m in methods if m not in step.failed]
+            entry = {
+                "k": step.k, "cmf_mean": columns["cmf_mean"][b][t], "dmf_mean": columns["dmf_mean"][b][t],
+                "gap": columns["gap"][b][t], "gap_norm": gap_norm[b][t],
+                "predicted_gap_norm": predicted_gap_norm[b][t],
+                "gap_size": float(audit.gap_size), "gap_bound": float(audit.gap_bound),
+                "repaired_gap_norm": repaired_gap_norm[b][t],
+                "repaired_gap_size": measured.repaired_gap_size[t],
+                "recursive_gap_norm": recursive_gap_norm[b][t],
+                "recursive_gap_size": measured.recursive_gap_size[t],
+                "unit_dependence": audit.unit_dependence,
+                "condition_holds": bool(audit.condition_holds), "exact": bool(audit.exact),
+                "reported": [m not in audit.missing for m in range(audit.sensor_count)],
+                "sensors": _with_missing(model, audit, [_sensor_entry(s) for s in audit.sensors]),
+                "means": {m: listed[m][b][t] for m in ok},
+                "covs": {m: covs[m][b][t] for m in ok},
+                "repaired_mean": (columns["repaired_mean"][b][t] if any(s.repair_dim for s in audit.sensors)
+                                  else None),
+                "failed": dict(step.failed),
+                "local_means": columns["local_means"][b][t],
+                "local_covs": local_covs[b][t],
+                "seconds": {**step.seconds, "local": list(step.local_seconds)},
+                "nis": {"cmf": _number(measured.nis_cmf[t]), "local": [_number(v[t]) for v in measured.nis_local]},
+                "case": cases[b * len(run) + t],
+            }
+            if truths is not None:
+                assert measured.nees is not None and measured.local_nees is not None  # measured with the truth
+                entry["truth"] = truths_listed[b][t]
+                entry["sq_err"] = {m: sq_err[m][b][t] for m in ok}
+                entry["nees"] = {m: v[t] for m, v in measured.nees.items() if t in v}
+                entry["local_sq_err"] = local_sq_err[b][t]
+                entry["local_nees"] = [v[t] for v in measured.local_nees]
+            entries.append(entry)
+        records.append(RunRecord(truths is not None, tuple(entries)))
+    return records
+
+
+def _sensor_entry(s) -> dict:
+    """A step's entry for one reporting sensor (its :class:`~gpfverify.audit.case.SensorAudit`)."""
+    return {"index": s.index, "reported": True, "rank": int(s.rank), "cols": s.cols,
+            "full_column_rank": bool(s.full_column_rank), "exact": bool(s.exact),
+            "repair_dim": int(s.repair_dim), "singular_values": s.singular_values.tolist(),
+            "tol": float(s.tol),
+            "gap_share": float(np.linalg.norm(s.gap_contribution)),
+            "gap_share_size": float(s.gap_contribution_size),
+            "min_canonical_correlation": (None if s.canonical_correlations is None
+                                          or not s.canonical_correlations.size
+                                          else float(s.canonical_correlations.min())),
+            "branch_offsets": s.branch_offsets.tolist(),
+            "branch_offset_count": int(np.count_nonzero(s.branch_offsets))}
 
 
 def step_record_bytes(model, methods: Sequence[str]) -> int:
@@ -637,7 +685,7 @@ def results_of_run(fused, truth: np.ndarray | None = None, system: str = "") -> 
     rule = fused.steps[0].audit.rank_rule
     params = Params(system=system, filter=fused.family, steps=len(fused.steps), methods=fused.methods,
                     rank_rule=rule.spec, ci_criterion=fused.ci_criterion, rcc_metric=fused.rcc_metric)
-    record = _record(fused.model, fused, fused.ys, truth, _measures(fused.model, fused, fused.ys, truth))
+    record = _one_record(fused.model, fused, fused.ys, truth)
     filters = LocalFilters(fused.model, params=fused.params, origin={"sigma_points": "the params run_fusion ran"})
     return {"experiment": NAME, "runs": 1, "seed": None, "runs_ok": 1, "failed_runs": [], "params": params.to_json(),
             **summarize(params, [record], filters=filters)}
