@@ -15,7 +15,7 @@ from pathlib import Path
 
 from gpfverify.contract.claims import ClaimRecord, Interpretation, carry, read_claims
 from gpfverify.contract.serial import to_json
-from gpfverify.experiments.batching import batching_caveat, runs_batched, with_batching_caveat
+from gpfverify.experiments.batching import batch_option, batching_caveat, runs_batched, with_batching_caveat
 from gpfverify.experiments.runner import read_manifest, results_of, rewrite_results
 from gpfverify.experiments.sensitivity import merge_saved
 from gpfverify.report.document import Paragraph, Section, Table
@@ -175,7 +175,7 @@ def reading_commands(page_dir: Path, module, command: Callable[[str, int], str])
     for name, folder in reading_runs(page_dir, module).items():
         runs = json.loads((folder / "manifest.json").read_text(encoding="utf-8"))["runs"]
         reading = json.loads((folder / "results.json").read_text(encoding="utf-8"))
-        batch = "" if runs_batched(reading) else " --batch 1"
+        batch = (" " + batch_option(reading)).rstrip()
         said.append(f"{command(name, runs)}{batch} (its results.json and manifest.json "
                     f"in {folder.as_posix()}/"
                     + ("" if timed_alike(page, reading) else "; timed in batches, unlike the setting's runs: its "

@@ -22,6 +22,15 @@ def runs_batched(results: dict) -> bool:
     return bool((results.get("machine_load") or {}).get("runs_batched"))
 
 
+def batch_option(results: dict) -> str:
+    """The ``--batch`` option of the command that remakes ``results`` as it was run: ``--batch 1 `` when
+    the record does not say that runs shared batches (every run filtered alone, or runs saved before
+    batch sizes were recorded, by a runner that ran them one at a time): its timing claims pair per-run
+    CPU times, and a remake with the default batch would time batches instead; nothing when runs
+    shared batches (the runner's default then remakes them, the same bits)."""
+    return "" if runs_batched(results) else "--batch 1 "
+
+
 def with_batching_caveat(results: dict, caveat: str = BATCH_TIMING) -> dict:
     """``results`` (a ``results.json`` body) with ``caveat`` added to every claim on computation time
     when the record says some of its runs were filtered together (``machine_load.runs_batched`` > 0,

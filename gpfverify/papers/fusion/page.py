@@ -27,7 +27,7 @@ from pathlib import Path
 from gpfverify.contract.claims import AS_RUN, ClaimRecord, read_claims
 from gpfverify.contract.serial import to_json
 from gpfverify.experiments.runner import read_manifest, results_of
-from gpfverify.experiments.batching import runs_batched
+from gpfverify.experiments.batching import batch_option
 from gpfverify.papers.fusion import ct2d_experiment as ct2d
 from gpfverify.papers.fusion import ct2d_section as fusion_ct2d
 from gpfverify.papers.fusion import ungm1d_experiment as ungm1d
@@ -88,13 +88,6 @@ def command(name: str, results: dict) -> str:
         f"gpfverify reproduce {name.split('-')[0]} {OPTIONS[name]}--interpretation {reading} --runs {runs} "
         f"--seed 1 --out OUT/{name}-{reading}"))
     return f"{main}; {own}" if own else main
-
-
-def batch_option(results: dict) -> str:
-    """``--batch 1 `` when the record says every run was filtered alone (its timing claims then pair
-    per-run CPU times, and a remake with the default batch would time batches instead); nothing when
-    runs shared batches (the runner's default then remakes them, the same bits)."""
-    return "" if runs_batched(results) else "--batch 1 "
 
 
 def committed(name: str) -> dict | None:

@@ -28,6 +28,7 @@ import sys
 from pathlib import Path
 
 from gpfverify.contract.experiment import RunEntry, SectionRuns
+from gpfverify.experiments.batching import batch_option
 from gpfverify.papers.particle_flow import bearing_experiment as bearing
 from gpfverify.papers.particle_flow import pff1d_experiment as pff1d
 from gpfverify.papers.particle_flow import section as particle_flow
@@ -38,11 +39,13 @@ from gpfverify.report.inputs import SectionInput
 
 HERE = REFERENCE / particle_flow.SLUG
 #: folder name -> the exact command that made it (run from the repository root, OUT = RUNS_DIR)
+#: (BATCH: the record's --batch, :func:`~gpfverify.experiments.batching.batch_option`)
 COMMANDS = {
-    "pff1d": "gpfverify reproduce pff1d --runs 30 --seed 1 --workers 2 --interpretations vdm-gaussian --out OUT/pff1d, "
-             "then gpfverify reproduce pff1d --runs 30 --seed 1 --workers 2 --resume --interpretations "
-             "measurement-linear,noise-as-std --interpretation-runs 10 --out OUT/pff1d",
-    "bearing": "gpfverify reproduce bearing --runs 200 --seed 1 --workers 1 --interpretations all --out OUT/bearing",
+    "pff1d": "gpfverify reproduce pff1d --runs 30 --seed 1 BATCH--workers 2 --interpretations vdm-gaussian "
+             "--out OUT/pff1d, then gpfverify reproduce pff1d --runs 30 --seed 1 BATCH--workers 2 --resume "
+             "--interpretations measurement-linear,noise-as-std --interpretation-runs 10 --out OUT/pff1d",
+    "bearing": "gpfverify reproduce bearing --runs 200 --seed 1 BATCH--workers 1 --interpretations all "
+               "--out OUT/bearing",
 }
 MODULES = {"pff1d": pff1d, "bearing": bearing}
 #: the interpretation that runs the Table-1 grid on the other 1-D model
@@ -75,7 +78,8 @@ def main(runs_dir: Path) -> None:
         section.blocks[-1:-1] = _second_model_blocks(
             json.loads((HERE / "pff1d" / SECOND_MODEL / "results.json").read_text(encoding="utf-8")))
     alone = [reading_commands(HERE / name, MODULES[name], functools.partial(_alone, name)) for name in COMMANDS]
-    command = "; ".join([*COMMANDS.values(), *filter(None, alone)]) + \
+    made = [text.replace("BATCH", batch_option(results[name])) for name, text in COMMANDS.items()]
+    command = "; ".join([*made, *filter(None, alone)]) + \
         "; then python -m gpfverify.papers.particle_flow.page OUT"
     second_runs = _runs_of(HERE / "pff1d" / SECOND_MODEL)
     from gpfverify.contract.claims import read_claims
