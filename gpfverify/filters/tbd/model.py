@@ -53,13 +53,6 @@ class PatchSpread:
     along_y: np.ndarray  # (2p+1, N)
     amplitude: np.ndarray  # (N,)
 
-    def run(self, index: int, size: int) -> PatchSpread:
-        """The spread of run ``index`` of a batch computed on all runs' particles in order, each
-        run holding ``size`` of them."""
-        part = slice(index * size, (index + 1) * size)
-        return PatchSpread(self.centre_x[part], self.centre_y[part], self.along_x[:, part], self.along_y[:, part],
-                           self.amplitude[part])
-
 
 @dataclass(frozen=True)
 class TbdModel:
@@ -217,19 +210,24 @@ class TbdModel:
 
     def measurement_on_patch(self, spread: PatchSpread, axis_x: np.ndarray, axis_y: np.ndarray,
                              particles: np.ndarray) -> np.ndarray:
-        """h^{(i,j)}(s) on the fixed patch axis_x × axis_y (cells on the image, row-major) for the
+        """h^{(i,j)}(s) on the patch axis_x × axis_y (cells on the image, row-major) for the
         particles with indices ``particles`` (M,) of ``spread`` (:meth:`patch_spread`, whose
-        factors are read, not recomputed), (len(axis_x) · len(axis_y), M) — particles last."""
+        factors are read, not recomputed), (len(axis_x) · len(axis_y), M) — particles last.
+
+        axis_x (W,) and axis_y (V,) are one patch for every particle; (W, M) and (V, M) give each
+        particle its own patch (column m the cells of particle m: the patches of many runs' second
+        stages at once)."""
         gx = self._on_cells(spread.centre_x, spread.along_x, axis_x, particles)
         gy = self._on_cells(spread.centre_y, spread.along_y, axis_y, particles)
         gx *= spread.amplitude[particles]
-        return (gx[:, None, :] * gy[None, :, :]).reshape(axis_x.size * axis_y.size, particles.size)
+        return (gx[:, None, :] * gy[None, :, :]).reshape(gx.shape[0] * gy.shape[0], particles.size)
 
     def _on_cells(self, centre: np.ndarray, along: np.ndarray, cells: np.ndarray, particles: np.ndarray) -> np.ndarray:
-        """Patch factors ``along`` (2p+1, N) of the particles ``particles`` (M,) read at fixed image
-        cells c (W,): the factor of cell c is along[c − centre + p] when |c − centre| ≤ p, else 0,
-        (W, M)."""
-        index = (cells + self.patch_radius)[:, None] - centre[particles]
+        """Patch factors ``along`` (2p+1, N) of the particles ``particles`` (M,) read at image
+        cells c, (W,) for all of them or (W, M) one column per particle: the factor of cell c is
+        along[c − centre + p] when |c − centre| ≤ p, else 0, (W, M)."""
+        cells = cells[:, None] if cells.ndim == 1 else cells
+        index = (cells + self.patch_radius) - centre[particles]
         outside = index.view(np.uint64) >= along.shape[0]  # below 0 wraps to huge
         index *= along.shape[1]
         index += particles
