@@ -196,7 +196,7 @@ class TbdModel:
             centre = self.nearest_cell(coordinate)
             cells = self.patch_offsets[:, None] + centre
             factor = self.spread_factor(coordinate, cells)
-            factor[cells.view(np.uint64) >= self.grid_size] = 0.0  # negative cells wrap to huge
+            factor *= cells.view(np.uint64) < self.grid_size  # × 0 off the image (negative cells wrap to huge)
             centres.append(centre)
             factors.append(factor)
         return PatchSpread(centres[0], centres[1], factors[0], factors[1], self.amplitude(states[:, INTENSITY]))
@@ -228,11 +228,11 @@ class TbdModel:
         along[c − centre + p] when |c − centre| ≤ p, else 0, (W, M)."""
         cells = cells[:, None] if cells.ndim == 1 else cells
         index = (cells + self.patch_radius) - centre[particles]
-        outside = index.view(np.uint64) >= along.shape[0]  # below 0 wraps to huge
+        inside = index.view(np.uint64) < along.shape[0]  # below 0 wraps to huge
         index *= along.shape[1]
         index += particles
         values = np.take(along, index, mode="clip")
-        values[outside] = 0.0
+        values *= inside
         return values
 
     def log_likelihood_ratio(self, states: np.ndarray, image: np.ndarray,
@@ -244,7 +244,7 @@ class TbdModel:
         quadratic term is a² (Σ_i g_x²)(Σ_j g_y²) / 2 and the linear one a g_xᵀ Z_patch g_y.
         ``spread``, when given, is ``patch_spread`` of the particles (all runs' rows in order).
 
-        The linear term is summed one patch row i at a time (arrays of (2p+1) × N, not (2p+1)² × N).
+        The linear term is summed along j, then along i (in that order, from 0).
         Z_patch is read from the run's image framed by 2p zero cells on every side, at the patch
         centre clipped to p cells beyond the image: a cell off the image has a zero factor, so
         whichever pixel a clipped centre's patch reads adds nothing.
@@ -260,12 +260,14 @@ class TbdModel:
         first = np.repeat(np.arange(runs) * width * width, states.shape[-2])  # each run's framed image
         first += (np.clip(spread.centre_x, -p, self.grid_size - 1 + p) + p) * width
         first += np.clip(spread.centre_y, -p, self.grid_size - 1 + p) + p
-        columns = self.patch_offsets[:, None] + p + first
+        # pixel (i, j) of every particle's patch, (2p+1, 2p+1, N): Z_patch with gy applied along j
+        patch = pixels[first + (self.patch_offsets[:, None, None] + p) * width + (self.patch_offsets[:, None] + p)]
+        patch *= gy
+        rows = patch.sum(axis=1)
+        rows *= gx
         linear = np.zeros(first.shape)
-        for i in range(gx.shape[0]):
-            row = pixels[columns + i * width]
-            row *= gy
-            linear += gx[i] * row.sum(axis=0)
+        for row in rows:
+            linear += row
         linear *= amp
         quadratic = 0.5 * amp**2 * (gx * gx).sum(axis=0) * (gy * gy).sum(axis=0)
         return ((linear - quadratic) / self.noise_std**2).reshape(states.shape[:-1])
