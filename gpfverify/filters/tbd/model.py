@@ -244,7 +244,7 @@ class TbdModel:
         quadratic term is a² (Σ_i g_x²)(Σ_j g_y²) / 2 and the linear one a g_xᵀ Z_patch g_y.
         ``spread``, when given, is ``patch_spread`` of the particles (all runs' rows in order).
 
-        The linear term is summed along j, then along i (in that order, from 0).
+        The linear term is summed one patch row i at a time (arrays of (2p+1) × N, not (2p+1)² × N).
         Z_patch is read from the run's image framed by 2p zero cells on every side, at the patch
         centre clipped to p cells beyond the image: a cell off the image has a zero factor, so
         whichever pixel a clipped centre's patch reads adds nothing.
@@ -260,14 +260,13 @@ class TbdModel:
         first = np.repeat(np.arange(runs) * width * width, states.shape[-2])  # each run's framed image
         first += (np.clip(spread.centre_x, -p, self.grid_size - 1 + p) + p) * width
         first += np.clip(spread.centre_y, -p, self.grid_size - 1 + p) + p
-        # pixel (i, j) of every particle's patch, (2p+1, 2p+1, N): Z_patch with gy applied along j
-        patch = pixels[first + (self.patch_offsets[:, None, None] + p) * width + (self.patch_offsets[:, None] + p)]
-        patch *= gy
-        rows = patch.sum(axis=1)
-        rows *= gx
+        columns = self.patch_offsets[:, None] + p + first  # the pixels of patch row i, moved on a row each time
         linear = np.zeros(first.shape)
-        for row in rows:
-            linear += row
+        for i in range(gx.shape[0]):
+            row = pixels[columns]
+            row *= gy
+            linear += gx[i] * row.sum(axis=0)
+            columns += width
         linear *= amp
         quadratic = 0.5 * amp**2 * (gx * gx).sum(axis=0) * (gy * gy).sum(axis=0)
         return ((linear - quadratic) / self.noise_std**2).reshape(states.shape[:-1])
