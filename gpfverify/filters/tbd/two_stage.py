@@ -120,7 +120,10 @@ def second_stage_runs(merged: np.ndarray, log_weights: np.ndarray, model: TbdMod
                                          inside).reshape(width, width, inside.size)
     flat_w, flat_root = weights.reshape(-1), root_w.reshape(-1)
     w_inside, root_inside = flat_w[inside], flat_root[inside]
-    dev_inside = dev.swapaxes(0, 1).reshape(dev.shape[1], -1)[:, inside]
+    # D_O of every run, (5, Σ|O|) in Fortran order (as dev[:, O] of one run): entry (k, q) is dev at run
+    # run_of[q], row k, particle inside[q] − run_of[q]·N
+    rows = np.arange(dev.shape[1]) * count
+    dev_inside = dev.reshape(-1)[(inside + run_of * ((dev.shape[1] - 1) * count))[:, None] + rows].T
     dev_total = (dev @ root_w[:, :, None])[:, :, 0]
     w_total = weights.sum(axis=-1)
     out = []
