@@ -156,8 +156,9 @@ def second_stage_runs(merged: np.ndarray, log_weights: np.ndarray, model: TbdMod
 def overlapping(model: TbdModel, spread: PatchSpread, axis_x: np.ndarray, axis_y: np.ndarray) -> np.ndarray:
     """Indices of the particles whose own patch (centre ± p) meets the cells axis_x × axis_y
     (contiguous, non-empty ranges): the only ones whose h on those cells is not zero."""
-    bound = np.array([[axis_x[0]], [axis_x[-1]], [axis_y[0]], [axis_y[-1]]])
-    return _overlapping_runs(model, spread, *bound, np.ones(1, dtype=bool), spread.amplitude.size)
+    first_x, last_x, first_y, last_y = (np.array([cell]) for cell in (axis_x[0], axis_x[-1], axis_y[0], axis_y[-1]))
+    return _overlapping_runs(model, spread, first_x, last_x, first_y, last_y, np.ones(1, dtype=bool),
+                             spread.amplitude.size)
 
 
 def _overlapping_runs(model: TbdModel, spread: PatchSpread, first_x: np.ndarray, last_x: np.ndarray,
