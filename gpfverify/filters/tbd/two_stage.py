@@ -214,9 +214,10 @@ def tpf_tbd_step(belief: Particles, model: TbdModel, image: np.ndarray, *, k: in
                  rng: runs.Streams, config: TbdConfig, second_rng: runs.Streams) -> TwoStageStep:
     """PF-TBD with ``rng``, then the second stage and the transfer with ``second_rng`` (separate
     streams: with ζ = 1 the step reproduces PF-TBD exactly for the same ``rng``). For B runs
-    (particles (B, N_c, 5), images (B, n, n), one Generator per run in each stream) the PF stage
-    runs on all runs at once and the second stage (a patch and an overlapping set of particles of
-    each run's own size) run by run."""
+    (particles (B, N_c, 5), images (B, n, n), one Generator per run in each stream) the PF stage,
+    the second stage (:func:`second_stage_runs`: a patch and an overlapping set of particles of each
+    run's own size, as flat arrays) and the transfer (:func:`transfer_runs`) run on all runs at once;
+    each run's numbers are those it gets alone."""
     if belief.particles.ndim == 2:  # one run: a batch of one
         batch = Particles(belief.particles[None], belief.log_weights[None], existence=np.array([belief.existence]))
         step = tpf_tbd_step(batch, model, image[None], rng=[cast(np.random.Generator, rng)], config=config,
