@@ -54,7 +54,7 @@ def _tbd_quick():
 def _tbd_paper():
     from gpfverify.papers.tbd.contract import Params
     from gpfverify.papers.tbd import experiment as tbd
-    return "tbd (paper: N = 2000, 7 SNRs)", tbd, Params(), _tbd_floor
+    return "tbd (paper: N = 2000, 9 SNRs)", tbd, Params(), _tbd_floor
 
 
 def _bearing():

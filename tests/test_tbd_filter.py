@@ -12,7 +12,8 @@ from gpfverify.errors import InputError
 from gpfverify.filters.resampling import Particles, effective_sample_size, systematic_resample
 from gpfverify.filters.tbd import TbdConfig, TbdModel, filter_sequence, pf_tbd_step, second_stage_update, tpf_tbd_step
 from gpfverify.filters.tbd.pf import birth_proposal, sample_birth_prior
-from gpfverify.filters.tbd.two_stage import overlapping, second_stage_axes, transfer_particles
+from gpfverify.filters.tbd.two_stage import (overlapping, second_stage_axes, second_stage_runs, transfer_particles,
+                                              transfer_runs)
 from gpfverify.papers.tbd.scenario import TbdScenario, noise_std_for_snr, scenario_model, simulate
 from gpfverify.tolerances import MONTE_CARLO_SIGMAS, algebra_rtol, monte_carlo_atol
 
@@ -367,6 +368,98 @@ def test_transfer_with_zeta_zero_draws_every_particle_from_the_posterior():
     assert np.all(np.abs(out.mean(0) - mean) <= monte_carlo_atol(np.sqrt(np.diag(cov)), out.shape[0]))
     kept, none = transfer_particles(particles, mean, cov, 1.0, rng)
     assert not none.any() and np.array_equal(kept, particles)
+
+
+#: runs whose second-stage patches differ: (cloud centre, estimate or None for the cloud's mean);
+#: a full patch, one clipped on one axis, one at a corner, one off the image, one with no particle
+#: on it (the cloud split either side), and two more full ones
+CORNER_RUNS = (([8.2, 0.3, 11.6, -0.2, 20.0], None), ([10.0, 0.1, 1.4, 0.0, 18.0], None),
+               ([19.3, 0.0, 0.4, 0.1, 22.0], None), ([8.2, 0.3, 11.6, -0.2, 20.0], [-9.0, 0.0, 5.0, 0.0, 20.0]),
+               ([8.2, 0.3, 11.6, -0.2, 20.0], "split"), ([5.0, -0.2, 5.0, 0.2, 20.0], None),
+               ([14.4, 0.0, 9.6, 0.0, 25.0], None))
+
+
+def _corner_batch(rng, model, n=300):
+    """Merged clouds, normalised log weights, images and estimates of the :data:`CORNER_RUNS`."""
+    merged, log_w, images, estimates = [], [], [], []
+    for centre, estimate in CORNER_RUNS:
+        cloud = np.array(centre) + np.array([1.0, 0.2, 1.0, 0.2, 2.0]) * rng.standard_normal((n, 5))
+        if estimate == "split":  # two clusters far either side of the patch around the centre
+            cloud[::2, 0] -= 10.0
+            cloud[1::2, 0] += 10.0
+        weights = rng.normal(size=n)
+        weights -= np.log(np.exp(weights).sum())
+        merged.append(cloud)
+        log_w.append(weights)
+        images.append(model.noise_std * rng.standard_normal((20, 20)) + model.expected_image(np.array(centre)))
+        estimates.append(np.exp(weights) @ cloud if estimate is None else
+                         np.array(centre) if estimate == "split" else np.array(estimate))
+    return np.stack(merged), np.stack(log_w), np.stack(images), np.stack(estimates)
+
+
+def test_second_stage_of_a_batch_is_each_run_alone_bit_for_bit():
+    """Runs whose patches differ in size (full, clipped on one axis, at a corner, off the image) and
+    a run with no particle on its patch, updated together (B = 7) and one at a time (B = 1): every
+    field of every record and the cells are the same bits."""
+    model = scenario_model(6.0, SCENARIO)
+    config = TbdConfig(300, two_stage=True)
+    merged, log_w, images, estimates = _corner_batch(np.random.default_rng(60), model)
+    together = second_stage_runs(merged, log_w, model, config, images, estimates,
+                                 model.patch_spread(merged.reshape(-1, 5)))
+    sizes, overlaps = [], []
+    for b, (record, cells_x, cells_y) in enumerate(together):
+        alone, alone_x, alone_y = second_stage_update(merged[b], log_w[b], model, config, images[b], estimates[b])
+        for name in ("mu_p", "C_p", "mu_y", "C_y", "C_xy", "mu_e", "C_e"):
+            assert np.array_equal(getattr(record, name), getattr(alone, name)), (b, name)
+        assert np.array_equal(cells_x, alone_x) and np.array_equal(cells_y, alone_y)
+        sizes.append(cells_x.size)
+        if cells_x.size:
+            overlaps.append(overlapping(model, model.patch_spread(merged[b]), *second_stage_axes(model, config,
+                                                                                               estimates[b])).size)
+    assert set(sizes) == {25, 20, 9, 0}  # full, clipped on one axis, at a corner, off the image
+    assert 0 in overlaps and max(overlaps) > 0  # a measured patch no particle reaches
+
+
+@pytest.mark.parametrize("count", [2, 300])
+def test_transfer_of_a_batch_is_each_run_alone_bit_for_bit(count):
+    """Eq. 21 for B = 7 runs, each with its own posterior and stream, against each run alone (B = 1):
+    the same draws and the same particles, runs with no particle replaced among them (count = 2)."""
+    rng = np.random.default_rng(61)
+    particles = rng.standard_normal((7, count, 5))
+    means = rng.standard_normal((7, 5))
+    factors = rng.standard_normal((7, 5, 5))
+    covs = factors @ factors.swapaxes(-1, -2) / 5 + 0.1 * np.eye(5)
+    out, replaced = transfer_runs(particles, means, covs, 0.6, [np.random.default_rng(70 + b) for b in range(7)])
+    for b in range(7):
+        alone, alone_replaced = transfer_particles(particles[b], means[b], covs[b], 0.6, np.random.default_rng(70 + b))
+        assert np.array_equal(out[b], alone) and np.array_equal(replaced[b], alone_replaced)
+    assert replaced.any()
+    if count == 2:
+        assert not replaced.all(axis=1).all() and (~replaced.any(axis=1)).any()
+
+
+def test_tpftbd_step_of_a_batch_is_each_run_alone_bit_for_bit():
+    """A TPFTBD step on B = 7 runs with beliefs in different places (patches full, clipped, at a
+    corner, off the image) against each run alone (B = 1): posterior, weighted set, estimate and
+    every second-stage record the same bits."""
+    model = scenario_model(6.0, SCENARIO)
+    config = TbdConfig(300, two_stage=True)
+    merged, _, images, _ = _corner_batch(np.random.default_rng(62), model, config.n_continuing)
+    existence = np.linspace(0.2, 0.9, 7)
+    batch = tpf_tbd_step(Particles.equally_weighted(merged, existence=existence), model, images,
+                         rng=[np.random.default_rng(80 + b) for b in range(7)], config=config,
+                         second_rng=[np.random.default_rng(90 + b) for b in range(7)])
+    assert isinstance(batch.second_stage, tuple)
+    for b in range(7):
+        alone = tpf_tbd_step(Particles.equally_weighted(merged[b], existence=float(existence[b])), model, images[b],
+                             rng=np.random.default_rng(80 + b), config=config,
+                             second_rng=np.random.default_rng(90 + b))
+        for got, want in ((batch.posterior.particles[b], alone.posterior.particles), (batch.mean[b], alone.mean),
+                          (batch.cov[b], alone.cov), (batch.weighted.log_weights[b], alone.weighted.log_weights),
+                          (batch.second_stage[b].record.mu_e, alone.second_stage.record.mu_e),
+                          (batch.second_stage[b].record.C_y, alone.second_stage.record.C_y),
+                          (batch.second_stage[b].replaced, alone.second_stage.replaced)):
+            assert np.array_equal(got, want), b
 
 
 def test_zeta_one_tpftbd_equals_pftbd_for_the_same_stream():

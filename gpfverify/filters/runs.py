@@ -59,10 +59,14 @@ def particle_inputs(particles, y, model, rng: Streams | None, names: tuple[str, 
 
 
 def normal(rng: Streams, shape: tuple[int, ...]) -> np.ndarray:
-    """Standard normal draws of ``shape`` from one run's stream, or (B, *shape) from each run's."""
+    """Standard normal draws of ``shape`` from one run's stream, or (B, *shape) from each run's
+    (each run's drawn into its row of the result)."""
     if not isinstance(rng, Sequence):
         return rng.standard_normal(shape)
-    return np.stack([g.standard_normal(shape) for g in rng]) if len(rng) else np.empty((0, *shape))
+    out = np.empty((len(rng), *shape))
+    for g, row in zip(rng, out):
+        g.standard_normal(out=row)
+    return out
 
 
 def uniform(rng: Streams) -> np.ndarray | float:
@@ -73,10 +77,14 @@ def uniform(rng: Streams) -> np.ndarray | float:
 
 
 def random(rng: Streams, shape: tuple[int, ...]) -> np.ndarray:
-    """U[0, 1) draws of ``shape`` (``Generator.random``) per run: ``shape`` or (B, *shape)."""
+    """U[0, 1) draws of ``shape`` (``Generator.random``) per run: ``shape`` or (B, *shape) (each
+    run's drawn into its row of the result)."""
     if not isinstance(rng, Sequence):
         return rng.random(shape)
-    return np.stack([g.random(shape) for g in rng]) if len(rng) else np.empty((0, *shape))
+    out = np.empty((len(rng), *shape))
+    for g, row in zip(rng, out):
+        g.random(out=row)
+    return out
 
 
 def subset(rng: Streams, rows: np.ndarray) -> list[np.random.Generator]:

@@ -53,13 +53,6 @@ class PatchSpread:
     along_y: np.ndarray  # (2p+1, N)
     amplitude: np.ndarray  # (N,)
 
-    def run(self, index: int, size: int) -> PatchSpread:
-        """The spread of run ``index`` of a batch computed on all runs' particles in order, each
-        run holding ``size`` of them."""
-        part = slice(index * size, (index + 1) * size)
-        return PatchSpread(self.centre_x[part], self.centre_y[part], self.along_x[:, part], self.along_y[:, part],
-                           self.amplitude[part])
-
 
 @dataclass(frozen=True)
 class TbdModel:
@@ -203,7 +196,7 @@ class TbdModel:
             centre = self.nearest_cell(coordinate)
             cells = self.patch_offsets[:, None] + centre
             factor = self.spread_factor(coordinate, cells)
-            factor[cells.view(np.uint64) >= self.grid_size] = 0.0  # negative cells wrap to huge
+            factor *= cells.view(np.uint64) < self.grid_size  # × 0 off the image (negative cells wrap to huge)
             centres.append(centre)
             factors.append(factor)
         return PatchSpread(centres[0], centres[1], factors[0], factors[1], self.amplitude(states[:, INTENSITY]))
@@ -217,24 +210,29 @@ class TbdModel:
 
     def measurement_on_patch(self, spread: PatchSpread, axis_x: np.ndarray, axis_y: np.ndarray,
                              particles: np.ndarray) -> np.ndarray:
-        """h^{(i,j)}(s) on the fixed patch axis_x × axis_y (cells on the image, row-major) for the
+        """h^{(i,j)}(s) on the patch axis_x × axis_y (cells on the image, row-major) for the
         particles with indices ``particles`` (M,) of ``spread`` (:meth:`patch_spread`, whose
-        factors are read, not recomputed), (len(axis_x) · len(axis_y), M) — particles last."""
+        factors are read, not recomputed), (len(axis_x) · len(axis_y), M) — particles last.
+
+        axis_x (W,) and axis_y (V,) are one patch for every particle; (W, M) and (V, M) give each
+        particle its own patch (column m the cells of particle m: the patches of many runs' second
+        stages at once)."""
         gx = self._on_cells(spread.centre_x, spread.along_x, axis_x, particles)
         gy = self._on_cells(spread.centre_y, spread.along_y, axis_y, particles)
         gx *= spread.amplitude[particles]
-        return (gx[:, None, :] * gy[None, :, :]).reshape(axis_x.size * axis_y.size, particles.size)
+        return (gx[:, None, :] * gy[None, :, :]).reshape(gx.shape[0] * gy.shape[0], particles.size)
 
     def _on_cells(self, centre: np.ndarray, along: np.ndarray, cells: np.ndarray, particles: np.ndarray) -> np.ndarray:
-        """Patch factors ``along`` (2p+1, N) of the particles ``particles`` (M,) read at fixed image
-        cells c (W,): the factor of cell c is along[c − centre + p] when |c − centre| ≤ p, else 0,
-        (W, M)."""
-        index = (cells + self.patch_radius)[:, None] - centre[particles]
-        outside = index.view(np.uint64) >= along.shape[0]  # below 0 wraps to huge
+        """Patch factors ``along`` (2p+1, N) of the particles ``particles`` (M,) read at image
+        cells c, (W,) for all of them or (W, M) one column per particle: the factor of cell c is
+        along[c − centre + p] when |c − centre| ≤ p, else 0, (W, M)."""
+        cells = cells[:, None] if cells.ndim == 1 else cells
+        index = (cells + self.patch_radius) - centre[particles]
+        inside = index.view(np.uint64) < along.shape[0]  # below 0 wraps to huge
         index *= along.shape[1]
         index += particles
         values = np.take(along, index, mode="clip")
-        values[outside] = 0.0
+        values *= inside
         return values
 
     def log_likelihood_ratio(self, states: np.ndarray, image: np.ndarray,
@@ -262,12 +260,13 @@ class TbdModel:
         first = np.repeat(np.arange(runs) * width * width, states.shape[-2])  # each run's framed image
         first += (np.clip(spread.centre_x, -p, self.grid_size - 1 + p) + p) * width
         first += np.clip(spread.centre_y, -p, self.grid_size - 1 + p) + p
-        columns = self.patch_offsets[:, None] + p + first
+        columns = self.patch_offsets[:, None] + p + first  # the pixels of patch row i, moved on a row each time
         linear = np.zeros(first.shape)
         for i in range(gx.shape[0]):
-            row = pixels[columns + i * width]
+            row = pixels[columns]
             row *= gy
             linear += gx[i] * row.sum(axis=0)
+            columns += width
         linear *= amp
         quadratic = 0.5 * amp**2 * (gx * gx).sum(axis=0) * (gy * gy).sum(axis=0)
         return ((linear - quadratic) / self.noise_std**2).reshape(states.shape[:-1])
