@@ -355,9 +355,10 @@ def _fmt_diff(d: PairedDifference) -> str:
 
 #: how the time claims' seconds are measured when runs are filtered together (added to them by the
 #: runner when the saved runs say they were: gpfverify.experiments.batching.with_batching_caveat)
-BATCH_TIMING_CAVEAT = (BATCH_TIMING + "; TPFTBD's second stage runs run by run while the PF stage runs on the whole "
-                    "batch, so TPFTBD's time relative to PF-TBD's grows with B: at B = 1 the times are the paper's "
-                    "kind (one filter, one sequence at a time)")
+BATCH_TIMING_CAVEAT = (BATCH_TIMING + "; part of TPFTBD's second stage (each run's products with its overlapping "
+                    "particles, its Gaussian update and Cholesky factor) runs run by run while the PF stage runs on "
+                    "the whole batch, so TPFTBD's time relative to PF-TBD's grows with B: at B = 1 the times are the "
+                    "paper's kind (one filter, one sequence at a time)")
 #: "about 0.5 dB" (§3.2, “0.5個dB左右”), read as a gain within ±50 % of it
 HALF_N_GAIN_BAND = (0.25, 0.75)
 #: the SNR bands of §3.2's remarks: “很低信噪比(比如3 dB)以下” and “比如8 dB以上”, against the SNRs between

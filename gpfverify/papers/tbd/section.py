@@ -114,8 +114,9 @@ def render(results: dict, out_dir: Path) -> Section:
         "all merged particles weigh relatively more than in the paper's implementation; the timing claims compare "
         "them as paired per-sequence ratios (their geometric mean against the claimed bound, 5 standard errors of "
         "the log ratio) and are counted apart from the detection claims. Runs filtered together "
-        "(reproduce --batch B) each carry their batch's CPU time divided by B; TPFTBD's second stage runs run by "
-        "run while the PF stage runs on the whole batch, so its time relative to PF-TBD grows with B: the time "
+        "(reproduce --batch B) each carry their batch's CPU time divided by B; part of TPFTBD's second stage (each "
+        "run's products with its overlapping particles, its Gaussian update and Cholesky factor) runs run by run "
+        "while the PF stage runs on the whole batch, so its time relative to PF-TBD grows with B: the time "
         "claims are the paper's kind at B = 1."))
     section.add(*_health_blocks(results))
     claims = read_claims(results)
