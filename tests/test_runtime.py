@@ -56,3 +56,24 @@ print(all(hasattr(f, "__wrapped__") for f in (ukf_step, run_filter, learn_gp_mod
     env["OPENBLAS_NUM_THREADS"] = "2"
     out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, check=True).stdout
     assert out.split("\n")[0] == "([2], [2]) [2]"
+
+
+def test_cycle_collection_is_paused_inside_and_restored_as_it_was_even_on_error():
+    import gc
+
+    import pytest
+
+    from gpfverify.runtime import no_cycle_collection
+
+    assert gc.isenabled()
+    with pytest.raises(ValueError), no_cycle_collection():
+        assert not gc.isenabled()
+        raise ValueError
+    assert gc.isenabled()
+    gc.disable()
+    try:
+        with no_cycle_collection():
+            assert not gc.isenabled()
+        assert not gc.isenabled()  # a caller's own pause is kept
+    finally:
+        gc.enable()
