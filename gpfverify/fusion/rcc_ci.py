@@ -79,6 +79,7 @@ from gpfverify.fusion.conic import ClarabelProgram, ConicSolution, Parametrised,
 from gpfverify.fusion.estimates import (FusedEstimate, checked_estimates, information_form,
                                         weighted_information_fusion)
 from gpfverify.fusion.pairwise import joint_diagonalise, minimise_convex_on_unit_interval
+from gpfverify.fusion.rcc_dual import DualSolution, lower_solve_stack, solve_dual, upper_solve_stack
 from gpfverify.validate import as_positive
 
 #: Confidence level whose χ²_D quantile is the default ellipsoid size c.
@@ -88,6 +89,10 @@ METRICS = ("euclidean", "scaled")
 #: With on_empty="enlarge", the size used is this multiple of the smallest intersecting size.
 EMPTY_GROWTH = 2.0
 SOLVED = ("optimal", "optimal_inaccurate")
+#: The routes to the RCC: "newton", the dual over the N weights by a barrier method (module
+#: docstring, "Routes"; the default), and "conic", the semidefinite primal by Clarabel (SCS when
+#: Clarabel fails), the reference.
+ROUTES = ("newton", "conic")
 
 
 @lru_cache(maxsize=64)
@@ -183,18 +188,24 @@ def _checked_size(c) -> float:
     return c
 
 
-def _normalise(means: np.ndarray, covs: np.ndarray, matrices: np.ndarray, c: np.ndarray) -> _Normalised:
-    """The normalised problem (module docstring, "Numerics") of B runs' N estimates: means
-    (B, N, D), covs (B, N, D, D), their information matrices (B, N, D, D) and sizes c (B,). One
-    fusion is a run of one: one routine, so that a batch's problems are formed exactly as each
-    alone would be."""
+def _normalised_data(means: np.ndarray, covs: np.ndarray, matrices: np.ndarray, c: np.ndarray
+                     ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """(x̄ (B, D), s (B,), A_m (B, N, D, D), b_m (B, N, D), d_m (B, N)) of the normalised problem
+    (module docstring, "Numerics") of B runs' N estimates: means (B, N, D), covs (B, N, D, D), their
+    information matrices (B, N, D, D) and sizes c (B,). One fusion is a run of one: one routine, so
+    that a batch's problems are formed exactly as each alone would be; both routes' data."""
     centre = means.mean(axis=1)
     scale = np.sqrt(c * np.linalg.eigvalsh(covs)[..., -1].max(axis=1))
     a = matrices * (scale ** 2 / c)[:, None, None, None]
     xi = (means - centre[:, None, :]) / scale[:, None, None]
     b = -np.einsum("bmij,bmj->bmi", a, xi)
     d = np.einsum("bmi,bmij,bmj->bm", xi, a, xi) - 1.0
-    a = 0.5 * (a + np.swapaxes(a, -1, -2))
+    return centre, scale, 0.5 * (a + np.swapaxes(a, -1, -2)), b, d
+
+
+def _normalise(means: np.ndarray, covs: np.ndarray, matrices: np.ndarray, c: np.ndarray) -> _Normalised:
+    """The normalised problem (:func:`_normalised_data`) with the primal's change of variables."""
+    centre, scale, a, b, d = _normalised_data(means, covs, matrices, c)
     # T = L⁻ᵀ with L Lᵀ the mean of the A_m: TᵀA_mT are O(1) for ellipsoids of similar shape
     lower = np.linalg.cholesky(a.mean(axis=1))
     whitening = np.swapaxes(np.linalg.solve(lower, np.broadcast_to(np.eye(a.shape[-1]), lower.shape)), -1, -2)
@@ -208,6 +219,53 @@ def _normalise_one(estimates, info, c: float, metric: str = "euclidean") -> tupl
     covs = np.array([e.cov for e in estimates])[None]
     batched = _normalise(means, covs, info.matrices[None], np.array([c]))
     return batched.one(), [v[0] for v in batched.primal_values(metric)]
+
+
+@dataclass(frozen=True)
+class _NewtonSolution:
+    """The Newton route's answer for B runs: the dual's solution, the normalisation's ``centre`` x̄
+    (B, D) and ``scale`` s (B,), and the primal centre ξ* = −A_α⁻¹b_α in normalised coordinates (B, D)."""
+
+    dual: DualSolution
+    centre: np.ndarray
+    scale: np.ndarray
+    xi: np.ndarray
+
+
+def _newton_route(means: np.ndarray, covs: np.ndarray, matrices: np.ndarray, c: np.ndarray, metric: str
+                  ) -> _NewtonSolution:
+    """The dual of B runs' normalised problems (:func:`_normalised_data`, the conic route's data) by
+    :func:`gpfverify.fusion.rcc_dual.solve_dual`, in the coordinates ξ' = Lᵀξ with L Lᵀ the mean of
+    the A_m: the data L⁻¹A_mL⁻ᵀ (mean the identity), L⁻¹b_m, d_m and the metric L⁻¹K²L⁻ᵀ, every one by
+    triangular solves with L (the dual is the same problem: b_αᵀA_α⁻¹b_α and the congruent LMI are
+    unchanged, and so are the multipliers α)."""
+    centre, scale, a, b, d = _normalised_data(means, covs, matrices, c)
+    runs, n, dim = b.shape
+    k = np.sqrt(np.diagonal(a.mean(axis=1), axis1=-2, axis2=-1)) if metric == "scaled" else np.ones((runs, dim))
+    lower = np.linalg.cholesky(a.mean(axis=1))
+    def side_by_side(mats: np.ndarray) -> np.ndarray:  # (B, N, D, D) -> [M_1 … M_N] (B, D, N·D)
+        return np.swapaxes(mats, 1, 2).reshape(runs, dim, n * dim)
+
+    def apart(wide: np.ndarray) -> np.ndarray:  # its inverse
+        return np.swapaxes(wide.reshape(runs, dim, n, dim), 1, 2)
+
+    half = apart(lower_solve_stack(lower, side_by_side(a)))  # L⁻¹A_m
+    whitened = apart(lower_solve_stack(lower, side_by_side(np.swapaxes(half, 2, 3))))  # L⁻¹(L⁻¹A_m)ᵀ
+    whitened = 0.5 * (whitened + np.swapaxes(whitened, -1, -2))
+    rhs = np.concatenate([np.swapaxes(b, 1, 2), np.eye(dim) * k[:, None, :]], axis=2)  # [b_1 … b_N, K]
+    solved = lower_solve_stack(lower, rhs)
+    vectors = np.swapaxes(solved[..., :n], 1, 2)
+    root = solved[..., n:]  # L⁻¹K
+    metric_matrix = root @ np.swapaxes(root, -1, -2)
+    dual = solve_dual(whitened, vectors, d, 0.5 * (metric_matrix + np.swapaxes(metric_matrix, -1, -2)))
+    xi = -upper_solve_stack(np.swapaxes(lower, -1, -2), np.nan_to_num(dual.centre))
+    return _NewtonSolution(dual, centre, scale, xi)
+
+
+def _checked_route(route: str) -> str:
+    if route not in ROUTES:
+        raise InputError(f"the RCC-CI route must be one of {', '.join(ROUTES)}, got {route!r}")
+    return route
 
 
 def _checked_metric(metric: str) -> str:
@@ -369,12 +427,17 @@ def conic_intersecting_size(checked: Sequence) -> float:
 
 
 def rcc_ci(estimates: Sequence, c: float | None = None, on_empty: str = "error",
-           solver: str = cp.CLARABEL, circular_state: Sequence[int] = (), metric: str = "euclidean") -> RccCiResult:
+           solver: str = cp.CLARABEL, circular_state: Sequence[int] = (), metric: str = "euclidean",
+           route: str = "newton") -> RccCiResult:
     """RCC-CI fusion of local estimates (see module docstring); ``c`` defaults to
     :func:`default_size`; ``circular_state``: the angle state components; ``metric`` the norm of
-    the Chebyshev centre's error, "euclidean" (the paper's) or "scaled" (unit-free)."""
+    the Chebyshev centre's error, "euclidean" (the paper's) or "scaled" (unit-free); ``route``
+    "newton" (the dual over the weights, the default) or "conic" (the semidefinite primal by
+    ``solver``, the reference; module docstring, "Routes"). A Newton solve that does not converge
+    is done again by the conic route."""
     checked = checked_estimates(estimates, circular_state=circular_state)
     metric = _checked_metric(metric)
+    route = _checked_route(route)
     if on_empty not in ("error", "enlarge"):
         raise InputError(f"on_empty must be 'error' or 'enlarge', got {on_empty!r}")
     dim = checked[0].mean.shape[0]
@@ -382,6 +445,10 @@ def rcc_ci(estimates: Sequence, c: float | None = None, on_empty: str = "error",
     c = default_size(dim) if c is None else _checked_size(c)
     first = c
     info = information_form(checked)
+    if route == "newton":
+        result = _rcc_ci_newton(checked, info, c, given, on_empty, circular_state, metric)
+        if result is not None:
+            return result
     enlarged = False
     while True:
         norm, values = _normalise_one(checked, info, c, metric)
@@ -420,6 +487,41 @@ def rcc_ci(estimates: Sequence, c: float | None = None, on_empty: str = "error",
     return RccCiResult(mean=wrap_components(fused.mean, angles), cov=fused.cov, weights=weights, alpha=alpha,
                        c=c, primal_mean=wrap_components(norm.centre + norm.scale * xi, angles),
                        primal_value=float(solution.value * norm.scale**2), enlarged=enlarged, circular_state=angles)
+
+
+def _rcc_ci_newton(checked: Sequence, info, c: float, given: bool, on_empty: str, circular_state: Sequence[int],
+                   metric: str) -> RccCiResult | None:
+    """:func:`rcc_ci` by the Newton route; None when the dual's iterations do not converge (the
+    conic route then solves it)."""
+    dim = checked[0].mean.shape[0]
+    first, enlarged = c, False
+    means = np.array([e.mean for e in checked])[None]
+    covs = np.array([e.cov for e in checked])[None]
+    while True:
+        solution = _newton_route(means, covs, info.matrices[None], np.array([c]), metric)
+        status = solution.dual.status[0]
+        if status == "optimal":
+            break
+        if status != "empty":
+            return None
+        c_min = smallest_intersecting_size(checked)
+        if c >= c_min:  # a certificate of emptiness at a size where they meet: rounding; let the conic route say
+            return None
+        tried = (f"size c = {c:.6g} ({EMPTY_GROWTH:g} × the smallest intersecting size, tried after "
+                 f"{_size_words(first, given, dim)} found none)" if enlarged else _size_words(c, given, dim))
+        if on_empty == "error" or enlarged:
+            raise SolverError(f"RCC-CI: the local ellipsoids do not intersect at {tried}; "
+                              f"the smallest size at which they do is c = {c_min:.6g}")
+        c, enlarged = EMPTY_GROWTH * c_min, True
+    alpha = solution.dual.alpha[0]
+    weights = alpha / alpha.sum()
+    fused = weighted_information_fusion(info, weights)
+    angles = tuple(sorted(circular_state))
+    primal = solution.centre[0] + solution.scale[0] * solution.xi[0]
+    return RccCiResult(mean=wrap_components(fused.mean, angles), cov=fused.cov, weights=weights, alpha=alpha,
+                       c=c, primal_mean=wrap_components(primal, angles),
+                       primal_value=float(solution.dual.value[0] * solution.scale[0] ** 2), enlarged=enlarged,
+                       circular_state=angles)
 
 
 def _smallest_words(checked: Sequence) -> str:
