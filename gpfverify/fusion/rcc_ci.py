@@ -89,9 +89,9 @@ METRICS = ("euclidean", "scaled")
 #: With on_empty="enlarge", the size used is this multiple of the smallest intersecting size.
 EMPTY_GROWTH = 2.0
 SOLVED = ("optimal", "optimal_inaccurate")
-#: The routes to the RCC: "newton", the dual over the N weights by a barrier method (module
-#: docstring, "Routes"; the default), and "conic", the semidefinite primal by Clarabel (SCS when
-#: Clarabel fails), the reference.
+#: The routes to the RCC: "conic", the semidefinite primal by Clarabel (SCS when Clarabel fails),
+#: the default and the reference, and "newton", the dual over the N weights by a barrier method
+#: (module docstring, "Routes").
 ROUTES = ("newton", "conic")
 
 
@@ -428,13 +428,13 @@ def conic_intersecting_size(checked: Sequence) -> float:
 
 def rcc_ci(estimates: Sequence, c: float | None = None, on_empty: str = "error",
            solver: str = cp.CLARABEL, circular_state: Sequence[int] = (), metric: str = "euclidean",
-           route: str = "newton") -> RccCiResult:
+           route: str = "conic") -> RccCiResult:
     """RCC-CI fusion of local estimates (see module docstring); ``c`` defaults to
     :func:`default_size`; ``circular_state``: the angle state components; ``metric`` the norm of
     the Chebyshev centre's error, "euclidean" (the paper's) or "scaled" (unit-free); ``route``
-    "newton" (the dual over the weights, the default) or "conic" (the semidefinite primal by
-    ``solver``, the reference; module docstring, "Routes"). A Newton solve that does not converge
-    is done again by the conic route."""
+    "conic" (the semidefinite primal by ``solver``, the default and the reference) or "newton" (the
+    dual over the weights, O(N D³) per iteration; module docstring, "Routes"). A Newton solve that
+    does not converge is done again by the conic route."""
     checked = checked_estimates(estimates, circular_state=circular_state)
     metric = _checked_metric(metric)
     route = _checked_route(route)
@@ -545,7 +545,7 @@ class RccCiBatch:
 
 
 def rcc_ci_batch(means: np.ndarray, covs: np.ndarray, c: float | None = None, on_empty: str = "enlarge",
-                 circular_state: Sequence[int] = (), metric: str = "euclidean") -> RccCiBatch:
+                 circular_state: Sequence[int] = (), metric: str = "euclidean", route: str = "conic") -> RccCiBatch:
     """:func:`rcc_ci` of B runs' N local estimates (means (B, N, D), covs (B, N, D, D), positive
     definite: a filter's outputs, not checked again) by Clarabel. The runs' problems are solved one
     by one — an interior-point method run on all of them at once would couple their iterations, and
@@ -556,7 +556,10 @@ def rcc_ci_batch(means: np.ndarray, covs: np.ndarray, c: float | None = None, on
     (:func:`gpfverify.fusion.batched.weighted_information_batch`). A run whose ellipsoids miss at
     c is solved again at :data:`EMPTY_GROWTH` · c_min (``on_empty="enlarge"``); a run whose solve
     ends otherwise than "optimal" or infeasible (an inaccurate or failed solve) is left to
-    :func:`rcc_ci`, which checks it, retries with SCS or says why it cannot fuse."""
+    :func:`rcc_ci`, which checks it, retries with SCS or says why it cannot fuse. ``route="newton"``:
+    the dual over the weights (:func:`gpfverify.fusion.rcc_dual.solve_dual`) for all runs at once,
+    each with its own iterates (the same bits as alone); a run whose iterations do not converge is
+    left to :func:`rcc_ci` by the conic route."""
     from gpfverify.fusion.batched import weighted_information_batch
     from gpfverify.fusion.estimates import on_one_branch_arrays
 
@@ -574,9 +577,15 @@ def rcc_ci_batch(means: np.ndarray, covs: np.ndarray, c: float | None = None, on
              for run_means, run_covs in zip(means, covs)]
     matrices, vectors = np.array([f.matrices for f in forms]), np.array([f.vectors for f in forms])
     weights = np.full((runs, n), np.nan)
-    program = _clarabel_program(_primal_problem, n, dim)
-    alone = list(range(runs)) if program is None else []
-    pending = [] if program is None else list(range(runs))
+    route = _checked_route(route)
+    if route == "newton":
+        alone = _newton_batch_weights(means, covs, matrices, sizes, enlarged, weights, on_empty, metric)
+        program = None
+        pending: list[int] = []
+    else:
+        program = _clarabel_program(_primal_problem, n, dim)
+        alone = list(range(runs)) if program is None else []
+        pending = [] if program is None else list(range(runs))
     while pending and program is not None:
         at = np.array(pending)
         raw = program.solve_raw_batch(_normalise(means[at], covs[at], matrices[at], sizes[at]).primal_values(metric))
@@ -602,10 +611,36 @@ def rcc_ci_batch(means: np.ndarray, covs: np.ndarray, c: float | None = None, on
         mean[solved], cov[solved] = fused.mean, fused.cov
     for run in sorted(alone):
         single = rcc_ci([Gaussian(m, v) for m, v in zip(means[run], covs[run])], c=c, on_empty=on_empty,
-                        circular_state=angles, metric=metric)
+                        circular_state=angles, metric=metric)  # the conic route: checked, or why not
         mean[run], cov[run], weights[run], sizes[run], enlarged[run] = (single.mean, single.cov, single.weights,
                                                                         single.c, single.enlarged)
     return RccCiBatch(wrap_components(mean, angles), cov, weights, sizes, enlarged)
+
+
+def _newton_batch_weights(means: np.ndarray, covs: np.ndarray, matrices: np.ndarray, sizes: np.ndarray,
+                          enlarged: np.ndarray, weights: np.ndarray, on_empty: str, metric: str) -> list[int]:
+    """The Newton route of :func:`rcc_ci_batch`: ``weights`` (and ``sizes``, ``enlarged`` where the
+    ellipsoids missed and were enlarged) filled in place for every run it solves; returns the runs
+    left to :func:`rcc_ci` (not converged, or missing where "error" is asked)."""
+    pending, alone = list(range(len(means))), []
+    while pending:
+        at = np.array(pending)
+        solution = _newton_route(means[at], covs[at], matrices[at], sizes[at], metric)
+        pending = []
+        for j, run in enumerate(at.tolist()):
+            status = solution.dual.status[j]
+            if status == "optimal":
+                alpha = solution.dual.alpha[j]
+                weights[run] = alpha / alpha.sum()
+                continue
+            if status == "empty" and on_empty == "enlarge" and not enlarged[run]:
+                c_min = smallest_intersecting_size([Gaussian(m, v) for m, v in zip(means[run], covs[run])])
+                if sizes[run] < c_min:
+                    sizes[run], enlarged[run] = EMPTY_GROWTH * c_min, True
+                    pending.append(run)
+                    continue
+            alone.append(run)
+    return alone
 
 
 @dataclass(frozen=True)
