@@ -209,8 +209,18 @@ def upper_solve_stack(upper: np.ndarray, z: np.ndarray) -> np.ndarray:
 
 
 def _newton(hess: np.ndarray, grad: np.ndarray) -> np.ndarray:
-    """−H⁻¹ ∇ for K N × N systems (positive definite: the barrier's Hessian is)."""
-    return -np.linalg.solve(hess, grad[..., None])[..., 0]
+    """−H⁻¹ ∇ for K N × N systems (positive definite: the barrier's Hessian is; one that rounding
+    made singular, each alone, by the pseudo-inverse, the others by the same stacked solve)."""
+    try:
+        return -np.linalg.solve(hess, grad[..., None])[..., 0]
+    except np.linalg.LinAlgError:
+        out = np.empty_like(grad)
+        for i in range(len(grad)):
+            try:
+                out[i] = -np.linalg.solve(hess[i:i + 1], grad[i:i + 1, :, None])[0, :, 0]
+            except np.linalg.LinAlgError:
+                out[i] = -np.linalg.pinv(hess[i]) @ grad[i]
+        return out
 
 
 def _feasible_start(a: np.ndarray, metric: np.ndarray) -> np.ndarray:
@@ -270,7 +280,7 @@ def solve_dual(a: np.ndarray, b: np.ndarray, d: np.ndarray, metric: np.ndarray) 
         first = t[at] == 0.0  # t from the start's gradients: the t at which the start is most central
         if first.any():
             f = np.flatnonzero(first)
-            hinv_g = np.linalg.solve(hess_psi[f], grad_g[f][..., None])[..., 0]
+            hinv_g = -_newton(hess_psi[f], grad_g[f])
             t[at[f]] = np.maximum(-np.sum(grad_psi[f] * hinv_g, axis=1) / np.sum(grad_g[f] * hinv_g, axis=1), 1e-12)
         tt = t[at]
         final_t = 1.0 / (FINAL_MU * np.maximum(np.abs(cur.value), 1.0))
@@ -278,6 +288,9 @@ def solve_dual(a: np.ndarray, b: np.ndarray, d: np.ndarray, metric: np.ndarray) 
         grad = grad_psi + tt[:, None] * grad_g
         step = _newton(hess, grad)
         decrement = -np.sum(grad * step, axis=1)
+        status[at[~np.isfinite(decrement) & ~empty]] = "failed"
+        decrement = np.where(np.isfinite(decrement), decrement, np.inf)
+        empty |= status[at] == "failed"  # neither moves on
         mu[at] = 1.0 / tt
         done = ~empty & (tt >= final_t) & (decrement <= FINISHED)
         status[at[done]] = "optimal"
@@ -292,7 +305,7 @@ def solve_dual(a: np.ndarray, b: np.ndarray, d: np.ndarray, metric: np.ndarray) 
         pred = np.flatnonzero(centred)
         if pred.size:
             runs = at[pred]
-            tangent = tt[pred, None] * np.linalg.solve(hess[pred], grad_g[pred][..., None])[..., 0]
+            tangent = -tt[pred, None] * _newton(hess[pred], grad_g[pred])
             trying = np.ones(pred.size, dtype=bool)
             target = np.minimum(tt[pred] * kappa[runs], final_t[pred])
             while trying.any():
