@@ -18,8 +18,9 @@ from it an upper bound); each wrapped call's own timer reads are in it.
 State dimension. A linear system with D states and three sensors of D/2 outputs each (random
 orthogonal-times-0.95 transition, random H), :func:`~gpfverify.model_fusion.run_fusion`
 with the Kalman family and every rule, a few steps: the median CPU time per step of each rule and of
-the per-step audit (:func:`~gpfverify.audit.audit_case`), D = 8 … 512 (RCC-CI, a semidefinite
-program whose interior-point cost grows much faster, up to ``--rcc-max``). Goals: no rule above
+the per-step audit (:func:`~gpfverify.audit.audit_case`), D = 8 … 512 (RCC-CI by its Newton route
+over the weights up to ``--rcc-max``, and by its conic route — a semidefinite program whose
+interior-point cost grows like D⁶ — up to ``--rcc-conic-max``). Goals: no rule above
 twice CMF + DMF at any D, and the cost growing no faster than D³ from D = 64 (the exponent per
 doubling, log₂ of the ratio).
 
@@ -205,7 +206,7 @@ def system(d: int, rng: np.random.Generator):
     return linear_model(F, H, 0.1 * np.eye(d), 0.5 * np.eye(3 * d // 2), sizes=(d // 2,) * 3)
 
 
-RULES = ("cmf", "dmf", "cc", "ci", "ei", "ici", "rcc-ci", "audit")
+RULES = ("cmf", "dmf", "cc", "ci", "ei", "ici", "rcc-ci", "rcc-conic", "audit")
 
 
 def _steal() -> int:
@@ -217,13 +218,17 @@ def _steal() -> int:
         return -1
 
 
-def state_axis(dims: list[int], steps: int, rcc_max: int, rounds: int, cap: float
+def state_axis(dims: list[int], steps: int, rcc_max: int, rounds: int, cap: float, conic_max: int = 32
                ) -> tuple[list[list], dict, dict, list[str]]:
     """Per D: every rule's one step, timed by process CPU time in interleaved rounds (each round calls
     every rule once, so a burst of load on the machine falls on all of them alike); the best of the
     rounds (the least disturbed call) and their median. A rule whose first call at some D takes more
-    than ``cap`` seconds is not timed at larger D (said in the notes)."""
+    than ``cap`` seconds is not timed at larger D (said in the notes). RCC-CI is timed by its Newton
+    route (``rcc-ci``, up to ``rcc_max``) and by its conic route (``rcc-conic``, Clarabel on the
+    semidefinite program, up to ``conic_max``), as run_fusion calls it (c = χ²_D(0.99), enlarged
+    when the ellipsoids miss)."""
     from gpfverify.audit.case import audit_case
+    from gpfverify.fusion.rcc_ci import rcc_ci
     from gpfverify.model_fusion import _baselines, cmf_step, dmf_step, run_fusion
 
     rows, best, median, notes, capped = [], {}, {}, [], set()
@@ -232,7 +237,7 @@ def state_axis(dims: list[int], steps: int, rcc_max: int, rounds: int, cap: floa
         rng = np.random.default_rng(d)
         model = system(d, rng)
         _, ys = model.simulate(steps + 1, rng)
-        methods = ("cmf", "dmf", "cc", "ci", "ei", "ici") + (("rcc-ci",) if d <= rcc_max else ())
+        methods = ("cmf", "dmf", "cc", "ci", "ei", "ici")
         fused = run_fusion(model, ys, family="kf", methods=methods, audit=False)
         before, step, y = fused.steps[-2], fused.steps[-1], ys[-1]  # the last step, from the one before
         beliefs = [r.posterior for r in step.local]
@@ -242,8 +247,14 @@ def state_axis(dims: list[int], steps: int, rcc_max: int, rounds: int, cap: floa
                   # the audit as run_fusion(..., audit=True) runs it: reusing the step's eq. 35
                   "audit": functools.partial(audit_case, step.dmf.case, rank_rule=step.dmf.result.rank_rule,
                                              dmf=step.dmf.result)}
-        for name, rule in _baselines(methods, None, (), "trace").items():
+        for name, rule in _baselines(methods + ("rcc-ci",), None, (), "trace").items():
+            if name == "rcc-ci":  # the conic route, the default of the rule run_fusion calls
+                if d <= conic_max:
+                    timers["rcc-conic"] = functools.partial(rule, beliefs)
+                continue
             timers[name] = functools.partial(rule, beliefs)
+        if d <= rcc_max:
+            timers["rcc-ci"] = functools.partial(rcc_ci, beliefs, on_empty="enlarge", route="newton")
         times: dict[str, list[float]] = {}
         for name in list(timers):  # warm-up, and the cap
             if name in capped:
@@ -258,7 +269,7 @@ def state_axis(dims: list[int], steps: int, rcc_max: int, rounds: int, cap: floa
         repeats = 4 * rounds if d <= 32 else rounds if d <= 128 else max(3, rounds // 3)
         for _ in range(repeats):
             for name, fn in timers.items():
-                if name == "rcc-ci" and len(times.get(name, ())) >= 3:
+                if name in ("rcc-ci", "rcc-conic") and len(times.get(name, ())) >= 3:
                     continue
                 start = time.process_time()
                 fn()
@@ -266,7 +277,7 @@ def state_axis(dims: list[int], steps: int, rcc_max: int, rounds: int, cap: floa
         best[d] = {name: min(t) for name, t in times.items()}
         median[d] = {name: float(np.median(t)) for name, t in times.items()}
         base = best[d]["cmf"] + best[d]["dmf"]
-        worst = max((m for m in best[d] if m not in ("cmf", "dmf", "rcc-ci")), key=lambda m: best[d][m])
+        worst = max((m for m in best[d] if m not in ("cmf", "dmf", "rcc-conic")), key=lambda m: best[d][m])
         steal = _steal()
         rows.append([d, *(f"{best[d][m] * 1e3:.2f}" if m in best[d] else "–" for m in RULES),
                      f"{worst} {best[d][worst] / base:.2f}", repeats,
@@ -315,7 +326,9 @@ def main() -> None:
     parser.add_argument("--runs", type=int, default=16, help="runs per experiment (check: four times as many)")
     parser.add_argument("--dims", default="8,16,32,64,128,256,512")
     parser.add_argument("--steps", type=int, default=3, help="steps run before the one timed")
-    parser.add_argument("--rcc-max", type=int, default=32)
+    parser.add_argument("--rcc-max", type=int, default=512, help="largest D at which RCC-CI's Newton route is timed")
+    parser.add_argument("--rcc-conic-max", type=int, default=32,
+                        help="largest D at which RCC-CI's conic route (Clarabel) is timed")
     parser.add_argument("--dim-rounds", type=int, default=15,
                         help="interleaved rounds per D (four times as many up to D = 32, a third from D = 256)")
     parser.add_argument("--cap", type=float, default=20.0, help="CPU-s of one call above which a rule stops")
@@ -336,16 +349,19 @@ def main() -> None:
                                  "GP learning (per-run / batched)", "floor", "batched / floor"], rows)]
     if args.only != "runs":
         dims = [int(d) for d in args.dims.split(",")]
-        rows, best, median, notes = state_axis(dims, args.steps, args.rcc_max, args.dim_rounds, args.cap)
+        rows, best, median, notes = state_axis(dims, args.steps, args.rcc_max, args.dim_rounds, args.cap,
+                                               args.rcc_conic_max)
         text += ["", f"CPU milliseconds of one step of each rule (Kalman family: CMF and DMF from the previous "
                  f"fused posterior, the baselines on the sensors' posteriors) and of the step's audit, on the last "
                  f"step of a short run: the best of the rounds (every rule called once per round, interleaved); "
-                 f"RCC-CI up to D = {args.rcc_max}. The column 'max / (CMF + DMF)': the costliest rule other than "
-                 f"RCC-CI against CMF + DMF (goal ≤ 2).", "",
-                 markdown_table(["D", "CMF", "DMF", "CC", "CI", "EI", "ICI", "RCC-CI", "audit", "max / (CMF + DMF)",
-                                 "rounds", "load before / after"], rows),
+                 f"RCC-CI by its Newton route up to D = {args.rcc_max} and by its conic route (Clarabel, the "
+                 f"reference) up to D = {args.rcc_conic_max}. The column 'max / (CMF + DMF)': the costliest rule "
+                 f"other than the conic RCC-CI against CMF + DMF (goal ≤ 2).", "",
+                 markdown_table(["D", "CMF", "DMF", "CC", "CI", "EI", "ICI", "RCC-CI (Newton)", "RCC-CI (conic)",
+                                 "audit", "max / (CMF + DMF)", "rounds", "load before / after"], rows),
                  "", "The median of the same rounds:", "",
-                 markdown_table(["D", "CMF", "DMF", "CC", "CI", "EI", "ICI", "RCC-CI", "audit"],
+                 markdown_table(["D", "CMF", "DMF", "CC", "CI", "EI", "ICI", "RCC-CI (Newton)", "RCC-CI (conic)",
+                                 "audit"],
                                 [[d, *(f"{median[d][m] * 1e3:.2f}" if m in median[d] else "–" for m in RULES)]
                                  for d in sorted(median)]),
                  "", f"Growth per doubling of D from the best-of times: t(2D)/t(D) (log₂ in brackets); goal ≤ 8, "
