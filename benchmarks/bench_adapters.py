@@ -17,6 +17,7 @@ start a sensor from its own x and P and from the first filter's.
 from __future__ import annotations
 
 import argparse
+import functools
 import os
 import platform
 import statistics
@@ -126,9 +127,8 @@ def filterpy_rows() -> list[list[str]]:
         for name, mean_fn in [("filterpy's default z_mean_fn (the plain mean)", None),
                               ("z_mean_fn = atan2 of sines and cosines (the filterpy book's)", atan2_mean),
                               ("z_mean_fn = gpfverify's angle mean", fp.mean_bearing)]:
-            def make():
-                return fp.unscented(fp.range_bearing, R_radar, alpha, beta, kappa, residual_z=fp.residual_bearing,
-                                    z_mean_fn=mean_fn)
+            make = functools.partial(fp.unscented, fp.range_bearing, R_radar, alpha, beta, kappa,
+                                     residual_z=fp.residual_bearing, z_mean_fn=mean_fn)
             system = fp.adapter.system_from_filters([make()])
             _, ys = fp.simulate(system.model)
             means, covs, _ = fp.filterpy_run(make(), ys)

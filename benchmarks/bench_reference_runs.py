@@ -49,7 +49,8 @@ COMMANDS = {
     "tbd/run": "gpfverify reproduce tbd --runs RUNS --seed 1 --interpretations birth-uniform,birth-threshold-2 "
                "--interpretation-runs 2000 --out OUT/tbd",
     "particle-flow/bearing": "gpfverify reproduce bearing --runs RUNS --seed 1 --interpretations all --out OUT/bearing",
-    "particle-flow/pff1d": "gpfverify reproduce pff1d --runs RUNS --seed 1 --interpretations vdm-gaussian --out OUT/pff1d",
+    "particle-flow/pff1d": ("gpfverify reproduce pff1d --runs RUNS --seed 1 --interpretations vdm-gaussian "
+                            "--out OUT/pff1d"),
     # the second model run on its own: the interpretation vdm-gaussian as the main run
     "particle-flow/pff1d/vdm-gaussian": "gpfverify reproduce pff1d --interpretation vdm-gaussian --runs RUNS --seed 1 "
                                         "--out OUT/pff1d-vdm-gaussian",
