@@ -37,14 +37,14 @@ report: $(VENV)/.runtime-installed
 	$(BIN)/gpfverify report
 
 test: $(VENV)/.test-installed
-	$(BIN)/ruff check gpfverify
+	$(BIN)/ruff check gpfverify benchmarks
 	$(BIN)/mypy
 	$(BIN)/lint-imports
 	$(PYTEST)
 
 # the inner loop: every test but those marked slow (subprocesses, experiment runs, the browser)
 test-fast: $(VENV)/.test-installed
-	$(BIN)/ruff check gpfverify
+	$(BIN)/ruff check gpfverify benchmarks
 	$(BIN)/lint-imports
 	$(PYTEST) -m "not slow"
 
