@@ -253,6 +253,35 @@ def prepare(x_a: np.ndarray, x_b: np.ndarray, mu: np.ndarray, sigma: np.ndarray,
             bound[b] = max(bound[b], top_row + top_col + np.sqrt(top_z * top_w))
     return z_a, row, z_b_t, col, u, v, q_a, bound
 
+@_jit
+def largest_exponents(z_a: np.ndarray, row: np.ndarray, z_b_t: np.ndarray, col: np.ndarray,
+                      inputs: np.ndarray) -> np.ndarray:
+    """max_{p,i,j} d_ij of each input b in ``inputs``: the exponents d_ij = r_i + c_j + Σ_k z_ik w_jk
+    that :func:`centred_sums` forms, from :func:`prepare`'s z_a, row, z_b_t and col (shapes as
+    there), each by the same sum to rounding (n_a n_b D multiply–adds per pair: a pass without the
+    exponentials, for the inputs whose Cauchy–Schwarz bound is above the limit)."""
+    pairs, dim, n_a = z_a.shape[1:]
+    n_b = z_b_t.shape[3]
+    largest = np.full(inputs.size, -np.inf)
+    d = np.empty(n_b)
+    for index in range(inputs.size):
+        b = inputs[index]
+        top = -np.inf
+        for p in range(pairs):
+            for i in range(n_a):
+                r_i = row[b, p, i]
+                for j in range(n_b):
+                    d[j] = col[b, p, j] + r_i
+                for k in range(dim):
+                    z = z_a[b, p, k, i]
+                    w = z_b_t[b, p, k]
+                    for j in range(n_b):
+                        d[j] += z * w[j]
+                for j in range(n_b):
+                    top = max(top, d[j])
+        largest[index] = top
+    return largest
+
 @_jit_fma_inline
 def _whiten_row(white: np.ndarray, factor_t: np.ndarray, i: int) -> float:
     """Row i of the forward substitution L x = b by columns, in place: ``white`` holds b on entry to
