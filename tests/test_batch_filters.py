@@ -108,12 +108,10 @@ def test_learned_model_runs_are_the_same_for_every_batch(family, gp_models):
     _assert_per_run_close(results[0], family, lambda b: gp_models[b], means, covs, ys)
 
 
-@pytest.mark.usefixtures("moment_path")
 @pytest.mark.parametrize("per_run", [7, 1])
 def test_a_batch_of_gps_predicts_as_each_gp(gp_models, per_run):
-    """Means and variances of run b's points against run b's GP, as the GP itself gives them (to
-    rounding: the compiled whitening sums in its own order), and the same bits in every split of
-    the runs into batches."""
+    """Means and variances of run b's points against run b's GP, as the GP itself gives them, and
+    the same bits in every split of the runs into batches."""
     gps = [m.transition for m in gp_models]
     points = np.random.default_rng(2).normal(size=(RUNS * per_run, 3))
     mean, var = GaussianProcessBatch(gps).predict(points)

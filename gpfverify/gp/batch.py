@@ -13,15 +13,13 @@ leading run axis, so that a filter step of B runs is a few array operations inst
 
 What run b gets depends on run b's GP and inputs alone, never on the other runs in the batch or on
 B: every operation is elementwise, a reduction along a trailing axis, an einsum whose sums run over
-one run's training points, a stacked matrix product (one BLAS call per run), or a compiled loop
-over runs whose every run is computed alone — the predictive variance whitens k* with run b's own
-Cholesky factor (:func:`gpfverify.gp.fused.whitened_squares`; without numba the triangular solve a
-single GP uses, :meth:`gpfverify.linalg.Cholesky.whiten`). The kernel matrix is the sum of squared
-scaled differences scipy's ``cdist`` forms for a single GP, in the same order, and the mean the same
-einsum, so a run's means are those of its own :class:`~gpfverify.gp.GaussianProcess` to rounding
-(and the same bits wherever ``cdist`` adds in index order without fused multiply–adds, as the wheels
-of scipy 1.17 on x86-64 do); its variances are to rounding (the compiled whitening sums in another
-order than BLAS and numpy).
+one run's training points, or a stacked matrix product (one BLAS call per run), and the predictive
+variance whitens k* with run b's own Cholesky factor by the same triangular solve a single GP uses
+(:meth:`gpfverify.linalg.Cholesky.whiten`). The kernel matrix is the sum of squared scaled
+differences scipy's ``cdist`` forms for a single GP, in the same order, and the mean the same einsum,
+so a run's numbers equal those of its own :class:`~gpfverify.gp.GaussianProcess` to rounding (and
+are the same bits wherever ``cdist`` adds in index order without fused multiply–adds, as the wheels
+of scipy 1.17 on x86-64 do).
 """
 
 from __future__ import annotations
@@ -31,7 +29,6 @@ from collections.abc import Sequence
 import numpy as np
 
 from gpfverify.errors import InputError
-from gpfverify.gp.fused import whitened_squares
 from gpfverify.gp.moments import MomentMatch, moment_match_stack_batch
 
 
@@ -104,21 +101,14 @@ class GaussianProcessBatch:
 
     def predict(self, xs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Latent predictive means and variances (eq. 5–6) at points (B·m, D): each (B·m, E); the
-        variance α² − ‖L⁻¹k*‖² whitened by each run's Cholesky factor: every run's, output's and
-        point's forward substitution in one compiled loop
-        (:func:`gpfverify.gp.fused.whitened_squares`), or, without the compiled path, one
-        triangular solve per run and output as :meth:`GaussianProcess.predict` does. The compiled
-        loop sums ‖L⁻¹k*‖² in row order, so a run's variance equals its single GP's (BLAS trsv, then
-        numpy's sum) to rounding, and is the same bits in any batch."""
+        variance α² − ‖L⁻¹k*‖² whitened by each run's Cholesky factor (one triangular solve per run
+        and output, as :meth:`GaussianProcess.predict` does)."""
         kernels = self.kernels(xs)
-        squares = whitened_squares(self.factors_t, kernels)
-        if squares is None:
-            squares = np.empty(kernels.shape[:-1])  # (B, E, m)
-            for b, gp in enumerate(self.members):
-                for a, chol in enumerate(gp.choleskys):
-                    white = chol.whiten(kernels[b, a].T)
-                    squares[b, a] = np.einsum("ij,ij->j", white, white)
-        var = self.signal_var[:, :, None] - squares
+        var = np.empty(kernels.shape[:-1])  # (B, E, m)
+        for b, gp in enumerate(self.members):
+            for a, chol in enumerate(gp.choleskys):
+                white = chol.whiten(kernels[b, a].T)
+                var[b, a] = self.signal_var[b, a] - np.einsum("ij,ij->j", white, white)
         return self._mean(kernels), np.maximum(_rows(var), 0.0)
 
     def predict_uncertain(self, mu, Sigma):

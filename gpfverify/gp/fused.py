@@ -77,19 +77,6 @@ def first_moments(x: np.ndarray, lengthscales: np.ndarray, signal_var: np.ndarra
     return _kernels().first_moments(x, 1.0 / lengthscales, np.log(signal_var), beta, mu, sigma)
 
 
-def whitened_squares(factors_t: np.ndarray, vectors: np.ndarray) -> np.ndarray | None:
-    """‖L_ga⁻¹ k‖² (G, E, m) of the vectors k = vectors[g, a, p] (G, E, m, n) against the Cholesky
-    factors L_ga, given transposed as factors_t (G, E, n, n), by
-    :func:`gpfverify.gp.fused_kernels.whitened_squares` (one compiled loop over models, outputs and
-    vectors), or None when the compiled path is off (the caller then solves with each factor, BLAS
-    trsv, and sums the squares with numpy: the same to rounding)."""
-    if not enabled:
-        return None
-    out = np.empty(vectors.shape[:-1])
-    _kernels().whitened_squares(factors_t, vectors, out)
-    return out
-
-
 def centred_sums(x_a: np.ndarray, x_b: np.ndarray, mu: np.ndarray, sigma: np.ndarray, ell_a: np.ndarray,
                  ell_b: np.ndarray, b_logdet_a: np.ndarray, b_logdet_b: np.ndarray, ia: np.ndarray,
                  ib: np.ndarray, t_a: np.ndarray, t_b: np.ndarray, q_a: np.ndarray, q_b: np.ndarray,

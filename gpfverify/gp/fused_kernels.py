@@ -21,10 +21,6 @@ _jit = numba.njit(cache=True, nogil=True, boundscheck=False, error_model="numpy"
 #: the same, allowing a multiply and an add to fuse into one FMA (one rounding instead of two; no
 #: other reordering): the exponential's polynomial and the n² loop are FMA chains
 _jit_fma = numba.njit(cache=True, nogil=True, boundscheck=False, error_model="numpy", fastmath={"contract"})
-#: the same, inlined into its callers' code (numba's own inlining: a small loop shared by kernels costs
-#: no call and vectorises in place)
-_jit_fma_inline = numba.njit(cache=True, nogil=True, boundscheck=False, error_model="numpy", fastmath={"contract"},
-                             inline="always")
 #: the reduced-argument polynomial of :mod:`gpfverify.gp.fused`, compiled
 _expm1_reduced_compiled = _jit_fma(_expm1_reduced)
 
@@ -282,37 +278,6 @@ def largest_exponents(z_a: np.ndarray, row: np.ndarray, z_b_t: np.ndarray, col: 
         largest[index] = top
     return largest
 
-@_jit_fma_inline
-def _whiten_row(white: np.ndarray, factor_t: np.ndarray, i: int) -> float:
-    """Row i of the forward substitution L x = b by columns, in place: ``white`` holds b on entry to
-    row 0 and x_0 … x_{i−1} with the partly reduced rest after row i − 1; row i takes
-    x_i = white_i / L_ii and white_j ← white_j − x_i L_ji for j > i, and returns x_i. ``factor_t`` is
-    Lᵀ, C-ordered: L's column i is its contiguous row i."""
-    x_i = white[i] / factor_t[i, i]
-    rest, column = white[i + 1:], factor_t[i, i + 1:]  # slices: the loop below then vectorises
-    for j in range(rest.size):
-        rest[j] -= x_i * column[j]
-    return x_i
-
-@_jit_fma
-def whitened_squares(factors_t: np.ndarray, vectors: np.ndarray, out: np.ndarray) -> None:
-    """out[g, a, p] = ‖L_ga⁻¹ k‖² = Σ_i x_i² for k = vectors[g, a, p] (n,) and L_ga the Cholesky factor
-    of model g's output a: factors_t (G, E, n, n) the transposed factors L_gaᵀ, vectors (G, E, m, n),
-    out (G, E, m). x by forward substitution row by row (:func:`_whiten_row`, as :func:`centred_sums`
-    whitens q_a), the squares summed in row order: what model g's vectors get depends on them alone."""
-    models, outputs, points, n = vectors.shape
-    white = np.empty(n)
-    for g in range(models):
-        for a in range(outputs):
-            factor_t = factors_t[g, a]
-            for p in range(points):
-                white[:] = vectors[g, a, p]
-                total = 0.0
-                for i in range(n):
-                    x_i = _whiten_row(white, factor_t, i)
-                    total += x_i * x_i
-                out[g, a, p] = total
-
 @_jit_fma
 def centred_sums(z_a: np.ndarray, row: np.ndarray, z_b_t: np.ndarray, col: np.ndarray, u: np.ndarray,
                  v: np.ndarray, q_a: np.ndarray, k_inv: np.ndarray, factors_t: np.ndarray, diagonal: np.ndarray,
@@ -374,8 +339,11 @@ def centred_sums(z_a: np.ndarray, row: np.ndarray, z_b_t: np.ndarray, col: np.nd
                         acc[j] += weight * _expm1(row_d[j] + z * w_last[j])
                     continue
                 # a diagonal pair: E_ii once, E_ij (j > i) twice; row i of the whitening
-                x_i = _whiten_row(white, model_factors_t[a], i)
+                x_i = white[i] / model_factors_t[a, i, i]
                 white_sq += x_i * x_i
+                rest, factor_column = white[i + 1:], model_factors_t[a, i, i + 1:]
+                for j in range(rest.size):
+                    rest[j] -= x_i * factor_column[j]
                 e = _expm1(row_d[0] + z * w_last[i])
                 acc[i] += u[b, p, i] * e
                 acc_trace[i] += q_a[b, p, i] * (e * model_k_inv[a, i, i])
