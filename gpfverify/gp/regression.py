@@ -86,19 +86,19 @@ def _neg_log_evidence(theta: np.ndarray, x: np.ndarray, y: np.ndarray,
     if info != 0 or not all_finite(factor):  # not positive definite at θ: a wall for the optimiser
         return 1e25, np.zeros_like(theta)
     beta, _ = _potrs(factor, y, lower=1)
-    nll = 0.5 * float(y @ beta) + 0.5 * (2.0 * float(np.sum(np.log(np.diag(factor))))) + 0.5 * n * _LOG_2PI
+    nll = 0.5 * float(y @ beta) + 0.5 * (2.0 * float(np.log(factor.diagonal()).sum())) + 0.5 * n * _LOG_2PI
     k_inv, info = _potri(factor, lower=1, overwrite_c=1)
     if info != 0:
         raise NumericalError(f"inverse from the Cholesky factor of K failed (potri info={info})")
     w = np.multiply.outer(beta, beta)  # W = ββᵀ − K⁻¹ from the lower triangle of K⁻¹
     w -= k_inv
     w -= k_inv.T
-    w.flat[::n + 1] = beta * beta - np.diag(k_inv)
+    w.flat[::n + 1] = beta * beta - k_inv.diagonal()
     wk = np.multiply(w, kf, out=kf)
     grad = np.empty_like(theta)
     grad[:d] = -0.5 * np.einsum("ij,ijd->d", wk, sq_diff) / ell2
-    grad[d] = -0.5 * float(np.sum(wk))
-    grad[d + 1] = -0.5 * noise * float(np.trace(w))
+    grad[d] = -0.5 * float(wk.sum())
+    grad[d + 1] = -0.5 * noise * float(w.trace())
     return nll, grad
 
 
