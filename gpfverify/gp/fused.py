@@ -77,6 +77,21 @@ def first_moments(x: np.ndarray, lengthscales: np.ndarray, signal_var: np.ndarra
     return _kernels().first_moments(x, 1.0 / lengthscales, np.log(signal_var), beta, mu, sigma)
 
 
+def whitened(factors_t: np.ndarray, vectors: np.ndarray) -> np.ndarray | None:
+    """L_ga⁻¹ vectors[g, a] (G, E, n) for the Cholesky factors L_ga given transposed as factors_t
+    (G, E, n, n, C-ordered), by BLAS dtrsv called from one compiled loop
+    (:func:`gpfverify.gp.fused_kernels.whitened`): the routine and arguments of
+    :func:`gpfverify.linalg.lower_solve` for one vector, so the same bits, without a Python call per
+    model and output; None when the compiled path is off."""
+    if not enabled:
+        return None
+    kernels = _kernels()
+    vectors = np.ascontiguousarray(vectors)
+    out = np.empty_like(vectors)
+    kernels.whitened(kernels.TRSV, np.ascontiguousarray(factors_t), vectors, out)
+    return out
+
+
 def centred_sums(x_a: np.ndarray, x_b: np.ndarray, mu: np.ndarray, sigma: np.ndarray, ell_a: np.ndarray,
                  ell_b: np.ndarray, b_logdet_a: np.ndarray, b_logdet_b: np.ndarray, ia: np.ndarray,
                  ib: np.ndarray, t_a: np.ndarray, t_b: np.ndarray, q_a: np.ndarray, q_b: np.ndarray,

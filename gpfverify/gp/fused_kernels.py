@@ -39,6 +39,22 @@ def _bits_float(typingctx, bits):
         return builder.bitcast(args[0], ir.DoubleType())
     return numba.types.float64(numba.types.int64), codegen
 
+#: the address of BLAS ``dtrsv`` in scipy's BLAS (scipy.linalg.cython_blas): the routine
+#: :func:`scipy.linalg.blas.dtrsv` calls, so that a compiled loop calling it gets that call's bits
+TRSV = numba.extending.get_cython_function_address("scipy.linalg.cython_blas", "dtrsv")
+
+@numba.extending.intrinsic
+def _call_trsv(typingctx, address, uplo, trans, diag, n, a, lda, x, incx):
+    """A call of the Fortran BLAS routine at ``address`` (an integer) with trsv's eight arguments,
+    each the address of its value (integers too): the routine's address is an argument rather than a
+    constant of the compiled code, so numba can cache the code across processes."""
+    def codegen(context, builder, signature, args):
+        pointer = ir.IntType(8).as_pointer()
+        routine = builder.inttoptr(args[0], ir.FunctionType(ir.VoidType(), [pointer] * 8).as_pointer())
+        builder.call(routine, [builder.inttoptr(arg, pointer) for arg in args[1:]])
+        return context.get_dummy_value()
+    return numba.types.void(address, uplo, trans, diag, n, a, lda, x, incx), codegen
+
 @_jit_fma
 def _expm1(value: float) -> float:
     """expm1(value) for value ≤ 700 by :func:`gpfverify.gp.expm1.expm1_reference`'s steps, a
@@ -277,6 +293,23 @@ def largest_exponents(z_a: np.ndarray, row: np.ndarray, z_b_t: np.ndarray, col: 
                     top = max(top, d[j])
         largest[index] = top
     return largest
+
+@_jit
+def whitened(trsv: int, factors_t: np.ndarray, vectors: np.ndarray, out: np.ndarray) -> None:
+    """out[g, a] = L_ga⁻¹ vectors[g, a] for model g's output a: factors_t (G, E, n, n) the transposed
+    Cholesky factors L_gaᵀ (C-ordered: each L_ga in the Fortran order BLAS reads), vectors and out
+    (G, E, n), all C-contiguous; one call of BLAS dtrsv (at address ``trsv``, :data:`TRSV`) per model
+    and output, as :func:`gpfverify.linalg.lower_solve` makes it for one vector."""
+    models, outputs, n = vectors.shape
+    flags = np.array([ord("L"), ord("N")], dtype=np.uint8)  # lower, no transpose (and a non-unit diagonal)
+    sizes = np.array([n, 1], dtype=np.int32)  # n (also the leading dimension), the increment
+    lower, plain = flags.ctypes.data, flags[1:].ctypes.data
+    size, step = sizes.ctypes.data, sizes[1:].ctypes.data
+    for g in range(models):
+        for a in range(outputs):
+            out[g, a] = vectors[g, a]
+            _call_trsv(trsv, lower, plain, plain, size, factors_t[g, a].ctypes.data, size, out[g, a].ctypes.data,
+                       step)
 
 @_jit_fma
 def centred_sums(z_a: np.ndarray, row: np.ndarray, z_b_t: np.ndarray, col: np.ndarray, u: np.ndarray,
