@@ -303,13 +303,13 @@ def whitened(trsv: int, factors_t: np.ndarray, vectors: np.ndarray, out: np.ndar
     models, outputs, n = vectors.shape
     flags = np.array([ord("L"), ord("N")], dtype=np.uint8)  # lower, no transpose (and a non-unit diagonal)
     sizes = np.array([n, 1], dtype=np.int32)  # n (also the leading dimension), the increment
-    lower, plain = flags.ctypes.data, flags[1:].ctypes.data
-    size, step = sizes.ctypes.data, sizes[1:].ctypes.data
     for g in range(models):
         for a in range(outputs):
             out[g, a] = vectors[g, a]
+            # the flags' and sizes' addresses taken in the loop: the arrays stay alive through it
+            lower, plain, size = flags.ctypes.data, flags.ctypes.data + 1, sizes.ctypes.data
             _call_trsv(trsv, lower, plain, plain, size, factors_t[g, a].ctypes.data, size, out[g, a].ctypes.data,
-                       step)
+                       size + 4)
 
 @_jit_fma
 def centred_sums(z_a: np.ndarray, row: np.ndarray, z_b_t: np.ndarray, col: np.ndarray, u: np.ndarray,
