@@ -2,9 +2,10 @@
 every fusion rule and the audit along the state dimension.
 
 Runs axis. For ct2d (κ = 300 and κ = 30), ungm1d and ``check`` on examples/three_sensor_system.py
-(UKF, 40 steps), the experiment's ``run_one`` over R runs and its ``run_batch`` of the same R runs
-in one call, in one process, alternated over ``--rounds`` rounds; each side timed by process CPU
-time with BLAS on one thread, and its runs per CPU-second reported (the median over rounds). Before
+(UKF, 40 steps; ``--experiments`` names some of them), the experiment's ``run_one`` over R runs
+and its ``run_batch`` of the same R runs in one call, in one process, alternated over ``--rounds``
+rounds; each side timed by process CPU time with BLAS on one thread, and its runs per CPU-second
+reported (the median over rounds). Before
 timing, the batch's records are checked to be those of the runs batched one by one (run_batch of
 one, bit for bit outside the timing fields). Each side also reports the part of its time spent in
 GP learning (per run in both: each run's L-BFGS keeps its own path) and the floor: the CPU time
@@ -157,18 +158,23 @@ def experiments(runs: int):
     from gpfverify.papers.fusion import ungm1d_experiment as ungm1d
 
     tracker = check.params_for("examples/three_sensor_system.py:tracker", filter="ukf", steps=40)
-    return [("ct2d, κ = 300, Ω = 2π/90 (50 steps, 12 methods)", ct2d, ct2d.Params(), runs, 10),
-            ("ct2d, κ = 30, Ω = 2π/90", ct2d, ct2d.Params(kappa=30), runs, 10),
-            ("ungm1d (4 σ², 50 steps, 12 methods each)", ungm1d, ungm1d.Params(), runs, 3),
-            ("check three_sensor_system.py, UKF, 40 steps", check, tracker, 4 * runs, 10)]
+    return {"ct2d300": ("ct2d, κ = 300, Ω = 2π/90 (50 steps, 12 methods)", ct2d, ct2d.Params(), runs, 10),
+            "ct2d30": ("ct2d, κ = 30, Ω = 2π/90", ct2d, ct2d.Params(kappa=30), runs, 10),
+            "ungm1d": ("ungm1d (4 σ², 50 steps, 12 methods each)", ungm1d, ungm1d.Params(), runs, 3),
+            "check": ("check three_sensor_system.py, UKF, 40 steps", check, tracker, 4 * runs, 10)}
 
 
-def runs_axis(rounds: int, runs: int) -> list[list]:
+#: the keys of :func:`experiments`, in the order the runs axis times them (``--experiments``)
+EXPERIMENTS = ("ct2d300", "ct2d30", "ungm1d", "check")
+
+
+def runs_axis(rounds: int, runs: int, chosen: tuple[str, ...] = EXPERIMENTS) -> list[list]:
     from gpfverify.contract.serial import to_json
     from gpfverify.experiments.runner import untimed
 
     rows = []
-    for label, module, params, count, goal in experiments(runs):
+    table = experiments(runs)
+    for label, module, params, count, goal in (table[key] for key in chosen):
         seeds = [np.random.SeedSequence(2024, spawn_key=(i,)) for i in range(count)]
         module.run_batch(params, seeds[:2])  # compile and import outside the timing
         batched = [untimed(to_json(r)) for r in module.run_batch(params, seeds[:3])]
@@ -333,6 +339,8 @@ def main() -> None:
                         help="interleaved rounds per D (four times as many up to D = 32, a third from D = 256)")
     parser.add_argument("--cap", type=float, default=20.0, help="CPU-s of one call above which a rule stops")
     parser.add_argument("--only", choices=("runs", "dims"), default=None)
+    parser.add_argument("--experiments", default=",".join(EXPERIMENTS),
+                        help=f"the runs axis's experiments, comma-separated, of {', '.join(EXPERIMENTS)}")
     parser.add_argument("--out", type=Path, default=None)
     args = parser.parse_args()
     started = load()
@@ -340,7 +348,11 @@ def main() -> None:
             f"{platform.python_version()}, numpy {np.__version__}; BLAS threads 1 (the thread variables "
             f"and threadpoolctl: {blas_threads()}); load average (1, 5, 15 min) at the start {started}"]
     if args.only != "dims":
-        rows = runs_axis(args.rounds, args.runs)
+        chosen = tuple(args.experiments.split(","))
+        unknown = sorted(set(chosen) - set(EXPERIMENTS))
+        if unknown:
+            parser.error(f"--experiments: unknown {', '.join(unknown)} (known: {', '.join(EXPERIMENTS)})")
+        rows = runs_axis(args.rounds, args.runs, chosen)
         text += ["", "Runs per CPU-second, one process, per-run (run_one in a loop) and batched (run_batch of all "
                  "the runs), median of the rounds; GP learning's share of each side's time; the floor: runs per "
                  "CPU-second if only the arithmetic's own calls (LAPACK/BLAS, the compiled moment kernels, "

@@ -134,7 +134,7 @@ def test_fused_moments_equal_the_numpy_path(case):
 
 @needs_numba
 def test_an_exponent_beyond_the_limit_takes_the_numpy_path(monkeypatch):
-    """Where the Cauchy–Schwarz bound admits an exponent above EXPM1_SAFE the kernel is not called."""
+    """Where an exponent is above EXPM1_SAFE the kernel is not called."""
     rng = np.random.default_rng(9)
     from gpfverify.gp import GaussianProcess
 
@@ -149,6 +149,29 @@ def test_an_exponent_beyond_the_limit_takes_the_numpy_path(monkeypatch):
     assert calls == []
     gp.predict_uncertain(np.array([0.5]), np.array([[1e-4]]))
     assert len(calls) == 1
+
+
+@needs_numba
+def test_an_input_the_bound_does_not_clear_is_summed_by_the_kernel_when_its_exponents_allow(monkeypatch):
+    """The Cauchy–Schwarz bound is loose in two dimensions: inputs above it whose largest exponent is
+    below EXPM1_SAFE (formed by largest_exponents) go through the kernel, and get the numpy path's
+    moments to rounding."""
+    from gpfverify.gp import GaussianProcess, fused_kernels
+
+    largest = []
+    original = fused_kernels.largest_exponents
+    monkeypatch.setattr(fused_kernels, "largest_exponents", lambda *a: largest.append(original(*a)) or largest[-1])
+    rng = np.random.default_rng(36)
+    x = rng.uniform(-10, 10, size=(30, 2))
+    gp = GaussianProcess(x, np.sin(x[:, 0]) * np.cos(x[:, 1]), lengthscales=[rng.uniform(0.2, 3, 2)],
+                         signal_var=[1.0], noise_var=[0.01])
+    for scale in (1.0, 3.0, 10.0, 30.0, 100.0, 300.0):
+        a = rng.normal(size=(2, 2))
+        mu, sigma = rng.normal(size=2) * 5, scale * (a @ a.T + 0.1 * np.eye(2))
+        got, ref = _both_paths(type("Case", (), {"gps": (gp,), "mu": mu, "sigma": sigma}))
+        np.testing.assert_allclose(got.mean, ref.mean, rtol=1e-12, atol=1e-14)
+        np.testing.assert_allclose(got.cov, ref.cov, rtol=1e-10, atol=1e-12)
+    assert any(v[0] <= fused.EXPM1_SAFE for v in largest)
 
 
 def test_importing_the_package_does_not_import_numba():

@@ -67,6 +67,9 @@ def convex_combination_batch(means: np.ndarray, covs: np.ndarray, circular_state
 
 
 def squared_mahalanobis_batch(truth: np.ndarray, mean: np.ndarray, cov: np.ndarray) -> np.ndarray:
-    """(x − x̂)ᵀ C⁻¹ (x − x̂) per run (B,): ‖L⁻¹(x − x̂)‖² with C = L Lᵀ (seed 000 eq. 44 as written)."""
+    """(x − x̂)ᵀ C⁻¹ (x − x̂) per run (B,): ‖L⁻¹(x − x̂)‖² with C = L Lᵀ (seed 000 eq. 44 as written).
+    Estimates may carry further leading axes (mean (..., B, D), cov (..., B, D, D); ``truth`` (B, D)
+    broadcast): every matrix is factored and solved on its own, so each result is the same bits in
+    any stack."""
     white = np.linalg.solve(np.linalg.cholesky(cov), (truth - mean)[..., None])[..., 0]
     return np.sum(white * white, axis=-1)

@@ -29,6 +29,7 @@ from collections.abc import Sequence
 import numpy as np
 
 from gpfverify.errors import InputError
+from gpfverify.gp.fused import whitened
 from gpfverify.gp.moments import MomentMatch, moment_match_stack_batch
 
 
@@ -101,14 +102,22 @@ class GaussianProcessBatch:
 
     def predict(self, xs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Latent predictive means and variances (eq. 5–6) at points (B·m, D): each (B·m, E); the
-        variance α² − ‖L⁻¹k*‖² whitened by each run's Cholesky factor (one triangular solve per run
-        and output, as :meth:`GaussianProcess.predict` does)."""
-        kernels = self.kernels(xs)
-        var = np.empty(kernels.shape[:-1])  # (B, E, m)
-        for b, gp in enumerate(self.members):
-            for a, chol in enumerate(gp.choleskys):
-                white = chol.whiten(kernels[b, a].T)
-                var[b, a] = self.signal_var[b, a] - np.einsum("ij,ij->j", white, white)
+        variance α² − ‖L⁻¹k*‖² whitened by each run's Cholesky factor, one triangular solve per run
+        and output as :meth:`GaussianProcess.predict` does (BLAS trsv for one point per run — the
+        filters' case, from one compiled loop where it is on (:func:`gpfverify.gp.fused.whitened`) —
+        else trsm) and ‖L⁻¹k*‖² by the same einsum: a run's variances are its GP's bits."""
+        kernels = self.kernels(xs)  # (B, E, m, n)
+        white = whitened(self.factors_t, kernels[:, :, 0]) if kernels.shape[2] == 1 else None
+        if white is not None:
+            columns = white[..., None]  # (B, E, n, 1), each as the single GP's (n, 1)
+            squares = np.einsum("beij,beij->bej", columns, columns)
+        else:
+            squares = np.empty(kernels.shape[:-1])  # (B, E, m)
+            for b, gp in enumerate(self.members):
+                for a, chol in enumerate(gp.choleskys):
+                    solved = chol.whiten(kernels[b, a].T)
+                    squares[b, a] = np.einsum("ij,ij->j", solved, solved)
+        var = self.signal_var[:, :, None] - squares
         return self._mean(kernels), np.maximum(_rows(var), 0.0)
 
     def predict_uncertain(self, mu, Sigma):

@@ -77,6 +77,21 @@ def first_moments(x: np.ndarray, lengthscales: np.ndarray, signal_var: np.ndarra
     return _kernels().first_moments(x, 1.0 / lengthscales, np.log(signal_var), beta, mu, sigma)
 
 
+def whitened(factors_t: np.ndarray, vectors: np.ndarray) -> np.ndarray | None:
+    """L_ga⁻¹ vectors[g, a] (G, E, n) for the Cholesky factors L_ga given transposed as factors_t
+    (G, E, n, n, C-ordered), by BLAS dtrsv called from one compiled loop
+    (:func:`gpfverify.gp.fused_kernels.whitened`): the routine and arguments of
+    :func:`gpfverify.linalg.lower_solve` for one vector, so the same bits, without a Python call per
+    model and output; None when the compiled path is off."""
+    if not enabled:
+        return None
+    kernels = _kernels()
+    vectors = np.ascontiguousarray(vectors)
+    out = np.empty_like(vectors)
+    kernels.whitened(kernels.TRSV, np.ascontiguousarray(factors_t), vectors, out)
+    return out
+
+
 def centred_sums(x_a: np.ndarray, x_b: np.ndarray, mu: np.ndarray, sigma: np.ndarray, ell_a: np.ndarray,
                  ell_b: np.ndarray, b_logdet_a: np.ndarray, b_logdet_b: np.ndarray, ia: np.ndarray,
                  ib: np.ndarray, t_a: np.ndarray, t_b: np.ndarray, q_a: np.ndarray, q_b: np.ndarray,
@@ -86,17 +101,23 @@ def centred_sums(x_a: np.ndarray, x_b: np.ndarray, mu: np.ndarray, sigma: np.nda
     kernel, its O(n) inputs formed by :func:`gpfverify.gp.fused_kernels.prepare` (arguments as there,
     every GP array with its leading axis of G models, k_inv and factors_t (G, E_a, n_a, n_a) and
     ``diagonal`` as in :func:`gpfverify.gp.fused_kernels.centred_sums`), or None when numba is not
-    installed. ``computed[b]`` is False for an input at which an exponent may exceed
+    installed. ``computed[b]`` is False for an input at which an exponent exceeds
     :data:`EXPM1_SAFE` (its row of Cov and trace is left unset; the caller's numpy path handles it):
-    the bound d_ij ≤ max_i r_i + max_j c_j + max_i ‖z_i‖ · max_j ‖w_j‖ (Cauchy–Schwarz) decides, per
-    input and before any exponent is formed, so the same input always takes the same path whatever
-    else is in the batch."""
+    the bound d_ij ≤ max_i r_i + max_j c_j + max_i ‖z_i‖ · max_j ‖w_j‖ (Cauchy–Schwarz) clears an
+    input before any exponent is formed; an input it does not clear has its largest exponent formed
+    (:func:`gpfverify.gp.fused_kernels.largest_exponents`, the kernel's sums to rounding, far below
+    the 9 units between EXPM1_SAFE and the compiled expm1's overflow). Both decide per input, so the
+    same input always takes the same path whatever else is in the batch."""
     if not enabled:
         return None
     fused_kernels = _kernels()
     *prepared, bound = fused_kernels.prepare(x_a, x_b, mu, sigma, ell_a, ell_b, b_logdet_a, b_logdet_b,
                                              ia, ib, t_a, t_b, q_a, q_b, beta_a, beta_b)
     computed = bound <= EXPM1_SAFE
+    if not computed.all():
+        unsure = np.flatnonzero(~computed)
+        z_a, row, z_b_t, col = prepared[:4]
+        computed[unsure] = fused_kernels.largest_exponents(z_a, row, z_b_t, col, unsure) <= EXPM1_SAFE
     shape = (mu.shape[0], ia.size)
     cov, trace = np.empty(shape), np.empty(shape)
     if computed.all():

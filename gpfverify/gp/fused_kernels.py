@@ -39,6 +39,22 @@ def _bits_float(typingctx, bits):
         return builder.bitcast(args[0], ir.DoubleType())
     return numba.types.float64(numba.types.int64), codegen
 
+#: the address of BLAS ``dtrsv`` in scipy's BLAS (scipy.linalg.cython_blas): the routine
+#: :func:`scipy.linalg.blas.dtrsv` calls, so that a compiled loop calling it gets that call's bits
+TRSV = numba.extending.get_cython_function_address("scipy.linalg.cython_blas", "dtrsv")
+
+@numba.extending.intrinsic
+def _call_trsv(typingctx, address, uplo, trans, diag, n, a, lda, x, incx):
+    """A call of the Fortran BLAS routine at ``address`` (an integer) with trsv's eight arguments,
+    each the address of its value (integers too): the routine's address is an argument rather than a
+    constant of the compiled code, so numba can cache the code across processes."""
+    def codegen(context, builder, signature, args):
+        pointer = ir.IntType(8).as_pointer()
+        routine = builder.inttoptr(args[0], ir.FunctionType(ir.VoidType(), [pointer] * 8).as_pointer())
+        builder.call(routine, [builder.inttoptr(arg, pointer) for arg in args[1:]])
+        return context.get_dummy_value()
+    return numba.types.void(address, uplo, trans, diag, n, a, lda, x, incx), codegen
+
 @_jit_fma
 def _expm1(value: float) -> float:
     """expm1(value) for value ≤ 700 by :func:`gpfverify.gp.expm1.expm1_reference`'s steps, a
@@ -248,6 +264,52 @@ def prepare(x_a: np.ndarray, x_b: np.ndarray, mu: np.ndarray, sigma: np.ndarray,
                 top_col, top_w = max(top_col, col[b, p, j]), max(top_w, _column_square(z_b_t[b, p], j))
             bound[b] = max(bound[b], top_row + top_col + np.sqrt(top_z * top_w))
     return z_a, row, z_b_t, col, u, v, q_a, bound
+
+@_jit
+def largest_exponents(z_a: np.ndarray, row: np.ndarray, z_b_t: np.ndarray, col: np.ndarray,
+                      inputs: np.ndarray) -> np.ndarray:
+    """max_{p,i,j} d_ij of each input b in ``inputs``: the exponents d_ij = r_i + c_j + Σ_k z_ik w_jk
+    that :func:`centred_sums` forms, from :func:`prepare`'s z_a, row, z_b_t and col (shapes as
+    there), each by the same sum to rounding (n_a n_b D multiply–adds per pair: a pass without the
+    exponentials, for the inputs whose Cauchy–Schwarz bound is above the limit)."""
+    pairs, dim, n_a = z_a.shape[1:]
+    n_b = z_b_t.shape[3]
+    largest = np.full(inputs.size, -np.inf)
+    d = np.empty(n_b)
+    for index in range(inputs.size):
+        b = inputs[index]
+        top = -np.inf
+        for p in range(pairs):
+            for i in range(n_a):
+                r_i = row[b, p, i]
+                for j in range(n_b):
+                    d[j] = col[b, p, j] + r_i
+                for k in range(dim):
+                    z = z_a[b, p, k, i]
+                    w = z_b_t[b, p, k]
+                    for j in range(n_b):
+                        d[j] += z * w[j]
+                for j in range(n_b):
+                    top = max(top, d[j])
+        largest[index] = top
+    return largest
+
+@_jit
+def whitened(trsv: int, factors_t: np.ndarray, vectors: np.ndarray, out: np.ndarray) -> None:
+    """out[g, a] = L_ga⁻¹ vectors[g, a] for model g's output a: factors_t (G, E, n, n) the transposed
+    Cholesky factors L_gaᵀ (C-ordered: each L_ga in the Fortran order BLAS reads), vectors and out
+    (G, E, n), all C-contiguous; one call of BLAS dtrsv (at address ``trsv``, :data:`TRSV`) per model
+    and output, as :func:`gpfverify.linalg.lower_solve` makes it for one vector."""
+    models, outputs, n = vectors.shape
+    flags = np.array([ord("L"), ord("N")], dtype=np.uint8)  # lower, no transpose (and a non-unit diagonal)
+    sizes = np.array([n, 1], dtype=np.int32)  # n (also the leading dimension), the increment
+    for g in range(models):
+        for a in range(outputs):
+            out[g, a] = vectors[g, a]
+            # the flags' and sizes' addresses taken in the loop: the arrays stay alive through it
+            lower, plain, size = flags.ctypes.data, flags.ctypes.data + 1, sizes.ctypes.data
+            _call_trsv(trsv, lower, plain, plain, size, factors_t[g, a].ctypes.data, size, out[g, a].ctypes.data,
+                       size + 4)
 
 @_jit_fma
 def centred_sums(z_a: np.ndarray, row: np.ndarray, z_b_t: np.ndarray, col: np.ndarray, u: np.ndarray,

@@ -14,15 +14,17 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+import scipy.linalg as sla
 
-from gpfverify.errors import InputError
+from gpfverify.errors import InputError, NumericalError
 from gpfverify.gp.kernels import se_ard
-from gpfverify.linalg import Cholesky, cholesky
+from gpfverify.linalg import Cholesky, all_finite, cholesky
 from gpfverify.rng import generator
 from gpfverify.validate import as_array, as_covariance, as_positive, as_vector
 from gpfverify.runtime import one_blas_thread
 
 _LOG_2PI = float(np.log(2.0 * np.pi))
+_potrf, _potrs, _potri = sla.lapack.dpotrf, sla.lapack.dpotrs, sla.lapack.dpotri
 
 
 @dataclass(frozen=True)
@@ -59,24 +61,44 @@ def _neg_log_evidence(theta: np.ndarray, x: np.ndarray, y: np.ndarray,
 
     ∂(−log p)/∂θ = −½ tr((ββᵀ − K⁻¹) ∂K/∂θ) with ∂K/∂log ℓ_d = K_f ∘ Δ_d²/ℓ_d²,
     ∂K/∂log α² = K_f, ∂K/∂log σ_ε² = σ_ε² I. ``sq_diff`` is (n, n, D) of (x_i,d − x_j,d)².
+
+    Every n × n array is formed once, in place where it can be (this runs some fifty times per
+    fit): K = ½(K_f + K_fᵀ) + σ_ε² I (the symmetrised K that :func:`~gpfverify.linalg.cholesky`
+    factors, the same bits) is factored by LAPACK ``potrf`` in place, K⁻¹ by ``potri`` in place
+    on the factor (its lower triangle; the upper stays the zeros ``potrf`` cleaned), and
+    W = ββᵀ − K⁻¹ subtracts the lower triangle and its transpose (each entry the same IEEE
+    operations as the full K⁻¹ of :meth:`~gpfverify.linalg.Cholesky.inverse` gives, x − 0 = x), the
+    diagonal once. With one input dimension the scaled distances Δ²/ℓ² are a product, the one term of
+    the matrix–vector product taken otherwise (the same bits). tests/test_gp_regression.py holds
+    the value and gradient to the bits of the plain formulas.
     """
-    d = x.shape[1]
+    n, d = x.shape
     ell2 = np.exp(2.0 * theta[:d])
     signal, noise = np.exp(theta[d]), np.exp(theta[d + 1])
-    kf = signal * np.exp(-0.5 * sq_diff @ (1.0 / ell2))
-    k = kf + noise * np.eye(len(y))
-    try:
-        chol = cholesky(k, "K", allow_jitter=False)
-    except Exception:
+    kf = sq_diff[..., 0] * (1.0 / ell2[0]) if d == 1 else sq_diff @ (1.0 / ell2)
+    np.multiply(kf, -0.5, out=kf)
+    np.exp(kf, out=kf)
+    np.multiply(kf, signal, out=kf)  # K_f = α² exp(−½ Σ_d Δ_d²/ℓ_d²)
+    k = np.add(kf, kf.T)
+    k *= 0.5
+    k.flat[::n + 1] += noise
+    factor, info = _potrf(k.T, lower=1, clean=1, overwrite_a=1)  # k is symmetric: its transpose is it, F-ordered
+    if info != 0 or not all_finite(factor):  # not positive definite at θ: a wall for the optimiser
         return 1e25, np.zeros_like(theta)
-    beta = chol.solve(y)
-    nll = 0.5 * float(y @ beta) + 0.5 * chol.logdet() + 0.5 * len(y) * _LOG_2PI
-    w = np.outer(beta, beta) - chol.inverse()  # n×n, fine for the sizes we fit
-    wk = w * kf
+    beta, _ = _potrs(factor, y, lower=1)
+    nll = 0.5 * float(y @ beta) + 0.5 * (2.0 * float(np.log(factor.diagonal()).sum())) + 0.5 * n * _LOG_2PI
+    k_inv, info = _potri(factor, lower=1, overwrite_c=1)
+    if info != 0:
+        raise NumericalError(f"inverse from the Cholesky factor of K failed (potri info={info})")
+    w = np.multiply.outer(beta, beta)  # W = ββᵀ − K⁻¹ from the lower triangle of K⁻¹
+    w -= k_inv
+    w -= k_inv.T
+    w.flat[::n + 1] = beta * beta - k_inv.diagonal()
+    wk = np.multiply(w, kf, out=kf)
     grad = np.empty_like(theta)
     grad[:d] = -0.5 * np.einsum("ij,ijd->d", wk, sq_diff) / ell2
-    grad[d] = -0.5 * float(np.sum(wk))
-    grad[d + 1] = -0.5 * noise * float(np.trace(w))
+    grad[d] = -0.5 * float(wk.sum())
+    grad[d + 1] = -0.5 * noise * float(w.trace())
     return nll, grad
 
 

@@ -96,8 +96,8 @@ def run_family_batch(family: str, models: GPModel, data: Sequence[FusionData], l
     sensor_models = [models.sensor_model(m) for m in range(sensors)]
     locals_ = list(local_starts)
     cmf_belief, dmf_belief = fused_start, fused_start
-    sq_err = {n: np.empty((runs, steps)) for n in names}
-    maha = {n: np.empty((runs, steps)) for n in names}
+    # per method, run and step, the methods in the order of ``names``
+    sq_err, maha = np.empty((len(names), runs, steps)), np.empty((len(names), runs, steps))
     singular_values: dict[str, list[np.ndarray]] = {k: [] for k in sensor_keys}
     correlations: dict[str, list[np.ndarray]] = {k: [] for k in sensor_keys}
     full_rank = {k: np.empty((runs, steps), dtype=bool) for k in sensor_keys}
@@ -131,10 +131,11 @@ def run_family_batch(family: str, models: GPModel, data: Sequence[FusionData], l
         same = cmf_update_block(block)  # CMF's update from the same central prediction as DMF's
         online[cmf_key][k] = (CPU_CLOCK() - start) / runs
 
-        estimates = dict(zip(names, [*locals_, cmf_belief, dmf_belief, Gaussian(rcc.mean, rcc.cov), cw]))
-        for name, est in estimates.items():
-            sq_err[name][:, k] = np.sum((truth[:, k] - est.mean) ** 2, axis=-1)
-            maha[name][:, k] = squared_mahalanobis_batch(truth[:, k], est.mean, est.cov)
+        # every method's estimate stacked (M, B, D): one Cholesky and one solve per step for all of them
+        estimates = [*locals_, cmf_belief, dmf_belief, Gaussian(rcc.mean, rcc.cov), cw]
+        means, covs = np.stack([e.mean for e in estimates]), np.stack([e.cov for e in estimates])
+        sq_err[:, :, k] = np.sum((truth[:, k] - means) ** 2, axis=-1)
+        maha[:, :, k] = squared_mahalanobis_batch(truth[:, k], means, covs)
         for m, key in enumerate(sensor_keys):
             singular_values[key].append(dmf.singular_values[m])
             correlations[key].append(dmf.correlations[m])
@@ -161,7 +162,7 @@ def run_family_batch(family: str, models: GPModel, data: Sequence[FusionData], l
     def series(values: dict[str, np.ndarray], b: int) -> dict[str, tuple]:
         return {n: tuple(v[b].tolist()) for n, v in values.items()}
     return [FamilyRun(
-        sq_err=series(sq_err, b), maha=series(maha, b),
+        sq_err=series(dict(zip(names, sq_err)), b), maha=series(dict(zip(names, maha)), b),
         singular_values={n: tuple(tuple(step) for step in v[b]) for n, v in per_sensor.items()},
         full_rank=series(full_rank, b), rank_tol=series(tols, b),
         recursive_gap=tuple(recursive_gap[b].tolist()), one_step_gap=tuple(one_step_gap[b].tolist()),
