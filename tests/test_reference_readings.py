@@ -88,14 +88,13 @@ def test_fusion_pages_give_the_batch_their_runs_were_timed_at():
 def test_particle_flow_page_gives_the_batch_its_runs_were_timed_at():
     """The particle-flow page's commands carry ``--batch 1`` exactly where the committed record says
     its runs were filtered one at a time (or predates batches), and the page prints them."""
-    from gpfverify.experiments.batching import batch_option
-    from gpfverify.papers.particle_flow.page import COMMANDS, HERE
+    from gpfverify.papers.particle_flow.page import COMMANDS, HERE, made_by
 
     page = (HERE / "README.md").read_text(encoding="utf-8")
-    for name, text in COMMANDS.items():
+    for name in COMMANDS:
         results = json.loads((HERE / name / "results.json").read_text(encoding="utf-8"))
-        made = text.replace("BATCH", batch_option(results))
-        assert made in page, name
+        made = made_by(name, results)
+        assert made in page and f"--runs {results['runs']} " in made, name
         assert ("--batch 1" in made) == (not (results.get("machine_load") or {}).get("runs_batched")), name
-    batched = {"machine_load": {"runs_batched": 30, "largest_batch": 15}}
-    assert "--batch" not in COMMANDS["pff1d"].replace("BATCH", batch_option(batched))
+    batched = {"runs": 30, "machine_load": {"runs_batched": 30, "largest_batch": 15}}
+    assert "--batch" not in made_by("pff1d", batched)

@@ -39,12 +39,12 @@ from gpfverify.report.inputs import SectionInput
 
 HERE = REFERENCE / particle_flow.SLUG
 #: folder name -> the exact command that made it (run from the repository root, OUT = RUNS_DIR)
-#: (BATCH: the record's --batch, :func:`~gpfverify.experiments.batching.batch_option`)
+#: (RUNS: the record's runs; BATCH: its --batch, :func:`~gpfverify.experiments.batching.batch_option`)
 COMMANDS = {
-    "pff1d": "gpfverify reproduce pff1d --runs 30 --seed 1 BATCH--workers 2 --interpretations vdm-gaussian "
-             "--out OUT/pff1d, then gpfverify reproduce pff1d --runs 30 --seed 1 BATCH--workers 2 --resume "
+    "pff1d": "gpfverify reproduce pff1d --runs RUNS --seed 1 BATCH--workers 2 --interpretations vdm-gaussian "
+             "--out OUT/pff1d, then gpfverify reproduce pff1d --runs RUNS --seed 1 BATCH--workers 2 --resume "
              "--interpretations measurement-linear,noise-as-std --interpretation-runs 10 --out OUT/pff1d",
-    "bearing": "gpfverify reproduce bearing --runs 200 --seed 1 BATCH--workers 1 --interpretations all "
+    "bearing": "gpfverify reproduce bearing --runs RUNS --seed 1 BATCH--workers 1 --interpretations all "
                "--out OUT/bearing",
 }
 MODULES = {"pff1d": pff1d, "bearing": bearing}
@@ -78,7 +78,7 @@ def main(runs_dir: Path) -> None:
         section.blocks[-1:-1] = _second_model_blocks(
             json.loads((HERE / "pff1d" / SECOND_MODEL / "results.json").read_text(encoding="utf-8")))
     alone = [reading_commands(HERE / name, MODULES[name], functools.partial(_alone, name)) for name in COMMANDS]
-    made = [text.replace("BATCH", batch_option(results[name])) for name, text in COMMANDS.items()]
+    made = [made_by(name, results[name]) for name in COMMANDS]
     command = "; ".join([*made, *filter(None, alone)]) + \
         "; then python -m gpfverify.papers.particle_flow.page OUT"
     second_runs = _runs_of(HERE / "pff1d" / SECOND_MODEL)
@@ -98,6 +98,11 @@ def main(runs_dir: Path) -> None:
         "undecided verdicts as run, were the observed mean and spread the true ones: "
         + ("; ".join(undecided) or "none") + "."))
     write_page(section, HERE, list(results.values()))
+
+
+def made_by(name: str, results: dict) -> str:
+    """The command of :data:`COMMANDS` that made ``results``, with its runs and --batch."""
+    return COMMANDS[name].replace("RUNS", str(results["runs"])).replace("BATCH", batch_option(results))
 
 
 def _alone(name: str, reading: str, runs: int) -> str:
