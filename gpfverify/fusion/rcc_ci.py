@@ -474,8 +474,7 @@ def rcc_ci(estimates: Sequence, c: float | None = None, on_empty: str = "error",
     enlarged = False
     while True:
         norm, values = _normalise_one(checked, info, c, metric)
-        tried = (f"size c = {c:.6g} ({EMPTY_GROWTH:g} × the smallest intersecting size, tried after "
-                 f"{_size_words(first, given, dim)} found none)" if enlarged else _size_words(c, given, dim))
+        tried = _tried_words(c, first, given, dim, enlarged)
         try:
             solution = _solve_parametrised(_primal_problem, (len(checked), dim), values, solver, "RCC-CI primal")
         except SolverError as exc:
@@ -494,21 +493,14 @@ def rcc_ci(estimates: Sequence, c: float | None = None, on_empty: str = "error",
             raise SolverError(f"RCC-CI: the solver found no centre at {tried} (status {status}), although the "
                               f"local ellipsoids intersect for every c >= {c_min:.6g}: a badly scaled problem, "
                               "not an empty intersection")
-        if on_empty == "error" or enlarged:
-            raise SolverError(f"RCC-CI: the local ellipsoids do not intersect at {tried}; "
-                              f"the smallest size at which they do is c = {c_min:.6g}")
-        c, enlarged = EMPTY_GROWTH * c_min, True
+        c, enlarged = _enlarged_size(c_min, tried, on_empty, enlarged)
     xi = _centre(norm, solution)
     assert xi is not None  # a solved status carries the primal's values
     alpha = np.clip(np.array(solution.duals, dtype=float), 0.0, None)
     if not alpha.sum() > 0:
         raise SolverError(f"RCC-CI: the dual multipliers are all zero at {tried}; {_smallest_words(checked)}")
-    weights = alpha / alpha.sum()
-    fused = weighted_information_fusion(info, weights)
-    angles = tuple(sorted(circular_state))
-    return RccCiResult(mean=wrap_components(fused.mean, angles), cov=fused.cov, weights=weights, alpha=alpha,
-                       c=c, primal_mean=wrap_components(norm.centre + norm.scale * xi, angles),
-                       primal_value=float(solution.value * norm.scale**2), enlarged=enlarged, circular_state=angles)
+    return _result(info, alpha, c, norm.centre + norm.scale * xi, float(solution.value * norm.scale**2), enlarged,
+                   circular_state)
 
 
 def _rcc_ci_newton(checked: Sequence, info, c: float, given: bool, on_empty: str, circular_state: Sequence[int],
@@ -529,20 +521,35 @@ def _rcc_ci_newton(checked: Sequence, info, c: float, given: bool, on_empty: str
         c_min = smallest_intersecting_size(checked)
         if c >= c_min:  # a certificate of emptiness at a size where they meet: rounding; let the conic route say
             return None
-        tried = (f"size c = {c:.6g} ({EMPTY_GROWTH:g} × the smallest intersecting size, tried after "
-                 f"{_size_words(first, given, dim)} found none)" if enlarged else _size_words(c, given, dim))
-        if on_empty == "error" or enlarged:
-            raise SolverError(f"RCC-CI: the local ellipsoids do not intersect at {tried}; "
-                              f"the smallest size at which they do is c = {c_min:.6g}")
-        c, enlarged = EMPTY_GROWTH * c_min, True
-    alpha = solution.dual.alpha[0]
+        tried = _tried_words(c, first, given, dim, enlarged)
+        c, enlarged = _enlarged_size(c_min, tried, on_empty, enlarged)
+    return _result(info, solution.dual.alpha[0], c, solution.centre[0] + solution.scale[0] * solution.xi[0],
+                   float(solution.dual.value[0] * solution.scale[0] ** 2), enlarged, circular_state)
+
+
+def _tried_words(c: float, first: float, given: bool, dim: int, enlarged: bool) -> str:
+    """The size an RCC-CI attempt used, for its messages."""
+    return (f"size c = {c:.6g} ({EMPTY_GROWTH:g} × the smallest intersecting size, tried after "
+            f"{_size_words(first, given, dim)} found none)" if enlarged else _size_words(c, given, dim))
+
+
+def _enlarged_size(c_min: float, tried: str, on_empty: str, enlarged: bool) -> tuple[float, bool]:
+    """(the size to try next, True) when the ellipsoids missed at ``tried`` and may be enlarged;
+    else the SolverError saying they do not intersect."""
+    if on_empty == "error" or enlarged:
+        raise SolverError(f"RCC-CI: the local ellipsoids do not intersect at {tried}; "
+                          f"the smallest size at which they do is c = {c_min:.6g}")
+    return EMPTY_GROWTH * c_min, True
+
+
+def _result(info, alpha: np.ndarray, c: float, primal: np.ndarray, value: float, enlarged: bool,
+            circular_state: Sequence[int]) -> RccCiResult:
+    """The RCC-CI result of multipliers ``alpha``: the CI form with ω = α/Σα, x* = ``primal``."""
     weights = alpha / alpha.sum()
     fused = weighted_information_fusion(info, weights)
     angles = tuple(sorted(circular_state))
-    primal = solution.centre[0] + solution.scale[0] * solution.xi[0]
     return RccCiResult(mean=wrap_components(fused.mean, angles), cov=fused.cov, weights=weights, alpha=alpha,
-                       c=c, primal_mean=wrap_components(primal, angles),
-                       primal_value=float(solution.dual.value[0] * solution.scale[0] ** 2), enlarged=enlarged,
+                       c=c, primal_mean=wrap_components(primal, angles), primal_value=value, enlarged=enlarged,
                        circular_state=angles)
 
 
